@@ -1,0 +1,15 @@
+#pragma once
+// Each subcommand registers itself on the app; its callback does the work and throws
+// pneuma::Error on failure (main() turns that into one line and an exit code).
+#include <CLI/CLI.hpp>
+
+namespace pneuma::cli {
+
+void register_simulate(CLI::App& app);
+
+// Shared option helpers.
+// Adds `--name VALUE` that parses a quantity with its unit (e.g. "3mm") into SI.
+CLI::Option* add_quantity_option(CLI::App& command, const std::string& name, double& value_si,
+                                 const std::string& description, const char* kind_name);
+
+}  // namespace pneuma::cli

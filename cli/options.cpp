@@ -1,0 +1,32 @@
+#include <string>
+
+#include "commands.h"
+#include "pneuma/core/error.h"
+#include "pneuma/core/units.h"
+
+namespace pneuma::cli {
+
+CLI::Option* add_quantity_option(CLI::App& command, const std::string& name, double& value_si,
+                                 const std::string& description, const char* kind_name) {
+  static const std::pair<const char*, const units::Kind*> kKinds[] = {
+      {"length", &units::kind::length}, {"duration", &units::kind::duration}, {"rate", &units::kind::rate},
+      {"pressure", &units::kind::pressure}, {"volume", &units::kind::volume}};
+  const units::Kind* kind = nullptr;
+  for (const auto& [n, k] : kKinds) {
+    if (std::string(n) == kind_name) kind = k;
+  }
+  return command
+      .add_option_function<std::string>(
+          name,
+          [&value_si, kind, name](const std::string& text) {
+            try {
+              value_si = units::parse(text, *kind);
+            } catch (const units::UnitError& e) {
+              throw UsageError("pneuma: " + name + ": " + e.what());
+            }
+          },
+          description)
+      ->type_name(std::string("<") + kind->example + ">");
+}
+
+}  // namespace pneuma::cli

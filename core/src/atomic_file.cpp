@@ -1,0 +1,82 @@
+#include "pneuma/core/atomic_file.h"
+
+#include <unistd.h>
+
+#include <array>
+#include <atomic>
+#include <cstring>
+#include <system_error>
+
+#include "pneuma/core/error.h"
+
+namespace pneuma {
+namespace {
+
+// A small fixed table of in-flight temporaries, readable from a signal handler.
+constexpr int kMaxPending = 64;
+std::array<std::array<char, 4096>, kMaxPending> g_pending{};
+std::array<std::atomic<bool>, kMaxPending> g_used{};
+std::atomic<unsigned> g_counter{0};
+
+int register_pending(const std::string& path) {
+  if (path.size() >= 4096) return -1;
+  for (int i = 0; i < kMaxPending; ++i) {
+    bool expected = false;
+    if (g_used[i].compare_exchange_strong(expected, true)) {
+      std::memcpy(g_pending[i].data(), path.c_str(), path.size() + 1);
+      return i;
+    }
+  }
+  return -1;
+}
+
+void unregister_pending(int slot) {
+  if (slot >= 0) g_used[slot].store(false);
+}
+
+}  // namespace
+
+void write_atomically(const std::filesystem::path& path,
+                      const std::function<void(const std::filesystem::path&)>& write) {
+  namespace fs = std::filesystem;
+  const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  std::error_code ec;
+  fs::create_directories(parent, ec);
+  if (ec) throw IoError(path.string() + ": cannot create folder '" + parent.string() + "': " + ec.message());
+
+  fs::path tmp = path;
+  tmp += ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(g_counter.fetch_add(1));
+  const int slot = register_pending(tmp.string());
+  try {
+    write(tmp);
+  } catch (...) {
+    fs::remove(tmp, ec);
+    unregister_pending(slot);
+    throw;
+  }
+  fs::rename(tmp, path, ec);
+  unregister_pending(slot);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw IoError(path.string() + ": cannot write file: " + ec.message());
+  }
+}
+
+void write_stream_atomically(const std::filesystem::path& path, bool binary,
+                             const std::function<void(std::ostream&)>& write) {
+  write_atomically(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream out(tmp, binary ? std::ios::binary | std::ios::trunc : std::ios::trunc);
+    if (!out) throw IoError(path.string() + ": cannot open for writing: " + std::strerror(errno));
+    write(out);
+    out.close();
+    if (!out) throw IoError(path.string() + ": write failed (disk full?)");
+  });
+}
+
+void remove_pending_temporaries() noexcept {
+  for (int i = 0; i < kMaxPending; ++i) {
+    if (g_used[i].load()) ::unlink(g_pending[i].data());
+  }
+}
+
+}  // namespace pneuma

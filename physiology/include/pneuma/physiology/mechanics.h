@@ -1,0 +1,73 @@
+#pragma once
+// Lumped respiratory mechanics: compartments with elastic recoil behind resistances.
+//
+// Equation of motion (pressures relative to atmosphere, SI inside):
+//   Paw(t) + Pmus(t) = Pel(V) + R * dV/dt,   with Paw = PEEP + Pvent(t)
+// V is the volume above the relaxed volume (the functional residual capacity at zero airway
+// pressure), so Pel(0) = 0 and PEEP holds V_ee = Pel^-1(PEEP) at end expiration: raising
+// PEEP raises the end-expiratory volume (recruitment on a sigmoid curve). Measured from V_ee
+// this is the textbook form Pvent + Pmus = Pel + R dV/dt + PEEP.
+// Compartments sit in parallel behind one shared airway resistance; each has its own elastic
+// recoil and branch resistance. One compartment is the classic single model.
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace pneuma::physiology {
+
+// Pel(V) = V / C.
+struct LinearCompliance {
+  double compliance_m3_per_pa = 0.0;
+};
+
+// Venegas, Harris & Simon (1998), J Appl Physiol 84:389: V(P) = a + b / (1 + exp(-(P - c) / d)),
+// absolute volume against distending pressure. The volume saturates toward a + b (total lung
+// capacity). Pel(V) = P(V_rest + V) - P(V_rest), so Pel(0) = 0 at the relaxed volume V_rest.
+struct SigmoidCompliance {
+  double lower_volume_m3 = 0.0;         // a: volume at very low pressure
+  double volume_range_m3 = 0.0;         // b: a + b is the volume at very high pressure (TLC)
+  double inflection_pressure_pa = 0.0;  // c: pressure of steepest slope
+  double width_pa = 0.0;                // d: pressure range of the steep part
+  double relaxed_volume_m3 = 0.0;       // V_rest: absolute volume where Pel = 0 (FRC), in (a, a + b)
+};
+
+using Elasticity = std::variant<LinearCompliance, SigmoidCompliance>;
+
+struct Compartment {
+  std::string name;  // "lung", "upper", "lower": used for output column names
+  Elasticity elasticity;
+  double resistance_pa_s_per_m3 = 0.0;  // branch resistance, in series behind the airway
+};
+
+struct Mechanics {
+  double airway_resistance_pa_s_per_m3 = 0.0;  // shared by all compartments
+  std::vector<Compartment> compartments;        // one or more, in parallel
+  // For the pleural pressure estimate: Ppl = -Ptp_rest + f * Pel - Pmus, where f is the
+  // chest wall's share of the respiratory system's elastic recoil (the rest is the lung's).
+  double transpulmonary_pressure_at_rest_pa = 490.3325;  // 5 cmH2O
+  double chest_wall_fraction = 0.5;
+};
+
+// Elastic recoil pressure above PEEP at volume V above the relaxed volume (Pel(0) = 0).
+// Returns NaN where the sigmoid is undefined (V at or beyond its asymptotes).
+double elastic_pressure(const Elasticity& elasticity, double volume_m3);
+// dV/dPel at volume V.
+double compliance_at(const Elasticity& elasticity, double volume_m3);
+// The volume V with Pel(V) = pressure (the inverse of elastic_pressure).
+double volume_at_pressure(const Elasticity& elasticity, double pressure_pa);
+
+// Throws std::invalid_argument naming the first parameter that is not physical.
+void validate(const Mechanics& mechanics);
+
+// Flows into each compartment for a driving pressure Pd = Paw + Pmus.
+// `volumes` and `flows` have one entry per compartment. Returns the total flow.
+double compartment_flows(const Mechanics& mechanics, double driving_pressure_pa, const double* volumes_m3,
+                         double* flows_m3_per_s);
+
+// The driving pressure that produces a prescribed total flow (volume control).
+double driving_pressure_for_flow(const Mechanics& mechanics, double total_flow_m3_per_s, const double* volumes_m3);
+
+// Pressure at the branching point below the airway (the alveolar pressure of a single model).
+double alveolar_pressure(const Mechanics& mechanics, double airway_pressure_pa, double total_flow_m3_per_s);
+
+}  // namespace pneuma::physiology

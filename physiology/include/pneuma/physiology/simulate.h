@@ -1,0 +1,81 @@
+#pragma once
+// Integrates the lung model over time with SUNDIALS CVODE (BDF) and reports volumes, flows,
+// pressures and per-breath metrics.
+#include <string>
+#include <vector>
+
+#include "pneuma/physiology/drivers.h"
+#include "pneuma/physiology/mechanics.h"
+
+namespace pneuma::physiology {
+
+// Mechanics take effect at start_time_s; the driver from the first breath that starts at or
+// after it (a ventilator applies new settings at the next breath, not mid-breath).
+struct Setting {
+  double start_time_s = 0.0;
+  Mechanics mechanics;
+  Driver driver;
+};
+
+// The whole timeline: settings[0] starts at 0, the rest in increasing start time.
+struct Protocol {
+  std::vector<Setting> settings;
+};
+
+struct SolverOptions {
+  double relative_tolerance = 1e-8;
+  double absolute_tolerance_m3 = 1e-12;
+  double max_step_s = 0.0;  // 0: no limit
+};
+
+struct SimulationOptions {
+  double duration_s = 60.0;
+  double output_rate_hz = 100.0;  // 0: no time series (metrics only)
+  SolverOptions solver;
+};
+
+// Time series, one entry per output sample (columns, so they stream straight to CSV/HDF5).
+struct TimeSeries {
+  std::vector<double> time_s;
+  std::vector<double> volume_m3;  // above the relaxed volume (FRC at zero pressure), all compartments
+  std::vector<double> flow_m3_per_s;
+  std::vector<double> airway_pressure_pa;
+  std::vector<double> alveolar_pressure_pa;
+  std::vector<double> pleural_pressure_pa;
+  std::vector<double> muscle_pressure_pa;
+  std::vector<std::vector<double>> compartment_volume_m3;  // [compartment][sample]
+  std::size_t size() const { return time_s.size(); }
+};
+
+struct BreathMetrics {
+  double start_s = 0.0;
+  double duration_s = 0.0;
+  const char* mode = "";
+  double tidal_volume_m3 = 0.0;                  // end-inspiratory minus start volume
+  double minute_ventilation_m3_per_s = 0.0;      // tidal volume / breath duration
+  double peak_pressure_pa = 0.0;                 // highest airway pressure
+  double plateau_pressure_pa = 0.0;              // alveolar pressure at the end of inspiration
+  double peep_pa = 0.0;
+  double dynamic_compliance_m3_per_pa = 0.0;     // VT / (max(Paw + Pmus) - PEEP)
+  double end_expiratory_volume_m3 = 0.0;
+  double muscle_amplitude_pa = 0.0;              // the spontaneous driver's amplitude in this breath
+};
+
+struct SolverStats {
+  long steps = 0;
+  long rhs_evaluations = 0;
+  long restarts = 0;  // one per phase boundary or action
+};
+
+struct SimulationResult {
+  std::vector<std::string> compartment_names;
+  TimeSeries series;
+  std::vector<BreathMetrics> breaths;  // completed breaths only
+  SolverStats stats;
+};
+
+// Throws std::invalid_argument for a protocol that cannot work (named setting), and
+// pneuma::Error when CVODE fails or a target tidal volume cannot be reached.
+SimulationResult simulate(const Protocol& protocol, const SimulationOptions& options);
+
+}  // namespace pneuma::physiology

@@ -1,0 +1,120 @@
+#include "pneuma/physiology/mechanics.h"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace pneuma::physiology {
+namespace {
+
+// Venegas' curve solved for pressure: P(V) = c - d * ln(b / (V - a) - 1).
+double sigmoid_pressure(const SigmoidCompliance& s, double absolute_volume_m3) {
+  const double x = absolute_volume_m3 - s.lower_volume_m3;
+  if (!(x > 0.0) || !(x < s.volume_range_m3)) return std::numeric_limits<double>::quiet_NaN();
+  return s.inflection_pressure_pa - s.width_pa * std::log(s.volume_range_m3 / x - 1.0);
+}
+
+struct PressureOf {
+  double volume;
+  double operator()(const LinearCompliance& c) const { return volume / c.compliance_m3_per_pa; }
+  double operator()(const SigmoidCompliance& s) const {
+    return sigmoid_pressure(s, s.relaxed_volume_m3 + volume) - sigmoid_pressure(s, s.relaxed_volume_m3);
+  }
+};
+
+struct ComplianceOf {
+  double volume;
+  double operator()(const LinearCompliance& c) const { return c.compliance_m3_per_pa; }
+  double operator()(const SigmoidCompliance& s) const {
+    // dV/dP = (V - a)(a + b - V) / (b d)
+    const double x = s.relaxed_volume_m3 + volume - s.lower_volume_m3;
+    return x * (s.volume_range_m3 - x) / (s.volume_range_m3 * s.width_pa);
+  }
+};
+
+}  // namespace
+
+double elastic_pressure(const Elasticity& elasticity, double volume_m3) {
+  return std::visit(PressureOf{volume_m3}, elasticity);
+}
+
+double volume_at_pressure(const Elasticity& elasticity, double pressure_pa) {
+  if (const auto* lin = std::get_if<LinearCompliance>(&elasticity)) return lin->compliance_m3_per_pa * pressure_pa;
+  const auto& s = std::get<SigmoidCompliance>(elasticity);
+  const double p = sigmoid_pressure(s, s.relaxed_volume_m3) + pressure_pa;
+  return s.lower_volume_m3 + s.volume_range_m3 / (1.0 + std::exp(-(p - s.inflection_pressure_pa) / s.width_pa)) -
+         s.relaxed_volume_m3;
+}
+
+double compliance_at(const Elasticity& elasticity, double volume_m3) {
+  return std::visit(ComplianceOf{volume_m3}, elasticity);
+}
+
+void validate(const Mechanics& m) {
+  if (m.compartments.empty()) throw std::invalid_argument("at least one compartment is needed");
+  if (!(m.airway_resistance_pa_s_per_m3 >= 0.0)) throw std::invalid_argument("airway resistance must be >= 0");
+  if (!(m.chest_wall_fraction >= 0.0 && m.chest_wall_fraction <= 1.0))
+    throw std::invalid_argument("chest wall fraction must lie in [0, 1]");
+  for (const Compartment& c : m.compartments) {
+    if (m.compartments.size() > 1 && !(c.resistance_pa_s_per_m3 > 0.0))
+      throw std::invalid_argument("compartment '" + c.name + "': a parallel compartment needs a positive resistance");
+    if (m.compartments.size() == 1 && !(c.resistance_pa_s_per_m3 + m.airway_resistance_pa_s_per_m3 > 0.0))
+      throw std::invalid_argument("the total resistance must be positive");
+    if (const auto* lin = std::get_if<LinearCompliance>(&c.elasticity)) {
+      if (!(lin->compliance_m3_per_pa > 0.0))
+        throw std::invalid_argument("compartment '" + c.name + "': compliance must be positive");
+    } else {
+      const auto& s = std::get<SigmoidCompliance>(c.elasticity);
+      if (!(s.volume_range_m3 > 0.0) || !(s.width_pa > 0.0))
+        throw std::invalid_argument("compartment '" + c.name + "': sigmoid range and width must be positive");
+      if (!(s.relaxed_volume_m3 > s.lower_volume_m3 && s.relaxed_volume_m3 < s.lower_volume_m3 + s.volume_range_m3))
+        throw std::invalid_argument("compartment '" + c.name +
+                                    "': the relaxed volume must lie between the sigmoid's lower volume and TLC");
+    }
+  }
+}
+
+double compartment_flows(const Mechanics& m, double pd, const double* v, double* q) {
+  const std::size_t n = m.compartments.size();
+  if (n == 1) {
+    const double r = m.airway_resistance_pa_s_per_m3 + m.compartments[0].resistance_pa_s_per_m3;
+    q[0] = (pd - elastic_pressure(m.compartments[0].elasticity, v[0])) / r;
+    return q[0];
+  }
+  // Q_i = (Pd - Pel_i - Raw Q) / R_i and Q = sum Q_i  =>  Q = sum((Pd - Pel_i)/R_i) / (1 + Raw G).
+  double g = 0.0, weighted = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double gi = 1.0 / m.compartments[i].resistance_pa_s_per_m3;
+    g += gi;
+    weighted += gi * (pd - elastic_pressure(m.compartments[i].elasticity, v[i]));
+  }
+  const double total = weighted / (1.0 + m.airway_resistance_pa_s_per_m3 * g);
+  for (std::size_t i = 0; i < n; ++i) {
+    q[i] = (pd - elastic_pressure(m.compartments[i].elasticity, v[i]) - m.airway_resistance_pa_s_per_m3 * total) /
+           m.compartments[i].resistance_pa_s_per_m3;
+  }
+  return total;
+}
+
+double driving_pressure_for_flow(const Mechanics& m, double total_flow, const double* v) {
+  const std::size_t n = m.compartments.size();
+  if (n == 1) {
+    const double r = m.airway_resistance_pa_s_per_m3 + m.compartments[0].resistance_pa_s_per_m3;
+    return elastic_pressure(m.compartments[0].elasticity, v[0]) + r * total_flow;
+  }
+  double g = 0.0, weighted = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double gi = 1.0 / m.compartments[i].resistance_pa_s_per_m3;
+    g += gi;
+    weighted += gi * elastic_pressure(m.compartments[i].elasticity, v[i]);
+  }
+  return (total_flow * (1.0 + m.airway_resistance_pa_s_per_m3 * g) + weighted) / g;
+}
+
+double alveolar_pressure(const Mechanics& m, double airway_pressure_pa, double total_flow) {
+  double r = m.airway_resistance_pa_s_per_m3;
+  if (m.compartments.size() == 1) r += m.compartments[0].resistance_pa_s_per_m3;
+  return airway_pressure_pa - r * total_flow;
+}
+
+}  // namespace pneuma::physiology

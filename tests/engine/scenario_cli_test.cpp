@@ -1,0 +1,92 @@
+// `pneuma simulate` end to end: shipped scenarios run; every bad input is one line + exit code.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "test_support.h"
+
+using pneuma::test::run_pneuma;
+using pneuma::test::TempDir;
+
+namespace {
+
+int count_lines(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  int n = 0;
+  for (std::string line; std::getline(in, line);) ++n;
+  return n;
+}
+
+}  // namespace
+
+TEST(SimulateCli, ShippedScenariosRunAndWriteCsv) {
+  for (const char* name : {"quiet-breathing", "ventilated-patient"}) {
+    TempDir dir;
+    const auto scenario = pneuma::test::source_dir() / "scenarios" / (std::string(name) + ".yaml");
+    const auto r = run_pneuma({"simulate", scenario.string(), "-o", (dir / "phys.csv").string()});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(r.err.empty()) << r.err;
+    EXPECT_GT(count_lines(dir / "phys.csv"), 6000);  // 100 Hz over 60-90 s, plus the header
+    EXPECT_GT(count_lines(dir / "phys-breaths.csv"), 10);
+  }
+}
+
+TEST(SimulateCli, VersionAndHelp) {
+  auto r = run_pneuma({"--version"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.out, "pneuma " PNEUMA_VERSION "\n");
+  r = run_pneuma({"--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("simulate"), std::string::npos);
+}
+
+struct BadScenario {
+  const char* name;
+  const char* yaml;
+  const char* message;  // after "<file>:"
+};
+
+class SimulateBadInput : public ::testing::TestWithParam<BadScenario> {};
+
+TEST_P(SimulateBadInput, OneLineNamingFilePlaceAndExpectation) {
+  TempDir dir;
+  const auto file = dir.write("s.yaml", GetParam().yaml);
+  const auto out = dir / "out.csv";
+  const auto r = run_pneuma({"simulate", file.string(), "-o", out.string()});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() + ":" + GetParam().message + "\n");
+  EXPECT_TRUE(r.out.empty());
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"}) << "no partial output";
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, SimulateBadInput,
+    ::testing::Values(
+        BadScenario{"missing_unit", "duration: 20\nphysiology:\n  preset: healthy-adult\n",
+                    "1:11: duration: expected a duration such as '2 s', got '20'"},
+        BadScenario{"wrong_unit", "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  compliance: 0.1 L\n",
+                    "4:15: physiology.compliance: expected a compliance such as '0.1 L/cmH2O', got '0.1 L'"},
+        BadScenario{"negative_duration", "duration: -5 s\nphysiology:\n  preset: healthy-adult\n",
+                    "1:11: duration: expected a positive duration, got '-5 s'"},
+        BadScenario{"unknown_key", "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  complience: 0.1 L/cmH2O\n",
+                    "4:3: physiology.complience: unknown key; expected one of: actions, chest_wall_fraction, "
+                    "compartments, compliance, driver, model, output_rate, preset, pressure_volume_curve, "
+                    "resistance, solver, transpulmonary_pressure_at_rest"},
+        BadScenario{"unknown_preset", "duration: 20 s\nphysiology:\n  preset: healthy-martian\n",
+                    "3:11: physiology.preset: no preset 'healthy-martian'"},
+        BadScenario{"bad_ratio", "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  driver: {ie_ratio: 2}\n",
+                    "4:23: physiology.driver.ie_ratio: expected a ratio such as '1:2', got '2'"},
+        BadScenario{"wrong_mode_key",
+                    "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  driver: {peep: 5 cmH2O}\n",
+                    "4:19: physiology.driver.peep: not a setting of spontaneous mode"},
+        BadScenario{"action_after_end",
+                    "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  actions:\n    - {at: 30 s, rate: 10 /min}\n",
+                    "5:12: physiology.actions[0].at: expected a time within the scenario's duration"},
+        BadScenario{"not_yaml", "duration: [20 s\n", "2:1: not valid YAML: end of sequence flow not found"}),
+    [](const auto& test_case) { return std::string(test_case.param.name); });
+
+TEST(SimulateCli, MissingScenarioFileIsAUsageError) {
+  const auto r = run_pneuma({"simulate", "/nonexistent/scenario.yaml"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "pneuma: scenario: File does not exist: /nonexistent/scenario.yaml (see 'pneuma --help')\n");
+}

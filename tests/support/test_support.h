@@ -1,0 +1,42 @@
+#pragma once
+// Shared test helpers (in the spirit of MuJoCo's test/fixture.h): temporary folders, files,
+// and running the `pneuma` executable to check its exact one-line errors and exit codes.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace pneuma::test {
+
+// A fresh folder under the system temp dir, removed when the object goes away.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+  // Writes `text` to <dir>/<name> and returns the path.
+  std::filesystem::path write(const std::string& name, const std::string& text) const;
+  // Names of the files in the folder (to check that nothing partial was left behind).
+  std::vector<std::string> files() const;
+
+ private:
+  std::filesystem::path path_;
+};
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+// Runs the pneuma executable with `args` (no shell involved), in `working_dir` if given.
+CommandResult run_pneuma(const std::vector<std::string>& args, const std::filesystem::path& working_dir = {});
+
+// The source tree (for shipped scenarios and presets).
+std::filesystem::path source_dir();
+
+std::string read_text(const std::filesystem::path& path);
+
+}  // namespace pneuma::test
