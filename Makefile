@@ -22,7 +22,8 @@ build: configure
 	@cmake --build --preset $(PRESET)
 
 demo: build
-	@$(PNEUMA) demo $(DEMO_SCENARIO) -o $(DEMO_OUT)
+	@$(PNEUMA) simulate $(DEMO_SCENARIO) -o $(DEMO_OUT)/physiology.csv
+	@echo "demo outputs are in $(DEMO_OUT)/"
 
 test: build
 	@ctest --preset $(PRESET)

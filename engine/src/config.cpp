@@ -98,6 +98,7 @@ Node Node::map(const std::string& key) const {
 }
 
 std::optional<Node> Node::optional_map(const std::string& key) const {
+  asked_keys_->insert(key);
   std::vector<Layer> layers;
   bool first = true;
   for (const Layer& layer : layers_) {
@@ -226,6 +227,7 @@ std::vector<std::string> Node::keys() const {
 }
 
 void Node::accept(const std::string& key) const {
+  asked_keys_->insert(key);
   for (const Layer& layer : layers_) layer.read_keys->insert(key);
 }
 

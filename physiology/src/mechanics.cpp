@@ -1,5 +1,6 @@
 #include "pneuma/physiology/mechanics.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -7,11 +8,21 @@
 namespace pneuma::physiology {
 namespace {
 
-// Venegas' curve solved for pressure: P(V) = c - d * ln(b / (V - a) - 1).
+// Within this share of the range from either asymptote the curve continues as its tangent.
+// A real trajectory never gets there (it takes ~20 widths of pressure), but the integrator's
+// predictor may step past an asymptote; a C1 extension keeps the right-hand side defined.
+constexpr double kAsymptoteMargin = 1e-9;
+
+// Venegas' curve solved for pressure: P(V) = c - d * ln(b / (V - a) - 1), and its slope
+// dP/dV = b d / (x (b - x)) with x = V - a.
 double sigmoid_pressure(const SigmoidCompliance& s, double absolute_volume_m3) {
+  const double b = s.volume_range_m3;
   const double x = absolute_volume_m3 - s.lower_volume_m3;
-  if (!(x > 0.0) || !(x < s.volume_range_m3)) return std::numeric_limits<double>::quiet_NaN();
-  return s.inflection_pressure_pa - s.width_pa * std::log(s.volume_range_m3 / x - 1.0);
+  const double lo = kAsymptoteMargin * b, hi = (1.0 - kAsymptoteMargin) * b;
+  const double clamped = std::clamp(x, lo, hi);
+  const double p = s.inflection_pressure_pa - s.width_pa * std::log(b / clamped - 1.0);
+  if (clamped == x) return p;
+  return p + (x - clamped) * b * s.width_pa / (clamped * (b - clamped));
 }
 
 struct PressureOf {
@@ -26,8 +37,9 @@ struct ComplianceOf {
   double volume;
   double operator()(const LinearCompliance& c) const { return c.compliance_m3_per_pa; }
   double operator()(const SigmoidCompliance& s) const {
-    // dV/dP = (V - a)(a + b - V) / (b d)
-    const double x = s.relaxed_volume_m3 + volume - s.lower_volume_m3;
+    // dV/dP = (V - a)(a + b - V) / (b d), constant beyond the asymptote margins.
+    const double x = std::clamp(s.relaxed_volume_m3 + volume - s.lower_volume_m3, kAsymptoteMargin * s.volume_range_m3,
+                                (1.0 - kAsymptoteMargin) * s.volume_range_m3);
     return x * (s.volume_range_m3 - x) / (s.volume_range_m3 * s.width_pa);
   }
 };

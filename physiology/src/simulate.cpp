@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
 #include <limits>
 #include <map>
 #include <stdexcept>
@@ -57,6 +59,12 @@ int right_hand_side(double t, N_Vector y, N_Vector ydot, void* user_data) {
     if (!std::isfinite(q[i])) return 1;  // outside the sigmoid's domain: CVODE retries a smaller step
   }
   return 0;
+}
+
+std::string fmt_seconds(double t) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%g", t);
+  return buffer;
 }
 
 double total(const double* v, std::size_t n) {
@@ -202,7 +210,9 @@ class Simulation {
     std::array<double, kMaxCompartments> sample{};
     while (series_ && next_output_ < output_count_ && output_time(next_output_) < b) {
       const double t = output_time(next_output_);
-      if (t <= a) {
+      // A sample a rounding error after the segment's start takes the start state (CVODE
+      // refuses a first step that small, and the state cannot differ measurably).
+      if (t <= a + 1e-12 * std::max(1.0, a)) {
         record(t, y);
         continue;
       }
@@ -258,6 +268,16 @@ Driver Simulation::resolved_driver(std::size_t setting, const double*) {
   double compliance = 0.0;
   for (const auto& c : s.mechanics.compartments) compliance += compliance_at(c.elasticity, 0.0);
   constexpr double kMaxAmplitude = 100.0 * 98.0665;  // 100 cmH2O: far beyond any real effort
+  auto unreachable = [&] {
+    return Error(ExitCode::bad_input,
+                 "physiology: a tidal volume of " + std::to_string(std::lround(target * 1e6)) +
+                     " mL cannot be reached by spontaneous breathing with these mechanics (setting from t = " +
+                     fmt_seconds(s.start_time_s) + " s)");
+  };
+  // Quasi-static bound: no breath can exceed the volume the largest effort holds at rest.
+  double static_limit = 0.0;
+  for (const auto& c : s.mechanics.compartments) static_limit += volume_at_pressure(c.elasticity, kMaxAmplitude);
+  if (target >= static_limit) throw unreachable();
   double a0 = std::min(target / compliance, kMaxAmplitude);
   double f0 = steady_tidal_volume(s.mechanics, *spontaneous, a0, options_.solver) - target;
   double a1 = std::min(a0 * target / (f0 + target), kMaxAmplitude);
@@ -270,12 +290,7 @@ Driver Simulation::resolved_driver(std::size_t setting, const double*) {
     a1 = a2;
     f1 = steady_tidal_volume(s.mechanics, *spontaneous, a1, options_.solver) - target;
   }
-  if (std::abs(f1) > 1e-6 * target) {
-    throw Error(ExitCode::bad_input,
-                "physiology: a tidal volume of " + std::to_string(std::lround(target * 1e6)) +
-                    " mL cannot be reached by spontaneous breathing with these mechanics (setting from t = " +
-                    std::to_string(s.start_time_s) + " s)");
-  }
+  if (std::abs(f1) > 1e-6 * target) throw unreachable();
   Spontaneous resolved = *spontaneous;
   resolved.amplitude_pa = a1;
   resolved.target_tidal_volume_m3 = 0.0;

@@ -77,5 +77,5 @@ TEST(PhysiologyConfig, ActionsPatchTheDriverAndRefuseKeysOfAnotherMode) {
 
   const Node bad = Node::load_string(base + "actions:\n  - {at: 10 s, inspiratory_pressure: 15 cmH2O}\n", "p.yaml");
   EXPECT_EQ(error_of([&] { pneuma::engine::read_physiology(bad, 60.0, "/nonexistent"); }),
-            "p.yaml:6:38: physiology.actions[0].inspiratory_pressure: not a setting of volume_control mode");
+            "p.yaml:6:38: actions[0].inspiratory_pressure: not a setting of volume_control mode");
 }

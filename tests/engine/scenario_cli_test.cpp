@@ -73,12 +73,13 @@ INSTANTIATE_TEST_SUITE_P(
                     "compartments, compliance, driver, model, output_rate, preset, pressure_volume_curve, "
                     "resistance, solver, transpulmonary_pressure_at_rest"},
         BadScenario{"unknown_preset", "duration: 20 s\nphysiology:\n  preset: healthy-martian\n",
-                    "3:11: physiology.preset: no preset 'healthy-martian'"},
+                    "3:11: physiology.preset: no preset 'healthy-martian' (looked for " PNEUMA_SOURCE_DIR
+                    "/configs/physiology/healthy-martian.yaml; shipped presets: healthy-adult, stiff-lung, obstructive)"},
         BadScenario{"bad_ratio", "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  driver: {ie_ratio: 2}\n",
-                    "4:23: physiology.driver.ie_ratio: expected a ratio such as '1:2', got '2'"},
+                    "4:22: physiology.driver.ie_ratio: expected a ratio such as '1:2', got '2'"},
         BadScenario{"wrong_mode_key",
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  driver: {peep: 5 cmH2O}\n",
-                    "4:19: physiology.driver.peep: not a setting of spontaneous mode"},
+                    "4:18: physiology.driver.peep: not a setting of spontaneous mode"},
         BadScenario{"action_after_end",
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  actions:\n    - {at: 30 s, rate: 10 /min}\n",
                     "5:12: physiology.actions[0].at: expected a time within the scenario's duration"},

@@ -48,8 +48,9 @@ struct Mechanics {
   double chest_wall_fraction = 0.5;
 };
 
-// Elastic recoil pressure above PEEP at volume V above the relaxed volume (Pel(0) = 0).
-// Returns NaN where the sigmoid is undefined (V at or beyond its asymptotes).
+// Elastic recoil pressure at volume V above the relaxed volume (Pel(0) = 0). The sigmoid
+// continues as its tangent within 1e-9 of its range from either asymptote (never reached by
+// a real trajectory; it keeps the integrator's trial steps defined).
 double elastic_pressure(const Elasticity& elasticity, double volume_m3);
 // dV/dPel at volume V.
 double compliance_at(const Elasticity& elasticity, double volume_m3);
