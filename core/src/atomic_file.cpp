@@ -36,30 +36,37 @@ void unregister_pending(int slot) {
 
 }  // namespace
 
-void write_atomically(const std::filesystem::path& path,
-                      const std::function<void(const std::filesystem::path&)>& write) {
+PendingFile::PendingFile(std::filesystem::path path) : path_(std::move(path)) {
   namespace fs = std::filesystem;
-  const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const fs::path parent = path_.has_parent_path() ? path_.parent_path() : fs::path(".");
   std::error_code ec;
   fs::create_directories(parent, ec);
-  if (ec) throw IoError(path.string() + ": cannot create folder '" + parent.string() + "': " + ec.message());
+  if (ec) throw IoError(path_.string() + ": cannot create folder '" + parent.string() + "': " + ec.message());
+  temporary_ = path_;
+  temporary_ += ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(g_counter.fetch_add(1));
+  slot_ = register_pending(temporary_.string());
+}
 
-  fs::path tmp = path;
-  tmp += ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(g_counter.fetch_add(1));
-  const int slot = register_pending(tmp.string());
-  try {
-    write(tmp);
-  } catch (...) {
-    fs::remove(tmp, ec);
-    unregister_pending(slot);
-    throw;
+PendingFile::~PendingFile() {
+  if (!committed_) {
+    std::error_code ec;
+    std::filesystem::remove(temporary_, ec);
   }
-  fs::rename(tmp, path, ec);
-  unregister_pending(slot);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw IoError(path.string() + ": cannot write file: " + ec.message());
-  }
+  unregister_pending(slot_);
+}
+
+void PendingFile::commit() {
+  std::error_code ec;
+  std::filesystem::rename(temporary_, path_, ec);
+  if (ec) throw IoError(path_.string() + ": cannot write file: " + ec.message());
+  committed_ = true;
+}
+
+void write_atomically(const std::filesystem::path& path,
+                      const std::function<void(const std::filesystem::path&)>& write) {
+  PendingFile file(path);
+  write(file.temporary());
+  file.commit();
 }
 
 void write_stream_atomically(const std::filesystem::path& path, bool binary,

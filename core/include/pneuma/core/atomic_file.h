@@ -19,6 +19,27 @@ void write_atomically(const std::filesystem::path& path,
 void write_stream_atomically(const std::filesystem::path& path, bool binary,
                              const std::function<void(std::ostream&)>& write);
 
+// A file written over time (e.g. across the frames of a run): open it under pending.temporary(),
+// call commit() once complete. Destroyed without commit(), it removes the temporary; on
+// Ctrl-C remove_pending_temporaries() does. Creates missing parent folders.
+class PendingFile {
+ public:
+  explicit PendingFile(std::filesystem::path path);
+  ~PendingFile();
+  PendingFile(const PendingFile&) = delete;
+  PendingFile& operator=(const PendingFile&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  const std::filesystem::path& temporary() const { return temporary_; }
+  // Renames the temporary to the final path. Throws IoError when that fails.
+  void commit();
+
+ private:
+  std::filesystem::path path_;
+  std::filesystem::path temporary_;
+  int slot_ = -1;
+  bool committed_ = false;
+};
+
 // Removes every temporary file still registered (called from the CLI's SIGINT handler, so
 // Ctrl-C leaves no half-written file behind). Async-signal-safe enough for that use: it only
 // calls unlink() on paths prepared in advance.
