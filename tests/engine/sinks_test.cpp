@@ -1,0 +1,156 @@
+// Sinks checked by reading their files back with independent readers (tinygltf, HDF5, pugixml).
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <gtest/gtest.h>
+#include <hdf5.h>
+#include <tiny_gltf.h>
+
+#include <cmath>
+#include <cstring>
+#include <pugixml.hpp>
+
+#include "pneuma/engine/sinks.h"
+#include "test_support.h"
+
+using namespace pneuma::engine;
+using pneuma::test::TempDir;
+
+namespace {
+
+BreathingModel sphere_model() {
+  const auto rest = pneuma::mesh::make_icosphere(0.1, 2);
+  std::vector<Eigen::Vector3d> u(rest.vertex_count());
+  const auto n = pneuma::mesh::vertex_normals(rest);
+  for (std::size_t i = 0; i < u.size(); ++i) u[i] = (1.0 + rest.vertices[i].z() * 5.0) * 1e-4 * n[i];
+  BreathingModel model{rest, u, n, 1e-4, VolumeScaleMap(rest.vertices, u, rest.triangles), surface_area(rest)};
+  return model;
+}
+
+// Drives a sink over a sinusoidal breath, as the runner does.
+std::vector<double> drive(FrameSink& sink, const BreathingModel& model, std::size_t frames, double rate) {
+  std::vector<double> scales(frames);
+  for (std::size_t k = 0; k < frames; ++k) scales[k] = 20.0 * std::sin(static_cast<double>(k) * 0.3) + 5.0;
+  RunInfo run{frames, rate, *std::min_element(scales.begin(), scales.end()),
+              *std::max_element(scales.begin(), scales.end()), {}};
+  sink.begin(model, run);
+  Frame f;
+  f.positions.resize(model.rest.vertex_count());
+  for (std::size_t k = 0; k < frames; ++k) {
+    f.index = k;
+    f.time_s = static_cast<double>(k) / rate;
+    f.scale = scales[k];
+    displace(model, f.scale, f.positions);
+    f.mesh_volume_m3 = model.volume_map.volume(f.scale);
+    f.lung_volume_m3 = f.mesh_volume_m3 - model.volume_map.volume(0.0);
+    f.area_m2 = pneuma::mesh::surface_area(f.positions, model.rest.triangles);
+    sink.frame(model, f);
+  }
+  sink.end();
+  return scales;
+}
+
+const float* accessor_floats(const tinygltf::Model& m, int index) {
+  const auto& a = m.accessors[static_cast<std::size_t>(index)];
+  const auto& v = m.bufferViews[static_cast<std::size_t>(a.bufferView)];
+  return reinterpret_cast<const float*>(m.buffers[0].data.data() + v.byteOffset + a.byteOffset);
+}
+
+std::vector<hsize_t> shape(hid_t file, const char* path) {
+  const hid_t set = H5Dopen2(file, path, H5P_DEFAULT);
+  const hid_t space = H5Dget_space(set);
+  std::vector<hsize_t> dims(static_cast<std::size_t>(H5Sget_simple_extent_ndims(space)));
+  H5Sget_simple_extent_dims(space, dims.data(), nullptr);
+  H5Sclose(space);
+  H5Dclose(set);
+  return dims;
+}
+
+std::vector<hsize_t> parse_dims(const char* text) {
+  std::vector<hsize_t> dims;
+  std::istringstream in(text);
+  for (hsize_t d; in >> d;) dims.push_back(d);
+  return dims;
+}
+
+}  // namespace
+
+TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
+  TempDir dir;
+  const BreathingModel model = sphere_model();
+  auto sink = make_gltf_sink(dir / "breathing.glb");
+  const auto scales = drive(*sink, model, 40, 10.0);
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"breathing.glb"});
+
+  tinygltf::Model m;
+  tinygltf::TinyGLTF loader;
+  std::string error, warning;
+  ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &error, &warning, (dir / "breathing.glb").string())) << error;
+  ASSERT_EQ(m.meshes.size(), 1u);
+  const auto& primitive = m.meshes[0].primitives[0];
+  ASSERT_EQ(primitive.targets.size(), 1u);
+  const int position = primitive.attributes.at("POSITION"), target = primitive.targets[0].at("POSITION");
+  const std::size_t n = model.rest.vertex_count();
+  EXPECT_EQ(m.accessors[static_cast<std::size_t>(position)].count, n);
+  EXPECT_EQ(m.accessors[static_cast<std::size_t>(target)].count, n);
+  EXPECT_EQ(m.accessors[static_cast<std::size_t>(primitive.indices)].count, model.rest.triangle_count() * 3);
+  // Every view lies inside the buffer; accessors fit in their views.
+  for (const auto& a : m.accessors) {
+    const auto& v = m.bufferViews[static_cast<std::size_t>(a.bufferView)];
+    EXPECT_LE(v.byteOffset + v.byteLength, m.buffers[0].data.size());
+    const std::size_t width = a.type == TINYGLTF_TYPE_VEC3 ? 3 : 1;
+    EXPECT_LE(a.byteOffset + a.count * 4 * width, v.byteLength);  // float32 and uint32 alike
+  }
+  ASSERT_EQ(m.animations.size(), 1u);
+  const auto& sampler = m.animations[0].samplers[0];
+  EXPECT_EQ(m.animations[0].channels[0].target_path, "weights");
+  EXPECT_EQ(sampler.interpolation, "LINEAR");
+  EXPECT_EQ(m.accessors[static_cast<std::size_t>(sampler.input)].count, scales.size());
+
+  // The glTF frame at keyframe k: rest + w_k * target, against rest + s_k u in double.
+  const float* rest = accessor_floats(m, position);
+  const float* delta = accessor_floats(m, target);
+  const float* times = accessor_floats(m, sampler.input);
+  const float* weights = accessor_floats(m, sampler.output);
+  for (std::size_t k = 0; k < scales.size(); k += 7) {
+    EXPECT_FLOAT_EQ(times[k], static_cast<float>(static_cast<double>(k) / 10.0));
+    for (std::size_t i = 0; i < n; i += 13) {
+      for (int c = 0; c < 3; ++c) {
+        const double expected = model.rest.vertices[i][c] + scales[k] * model.field[i][c];
+        EXPECT_NEAR(rest[3 * i + static_cast<std::size_t>(c)] + weights[k] * delta[3 * i + static_cast<std::size_t>(c)],
+                    expected, 1e-6);
+      }
+    }
+  }
+}
+
+TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
+  for (bool positions : {true, false}) {
+    TempDir dir;
+    const BreathingModel model = sphere_model();
+    auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf", positions);
+    const auto scales = drive(*sink, model, 12, 30.0);
+
+    pugi::xml_document xml;
+    ASSERT_TRUE(xml.load_file((dir / "series.xdmf").c_str()));
+    const hid_t file = H5Fopen((dir / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const auto grids = xml.select_nodes("/Xdmf/Domain/Grid/Grid");
+    ASSERT_EQ(grids.size(), scales.size());
+    int checked = 0;
+    for (const auto& item : xml.select_nodes("//DataItem[@Format='HDF']")) {
+      const std::string ref = item.node().text().get();
+      const std::string dataset = ref.substr(ref.find(':') + 1);
+      EXPECT_EQ(parse_dims(item.node().attribute("Dimensions").value()), shape(file, dataset.c_str())) << dataset;
+      ++checked;
+    }
+    EXPECT_GE(checked, static_cast<int>(2 * scales.size()));
+    // The stored scales are the frames' scales.
+    std::vector<double> stored(scales.size());
+    const hid_t set = H5Dopen2(file, "/frames/scale", H5P_DEFAULT);
+    H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, stored.data());
+    H5Dclose(set);
+    H5Fclose(file);
+    EXPECT_EQ(stored, scales);
+  }
+}
