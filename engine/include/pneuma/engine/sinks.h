@@ -6,6 +6,7 @@
 #include <string>
 
 #include "pneuma/engine/frame.h"
+#include "pneuma/engine/scenario.h"
 
 namespace pneuma::engine {
 
@@ -18,5 +19,9 @@ std::unique_ptr<FrameSink> make_gltf_sink(const std::filesystem::path& file);
 // positions) and an XDMF file beside it that ParaView opens as a temporal collection.
 std::unique_ptr<FrameSink> make_hdf5_sink(const std::filesystem::path& h5_file, const std::filesystem::path& xdmf_file,
                                           bool store_positions);
+
+// One mesh file per frame (every `spec.every`-th), frame_00000.<format>, in metres.
+std::unique_ptr<FrameSink> make_mesh_sequence_sink(const std::filesystem::path& dir, const MeshSequenceSpec& spec,
+                                                   std::size_t frame_count);
 
 }  // namespace pneuma::engine
