@@ -1,0 +1,165 @@
+// `pneuma run` end to end: exported frames measured independently against the physiology.
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <gtest/gtest.h>
+#include <tiny_gltf.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "pneuma/engine/scenario.h"
+#include "pneuma/mesh/io.h"
+#include "pneuma/physiology/simulate.h"
+#include "test_support.h"
+
+using pneuma::test::run_pneuma;
+using pneuma::test::TempDir;
+
+namespace {
+
+// A short, coarse scenario: 4 s of quiet breathing at 10 frames/s on a 12 mm phantom.
+constexpr const char* kSmall = R"(name: small
+duration: 4 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 12 mm, share: 55 %}
+field: {tissue: healthy-upright}
+physiology:
+  preset: healthy-adult
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}
+outputs:
+  mesh_sequence: {format: ply}
+  hdf5: {positions: true}
+)";
+
+// Signed-tetrahedron volume of a mesh file, read back with the mesh reader (file in metres).
+double file_volume(const std::filesystem::path& p) {
+  pneuma::mesh::ReadOptions o;
+  o.metres_per_unit = 1.0;
+  const auto m = pneuma::mesh::read_mesh(p, o);
+  double six = 0.0;
+  for (const auto& t : m.triangles) six += m.vertices[t[0]].dot(m.vertices[t[1]].cross(m.vertices[t[2]]));
+  return six / 6.0;
+}
+
+}  // namespace
+
+TEST(Runner, ExportedFrameVolumesFollowTheSimulatedVolumeTimesTheShare) {
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+
+  // The physiology again, independently of the runner, at the frame times.
+  const auto s = pneuma::engine::load_scenario(scenario);
+  auto options = s.physiology.options;
+  options.output_rate_hz = 10.0;
+  const auto phys = pneuma::physiology::simulate(s.physiology.protocol, options);
+  ASSERT_EQ(phys.series.size(), 41u);
+  const double rest = file_volume(dir / "out/frames/frame_00000.ply");  // V(0) = 0: the rest mesh
+  EXPECT_EQ(phys.series.volume_m3[0], 0.0);
+  double largest = 0.0;
+  for (std::size_t k = 0; k < phys.series.size(); ++k) {
+    const double expected_change = 0.55 * phys.series.volume_m3[k];
+    const double measured_change = file_volume(dir / "out/frames" / ("frame_000" + std::string(k < 10 ? "0" : "") + std::to_string(k) + ".ply")) - rest;
+    largest = std::max(largest, expected_change);
+    // 0.1 % of the breath, plus the float32 rounding of the PLY coordinates.
+    EXPECT_NEAR(measured_change, expected_change, 1e-3 * 0.55 * 0.5e-3 + 1e-7 * rest) << "frame " << k;
+  }
+  EXPECT_GT(largest, 0.2e-3);  // a real breath happened
+  for (const char* f : {"manifest.json", "breathing.glb", "series.h5", "series.xdmf", "physiology.csv",
+                        "physiology-breaths.csv", "field.h5"}) {
+    EXPECT_TRUE(std::filesystem::exists(dir / "out" / f)) << f;
+  }
+}
+
+TEST(Runner, GltfKeyframeEqualsTheExportedMeshAtTheSameTime) {
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"}).exit_code, 0);
+  tinygltf::Model m;
+  tinygltf::TinyGLTF loader;
+  std::string error, warning;
+  ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &error, &warning, (dir / "out/breathing.glb").string())) << error;
+  const auto& primitive = m.meshes.at(0).primitives.at(0);
+  auto floats = [&](int accessor) {
+    const auto& a = m.accessors.at(static_cast<std::size_t>(accessor));
+    const auto& v = m.bufferViews.at(static_cast<std::size_t>(a.bufferView));
+    return reinterpret_cast<const float*>(m.buffers[0].data.data() + v.byteOffset + a.byteOffset);
+  };
+  const float* rest = floats(primitive.attributes.at("POSITION"));
+  const float* delta = floats(primitive.targets.at(0).at("POSITION"));
+  const float* weights = floats(m.animations.at(0).samplers.at(0).output);
+  pneuma::mesh::ReadOptions o;
+  o.metres_per_unit = 1.0;
+  for (std::size_t k : {5u, 17u, 33u}) {
+    const auto frame = pneuma::mesh::read_mesh(dir / "out/frames" / ("frame_000" + std::to_string(k) + ".ply"), o);
+    ASSERT_EQ(frame.vertex_count(), m.accessors.at(static_cast<std::size_t>(primitive.attributes.at("POSITION"))).count);
+    for (std::size_t i = 0; i < frame.vertex_count(); i += 11) {
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t j = 3 * i + static_cast<std::size_t>(c);
+        EXPECT_NEAR(rest[j] + weights[k] * delta[j], frame.vertices[i][c], 2e-6) << "frame " << k << " vertex " << i;
+      }
+    }
+  }
+}
+
+TEST(Runner, ShippedScenariosRunAtASmallResolution) {
+  for (const char* name : {"quiet-breathing", "ventilated-patient"}) {
+    TempDir dir;
+    const auto scenario = pneuma::test::source_dir() / "scenarios" / (std::string(name) + ".yaml");
+    const auto r = run_pneuma({"run", scenario.string(), "-o", dir.path().string(), "--edge", "15mm", "--quiet"});
+    ASSERT_EQ(r.exit_code, 0) << name << ": " << r.err;
+    EXPECT_TRUE(std::filesystem::exists(dir / "manifest.json")) << name;
+  }
+}
+
+TEST(Runner, ASecondRunReusesTheCachedField) {
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  const auto first = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string()});
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  EXPECT_NE(first.out.find("field computed"), std::string::npos) << first.out;
+  const std::string glb = pneuma::test::read_text(dir / "out/breathing.glb");
+  const std::string h5 = pneuma::test::read_text(dir / "out/series.h5");
+  const auto second = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string()});
+  ASSERT_EQ(second.exit_code, 0) << second.err;
+  EXPECT_NE(second.out.find("field reused from cache"), std::string::npos) << second.out;
+  // Deterministic: the same inputs give the same bytes, whether the field was cached or not.
+  EXPECT_TRUE(pneuma::test::read_text(dir / "out/breathing.glb") == glb);
+  EXPECT_TRUE(pneuma::test::read_text(dir / "out/series.h5") == h5);
+}
+
+struct BadRun {
+  const char* name;
+  const char* yaml;
+  const char* message;  // after "<file>:"
+  int exit_code;
+};
+
+class RunBadScenario : public ::testing::TestWithParam<BadRun> {};
+
+TEST_P(RunBadScenario, OneLineAndNoOutput) {
+  TempDir dir;
+  const auto file = dir.write("s.yaml", GetParam().yaml);
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(r.exit_code, GetParam().exit_code);
+  std::string message = GetParam().message;
+  if (auto at = message.find("{dir}"); at != std::string::npos) message.replace(at, 5, dir.path().string());
+  EXPECT_EQ(r.err, file.string() + ":" + message + "\n");
+  EXPECT_FALSE(std::filesystem::exists(dir / "out")) << "no output folder for a scenario refused up front";
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, RunBadScenario,
+    ::testing::Values(
+        BadRun{"wrong_unit", "duration: 4 s\nframes: {rate: 30 mL}\nphysiology: {preset: healthy-adult}\n",
+               "2:17: frames.rate: expected a rate such as '12 /min', got '30 mL'", 3},
+        BadRun{"unknown_key", "duration: 4 s\nmesh: {phantom: right, egde: 4 mm}\nphysiology: {preset: healthy-adult}\n",
+               "2:24: mesh.egde: unknown key; expected one of: edge, file, phantom, reference_volume, share",
+               3},
+        BadRun{"missing_mesh", "duration: 4 s\nmesh: {file: lungs.stl}\nphysiology: {preset: healthy-adult}\n",
+               "2:15: mesh.file: no such file: {dir}/lungs.stl", 3},
+        BadRun{"negative_duration", "duration: -4 s\nphysiology: {preset: healthy-adult}\n",
+               "1:11: duration: expected a positive duration, got '-4 s'", 3}),
+    [](const auto& test_case) { return std::string(test_case.param.name); });
