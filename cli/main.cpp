@@ -30,6 +30,8 @@ int main(int argc, char** argv) {
     return std::string("pneuma: ") + e.what() + " (see 'pneuma --help')\n";
   });
   pneuma::cli::register_simulate(app);
+  pneuma::cli::register_field(app);
+  pneuma::cli::register_run(app, {});
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,195 @@
+#include "pneuma/engine/tissue.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "pneuma/core/error.h"
+#include "pneuma/core/units.h"
+
+namespace pneuma::engine {
+namespace {
+
+using config::Node;
+namespace kind = units::kind;
+
+const std::vector<std::string> kAxes{"+x", "-x", "+y", "-y", "+z", "-z"};
+
+Eigen::Vector3d axis_vector(const std::string& name) {
+  Eigen::Vector3d v = Eigen::Vector3d::Zero();
+  v[name[1] - 'x'] = name[0] == '-' ? -1.0 : 1.0;
+  return v;
+}
+
+// Whitespace-separated tokens of a text file, with the line of each (for messages).
+struct Token {
+  std::string text;
+  int line;
+};
+std::vector<Token> read_tokens(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw IoError(file.string() + ": cannot open file");
+  std::vector<Token> tokens;
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    if (auto hash = line.find('#'); hash != std::string::npos) line.resize(hash);
+    std::istringstream words(line);
+    for (std::string w; words >> w;) tokens.push_back({w, number});
+  }
+  return tokens;
+}
+
+GradientStiffness read_gradient(const Node& s) {
+  GradientStiffness g;
+  g.profile = s.choice("profile", {"linear", "exponential"}) == "linear" ? GradientStiffness::Profile::linear
+                                                                       : GradientStiffness::Profile::exponential;
+  g.nondependent_pa = s.positive_quantity("nondependent", kind::shear_modulus);
+  g.dependent_pa = s.positive_quantity("dependent", kind::shear_modulus);
+  for (const Node& band : s.sequence("bands")) {
+    StiffnessBand b;
+    b.from = band.quantity("from", kind::fraction);
+    b.to = band.quantity("to", kind::fraction);
+    if (!(b.from >= 0.0 && b.from <= 1.0)) band.fail_at("from", "expected a position from 0 to 1");
+    if (!(b.to > b.from && b.to <= 1.0)) band.fail_at("to", "expected a position after 'from' and at most 1");
+    b.shear_modulus_pa = band.positive_quantity("shear_modulus", kind::shear_modulus);
+    band.finish();
+    g.bands.push_back(b);
+  }
+  return g;
+}
+
+PerVertexStiffness read_per_vertex(const Node& s) {
+  PerVertexStiffness p;
+  const std::string unit = s.string("unit");
+  double factor = 0.0;
+  try {
+    factor = units::parse("1 " + unit, kind::shear_modulus);
+  } catch (const units::UnitError&) {
+    s.fail_at("unit", "expected a unit of shear modulus such as 'kPa', got '" + unit + "'");
+  }
+  const std::filesystem::path file = s.directory("values") / s.string("values");
+  p.source = file.string();
+  for (const Token& t : read_tokens(file)) {
+    std::size_t used = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(t.text, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != t.text.size() || !(v > 0.0) || !std::isfinite(v))
+      throw InputError(file.string() + ":" + std::to_string(t.line) + ": expected a positive number, got '" + t.text + "'");
+    p.shear_modulus_pa.push_back(v * factor);
+  }
+  return p;
+}
+
+RegionStiffness read_regions(const Node& s) {
+  RegionStiffness r;
+  const Node moduli = s.map("moduli");
+  for (const std::string& label : moduli.keys()) r.shear_modulus_pa[label] = moduli.positive_quantity(label, kind::shear_modulus);
+  if (r.shear_modulus_pa.empty()) s.fail_at("moduli", "expected at least one label with its shear modulus");
+  const std::filesystem::path file = s.directory("labels") / s.string("labels");
+  r.source = file.string();
+  for (const Token& t : read_tokens(file)) {
+    if (!r.shear_modulus_pa.count(t.text))
+      throw InputError(file.string() + ":" + std::to_string(t.line) + ": label '" + t.text + "' has no modulus in " +
+                       moduli.file() + " (" + moduli.path() + ")");
+    r.labels.push_back(t.text);
+  }
+  return r;
+}
+
+}  // namespace
+
+Tissue read_tissue(const Node& root) {
+  Tissue t;
+  t.name = root.has("name") ? root.string("name") : std::filesystem::path(root.file()).stem().string();
+  const std::string posture = root.choice("posture", {"upright", "supine", "prone"});
+  t.posture = posture == "upright" ? Posture::upright : posture == "supine" ? Posture::supine : Posture::prone;
+  if (auto c = root.optional_map("coordinates")) {
+    if (c->has("up")) t.up = axis_vector(c->choice("up", kAxes));
+    if (c->has("anterior")) t.anterior = axis_vector(c->choice("anterior", kAxes));
+    if (std::abs(t.up.dot(t.anterior)) > 0.5) c->fail_at("anterior", "expected an axis at right angles to 'up'");
+    c->finish();
+  }
+  const Node s = root.map("stiffness");
+  const std::string model = s.choice("model", {"gradient", "per_vertex", "regions"});
+  if (model == "gradient") {
+    for (const char* key : {"profile", "nondependent", "dependent", "bands"}) s.has(key);
+    t.stiffness = read_gradient(s);
+  } else if (model == "per_vertex") {
+    for (const char* key : {"values", "unit"}) s.has(key);
+    t.stiffness = read_per_vertex(s);
+  } else {
+    for (const char* key : {"labels", "moduli"}) s.has(key);
+    t.stiffness = read_regions(s);
+  }
+  s.finish();
+  root.finish();
+  return t;
+}
+
+Tissue load_tissue(const std::filesystem::path& path) { return read_tissue(Node::load_file(path)); }
+
+std::filesystem::path tissue_file(const std::string& name_or_path, const std::filesystem::path& config_dir) {
+  if (name_or_path.find('/') != std::string::npos || name_or_path.ends_with(".yaml")) return name_or_path;
+  return config_dir / "tissue" / (name_or_path + ".yaml");
+}
+
+Eigen::Vector3d dependent_direction(const Tissue& tissue) {
+  switch (tissue.posture) {
+    case Posture::upright: return -tissue.up;
+    case Posture::supine: return -tissue.anterior;
+    case Posture::prone: return tissue.anterior;
+  }
+  return -tissue.up;
+}
+
+std::vector<double> dependent_position(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
+  const Eigen::Vector3d d = dependent_direction(tissue);
+  std::vector<double> depth(mesh.vertices.size());
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (std::size_t i = 0; i < depth.size(); ++i) {
+    depth[i] = d.dot(mesh.vertices[i]);
+    lo = std::min(lo, depth[i]);
+    hi = std::max(hi, depth[i]);
+  }
+  for (double& v : depth) v = hi > lo ? (v - lo) / (hi - lo) : 0.0;
+  return depth;
+}
+
+std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
+  const std::size_t n = mesh.vertices.size();
+  auto check_count = [n](std::size_t got, const std::string& source, const char* what) {
+    if (got != n)
+      throw InputError(source + ": expected " + std::to_string(n) + " " + what + " (one per mesh vertex), got " +
+                       std::to_string(got));
+  };
+  if (const auto* g = std::get_if<GradientStiffness>(&tissue.stiffness)) {
+    const std::vector<double> position = dependent_position(tissue, mesh);
+    std::vector<double> mu(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double x = position[i];
+      mu[i] = g->profile == GradientStiffness::Profile::linear
+                  ? g->nondependent_pa + x * (g->dependent_pa - g->nondependent_pa)
+                  : g->nondependent_pa * std::pow(g->dependent_pa / g->nondependent_pa, x);
+      for (const StiffnessBand& b : g->bands) {
+        if (x >= b.from && x <= b.to) mu[i] = b.shear_modulus_pa;
+      }
+    }
+    return mu;
+  }
+  if (const auto* p = std::get_if<PerVertexStiffness>(&tissue.stiffness)) {
+    check_count(p->shear_modulus_pa.size(), p->source, "values");
+    return p->shear_modulus_pa;
+  }
+  const auto& r = std::get<RegionStiffness>(tissue.stiffness);
+  check_count(r.labels.size(), r.source, "labels");
+  std::vector<double> mu(n);
+  for (std::size_t i = 0; i < n; ++i) mu[i] = r.shear_modulus_pa.at(r.labels[i]);
+  return mu;
+}
+
+}  // namespace pneuma::engine

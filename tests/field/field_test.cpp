@@ -1,0 +1,227 @@
+// Force to displacement (METHOD.md 4) and regional stiffness (METHOD.md 5) against invariants
+// and finite differences.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "field_fixture.h"
+#include "pneuma/core/error.h"
+#include "pneuma/engine/field.h"
+#include "pneuma/engine/tissue.h"
+#include "test_support.h"
+
+using namespace pneuma;
+using namespace pneuma::engine;
+
+namespace {
+
+double max_relative_difference(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+                               double scale_b = 1.0) {
+  double worst = 0.0, largest = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    worst = std::max(worst, (a[i] - scale_b * b[i]).norm());
+    largest = std::max(largest, a[i].norm());
+  }
+  return worst / largest;
+}
+
+Tissue preset(const std::string& name) {
+  return load_tissue(test::source_dir() / "configs" / "tissue" / (name + ".yaml"));
+}
+
+// Mean |u| over the vertices whose dependent position lies in [lo, hi].
+double mean_displacement(const ElastostaticField& f, const std::vector<double>& position, double lo, double hi) {
+  double sum = 0.0;
+  int n = 0;
+  for (std::size_t i = 0; i < position.size(); ++i) {
+    if (position[i] >= lo && position[i] <= hi) {
+      sum += f.displacement[i].norm();
+      ++n;
+    }
+  }
+  return sum / n;
+}
+
+}  // namespace
+
+TEST(Field, NormalisationGivesOneAreaUnitToFirstOrder) {
+  for (const auto& m : {mesh::make_icosphere(0.1, 4), test::ellipsoid(0.12, 0.08, 0.15, 4)}) {
+    const ElastostaticField f = compute_field(m, test::graded_modulus(m, 0.6e3, 2.4e3));
+    const auto g = mesh::area_gradient(m);
+    double first_order = 0.0;
+    for (std::size_t i = 0; i < g.size(); ++i) first_order += g[i].dot(f.displacement[i]);
+    EXPECT_NEAR(first_order, 1e-4, 1e-4 * 1e-12);
+    // Central finite difference of the area of rest + s u: O(s^2) error.
+    const double s = 1e-2;
+    mesh::TriangleMesh plus = m, minus = m;
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+      plus.vertices[i] += s * f.displacement[i];
+      minus.vertices[i] -= s * f.displacement[i];
+    }
+    const double rate = (mesh::surface_area(plus) - mesh::surface_area(minus)) / (2 * s);
+    EXPECT_NEAR(rate, 1e-4, 1e-4 * 1e-6);
+  }
+}
+
+TEST(Field, UniformSphereMovesLikeARadialInflation) {
+  // Analytic oracle: a sphere grown by dr gains 8 pi r dr of area, so one cm^2 needs
+  // dr = 1e-4 / (8 pi r). The icosphere's field is nearly uniform and radial.
+  const double r = 0.1;
+  const auto m = mesh::make_icosphere(r, 4);
+  const ElastostaticField f = compute_field(m, std::vector<double>(m.vertex_count(), 3e3));
+  double mean = 0.0;
+  for (std::size_t i = 0; i < m.vertex_count(); ++i) {
+    mean += f.displacement[i].norm();
+    EXPECT_GT(f.displacement[i].dot(m.vertices[i]), 0.0) << "outward";
+  }
+  mean /= static_cast<double>(m.vertex_count());
+  EXPECT_NEAR(mean, 1e-4 / (8 * std::numbers::pi * r), 0.02 * 1e-4 / (8 * std::numbers::pi * r));
+}
+
+TEST(Field, MultiplyingEveryModulusByAConstantChangesNothing) {
+  const auto m = test::ellipsoid(0.12, 0.08, 0.15, 3);
+  const auto mu = test::graded_modulus(m, 0.6e3, 2.4e3);
+  // The exact fixed point (LU) is invariant to rounding; the iterative solvers to their
+  // tolerance (a last-bit change of m may change where they stop).
+  for (SolverKind solver : {SolverKind::direct, SolverKind::cg, SolverKind::shot}) {
+    FieldOptions o;
+    o.solver = solver;
+    const double allowed = solver == SolverKind::direct ? 1e-12 : 1e-5;
+    const ElastostaticField a = compute_field(m, mu, o);
+    for (double c : {1e-3, 7.25, 1e6}) {
+      std::vector<double> scaled = mu;
+      for (double& v : scaled) v *= c;
+      EXPECT_LT(max_relative_difference(a.displacement, compute_field(m, scaled, o).displacement), allowed) << c;
+    }
+  }
+}
+
+TEST(Field, SameMeshInMillimetresAndMetresGivesTheSameField) {
+  const auto metres = test::ellipsoid(0.12, 0.08, 0.15, 3);
+  mesh::TriangleMesh millimetres = metres;
+  for (auto& v : millimetres.vertices) v *= 1000.0;
+  const auto mu = test::graded_modulus(metres, 0.6e3, 2.4e3);
+  FieldOptions in_mm;
+  in_mm.area_unit = 100.0;  // 1 cm^2 in mm^2
+  const ElastostaticField a = compute_field(metres, mu);
+  const ElastostaticField b = compute_field(millimetres, mu, in_mm);
+  EXPECT_LT(max_relative_difference(a.displacement, b.displacement, 1e-3), 1e-9);
+  EXPECT_EQ(a.report.iterations, b.report.iterations);
+}
+
+TEST(Field, SofterTissueMovesMore) {
+  // healthy-upright: stiff apex (top), soft base: the base moves more; the fibrotic preset
+  // turns that around for its stiff lower band.
+  const auto m = test::ellipsoid(0.08, 0.06, 0.12, 4);
+  const Tissue upright = preset("healthy-upright");
+  const auto position = dependent_position(upright, m);
+  const ElastostaticField healthy = compute_field(m, shear_modulus_per_vertex(upright, m));
+  EXPECT_GT(mean_displacement(healthy, position, 0.8, 1.0), 1.2 * mean_displacement(healthy, position, 0.0, 0.2));
+  const ElastostaticField fibrotic = compute_field(m, shear_modulus_per_vertex(preset("fibrotic-lower-lobe"), m));
+  EXPECT_LT(mean_displacement(fibrotic, position, 0.8, 1.0), 0.5 * mean_displacement(fibrotic, position, 0.0, 0.2));
+}
+
+TEST(Field, SolversGiveTheSameField) {
+  const auto m = test::ellipsoid(0.12, 0.08, 0.15, 3);
+  const auto mu = test::contrast_modulus(m);
+  FieldOptions o;
+  const ElastostaticField reference = compute_field(m, mu, o);
+  for (SolverKind k : {SolverKind::shot, SolverKind::sweep, SolverKind::direct}) {
+    o.solver = k;
+    EXPECT_LT(max_relative_difference(reference.displacement, compute_field(m, mu, o).displacement), 2e-5)
+        << solver_name(k);
+  }
+  o.solver = SolverKind::cg;
+  o.clique_hops = 2;
+  EXPECT_THROW(compute_field(m, mu, o), UnsupportedError);
+}
+
+TEST(Field, FlatSurfaceCannotBeNormalised) {
+  const auto grid = test::regular_grid(4, 4, 1.0);
+  EXPECT_THROW(compute_field(grid, std::vector<double>(grid.vertex_count(), 1.0)), UnsupportedError);
+}
+
+TEST(Tissue, PresetsFollowPosture) {
+  const auto m = mesh::make_icosphere(0.1, 3);
+  auto extreme = [&](const Eigen::Vector3d& d) {
+    std::size_t best = 0;
+    for (std::size_t i = 0; i < m.vertex_count(); ++i) {
+      if (m.vertices[i].dot(d) > m.vertices[best].dot(d)) best = i;
+    }
+    return best;
+  };
+  const auto upright = shear_modulus_per_vertex(preset("healthy-upright"), m);
+  EXPECT_DOUBLE_EQ(upright[extreme({0, 0, 1})], 2400.0);   // apex
+  EXPECT_DOUBLE_EQ(upright[extreme({0, 0, -1})], 600.0);   // base
+  const auto supine = shear_modulus_per_vertex(preset("healthy-supine"), m);
+  EXPECT_DOUBLE_EQ(supine[extreme({0, 1, 0})], 1800.0);    // anterior
+  EXPECT_DOUBLE_EQ(supine[extreme({0, -1, 0})], 600.0);    // posterior
+  const auto fibrotic = shear_modulus_per_vertex(preset("fibrotic-lower-lobe"), m);
+  EXPECT_DOUBLE_EQ(fibrotic[extreme({0, 0, -1})], 10e3);
+  EXPECT_DOUBLE_EQ(fibrotic[extreme({0, 0, 1})], 2400.0);
+}
+
+TEST(Tissue, ExponentialProfileIsGeometricAndAxesAreConfigurable) {
+  test::TempDir dir;
+  const auto file = dir.write("t.yaml",
+                              "posture: upright\ncoordinates: {up: -y, anterior: +z}\n"
+                              "stiffness: {model: gradient, profile: exponential, nondependent: 4 kPa, dependent: 1 kPa}\n");
+  const Tissue t = load_tissue(file);
+  EXPECT_EQ(t.name, "t");
+  mesh::TriangleMesh m;
+  m.vertices = {{0, -1, 0}, {0, 0, 0}, {0, 1, 0}};
+  const auto mu = shear_modulus_per_vertex(t, m);
+  EXPECT_DOUBLE_EQ(mu[0], 4000.0);  // up is -y: the top
+  EXPECT_NEAR(mu[1], 2000.0, 1e-9);
+  EXPECT_DOUBLE_EQ(mu[2], 1000.0);
+}
+
+TEST(Tissue, PerVertexAndRegionFiles) {
+  test::TempDir dir;
+  const auto m = test::single_triangle();
+  dir.write("mu.txt", "1.5\n2 # comment\n3\n");
+  const Tissue pv = load_tissue(
+      dir.write("pv.yaml", "posture: supine\nstiffness: {model: per_vertex, values: mu.txt, unit: kPa}\n"));
+  EXPECT_EQ(shear_modulus_per_vertex(pv, m), (std::vector<double>{1500.0, 2000.0, 3000.0}));
+  dir.write("labels.txt", "upper\nlower lower\n");
+  const Tissue rg = load_tissue(dir.write(
+      "rg.yaml", "posture: upright\nstiffness:\n  model: regions\n  labels: labels.txt\n  moduli: {upper: 2 kPa, lower: 10 kPa}\n"));
+  EXPECT_EQ(shear_modulus_per_vertex(rg, m), (std::vector<double>{2000.0, 10000.0, 10000.0}));
+  dir.write("short.txt", "1\n2\n");
+  const Tissue bad = load_tissue(
+      dir.write("bad.yaml", "posture: supine\nstiffness: {model: per_vertex, values: short.txt, unit: kPa}\n"));
+  try {
+    shear_modulus_per_vertex(bad, m);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "short.txt").string() + ": expected 3 values (one per mesh vertex), got 2");
+  }
+}
+
+TEST(Tissue, BadFilesAreOneLine) {
+  test::TempDir dir;
+  struct Bad {
+    const char* yaml;
+    const char* message;
+  };
+  const Bad cases[] = {
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kg, dependent: 1 kPa}\n",
+       "2:61: stiffness.nondependent: expected a shear modulus such as '3 kPa', got '3 kg'"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3, dependent: 1 kPa}\n",
+       "2:61: stiffness.nondependent: expected a shear modulus such as '3 kPa', got '3'"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa, band: []}\n",
+       "2:86: stiffness.band: unknown key; expected one of: bands, dependent, model, nondependent, profile"},
+      {"posture: sideways\nstiffness: {model: gradient}\n",
+       "1:10: posture: expected one of: upright, supine, prone; got 'sideways'"},
+  };
+  for (const Bad& c : cases) {
+    const auto file = dir.write("t.yaml", c.yaml);
+    try {
+      load_tissue(file);
+      ADD_FAILURE() << c.yaml;
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()), file.string() + ":" + c.message);
+    }
+  }
+}
