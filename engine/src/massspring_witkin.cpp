@@ -253,7 +253,7 @@ MassSpring_Witkin::MassSpring_Witkin(SpringNetwork network, double tolerance) : 
     lambda_max = gershgorin;
     lambda_min = gershgorin - power_iteration(n, gershgorin, 3000);
   }
-  if (!(lambda_min > 0.0))
+  if (!(lambda_min > 1e-12 * lambda_max))
     throw UnsupportedError("spring network: no steady state (a free part is neither clamped nor anchored)");
   choice_ = choose_step(lambda_min, lambda_max, gershgorin, exact, tolerance);
 }
