@@ -6,6 +6,7 @@
 namespace pneuma::cli {
 
 void register_simulate(CLI::App& app);
+void register_field(CLI::App& app);
 void register_compare(CLI::App& app);
 
 // Shared option helpers.

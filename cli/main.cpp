@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
     return std::string("pneuma: ") + e.what() + " (see 'pneuma --help')\n";
   });
   pneuma::cli::register_simulate(app);
+  pneuma::cli::register_field(app);
   pneuma::cli::register_compare(app);
 
   try {

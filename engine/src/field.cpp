@@ -29,15 +29,16 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   if (!(options.tolerance > 0.0 && options.tolerance < 1.0))
     throw std::invalid_argument("field tolerance must lie between 0 and 1");
   if (!(options.area_unit > 0.0)) throw std::invalid_argument("field area unit must be positive");
-  const FieldGraph graph(mesh, shear_modulus_pa);
-  std::shared_ptr<const TransferOperator> op = graph.shared_one_hop();
+  const auto shared_graph = std::make_shared<const FieldGraph>(mesh, shear_modulus_pa);
+  const FieldGraph& graph = *shared_graph;
+  std::shared_ptr<const TransferOperator> op;  // null: one hop
   if (options.clique_hops != 1) {
     if (options.solver == SolverKind::cg)
       throw UnsupportedError("the cg solver needs a clique of 1 hop; use shot, sweep or direct for larger cliques");
     op = std::make_shared<const TransferOperator>(clique_operator(graph, options.clique_hops, options.path_rule));
   }
   const SolveOptions solve_options{options.tolerance};
-  const std::unique_ptr<FieldSolver> solver = make_field_solver(options.solver, graph, op, solve_options);
+  const std::unique_ptr<FieldSolver> solver = make_field_solver(options.solver, shared_graph, op, solve_options);
   ElastostaticField field;
   field.mass_nodes = graph.mass_count();
   field.spring_nodes = graph.spring_count();

@@ -6,6 +6,9 @@
 #include <stdexcept>
 #include <string>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "pneuma/core/error.h"
 
 namespace pneuma::engine {
@@ -62,6 +65,31 @@ void check_inputs(const mesh::TriangleMesh& mesh, std::span<const double> mu) {
   }
 }
 
+// Sums v[0..n) in fixed blocks, added in block order: the same bits at any thread count.
+template <typename Value>
+double deterministic_sum(std::size_t n, const Value& value) {
+  constexpr std::size_t block = 16384;
+  const std::size_t blocks = (n + block - 1) / block;
+  std::vector<double> partial(blocks, 0.0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t b = r.begin(); b != r.end(); ++b) {
+      double sum = 0.0;
+      for (std::size_t i = b * block; i < std::min(n, (b + 1) * block); ++i) sum += value(i);
+      partial[b] = sum;
+    }
+  });
+  double total = 0.0;
+  for (double p : partial) total += p;
+  return total;
+}
+
+template <typename Index, typename Body>
+void parallel_for_each(Index n, const Body& body) {
+  tbb::parallel_for(tbb::blocked_range<Index>(0, n, 8192), [&](const tbb::blocked_range<Index>& r) {
+    for (Index i = r.begin(); i != r.end(); ++i) body(i);
+  });
+}
+
 }  // namespace
 
 FieldGraph::FieldGraph(const mesh::TriangleMesh& mesh, std::span<const double> mu) {
@@ -72,7 +100,7 @@ FieldGraph::FieldGraph(const mesh::TriangleMesh& mesh, std::span<const double> m
   const auto ne = static_cast<std::uint32_t>(edges_.size());
   if (ne == 0) throw InputError("mesh: no edges, so no field can be computed");
 
-  // Incidence (vertex -> its edges, ascending edge id), CSR.
+  // Incidence (vertex -> its edges, ascending edge id, and their other ends), CSR.
   incident_offset_.assign(static_cast<std::size_t>(nv) + 1, 0);
   for (const auto& e : edges_) {
     ++incident_offset_[e[0] + 1];
@@ -80,89 +108,96 @@ FieldGraph::FieldGraph(const mesh::TriangleMesh& mesh, std::span<const double> m
   }
   for (std::uint32_t v = 0; v < nv; ++v) incident_offset_[v + 1] += incident_offset_[v];
   incident_edges_.resize(incident_offset_.back());
+  incident_vertices_.resize(incident_offset_.back());
   {
     std::vector<std::uint32_t> fill(incident_offset_.begin(), incident_offset_.end() - 1);
     for (std::uint32_t e = 0; e < ne; ++e) {
-      incident_edges_[fill[edges_[e][0]]++] = e;
-      incident_edges_[fill[edges_[e][1]]++] = e;
+      const auto [a, b] = edges_[e];
+      incident_edges_[fill[a]] = e;
+      incident_vertices_[fill[a]++] = b;
+      incident_edges_[fill[b]] = e;
+      incident_vertices_[fill[b]++] = a;
     }
   }
 
-  // Relative modulus m = mu / mean(mu) (METHOD.md 1): summed in vertex order, so deterministic.
-  double sum = 0.0;
-  for (double v : mu) sum += v;
-  const double mean = sum / static_cast<double>(nv);
+  // Relative modulus m = mu / mean(mu) (METHOD.md 1).
+  const double mean = deterministic_sum(nv, [&](std::size_t i) { return mu[i]; }) / static_cast<double>(nv);
   relative_modulus_.resize(nv);
-  for (std::uint32_t i = 0; i < nv; ++i) relative_modulus_[i] = mu[i] / mean;
-
-  // Node weights S.
   const std::uint32_t n = nv + ne;
   weight_.resize(n);
-  for (std::uint32_t i = 0; i < nv; ++i) weight_[i] = 1.0 / relative_modulus_[i];
-  for (std::uint32_t e = 0; e < ne; ++e)
-    weight_[nv + e] = 0.5 * (relative_modulus_[edges_[e][0]] + relative_modulus_[edges_[e][1]]);
+  parallel_for_each(nv, [&](std::uint32_t i) {
+    relative_modulus_[i] = mu[i] / mean;
+    weight_[i] = 1.0 / relative_modulus_[i];  // S of a mass node
+  });
 
   // Distances: a spring node sits at its edge's midpoint, so both its links are |ab| / 2 long.
-  std::vector<double> half_length(ne);
-  double total = 0.0;
-  for (std::uint32_t e = 0; e < ne; ++e) {
-    half_length[e] = 0.5 * (mesh.vertices[edges_[e][1]] - mesh.vertices[edges_[e][0]]).norm();
-    total += half_length[e];
-  }
-  reference_distance_ = total / static_cast<double>(ne);
+  distance_factor_.resize(ne);
+  parallel_for_each(ne, [&](std::uint32_t e) {
+    const auto [a, b] = edges_[e];
+    weight_[nv + e] = 0.5 * (relative_modulus_[a] + relative_modulus_[b]);  // S of a spring node
+    distance_factor_[e] = 0.5 * (mesh.vertices[b] - mesh.vertices[a]).norm();  // half length for now
+  });
+  reference_distance_ = deterministic_sum(ne, [&](std::size_t e) { return distance_factor_[e]; }) / static_cast<double>(ne);
   if (!(reference_distance_ > 0.0) || !std::isfinite(reference_distance_))
     throw InputError("mesh: every edge has zero length, so no field can be computed");
-  distance_factor_.resize(ne);
-  for (std::uint32_t e = 0; e < ne; ++e) distance_factor_[e] = 1.0 / std::max(1.0, half_length[e] / reference_distance_);
-
-  // Z_k = S_k + sum of the neighbours' S.
+  const double h = reference_distance_;
   normaliser_.resize(n);
-  for (std::uint32_t i = 0; i < nv; ++i) {
+  parallel_for_each(ne, [&](std::uint32_t e) {
+    distance_factor_[e] = 1.0 / std::max(1.0, distance_factor_[e] / h);
+    normaliser_[nv + e] = weight_[nv + e] + weight_[edges_[e][0]] + weight_[edges_[e][1]];
+  });
+  // Z_k = S_k + sum of the neighbours' S.
+  parallel_for_each(nv, [&](std::uint32_t i) {
     double z = weight_[i];
     for (std::uint32_t j = incident_offset_[i]; j < incident_offset_[i + 1]; ++j) z += weight_[nv + incident_edges_[j]];
     normaliser_[i] = z;
-  }
-  for (std::uint32_t e = 0; e < ne; ++e) normaliser_[nv + e] = weight_[nv + e] + weight_[edges_[e][0]] + weight_[edges_[e][1]];
+  });
+}
 
-  // The one-hop operator in CSR: mass rows first (targets: their spring nodes, ascending), then
-  // spring rows (targets: a < b).
-  auto one_hop = std::make_shared<TransferOperator>();
-  TransferOperator& op = *one_hop;
+TransferOperator one_hop_operator(const FieldGraph& g) {
+  const std::uint32_t nv = g.mass_count(), ne = g.spring_count(), n = g.node_count();
+  const auto& inc_offset = g.incident_offset();
+  const auto& inc_edges = g.incident_edges();
+  const auto& s = g.weight();
+  const auto& z = g.normaliser();
+  const auto& factor = g.distance_factor();
+  const auto& edges = g.edges();
+  TransferOperator op;
   op.clique_hops = 1;
   op.mass_count = nv;
   op.node_count = n;
   op.offset.resize(static_cast<std::size_t>(n) + 1);
   op.offset[0] = 0;
-  for (std::uint32_t i = 0; i < nv; ++i) op.offset[i + 1] = incident_offset_[i + 1];
+  for (std::uint32_t i = 0; i < nv; ++i) op.offset[i + 1] = inc_offset[i + 1];
   for (std::uint32_t e = 0; e < ne; ++e) op.offset[nv + e + 1] = op.offset[nv + e] + 2;
   op.target.resize(op.offset.back());
   op.share.resize(op.offset.back());
   op.self_share.resize(n);
-  for (std::uint32_t i = 0; i < nv; ++i) {
-    const double inv_z = 1.0 / normaliser_[i];
-    for (std::uint32_t j = incident_offset_[i]; j < incident_offset_[i + 1]; ++j) {
-      const std::uint32_t e = incident_edges_[j];
+  parallel_for_each(nv, [&](std::uint32_t i) {
+    const double inv_z = 1.0 / z[i];
+    for (std::uint32_t j = inc_offset[i]; j < inc_offset[i + 1]; ++j) {
+      const std::uint32_t e = inc_edges[j];
       op.target[j] = nv + e;
-      op.share[j] = weight_[nv + e] * inv_z * distance_factor_[e];
+      op.share[j] = s[nv + e] * inv_z * factor[e];
     }
-    op.self_share[i] = weight_[i] * inv_z;
-  }
-  for (std::uint32_t e = 0; e < ne; ++e) {
+    op.self_share[i] = s[i] * inv_z;
+  });
+  parallel_for_each(ne, [&](std::uint32_t e) {
     const std::uint32_t k = nv + e;
-    const double inv_z = 1.0 / normaliser_[k];
+    const double inv_z = 1.0 / z[k];
     const std::uint64_t j = op.offset[k];
     for (int end = 0; end < 2; ++end) {
-      op.target[j + end] = edges_[e][end];
-      op.share[j + end] = weight_[edges_[e][end]] * inv_z * distance_factor_[e];
+      op.target[j + end] = edges[e][end];
+      op.share[j + end] = s[edges[e][end]] * inv_z * factor[e];
     }
-    op.self_share[k] = weight_[k] * inv_z;
-  }
-  one_hop_ = std::move(one_hop);
+    op.self_share[k] = s[k] * inv_z;
+  });
+  return op;
 }
 
 TransferOperator clique_operator(const FieldGraph& graph, int hops, CliquePathRule rule) {
   if (hops < 1 || hops > 8) throw std::invalid_argument("clique size must be 1 to 8 hops, got " + std::to_string(hops));
-  const TransferOperator& one = graph.one_hop();
+  const TransferOperator one = one_hop_operator(graph);
   TransferOperator op;
   op.clique_hops = hops;
   op.mass_count = one.mass_count;

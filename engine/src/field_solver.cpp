@@ -326,17 +326,20 @@ SolverKind parse_solver_kind(const std::string& name) {
   throw std::invalid_argument("unknown solver '" + name + "' (expected shot, sweep, direct or cg)");
 }
 
-std::unique_ptr<FieldSolver> make_field_solver(SolverKind kind, const FieldGraph& graph,
+std::unique_ptr<FieldSolver> make_field_solver(SolverKind kind, std::shared_ptr<const FieldGraph> graph,
                                                std::shared_ptr<const TransferOperator> op,
                                                const SolveOptions& options) {
+  if (kind == SolverKind::cg) {
+    if (op && op->clique_hops != 1)
+      throw UnsupportedError("the cg solver needs a clique of 1 hop; use shot, sweep or direct for larger cliques");
+    return std::make_unique<ConjugateGradient_Schur>(std::move(graph), options);
+  }
+  if (!op) op = std::make_shared<const TransferOperator>(one_hop_operator(*graph));
   switch (kind) {
     case SolverKind::shot: return std::make_unique<ShotUnshot_Santhanam>(std::move(op), options);
     case SolverKind::sweep: return std::make_unique<Sweep_GaussSeidel>(std::move(op), options);
     case SolverKind::direct: return std::make_unique<Direct_Eigen>(std::move(op), options);
-    case SolverKind::cg:
-      if (op->clique_hops != 1)
-        throw UnsupportedError("the cg solver needs a clique of 1 hop; use shot, sweep or direct for larger cliques");
-      return std::make_unique<ConjugateGradient_Schur>(graph, options);
+    case SolverKind::cg: break;
   }
   throw std::invalid_argument("unknown solver kind");
 }

@@ -39,21 +39,22 @@ void for_blocks(std::size_t n, const Body& body) {
 }  // namespace
 
 struct ConjugateGradient_Schur::Impl {
+  // K = diag(diagonal) - W over the mesh's vertex adjacency, read through the graph's incidence
+  // CSR (no copy): K_ij = -w_e for the edge e = (i, j), w_e = g_e^2 / D_e.
+  std::shared_ptr<const FieldGraph> graph;
   std::uint32_t mass_count = 0, node_count = 0;
-  // K = diag(diagonal) - W, W in CSR over the mesh's vertex adjacency (order: incident edges).
-  std::vector<double> diagonal, inverse_diagonal;
-  std::vector<std::uint32_t> offset, column;
-  std::vector<double> off_weight;  // w = g_e^2 / D_e, entered as -w
-  std::vector<double> weight;      // S per node (mass then spring)
-  std::vector<double> spring_factor;  // g_e / D_e, for y_e = (y_a + y_b) g_e / D_e
-  std::vector<std::array<std::uint32_t, 2>> edges;
+  std::vector<double> diagonal, inverse_diagonal;  // per vertex
+  std::vector<double> edge_weight;                 // w_e per edge
 
   void multiply(const std::vector<double>& x, std::vector<double>& y, std::vector<double>& partial_dot) const {
+    const auto& offset = graph->incident_offset();
+    const auto& edge = graph->incident_edges();
+    const auto& other = graph->incident_vertices();
     for_blocks(mass_count, [&](std::size_t b, std::size_t lo, std::size_t hi) {
       double dot = 0.0;
       for (std::size_t i = lo; i < hi; ++i) {
         double s = diagonal[i] * x[i];
-        for (std::uint32_t j = offset[i]; j < offset[i + 1]; ++j) s -= off_weight[j] * x[column[j]];
+        for (std::uint32_t j = offset[i]; j < offset[i + 1]; ++j) s -= edge_weight[edge[j]] * x[other[j]];
         y[i] = s;
         dot += s * x[i];
       }
@@ -62,41 +63,29 @@ struct ConjugateGradient_Schur::Impl {
   }
 };
 
-ConjugateGradient_Schur::ConjugateGradient_Schur(const FieldGraph& graph, const SolveOptions& options)
+ConjugateGradient_Schur::ConjugateGradient_Schur(std::shared_ptr<const FieldGraph> graph, const SolveOptions& options)
     : options_(options), impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
-  const std::uint32_t nv = graph.mass_count(), ne = graph.spring_count();
+  m.graph = std::move(graph);
+  const FieldGraph& g = *m.graph;
+  const std::uint32_t nv = g.mass_count(), ne = g.spring_count();
   m.mass_count = nv;
-  m.node_count = graph.node_count();
-  m.weight = graph.weight();
-  m.edges = graph.edges();
-  const auto& z = graph.normaliser();
-  const auto& s = graph.weight();
-  const auto& g = graph.distance_factor();
-  std::vector<double> w(ne);
-  m.spring_factor.resize(ne);
-  for (std::uint32_t e = 0; e < ne; ++e) {
-    const double d = z[nv + e] / s[nv + e];
-    w[e] = g[e] * g[e] / d;
-    m.spring_factor[e] = g[e] / d;
-  }
-  const auto& inc_offset = graph.incident_offset();
-  const auto& inc_edges = graph.incident_edges();
-  m.offset = inc_offset;
-  m.column.resize(inc_edges.size());
-  m.off_weight.resize(inc_edges.size());
+  m.node_count = g.node_count();
+  const auto& z = g.normaliser();
+  const auto& s = g.weight();
+  const auto& factor = g.distance_factor();
+  m.edge_weight.resize(ne);
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, ne, 8192), [&](const tbb::blocked_range<std::uint32_t>& r) {
+    for (std::uint32_t e = r.begin(); e != r.end(); ++e) m.edge_weight[e] = factor[e] * factor[e] * s[nv + e] / z[nv + e];
+  });
+  const auto& offset = g.incident_offset();
+  const auto& edge = g.incident_edges();
   m.diagonal.resize(nv);
   m.inverse_diagonal.resize(nv);
-  const auto& edges = graph.edges();
-  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, nv, 4096), [&](const tbb::blocked_range<std::uint32_t>& r) {
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, nv, 8192), [&](const tbb::blocked_range<std::uint32_t>& r) {
     for (std::uint32_t i = r.begin(); i != r.end(); ++i) {
       double diag = z[i] / s[i];
-      for (std::uint32_t j = inc_offset[i]; j < inc_offset[i + 1]; ++j) {
-        const std::uint32_t e = inc_edges[j];
-        m.column[j] = edges[e][0] == i ? edges[e][1] : edges[e][0];
-        m.off_weight[j] = w[e];
-        diag -= w[e];
-      }
+      for (std::uint32_t j = offset[i]; j < offset[i + 1]; ++j) diag -= m.edge_weight[edge[j]];
       m.diagonal[i] = diag;
       m.inverse_diagonal[i] = 1.0 / diag;
     }
@@ -108,6 +97,7 @@ ConjugateGradient_Schur::~ConjugateGradient_Schur() = default;
 SolveResult ConjugateGradient_Schur::solve(std::span<const double> load) const {
   const auto start = std::chrono::steady_clock::now();
   const Impl& m = *impl_;
+  const std::vector<double>& weight = m.graph->weight();
   const std::size_t nv = m.mass_count;
   const bool mass_only = load.size() == nv;
   if (!mass_only && load.size() != m.node_count)
@@ -138,11 +128,11 @@ SolveResult ConjugateGradient_Schur::solve(std::span<const double> load) const {
   for_blocks(nv, [&](std::size_t b, std::size_t lo, std::size_t hi) {
     double rz = 0.0, worst = 0.0;
     for (std::size_t i = lo; i < hi; ++i) {
-      r[i] = load[i] / m.weight[i];
+      r[i] = load[i] / weight[i];
       z[i] = r[i] * m.inverse_diagonal[i];
       p[i] = z[i];
       rz += r[i] * z[i];
-      worst = std::max(worst, std::abs(m.weight[i] * r[i]));
+      worst = std::max(worst, std::abs(weight[i] * r[i]));
     }
     partial[b] = rz;
     partial_max[b] = worst;
@@ -158,11 +148,11 @@ SolveResult ConjugateGradient_Schur::solve(std::span<const double> load) const {
       for_blocks(nv, [&](std::size_t b, std::size_t lo, std::size_t hi) {
         double rz_b = 0.0, worst = 0.0;
         for (std::size_t i = lo; i < hi; ++i) {
-          r[i] = load[i] / m.weight[i] - q[i];
+          r[i] = load[i] / weight[i] - q[i];
           z[i] = r[i] * m.inverse_diagonal[i];
           p[i] = z[i];
           rz_b += r[i] * z[i];
-          worst = std::max(worst, std::abs(m.weight[i] * r[i]));
+          worst = std::max(worst, std::abs(weight[i] * r[i]));
         }
         partial[b] = rz_b;
         partial_max[b] = worst;
@@ -183,7 +173,7 @@ SolveResult ConjugateGradient_Schur::solve(std::span<const double> load) const {
         r[i] -= alpha * q[i];
         z[i] = r[i] * m.inverse_diagonal[i];
         rz_b += r[i] * z[i];
-        worst = std::max(worst, std::abs(m.weight[i] * r[i]));
+        worst = std::max(worst, std::abs(weight[i] * r[i]));
       }
       partial[b] = rz_b;
       partial_max[b] = worst;
@@ -196,11 +186,15 @@ SolveResult ConjugateGradient_Schur::solve(std::span<const double> load) const {
       for (std::size_t i = lo; i < hi; ++i) p[i] = z[i] + beta * p[i];
     });
   }
-  for (std::size_t i = 0; i < nv; ++i) out.shot[i] = m.weight[i] * x[i];
+  for (std::size_t i = 0; i < nv; ++i) out.shot[i] = weight[i] * x[i];  // F = S y
   if (!mass_only) {
-    for (std::size_t e = 0; e < m.edges.size(); ++e) {
-      const double y = m.spring_factor[e] * (x[m.edges[e][0]] + x[m.edges[e][1]]);
-      out.shot[nv + e] = m.weight[nv + e] * y;
+    // Spring nodes: y_e = g_e (y_a + y_b) / D_e, Shot_e = S_e y_e.
+    const auto& normaliser = m.graph->normaliser();
+    const auto& factor = m.graph->distance_factor();
+    const auto& edges = m.graph->edges();
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      const double y = factor[e] * weight[nv + e] / normaliser[nv + e] * (x[edges[e][0]] + x[edges[e][1]]);
+      out.shot[nv + e] = weight[nv + e] * y;
     }
   }
   out.report.iterations = iterations;

@@ -40,6 +40,7 @@ struct PushSetup {
   LinkGraph graph;
   std::vector<double> mu;  // uniform: the regular grid of the paper is isotropic
   std::unique_ptr<FieldGraph> field;
+  std::shared_ptr<const TransferOperator> one_hop;
   std::vector<double> load;
 
   explicit PushSetup(const ReproductionOptions& o) : side(o.grid_side) {
@@ -50,6 +51,7 @@ struct PushSetup {
     graph = square_lattice(side);
     mu.assign(graph.vertex_count(), 1e3);
     field = std::make_unique<FieldGraph>(link_mesh(graph), mu);
+    one_hop = std::make_shared<const TransferOperator>(one_hop_operator(*field));
     load.assign(graph.vertex_count(), 0.0);
     load[centre] = 1.0;
   }
@@ -135,7 +137,7 @@ double log_log_slope(const std::vector<double>& x, const std::vector<double>& y)
 FigureOutput figure6(const ReproductionOptions& o) {
   const PushSetup s(o);
   const ComparatorOptions co = comparator_options(o);
-  const ComparatorResult proposed = Proposed_Santhanam(s.field->shared_one_hop()).solve(s.load, co);
+  const ComparatorResult proposed = Proposed_Santhanam(s.one_hop).solve(s.load, co);
   const ComparatorResult matched = MassSpring_Witkin(matched_network(*s.field), o.tolerance).solve(s.load, co);
   const ComparatorResult clamped =
       MassSpring_Witkin(clamped_network(s.graph, s.mu, lattice_border(s.side)), o.tolerance).solve(s.load, co);
@@ -202,7 +204,7 @@ FigureOutput figure6(const ReproductionOptions& o) {
 FigureOutput figure7(const ReproductionOptions& o) {
   const PushSetup s(o);
   const ComparatorOptions co = comparator_options(o, s.centre);
-  const ComparatorResult proposed = Proposed_Santhanam(s.field->shared_one_hop()).solve(s.load, co);
+  const ComparatorResult proposed = Proposed_Santhanam(s.one_hop).solve(s.load, co);
   const MassSpring_Witkin matched_ms(matched_network(*s.field), o.tolerance);
   const MassSpring_Witkin clamped_ms(clamped_network(s.graph, s.mu, lattice_border(s.side)), o.tolerance);
   const ComparatorResult matched = matched_ms.solve(s.load, co);
@@ -211,7 +213,7 @@ FigureOutput figure7(const ReproductionOptions& o) {
   // The exact fixed point (sparse LU) tells how far the stopped Shot/UnShot is from it.
   std::vector<double> node_load(s.field->node_count(), 0.0);
   node_load[s.centre] = 1.0;
-  const SolveResult exact = Direct_Eigen(s.field->shared_one_hop()).solve(node_load);
+  const SolveResult exact = Direct_Eigen(s.one_hop).solve(node_load);
   double proposed_error = 0.0;
   for (std::uint32_t v = 0; v < s.graph.vertex_count(); ++v)
     proposed_error = std::max(proposed_error, std::abs(proposed.displacement[v] - exact.shot[v]));
@@ -260,8 +262,8 @@ FigureOutput figure7(const ReproductionOptions& o) {
 FigureOutput figure8(const ReproductionOptions& o) {
   const PushSetup s(o);
   const ComparatorOptions co = comparator_options(o, s.probe);
-  const ComparatorResult proposed = Proposed_Santhanam(s.field->shared_one_hop()).solve(s.load, co);
-  const ComparatorResult sweeps = CumulativeSweeps(s.field->shared_one_hop(), "proposed-sweeps").solve(s.load, co);
+  const ComparatorResult proposed = Proposed_Santhanam(s.one_hop).solve(s.load, co);
+  const ComparatorResult sweeps = CumulativeSweeps(s.one_hop, "proposed-sweeps").solve(s.load, co);
   const ComparatorResult hauth = Exponential_Hauth(s.graph, s.mu).solve(s.load, co);
 
   FigureOutput f;
@@ -314,8 +316,7 @@ FigureOutput figure2(const ReproductionOptions& o) {
     const std::vector<double> mu(regular.vertex_count(), 1e3);
     const std::vector<double> load(regular.vertex_count(), 1.0);  // the lung's pressure: the same on every vertex
     auto field_of = [&](const LinkGraph& g) {
-      const FieldGraph fg(link_mesh(g), mu);
-      return ConjugateGradient_Schur(fg, solve).solve(load).shot;
+      return ConjugateGradient_Schur(std::make_shared<const FieldGraph>(link_mesh(g), mu), solve).solve(load).shot;
     };
     const std::vector<double> reference = field_of(regular);
     const double reference_mean = mean(reference);
@@ -398,7 +399,7 @@ FigureOutput table1(const ReproductionOptions& o) {
     std::vector<double> load(fg.node_count(), 0.0);
     std::fill(load.begin(), load.begin() + fg.mass_count(), 1.0);
     for (int m = 1; m <= o.max_clique; ++m) {
-      auto op = m == 1 ? fg.shared_one_hop() : std::make_shared<const TransferOperator>(clique_operator(fg, m));
+      auto op = m == 1 ? std::make_shared<const TransferOperator>(one_hop_operator(fg)) : std::make_shared<const TransferOperator>(clique_operator(fg, m));
       const SolveResult r = ShotUnshot_Santhanam(op, SolveOptions{o.tolerance}, true).solve(load);
       const double n = fg.mass_count();
       f.rows.push_back({num(std::uint64_t{side}), num(std::uint64_t{fg.mass_count()}), num(std::uint64_t(m)),

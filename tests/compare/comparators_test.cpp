@@ -37,7 +37,7 @@ std::vector<double> uneven_load(std::uint32_t n) {
 std::vector<double> field_exact(const FieldGraph& fg, const std::vector<double>& vertex_load) {
   std::vector<double> load(fg.node_count(), 0.0);
   std::copy(vertex_load.begin(), vertex_load.end(), load.begin());
-  const SolveResult r = Direct_Eigen(fg.shared_one_hop()).solve(load);
+  const SolveResult r = Direct_Eigen(std::make_shared<const TransferOperator>(one_hop_operator(fg))).solve(load);
   return {r.shot.begin(), r.shot.begin() + fg.mass_count()};
 }
 
@@ -154,10 +154,10 @@ TEST(ProposedSanthanam, TracedShotUnshotIsTheProductionSolverBitForBit) {
   const auto load = uneven_load(g.vertex_count());
   std::vector<double> node_load(fg.node_count(), 0.0);
   std::copy(load.begin(), load.end(), node_load.begin());
-  const SolveResult production = ShotUnshot_Santhanam(fg.shared_one_hop(), SolveOptions{1e-8}, true).solve(node_load);
+  const SolveResult production = ShotUnshot_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(fg)), SolveOptions{1e-8}, true).solve(node_load);
   ComparatorOptions o = tight(1e-8);
   o.probe_vertex = 5;
-  const ComparatorResult traced = Proposed_Santhanam(fg.shared_one_hop()).solve(load, o);
+  const ComparatorResult traced = Proposed_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(fg))).solve(load, o);
   EXPECT_EQ(traced.steps, production.report.shots);
   EXPECT_EQ(traced.counts.additions, production.report.counts.additions);
   EXPECT_EQ(traced.counts.multiplications, production.report.counts.multiplications);
@@ -179,7 +179,7 @@ TEST(ProposedSanthanam, FieldOnTheRegularGridHasTheGridsSymmetries) {
   const std::uint32_t centre = (side / 2) * side + side / 2;
   push[centre] = 1.0;
   const std::vector<double> exact = field_exact(fg, push);
-  const ComparatorResult shot = Proposed_Santhanam(fg.shared_one_hop()).solve(push, tight(1e-9));
+  const ComparatorResult shot = Proposed_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(fg))).solve(push, tight(1e-9));
   const LinkGraph lg = square_lattice(side);
   const ComparatorResult membrane =
       MassSpring_Witkin(clamped_network(lg, std::vector<double>(lg.vertex_count(), 1.0), lattice_border(side)))

@@ -64,9 +64,11 @@ class FieldGraph {
 
   // Spring node V + e sits on edges()[e] = {a, b}, a < b, sorted (as mesh::unique_edges).
   const std::vector<std::array<std::uint32_t, 2>>& edges() const { return edges_; }
-  // Mass node i is an end of the edges incident_edges()[incident_offset()[i] .. [i+1]).
+  // Mass node i is an end of the edges incident_edges()[incident_offset()[i] .. [i+1]) (in
+  // ascending order), whose other ends are incident_vertices()[same range].
   const std::vector<std::uint32_t>& incident_offset() const { return incident_offset_; }
   const std::vector<std::uint32_t>& incident_edges() const { return incident_edges_; }
+  const std::vector<std::uint32_t>& incident_vertices() const { return incident_vertices_; }
 
   const std::vector<double>& relative_modulus() const { return relative_modulus_; }  // m, per vertex
   const std::vector<double>& weight() const { return weight_; }                      // S, per node
@@ -75,18 +77,17 @@ class FieldGraph {
   const std::vector<double>& distance_factor() const { return distance_factor_; }
   double reference_distance() const { return reference_distance_; }  // h, in mesh units
 
-  // The one-hop operator (M = 1), built with the graph (shared, so solvers may keep it).
-  const TransferOperator& one_hop() const { return *one_hop_; }
-  std::shared_ptr<const TransferOperator> shared_one_hop() const { return one_hop_; }
-
  private:
   std::uint32_t mass_count_ = 0;
   std::vector<std::array<std::uint32_t, 2>> edges_;
-  std::vector<std::uint32_t> incident_offset_, incident_edges_;
+  std::vector<std::uint32_t> incident_offset_, incident_edges_, incident_vertices_;
   std::vector<double> relative_modulus_, weight_, normaliser_, distance_factor_;
   double reference_distance_ = 0.0;
-  std::shared_ptr<const TransferOperator> one_hop_;
 };
+
+// The one-hop operator (M = 1) in CSR: mass rows first (targets: their spring nodes, ascending),
+// then spring rows (targets: a < b). Built on demand: the cg solver does not need it.
+TransferOperator one_hop_operator(const FieldGraph& graph);
 
 // How a clique combines the several paths that may join a node to one within M hops.
 enum class CliquePathRule {
@@ -100,7 +101,7 @@ enum class CliquePathRule {
 // The clique operator of M hops (eq. 4.3 - 4.4): node k shoots straight to every node n with
 // 1 <= hops(k, n) <= M, with the path products of `rule`; then, if the shares leaving k sum to
 // more than with M = 1, they are scaled down to that sum, so a shot keeps the same share and
-// the iteration still converges. clique_operator(g, 1) equals g.one_hop(). Throws
+// the iteration still converges. clique_operator(g, 1) equals one_hop_operator(g). Throws
 // std::invalid_argument unless 1 <= hops <= 8.
 TransferOperator clique_operator(const FieldGraph& graph, int hops,
                                  CliquePathRule rule = CliquePathRule::sum_of_shortest_paths);

@@ -110,7 +110,8 @@ class Direct_Eigen final : public FieldSolver {
 // summed in a fixed order, and dot products add fixed blocks in a fixed order.
 class ConjugateGradient_Schur final : public FieldSolver {
  public:
-  explicit ConjugateGradient_Schur(const FieldGraph& graph, const SolveOptions& options = default_solve_options);
+  explicit ConjugateGradient_Schur(std::shared_ptr<const FieldGraph> graph,
+                                   const SolveOptions& options = default_solve_options);
   ~ConjugateGradient_Schur() override;
   std::string name() const override { return "cg"; }
   // The load of spring nodes must be 0 (they are eliminated); `load` may also hold only the
@@ -131,10 +132,11 @@ const std::vector<std::string>& solver_names();
 // Throws std::invalid_argument for an unknown name.
 SolverKind parse_solver_kind(const std::string& name);
 
-// Builds the solver of `kind` for `op` (cg: op must be graph.one_hop(), M = 1; otherwise
-// throws UnsupportedError).
-std::unique_ptr<FieldSolver> make_field_solver(SolverKind kind, const FieldGraph& graph,
-                                               std::shared_ptr<const TransferOperator> op,
+// Builds the solver of `kind` on `graph` with the transfer operator `op` (null: the one-hop
+// operator, built here unless `kind` is cg, which works on the graph itself and supports
+// M = 1 only: for another `op` it throws UnsupportedError).
+std::unique_ptr<FieldSolver> make_field_solver(SolverKind kind, std::shared_ptr<const FieldGraph> graph,
+                                               std::shared_ptr<const TransferOperator> op = nullptr,
                                                const SolveOptions& options = default_solve_options);
 
 }  // namespace pneuma::engine

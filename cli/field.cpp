@@ -1,0 +1,138 @@
+// pneuma field MESH --tissue T.yaml [--solver shot|sweep|direct|cg] [--clique M] [--tol X] -o field.h5:
+// precomputes the elastostatic field of a mesh and writes it, with the rest mesh, to HDF5.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+
+#include "commands.h"
+#include "pneuma/core/error.h"
+#include "pneuma/core/units.h"
+#include "pneuma/engine/field_cache.h"
+#include "pneuma/engine/physiology_config.h"
+#include "pneuma/engine/tissue.h"
+#include "pneuma/mesh/triangle_mesh.h"
+
+namespace pneuma::cli {
+namespace {
+
+struct FieldCliOptions {
+  std::string mesh;
+  std::string tissue;
+  std::string solver;  // empty: cg for a 1-hop clique, shot otherwise
+  int clique = 1;
+  double tolerance = 1e-6;
+  std::string output = "field.h5";
+  bool quiet = false;
+};
+
+// ============================================================================================
+// MERGE POINT: the one place the field command turns MESH into a TriangleMesh. Until the mesh
+// module's importer (assimp) and the lung phantom are merged, it knows only the analytic test
+// shape `icosphere:<radius>:<subdivisions>` (radius in metres, or with a unit: 10cm). Switch
+// this function to the real importer and `phantom` at merge time; nothing else needs to change.
+// ============================================================================================
+mesh::TriangleMesh load_mesh_for_cli(const std::string& spec) {
+  const std::string prefix = "icosphere:";
+  if (spec.rfind(prefix, 0) == 0) {
+    const std::string rest = spec.substr(prefix.size());
+    const auto colon = rest.find(':');
+    if (colon != std::string::npos) {
+      const std::string radius_text = rest.substr(0, colon), level_text = rest.substr(colon + 1);
+      double radius = 0.0;
+      try {
+        std::size_t used = 0;
+        radius = std::stod(radius_text, &used);
+        if (used != radius_text.size()) radius = units::parse(radius_text, units::kind::length);
+      } catch (const std::exception&) {
+        radius = 0.0;
+      }
+      int level = -1;
+      try {
+        std::size_t used = 0;
+        level = std::stoi(level_text, &used);
+        if (used != level_text.size()) level = -1;
+      } catch (const std::exception&) {
+        level = -1;
+      }
+      if (radius > 0.0 && level >= 0 && level <= 9) return mesh::make_icosphere(radius, level);
+    }
+    throw UsageError("pneuma: MESH: expected icosphere:<radius>:<subdivisions 0-9>, such as icosphere:0.1:5, got '" +
+                     spec + "'");
+  }
+  throw UnsupportedError(spec + ": reading mesh files is not available in this build yet; use icosphere:<radius>:<subdivisions>");
+}
+
+engine::Tissue load_tissue_for_cli(const std::string& name_or_path) {
+  const std::filesystem::path file = engine::tissue_file(name_or_path, engine::default_config_dir());
+  if (file.string() != name_or_path && !std::filesystem::exists(file)) {
+    throw UsageError("pneuma: --tissue: no preset '" + name_or_path + "' (looked for " + file.string() +
+                     "; shipped presets: healthy-upright, healthy-supine, fibrotic-lower-lobe)");
+  }
+  return engine::load_tissue(file);
+}
+
+void run_field(const FieldCliOptions& o) {
+  engine::FieldOptions options;
+  if (o.clique < 1 || o.clique > 4) throw UsageError(fmt::format("pneuma: --clique: expected 1 to 4 hops, got {}", o.clique));
+  if (!(o.tolerance > 0.0 && o.tolerance < 1.0))
+    throw UsageError(fmt::format("pneuma: --tol: expected a tolerance between 0 and 1, got {}", o.tolerance));
+  options.clique_hops = o.clique;
+  options.tolerance = o.tolerance;
+  if (o.solver.empty()) {
+    options.solver = o.clique == 1 ? engine::SolverKind::cg : engine::SolverKind::shot;
+  } else {
+    try {
+      options.solver = engine::parse_solver_kind(o.solver);
+    } catch (const std::invalid_argument&) {
+      throw UsageError("pneuma: --solver: expected one of shot, sweep, direct, cg; got '" + o.solver + "'");
+    }
+    if (options.solver == engine::SolverKind::cg && o.clique != 1)
+      throw UsageError("pneuma: --solver cg: needs --clique 1; use shot, sweep or direct for larger cliques");
+  }
+  const engine::Tissue tissue = load_tissue_for_cli(o.tissue);
+  const mesh::TriangleMesh rest = load_mesh_for_cli(o.mesh);
+
+  engine::ElastostaticField field;
+  const engine::FieldModel model = engine::compute_field_model(rest, tissue, options, &field);
+  engine::save_field(o.output, model);
+  if (o.quiet) return;
+
+  double lo = std::numeric_limits<double>::infinity(), hi = 0.0, sum = 0.0;
+  for (const auto& u : model.displacement_m) {
+    const double n = u.norm();
+    lo = std::min(lo, n);
+    hi = std::max(hi, n);
+    sum += n;
+  }
+  const double mean = sum / static_cast<double>(std::max<std::size_t>(1, model.displacement_m.size()));
+  const auto& r = field.report;
+  fmt::print("field: {} mass nodes + {} spring nodes, tissue {}, solver {} (tolerance {:g}, clique {})\n",
+             field.mass_nodes, field.spring_nodes, tissue.name, r.method, options.tolerance, options.clique_hops);
+  fmt::print("solve: {} shots, {} iterations, residual {:.2e}, graph {:.3f} s, solve {:.3f} s\n", r.shots, r.iterations,
+             r.residual, field.graph_seconds, r.seconds);
+  fmt::print("displacement per cm^2 of surface area: min {:.4g} mm, mean {:.4g} mm, max {:.4g} mm\n", lo * 1e3,
+             mean * 1e3, hi * 1e3);
+  fmt::print("wrote {} (key {})\n", o.output, model.metadata.key);
+}
+
+}  // namespace
+
+void register_field(CLI::App& app) {
+  auto options = std::make_shared<FieldCliOptions>();
+  CLI::App* cmd = app.add_subcommand("field", "Precompute the elastostatic field of a mesh and write it to HDF5");
+  cmd->add_option("mesh", options->mesh, "Mesh: icosphere:<radius>:<subdivisions> (mesh files once the importer is merged)")
+      ->required();
+  cmd->add_option("--tissue", options->tissue, "Tissue YAML file or preset (healthy-upright, healthy-supine, fibrotic-lower-lobe)")
+      ->required();
+  cmd->add_option("--solver", options->solver, "shot (the paper's), sweep, direct or cg (default: cg; shot for --clique > 1)");
+  cmd->add_option("--clique", options->clique, "Clique size M in hops, 1 to 4")->capture_default_str();
+  cmd->add_option("--tol", options->tolerance, "Stop when max UnShot <= tol * max force")->capture_default_str();
+  cmd->add_option("-o,--output", options->output, "Field file to write (HDF5)")->capture_default_str();
+  cmd->add_flag("-q,--quiet", options->quiet, "Print nothing on success");
+  cmd->callback([options] { run_field(*options); });
+}
+
+}  // namespace pneuma::cli

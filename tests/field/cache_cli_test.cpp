@@ -1,0 +1,187 @@
+// The HDF5 cache (round trip, determinism, refusal of damaged files, reuse by key) and the
+// `pneuma field` command's output and one-line errors.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+
+#include "pneuma/core/error.h"
+#include "pneuma/engine/field_cache.h"
+#include "test_support.h"
+
+using namespace pneuma;
+using namespace pneuma::engine;
+using pneuma::test::read_text;
+using pneuma::test::run_pneuma;
+using pneuma::test::TempDir;
+
+namespace {
+
+Tissue preset(const std::string& name) {
+  return load_tissue(test::source_dir() / "configs" / "tissue" / (name + ".yaml"));
+}
+
+template <typename T>
+bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+}
+
+void write_bytes(const std::filesystem::path& p, const std::string& bytes) {
+  std::ofstream(p, std::ios::binary | std::ios::trunc) << bytes;
+}
+
+std::string load_error(const std::filesystem::path& p) {
+  try {
+    load_field(p);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}  // namespace
+
+TEST(FieldCache, RoundTripsBitForBitAndWritesTheSameBytesTwice) {
+  TempDir dir;
+  const auto rest = mesh::make_icosphere(0.1, 3);
+  const FieldModel model = compute_field_model(rest, preset("healthy-upright"), default_field_options);
+  save_field(dir / "a.h5", model);
+  const FieldModel loaded = load_field(dir / "a.h5");
+  EXPECT_TRUE(same_bytes(loaded.rest.vertices, model.rest.vertices));
+  EXPECT_TRUE(same_bytes(loaded.rest.triangles, model.rest.triangles));
+  EXPECT_TRUE(same_bytes(loaded.displacement_m, model.displacement_m));
+  EXPECT_TRUE(same_bytes(loaded.force, model.force));
+  EXPECT_TRUE(same_bytes(loaded.shear_modulus_pa, model.shear_modulus_pa));
+  EXPECT_EQ(loaded.metadata.key, model.metadata.key);
+  EXPECT_EQ(loaded.metadata.tissue, "healthy-upright");
+  EXPECT_EQ(loaded.metadata.solver, "cg");
+  EXPECT_EQ(loaded.metadata.tolerance, 1e-6);
+  EXPECT_EQ(loaded.metadata.pneuma_version, PNEUMA_VERSION);
+  save_field(dir / "b.h5", loaded);
+  save_field(dir / "c.h5", compute_field_model(rest, preset("healthy-upright"), default_field_options));
+  EXPECT_EQ(read_text(dir / "a.h5"), read_text(dir / "b.h5"));
+  EXPECT_EQ(read_text(dir / "a.h5"), read_text(dir / "c.h5"));
+}
+
+TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
+  TempDir dir;
+  const auto rest = mesh::make_icosphere(0.1, 2);
+  const FieldModel model = compute_field_model(rest, preset("healthy-supine"), default_field_options);
+  save_field(dir / "good.h5", model);
+  const std::string bytes = read_text(dir / "good.h5");
+
+  write_bytes(dir / "truncated.h5", bytes.substr(0, bytes.size() / 2));
+  EXPECT_EQ(load_error(dir / "truncated.h5"),
+            (dir / "truncated.h5").string() + ": not a pneuma field file: cannot open it as HDF5 (truncated or damaged)");
+
+  // Edit one stored displacement value in place: the checksum catches it.
+  std::string edited = bytes;
+  const auto at = edited.find(std::string(reinterpret_cast<const char*>(model.displacement_m[7].data()), 8));
+  ASSERT_NE(at, std::string::npos);
+  edited[at + 3] = static_cast<char>(edited[at + 3] ^ 0x10);
+  write_bytes(dir / "edited.h5", edited);
+  EXPECT_EQ(load_error(dir / "edited.h5"),
+            (dir / "edited.h5").string() + ": not a pneuma field file: checksum mismatch (the file was edited or damaged)");
+
+  // Another program's HDF5 file: same container, other format name.
+  std::string foreign = bytes;
+  const auto name = foreign.find("pneuma-field");
+  ASSERT_NE(name, std::string::npos);
+  foreign.replace(name, 12, "other-format");
+  write_bytes(dir / "foreign.h5", foreign);
+  EXPECT_EQ(load_error(dir / "foreign.h5"),
+            (dir / "foreign.h5").string() + ": not a pneuma field file: its format is not 'pneuma-field'");
+
+  write_bytes(dir / "text.h5", "hello\n");
+  EXPECT_EQ(load_error(dir / "text.h5"), (dir / "text.h5").string() + ": not a pneuma field file: not an HDF5 file");
+  write_bytes(dir / "empty.h5", "");
+  EXPECT_EQ(load_error(dir / "empty.h5"), (dir / "empty.h5").string() + ": not a pneuma field file: not an HDF5 file");
+  EXPECT_THROW(load_field(dir / "missing.h5"), IoError);
+}
+
+TEST(FieldCache, LoadOrComputeReusesOnlyAMatchingKey) {
+  TempDir dir;
+  const auto rest = mesh::make_icosphere(0.1, 2);
+  const auto path = dir / "cache.h5";
+  const CachedField first = load_or_compute(path, rest, preset("healthy-upright"));
+  EXPECT_FALSE(first.reused);
+  const CachedField second = load_or_compute(path, rest, preset("healthy-upright"));
+  EXPECT_TRUE(second.reused);
+  EXPECT_TRUE(same_bytes(first.model.displacement_m, second.model.displacement_m));
+  // Another tissue, tolerance or mesh: a new key, so the field is recomputed and replaced.
+  EXPECT_FALSE(load_or_compute(path, rest, preset("fibrotic-lower-lobe")).reused);
+  FieldOptions tighter;
+  tighter.tolerance = 1e-8;
+  EXPECT_FALSE(load_or_compute(path, rest, preset("fibrotic-lower-lobe"), tighter).reused);
+  EXPECT_TRUE(load_or_compute(path, rest, preset("fibrotic-lower-lobe"), tighter).reused);
+  mesh::TriangleMesh moved = rest;
+  moved.vertices[0].x() += 1e-9;
+  EXPECT_FALSE(load_or_compute(path, moved, preset("fibrotic-lower-lobe"), tighter).reused);
+  // A file that is not ours is refused, never overwritten.
+  write_bytes(path, "not a field");
+  EXPECT_THROW(load_or_compute(path, rest, preset("healthy-upright")), InputError);
+  EXPECT_EQ(read_text(path), "not a field");
+}
+
+TEST(FieldCli, WritesTheFieldAndPrintsASummary) {
+  TempDir dir;
+  const auto r = run_pneuma({"field", "icosphere:0.1:3", "--tissue", "healthy-upright", "-o", (dir / "f.h5").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(r.err.empty()) << r.err;
+  EXPECT_NE(r.out.find("field: 642 mass nodes + 1920 spring nodes, tissue healthy-upright, solver cg"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("displacement per cm^2 of surface area: min "), std::string::npos) << r.out;
+  const FieldModel m = load_field(dir / "f.h5");
+  EXPECT_EQ(m.rest.vertex_count(), 642u);
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"f.h5"});
+  const auto shot = run_pneuma({"field", "icosphere:0.1:2", "--tissue", "healthy-supine", "--solver", "shot", "--clique",
+                                "2", "-o", (dir / "g.h5").string()});
+  ASSERT_EQ(shot.exit_code, 0) << shot.err;
+  EXPECT_EQ(load_field(dir / "g.h5").metadata.clique_hops, 2);
+}
+
+TEST(FieldCli, BadInputIsOneLineWithItsExitCode) {
+  TempDir dir;
+  const auto out = (dir / "f.h5").string();
+  const auto bad_key = dir.write("bad-key.yaml", "posture: upright\nstiffness:\n  model: gradient\n  profile: linear\n"
+                                                 "  nondependent: 2 kPa\n  dependent: 1 kPa\n  slope: 3\n");
+  const auto bad_unit = dir.write("bad-unit.yaml", "posture: upright\nstiffness:\n  model: gradient\n  profile: linear\n"
+                                                   "  nondependent: 2 kPa\n  dependent: 1 cmH2O/L\n");
+  struct Case {
+    std::vector<std::string> args;
+    int exit_code;
+    std::string err;
+  };
+  const std::vector<Case> cases = {
+      {{"field", "icosphere:0.1:2", "--tissue", bad_key.string(), "-o", out},
+       3,
+       bad_key.string() + ":7:3: stiffness.slope: unknown key; expected one of: bands, dependent, model, nondependent, profile"},
+      {{"field", "icosphere:0.1:2", "--tissue", bad_unit.string(), "-o", out},
+       3,
+       bad_unit.string() + ":6:14: stiffness.dependent: expected a shear modulus such as '3 kPa', got '1 cmH2O/L'"},
+      {{"field", "icosphere:0.1:2", "--tissue", "healthy-upright", "--solver", "magic", "-o", out},
+       2,
+       "pneuma: --solver: expected one of shot, sweep, direct, cg; got 'magic'"},
+      {{"field", "icosphere:0.1:2", "--tissue", "healthy-upright", "--solver", "cg", "--clique", "3", "-o", out},
+       2,
+       "pneuma: --solver cg: needs --clique 1; use shot, sweep or direct for larger cliques"},
+      {{"field", "icosphere:0.1:2", "--tissue", "healthy-upright", "--clique", "5", "-o", out},
+       2,
+       "pneuma: --clique: expected 1 to 4 hops, got 5"},
+      {{"field", "icosphere:0.1:2", "--tissue", "healthy-martian", "-o", out},
+       2,
+       "pneuma: --tissue: no preset 'healthy-martian' (looked for " +
+           (test::source_dir() / "configs" / "tissue" / "healthy-martian.yaml").string() +
+           "; shipped presets: healthy-upright, healthy-supine, fibrotic-lower-lobe)"},
+      {{"field", "icosphere:big:2", "--tissue", "healthy-upright", "-o", out},
+       2,
+       "pneuma: MESH: expected icosphere:<radius>:<subdivisions 0-9>, such as icosphere:0.1:5, got 'icosphere:big:2'"},
+  };
+  for (const Case& c : cases) {
+    const auto r = run_pneuma(c.args);
+    EXPECT_EQ(r.exit_code, c.exit_code) << c.err;
+    EXPECT_EQ(r.err, c.err + "\n");
+    EXPECT_TRUE(r.out.empty()) << r.out;
+  }
+  EXPECT_EQ(dir.files(), (std::vector<std::string>{"bad-key.yaml", "bad-unit.yaml"})) << "no partial output";
+}
