@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
   pneuma::cli::register_simulate(app);
   pneuma::cli::register_field(app);
   pneuma::cli::register_run(app, {});
+  pneuma::cli::register_compare(app);
 
   try {
     app.parse(argc, argv);
