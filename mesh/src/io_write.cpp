@@ -1,5 +1,6 @@
 // write_mesh(): small hand-written writers (assimp's exporter is not atomic and rewrites the
 // numbering); every file goes through pneuma::write_stream_atomically.
+#include <Eigen/Geometry>
 #include <array>
 #include <bit>
 #include <charconv>

@@ -1,5 +1,6 @@
 // Topological validation on the index list: sorted half-edges, union-find over faces and over
 // corners (vertex fans). Deterministic: every pass runs in face order or sorted order.
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include <algorithm>
