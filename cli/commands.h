@@ -12,6 +12,8 @@ void register_simulate(CLI::App& app);
 // `extra_sinks`: outputs built outside engine (the PNG renderer).
 void register_run(CLI::App& app, std::vector<engine::SinkFactory> extra_sinks);
 void register_field(CLI::App& app);
+void register_mesh(CLI::App& app);
+void register_phantom(CLI::App& app);
 
 // Shared option helpers.
 // Adds `--name VALUE` that parses a quantity with its unit (e.g. "3mm") into SI.

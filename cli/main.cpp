@@ -32,6 +32,8 @@ int main(int argc, char** argv) {
   pneuma::cli::register_simulate(app);
   pneuma::cli::register_field(app);
   pneuma::cli::register_run(app, {});
+  pneuma::cli::register_mesh(app);
+  pneuma::cli::register_phantom(app);
 
   try {
     app.parse(argc, argv);
