@@ -72,27 +72,34 @@ struct PositionHash {
   }
 };
 
-// Appends the triangles of one assimp mesh, transformed, to the soup (positions in file units).
-void append_mesh(const aiMesh& m, const aiMatrix4x4& transform, std::vector<std::array<float, 3>>& corners,
-                 std::size_t& skipped_primitives) {
+// The soup as assimp gives it: per mesh, its vertices (transformed, in file units) and its
+// triangles indexing them, offset to one shared vertex array.
+struct Soup {
+  std::vector<std::array<float, 3>> vertices;
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+  std::size_t skipped_primitives = 0;  // points and lines
+};
+
+void append_mesh(const aiMesh& m, const aiMatrix4x4& transform, Soup& soup) {
+  const auto offset = static_cast<std::uint32_t>(soup.vertices.size());
+  for (unsigned v = 0; v < m.mNumVertices; ++v) {
+    const aiVector3D p = transform * m.mVertices[v];
+    soup.vertices.push_back({p.x, p.y, p.z});
+  }
   for (unsigned f = 0; f < m.mNumFaces; ++f) {
     const aiFace& face = m.mFaces[f];
-    if (face.mNumIndices != 3) {  // points and lines (aiProcess_Triangulate split polygons)
-      ++skipped_primitives;
+    if (face.mNumIndices != 3) {  // aiProcess_Triangulate has split the polygons
+      ++soup.skipped_primitives;
       continue;
     }
-    for (unsigned k = 0; k < 3; ++k) {
-      const aiVector3D p = transform * m.mVertices[face.mIndices[k]];
-      corners.push_back({p.x, p.y, p.z});
-    }
+    soup.triangles.push_back({offset + face.mIndices[0], offset + face.mIndices[1], offset + face.mIndices[2]});
   }
 }
 
-void append_node(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
-                 std::vector<std::array<float, 3>>& corners, std::size_t& skipped) {
+void append_node(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent, Soup& soup) {
   const aiMatrix4x4 transform = parent * node.mTransformation;
-  for (unsigned i = 0; i < node.mNumMeshes; ++i) append_mesh(*scene.mMeshes[node.mMeshes[i]], transform, corners, skipped);
-  for (unsigned i = 0; i < node.mNumChildren; ++i) append_node(scene, *node.mChildren[i], transform, corners, skipped);
+  for (unsigned i = 0; i < node.mNumMeshes; ++i) append_mesh(*scene.mMeshes[node.mMeshes[i]], transform, soup);
+  for (unsigned i = 0; i < node.mNumChildren; ++i) append_node(scene, *node.mChildren[i], transform, soup);
 }
 
 }  // namespace
@@ -131,29 +138,35 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
   const aiScene* scene = importer.ReadFile(name, aiProcess_Triangulate);
   if (scene == nullptr) throw InputError(name + ": cannot read as a mesh: " + importer.GetErrorString());
 
-  std::vector<std::array<float, 3>> corners;
-  std::size_t skipped = 0;
+  Soup soup;
   if (scene->mRootNode != nullptr) {
-    append_node(*scene, *scene->mRootNode, aiMatrix4x4{}, corners, skipped);
+    append_node(*scene, *scene->mRootNode, aiMatrix4x4{}, soup);
   } else {
-    for (unsigned i = 0; i < scene->mNumMeshes; ++i) append_mesh(*scene->mMeshes[i], aiMatrix4x4{}, corners, skipped);
+    for (unsigned i = 0; i < scene->mNumMeshes; ++i) append_mesh(*scene->mMeshes[i], aiMatrix4x4{}, soup);
   }
-  if (corners.empty()) {
+  if (soup.triangles.empty()) {
     throw InputError(name + ": no triangles in the file" +
-                     (skipped > 0 ? " (only points or lines)" : std::string(" (not a surface mesh)")));
+                     (soup.skipped_primitives > 0 ? " (only points or lines)" : std::string(" (not a surface mesh)")));
+  }
+  for (std::size_t f = 0; f < soup.triangles.size(); ++f) {
+    for (std::uint32_t v : soup.triangles[f]) {
+      for (float c : soup.vertices[v]) {
+        if (!std::isfinite(c)) {
+          throw InputError(name + ": face " + std::to_string(f) + " has a non-finite vertex coordinate (" +
+                           (std::isnan(c) ? "nan" : c > 0 ? "inf" : "-inf") + ")");
+        }
+      }
+    }
   }
 
+  // Merge vertices at identical positions into the first of them, keeping assimp's vertex order
+  // (the file's for indexed formats such as PLY, OFF and glTF; the order of use for STL and OBJ).
   TriangleMesh mesh;
-  mesh.triangles.resize(corners.size() / 3);
+  std::vector<std::uint32_t> merged(soup.vertices.size());
   std::unordered_map<std::array<float, 3>, std::uint32_t, PositionHash> index_of;
-  index_of.reserve(corners.size() / 2);
-  for (std::size_t c = 0; c < corners.size(); ++c) {
-    const auto& p = corners[c];
-    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
-      const float bad = !std::isfinite(p[0]) ? p[0] : !std::isfinite(p[1]) ? p[1] : p[2];
-      throw InputError(name + ": face " + std::to_string(c / 3) + " has a non-finite vertex coordinate (" +
-                       (std::isnan(bad) ? "nan" : bad > 0 ? "inf" : "-inf") + ")");
-    }
+  index_of.reserve(soup.vertices.size());
+  for (std::size_t v = 0; v < soup.vertices.size(); ++v) {
+    const auto& p = soup.vertices[v];
     const std::array<float, 3> key{p[0] == 0.0f ? 0.0f : p[0], p[1] == 0.0f ? 0.0f : p[1], p[2] == 0.0f ? 0.0f : p[2]};
     const auto [it, inserted] = index_of.try_emplace(key, static_cast<std::uint32_t>(mesh.vertices.size()));
     if (inserted) {
@@ -161,8 +174,10 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
                                  static_cast<double>(key[1]) * options.metres_per_unit,
                                  static_cast<double>(key[2]) * options.metres_per_unit);
     }
-    mesh.triangles[c / 3][c % 3] = it->second;
+    merged[v] = it->second;
   }
+  mesh.triangles.reserve(soup.triangles.size());
+  for (const auto& t : soup.triangles) mesh.triangles.push_back({merged[t[0]], merged[t[1]], merged[t[2]]});
   return mesh;
 }
 

@@ -16,6 +16,33 @@ namespace PMP = CGAL::Polygon_mesh_processing;
 
 namespace pneuma::mesh {
 namespace detail {
+namespace {
+
+// Where the soup had to be split at non-manifold edges and vertices, CGAL no longer sees the
+// faces around them as neighbours and reports them as touching. Decide on the input's own
+// adjacency, as CGAL does for neighbours: faces sharing an edge intersect only when they fold
+// onto each other; faces sharing a vertex only when an edge of one crosses the other.
+bool intersect_beyond_shared_vertices(const TriangleMesh& mesh, const Triangle& f, const Triangle& g) {
+  std::vector<std::uint32_t> shared, only_f, only_g;
+  for (std::uint32_t v : f) (std::find(g.begin(), g.end(), v) != g.end() ? shared : only_f).push_back(v);
+  for (std::uint32_t v : g) {
+    if (std::find(f.begin(), f.end(), v) == f.end()) only_g.push_back(v);
+  }
+  auto P = [&](std::uint32_t v) { return to_point(mesh.vertices[v]); };
+  const Kernel::Triangle_3 tf(P(f[0]), P(f[1]), P(f[2])), tg(P(g[0]), P(g[1]), P(g[2]));
+  if (shared.empty()) return true;  // CGAL's verdict stands
+  if (shared.size() == 2) {
+    const Point a = P(shared[0]), b = P(shared[1]), c = P(only_f[0]), d = P(only_g[0]);
+    return CGAL::coplanar(a, b, c, d) && CGAL::coplanar_orientation(a, b, c, d) == CGAL::POSITIVE;
+  }
+  if (shared.size() == 1) {
+    return CGAL::do_intersect(Kernel::Segment_3(P(only_f[0]), P(only_f[1])), tg) ||
+           CGAL::do_intersect(Kernel::Segment_3(P(only_g[0]), P(only_g[1])), tf);
+  }
+  return false;  // the same three vertices: a duplicate, reported as such
+}
+
+}  // namespace
 
 std::vector<std::size_t> collinear_faces(const TriangleMesh& mesh) {
   std::vector<std::size_t> out;
@@ -61,7 +88,9 @@ std::vector<std::pair<std::size_t, std::size_t>> self_intersecting_pairs(const T
   pairs.reserve(found.size());
   for (const auto& [a, b] : found) {
     const std::size_t fa = faces[static_cast<std::size_t>(a)], fb = faces[static_cast<std::size_t>(b)];
-    pairs.emplace_back(std::min(fa, fb), std::max(fa, fb));
+    if (intersect_beyond_shared_vertices(mesh, mesh.triangles[fa], mesh.triangles[fb])) {
+      pairs.emplace_back(std::min(fa, fb), std::max(fa, fb));
+    }
   }
   std::sort(pairs.begin(), pairs.end());
   return pairs;

@@ -4,9 +4,11 @@
 // read_mesh() imports anything assimp reads (STL binary and ASCII, OBJ, PLY, OFF, glTF/GLB, ...),
 // applies the node transforms of scene formats, merges vertices with identical coordinates
 // (STL stores none shared) and returns one indexed mesh in metres. Several meshes in one file
-// are kept, as separate components of the one TriangleMesh. Vertices come out in the order in
-// which the triangles first use them, so every reader gives the same numbering for the same
-// surface and what pneuma writes reads back with the same indices.
+// are kept, as separate components of the one TriangleMesh. Vertex numbering (which error
+// messages use): the file's own for indexed formats (PLY, OFF, glTF), the order of first use
+// by the triangles for STL and OBJ (assimp expands OBJ vertices per face). Everything pneuma
+// writes is numbered by first use, so it reads back with the same indices in every format.
+// A vertex at the position of an earlier one is merged into it; unused vertices are kept.
 //
 // write_mesh() writes PLY (binary or ASCII), OBJ or STL (binary or ASCII) through
 // pneuma::write_atomically: no partial file under the final name, ever.
