@@ -25,7 +25,7 @@ constexpr double kEdge = 0.58e-3;  // 4 A / (sqrt(3) h^2) = 1.0e6 triangles for 
 const std::filesystem::path& phantom_file() {
   static const std::filesystem::path path = [] {
     auto p = std::filesystem::temp_directory_path() / "pneuma-mesh-bench.ply";
-    write_mesh(p, make_phantom({.lung = Lung::both, .target_edge_m = kEdge}));
+    write_mesh(p, make_lung_phantom({.lung = Lung::both, .edge_length_m = kEdge}));
     return p;
   }();
   return path;
@@ -44,7 +44,7 @@ void peak_memory(benchmark::State& state) {
 
 void BM_Generate(benchmark::State& state) {
   for (auto _ : state) {
-    TriangleMesh m = make_phantom({.lung = Lung::both, .target_edge_m = kEdge});
+    TriangleMesh m = make_lung_phantom({.lung = Lung::both, .edge_length_m = kEdge});
     benchmark::DoNotOptimize(m.vertices.data());
     state.counters["triangles"] = static_cast<double>(m.triangle_count());
   }
@@ -98,7 +98,7 @@ void BM_ValidateWithSelfIntersections(benchmark::State& state) {
 
 void BM_Remesh(benchmark::State& state) {
   for (auto _ : state) {
-    RemeshResult r = remesh(loaded(), {.target_edge_m = kEdge, .iterations = 3, .measure_deviation = false});
+    RemeshResult r = remesh_isotropic(loaded(), {.target_edge_length_m = kEdge, .iterations = 3, .measure_deviation = false});
     state.counters["triangles_out"] = static_cast<double>(r.mesh.triangle_count());
   }
   peak_memory(state);

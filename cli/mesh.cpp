@@ -89,7 +89,7 @@ void run_remesh(const MeshOptions& o) {
   const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit});
   const mesh::ValidationReport r = mesh::validate(m);
   if (!r.valid()) throw InputError(o.input + ": cannot remesh: " + r.summary() + " (try 'pneuma mesh repair')");
-  const mesh::RemeshResult result = mesh::remesh(m, {.target_edge_m = o.edge_m, .iterations = o.iterations});
+  const mesh::RemeshResult result = mesh::remesh_isotropic(m, {.target_edge_length_m = o.edge_m, .iterations = o.iterations});
   mesh::write_mesh(o.output, result.mesh, {.metres_per_unit = unit, .ascii = o.ascii});
   print_quality("before: ", result.before);
   print_quality("after:  ", result.after);

@@ -16,7 +16,7 @@ namespace {
 
 struct PhantomCliOptions {
   std::string lung = "both";
-  double edge_m = mesh::kDefaultPhantom.target_edge_m;
+  double edge_m = mesh::kDefaultPhantom.edge_length_m;
   std::string output;
   std::string unit = "mm";
   bool ascii = false;
@@ -29,7 +29,7 @@ void run_phantom(const PhantomCliOptions& o) {
   const std::map<std::string, mesh::Lung> lungs{{"right", mesh::Lung::right}, {"left", mesh::Lung::left}, {"both", mesh::Lung::both}};
   const auto lung = lungs.find(o.lung);
   if (lung == lungs.end()) throw UsageError("pneuma: --lung: expected left, right or both, got '" + o.lung + "'");
-  const mesh::TriangleMesh m = mesh::make_phantom({.lung = lung->second, .target_edge_m = o.edge_m});
+  const mesh::TriangleMesh m = mesh::make_lung_phantom({.lung = lung->second, .edge_length_m = o.edge_m});
   mesh::write_mesh(o.output, m, {.metres_per_unit = unit, .ascii = o.ascii});
   const auto box = mesh::bounding_box(m.vertices);
   fmt::print("wrote {}: {} vertices, {} triangles, volume {:.4g} mL, height {:.1f} mm (LPS frame, z up)\n", o.output,

@@ -255,10 +255,10 @@ int frequency_for(const LungShape& s, double h) {
 
 }  // namespace
 
-int phantom_frequency(Lung lung, double target_edge_m) {
-  check_edge(target_edge_m);
+int phantom_frequency(Lung lung, double edge_length_m) {
+  check_edge(edge_length_m);
   if (lung == Lung::both) throw std::invalid_argument("phantom_frequency: one lung at a time");
-  return frequency_for(*shapes(lung)[0], target_edge_m);
+  return frequency_for(*shapes(lung)[0], edge_length_m);
 }
 
 Eigen::Vector3d phantom_centre(Lung lung) {
@@ -266,18 +266,18 @@ Eigen::Vector3d phantom_centre(Lung lung) {
   return star_centre(*shapes(lung)[0]) - Eigen::Vector3d(0.0, 0.0, kLowestPoint);
 }
 
-double predicted_phantom_triangles(Lung lung, double target_edge_m) {
-  check_edge(target_edge_m);
+double predicted_phantom_triangles(Lung lung, double edge_length_m) {
+  check_edge(edge_length_m);
   double total = 0.0;
-  for (const LungShape* s : shapes(lung)) total += 4.0 * reference_area(*s) / (std::sqrt(3.0) * target_edge_m * target_edge_m);
+  for (const LungShape* s : shapes(lung)) total += 4.0 * reference_area(*s) / (std::sqrt(3.0) * edge_length_m * edge_length_m);
   return total;
 }
 
-TriangleMesh make_phantom(const PhantomOptions& options) {
-  check_edge(options.target_edge_m);
+TriangleMesh make_lung_phantom(const PhantomOptions& options) {
+  check_edge(options.edge_length_m);
   TriangleMesh out;
   for (const LungShape* s : shapes(options.lung)) {
-    TriangleMesh one = sample_lung(*s, frequency_for(*s, options.target_edge_m), options.relaxation_passes);
+    TriangleMesh one = sample_lung(*s, frequency_for(*s, options.edge_length_m), options.relaxation_passes);
     const auto offset = static_cast<std::uint32_t>(out.vertices.size());
     out.vertices.insert(out.vertices.end(), one.vertices.begin(), one.vertices.end());
     for (Triangle t : one.triangles) out.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});

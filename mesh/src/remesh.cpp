@@ -34,8 +34,8 @@ double max_distance_to(const SurfaceMesh& reference, const TriangleMesh& mesh) {
 
 }  // namespace
 
-RemeshResult remesh(const TriangleMesh& mesh, const RemeshOptions& options) {
-  if (!(options.target_edge_m > 0.0) || !std::isfinite(options.target_edge_m)) {
+RemeshResult remesh_isotropic(const TriangleMesh& mesh, const RemeshOptions& options) {
+  if (!(options.target_edge_length_m > 0.0) || !std::isfinite(options.target_edge_length_m)) {
     throw std::invalid_argument("remesh: the target edge length must be positive");
   }
   std::optional<SurfaceMesh> input = detail::to_surface_mesh(mesh);
@@ -44,7 +44,7 @@ RemeshResult remesh(const TriangleMesh& mesh, const RemeshOptions& options) {
   result.before = measure_quality(mesh);
   SurfaceMesh sm = *input;
   // Borders (there are none on a valid, closed input) would be kept in place.
-  PMP::isotropic_remeshing(faces(sm), options.target_edge_m, sm,
+  PMP::isotropic_remeshing(faces(sm), options.target_edge_length_m, sm,
                            PMP::parameters::number_of_iterations(options.iterations)
                                .protect_constraints(false)
                                .relax_constraints(false));

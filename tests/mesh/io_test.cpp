@@ -39,7 +39,7 @@ class RoundTrip : public ::testing::TestWithParam<Format> {};
 
 TEST_P(RoundTrip, WriteThenReadGivesTheSameMesh) {
   TempDir dir;
-  const TriangleMesh original = make_phantom({.lung = Lung::both, .target_edge_m = 0.015});
+  const TriangleMesh original = make_lung_phantom({.lung = Lung::both, .edge_length_m = 0.015});
   const auto path = dir / GetParam().file;
   write_mesh(path, original, {.ascii = GetParam().ascii});
   const TriangleMesh once = read_mesh(path);

@@ -17,7 +17,7 @@ using pneuma::test::TempDir;
 
 TEST(Phantom, EachLungIsAValidLungSizedSurface) {
   for (Lung lung : {Lung::right, Lung::left}) {
-    const TriangleMesh m = make_phantom({.lung = lung, .target_edge_m = 0.008});
+    const TriangleMesh m = make_lung_phantom({.lung = lung, .edge_length_m = 0.008});
     const ValidationReport r = validate(m);  // closed, manifold, oriented, no self-intersection
     EXPECT_TRUE(r.valid()) << r.summary();
     EXPECT_EQ(r.component_count, 1u);
@@ -40,10 +40,10 @@ TEST(Phantom, EachLungIsAValidLungSizedSurface) {
 }
 
 TEST(Phantom, LeftLungIsSmallerAndBothAreTwoComponents) {
-  const double right = enclosed_volume(make_phantom({.lung = Lung::right, .target_edge_m = 0.01}));
-  const double left = enclosed_volume(make_phantom({.lung = Lung::left, .target_edge_m = 0.01}));
+  const double right = enclosed_volume(make_lung_phantom({.lung = Lung::right, .edge_length_m = 0.01}));
+  const double left = enclosed_volume(make_lung_phantom({.lung = Lung::left, .edge_length_m = 0.01}));
   EXPECT_LT(left, right);  // the heart takes room on the left
-  const TriangleMesh both = make_phantom({.lung = Lung::both, .target_edge_m = 0.01});
+  const TriangleMesh both = make_lung_phantom({.lung = Lung::both, .edge_length_m = 0.01});
   const ValidationReport r = validate(both);
   EXPECT_TRUE(r.valid()) << r.summary();
   EXPECT_EQ(r.component_count, 2u);
@@ -56,7 +56,7 @@ TEST(Phantom, TriangleCountFollowsTheEdgeLength) {
   // within 10% once n >= 10.
   for (double h : {0.008, 0.004, 0.002}) {
     for (Lung lung : {Lung::right, Lung::left}) {
-      const TriangleMesh m = make_phantom({.lung = lung, .target_edge_m = h});
+      const TriangleMesh m = make_lung_phantom({.lung = lung, .edge_length_m = h});
       const double predicted = 4 * surface_area(m) / (std::sqrt(3.0) * h * h);
       EXPECT_NEAR(static_cast<double>(m.triangle_count()), predicted, 0.1 * predicted) << h;
       const int n = phantom_frequency(lung, h);
@@ -73,7 +73,7 @@ TEST(Phantom, EveryTriangleFacesAwayFromTheCentre) {
   // self-intersection test and enough for an embedded surface: a triangulated sphere whose
   // triangles all project positively onto the sphere around c is a graph over that sphere).
   for (Lung lung : {Lung::right, Lung::left}) {
-    const TriangleMesh m = make_phantom({.lung = lung, .target_edge_m = 0.002});
+    const TriangleMesh m = make_lung_phantom({.lung = lung, .edge_length_m = 0.002});
     const Eigen::Vector3d c = phantom_centre(lung);
     std::size_t negative = 0;
     for (const Triangle& t : m.triangles) {
@@ -98,9 +98,9 @@ TEST(Phantom, SameParametersSameBytes) {
 }
 
 TEST(Phantom, RemeshingKeepsVolumeAndReachesTheTargetEdge) {
-  const TriangleMesh m = make_phantom({.lung = Lung::right, .target_edge_m = 0.006});
+  const TriangleMesh m = make_lung_phantom({.lung = Lung::right, .edge_length_m = 0.006});
   const double target = 0.005;
-  const RemeshResult r = remesh(m, {.target_edge_m = target});
+  const RemeshResult r = remesh_isotropic(m, {.target_edge_length_m = target});
   const ValidationReport v = validate(r.mesh);
   EXPECT_TRUE(v.valid()) << v.summary();
   EXPECT_NEAR(v.volume_m3, enclosed_volume(m), 0.01 * enclosed_volume(m));

@@ -35,7 +35,7 @@ enum class Lung { right, left, both };
 
 struct PhantomOptions {
   Lung lung = Lung::both;       // both: two closed components, right lung first
-  double target_edge_m = 4e-3;  // mean edge length aimed at
+  double edge_length_m = 4e-3;  // mean edge length aimed at
   int relaxation_passes = 4;
 };
 inline const PhantomOptions kDefaultPhantom{};
@@ -43,11 +43,11 @@ inline const PhantomOptions kDefaultPhantom{};
 // The geodesic frequency n for one lung at this edge length: the n for which 20 n^2 equilateral
 // triangles of edge h cover the lung's area A, i.e. n = round(sqrt(A / (5 sqrt(3) h^2))),
 // at least 4. The triangle count is then exactly 20 n^2 per lung.
-int phantom_frequency(Lung lung, double target_edge_m);
+int phantom_frequency(Lung lung, double edge_length_m);
 
 // The count that edge length predicts before rounding n: 4 A / (sqrt(3) h^2) per lung (the
 // area over the area of one equilateral triangle), summed over the lungs generated.
-double predicted_phantom_triangles(Lung lung, double target_edge_m);
+double predicted_phantom_triangles(Lung lung, double edge_length_m);
 
 // The point inside the lung from which the surface is star-shaped (right or left only): every
 // triangle of the phantom is positively oriented as seen from it (det(a-c, b-c, c'-c) > 0).
@@ -55,6 +55,6 @@ Eigen::Vector3d phantom_centre(Lung lung);
 
 // Throws std::invalid_argument for a target edge that is not positive and finite, or one
 // so small that the mesh would pass 2^31 triangles.
-TriangleMesh make_phantom(const PhantomOptions& options = kDefaultPhantom);
+TriangleMesh make_lung_phantom(const PhantomOptions& options = kDefaultPhantom);
 
 }  // namespace pneuma::mesh

@@ -11,7 +11,7 @@
 namespace pneuma::mesh {
 
 struct RemeshOptions {
-  double target_edge_m = 3e-3;
+  double target_edge_length_m = 3e-3;
   unsigned iterations = 3;
   // Measure how far the result strays from the input (an AABB tree over the input; the
   // distance of every output vertex and triangle centroid to it). Costs about one remeshing
@@ -27,6 +27,6 @@ struct RemeshResult {
 
 // The input must be a valid surface (validate(mesh).valid()); throws std::invalid_argument
 // otherwise, and for a target edge that is not positive and finite.
-RemeshResult remesh(const TriangleMesh& mesh, const RemeshOptions& options = {});
+RemeshResult remesh_isotropic(const TriangleMesh& mesh, const RemeshOptions& options = {});
 
 }  // namespace pneuma::mesh

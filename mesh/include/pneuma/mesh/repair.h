@@ -43,4 +43,9 @@ struct RepairResult {
 // `name` (usually the file name) starts every error message.
 RepairResult repair(const TriangleMesh& mesh, const std::string& name, const RepairOptions& options = {});
 
+// The repaired mesh alone (the runner's entry point); throws as repair() does.
+inline TriangleMesh repair_or_throw(const TriangleMesh& mesh, const std::string& name, const RepairOptions& options = {}) {
+  return repair(mesh, name, options).mesh;
+}
+
 }  // namespace pneuma::mesh
