@@ -13,6 +13,8 @@ void register_simulate(CLI::App& app);
 void register_run(CLI::App& app, std::vector<engine::SinkFactory> extra_sinks);
 void register_field(CLI::App& app);
 void register_compare(CLI::App& app);
+void register_mesh(CLI::App& app);
+void register_phantom(CLI::App& app);
 
 // Shared option helpers.
 // Adds `--name VALUE` that parses a quantity with its unit (e.g. "3mm") into SI.

@@ -33,6 +33,8 @@ int main(int argc, char** argv) {
   pneuma::cli::register_field(app);
   pneuma::cli::register_run(app, {});
   pneuma::cli::register_compare(app);
+  pneuma::cli::register_mesh(app);
+  pneuma::cli::register_phantom(app);
 
   try {
     app.parse(argc, argv);

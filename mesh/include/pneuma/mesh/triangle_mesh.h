@@ -3,6 +3,7 @@
 // Triangles are counter-clockwise seen from outside, so a closed surface encloses a positive
 // volume. Plain Eigen code only (no CGAL here): this header is on the per-frame path.
 #include <Eigen/Core>
+#include <Eigen/Geometry>  // cross products on Vector3d, which every user of a mesh needs
 #include <array>
 #include <cstdint>
 #include <vector>

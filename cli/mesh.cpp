@@ -1,0 +1,140 @@
+// pneuma mesh info|repair|remesh: inspect, repair and remesh triangle surfaces.
+#include <fmt/format.h>
+
+#include <memory>
+#include <string>
+
+#include "commands.h"
+#include "pneuma/core/error.h"
+#include "pneuma/mesh/io.h"
+#include "pneuma/mesh/remesh.h"
+#include "pneuma/mesh/repair.h"
+#include "pneuma/mesh/validate.h"
+
+namespace pneuma::cli {
+namespace {
+
+struct MeshOptions {
+  std::string input;
+  std::string output;
+  std::string unit = "mm";
+  bool ascii = false;
+  bool skip_self_intersections = false;
+  double edge_m = 0.0;
+  unsigned iterations = 3;
+  std::size_t max_hole_edges = mesh::RepairOptions{}.max_hole_edges;
+};
+
+std::string yes_no(bool b) { return b ? "yes" : "no"; }
+
+void print_quality(const char* label, const mesh::MeshQuality& q) {
+  fmt::print("{}edges {:.3f} / {:.3f} / {:.3f} mm (min / mean / max), angles {:.1f} to {:.1f} deg, "
+             "mean smallest angle {:.1f} deg, {:.2f} % of triangles with an angle under 30 deg\n",
+             label, q.min_edge_m * 1e3, q.mean_edge_m * 1e3, q.max_edge_m * 1e3, q.min_angle_deg, q.max_angle_deg,
+             q.mean_min_angle_deg, 100.0 * q.fraction_below_30_deg);
+}
+
+void print_report(const std::string& name, const mesh::TriangleMesh& m, const mesh::ValidationReport& r) {
+  fmt::print("{}: {} vertices, {} triangles, {} edges, {} component{}\n", name, r.vertex_count, r.triangle_count,
+             r.edge_count, r.component_count, r.component_count == 1 ? "" : "s");
+  const auto box = mesh::bounding_box(m.vertices);
+  const Eigen::Vector3d size = box[1] - box[0];
+  fmt::print("bounding box: x {:.2f} to {:.2f}, y {:.2f} to {:.2f}, z {:.2f} to {:.2f} mm (size {:.2f} x {:.2f} x {:.2f} mm)\n",
+             box[0].x() * 1e3, box[1].x() * 1e3, box[0].y() * 1e3, box[1].y() * 1e3, box[0].z() * 1e3, box[1].z() * 1e3,
+             size.x() * 1e3, size.y() * 1e3, size.z() * 1e3);
+  fmt::print("area: {:.6g} cm^2\n", r.area_m2 * 1e4);
+  if (r.closed()) fmt::print("volume: {:.6g} mL\n", r.volume_m3 * 1e6);
+  else fmt::print("volume: undefined (open surface)\n");
+  print_quality("", mesh::measure_quality(m));
+  fmt::print("closed: {}, manifold: {}, consistently oriented: {}, genus: {}\n", yes_no(r.closed()), yes_no(r.manifold()),
+             yes_no(r.orientable && r.misoriented_face_count == 0), r.genus ? std::to_string(*r.genus) : "undefined");
+  fmt::print("boundary edges: {}, holes: {}, non-manifold edges: {}, non-manifold vertices: {}\n", r.boundary_edge_count,
+             r.hole_count, r.non_manifold_edge_count, r.non_manifold_vertex_count);
+  fmt::print("degenerate faces: {}, duplicated faces: {}, misoriented faces: {}, inside-out components: {}, unused vertices: {}\n",
+             r.degenerate_face_count, r.duplicated_face_count, r.misoriented_face_count, r.inside_out_component_count,
+             r.isolated_vertex_count);
+  fmt::print("self-intersections: {}\n",
+             r.self_intersection_count ? std::to_string(*r.self_intersection_count) : std::string("not checked"));
+  fmt::print("{}\n", r.valid() ? "valid" : "invalid");
+}
+
+mesh::TriangleMesh load(const MeshOptions& o) {
+  return mesh::read_mesh(o.input, {.metres_per_unit = mesh::parse_length_unit(o.unit)});
+}
+
+void run_info(const MeshOptions& o) {
+  const mesh::TriangleMesh m = load(o);
+  const mesh::ValidationReport r = mesh::validate(m, {.check_self_intersections = !o.skip_self_intersections});
+  print_report(o.input, m, r);
+  if (!r.valid()) throw InputError(o.input + ": " + r.summary());
+}
+
+void run_repair(const MeshOptions& o) {
+  const double unit = mesh::parse_length_unit(o.unit);
+  mesh::format_for_path(o.output, o.ascii);  // an unwritable format is a usage error: say so before the work
+  const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit});
+  const mesh::RepairResult result = mesh::repair(m, o.input, {.max_hole_edges = o.max_hole_edges});
+  mesh::write_mesh(o.output, result.mesh, {.metres_per_unit = unit, .ascii = o.ascii});
+  const auto actions = result.report.actions();
+  if (actions.empty()) fmt::print("{}: nothing to repair\n", o.input);
+  for (const auto& a : actions) fmt::print("{}: {}\n", o.input, a);
+  fmt::print("wrote {} ({} vertices, {} triangles, closed and manifold, {:.6g} mL)\n", o.output,
+             result.mesh.vertex_count(), result.mesh.triangle_count(), mesh::enclosed_volume(result.mesh) * 1e6);
+}
+
+void run_remesh(const MeshOptions& o) {
+  const double unit = mesh::parse_length_unit(o.unit);
+  if (!(o.edge_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '3 mm'");
+  mesh::format_for_path(o.output, o.ascii);
+  const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit});
+  const mesh::ValidationReport r = mesh::validate(m);
+  if (!r.valid()) throw InputError(o.input + ": cannot remesh: " + r.summary() + " (try 'pneuma mesh repair')");
+  const mesh::RemeshResult result = mesh::remesh_isotropic(m, {.target_edge_length_m = o.edge_m, .iterations = o.iterations});
+  mesh::write_mesh(o.output, result.mesh, {.metres_per_unit = unit, .ascii = o.ascii});
+  print_quality("before: ", result.before);
+  print_quality("after:  ", result.after);
+  const double v0 = mesh::enclosed_volume(m), v1 = mesh::enclosed_volume(result.mesh);
+  fmt::print("triangles {} -> {}, volume {:.6g} -> {:.6g} mL ({:+.3f} %), farthest from the input surface {:.4f} mm\n",
+             m.triangle_count(), result.mesh.triangle_count(), v0 * 1e6, v1 * 1e6, 100.0 * (v1 - v0) / v0,
+             result.max_deviation_m * 1e3);
+  fmt::print("wrote {}\n", o.output);
+}
+
+void add_unit_option(CLI::App& cmd, MeshOptions& o) {
+  cmd.add_option("--unit", o.unit, "Length of one file unit (mm, cm, m, ...), for reading and writing")
+      ->capture_default_str();
+}
+
+}  // namespace
+
+void register_mesh(CLI::App& app) {
+  auto o = std::make_shared<MeshOptions>();
+  CLI::App* mesh_cmd = app.add_subcommand("mesh", "Inspect, repair and remesh triangle surfaces (STL, OBJ, PLY, OFF, glTF, ...)");
+  mesh_cmd->require_subcommand(1);
+
+  CLI::App* info = mesh_cmd->add_subcommand("info", "Counts, bounding box, area, volume and the validation report; "
+                                                    "exit 3 when the surface is not valid");
+  info->add_option("file", o->input, "Mesh file")->required();
+  add_unit_option(*info, *o);
+  info->add_flag("--no-self-intersections", o->skip_self_intersections, "Skip the self-intersection test (the slowest)");
+  info->callback([o] { run_info(*o); });
+
+  CLI::App* repair = mesh_cmd->add_subcommand("repair", "Repair what can be repaired safely, refuse the rest");
+  repair->add_option("input", o->input, "Mesh file")->required();
+  repair->add_option("-o,--output", o->output, "Repaired mesh (.ply, .obj or .stl)")->required();
+  add_unit_option(*repair, *o);
+  repair->add_option("--max-hole", o->max_hole_edges, "Fill holes of at most this many boundary edges")->capture_default_str();
+  repair->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
+  repair->callback([o] { run_repair(*o); });
+
+  CLI::App* remesh = mesh_cmd->add_subcommand("remesh", "Isotropic remeshing to a target edge length");
+  remesh->add_option("input", o->input, "Mesh file (a valid surface)")->required();
+  add_quantity_option(*remesh, "--edge", o->edge_m, "Target edge length", "length")->required();
+  remesh->add_option("-o,--output", o->output, "Remeshed surface (.ply, .obj or .stl)")->required();
+  remesh->add_option("--iterations", o->iterations, "Remeshing iterations")->capture_default_str()->check(CLI::Range(1u, 100u));
+  add_unit_option(*remesh, *o);
+  remesh->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
+  remesh->callback([o] { run_remesh(*o); });
+}
+
+}  // namespace pneuma::cli

@@ -1,0 +1,38 @@
+#pragma once
+// Queries the scenario runner makes of a surface, answered by CGAL (kept out of this header).
+#include <Eigen/Core>
+#include <memory>
+#include <vector>
+
+#include "pneuma/mesh/triangle_mesh.h"
+
+namespace pneuma::mesh {
+
+// Surface area of a fixed connectivity with moving vertices, by CGAL's
+// Polygon_mesh_processing::area. Built once (the CGAL mesh is allocated here); each call
+// moves its points in place and allocates nothing.
+class AreaMeter {
+ public:
+  explicit AreaMeter(const TriangleMesh& mesh);
+  ~AreaMeter();
+  AreaMeter(const AreaMeter&) = delete;
+  AreaMeter& operator=(const AreaMeter&) = delete;
+  // `positions` has one entry per vertex of the mesh given to the constructor.
+  double area(const std::vector<Eigen::Vector3d>& positions);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// True when two faces of the surface intersect other than along shared edges or vertices
+// (CGAL::Polygon_mesh_processing::does_self_intersect).
+bool self_intersects(const TriangleMesh& mesh);
+
+// A per-vertex field of `source` carried to `targets`: each target point takes the value
+// interpolated (barycentrically) at its closest point on the source surface (CGAL AABB tree).
+std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source,
+                                                   const std::vector<Eigen::Vector3d>& field,
+                                                   const std::vector<Eigen::Vector3d>& targets);
+
+}  // namespace pneuma::mesh

@@ -1,0 +1,95 @@
+// CGAL answers for the runner: per-frame area, self-intersection, closest-point transfer.
+#include "pneuma/mesh/surface_queries.h"
+
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Surface_mesh.h>
+
+namespace pneuma::mesh {
+namespace {
+
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Point = Kernel::Point_3;
+using SurfaceMesh = CGAL::Surface_mesh<Point>;
+namespace PMP = CGAL::Polygon_mesh_processing;
+
+// Vertex i of `mesh` becomes vertex i of the Surface_mesh (indices are kept).
+SurfaceMesh to_surface_mesh(const TriangleMesh& mesh) {
+  SurfaceMesh sm;
+  sm.reserve(static_cast<SurfaceMesh::size_type>(mesh.vertex_count()), 0,
+             static_cast<SurfaceMesh::size_type>(mesh.triangle_count()));
+  for (const auto& v : mesh.vertices) sm.add_vertex(Point(v.x(), v.y(), v.z()));
+  for (const auto& t : mesh.triangles) {
+    sm.add_face(SurfaceMesh::Vertex_index(t[0]), SurfaceMesh::Vertex_index(t[1]), SurfaceMesh::Vertex_index(t[2]));
+  }
+  return sm;
+}
+
+}  // namespace
+
+struct AreaMeter::Impl {
+  SurfaceMesh surface;
+  std::vector<SurfaceMesh::Vertex_index> vertices;
+};
+
+AreaMeter::AreaMeter(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
+  impl_->surface = to_surface_mesh(mesh);
+  for (std::size_t i = 0; i < mesh.vertex_count(); ++i) {
+    impl_->vertices.emplace_back(static_cast<SurfaceMesh::size_type>(i));
+  }
+}
+
+AreaMeter::~AreaMeter() = default;
+
+double AreaMeter::area(const std::vector<Eigen::Vector3d>& positions) {
+  for (std::size_t i = 0; i < impl_->vertices.size(); ++i) {
+    const auto& p = positions[i];
+    impl_->surface.point(impl_->vertices[i]) = Point(p.x(), p.y(), p.z());
+  }
+  return PMP::area(impl_->surface);
+}
+
+bool self_intersects(const TriangleMesh& mesh) { return PMP::does_self_intersect(to_surface_mesh(mesh)); }
+
+std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source, const std::vector<Eigen::Vector3d>& field,
+                                                   const std::vector<Eigen::Vector3d>& targets) {
+  using Triangle3 = Kernel::Triangle_3;
+  using Iterator = std::vector<Triangle3>::const_iterator;
+  using Primitive = CGAL::AABB_triangle_primitive<Kernel, Iterator>;
+  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
+
+  auto point = [](const Eigen::Vector3d& v) { return Point(v.x(), v.y(), v.z()); };
+  std::vector<Triangle3> triangles;
+  triangles.reserve(source.triangle_count());
+  for (const auto& t : source.triangles) {
+    triangles.emplace_back(point(source.vertices[t[0]]), point(source.vertices[t[1]]), point(source.vertices[t[2]]));
+  }
+  Tree tree(triangles.begin(), triangles.end());
+  tree.accelerate_distance_queries();
+
+  std::vector<Eigen::Vector3d> out(targets.size());
+  for (std::size_t i = 0; i < targets.size(); ++i) {
+    const auto [closest, primitive] = tree.closest_point_and_primitive(point(targets[i]));
+    const auto face = static_cast<std::size_t>(primitive - triangles.begin());
+    const auto& t = source.triangles[face];
+    // Barycentric coordinates of the closest point in its triangle (it lies in the triangle).
+    const Eigen::Vector3d a = source.vertices[t[0]], b = source.vertices[t[1]], c = source.vertices[t[2]];
+    const Eigen::Vector3d p(closest.x(), closest.y(), closest.z());
+    const Eigen::Vector3d v0 = b - a, v1 = c - a, v2 = p - a;
+    const double d00 = v0.dot(v0), d01 = v0.dot(v1), d11 = v1.dot(v1), d20 = v2.dot(v0), d21 = v2.dot(v1);
+    const double denominator = d00 * d11 - d01 * d01;
+    double wb = 0.0, wc = 0.0;
+    if (denominator > 0.0) {
+      wb = (d11 * d20 - d01 * d21) / denominator;
+      wc = (d00 * d21 - d01 * d20) / denominator;
+    }
+    out[i] = (1.0 - wb - wc) * field[t[0]] + wb * field[t[1]] + wc * field[t[2]];
+  }
+  return out;
+}
+
+}  // namespace pneuma::mesh

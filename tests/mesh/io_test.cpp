@@ -1,0 +1,121 @@
+// Writing then reading each format gives the same mesh; assimp formats pneuma does not write
+// (OFF, glTF) and files with several meshes read as expected.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+
+#include "mesh_fixture.h"
+#include "pneuma/core/error.h"
+#include "pneuma/mesh/io.h"
+#include "pneuma/mesh/phantom.h"
+#include "pneuma/mesh/validate.h"
+#include "test_support.h"
+
+using namespace pneuma::mesh;
+using pneuma::test::TempDir;
+using pneuma::mesh::test::make_cube;
+
+namespace {
+
+struct Format {
+  const char* file;
+  bool ascii;
+};
+
+// Same triangles, index for index; positions equal within `tolerance_m`.
+void expect_same(const TriangleMesh& a, const TriangleMesh& b, double tolerance_m) {
+  ASSERT_EQ(a.vertex_count(), b.vertex_count());
+  ASSERT_EQ(a.triangle_count(), b.triangle_count());
+  EXPECT_EQ(a.triangles, b.triangles);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < a.vertex_count(); ++i) worst = std::max(worst, (a.vertices[i] - b.vertices[i]).cwiseAbs().maxCoeff());
+  EXPECT_LE(worst, tolerance_m);
+}
+
+}  // namespace
+
+class RoundTrip : public ::testing::TestWithParam<Format> {};
+
+TEST_P(RoundTrip, WriteThenReadGivesTheSameMesh) {
+  TempDir dir;
+  const TriangleMesh original = make_lung_phantom({.lung = Lung::both, .edge_length_m = 0.015});
+  const auto path = dir / GetParam().file;
+  write_mesh(path, original, {.ascii = GetParam().ascii});
+  const TriangleMesh once = read_mesh(path);
+  // Files hold 32-bit floats in mm: 0.25 mm lung coordinates round to within 2^-24 * 256 mm.
+  expect_same(original, once, 2e-8);
+  // What was read back is representable: a second round trip is exact.
+  write_mesh(path, once, {.ascii = GetParam().ascii});
+  expect_same(once, read_mesh(path), 0.0);
+  EXPECT_EQ(dir.files(), std::vector<std::string>{GetParam().file}) << "no temporary file left";
+}
+
+INSTANTIATE_TEST_SUITE_P(Formats, RoundTrip,
+                         ::testing::Values(Format{"m.ply", false}, Format{"m.ply", true}, Format{"m.obj", false},
+                                           Format{"m.stl", false}, Format{"m.stl", true}),
+                         [](const auto& param_info) {
+                           std::string n = param_info.param.file;
+                           return n.substr(2) + (param_info.param.ascii ? "_ascii" : "_binary");
+                         });
+
+TEST(Io, UnitScalesCoordinates) {
+  TempDir dir;
+  const TriangleMesh cube = make_cube(0.02);
+  write_mesh(dir / "c.stl", cube, {.metres_per_unit = 0.01});  // in cm
+  const TriangleMesh in_cm = read_mesh(dir / "c.stl", {.metres_per_unit = 0.01});
+  EXPECT_NEAR(enclosed_volume(in_cm), 8e-6, 1e-12);
+  const TriangleMesh as_mm = read_mesh(dir / "c.stl");  // the same numbers taken as mm
+  EXPECT_NEAR(enclosed_volume(as_mm), 8e-9, 1e-15);
+  EXPECT_DOUBLE_EQ(parse_length_unit("mm"), 1e-3);
+  EXPECT_DOUBLE_EQ(parse_length_unit("cm"), 1e-2);
+  EXPECT_DOUBLE_EQ(parse_length_unit("0.5 mm"), 5e-4);
+  EXPECT_THROW(parse_length_unit("kg"), pneuma::UsageError);
+}
+
+TEST(Io, StlVerticesAreMergedIntoOneClosedSurface) {
+  TempDir dir;
+  const TriangleMesh sphere = test::canonical(make_icosphere(0.01, 2));
+  write_mesh(dir / "s.stl", sphere);
+  const TriangleMesh m = read_mesh(dir / "s.stl");
+  EXPECT_EQ(m.vertex_count(), sphere.vertex_count());  // 3 corners per facet in the file
+  EXPECT_TRUE(validate(m).valid());
+}
+
+TEST(Io, ReadsOffAndGltfWithNodeTransforms) {
+  TempDir dir;
+  const auto off = dir.write("t.off", "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
+  const TriangleMesh t = read_mesh(off);
+  EXPECT_EQ(t.triangle_count(), 4u);
+  EXPECT_NEAR(enclosed_volume(t), 1e-9 / 6, 1e-18);
+  // glTF 2.0: the same tetrahedron (float positions, uint16 indices, base64 buffer), in a node
+  // translated by 10 units along x.
+  const auto gltf = dir.write("t.gltf", R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],
+    "nodes":[{"mesh":0,"translation":[10,0,0]}],
+    "meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1,"mode":4}]}],
+    "buffers":[{"byteLength":72,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAIA/AAACAAEAAAABAAMAAAADAAIAAQACAAMA"}],
+    "bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":24}],
+    "accessors":[{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[0,0,0],"max":[1,1,1]},
+                 {"bufferView":1,"componentType":5123,"count":12,"type":"SCALAR"}]})");
+  const TriangleMesh g = read_mesh(gltf);
+  EXPECT_EQ(g.triangle_count(), 4u);
+  EXPECT_NEAR(enclosed_volume(g), 1e-9 / 6, 1e-18);
+  EXPECT_NEAR(bounding_box(g.vertices)[0].x(), 10e-3, 1e-12);
+}
+
+TEST(Io, SeveralMeshesInOneFileAreKeptAsComponents) {
+  TempDir dir;
+  const auto obj = dir.write("two.obj",
+                             "o first\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+                             "o second\nv 5 0 0\nv 6 0 0\nv 5 1 0\nv 5 0 1\nf 5 7 6\nf 5 6 8\nf 5 8 7\nf 6 7 8\n");
+  const ValidationReport r = validate(read_mesh(obj));
+  EXPECT_EQ(r.component_count, 2u);
+  EXPECT_TRUE(r.valid()) << r.summary();
+  EXPECT_NEAR(r.volume_m3, 2e-9 / 6, 1e-18);
+}
+
+TEST(Io, UnknownOutputExtensionIsAUsageError) {
+  TempDir dir;
+  EXPECT_THROW(write_mesh(dir / "m.vtk", make_cube(1.0)), pneuma::UsageError);
+  EXPECT_TRUE(dir.files().empty());
+}

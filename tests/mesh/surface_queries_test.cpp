@@ -1,0 +1,57 @@
+// CGAL-backed queries against independent oracles.
+#include "pneuma/mesh/surface_queries.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+using namespace pneuma::mesh;
+
+namespace {
+
+// A flat n x n grid of squares (two triangles each) on z = 0 covering [0, 1]^2, facing +z.
+TriangleMesh flat_grid(int n) {
+  TriangleMesh m;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) m.vertices.emplace_back(double(i) / n, double(j) / n, 0.0);
+  auto id = [n](int i, int j) { return static_cast<std::uint32_t>(j * (n + 1) + i); };
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      m.triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      m.triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+  return m;
+}
+
+}  // namespace
+
+TEST(SurfaceQueries, TransferReproducesALinearFieldAtTheFootOfEachPoint) {
+  // Barycentric interpolation is exact for a linear field; a point above the plane takes the
+  // value at its orthogonal foot (x, y, 0).
+  const TriangleMesh grid = flat_grid(7);
+  const Eigen::Matrix3d a{{1.0, 2.0, -1.0}, {0.5, -3.0, 2.0}, {4.0, 0.0, 1.0}};
+  std::vector<Eigen::Vector3d> field;
+  for (const auto& v : grid.vertices) field.push_back(a * v);
+  const std::vector<Eigen::Vector3d> targets{{0.13, 0.71, 0.05}, {0.5, 0.5, -0.2}, {0.99, 0.02, 0.3}, {0.0, 1.0, 0.0}};
+  const auto moved = transfer_vertex_field(grid, field, targets);
+  for (std::size_t i = 0; i < targets.size(); ++i) {
+    const Eigen::Vector3d foot(targets[i].x(), targets[i].y(), 0.0);
+    EXPECT_LT((moved[i] - a * foot).norm(), 1e-12) << i;
+  }
+}
+
+TEST(SurfaceQueries, AreaMeterEqualsThePlainSumAsVerticesMove) {
+  const TriangleMesh sphere = make_icosphere(0.1, 3);
+  AreaMeter meter(sphere);
+  EXPECT_NEAR(meter.area(sphere.vertices), surface_area(sphere), 1e-15);
+  std::vector<Eigen::Vector3d> moved = sphere.vertices;
+  for (auto& p : moved) p = Eigen::Vector3d(1.5 * p.x(), p.y(), 0.7 * p.z() + 0.01 * p.y());
+  EXPECT_NEAR(meter.area(moved), surface_area(moved, sphere.triangles), 1e-14);
+}
+
+TEST(SurfaceQueries, SelfIntersectionIsFound) {
+  TriangleMesh sphere = make_icosphere(0.1, 2);
+  EXPECT_FALSE(self_intersects(sphere));
+  sphere.vertices[0] = -1.5 * sphere.vertices[0];  // pushed through to the far side
+  EXPECT_TRUE(self_intersects(sphere));
+}
