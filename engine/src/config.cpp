@@ -67,6 +67,11 @@ const Node::Layer* Node::layer_with(const std::string& key) const {
 
 bool Node::has(const std::string& key) const { return layer_with(key) != nullptr; }
 
+bool Node::is_map(const std::string& key) const {
+  const Layer* layer = layer_with(key);
+  return layer != nullptr && layer->node[key].IsMap();
+}
+
 YAML::Node Node::child(const std::string& key, const Layer** found) const {
   const Layer* layer = layer_with(key);
   if (!layer) return YAML::Node(YAML::NodeType::Undefined);

@@ -64,6 +64,10 @@ FieldSpec read_field(const Node& n, const std::filesystem::path& config_dir) {
 std::optional<Node> sink_section(const Node& outputs, const std::string& key, bool default_on, bool& on) {
   on = default_on;
   if (!outputs.has(key)) return std::nullopt;
+  if (!outputs.is_map(key)) {
+    on = outputs.boolean(key, default_on);
+    return std::nullopt;
+  }
   if (auto options = outputs.optional_map(key)) {
     on = options->boolean("enabled", true);
     return options;

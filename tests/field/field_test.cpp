@@ -155,8 +155,8 @@ TEST(Tissue, PresetsFollowPosture) {
   EXPECT_DOUBLE_EQ(upright[extreme({0, 0, 1})], 2400.0);   // apex
   EXPECT_DOUBLE_EQ(upright[extreme({0, 0, -1})], 600.0);   // base
   const auto supine = shear_modulus_per_vertex(preset("healthy-supine"), m);
-  EXPECT_DOUBLE_EQ(supine[extreme({0, 1, 0})], 1800.0);    // anterior
-  EXPECT_DOUBLE_EQ(supine[extreme({0, -1, 0})], 600.0);    // posterior
+  EXPECT_DOUBLE_EQ(supine[extreme({0, -1, 0})], 1800.0);   // anterior (LPS: -y)
+  EXPECT_DOUBLE_EQ(supine[extreme({0, 1, 0})], 600.0);     // posterior
   const auto fibrotic = shear_modulus_per_vertex(preset("fibrotic-lower-lobe"), m);
   EXPECT_DOUBLE_EQ(fibrotic[extreme({0, 0, -1})], 10e3);
   EXPECT_DOUBLE_EQ(fibrotic[extreme({0, 0, 1})], 2400.0);

@@ -42,6 +42,12 @@ double file_volume(const std::filesystem::path& p) {
   return six / 6.0;
 }
 
+std::filesystem::path frame_file(const std::filesystem::path& dir, std::size_t k) {
+  char name[32];
+  std::snprintf(name, sizeof name, "frame_%05zu.ply", k);
+  return dir / name;
+}
+
 }  // namespace
 
 TEST(Runner, ExportedFrameVolumesFollowTheSimulatedVolumeTimesTheShare) {
@@ -61,7 +67,7 @@ TEST(Runner, ExportedFrameVolumesFollowTheSimulatedVolumeTimesTheShare) {
   double largest = 0.0;
   for (std::size_t k = 0; k < phys.series.size(); ++k) {
     const double expected_change = 0.55 * phys.series.volume_m3[k];
-    const double measured_change = file_volume(dir / "out/frames" / ("frame_000" + std::string(k < 10 ? "0" : "") + std::to_string(k) + ".ply")) - rest;
+    const double measured_change = file_volume(frame_file(dir / "out/frames", k)) - rest;
     largest = std::max(largest, expected_change);
     // 0.1 % of the breath, plus the float32 rounding of the PLY coordinates.
     EXPECT_NEAR(measured_change, expected_change, 1e-3 * 0.55 * 0.5e-3 + 1e-7 * rest) << "frame " << k;
@@ -93,7 +99,7 @@ TEST(Runner, GltfKeyframeEqualsTheExportedMeshAtTheSameTime) {
   pneuma::mesh::ReadOptions o;
   o.metres_per_unit = 1.0;
   for (std::size_t k : {5u, 17u, 33u}) {
-    const auto frame = pneuma::mesh::read_mesh(dir / "out/frames" / ("frame_000" + std::to_string(k) + ".ply"), o);
+    const auto frame = pneuma::mesh::read_mesh(frame_file(dir / "out/frames", k), o);
     ASSERT_EQ(frame.vertex_count(), m.accessors.at(static_cast<std::size_t>(primitive.attributes.at("POSITION"))).count);
     for (std::size_t i = 0; i < frame.vertex_count(); i += 11) {
       for (int c = 0; c < 3; ++c) {
@@ -154,12 +160,12 @@ INSTANTIATE_TEST_SUITE_P(
     Cases, RunBadScenario,
     ::testing::Values(
         BadRun{"wrong_unit", "duration: 4 s\nframes: {rate: 30 mL}\nphysiology: {preset: healthy-adult}\n",
-               "2:17: frames.rate: expected a rate such as '12 /min', got '30 mL'", 3},
+               "2:16: frames.rate: expected a rate such as '12 /min', got '30 mL'", 3},
         BadRun{"unknown_key", "duration: 4 s\nmesh: {phantom: right, egde: 4 mm}\nphysiology: {preset: healthy-adult}\n",
                "2:24: mesh.egde: unknown key; expected one of: edge, file, phantom, reference_volume, share",
                3},
         BadRun{"missing_mesh", "duration: 4 s\nmesh: {file: lungs.stl}\nphysiology: {preset: healthy-adult}\n",
-               "2:15: mesh.file: no such file: {dir}/lungs.stl", 3},
+               "2:14: mesh.file: no such file: {dir}/lungs.stl", 3},
         BadRun{"negative_duration", "duration: -4 s\nphysiology: {preset: healthy-adult}\n",
                "1:11: duration: expected a positive duration, got '-4 s'", 3}),
     [](const auto& test_case) { return std::string(test_case.param.name); });

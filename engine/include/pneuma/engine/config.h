@@ -33,6 +33,8 @@ class Node {
   std::filesystem::path directory(const std::string& key = "") const;
 
   bool has(const std::string& key) const;
+  // True when `key` holds a mapping (rather than a scalar or a list).
+  bool is_map(const std::string& key) const;
   // The child mapping at `key`; throws when missing or not a mapping.
   Node map(const std::string& key) const;
   std::optional<Node> optional_map(const std::string& key) const;

@@ -3,8 +3,8 @@
 // from a tissue YAML file (configs/tissue/*.yaml).
 //
 // Mesh coordinates. The tissue file names the mesh's up and anterior directions
-// (`coordinates: {up: +z, anterior: +y}` by default: z up with the apex at the top, as the
-// built-in phantom; y anterior, as RAS). Gravity sets the axis of the gradient:
+// (`coordinates: {up: +z, anterior: -y}` by default: the DICOM LPS frame of the built-in
+// phantom, x to the patient's left, y posterior, z up with the apex at the top). Gravity sets the axis of the gradient:
 //   upright: from the top of the lung (apex, non-dependent) down to the base (dependent);
 //   supine:  from the anterior surface (non-dependent) to the posterior one (dependent);
 //   prone:   from posterior to anterior.
@@ -57,7 +57,7 @@ struct Tissue {
   std::string name;
   Posture posture = Posture::upright;
   Eigen::Vector3d up{0, 0, 1};
-  Eigen::Vector3d anterior{0, 1, 0};
+  Eigen::Vector3d anterior{0, -1, 0};
   std::variant<GradientStiffness, PerVertexStiffness, RegionStiffness> stiffness;
 };
 
