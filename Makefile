@@ -22,8 +22,7 @@ build: configure
 	@cmake --build --preset $(PRESET)
 
 demo: build
-	@$(PNEUMA) simulate $(DEMO_SCENARIO) -o $(DEMO_OUT)/physiology.csv
-	@echo "demo outputs are in $(DEMO_OUT)/"
+	@$(PNEUMA) run $(DEMO_SCENARIO) -o $(DEMO_OUT)
 
 test: build
 	@ctest --preset $(PRESET)

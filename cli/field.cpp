@@ -13,6 +13,8 @@
 #include "pneuma/engine/field_cache.h"
 #include "pneuma/engine/physiology_config.h"
 #include "pneuma/engine/tissue.h"
+#include "pneuma/mesh/io.h"
+#include "pneuma/mesh/phantom.h"
 #include "pneuma/mesh/triangle_mesh.h"
 
 namespace pneuma::cli {
@@ -25,16 +27,24 @@ struct FieldCliOptions {
   int clique = 1;
   double tolerance = 1e-6;
   std::string output = "field.h5";
+  std::string unit = "mm";
+  double edge_m = 4e-3;
   bool quiet = false;
 };
 
-// ============================================================================================
-// MERGE POINT: the one place the field command turns MESH into a TriangleMesh. Until the mesh
-// module's importer (assimp) and the lung phantom are merged, it knows only the analytic test
-// shape `icosphere:<radius>:<subdivisions>` (radius in metres, or with a unit: 10cm). Switch
-// this function to the real importer and `phantom` at merge time; nothing else needs to change.
-// ============================================================================================
-mesh::TriangleMesh load_mesh_for_cli(const std::string& spec) {
+// MESH: a mesh file (read with --unit), `phantom:left|right|both` (at --edge), or the analytic
+// test shape `icosphere:<radius>:<subdivisions>` (radius in metres, or with a unit: 10cm).
+mesh::TriangleMesh load_mesh_for_cli(const std::string& spec, const std::string& unit, double phantom_edge_m) {
+  if (spec.rfind("phantom:", 0) == 0) {
+    const std::string side = spec.substr(8);
+    mesh::PhantomOptions phantom;
+    phantom.edge_length_m = phantom_edge_m;
+    if (side == "left") phantom.lung = mesh::Lung::left;
+    else if (side == "right") phantom.lung = mesh::Lung::right;
+    else if (side == "both") phantom.lung = mesh::Lung::both;
+    else throw UsageError("pneuma: MESH: expected phantom:left, phantom:right or phantom:both, got '" + spec + "'");
+    return mesh::make_lung_phantom(phantom);
+  }
   const std::string prefix = "icosphere:";
   if (spec.rfind(prefix, 0) == 0) {
     const std::string rest = spec.substr(prefix.size());
@@ -62,7 +72,9 @@ mesh::TriangleMesh load_mesh_for_cli(const std::string& spec) {
     throw UsageError("pneuma: MESH: expected icosphere:<radius>:<subdivisions 0-9>, such as icosphere:0.1:5, got '" +
                      spec + "'");
   }
-  throw UnsupportedError(spec + ": reading mesh files is not available in this build yet; use icosphere:<radius>:<subdivisions>");
+  mesh::ReadOptions read;
+  read.metres_per_unit = mesh::parse_length_unit(unit);
+  return mesh::read_mesh(spec, read);
 }
 
 engine::Tissue load_tissue_for_cli(const std::string& name_or_path) {
@@ -93,7 +105,7 @@ void run_field(const FieldCliOptions& o) {
       throw UsageError("pneuma: --solver cg: needs --clique 1; use shot, sweep or direct for larger cliques");
   }
   const engine::Tissue tissue = load_tissue_for_cli(o.tissue);
-  const mesh::TriangleMesh rest = load_mesh_for_cli(o.mesh);
+  const mesh::TriangleMesh rest = load_mesh_for_cli(o.mesh, o.unit, o.edge_m);
 
   engine::ElastostaticField field;
   const engine::FieldModel model = engine::compute_field_model(rest, tissue, options, &field);
@@ -123,7 +135,7 @@ void run_field(const FieldCliOptions& o) {
 void register_field(CLI::App& app) {
   auto options = std::make_shared<FieldCliOptions>();
   CLI::App* cmd = app.add_subcommand("field", "Precompute the elastostatic field of a mesh and write it to HDF5");
-  cmd->add_option("mesh", options->mesh, "Mesh: icosphere:<radius>:<subdivisions> (mesh files once the importer is merged)")
+  cmd->add_option("mesh", options->mesh, "Mesh file, phantom:left|right|both, or icosphere:<radius>:<subdivisions>")
       ->required();
   cmd->add_option("--tissue", options->tissue, "Tissue YAML file or preset (healthy-upright, healthy-supine, fibrotic-lower-lobe)")
       ->required();
@@ -131,6 +143,8 @@ void register_field(CLI::App& app) {
   cmd->add_option("--clique", options->clique, "Clique size M in hops, 1 to 4")->capture_default_str();
   cmd->add_option("--tol", options->tolerance, "Stop when max UnShot <= tol * max force")->capture_default_str();
   cmd->add_option("-o,--output", options->output, "Field file to write (HDF5)")->capture_default_str();
+  cmd->add_option("--unit", options->unit, "Length of one unit of the mesh file (mm, cm, m, ...)")->capture_default_str();
+  add_quantity_option(*cmd, "--edge", options->edge_m, "Phantom edge length (default 4 mm)", "length");
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing on success");
   cmd->callback([options] { run_field(*options); });
 }

@@ -140,6 +140,7 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options, const std::
 
   const BreathingModel model = prepare_model(s, options, result.timings_s, result.field_reused);
   result.vertex_count = model.rest.vertex_count();
+  if (s.field.cache == "auto") result.files.emplace_back("field.h5");  // the cache lives with the outputs
 
   const auto& t = frames_physiology.series.time_s;
   const std::vector<double> scales = frame_scales(model, s.mesh, t, frames_physiology.series.volume_m3);

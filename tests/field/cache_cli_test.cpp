@@ -140,6 +140,31 @@ TEST(FieldCli, WritesTheFieldAndPrintsASummary) {
   EXPECT_EQ(load_field(dir / "g.h5").metadata.clique_hops, 2);
 }
 
+TEST(FieldCli, ReadsMeshFilesInTheirUnitAndThePhantom) {
+  // A phantom written in millimetres and read back in millimetres is the same surface: the
+  // field of the file equals the field of the phantom (same mesh up to float rounding).
+  TempDir dir;
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "right", "--edge", "15mm", "-o", (dir / "lung.ply").string()}).exit_code, 0);
+  auto r = run_pneuma({"field", (dir / "lung.ply").string(), "--unit", "mm", "--tissue", "healthy-upright", "-o",
+                       (dir / "a.h5").string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_pneuma({"field", "phantom:right", "--edge", "15mm", "--tissue", "healthy-upright", "-o",
+                  (dir / "b.h5").string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const FieldModel a = load_field(dir / "a.h5"), b = load_field(dir / "b.h5");
+  ASSERT_EQ(a.rest.vertex_count(), b.rest.vertex_count());
+  double largest = 0.0, difference = 0.0;
+  for (std::size_t i = 0; i < a.rest.vertex_count(); ++i) {
+    EXPECT_LT((a.rest.vertices[i] - b.rest.vertices[i]).norm(), 1e-6);  // float32 in the PLY, in mm
+    largest = std::max(largest, b.displacement_m[i].norm());
+    difference = std::max(difference, (a.displacement_m[i] - b.displacement_m[i]).norm());
+  }
+  EXPECT_LT(difference, 1e-4 * largest);
+  r = run_pneuma({"field", "phantom:middle", "--tissue", "healthy-upright", "-o", (dir / "c.h5").string()});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "pneuma: MESH: expected phantom:left, phantom:right or phantom:both, got 'phantom:middle'\n");
+}
+
 TEST(FieldCli, BadInputIsOneLineWithItsExitCode) {
   TempDir dir;
   const auto out = (dir / "f.h5").string();
