@@ -15,6 +15,7 @@ void register_field(CLI::App& app);
 void register_compare(CLI::App& app);
 void register_mesh(CLI::App& app);
 void register_phantom(CLI::App& app);
+void register_render(CLI::App& app);
 
 // Shared option helpers.
 // Adds `--name VALUE` that parses a quantity with its unit (e.g. "3mm") into SI.

@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
   pneuma::cli::register_compare(app);
   pneuma::cli::register_mesh(app);
   pneuma::cli::register_phantom(app);
+  pneuma::cli::register_render(app);
 
   try {
     app.parse(argc, argv);

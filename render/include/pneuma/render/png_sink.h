@@ -1,0 +1,51 @@
+#pragma once
+// PNG frames of a breathing sequence, in the shape of a frame sink: begin() with the model
+// (rest mesh, field, largest scale), frame() per frame, end(). The scenario runner's sink
+// interface can wrap this class one-to-one.
+//
+//   PngFrameSink sink("out/frames", {});
+//   sink.begin(rest, field, max_scale);
+//   for (k...) sink.frame(k, s[k]);   // writes out/frames/frame-00000.png, ...
+//   sink.end();
+#include <Eigen/Core>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/render/image.h"
+#include "pneuma/render/renderer.h"
+
+namespace pneuma::render {
+
+struct PngSinkOptions {
+  RenderOptions render;
+  PngOptions png{.fast = true};
+  std::string prefix = "frame-";  // files are <prefix><index, 5 digits>.png
+};
+
+class PngFrameSink {
+ public:
+  PngFrameSink(std::filesystem::path directory, PngSinkOptions options = {});
+  ~PngFrameSink();
+
+  // Creates the renderer and uploads the model. Throws what Renderer's constructor throws.
+  void begin(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, double max_scale);
+  // Renders the frame at scale s and writes it atomically. Throws IoError.
+  void frame(std::size_t index, double s);
+  // Releases the OpenGL context.
+  void end();
+
+  std::filesystem::path path_of(std::size_t index) const;
+  const std::vector<std::filesystem::path>& written() const { return written_; }
+
+ private:
+  std::filesystem::path directory_;
+  PngSinkOptions options_;
+  std::unique_ptr<Renderer> renderer_;
+  Image image_;  // reused across frames
+  std::vector<std::filesystem::path> written_;
+};
+
+}  // namespace pneuma::render

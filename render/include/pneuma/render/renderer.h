@@ -1,0 +1,104 @@
+#pragma once
+// Headless renderer of a breathing lung: frame(s) = rest + s * u, displaced in the vertex shader.
+//
+// Built once, queried per frame (like a solver object): the constructor creates an OpenGL 3.3
+// core context with OSMesa, uploads the rest positions, the field u and the normal terms as
+// vertex attributes, and frames the camera on the bounds of the mesh over s in [0, max_scale].
+// render(s) then only sets the uniform `s`, draws, resolves the multisampled image and reads it
+// back: no upload, no allocation when the caller reuses the output image.
+//
+//   render::Renderer renderer(rest, field, max_scale, options);
+//   for (...) render::write_png(dir / name, renderer.render(s));
+//
+// Normals follow the deformation exactly. The area-weighted vertex normal of rest + s u (the
+// same one mesh::vertex_normals computes) is, before normalisation, the sum of the incident
+// triangles' cross products (b - a) x (c - a), each quadratic in s:
+//   m_i(s) = n0_i + s n1_i + s^2 n2_i
+// The three coefficients are precomputed per vertex and the shader normalises m_i(s).
+//
+// Not thread-safe: use one renderer from one thread at a time (each call makes its context
+// current on the calling thread).
+#include <Eigen/Core>
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/render/camera.h"
+#include "pneuma/render/image.h"
+
+namespace pneuma::render {
+
+// Colours are sRGB, 0..1; lighting is computed in linear light.
+struct Material {
+  Eigen::Vector3d base_colour = {0.87, 0.56, 0.56};  // healthy lung: pink
+  double specular = 0.22;                            // soft, wet-looking highlight
+  double shininess = 24.0;
+  double wrap = 0.35;   // diffuse wrap-around (0 = Lambert): softens the terminator like tissue
+  double rim = 0.18;    // faint light at grazing angles (the pleura's sheen)
+};
+
+struct RenderOptions {
+  int width = 640;   // pixels
+  int height = 480;
+  CameraPreset camera = CameraPreset::anterior;
+  double fov_y_deg = 30.0;
+  double margin = 1.1;  // free space around the framed bounds
+  int msaa_samples = 4;  // 0 or 1: no anti-aliasing; clamped to what the driver offers
+  Eigen::Vector3d background = {0.11, 0.12, 0.15};  // sRGB
+  Material material;
+  bool cull_back_faces = true;  // lung surfaces are closed and outward-oriented
+  // Overlay: colour by the displacement magnitude |s u| (viridis), with a colour bar legend.
+  bool overlay_magnitude = false;
+  double overlay_max_m = 0.0;  // top of the colour scale; 0: max |u| * |max_scale| (fixed across frames)
+  bool legend = true;           // the colour bar (drawn only with the overlay)
+};
+inline const RenderOptions default_render_options{};
+
+class Renderer {
+ public:
+  // `field` has one vector per vertex of `rest` (metres per unit of s). `max_scale` is the
+  // largest s that will be rendered: the camera frames the bounds of rest and rest +
+  // max_scale * u, so it does not move between frames. Throws UnsupportedError when no OpenGL
+  // context can be created (the message says what to install) or the image is larger than the
+  // driver allows, InputError when the field or the triangles do not fit the mesh, UsageError
+  // for a non-positive image size.
+  Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, double max_scale,
+           const RenderOptions& options = default_render_options);
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  // The frame at scale s (s = 0 is the rest mesh).
+  Image render(double s);
+  // Same, into `out` (resized once, then reused: the per-frame path allocates nothing).
+  void render(double s, Image& out);
+
+  // Per-frame view changes (no re-upload).
+  void set_camera(CameraPreset preset);  // framed on the same bounds as at construction
+  void set_camera(const Camera& camera);
+  const Camera& camera() const;
+  const RenderOptions& options() const;
+  // The bounds the camera frames: those of rest and rest + max_scale * u.
+  const std::array<Eigen::Vector3d, 2>& framed_bounds() const;
+  // The overlay's top value (m).
+  double overlay_max_m() const;
+  // The OpenGL renderer and version strings, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
+  std::string gl_renderer() const;
+  std::string gl_version() const;
+  int msaa_samples() const;  // after clamping
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The precomputed normal terms (see above), per vertex: {n0, n1, n2}, scaled by 1 / |n0| so
+// the values stay near unit length (the direction of the sum is unchanged). Public for tests.
+struct NormalTerms {
+  std::vector<Eigen::Vector3d> n0, n1, n2;
+};
+NormalTerms normal_terms(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field);
+
+}  // namespace pneuma::render

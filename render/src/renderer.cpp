@@ -1,0 +1,438 @@
+#include "pneuma/render/renderer.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "gl_context.h"
+#include "overlay.h"
+#include "pneuma/core/error.h"
+
+namespace pneuma::render {
+
+NormalTerms normal_terms(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field) {
+  const std::size_t n = rest.vertex_count();
+  NormalTerms t{std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero()), std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero()),
+                std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero())};
+  for (const mesh::Triangle& tri : rest.triangles) {
+    const Eigen::Vector3d& a = rest.vertices[tri[0]];
+    const Eigen::Vector3d e1 = rest.vertices[tri[1]] - a, e2 = rest.vertices[tri[2]] - a;
+    const Eigen::Vector3d f1 = field[tri[1]] - field[tri[0]], f2 = field[tri[2]] - field[tri[0]];
+    // (e1 + s f1) x (e2 + s f2) = e1 x e2 + s (e1 x f2 + f1 x e2) + s^2 f1 x f2
+    const Eigen::Vector3d c0 = e1.cross(e2), c1 = e1.cross(f2) + f1.cross(e2), c2 = f1.cross(f2);
+    for (std::uint32_t v : tri) {
+      t.n0[v] += c0;
+      t.n1[v] += c1;
+      t.n2[v] += c2;
+    }
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    const double length = t.n0[v].norm();
+    if (length > 0.0) {
+      t.n0[v] /= length;
+      t.n1[v] /= length;
+      t.n2[v] /= length;
+    }
+  }
+  return t;
+}
+
+namespace {
+
+// The frame x = rest + s u is computed here, per vertex, from attributes uploaded once.
+constexpr const char* kVertexShader = R"(#version 330 core
+layout(location = 0) in vec3 rest;
+layout(location = 1) in vec3 field;
+layout(location = 2) in vec3 normal0;
+layout(location = 3) in vec3 normal1;
+layout(location = 4) in vec3 normal2;
+uniform float s;
+uniform mat4 view_from_model;  // rigid: rotation and translation only
+uniform mat4 clip_from_view;
+out vec3 view_position;
+out vec3 view_normal;
+out float magnitude;
+void main() {
+  vec3 position = rest + s * field;
+  vec3 normal = normal0 + s * (normal1 + s * normal2);  // area-weighted normal of the frame
+  vec4 view = view_from_model * vec4(position, 1.0);
+  view_position = view.xyz;
+  view_normal = mat3(view_from_model) * normal;
+  magnitude = abs(s) * length(field);
+  gl_Position = clip_from_view * view;
+}
+)";
+
+// Lighting in linear light, written out as sRGB. Two lights fixed to the camera (a key light
+// above and left, a weaker fill from the right), wrapped diffuse for a soft tissue look, a
+// broad Blinn-Phong highlight, a faint rim.
+constexpr const char* kFragmentShaderHead = R"(#version 330 core
+in vec3 view_position;
+in vec3 view_normal;
+in float magnitude;
+uniform vec3 base_colour;
+uniform float specular;
+uniform float shininess;
+uniform float wrap;
+uniform float rim;
+uniform int overlay;
+uniform float overlay_max;
+out vec4 colour;
+)";
+constexpr const char* kFragmentShaderBody = R"(
+vec3 to_linear(vec3 c) { return pow(c, vec3(2.2)); }
+vec3 to_srgb(vec3 c) { return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)); }
+void main() {
+  vec3 n = normalize(view_normal);
+  if (!gl_FrontFacing) n = -n;
+  vec3 v = normalize(-view_position);
+  if (overlay != 0) {
+    vec3 albedo = to_linear(viridis_srgb(magnitude / overlay_max));
+    colour = vec4(to_srgb(albedo * (0.55 + 0.45 * max(dot(n, v), 0.0))), 1.0);
+    return;
+  }
+  vec3 albedo = to_linear(base_colour);
+  const vec3 key = normalize(vec3(-0.45, 0.6, 0.65));
+  const vec3 fill = normalize(vec3(0.7, -0.15, 0.7));
+  float key_diffuse = max((dot(n, key) + wrap) / (1.0 + wrap), 0.0);
+  float fill_diffuse = max((dot(n, fill) + wrap) / (1.0 + wrap), 0.0);
+  vec3 h = normalize(key + v);
+  float highlight = dot(n, key) > 0.0 ? specular * pow(max(dot(n, h), 0.0), shininess) : 0.0;
+  float sheen = rim * pow(1.0 - max(dot(n, v), 0.0), 3.0);
+  vec3 lit = albedo * (0.06 + 0.85 * key_diffuse + 0.25 * fill_diffuse) + vec3(highlight) + sheen * vec3(1.0, 0.9, 0.9);
+  colour = vec4(to_srgb(lit), 1.0);
+}
+)";
+
+// The vertex layout: 15 floats, positions relative to `origin` (the centre of the framed
+// bounds) so single precision keeps sub-micrometre resolution whatever the mesh's placement.
+struct Vertex {
+  float rest[3];
+  float field[3];
+  float normal0[3];
+  float normal1[3];
+  float normal2[3];
+};
+static_assert(sizeof(Vertex) == 15 * sizeof(float));
+
+void put(float (&out)[3], const Eigen::Vector3d& v) {
+  out[0] = static_cast<float>(v.x());
+  out[1] = static_cast<float>(v.y());
+  out[2] = static_cast<float>(v.z());
+}
+
+std::array<Eigen::Vector3d, 2> bounds_over_range(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field,
+                                                 double max_scale) {
+  // Every point of rest + s u for s in [0, max_scale] lies between its two end points, so the
+  // box of the two end frames holds all frames in between.
+  auto box = mesh::bounding_box(rest.vertices);
+  for (std::size_t i = 0; i < rest.vertices.size(); ++i) {
+    const Eigen::Vector3d p = rest.vertices[i] + max_scale * field[i];
+    box[0] = box[0].cwiseMin(p);
+    box[1] = box[1].cwiseMax(p);
+  }
+  return box;
+}
+
+}  // namespace
+
+struct Renderer::Impl {
+  detail::GlContext context;
+  RenderOptions options;
+  std::array<Eigen::Vector3d, 2> bounds;
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  Camera camera;
+  double overlay_max = 0.0;
+  int samples = 0;
+  GLsizei index_count = 0;
+
+  GLuint program = 0, vao = 0, vertex_buffer = 0, index_buffer = 0;
+  GLuint draw_fbo = 0, resolve_fbo = 0;
+  GLuint colour_rb = 0, depth_rb = 0, resolve_rb = 0;
+  GLint s_location = -1, view_location = -1, projection_location = -1;
+  std::vector<std::uint8_t> row;  // scratch for flipping rows
+
+  const detail::GlFunctions& gl() const { return context.gl(); }
+
+  GLuint compile(GLenum type, const std::string& source) {
+    const GLuint shader = gl().CreateShader(type);
+    const char* text = source.c_str();
+    gl().ShaderSource(shader, 1, &text, nullptr);
+    gl().CompileShader(shader);
+    GLint ok = 0;
+    gl().GetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+      char log[2048] = {};
+      gl().GetShaderInfoLog(shader, sizeof log, nullptr, log);
+      gl().DeleteShader(shader);
+      throw Error(ExitCode::failure, std::string("render: shader does not compile: ") + log);
+    }
+    return shader;
+  }
+
+  void build_program() {
+    const GLuint vs = compile(GL_VERTEX_SHADER, kVertexShader);
+    const GLuint fs = compile(GL_FRAGMENT_SHADER, std::string(kFragmentShaderHead) + detail::viridis_glsl() + kFragmentShaderBody);
+    program = gl().CreateProgram();
+    gl().AttachShader(program, vs);
+    gl().AttachShader(program, fs);
+    gl().LinkProgram(program);
+    gl().DeleteShader(vs);
+    gl().DeleteShader(fs);
+    GLint ok = 0;
+    gl().GetProgramiv(program, GL_LINK_STATUS, &ok);
+    if (!ok) {
+      char log[2048] = {};
+      gl().GetProgramInfoLog(program, sizeof log, nullptr, log);
+      throw Error(ExitCode::failure, std::string("render: shaders do not link: ") + log);
+    }
+    s_location = gl().GetUniformLocation(program, "s");
+    view_location = gl().GetUniformLocation(program, "view_from_model");
+    projection_location = gl().GetUniformLocation(program, "clip_from_view");
+    gl().UseProgram(program);
+    const Material& m = options.material;
+    gl().Uniform3f(gl().GetUniformLocation(program, "base_colour"), static_cast<float>(m.base_colour.x()),
+                   static_cast<float>(m.base_colour.y()), static_cast<float>(m.base_colour.z()));
+    gl().Uniform1f(gl().GetUniformLocation(program, "specular"), static_cast<float>(m.specular));
+    gl().Uniform1f(gl().GetUniformLocation(program, "shininess"), static_cast<float>(m.shininess));
+    gl().Uniform1f(gl().GetUniformLocation(program, "wrap"), static_cast<float>(m.wrap));
+    gl().Uniform1f(gl().GetUniformLocation(program, "rim"), static_cast<float>(m.rim));
+    gl().Uniform1i(gl().GetUniformLocation(program, "overlay"), options.overlay_magnitude ? 1 : 0);
+    gl().Uniform1f(gl().GetUniformLocation(program, "overlay_max"), static_cast<float>(overlay_max));
+  }
+
+  void upload(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field) {
+    const NormalTerms normals = normal_terms(rest, field);
+    std::vector<Vertex> vertices(rest.vertex_count());
+    for (std::size_t i = 0; i < vertices.size(); ++i) {
+      put(vertices[i].rest, rest.vertices[i] - origin);
+      put(vertices[i].field, field[i]);
+      put(vertices[i].normal0, normals.n0[i]);
+      put(vertices[i].normal1, normals.n1[i]);
+      put(vertices[i].normal2, normals.n2[i]);
+    }
+    gl().GenVertexArrays(1, &vao);
+    gl().BindVertexArray(vao);
+    gl().GenBuffers(1, &vertex_buffer);
+    gl().BindBuffer(GL_ARRAY_BUFFER, vertex_buffer);
+    gl().BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(vertices.size() * sizeof(Vertex)), vertices.data(), GL_STATIC_DRAW);
+    for (GLuint attribute = 0; attribute < 5; ++attribute) {
+      gl().EnableVertexAttribArray(attribute);
+      gl().VertexAttribPointer(attribute, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex),
+                               reinterpret_cast<const void*>(static_cast<std::uintptr_t>(attribute * 3 * sizeof(float))));
+    }
+    gl().GenBuffers(1, &index_buffer);
+    gl().BindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
+    static_assert(sizeof(mesh::Triangle) == 3 * sizeof(std::uint32_t));
+    gl().BufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(rest.triangles.size() * sizeof(mesh::Triangle)),
+                    rest.triangles.data(), GL_STATIC_DRAW);
+    index_count = static_cast<GLsizei>(rest.triangles.size() * 3);
+    gl().BindVertexArray(0);
+  }
+
+  GLuint renderbuffer(GLenum format, int sample_count) {
+    GLuint rb = 0;
+    gl().GenRenderbuffers(1, &rb);
+    gl().BindRenderbuffer(GL_RENDERBUFFER, rb);
+    if (sample_count > 1) {
+      gl().RenderbufferStorageMultisample(GL_RENDERBUFFER, sample_count, format, options.width, options.height);
+    } else {
+      gl().RenderbufferStorage(GL_RENDERBUFFER, format, options.width, options.height);
+    }
+    return rb;
+  }
+
+  void check_framebuffer(const char* what) {
+    const GLenum status = gl().CheckFramebufferStatus(GL_FRAMEBUFFER);
+    if (status != GL_FRAMEBUFFER_COMPLETE) {
+      throw UnsupportedError(std::string("render: the OpenGL driver cannot make the ") + what + " framebuffer (status 0x" +
+                             fmt_hex(status) + ")");
+    }
+  }
+  static std::string fmt_hex(GLenum value) {
+    char text[16];
+    std::snprintf(text, sizeof text, "%x", value);
+    return text;
+  }
+
+  void create_framebuffers() {
+    GLint max_size = 0, max_samples = 0;
+    gl().GetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_size);
+    gl().GetIntegerv(GL_MAX_SAMPLES, &max_samples);
+    if (options.width > max_size || options.height > max_size) {
+      throw UnsupportedError("render: image size " + std::to_string(options.width) + "x" + std::to_string(options.height) +
+                             " exceeds the OpenGL limit of " + std::to_string(max_size) + " pixels per side");
+    }
+    samples = options.msaa_samples > 1 ? std::min(options.msaa_samples, static_cast<int>(max_samples)) : 0;
+    if (samples == 1) samples = 0;
+    // The resolve target (also the draw target without MSAA) is read back.
+    gl().GenFramebuffers(1, &resolve_fbo);
+    gl().BindFramebuffer(GL_FRAMEBUFFER, resolve_fbo);
+    resolve_rb = renderbuffer(GL_RGBA8, 0);
+    gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, resolve_rb);
+    if (samples == 0) {
+      depth_rb = renderbuffer(GL_DEPTH_COMPONENT24, 0);
+      gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
+      check_framebuffer("colour");
+      draw_fbo = resolve_fbo;
+      return;
+    }
+    check_framebuffer("resolve");
+    gl().GenFramebuffers(1, &draw_fbo);
+    gl().BindFramebuffer(GL_FRAMEBUFFER, draw_fbo);
+    colour_rb = renderbuffer(GL_RGBA8, samples);
+    depth_rb = renderbuffer(GL_DEPTH_COMPONENT24, samples);
+    gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_rb);
+    gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
+    check_framebuffer("multisampled");
+  }
+
+  void apply_camera() {
+    const double aspect = static_cast<double>(options.width) / options.height;
+    Eigen::Affine3d model_to_world = Eigen::Affine3d::Identity();
+    model_to_world.translate(origin);
+    const Eigen::Matrix4f view = (view_matrix(camera) * model_to_world.matrix()).cast<float>();
+    const Eigen::Matrix4f projection = projection_matrix(camera, aspect).cast<float>();
+    gl().UseProgram(program);
+    gl().UniformMatrix4fv(view_location, 1, GL_FALSE, view.data());  // Eigen is column-major, as GL
+    gl().UniformMatrix4fv(projection_location, 1, GL_FALSE, projection.data());
+  }
+
+  void check_gl(const char* where) {
+    const GLenum error = gl().GetError();
+    if (error != GL_NO_ERROR) throw Error(ExitCode::failure, std::string("render: OpenGL error 0x") + fmt_hex(error) + " in " + where);
+  }
+
+  ~Impl() {
+    context.make_current();
+    const GLuint framebuffers[] = {draw_fbo, resolve_fbo};
+    gl().DeleteFramebuffers(draw_fbo == resolve_fbo ? 1 : 2, framebuffers + (draw_fbo == resolve_fbo ? 1 : 0));
+    const GLuint renderbuffers[] = {colour_rb, depth_rb, resolve_rb};
+    gl().DeleteRenderbuffers(3, renderbuffers);
+    const GLuint buffers[] = {vertex_buffer, index_buffer};
+    gl().DeleteBuffers(2, buffers);
+    gl().DeleteVertexArrays(1, &vao);
+    gl().DeleteProgram(program);
+  }
+};
+
+Renderer::Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, double max_scale,
+                   const RenderOptions& options) {
+  if (options.width < 1 || options.height < 1) {
+    throw UsageError("render: image size " + std::to_string(options.width) + "x" + std::to_string(options.height) +
+                     ": width and height must be at least 1 pixel");
+  }
+  if (field.size() != rest.vertex_count()) {
+    throw InputError("render: the field has " + std::to_string(field.size()) + " vectors but the mesh has " +
+                     std::to_string(rest.vertex_count()) + " vertices");
+  }
+  for (std::size_t t = 0; t < rest.triangles.size(); ++t) {
+    for (std::uint32_t v : rest.triangles[t]) {
+      if (v >= rest.vertex_count()) {
+        throw InputError("render: triangle " + std::to_string(t) + " refers to vertex " + std::to_string(v) + " of " +
+                         std::to_string(rest.vertex_count()));
+      }
+    }
+  }
+  if (!std::isfinite(max_scale)) throw InputError("render: the largest scale is not a finite number");
+
+  impl_ = std::make_unique<Impl>();
+  Impl& r = *impl_;
+  r.options = options;
+  r.bounds = bounds_over_range(rest, field, max_scale);
+  if (rest.vertex_count() > 0) r.origin = 0.5 * (r.bounds[0] + r.bounds[1]);
+  r.camera = frame_camera(options.camera, r.bounds, static_cast<double>(options.width) / options.height, options.fov_y_deg,
+                          options.margin);
+  double max_field = 0.0;
+  for (const auto& u : field) max_field = std::max(max_field, u.norm());
+  r.overlay_max = options.overlay_max_m > 0.0 ? options.overlay_max_m : max_field * std::abs(max_scale);
+  if (!(r.overlay_max > 0.0)) r.overlay_max = 1e-3;  // a field of zeros: any positive scale shows 0
+  r.row.resize(static_cast<std::size_t>(options.width) * 4);
+
+  const auto& gl = r.gl();
+  r.create_framebuffers();
+  r.build_program();
+  r.upload(rest, field);
+  r.apply_camera();
+  gl.Enable(GL_DEPTH_TEST);
+  gl.DepthFunc(GL_LESS);
+  if (options.cull_back_faces) {
+    gl.Enable(GL_CULL_FACE);
+    gl.CullFace(GL_BACK);
+  }
+  if (r.samples > 0) gl.Enable(GL_MULTISAMPLE);
+  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+  r.check_gl("set-up");
+}
+
+Renderer::~Renderer() = default;
+
+Image Renderer::render(double s) {
+  Image image;
+  render(s, image);
+  return image;
+}
+
+void Renderer::render(double s, Image& out) {
+  Impl& r = *impl_;
+  const auto& gl = r.gl();
+  const int w = r.options.width, h = r.options.height;
+  if (out.width != w || out.height != h || out.rgba.size() != out.pixel_count() * 4) out = Image(w, h);
+  r.context.make_current();
+
+  gl.BindFramebuffer(GL_FRAMEBUFFER, r.draw_fbo);
+  gl.Viewport(0, 0, w, h);
+  const Eigen::Vector3d& bg = r.options.background;
+  gl.ClearColor(static_cast<float>(bg.x()), static_cast<float>(bg.y()), static_cast<float>(bg.z()), 1.0f);
+  gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  if (r.index_count > 0) {
+    gl.UseProgram(r.program);
+    gl.Uniform1f(r.s_location, static_cast<float>(s));
+    gl.BindVertexArray(r.vao);
+    gl.DrawElements(GL_TRIANGLES, r.index_count, GL_UNSIGNED_INT, nullptr);
+    gl.BindVertexArray(0);
+  }
+  if (r.draw_fbo != r.resolve_fbo) {
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, r.draw_fbo);
+    gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, r.resolve_fbo);
+    gl.BlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+  }
+  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, r.resolve_fbo);
+  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
+  gl.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, out.rgba.data());
+  r.check_gl("render");
+
+  // OpenGL's first row is the bottom one; images here start at the top.
+  const std::size_t stride = static_cast<std::size_t>(w) * 4;
+  for (int y = 0; y < h / 2; ++y) {
+    std::uint8_t* top = out.rgba.data() + static_cast<std::size_t>(y) * stride;
+    std::uint8_t* bottom = out.rgba.data() + static_cast<std::size_t>(h - 1 - y) * stride;
+    std::memcpy(r.row.data(), top, stride);
+    std::memcpy(top, bottom, stride);
+    std::memcpy(bottom, r.row.data(), stride);
+  }
+  if (r.options.overlay_magnitude && r.options.legend) detail::draw_legend(out, r.overlay_max);
+}
+
+void Renderer::set_camera(CameraPreset preset) {
+  const RenderOptions& o = impl_->options;
+  set_camera(frame_camera(preset, impl_->bounds, static_cast<double>(o.width) / o.height, o.fov_y_deg, o.margin));
+}
+
+void Renderer::set_camera(const Camera& camera) {
+  impl_->camera = camera;
+  impl_->context.make_current();
+  impl_->apply_camera();
+}
+
+const Camera& Renderer::camera() const { return impl_->camera; }
+const RenderOptions& Renderer::options() const { return impl_->options; }
+const std::array<Eigen::Vector3d, 2>& Renderer::framed_bounds() const { return impl_->bounds; }
+double Renderer::overlay_max_m() const { return impl_->overlay_max; }
+std::string Renderer::gl_renderer() const { return impl_->context.renderer(); }
+std::string Renderer::gl_version() const { return impl_->context.version(); }
+int Renderer::msaa_samples() const { return impl_->samples; }
+
+}  // namespace pneuma::render
