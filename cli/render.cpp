@@ -88,8 +88,8 @@ void register_render(CLI::App& app) {
              throw UsageError(std::string("pneuma: --max-share: ") + e.what());
            }
          },
-         "With --compare: the largest share of differing pixels that still matches (default 0.2 %)")
-      ->type_name("<0.2 %>");
+         "With --compare: the largest share of differing pixels that still matches (default 0.5 %)")
+      ->type_name("<0.5 %>");
   cmd->add_flag("--info", options->info, "Print the OpenGL version and renderer that rendering gets here");
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing (the exit status tells)");
   cmd->callback([options] { run_render(*options); });

@@ -1,7 +1,7 @@
 #pragma once
 // A deterministic lung-like stand-in for render tests (until the phantom replaces it): a
 // left lung in LPS patient coordinates (+x left, +y posterior, +z superior), about 24 cm tall,
-// narrower at the apex, its medial side flattened, and a smooth field that moves the base
+// narrow at the apex, its medial side flattened and notched, and a smooth field that moves the base
 // (diaphragm) most: u = n * (4 mm + 10 mm * depth below the apex) per unit s.
 #include <Eigen/Core>
 #include <algorithm>
@@ -22,8 +22,12 @@ inline LungStandIn make_lung_stand_in(int subdivisions = 4) {
   LungStandIn lung;
   lung.rest = mesh::make_icosphere(1.0, subdivisions);
   for (Eigen::Vector3d& p : lung.rest.vertices) {
-    const double taper = 0.8 - 0.2 * p.z();                    // 0.6 at the apex, 1.0 at the base
-    const double x = p.x() < 0.0 ? p.x() + 0.3 * p.x() * p.x() : p.x();  // flattened medial side
+    const double taper = 0.72 - 0.32 * p.z();  // 0.4 at the apex, 1.04 at the base
+    double x = p.x();
+    if (x < 0.0) {  // the medial side: flattened, hollowed where the heart lies (cardiac notch)
+      const double notch = std::exp(-std::pow((p.z() + 0.15) / 0.3, 2.0));
+      x = (x + 0.3 * x * x) * (1.0 - 0.3 * notch);
+    }
     p = Eigen::Vector3d(0.055 * taper * x, 0.085 * taper * p.y(), 0.12 * p.z());
   }
   const std::vector<Eigen::Vector3d> normals = mesh::vertex_normals(lung.rest);

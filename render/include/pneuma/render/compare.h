@@ -13,8 +13,8 @@
 namespace pneuma::render {
 
 struct Tolerance {
-  int pixel_threshold = 24;       // 0..255, per channel
-  double max_share_over = 0.002;  // share of all pixels (0.2 %)
+  int pixel_threshold = 8;        // 0..255, per channel
+  double max_share_over = 0.005;  // share of all pixels (0.5 %)
 };
 inline constexpr Tolerance default_tolerance{};
 

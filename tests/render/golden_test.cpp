@@ -1,0 +1,126 @@
+// Golden-image regression: small renders of the lung stand-in against reviewed images in
+// tests/golden/. The tolerance (compare.h) absorbs llvmpipe rounding at anti-aliased edges and
+// catches a real change. After an intended change, look at the new images and regenerate:
+//   PNEUMA_REGENERATE_GOLDEN=1 ctest --preset release -R Golden
+// A failure writes <name>-actual.png and <name>-diff.png under
+// build/<preset>/tests/render/golden-output/ and names them in the message.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+
+#include "pneuma/render/compare.h"
+#include "pneuma/render/renderer.h"
+#include "render_fixture.h"
+#include "test_support.h"
+
+using namespace pneuma;
+
+namespace {
+
+struct GoldenCase {
+  const char* name;
+  render::CameraPreset camera;
+  double s;
+  bool overlay = false;
+};
+
+const GoldenCase kCases[] = {
+    {"lung-anterior-s0", render::CameraPreset::anterior, 0.0},
+    {"lung-anterior-s1", render::CameraPreset::anterior, 1.0},
+    {"lung-left-s0.5", render::CameraPreset::left_lateral, 0.5},
+    {"lung-left-s1", render::CameraPreset::left_lateral, 1.0},
+    {"lung-oblique-overlay-s1", render::CameraPreset::oblique, 1.0, true},
+};
+
+constexpr double kMaxScale = 1.0;
+
+render::Image render_case(const GoldenCase& c, const render::Material& material = {}) {
+  static const test::LungStandIn lung = test::make_lung_stand_in();
+  render::RenderOptions options;
+  options.width = 160;
+  options.height = 120;
+  options.camera = c.camera;
+  options.material = material;
+  options.overlay_magnitude = c.overlay;
+  render::Renderer renderer(lung.rest, lung.field, kMaxScale, options);
+  return renderer.render(c.s);
+}
+
+std::filesystem::path golden_path(const GoldenCase& c) {
+  return std::filesystem::path(PNEUMA_GOLDEN_DIR) / (std::string(c.name) + ".png");
+}
+
+bool regenerating() {
+  const char* flag = std::getenv("PNEUMA_REGENERATE_GOLDEN");
+  return flag && std::string(flag) == "1";
+}
+
+class Golden : public ::testing::TestWithParam<GoldenCase> {};
+
+
+// Compares `actual` with tests/golden/<name>.png; on a mismatch writes <name>-actual.png and
+// <name>-diff.png under `output_dir` and says so in the failure message.
+::testing::AssertionResult matches_golden(const std::string& name, const render::Image& actual,
+                                          const std::filesystem::path& output_dir = PNEUMA_GOLDEN_OUTPUT_DIR) {
+  const auto golden = std::filesystem::path(PNEUMA_GOLDEN_DIR) / (name + ".png");
+  if (!std::filesystem::exists(golden)) {
+    return ::testing::AssertionFailure() << golden.string() << " is missing; run with PNEUMA_REGENERATE_GOLDEN=1";
+  }
+  const render::Image expected = render::read_png(golden);
+  if (expected.width != actual.width || expected.height != actual.height) {
+    return ::testing::AssertionFailure() << golden.string() << ": " << expected.width << "x" << expected.height
+                                         << ", rendered " << actual.width << "x" << actual.height;
+  }
+  const render::Difference d = render::compare(expected, actual);
+  if (d.within(render::default_tolerance)) return ::testing::AssertionSuccess();
+  const auto actual_path = output_dir / (name + "-actual.png");
+  const auto diff_path = output_dir / (name + "-diff.png");
+  render::write_png(actual_path, actual);
+  render::write_png(diff_path, d.image);
+  return ::testing::AssertionFailure()
+         << golden.string() << ": " << d.pixels_over << " pixels (" << 100.0 * d.share_over() << " %) differ by more than "
+         << d.pixel_threshold << " (max R " << d.max[0] << " G " << d.max[1] << " B " << d.max[2] << "); wrote "
+         << actual_path.string() << " and " << diff_path.string()
+         << "; if the change is intended, review them and rerun with PNEUMA_REGENERATE_GOLDEN=1";
+}
+
+}  // namespace
+
+TEST_P(Golden, MatchesTheReviewedImage) {
+  const GoldenCase& c = GetParam();
+  const render::Image actual = render_case(c);
+  if (regenerating()) {
+    render::write_png(golden_path(c), actual);
+    GTEST_SKIP() << "regenerated " << golden_path(c).string() << ": review it before committing";
+  }
+  EXPECT_TRUE(matches_golden(c.name, actual));
+}
+
+INSTANTIATE_TEST_SUITE_P(Lung, Golden, ::testing::ValuesIn(kCases),
+                         [](const auto& test_info) {
+                           std::string name = test_info.param.name;
+                           for (char& ch : name) {
+                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                           }
+                           return name;
+                         });
+
+// The comparison must catch a real change: a lung a little less red than the reviewed one, and
+// (much smaller) 0.04 less green; a failure leaves the actual and difference images behind.
+TEST(GoldenSensitivity, ChangedMaterialColourFails) {
+  if (regenerating()) GTEST_SKIP();
+  const GoldenCase& c = kCases[1];
+  ASSERT_TRUE(matches_golden(c.name, render_case(c)));
+  test::TempDir out;
+  for (const Eigen::Vector3d& colour : {Eigen::Vector3d(0.80, 0.56, 0.62), Eigen::Vector3d(0.87, 0.52, 0.56)}) {
+    render::Material changed;
+    changed.base_colour = colour;
+    const ::testing::AssertionResult result = matches_golden(c.name, render_case(c, changed), out.path());
+    EXPECT_FALSE(result) << "colour " << colour.transpose();
+    EXPECT_NE(std::string(result.message()).find((out / (std::string(c.name) + "-diff.png")).string()), std::string::npos)
+        << result.message();
+    EXPECT_EQ(render::read_png(out / (std::string(c.name) + "-actual.png")).width, 160);
+    EXPECT_EQ(render::read_png(out / (std::string(c.name) + "-diff.png")).width, 160);
+  }
+}

@@ -1,0 +1,120 @@
+// `pneuma render` end to end: --compare results and exit codes, one-line errors, --info.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+
+#include "pneuma/render/image.h"
+#include "test_support.h"
+
+using namespace pneuma;
+using test::run_pneuma;
+using test::TempDir;
+
+namespace {
+
+render::Image checker(int w, int h, std::uint8_t level) {
+  render::Image image(w, h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const auto v = static_cast<std::uint8_t>(((x / 8 + y / 8) % 2) ? level : 40);
+      image.set(x, y, {v, v, v, 255});
+    }
+  }
+  return image;
+}
+
+}  // namespace
+
+TEST(RenderCli, IdenticalImagesMatch) {
+  TempDir dir;
+  render::write_png(dir / "a.png", checker(64, 48, 200));
+  render::write_png(dir / "b.png", checker(64, 48, 200));
+  const auto r = run_pneuma({"render", "--compare", (dir / "a.png").string(), (dir / "b.png").string()});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(r.err.empty()) << r.err;
+  EXPECT_EQ(r.out,
+            "64x48 pixels; max difference R 0 G 0 B 0 A 0; mean R 0.000 G 0.000 B 0.000 A 0.000\n"
+            "0 pixels (0.000 %) differ by more than 8; tolerance 0.500 %: match\n");
+}
+
+TEST(RenderCli, DifferentImagesExitOneAndWriteTheDifference) {
+  TempDir dir;
+  const auto a = dir / "a.png", b = dir / "b.png", diff = dir / "out" / "diff.png";
+  render::write_png(a, checker(64, 48, 200));
+  render::write_png(b, checker(64, 48, 100));  // half the pixels 100 levels darker
+  auto r = run_pneuma({"render", "--compare", a.string(), b.string(), "--diff", diff.string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, a.string() + " and " + b.string() + " differ\n");
+  EXPECT_NE(r.out.find("1536 pixels (50.000 %) differ by more than 8; tolerance 0.500 %: DIFFER"), std::string::npos) << r.out;
+  EXPECT_EQ(render::read_png(diff).width, 64);
+  // A looser tolerance accepts them.
+  r = run_pneuma({"render", "--compare", a.string(), b.string(), "--threshold", "100", "-q"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  r = run_pneuma({"render", "--compare", a.string(), b.string(), "--max-share", "60 %", "-q"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(r.out.empty());
+}
+
+struct BadCompare {
+  const char* name;
+  int exit_code;
+  const char* message;  // {a} and {b} stand for the paths
+};
+
+class RenderCliErrors : public ::testing::TestWithParam<BadCompare> {};
+
+TEST_P(RenderCliErrors, OneLineAndExitCode) {
+  TempDir dir;
+  const auto a = dir / "a.png";
+  render::write_png(a, checker(160, 120, 200));
+  std::filesystem::path b = dir / "b.png";
+  const std::string name = GetParam().name;
+  if (name == "missing") b = dir / "missing.png";
+  if (name == "not_png") b = dir.write("b.png", "P3 1 1 255 0 0 0\n");
+  if (name == "size") render::write_png(b, checker(100, 80, 200));
+  const auto r = run_pneuma({"render", "--compare", a.string(), b.string()});
+  std::string expected = GetParam().message;
+  for (auto [key, value] : {std::pair{std::string("{a}"), a.string()}, std::pair{std::string("{b}"), b.string()}}) {
+    for (auto at = expected.find(key); at != std::string::npos; at = expected.find(key)) expected.replace(at, 3, value);
+  }
+  EXPECT_EQ(r.exit_code, GetParam().exit_code);
+  EXPECT_EQ(r.err, expected + "\n");
+  EXPECT_TRUE(r.out.empty()) << r.out;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Compare, RenderCliErrors,
+    ::testing::Values(BadCompare{"missing", 4, "{b}: cannot open file"},
+                      BadCompare{"not_png", 3, "{b}: not a PNG image (no PNG signature)"},
+                      BadCompare{"size", 1, "{b}: image is 100x80, but {a} is 160x120"}),
+    [](const auto& test_info) { return std::string(test_info.param.name); });
+
+TEST(RenderCli, CompareNeedsTwoFilesAndAKnownShare) {
+  TempDir dir;
+  auto r = run_pneuma({"render", "--compare", (dir / "a.png").string()});
+  EXPECT_EQ(r.exit_code, 2);
+  r = run_pneuma({"render"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "pneuma render: give --compare A.png B.png or --info (rendering a scenario comes with the runner)\n");
+  render::write_png(dir / "a.png", checker(8, 8, 200));
+  r = run_pneuma({"render", "--compare", (dir / "a.png").string(), (dir / "a.png").string(), "--max-share", "lots"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err.rfind("pneuma: --max-share: ", 0), 0u) << r.err;
+}
+
+TEST(RenderCli, InfoNamesTheOpenGlInUse) {
+  const auto r = run_pneuma({"render", "--info"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("Core Profile"), std::string::npos) << r.out;
+}
+
+// Without OSMesa: one line that says what to install, exit 5.
+TEST(RenderCli, NoOpenGlContextSaysWhatToInstall) {
+  ::setenv("PNEUMA_OSMESA_LIBRARY", "/nonexistent/libOSMesa.so.8", 1);
+  const auto r = run_pneuma({"render", "--info"});
+  ::unsetenv("PNEUMA_OSMESA_LIBRARY");
+  EXPECT_EQ(r.exit_code, 5);
+  EXPECT_EQ(r.err,
+            "render: no OpenGL context: cannot load /nonexistent/libOSMesa.so.8; install the libosmesa6 package (Mesa's "
+            "off-screen OpenGL with llvmpipe)\n");
+}

@@ -1,0 +1,170 @@
+// The renderer against independent oracles: the CPU-displaced mesh, exact normals, projected
+// bounds, the silhouette's growth and the anatomical orientation of the presets.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include "pneuma/core/error.h"
+#include "pneuma/render/compare.h"
+#include "pneuma/render/renderer.h"
+#include "render_fixture.h"
+
+using namespace pneuma;
+using test::make_lung_stand_in;
+
+namespace {
+
+render::RenderOptions small_options(render::CameraPreset camera = render::CameraPreset::anterior) {
+  render::RenderOptions o;
+  o.width = 160;
+  o.height = 120;
+  o.camera = camera;
+  return o;
+}
+
+std::vector<Eigen::Vector3d> displaced(const test::LungStandIn& lung, double s) {
+  std::vector<Eigen::Vector3d> x(lung.rest.vertices);
+  for (std::size_t i = 0; i < x.size(); ++i) x[i] += s * lung.field[i];
+  return x;
+}
+
+}  // namespace
+
+TEST(NormalTerms, GiveTheAreaWeightedNormalsOfEveryFrame) {
+  const auto lung = make_lung_stand_in(2);
+  const render::NormalTerms terms = render::normal_terms(lung.rest, lung.field);
+  for (double s : {-0.7, 0.0, 0.5, 1.3, 4.0}) {
+    mesh::TriangleMesh frame{displaced(lung, s), lung.rest.triangles};
+    const auto expected = mesh::vertex_normals(frame);
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+      const Eigen::Vector3d n = (terms.n0[i] + s * terms.n1[i] + s * s * terms.n2[i]).normalized();
+      ASSERT_NEAR((n - expected[i]).norm(), 0.0, 1e-12) << "vertex " << i << " at s = " << s;
+    }
+  }
+}
+
+// The oracle: displacing on the CPU and uploading the frame as the rest mesh (u = 0) must give
+// the image the vertex shader gives, under the same camera.
+TEST(Renderer, ShaderDisplacementEqualsCpuDisplacement) {
+  const auto lung = make_lung_stand_in();
+  const std::vector<Eigen::Vector3d> zero(lung.field.size(), Eigen::Vector3d::Zero());
+  for (auto preset : {render::CameraPreset::anterior, render::CameraPreset::oblique}) {
+    render::Renderer shader(lung.rest, lung.field, 1.5, small_options(preset));
+    for (double s : {-0.6, 0.5, 1.0, 1.5}) {
+      const render::Image gpu = shader.render(s);
+      render::Renderer cpu(mesh::TriangleMesh{displaced(lung, s), lung.rest.triangles}, zero, 0.0, small_options(preset));
+      cpu.set_camera(shader.camera());
+      const render::Image expected = cpu.render(0.0);
+      const render::Difference d = render::compare(gpu, expected);
+      EXPECT_TRUE(d.within(render::default_tolerance))
+          << render::camera_preset_name(preset) << " s = " << s << ": " << d.pixels_over << " pixels differ";
+      EXPECT_LT(d.mean[0] + d.mean[1] + d.mean[2], 0.5) << render::camera_preset_name(preset) << " s = " << s;
+      // And the frame really moved: the rest image differs.
+      EXPECT_FALSE(render::compare(shader.render(0.0), gpu).within(render::default_tolerance)) << "s = " << s;
+    }
+  }
+}
+
+TEST(Renderer, SilhouetteGrowsWithScale) {
+  const auto lung = make_lung_stand_in();
+  const auto options = small_options();
+  render::Renderer renderer(lung.rest, lung.field, 2.0, options);
+  const render::Rgba background = test::to_rgba8(options.background);
+  std::size_t previous = 0;
+  for (double s : {0.0, 0.5, 1.0, 1.5, 2.0}) {
+    const std::size_t area = test::silhouette_pixels(renderer.render(s), background);
+    EXPECT_GT(area, previous) << "s = " << s;
+    previous = area;
+  }
+  EXPECT_GT(previous, 1000u);
+}
+
+TEST(Renderer, EmptySceneIsBackgroundOnly) {
+  auto options = small_options();
+  options.background = {0.2, 0.5, 0.9};
+  render::Renderer renderer(mesh::TriangleMesh{}, {}, 1.0, options);
+  const render::Image image = renderer.render(1.0);
+  ASSERT_EQ(image.width, 160);
+  ASSERT_EQ(image.height, 120);
+  EXPECT_EQ(test::silhouette_pixels(image, test::to_rgba8(options.background)), 0u);
+}
+
+TEST(Renderer, FramingFitsTheBoundsOfTheLargestFrame) {
+  const auto lung = make_lung_stand_in(3);
+  for (auto preset : {render::CameraPreset::anterior, render::CameraPreset::posterior, render::CameraPreset::left_lateral,
+                      render::CameraPreset::right_lateral, render::CameraPreset::oblique}) {
+    const auto options = small_options(preset);
+    render::Renderer renderer(lung.rest, lung.field, 2.0, options);
+    const auto& [lo, hi] = renderer.framed_bounds();
+    // The bounds hold the largest frame.
+    for (const auto& p : displaced(lung, 2.0)) {
+      ASSERT_TRUE((p.array() >= lo.array() - 1e-15).all() && (p.array() <= hi.array() + 1e-15).all());
+    }
+    const Eigen::Matrix4d clip = render::projection_matrix(renderer.camera(), 160.0 / 120.0) * render::view_matrix(renderer.camera());
+    double largest = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const Eigen::Vector4d p((corner & 1) ? hi.x() : lo.x(), (corner & 2) ? hi.y() : lo.y(), (corner & 4) ? hi.z() : lo.z(), 1.0);
+      const Eigen::Vector4d c = clip * p;
+      ASSERT_GT(c.w(), 0.0);
+      largest = std::max({largest, std::abs(c.x() / c.w()), std::abs(c.y() / c.w())});
+      EXPECT_LT(std::abs(c.z() / c.w()), 1.0) << "inside the depth range";
+    }
+    EXPECT_NEAR(largest, 1.0 / options.margin, 1e-9) << render::camera_preset_name(preset) << ": the tightest fit with the margin";
+  }
+}
+
+// A chest-radiograph view: the patient's left (+x) on the image's right from the front, on
+// the left from the back; superior (+z) up in every preset.
+TEST(Renderer, PresetsFollowThePatientsAxes) {
+  mesh::TriangleMesh scene = mesh::make_icosphere(0.05, 2);
+  mesh::TriangleMesh marker = mesh::make_icosphere(0.02, 2);
+  const auto offset = static_cast<std::uint32_t>(scene.vertices.size());
+  for (const auto& v : marker.vertices) scene.vertices.push_back(v + Eigen::Vector3d(0.1, 0.0, 0.1));  // left, superior
+  for (const auto& t : marker.triangles) scene.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  const std::vector<Eigen::Vector3d> zero(scene.vertices.size(), Eigen::Vector3d::Zero());
+  struct Expect {
+    render::CameraPreset preset;
+    bool marker_right;
+  };
+  for (const Expect& e : {Expect{render::CameraPreset::anterior, true}, Expect{render::CameraPreset::posterior, false}}) {
+    auto options = small_options(e.preset);
+    render::Renderer renderer(scene, zero, 0.0, options);
+    const render::Image image = renderer.render(0.0);
+    const render::Rgba background = test::to_rgba8(options.background);
+    // The marker is the only thing in the upper quarter of the image.
+    double sum_x = 0.0;
+    int count = 0;
+    for (int y = 0; y < image.height / 4; ++y) {
+      for (int x = 0; x < image.width; ++x) {
+        if (!(image.at(x, y) == background)) {
+          sum_x += x;
+          ++count;
+        }
+      }
+    }
+    ASSERT_GT(count, 20) << render::camera_preset_name(e.preset);
+    EXPECT_EQ(sum_x / count > image.width / 2.0, e.marker_right) << render::camera_preset_name(e.preset);
+  }
+}
+
+TEST(Renderer, BadModelsAndOptionsAreRefused) {
+  const auto lung = make_lung_stand_in(1);
+  auto field = lung.field;
+  field.pop_back();
+  EXPECT_THROW(render::Renderer(lung.rest, field, 1.0), InputError);
+  auto broken = lung.rest;
+  broken.triangles[3][1] = 9999;
+  EXPECT_THROW(render::Renderer(broken, lung.field, 1.0), InputError);
+  auto options = small_options();
+  options.width = 0;
+  EXPECT_THROW(render::Renderer(lung.rest, lung.field, 1.0, options), UsageError);
+}
+
+TEST(Renderer, ReusedOutputImageGivesTheSamePixels) {
+  const auto lung = make_lung_stand_in(3);
+  render::Renderer renderer(lung.rest, lung.field, 1.0, small_options());
+  render::Image reused;
+  renderer.render(0.3, reused);
+  renderer.render(0.9, reused);
+  EXPECT_EQ(reused.rgba, renderer.render(0.9).rgba);
+}
