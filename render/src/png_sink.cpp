@@ -11,8 +11,8 @@ PngFrameSink::PngFrameSink(std::filesystem::path directory, PngSinkOptions optio
 
 PngFrameSink::~PngFrameSink() = default;
 
-void PngFrameSink::begin(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, double max_scale) {
-  renderer_ = std::make_unique<Renderer>(rest, field, max_scale, options_.render);
+void PngFrameSink::begin(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, ScaleRange scales) {
+  renderer_ = std::make_unique<Renderer>(rest, field, scales, options_.render);
   written_.clear();
 }
 
@@ -28,6 +28,9 @@ void PngFrameSink::frame(std::size_t index, double s) {
   written_.push_back(path);
 }
 
-void PngFrameSink::end() { renderer_.reset(); }
+std::vector<std::filesystem::path> PngFrameSink::end() {
+  renderer_.reset();
+  return written_;
+}
 
 }  // namespace pneuma::render

@@ -124,14 +124,16 @@ void put(float (&out)[3], const Eigen::Vector3d& v) {
 }
 
 std::array<Eigen::Vector3d, 2> bounds_over_range(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field,
-                                                 double max_scale) {
-  // Every point of rest + s u for s in [0, max_scale] lies between its two end points, so the
-  // box of the two end frames holds all frames in between.
+                                                 ScaleRange scales) {
+  // Every point of rest + s u for s in [min, max] lies between its two end points, so the box
+  // of the two end frames holds all frames in between.
   auto box = mesh::bounding_box(rest.vertices);
   for (std::size_t i = 0; i < rest.vertices.size(); ++i) {
-    const Eigen::Vector3d p = rest.vertices[i] + max_scale * field[i];
-    box[0] = box[0].cwiseMin(p);
-    box[1] = box[1].cwiseMax(p);
+    for (double s : {scales.min, scales.max}) {
+      const Eigen::Vector3d p = rest.vertices[i] + s * field[i];
+      box[0] = box[0].cwiseMin(p);
+      box[1] = box[1].cwiseMax(p);
+    }
   }
   return box;
 }
@@ -318,7 +320,7 @@ struct Renderer::Impl {
   }
 };
 
-Renderer::Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, double max_scale,
+Renderer::Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, ScaleRange scales,
                    const RenderOptions& options) {
   if (options.width < 1 || options.height < 1) {
     throw UsageError("render: image size " + std::to_string(options.width) + "x" + std::to_string(options.height) +
@@ -336,18 +338,22 @@ Renderer::Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vect
       }
     }
   }
-  if (!std::isfinite(max_scale)) throw InputError("render: the largest scale is not a finite number");
+  if (!std::isfinite(scales.min) || !std::isfinite(scales.max) || scales.min > scales.max) {
+    throw InputError("render: the range of scales [" + std::to_string(scales.min) + ", " + std::to_string(scales.max) +
+                     "] is not an interval of finite numbers");
+  }
 
   impl_ = std::make_unique<Impl>();
   Impl& r = *impl_;
   r.options = options;
-  r.bounds = bounds_over_range(rest, field, max_scale);
+  r.bounds = bounds_over_range(rest, field, scales);
   if (rest.vertex_count() > 0) r.origin = 0.5 * (r.bounds[0] + r.bounds[1]);
   r.camera = frame_camera(options.camera, r.bounds, static_cast<double>(options.width) / options.height, options.fov_y_deg,
                           options.margin);
   double max_field = 0.0;
   for (const auto& u : field) max_field = std::max(max_field, u.norm());
-  r.overlay_max = options.overlay_max_m > 0.0 ? options.overlay_max_m : max_field * std::abs(max_scale);
+  r.overlay_max = options.overlay_max_m > 0.0 ? options.overlay_max_m
+                                              : max_field * std::max(std::abs(scales.min), std::abs(scales.max));
   if (!(r.overlay_max > 0.0)) r.overlay_max = 1e-3;  // a field of zeros: any positive scale shows 0
   r.row.resize(static_cast<std::size_t>(options.width) * 4);
 

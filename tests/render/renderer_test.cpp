@@ -6,8 +6,10 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/render/compare.h"
+#include "pneuma/render/png_sink.h"
 #include "pneuma/render/renderer.h"
 #include "render_fixture.h"
+#include "test_support.h"
 
 using namespace pneuma;
 using test::make_lung_stand_in;
@@ -167,4 +169,37 @@ TEST(Renderer, ReusedOutputImageGivesTheSamePixels) {
   renderer.render(0.3, reused);
   renderer.render(0.9, reused);
   EXPECT_EQ(reused.rgba, renderer.render(0.9).rgba);
+}
+
+TEST(Renderer, FramesTheWholeRangeOfScales) {
+  const auto lung = make_lung_stand_in(3);
+  render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-1.0, 2.0}, small_options());
+  const auto& [lo, hi] = renderer.framed_bounds();
+  for (double s : {-1.0, 0.0, 2.0}) {
+    for (const auto& p : displaced(lung, s)) {
+      ASSERT_TRUE((p.array() >= lo.array() - 1e-15).all() && (p.array() <= hi.array() + 1e-15).all()) << "s = " << s;
+    }
+  }
+  double max_field = 0.0;
+  for (const auto& u : lung.field) max_field = std::max(max_field, u.norm());
+  EXPECT_DOUBLE_EQ(renderer.overlay_max_m(), 2.0 * max_field);
+  EXPECT_THROW(render::Renderer(lung.rest, lung.field, render::ScaleRange{1.0, 0.0}), InputError);
+}
+
+TEST(PngFrameSink, WritesOneFramePerCallAndNothingElse) {
+  const auto lung = make_lung_stand_in(3);
+  test::TempDir dir;
+  render::PngSinkOptions options;
+  options.render = small_options();
+  render::PngFrameSink sink(dir / "frames", options);
+  sink.begin(lung.rest, lung.field, {-0.5, 1.0});
+  const double scales[] = {-0.5, 0.25, 1.0};
+  for (std::size_t k = 0; k < 3; ++k) sink.frame(k, scales[k]);
+  const auto written = sink.end();
+  ASSERT_EQ(written.size(), 3u);
+  EXPECT_EQ(written[2], dir / "frames" / "frame-00002.png");
+  EXPECT_EQ(dir.files().size(), 3u) << "no temporaries left";
+  // Each file is the renderer's image of its frame.
+  render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-0.5, 1.0}, small_options());
+  EXPECT_EQ(render::read_png(written[1]).rgba, renderer.render(0.25).rgba);
 }

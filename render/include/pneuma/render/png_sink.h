@@ -1,10 +1,12 @@
 #pragma once
 // PNG frames of a breathing sequence, in the shape of a frame sink: begin() with the model
-// (rest mesh, field, largest scale), frame() per frame, end(). The scenario runner's sink
-// interface can wrap this class one-to-one.
+// (rest mesh, field, range of scales), frame() per frame, end(). engine::FrameSink can wrap this
+// class one-to-one (begin: model.rest, model.field, {run.min_scale, run.max_scale}; frame:
+// frame.index, frame.scale; end: written()). The wrapper lives outside render, which must not
+// depend on the engine (it links physiology).
 //
 //   PngFrameSink sink("out/frames", {});
-//   sink.begin(rest, field, max_scale);
+//   sink.begin(rest, field, {run.min_scale, run.max_scale});
 //   for (k...) sink.frame(k, s[k]);   // writes out/frames/frame-00000.png, ...
 //   sink.end();
 #include <Eigen/Core>
@@ -30,12 +32,13 @@ class PngFrameSink {
   PngFrameSink(std::filesystem::path directory, PngSinkOptions options = {});
   ~PngFrameSink();
 
-  // Creates the renderer and uploads the model. Throws what Renderer's constructor throws.
-  void begin(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, double max_scale);
+  // Creates the renderer and uploads the model; `scales` spans every s that frame() will get
+  // (RunInfo's min_scale and max_scale). Throws what Renderer's constructor throws.
+  void begin(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, ScaleRange scales);
   // Renders the frame at scale s and writes it atomically. Throws IoError.
   void frame(std::size_t index, double s);
-  // Releases the OpenGL context.
-  void end();
+  // Releases the OpenGL context; returns the files written.
+  std::vector<std::filesystem::path> end();
 
   std::filesystem::path path_of(std::size_t index) const;
   const std::vector<std::filesystem::path>& written() const { return written_; }

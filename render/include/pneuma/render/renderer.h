@@ -3,7 +3,7 @@
 //
 // Built once, queried per frame (like a solver object): the constructor creates an OpenGL 3.3
 // core context with OSMesa, uploads the rest positions, the field u and the normal terms as
-// vertex attributes, and frames the camera on the bounds of the mesh over s in [0, max_scale].
+// vertex attributes, and frames the camera on the bounds of the mesh over the range of s.
 // render(s) then only sets the uniform `s`, draws, resolves the multisampled image and reads it
 // back: no upload, no allocation when the caller reuses the output image.
 //
@@ -51,21 +51,31 @@ struct RenderOptions {
   bool cull_back_faces = true;  // lung surfaces are closed and outward-oriented
   // Overlay: colour by the displacement magnitude |s u| (viridis), with a colour bar legend.
   bool overlay_magnitude = false;
-  double overlay_max_m = 0.0;  // top of the colour scale; 0: max |u| * |max_scale| (fixed across frames)
+  double overlay_max_m = 0.0;  // top of the colour scale; 0: max |u| * max |s| of the range (fixed across frames)
   bool legend = true;           // the colour bar (drawn only with the overlay)
 };
 inline const RenderOptions default_render_options{};
 
+// The values of s a run renders (RunInfo's min_scale and max_scale): the camera frames every
+// frame in the range, and the overlay's colour scale reaches the largest |s| u.
+struct ScaleRange {
+  double min = 0.0;
+  double max = 1.0;
+};
+
 class Renderer {
  public:
-  // `field` has one vector per vertex of `rest` (metres per unit of s). `max_scale` is the
-  // largest s that will be rendered: the camera frames the bounds of rest and rest +
-  // max_scale * u, so it does not move between frames. Throws UnsupportedError when no OpenGL
-  // context can be created (the message says what to install) or the image is larger than the
-  // driver allows, InputError when the field or the triangles do not fit the mesh, UsageError
-  // for a non-positive image size.
-  Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, double max_scale,
+  // `field` has one vector per vertex of `rest` (metres per unit of s). The camera frames the
+  // bounds of rest + s u over s in `scales` (and rest itself), so it does not move between
+  // frames. Throws UnsupportedError when no OpenGL context can be created (the message says
+  // what to install) or the image is larger than the driver allows, InputError when the field
+  // or the triangles do not fit the mesh, UsageError for a non-positive image size.
+  Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, ScaleRange scales,
            const RenderOptions& options = default_render_options);
+  // Frames s in [0, max_scale].
+  Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, double max_scale,
+           const RenderOptions& options = default_render_options)
+      : Renderer(rest, field, ScaleRange{0.0, max_scale}, options) {}
   ~Renderer();
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
@@ -80,7 +90,7 @@ class Renderer {
   void set_camera(const Camera& camera);
   const Camera& camera() const;
   const RenderOptions& options() const;
-  // The bounds the camera frames: those of rest and rest + max_scale * u.
+  // The bounds the camera frames: those of rest and rest + s u at both ends of the range.
   const std::array<Eigen::Vector3d, 2>& framed_bounds() const;
   // The overlay's top value (m).
   double overlay_max_m() const;

@@ -1,0 +1,135 @@
+// Headless rendering at 1280x720 (OSMesa, llvmpipe) for ~82k and ~1.3M triangles (icosphere
+// ellipsoids, 20 * 4^k triangles, k = 6 and 8) with a smooth field, split into the parts of a
+// frame: the one-time upload (context, normal terms, buffers), the per-frame draw including
+// MSAA resolve and read-back, and PNG encoding.
+// Baseline in the same run: the same pipeline on an empty scene (clear, resolve, read back the
+// same 1280x720 image), i.e. the cost of getting pixels out at all.
+// llvmpipe rasterises on LP_NUM_THREADS threads (default: one per core); run with
+// LP_NUM_THREADS=1 and 2 to see the scaling. BENCHMARKS.md ("## Render") keeps the figures.
+#include <benchmark/benchmark.h>
+
+#include <map>
+#include <memory>
+
+#include "pneuma/render/image.h"
+#include "pneuma/render/renderer.h"
+
+namespace {
+
+using namespace pneuma;
+
+constexpr int kWidth = 1280, kHeight = 720;
+
+struct Model {
+  mesh::TriangleMesh rest;
+  std::vector<Eigen::Vector3d> field;
+};
+
+// A lung-sized ellipsoid (11 x 17 x 24 cm) and u = n * (4 + 10 * depth) mm per unit s.
+const Model& model(int subdivisions) {
+  static std::map<int, Model> cache;
+  auto it = cache.find(subdivisions);
+  if (it != cache.end()) return it->second;
+  Model m;
+  m.rest = mesh::make_icosphere(1.0, subdivisions);
+  for (auto& p : m.rest.vertices) p = Eigen::Vector3d(0.055 * p.x(), 0.085 * p.y(), 0.12 * p.z());
+  const auto normals = mesh::vertex_normals(m.rest);
+  m.field.resize(normals.size());
+  for (std::size_t i = 0; i < normals.size(); ++i) {
+    m.field[i] = normals[i] * (0.004 + 0.010 * (0.12 - m.rest.vertices[i].z()) / 0.24);
+  }
+  return cache.emplace(subdivisions, std::move(m)).first->second;
+}
+
+render::RenderOptions options() {
+  render::RenderOptions o;
+  o.width = kWidth;
+  o.height = kHeight;
+  o.camera = render::CameraPreset::oblique;
+  return o;
+}
+
+void label(benchmark::State& state, const Model& m) {
+  state.counters["triangles"] = static_cast<double>(m.rest.triangle_count());
+  state.counters["vertices"] = static_cast<double>(m.rest.vertex_count());
+}
+
+// Per frame: uniform s, draw, resolve, read back (the frame's pixels in memory).
+void BM_Draw(benchmark::State& state) {
+  const Model& m = model(static_cast<int>(state.range(0)));
+  render::Renderer renderer(m.rest, m.field, 1.0, options());
+  render::Image image;
+  renderer.render(0.0, image);  // warm-up: shader compilation happens on the first draw
+  int k = 0;
+  for (auto _ : state) {
+    renderer.render(0.01 * (k++ % 100), image);
+    benchmark::DoNotOptimize(image.rgba.data());
+  }
+  label(state, m);
+  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_Draw)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Baseline: the same image size with nothing to draw.
+void BM_ClearReadbackBaseline(benchmark::State& state) {
+  render::Renderer renderer(mesh::TriangleMesh{}, {}, 1.0, options());
+  render::Image image;
+  renderer.render(0.0, image);
+  for (auto _ : state) {
+    renderer.render(0.5, image);
+    benchmark::DoNotOptimize(image.rgba.data());
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_ClearReadbackBaseline)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Once per run: context, normal terms, vertex and index buffers, framebuffers, shaders, and
+// the first draw (llvmpipe compiles shader variants lazily).
+void BM_Upload(benchmark::State& state) {
+  const Model& m = model(static_cast<int>(state.range(0)));
+  render::Image image;
+  for (auto _ : state) {
+    render::Renderer renderer(m.rest, m.field, 1.0, options());
+    renderer.render(0.0, image);
+  }
+  label(state, m);
+}
+BENCHMARK(BM_Upload)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// PNG encoding of a rendered 1280x720 frame: libpng default and fast (the frame sink's choice).
+void BM_PngEncode(benchmark::State& state) {
+  const Model& m = model(8);
+  render::Renderer renderer(m.rest, m.field, 1.0, options());
+  const render::Image image = renderer.render(1.0);
+  const render::PngOptions png{.fast = state.range(0) != 0};
+  std::size_t bytes = 0;
+  for (auto _ : state) {
+    const auto encoded = render::encode_png(image, png);
+    bytes = encoded.size();
+    benchmark::DoNotOptimize(encoded.data());
+  }
+  state.counters["kilobytes"] = static_cast<double>(bytes) / 1024.0;
+  state.SetLabel(state.range(0) ? "fast" : "default");
+}
+BENCHMARK(BM_PngEncode)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The whole per-frame path of the PNG sink, without the disk: draw, read back, encode (fast).
+void BM_FrameToPng(benchmark::State& state) {
+  const Model& m = model(static_cast<int>(state.range(0)));
+  render::Renderer renderer(m.rest, m.field, 1.0, options());
+  render::Image image;
+  renderer.render(0.0, image);
+  int k = 0;
+  for (auto _ : state) {
+    renderer.render(0.01 * (k++ % 100), image);
+    const auto encoded = render::encode_png(image, {.fast = true});
+    benchmark::DoNotOptimize(encoded.data());
+  }
+  label(state, m);
+  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_FrameToPng)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();
