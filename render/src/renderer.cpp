@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <string>
 
 #include "gl_context.h"
@@ -138,6 +139,62 @@ std::array<Eigen::Vector3d, 2> bounds_over_range(const mesh::TriangleMesh& rest,
   return box;
 }
 
+// Spreads the low 10 bits of v to every third bit (for a 30-bit Morton code).
+std::uint32_t spread_bits(std::uint32_t v) {
+  v &= 0x3ffu;
+  v = (v | (v << 16)) & 0x030000ffu;
+  v = (v | (v << 8)) & 0x0300f00fu;
+  v = (v | (v << 4)) & 0x030c30c3u;
+  v = (v | (v << 2)) & 0x09249249u;
+  return v;
+}
+
+// The draw order. llvmpipe shades a vertex once per small batch of indices that refers to it,
+// so triangles that share vertices should be near each other in the index buffer, and vertices
+// used together near each other in memory. Triangles are sorted along a Morton (Z-order) curve
+// of their centroids (ties by index: deterministic) and vertices numbered by first use, so a
+// mesh in any order draws as fast as a well-ordered one (measured: a shuffled 1.3M-triangle
+// icosphere took 3.5x longer to draw). Only the order changes, not the image.
+struct DrawOrder {
+  std::vector<mesh::Triangle> triangles;     // in new vertex numbers
+  std::vector<std::uint32_t> source_vertex;  // new number -> rest vertex
+};
+
+DrawOrder draw_order(const mesh::TriangleMesh& rest) {
+  DrawOrder order;
+  const std::size_t n = rest.triangle_count();
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> keyed(n);  // (Morton code, triangle)
+  if (n > 0) {
+    const auto [lo, hi] = mesh::bounding_box(rest.vertices);
+    const Eigen::Vector3d extent = (hi - lo).cwiseMax(1e-12);
+    for (std::size_t t = 0; t < n; ++t) {
+      const auto& tri = rest.triangles[t];
+      const Eigen::Vector3d centroid = (rest.vertices[tri[0]] + rest.vertices[tri[1]] + rest.vertices[tri[2]]) / 3.0;
+      const Eigen::Vector3d unit = (centroid - lo).cwiseQuotient(extent);
+      auto cell = [](double x) { return static_cast<std::uint32_t>(std::clamp(x, 0.0, 1.0) * 1023.0); };
+      const std::uint32_t code = spread_bits(cell(unit.x())) | (spread_bits(cell(unit.y())) << 1) | (spread_bits(cell(unit.z())) << 2);
+      keyed[t] = {code, static_cast<std::uint32_t>(t)};
+    }
+    std::sort(keyed.begin(), keyed.end());
+  }
+  constexpr std::uint32_t unused = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> new_number(rest.vertex_count(), unused);
+  order.source_vertex.reserve(rest.vertex_count());
+  order.triangles.reserve(n);
+  for (const auto& [code, t] : keyed) {
+    mesh::Triangle tri = rest.triangles[t];
+    for (std::uint32_t& v : tri) {
+      if (new_number[v] == unused) {
+        new_number[v] = static_cast<std::uint32_t>(order.source_vertex.size());
+        order.source_vertex.push_back(v);
+      }
+      v = new_number[v];
+    }
+    order.triangles.push_back(tri);
+  }
+  return order;  // vertices no triangle uses are left out: they are never drawn
+}
+
 }  // namespace
 
 struct Renderer::Impl {
@@ -207,13 +264,15 @@ struct Renderer::Impl {
 
   void upload(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field) {
     const NormalTerms normals = normal_terms(rest, field);
-    std::vector<Vertex> vertices(rest.vertex_count());
-    for (std::size_t i = 0; i < vertices.size(); ++i) {
-      put(vertices[i].rest, rest.vertices[i] - origin);
-      put(vertices[i].field, field[i]);
-      put(vertices[i].normal0, normals.n0[i]);
-      put(vertices[i].normal1, normals.n1[i]);
-      put(vertices[i].normal2, normals.n2[i]);
+    const DrawOrder order = draw_order(rest);
+    std::vector<Vertex> vertices(order.source_vertex.size());
+    for (std::size_t k = 0; k < vertices.size(); ++k) {
+      const std::uint32_t i = order.source_vertex[k];
+      put(vertices[k].rest, rest.vertices[i] - origin);
+      put(vertices[k].field, field[i]);
+      put(vertices[k].normal0, normals.n0[i]);
+      put(vertices[k].normal1, normals.n1[i]);
+      put(vertices[k].normal2, normals.n2[i]);
     }
     gl().GenVertexArrays(1, &vao);
     gl().BindVertexArray(vao);
@@ -228,9 +287,9 @@ struct Renderer::Impl {
     gl().GenBuffers(1, &index_buffer);
     gl().BindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
     static_assert(sizeof(mesh::Triangle) == 3 * sizeof(std::uint32_t));
-    gl().BufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(rest.triangles.size() * sizeof(mesh::Triangle)),
-                    rest.triangles.data(), GL_STATIC_DRAW);
-    index_count = static_cast<GLsizei>(rest.triangles.size() * 3);
+    gl().BufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(order.triangles.size() * sizeof(mesh::Triangle)),
+                    order.triangles.data(), GL_STATIC_DRAW);
+    index_count = static_cast<GLsizei>(order.triangles.size() * 3);
     gl().BindVertexArray(0);
   }
 
