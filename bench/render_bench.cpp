@@ -4,6 +4,8 @@
 // MSAA resolve and read-back, and PNG encoding.
 // Baseline in the same run: the same pipeline on an empty scene (clear, resolve, read back the
 // same 1280x720 image), i.e. the cost of getting pixels out at all.
+// Wall time is reported (UseRealTime): llvmpipe's rasteriser threads work outside the timed
+// thread, so the "CPU" column only shows the calling thread's share.
 // llvmpipe rasterises on LP_NUM_THREADS threads (default: one per core); run with
 // LP_NUM_THREADS=1 and 2 to see the scaling. BENCHMARKS.md ("## Render") keeps the figures.
 #include <benchmark/benchmark.h>
@@ -41,11 +43,12 @@ const Model& model(int subdivisions) {
   return cache.emplace(subdivisions, std::move(m)).first->second;
 }
 
-render::RenderOptions options() {
+render::RenderOptions options(int msaa_samples = 4) {
   render::RenderOptions o;
   o.width = kWidth;
   o.height = kHeight;
   o.camera = render::CameraPreset::oblique;
+  o.msaa_samples = msaa_samples;
   return o;
 }
 
@@ -55,9 +58,10 @@ void label(benchmark::State& state, const Model& m) {
 }
 
 // Per frame: uniform s, draw, resolve, read back (the frame's pixels in memory).
+// Arguments: subdivisions, MSAA samples (4: the default; 0: no anti-aliasing).
 void BM_Draw(benchmark::State& state) {
   const Model& m = model(static_cast<int>(state.range(0)));
-  render::Renderer renderer(m.rest, m.field, 1.0, options());
+  render::Renderer renderer(m.rest, m.field, 1.0, options(static_cast<int>(state.range(1))));
   render::Image image;
   renderer.render(0.0, image);  // warm-up: shader compilation happens on the first draw
   int k = 0;
@@ -68,11 +72,11 @@ void BM_Draw(benchmark::State& state) {
   label(state, m);
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_Draw)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Draw)->Args({6, 4})->Args({8, 4})->Args({6, 0})->Args({8, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// Baseline: the same image size with nothing to draw.
+// Baseline: the same image size with nothing to draw (argument: MSAA samples).
 void BM_ClearReadbackBaseline(benchmark::State& state) {
-  render::Renderer renderer(mesh::TriangleMesh{}, {}, 1.0, options());
+  render::Renderer renderer(mesh::TriangleMesh{}, {}, 1.0, options(static_cast<int>(state.range(0))));
   render::Image image;
   renderer.render(0.0, image);
   for (auto _ : state) {
@@ -81,7 +85,7 @@ void BM_ClearReadbackBaseline(benchmark::State& state) {
   }
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_ClearReadbackBaseline)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ClearReadbackBaseline)->Arg(4)->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Once per run: context, normal terms, vertex and index buffers, framebuffers, shaders, and
 // the first draw (llvmpipe compiles shader variants lazily).
@@ -116,7 +120,7 @@ BENCHMARK(BM_PngEncode)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealT
 // The whole per-frame path of the PNG sink, without the disk: draw, read back, encode (fast).
 void BM_FrameToPng(benchmark::State& state) {
   const Model& m = model(static_cast<int>(state.range(0)));
-  render::Renderer renderer(m.rest, m.field, 1.0, options());
+  render::Renderer renderer(m.rest, m.field, 1.0, options(static_cast<int>(state.range(1))));
   render::Image image;
   renderer.render(0.0, image);
   int k = 0;
@@ -128,7 +132,7 @@ void BM_FrameToPng(benchmark::State& state) {
   label(state, m);
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_FrameToPng)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FrameToPng)->Args({6, 4})->Args({8, 4})->Args({8, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
