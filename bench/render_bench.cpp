@@ -10,8 +10,10 @@
 // LP_NUM_THREADS=1 and 2 to see the scaling. BENCHMARKS.md ("## Render") keeps the figures.
 #include <benchmark/benchmark.h>
 
+#include <ctime>
 #include <map>
 #include <memory>
+#include <string>
 
 #include "pneuma/render/image.h"
 #include "pneuma/render/renderer.h"
@@ -43,13 +45,34 @@ const Model& model(int subdivisions) {
   return cache.emplace(subdivisions, std::move(m)).first->second;
 }
 
-render::RenderOptions options(int msaa_samples = 4) {
+// Anti-aliasing from the benchmark's arguments: MSAA samples and FXAA on (1) or off (0).
+render::RenderOptions options(const benchmark::State& state, int first_argument) {
   render::RenderOptions o;
   o.width = kWidth;
   o.height = kHeight;
   o.camera = render::CameraPreset::oblique;
-  o.msaa_samples = msaa_samples;
+  o.msaa_samples = static_cast<int>(state.range(first_argument));
+  o.fxaa = state.range(first_argument + 1) != 0;
   return o;
+}
+
+void name_antialiasing(benchmark::State& state, int first_argument) {
+  const auto msaa = state.range(first_argument);
+  const bool fxaa = state.range(first_argument + 1) != 0;
+  state.SetLabel(msaa > 1 ? "MSAA " + std::to_string(msaa) + "x" + (fxaa ? " + FXAA" : "") : fxaa ? "FXAA" : "no anti-aliasing");
+}
+
+// CPU time of the whole process (the calling thread and llvmpipe's threads), in ms. On a
+// shared machine this is steadier than wall time; on an idle one wall time is about the larger
+// of the calling thread's time and this divided by the cores.
+double process_cpu_ms() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+void per_frame_cpu(benchmark::State& state, double cpu_start_ms) {
+  state.counters["process_cpu_ms_per_frame"] = (process_cpu_ms() - cpu_start_ms) / static_cast<double>(state.iterations());
 }
 
 void label(benchmark::State& state, const Model& m) {
@@ -58,34 +81,42 @@ void label(benchmark::State& state, const Model& m) {
 }
 
 // Per frame: uniform s, draw, resolve, read back (the frame's pixels in memory).
-// Arguments: subdivisions, MSAA samples (4: the default; 0: no anti-aliasing).
+// Arguments: subdivisions, MSAA samples (4: the default), FXAA (0/1).
 void BM_Draw(benchmark::State& state) {
   const Model& m = model(static_cast<int>(state.range(0)));
-  render::Renderer renderer(m.rest, m.field, 1.0, options(static_cast<int>(state.range(1))));
+  render::Renderer renderer(m.rest, m.field, 1.0, options(state, 1));
+  name_antialiasing(state, 1);
   render::Image image;
   renderer.render(0.0, image);  // warm-up: shader compilation happens on the first draw
   int k = 0;
+  const double cpu_start = process_cpu_ms();
   for (auto _ : state) {
     renderer.render(0.01 * (k++ % 100), image);
     benchmark::DoNotOptimize(image.rgba.data());
   }
+  per_frame_cpu(state, cpu_start);
   label(state, m);
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_Draw)->Args({6, 4})->Args({8, 4})->Args({6, 0})->Args({8, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Draw)
+    ->Args({6, 4, 0})->Args({8, 4, 0})->Args({6, 0, 1})->Args({8, 0, 1})->Args({6, 0, 0})->Args({8, 0, 0})
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// Baseline: the same image size with nothing to draw (argument: MSAA samples).
+// Baseline: the same image size with nothing to draw (arguments: MSAA samples, FXAA).
 void BM_ClearReadbackBaseline(benchmark::State& state) {
-  render::Renderer renderer(mesh::TriangleMesh{}, {}, 1.0, options(static_cast<int>(state.range(0))));
+  render::Renderer renderer(mesh::TriangleMesh{}, {}, 1.0, options(state, 0));
+  name_antialiasing(state, 0);
   render::Image image;
   renderer.render(0.0, image);
+  const double cpu_start = process_cpu_ms();
   for (auto _ : state) {
     renderer.render(0.5, image);
     benchmark::DoNotOptimize(image.rgba.data());
   }
+  per_frame_cpu(state, cpu_start);
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_ClearReadbackBaseline)->Arg(4)->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ClearReadbackBaseline)->Args({4, 0})->Args({0, 1})->Args({0, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Once per run: context, normal terms, vertex and index buffers, framebuffers, shaders, and
 // the first draw (llvmpipe compiles shader variants lazily).
@@ -93,17 +124,21 @@ void BM_Upload(benchmark::State& state) {
   const Model& m = model(static_cast<int>(state.range(0)));
   render::Image image;
   for (auto _ : state) {
-    render::Renderer renderer(m.rest, m.field, 1.0, options());
+    render::Renderer renderer(m.rest, m.field, 1.0, options(state, 1));
     renderer.render(0.0, image);
   }
   label(state, m);
 }
-BENCHMARK(BM_Upload)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Upload)->Args({6, 4, 0})->Args({8, 4, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // PNG encoding of a rendered 1280x720 frame: libpng default and fast (the frame sink's choice).
 void BM_PngEncode(benchmark::State& state) {
   const Model& m = model(8);
-  render::Renderer renderer(m.rest, m.field, 1.0, options());
+  render::RenderOptions o;
+  o.width = kWidth;
+  o.height = kHeight;
+  o.camera = render::CameraPreset::oblique;
+  render::Renderer renderer(m.rest, m.field, 1.0, o);
   const render::Image image = renderer.render(1.0);
   const render::PngOptions png{.fast = state.range(0) != 0};
   std::size_t bytes = 0;
@@ -120,19 +155,22 @@ BENCHMARK(BM_PngEncode)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealT
 // The whole per-frame path of the PNG sink, without the disk: draw, read back, encode (fast).
 void BM_FrameToPng(benchmark::State& state) {
   const Model& m = model(static_cast<int>(state.range(0)));
-  render::Renderer renderer(m.rest, m.field, 1.0, options(static_cast<int>(state.range(1))));
+  render::Renderer renderer(m.rest, m.field, 1.0, options(state, 1));
+  name_antialiasing(state, 1);
   render::Image image;
   renderer.render(0.0, image);
   int k = 0;
+  const double cpu_start = process_cpu_ms();
   for (auto _ : state) {
     renderer.render(0.01 * (k++ % 100), image);
     const auto encoded = render::encode_png(image, {.fast = true});
     benchmark::DoNotOptimize(encoded.data());
   }
+  per_frame_cpu(state, cpu_start);
   label(state, m);
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_FrameToPng)->Args({6, 4})->Args({8, 4})->Args({8, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FrameToPng)->Args({6, 4, 0})->Args({8, 4, 0})->Args({8, 0, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

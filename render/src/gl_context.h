@@ -45,7 +45,11 @@ namespace pneuma::render::detail {
   X(PFNGLBUFFERDATAPROC, BufferData) X(PFNGLDELETEBUFFERSPROC, DeleteBuffers)                  \
   X(PFNGLVERTEXATTRIBPOINTERPROC, VertexAttribPointer)                                          \
   X(PFNGLENABLEVERTEXATTRIBARRAYPROC, EnableVertexAttribArray)                                  \
-  X(PFNGLDRAWELEMENTSPROC, DrawElements)
+  X(PFNGLDRAWELEMENTSPROC, DrawElements) X(PFNGLDRAWARRAYSPROC, DrawArrays)                    \
+  X(PFNGLGENTEXTURESPROC, GenTextures) X(PFNGLBINDTEXTUREPROC, BindTexture)                    \
+  X(PFNGLDELETETEXTURESPROC, DeleteTextures) X(PFNGLTEXIMAGE2DPROC, TexImage2D)                \
+  X(PFNGLTEXPARAMETERIPROC, TexParameteri) X(PFNGLACTIVETEXTUREPROC, ActiveTexture)            \
+  X(PFNGLFRAMEBUFFERTEXTURE2DPROC, FramebufferTexture2D) X(PFNGLUNIFORM2FPROC, Uniform2f)
 // clang-format on
 
 // The GL functions, called as gl.Clear(...) etc.

@@ -107,6 +107,51 @@ void main() {
 }
 )";
 
+// FXAA, after T. Lottes, "FXAA" (NVIDIA white paper, 2009), in its compact form: pixels whose
+// neighbourhood has little luma contrast are kept as they are (most of the image: smooth
+// shading, background); elsewhere the luma gradient gives the edge direction, two or four
+// bilinear taps along it blend the edge, and the wider blend is used only when its luma stays
+// in the neighbourhood's range.
+// A full-screen triangle made from gl_VertexID (no vertex buffer).
+constexpr const char* kFullScreenVertexShader = R"(#version 330 core
+void main() {
+  vec2 corner = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  gl_Position = vec4(corner * 2.0 - 1.0, 0.0, 1.0);
+}
+)";
+constexpr const char* kFxaaFragmentShader = R"(#version 330 core
+uniform sampler2D scene;
+uniform vec2 texel;  // 1 / image size
+out vec4 colour;
+const float reduce_min = 1.0 / 128.0, reduce_mul = 1.0 / 8.0, span_max = 8.0;
+float luma(vec3 c) { return dot(c, vec3(0.299, 0.587, 0.114)); }
+vec3 at(ivec2 p, ivec2 offset) {
+  return texelFetch(scene, clamp(p + offset, ivec2(0), textureSize(scene, 0) - 1), 0).rgb;
+}
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec3 centre = texelFetch(scene, p, 0).rgb;
+  float m = luma(centre);
+  float nw = luma(at(p, ivec2(-1, -1))), ne = luma(at(p, ivec2(1, -1)));
+  float sw = luma(at(p, ivec2(-1, 1))), se = luma(at(p, ivec2(1, 1)));
+  float lo = min(m, min(min(nw, ne), min(sw, se)));
+  float hi = max(m, max(max(nw, ne), max(sw, se)));
+  // No edge here (smooth shading or background): keep the pixel, skip the filter's taps.
+  if (hi - lo < max(1.0 / 24.0, hi / 8.0)) {
+    colour = vec4(centre, 1.0);
+    return;
+  }
+  vec2 uv = gl_FragCoord.xy * texel;
+  vec2 dir = vec2(-((nw + ne) - (sw + se)), (nw + sw) - (ne + se));
+  float reduce = max((nw + ne + sw + se) * 0.25 * reduce_mul, reduce_min);
+  dir = clamp(dir / (min(abs(dir.x), abs(dir.y)) + reduce), vec2(-span_max), vec2(span_max)) * texel;
+  vec3 a = 0.5 * (texture(scene, uv + dir * (1.0 / 3.0 - 0.5)).rgb + texture(scene, uv + dir * (2.0 / 3.0 - 0.5)).rgb);
+  vec3 b = 0.5 * a + 0.25 * (texture(scene, uv - 0.5 * dir).rgb + texture(scene, uv + 0.5 * dir).rgb);
+  float lb = luma(b);
+  colour = vec4((lb < lo || lb > hi) ? a : b, 1.0);
+}
+)";
+
 // The vertex layout: 15 floats, positions relative to `origin` (the centre of the framed
 // bounds) so single precision keeps sub-micrometre resolution whatever the mesh's placement.
 struct Vertex {
@@ -225,8 +270,12 @@ struct Renderer::Impl {
   GLsizei index_count = 0;
 
   GLuint program = 0, vao = 0, vertex_buffer = 0, index_buffer = 0;
-  GLuint draw_fbo = 0, resolve_fbo = 0;
-  GLuint colour_rb = 0, depth_rb = 0, resolve_rb = 0;
+  // Geometry is drawn into msaa_fbo (multisampled renderbuffers) and resolved into image_fbo,
+  // or drawn into image_fbo directly without MSAA; with FXAA a full-screen pass filters
+  // image_fbo's texture into output_fbo. The last of these is read back.
+  GLuint msaa_fbo = 0, image_fbo = 0, output_fbo = 0;
+  GLuint msaa_colour_rb = 0, msaa_depth_rb = 0, depth_rb = 0, output_rb = 0, image_texture = 0;
+  GLuint fxaa_program = 0, empty_vao = 0;
   GLint s_location = -1, view_location = -1, projection_location = -1;
   std::vector<std::uint8_t> row;  // scratch for flipping rows
 
@@ -248,22 +297,37 @@ struct Renderer::Impl {
     return shader;
   }
 
-  void build_program() {
-    const GLuint vs = compile(GL_VERTEX_SHADER, kVertexShader);
-    const GLuint fs = compile(GL_FRAGMENT_SHADER, std::string(kFragmentShaderHead) + detail::viridis_glsl() + kFragmentShaderBody);
-    program = gl().CreateProgram();
-    gl().AttachShader(program, vs);
-    gl().AttachShader(program, fs);
-    gl().LinkProgram(program);
+  GLuint link(const std::string& vertex_source, const std::string& fragment_source) {
+    const GLuint vs = compile(GL_VERTEX_SHADER, vertex_source);
+    const GLuint fs = compile(GL_FRAGMENT_SHADER, fragment_source);
+    const GLuint linked = gl().CreateProgram();
+    gl().AttachShader(linked, vs);
+    gl().AttachShader(linked, fs);
+    gl().LinkProgram(linked);
     gl().DeleteShader(vs);
     gl().DeleteShader(fs);
     GLint ok = 0;
-    gl().GetProgramiv(program, GL_LINK_STATUS, &ok);
+    gl().GetProgramiv(linked, GL_LINK_STATUS, &ok);
     if (!ok) {
       char log[2048] = {};
-      gl().GetProgramInfoLog(program, sizeof log, nullptr, log);
+      gl().GetProgramInfoLog(linked, sizeof log, nullptr, log);
+      gl().DeleteProgram(linked);
       throw Error(ExitCode::failure, std::string("render: shaders do not link: ") + log);
     }
+    return linked;
+  }
+
+  void build_fxaa() {
+    fxaa_program = link(kFullScreenVertexShader, kFxaaFragmentShader);
+    gl().UseProgram(fxaa_program);
+    gl().Uniform1i(gl().GetUniformLocation(fxaa_program, "scene"), 0);
+    gl().Uniform2f(gl().GetUniformLocation(fxaa_program, "texel"), 1.0f / static_cast<float>(options.width),
+                   1.0f / static_cast<float>(options.height));
+    gl().GenVertexArrays(1, &empty_vao);  // core profile: a draw needs a vertex array object
+  }
+
+  void build_program() {
+    program = link(kVertexShader, std::string(kFragmentShaderHead) + detail::viridis_glsl() + kFragmentShaderBody);
     s_location = gl().GetUniformLocation(program, "s");
     view_location = gl().GetUniformLocation(program, "view_from_model");
     projection_location = gl().GetUniformLocation(program, "clip_from_view");
@@ -345,27 +409,44 @@ struct Renderer::Impl {
     }
     samples = options.msaa_samples > 1 ? std::min(options.msaa_samples, static_cast<int>(max_samples)) : 0;
     if (samples == 1) samples = 0;
-    // The resolve target (also the draw target without MSAA) is read back.
-    gl().GenFramebuffers(1, &resolve_fbo);
-    gl().BindFramebuffer(GL_FRAMEBUFFER, resolve_fbo);
-    resolve_rb = renderbuffer(GL_RGBA8, 0);
-    gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, resolve_rb);
+
+    // The single-sampled image: a texture, so that FXAA can sample it.
+    gl().GenTextures(1, &image_texture);
+    gl().BindTexture(GL_TEXTURE_2D, image_texture);
+    gl().TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, options.width, options.height, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+    gl().TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    gl().TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    gl().TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    gl().TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    gl().GenFramebuffers(1, &image_fbo);
+    gl().BindFramebuffer(GL_FRAMEBUFFER, image_fbo);
+    gl().FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, image_texture, 0);
     if (samples == 0) {
       depth_rb = renderbuffer(GL_DEPTH_COMPONENT24, 0);
       gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
-      check_framebuffer("colour");
-      draw_fbo = resolve_fbo;
-      return;
     }
-    check_framebuffer("resolve");
-    gl().GenFramebuffers(1, &draw_fbo);
-    gl().BindFramebuffer(GL_FRAMEBUFFER, draw_fbo);
-    colour_rb = renderbuffer(GL_RGBA8, samples);
-    depth_rb = renderbuffer(GL_DEPTH_COMPONENT24, samples);
-    gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_rb);
-    gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
-    check_framebuffer("multisampled");
+    check_framebuffer("image");
+
+    if (samples > 0) {
+      gl().GenFramebuffers(1, &msaa_fbo);
+      gl().BindFramebuffer(GL_FRAMEBUFFER, msaa_fbo);
+      msaa_colour_rb = renderbuffer(GL_RGBA8, samples);
+      msaa_depth_rb = renderbuffer(GL_DEPTH_COMPONENT24, samples);
+      gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, msaa_colour_rb);
+      gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, msaa_depth_rb);
+      check_framebuffer("multisampled");
+    }
+    if (options.fxaa) {
+      gl().GenFramebuffers(1, &output_fbo);
+      gl().BindFramebuffer(GL_FRAMEBUFFER, output_fbo);
+      output_rb = renderbuffer(GL_RGBA8, 0);
+      gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, output_rb);
+      check_framebuffer("output");
+    }
   }
+
+  GLuint draw_fbo() const { return samples > 0 ? msaa_fbo : image_fbo; }
+  GLuint readback_fbo() const { return options.fxaa ? output_fbo : image_fbo; }
 
   void apply_camera() {
     const double aspect = static_cast<double>(options.width) / options.height;
@@ -385,10 +466,14 @@ struct Renderer::Impl {
 
   ~Impl() {
     context.make_current();
-    const GLuint framebuffers[] = {draw_fbo, resolve_fbo};
-    gl().DeleteFramebuffers(draw_fbo == resolve_fbo ? 1 : 2, framebuffers + (draw_fbo == resolve_fbo ? 1 : 0));
-    const GLuint renderbuffers[] = {colour_rb, depth_rb, resolve_rb};
-    gl().DeleteRenderbuffers(3, renderbuffers);
+    // Deleting the name 0 is a no-op, so unused objects need no special case.
+    const GLuint framebuffers[] = {msaa_fbo, image_fbo, output_fbo};
+    gl().DeleteFramebuffers(3, framebuffers);
+    const GLuint renderbuffers[] = {msaa_colour_rb, msaa_depth_rb, depth_rb, output_rb};
+    gl().DeleteRenderbuffers(4, renderbuffers);
+    gl().DeleteTextures(1, &image_texture);
+    gl().DeleteVertexArrays(1, &empty_vao);
+    gl().DeleteProgram(fxaa_program);
     const GLuint buffers[] = {vertex_buffer, index_buffer};
     gl().DeleteBuffers(2, buffers);
     gl().DeleteVertexArrays(1, &vao);
@@ -435,6 +520,7 @@ Renderer::Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vect
 
   const auto& gl = r.gl();
   r.create_framebuffers();
+  if (options.fxaa) r.build_fxaa();
   r.build_program();
   r.upload(rest, field);
   r.apply_camera();
@@ -464,7 +550,7 @@ void Renderer::render(double s, Image& out) {
   if (out.width != w || out.height != h || out.rgba.size() != out.pixel_count() * 4) out = Image(w, h);
   r.context.make_current();
 
-  gl.BindFramebuffer(GL_FRAMEBUFFER, r.draw_fbo);
+  gl.BindFramebuffer(GL_FRAMEBUFFER, r.draw_fbo());
   gl.Viewport(0, 0, w, h);
   const Eigen::Vector3d& bg = r.options.background;
   gl.ClearColor(static_cast<float>(bg.x()), static_cast<float>(bg.y()), static_cast<float>(bg.z()), 1.0f);
@@ -476,12 +562,23 @@ void Renderer::render(double s, Image& out) {
     gl.DrawElements(GL_TRIANGLES, r.index_count, GL_UNSIGNED_INT, nullptr);
     gl.BindVertexArray(0);
   }
-  if (r.draw_fbo != r.resolve_fbo) {
-    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, r.draw_fbo);
-    gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, r.resolve_fbo);
+  if (r.samples > 0) {
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, r.msaa_fbo);
+    gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, r.image_fbo);
     gl.BlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
   }
-  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, r.resolve_fbo);
+  if (r.options.fxaa) {
+    gl.BindFramebuffer(GL_FRAMEBUFFER, r.output_fbo);
+    gl.Disable(GL_DEPTH_TEST);
+    gl.UseProgram(r.fxaa_program);
+    gl.ActiveTexture(GL_TEXTURE0);
+    gl.BindTexture(GL_TEXTURE_2D, r.image_texture);
+    gl.BindVertexArray(r.empty_vao);
+    gl.DrawArrays(GL_TRIANGLES, 0, 3);
+    gl.BindVertexArray(0);
+    gl.Enable(GL_DEPTH_TEST);
+  }
+  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, r.readback_fbo());
   gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
   gl.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, out.rgba.data());
   r.check_gl("render");

@@ -23,6 +23,7 @@ struct GoldenCase {
   render::CameraPreset camera;
   double s;
   bool overlay = false;
+  bool fxaa = false;  // FXAA instead of MSAA
 };
 
 const GoldenCase kCases[] = {
@@ -31,6 +32,7 @@ const GoldenCase kCases[] = {
     {"lung-left-s0.5", render::CameraPreset::left_lateral, 0.5},
     {"lung-left-s1", render::CameraPreset::left_lateral, 1.0},
     {"lung-oblique-overlay-s1", render::CameraPreset::oblique, 1.0, true},
+    {"lung-oblique-fxaa-s0.5", render::CameraPreset::oblique, 0.5, false, true},
 };
 
 constexpr double kMaxScale = 1.0;
@@ -43,6 +45,10 @@ render::Image render_case(const GoldenCase& c, const render::Material& material 
   options.camera = c.camera;
   options.material = material;
   options.overlay_magnitude = c.overlay;
+  if (c.fxaa) {
+    options.msaa_samples = 0;
+    options.fxaa = true;
+  }
   render::Renderer renderer(lung.rest, lung.field, kMaxScale, options);
   return renderer.render(c.s);
 }

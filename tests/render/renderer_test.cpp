@@ -203,3 +203,41 @@ TEST(PngFrameSink, WritesOneFramePerCallAndNothingElse) {
   render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-0.5, 1.0}, small_options());
   EXPECT_EQ(render::read_png(written[1]).rgba, renderer.render(0.25).rgba);
 }
+
+// FXAA (post-process anti-aliasing) leaves flat neighbourhoods alone (an empty scene, smooth
+// shading), works mostly at the silhouette, and does smooth it.
+TEST(Renderer, FxaaChangesOnlyContrastedPixelsMostlyAtTheSilhouette) {
+  const auto lung = make_lung_stand_in();
+  auto options = small_options(render::CameraPreset::oblique);
+  options.msaa_samples = 0;
+  render::Renderer plain(lung.rest, lung.field, 1.0, options);
+  options.fxaa = true;
+  render::Renderer fxaa(lung.rest, lung.field, 1.0, options);
+  const render::Image a = plain.render(1.0), b = fxaa.render(1.0);
+  const render::Rgba background = test::to_rgba8(options.background);
+  auto pixel = [&](int x, int y) { return a.at(std::clamp(x, 0, a.width - 1), std::clamp(y, 0, a.height - 1)); };
+  int changed = 0, at_silhouette = 0;
+  for (int y = 0; y < a.height; ++y) {
+    for (int x = 0; x < a.width; ++x) {
+      if (a.at(x, y) == b.at(x, y)) continue;
+      ++changed;
+      int range = 0;
+      bool silhouette = false;
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const render::Rgba p = pixel(x + dx, y + dy), c = a.at(x, y);
+          range = std::max({range, std::abs(p.r - c.r), std::abs(p.g - c.g), std::abs(p.b - c.b)});
+          silhouette |= (p == background) != (c == background);
+        }
+      }
+      // Below FXAA's contrast threshold (1/24 in luma) a pixel must stay as it was.
+      EXPECT_GE(range, 8) << "pixel " << x << ", " << y << " changed in a flat neighbourhood";
+      at_silhouette += silhouette ? 1 : 0;
+    }
+  }
+  EXPECT_GT(changed, 50) << "FXAA smoothed the silhouette";
+  EXPECT_GT(at_silhouette, changed * 3 / 4);
+
+  render::Renderer empty(mesh::TriangleMesh{}, {}, 1.0, options);
+  EXPECT_EQ(test::silhouette_pixels(empty.render(0.0), background), 0u);
+}

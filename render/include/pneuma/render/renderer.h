@@ -45,7 +45,13 @@ struct RenderOptions {
   CameraPreset camera = CameraPreset::anterior;
   double fov_y_deg = 30.0;
   double margin = 1.1;  // free space around the framed bounds
-  int msaa_samples = 4;  // 0 or 1: no anti-aliasing; clamped to what the driver offers
+  // Anti-aliasing. MSAA samples the geometry (best edges; on llvmpipe its cost grows with the
+  // triangle count: about 3x the frame time at 1.3M triangles, see BENCHMARKS.md); FXAA
+  // (Lottes) smooths edges in one pass over the image at a fixed cost per pixel, the choice for
+  // dense meshes. Both may be on; msaa_samples 0 or 1 turns MSAA off (clamped to the driver's
+  // limit).
+  int msaa_samples = 4;
+  bool fxaa = false;
   Eigen::Vector3d background = {0.11, 0.12, 0.15};  // sRGB
   Material material;
   bool cull_back_faces = true;  // lung surfaces are closed and outward-oriented
