@@ -16,6 +16,8 @@ void register_compare(CLI::App& app);
 void register_mesh(CLI::App& app);
 void register_phantom(CLI::App& app);
 void register_render(CLI::App& app);
+// The `png` scenario output (render::PngFrameSink), passed to register_run.
+engine::SinkFactory png_sink_factory();
 
 // Shared option helpers.
 // Adds `--name VALUE` that parses a quantity with its unit (e.g. "3mm") into SI.

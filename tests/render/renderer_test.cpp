@@ -197,7 +197,7 @@ TEST(PngFrameSink, WritesOneFramePerCallAndNothingElse) {
   for (std::size_t k = 0; k < 3; ++k) sink.frame(k, scales[k]);
   const auto written = sink.end();
   ASSERT_EQ(written.size(), 3u);
-  EXPECT_EQ(written[2], dir / "frames" / "frame-00002.png");
+  EXPECT_EQ(written[2], dir / "frames" / "frame_00002.png");
   EXPECT_EQ(dir.files().size(), 3u) << "no temporaries left";
   // Each file is the renderer's image of its frame.
   render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-0.5, 1.0}, small_options());

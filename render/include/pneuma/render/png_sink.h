@@ -1,13 +1,13 @@
 #pragma once
 // PNG frames of a breathing sequence, in the shape of a frame sink: begin() with the model
 // (rest mesh, field, range of scales), frame() per frame, end(). engine::FrameSink can wrap this
-// class one-to-one (begin: model.rest, model.field, {run.min_scale, run.max_scale}; frame:
-// frame.index, frame.scale; end: written()). The wrapper lives outside render, which must not
-// depend on the engine (it links physiology).
+// class one-to-one (cli/png_sink.cpp: begin: model.rest, model.field, {run.min_scale,
+// run.max_scale}; frame: frame.index, frame.scale; end: the files). The wrapper lives outside
+// render, which must not depend on the engine (it links physiology).
 //
 //   PngFrameSink sink("out/frames", {});
 //   sink.begin(rest, field, {run.min_scale, run.max_scale});
-//   for (k...) sink.frame(k, s[k]);   // writes out/frames/frame-00000.png, ...
+//   for (k...) sink.frame(k, s[k]);   // writes out/frames/frame_00000.png, ...
 //   sink.end();
 #include <Eigen/Core>
 #include <filesystem>
@@ -24,7 +24,7 @@ namespace pneuma::render {
 struct PngSinkOptions {
   RenderOptions render;
   PngOptions png{.fast = true};
-  std::string prefix = "frame-";  // files are <prefix><index, 5 digits>.png
+  std::string prefix = "frame_";  // files are <prefix><index, 5 digits>.png, as the mesh sequence
 };
 
 class PngFrameSink {
