@@ -118,3 +118,40 @@ TEST(RenderCli, NoOpenGlContextSaysWhatToInstall) {
             "render: no OpenGL context: cannot load /nonexistent/libOSMesa.so.8; install the libosmesa6 package (Mesa's "
             "off-screen OpenGL with llvmpipe)\n");
 }
+
+// `pneuma run` with a `png` output: the renderer as a frame sink, end to end.
+TEST(RenderCli, RunWritesPngFramesListedInTheManifest) {
+  TempDir dir;
+  const auto scenario = dir.write("s.yaml", R"(name: png-check
+duration: 4 s
+frames:
+  rate: 5 Hz
+mesh:
+  phantom: right
+  edge: 15 mm
+  share: 55 %
+field:
+  tissue: healthy-upright
+  cache: off
+physiology:
+  preset: healthy-adult
+  output_rate: 100 Hz
+outputs:
+  physiology_csv: {enabled: false}
+  gltf: {enabled: false}
+  hdf5: {enabled: false}
+  png: {width: 64, height: 48, camera: oblique, every: 5}
+)");
+  const auto out = dir / "out";
+  const auto r = run_pneuma({"run", scenario.string(), "-o", out.string(), "-q"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::vector<render::Image> frames;
+  for (const char* name : {"frame_00000.png", "frame_00005.png", "frame_00010.png", "frame_00015.png"}) {
+    frames.push_back(render::read_png(out / "png" / name));
+    EXPECT_EQ(frames.back().width, 64);
+    EXPECT_EQ(frames.back().height, 48);
+  }
+  EXPECT_FALSE(std::filesystem::exists(out / "png" / "frame_00001.png")) << "every: 5";
+  EXPECT_NE(frames[0].rgba, frames[2].rgba) << "the lung moves between frames 0 and 10 (2 s apart)";
+  EXPECT_NE(test::read_text(out / "manifest.json").find("png/frame_00015.png"), std::string::npos);
+}
