@@ -78,17 +78,6 @@ std::vector<std::uint32_t> lattice_border(std::uint32_t side) {
 
 namespace detail {
 
-double check_load(std::span<const double> load, std::size_t expected) {
-  if (load.size() != expected)
-    throw std::invalid_argument("load: expected " + std::to_string(expected) + " values, got " +
-                                std::to_string(load.size()));
-  double max_f = 0.0;
-  for (double f : load) {
-    if (!(f >= 0.0) || !std::isfinite(f)) throw std::invalid_argument("load: expected finite values >= 0");
-    max_f = std::max(max_f, f);
-  }
-  return max_f;
-}
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

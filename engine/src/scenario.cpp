@@ -1,5 +1,7 @@
 #include "pneuma/engine/scenario.h"
 
+#include <cctype>
+
 #include "pneuma/core/error.h"
 #include "pneuma/engine/config.h"
 
@@ -24,7 +26,17 @@ MeshSpec read_mesh_spec(const Node& n) {
     m.phantom_lung.clear();
     m.file = n.directory("file") / n.string("file");
     if (!std::filesystem::exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
-    if (n.has("unit")) m.metres_per_unit = n.positive_quantity("unit", kind::length);
+    if (n.has("unit")) {
+      // A unit name ("mm") or a length ("0.5 mm"): the length of one file unit.
+      const std::string text = n.string("unit");
+      const bool bare = !text.empty() && std::isalpha(static_cast<unsigned char>(text.front()));
+      try {
+        m.metres_per_unit = units::parse(bare ? "1 " + text : text, kind::length);
+      } catch (const units::UnitError&) {
+        m.metres_per_unit = 0.0;
+      }
+      if (!(m.metres_per_unit > 0.0)) n.fail_at("unit", "expected a length unit such as 'mm' or '0.5 mm', got '" + text + "'");
+    }
     m.export_original = n.has("export") && n.choice("export", {"original", "remeshed"}) == "original";
     m.repair = n.boolean("repair", true);
   } else {

@@ -4,7 +4,9 @@
 #define TINYGLTF_NO_EXTERNAL_IMAGE
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
+#include <hdf5.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -169,3 +171,89 @@ INSTANTIATE_TEST_SUITE_P(
         BadRun{"negative_duration", "duration: -4 s\nphysiology: {preset: healthy-adult}\n",
                "1:11: duration: expected a positive duration, got '-4 s'", 3}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
+
+TEST(Runner, AreaGrowsByOneAreaUnitPerUnitScaleAtFirstOrder) {
+  // The field is normalised so that dA/ds = 1 cm^2 at s = 0: the per-frame CGAL area in the
+  // HDF5 series must follow A(0) + s * 1e-4 m^2 up to the (small, positive) second-order term.
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"}).exit_code, 0);
+  const hid_t file = H5Fopen((dir / "out/series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  auto read = [&](const char* name) {
+    std::vector<double> v(41);
+    const hid_t set = H5Dopen2(file, name, H5P_DEFAULT);
+    H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
+    H5Dclose(set);
+    return v;
+  };
+  const auto area = read("/frames/area_m2"), scale = read("/frames/scale");
+  H5Fclose(file);
+  int checked = 0;
+  for (std::size_t k = 1; k < area.size(); ++k) {
+    if (scale[k] < 1.0) continue;
+    const double ratio = (area[k] - area[0]) / (scale[k] * 1e-4);
+    EXPECT_GT(ratio, 0.97) << "frame " << k << ", s = " << scale[k];
+    EXPECT_LT(ratio, 1.05) << "frame " << k << ", s = " << scale[k];
+    ++checked;
+  }
+  EXPECT_GT(checked, 10);
+}
+
+TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
+  // A file mesh (the phantom at 8 mm, in mm) remeshed to 14 mm for the field, exported at its
+  // own resolution: frames keep the file's vertices and still follow the volume exactly.
+  TempDir dir;
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "left", "--edge", "8mm", "-o", (dir / "lung.ply").string()}).exit_code, 0);
+  const std::string yaml = std::string(kSmall).replace(std::string(kSmall).find("mesh: {phantom: right, edge: 12 mm, share: 55 %}"),
+                                                       std::strlen("mesh: {phantom: right, edge: 12 mm, share: 55 %}"),
+                                                       "mesh: {file: lung.ply, unit: mm, edge: 14 mm, export: original, share: 45 %}");
+  const auto scenario = dir.write("file.yaml", yaml);
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  pneuma::mesh::ReadOptions mm;
+  const auto original = pneuma::mesh::read_mesh(dir / "lung.ply", mm);
+  pneuma::mesh::ReadOptions metres;
+  metres.metres_per_unit = 1.0;
+  const auto frame = pneuma::mesh::read_mesh(frame_file(dir / "out/frames", 20), metres);
+  EXPECT_EQ(frame.vertex_count(), original.vertex_count());
+  const auto s = pneuma::engine::load_scenario(scenario);
+  auto options = s.physiology.options;
+  options.output_rate_hz = 10.0;
+  const auto phys = pneuma::physiology::simulate(s.physiology.protocol, options);
+  const double change = file_volume(frame_file(dir / "out/frames", 20)) - file_volume(frame_file(dir / "out/frames", 0));
+  EXPECT_NEAR(change, 0.45 * phys.series.volume_m3[20], 1e-3 * 0.45 * 0.5e-3 + 1e-7 * 1.3e-3);
+}
+
+TEST(Runner, AVolumeBeyondWhatTheSurfaceCanTakeIsRefused) {
+  // 4 L into one lung of ~1.3 L: refused before any frame is written, with what to change.
+  TempDir dir;
+  std::string yaml = kSmall;
+  yaml.replace(yaml.find("share: 55 %"), 11, "share: 100 %");
+  yaml.replace(yaml.find("driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}"),
+               std::strlen("driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}"),
+               "driver: {mode: volume_control, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 4 L}");
+  const auto scenario = dir.write("big.yaml", yaml);
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(r.exit_code, 5);
+  EXPECT_NE(r.err.find("lower the tidal volume"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "out/frames")) << "no frame before the check";
+}
+
+TEST(Runner, CtrlCLeavesNoHalfWrittenFile) {
+  // A long run (20 min of breathing on a 2 mm phantom: several seconds of frames) interrupted
+  // while the HDF5 series is being written: that file must not appear, and no temporary may
+  // be left behind. Whatever phase the signal hits, the same must hold.
+  TempDir dir;
+  std::string yaml = kSmall;
+  yaml.replace(yaml.find("duration: 4 s"), 13, "duration: 1200 s");
+  yaml.replace(yaml.find("edge: 12 mm"), 11, "edge: 2 mm");
+  yaml.replace(yaml.find("mesh_sequence: {format: ply}"), 28, "mesh_sequence: false");
+  yaml.replace(yaml.find("hdf5: {positions: true}"), 23, "hdf5: {positions: false}");
+  const auto scenario = dir.write("long.yaml", yaml);
+  const int status = pneuma::test::interrupt_pneuma({"run", scenario.string(), "-o", (dir / "out").string()}, 1500);
+  EXPECT_EQ(status, 130);  // 128 + SIGINT, from the CLI's handler
+  EXPECT_FALSE(std::filesystem::exists(dir / "out/series.h5"));
+  for (const auto& name : dir.files()) EXPECT_EQ(name.find(".tmp-"), std::string::npos) << name;
+}

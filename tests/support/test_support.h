@@ -34,6 +34,10 @@ struct CommandResult {
 // Runs the pneuma executable with `args` (no shell involved), in `working_dir` if given.
 CommandResult run_pneuma(const std::vector<std::string>& args, const std::filesystem::path& working_dir = {});
 
+// Starts pneuma with `args`, sends SIGINT after `delay_ms` milliseconds, and returns its exit
+// status (128 + signal when it died of one, as a shell reports it).
+int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms);
+
 // The source tree (for shipped scenarios and presets).
 std::filesystem::path source_dir();
 
