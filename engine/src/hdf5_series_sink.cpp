@@ -40,10 +40,23 @@ void check(herr_t status, const std::string& what) {
   if (status < 0) throw IoError("HDF5: cannot " + what);
 }
 
+// Creation properties without modification times: the same run writes the same bytes.
+hid_t untimed(hid_t property_class) {
+  const hid_t properties = H5Pcreate(property_class);
+  if (properties >= 0) H5Pset_obj_track_times(properties, false);
+  return properties;
+}
+
+hid_t create_group(hid_t parent, const char* name) {
+  Handle properties(untimed(H5P_GROUP_CREATE), H5Pclose, "create properties");
+  return H5Gcreate2(parent, name, H5P_DEFAULT, properties, H5P_DEFAULT);
+}
+
 void write_matrix(hid_t parent, const char* name, const void* data, hid_t type, hsize_t rows, hsize_t columns) {
   const hsize_t dims[2] = {rows, columns};
   Handle space(H5Screate_simple(columns ? 2 : 1, dims, nullptr), H5Sclose, "create a dataspace");
-  Handle set(H5Dcreate2(parent, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose,
+  Handle properties(untimed(H5P_DATASET_CREATE), H5Pclose, "create properties");
+  Handle set(H5Dcreate2(parent, name, type, space, H5P_DEFAULT, properties, H5P_DEFAULT), H5Dclose,
              std::string("create ") + name);
   if (rows > 0) check(H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), std::string("write ") + name);
 }
@@ -60,25 +73,26 @@ class Hdf5Sink final : public FrameSink {
     triangle_count_ = model.rest.triangles.size();
     frame_count_ = run.frame_count;
     pending_ = std::make_unique<PendingFile>(h5_path_);
-    file_ = H5Fcreate(pending_->temporary().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    Handle file_properties(untimed(H5P_FILE_CREATE), H5Pclose, "create properties");
+    file_ = H5Fcreate(pending_->temporary().c_str(), H5F_ACC_TRUNC, file_properties, H5P_DEFAULT);
     if (file_ < 0) throw IoError(h5_path_.string() + ": cannot create the HDF5 file");
 
-    Handle rest(H5Gcreate2(file_, "rest", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose, "create /rest");
+    Handle rest(create_group(file_, "rest"), H5Gclose, "create /rest");
     write_matrix(rest, "positions", model.rest.vertices.data(), H5T_NATIVE_DOUBLE, vertex_count_, 3);
     write_matrix(rest, "triangles", model.rest.triangles.data(), H5T_NATIVE_UINT32, triangle_count_, 3);
-    Handle field(H5Gcreate2(file_, "field", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose, "create /field");
+    Handle field(create_group(file_, "field"), H5Gclose, "create /field");
     write_matrix(field, "u", model.field.data(), H5T_NATIVE_DOUBLE, vertex_count_, 3);
     Handle scalar(H5Screate(H5S_SCALAR), H5Sclose, "create a dataspace");
     Handle unit(H5Acreate2(field, "area_unit_m2", H5T_NATIVE_DOUBLE, scalar, H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
                 "create an attribute");
     check(H5Awrite(unit, H5T_NATIVE_DOUBLE, &model.area_unit_m2), "write an attribute");
 
-    frames_group_ = H5Gcreate2(file_, "frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    frames_group_ = create_group(file_, "frames");
     if (store_positions_ && frame_count_ > 0) {
       const hsize_t dims[3] = {frame_count_, vertex_count_, 3};
       const hsize_t chunk[3] = {1, std::max<hsize_t>(1, vertex_count_), 3};
       Handle space(H5Screate_simple(3, dims, nullptr), H5Sclose, "create a dataspace");
-      Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create properties");
+      Handle properties(untimed(H5P_DATASET_CREATE), H5Pclose, "create properties");
       check(H5Pset_chunk(properties, 3, chunk), "set chunking");
       positions_ = H5Dcreate2(frames_group_, "positions", H5T_NATIVE_DOUBLE, space, H5P_DEFAULT, properties,
                               H5P_DEFAULT);
