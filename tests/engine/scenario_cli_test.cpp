@@ -5,19 +5,10 @@
 
 #include "test_support.h"
 
+using pneuma::test::count_lines;
 using pneuma::test::run_pneuma;
 using pneuma::test::TempDir;
 
-namespace {
-
-int count_lines(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  int n = 0;
-  for (std::string line; std::getline(in, line);) ++n;
-  return n;
-}
-
-}  // namespace
 
 TEST(SimulateCli, ShippedScenariosRunAndWriteCsv) {
   for (const char* name : {"quiet-breathing", "ventilated-patient"}) {

@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <csignal>
 #include <fstream>
 #include <thread>
@@ -57,43 +58,16 @@ std::string read_text(const std::filesystem::path& path) {
 
 std::filesystem::path source_dir() { return PNEUMA_SOURCE_DIR; }
 
-CommandResult run_pneuma(const std::vector<std::string>& args, const std::filesystem::path& working_dir) {
-  TempDir capture;
-  const auto out_path = capture / "stdout", err_path = capture / "stderr";
+namespace {
+
+// Starts pneuma with `args`, its stdout and stderr sent to the given files; returns its pid.
+pid_t spawn_pneuma(const std::vector<std::string>& args, const char* out_path, const char* err_path,
+                   const std::filesystem::path& working_dir) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&actions, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 1, out_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 2, err_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
   if (!working_dir.empty()) posix_spawn_file_actions_addchdir_np(&actions, working_dir.c_str());
-  std::vector<std::string> storage{PNEUMA_EXE};
-  storage.insert(storage.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& s : storage) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  pid_t pid = 0;
-  CommandResult result;
-  if (posix_spawn(&pid, PNEUMA_EXE, &actions, nullptr, argv.data(), environ) != 0) {
-    posix_spawn_file_actions_destroy(&actions);
-    throw std::runtime_error("cannot start " PNEUMA_EXE);
-  }
-  posix_spawn_file_actions_destroy(&actions);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  result.out = read_text(out_path);
-  result.err = read_text(err_path);
-  return result;
-}
-
-}  // namespace pneuma::test
-
-namespace pneuma::test {
-
-int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms) {
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
   std::vector<std::string> storage{PNEUMA_EXE};
   storage.insert(storage.end(), args.begin(), args.end());
   std::vector<char*> argv;
@@ -103,11 +77,40 @@ int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms) {
   const int started = posix_spawn(&pid, PNEUMA_EXE, &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (started != 0) throw std::runtime_error("cannot start " PNEUMA_EXE);
-  std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
-  kill(pid, SIGINT);
+  return pid;
+}
+
+// Waits for `pid`; its exit status, or 128 + signal when it died of one (as a shell says).
+int wait_for(pid_t pid) {
   int status = 0;
   waitpid(pid, &status, 0);
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+}  // namespace
+
+CommandResult run_pneuma(const std::vector<std::string>& args, const std::filesystem::path& working_dir) {
+  TempDir capture;
+  const auto out_path = capture / "stdout", err_path = capture / "stderr";
+  CommandResult result;
+  result.exit_code = wait_for(spawn_pneuma(args, out_path.c_str(), err_path.c_str(), working_dir));
+  result.out = read_text(out_path);
+  result.err = read_text(err_path);
+  return result;
+}
+
+int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms) {
+  const pid_t pid = spawn_pneuma(args, "/dev/null", "/dev/null", {});
+  std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
+  kill(pid, SIGINT);
+  return wait_for(pid);
+}
+
+int count_lines(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  int n = 0;
+  for (std::string line; std::getline(in, line);) ++n;
+  return n;
 }
 
 }  // namespace pneuma::test

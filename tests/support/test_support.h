@@ -42,5 +42,7 @@ int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms);
 std::filesystem::path source_dir();
 
 std::string read_text(const std::filesystem::path& path);
+// Number of lines in a text file (0 when it cannot be read).
+int count_lines(const std::filesystem::path& path);
 
 }  // namespace pneuma::test
