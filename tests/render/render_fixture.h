@@ -1,5 +1,6 @@
 #pragma once
-// A deterministic lung-like stand-in for render tests (until the phantom replaces it): a
+// A deterministic lung-like stand-in for the renderer's unit tests (analytic, any resolution,
+// no engine; the golden images use the real phantom and field, golden_test.cpp): a
 // left lung in LPS patient coordinates (+x left, +y posterior, +z superior), about 24 cm tall,
 // narrow at the apex, its medial side flattened and notched, and a smooth field that moves the base
 // (diaphragm) most: u = n * (4 mm + 10 mm * depth below the apex) per unit s.
