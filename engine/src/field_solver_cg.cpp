@@ -124,41 +124,32 @@ SolveResult ConjugateGradient_Schur::solve(std::span<const double> load) const {
   };
   auto maximum = [](const std::vector<double>& v) { return *std::max_element(v.begin(), v.end()); };
 
-  // r = b - K x with x = 0; z = M^-1 r; p = z.
-  for_blocks(nv, [&](std::size_t b, std::size_t lo, std::size_t hi) {
-    double rz = 0.0, worst = 0.0;
-    for (std::size_t i = lo; i < hi; ++i) {
-      r[i] = load[i] / weight[i];
-      z[i] = r[i] * m.inverse_diagonal[i];
-      p[i] = z[i];
-      rz += r[i] * z[i];
-      worst = std::max(worst, std::abs(weight[i] * r[i]));
-    }
-    partial[b] = rz;
-    partial_max[b] = worst;
-  });
-  double rz = sum(partial);
-  double max_residual = maximum(partial_max);
+  // r = b - K x (q holds K x); z = M^-1 r; p = z. At the start x = 0 and q = 0.
+  double rz = 0.0, max_residual = 0.0;
+  auto restart_directions = [&] {
+    for_blocks(nv, [&](std::size_t b, std::size_t lo, std::size_t hi) {
+      double rz_b = 0.0, worst = 0.0;
+      for (std::size_t i = lo; i < hi; ++i) {
+        r[i] = load[i] / weight[i] - q[i];
+        z[i] = r[i] * m.inverse_diagonal[i];
+        p[i] = z[i];
+        rz_b += r[i] * z[i];
+        worst = std::max(worst, std::abs(weight[i] * r[i]));
+      }
+      partial[b] = rz_b;
+      partial_max[b] = worst;
+    });
+    rz = sum(partial);
+    max_residual = maximum(partial_max);
+  };
+  restart_directions();
   std::uint64_t iterations = 0;
   bool recomputed = false;
   while (max_residual > threshold || !recomputed) {
     if (max_residual <= threshold) {
       // The recurrence says converged: check the true residual once, and go on if it is not.
       m.multiply(x, q, partial);
-      for_blocks(nv, [&](std::size_t b, std::size_t lo, std::size_t hi) {
-        double rz_b = 0.0, worst = 0.0;
-        for (std::size_t i = lo; i < hi; ++i) {
-          r[i] = load[i] / weight[i] - q[i];
-          z[i] = r[i] * m.inverse_diagonal[i];
-          p[i] = z[i];
-          rz_b += r[i] * z[i];
-          worst = std::max(worst, std::abs(weight[i] * r[i]));
-        }
-        partial[b] = rz_b;
-        partial_max[b] = worst;
-      });
-      rz = sum(partial);
-      max_residual = maximum(partial_max);
+      restart_directions();
       recomputed = true;
       continue;
     }
