@@ -96,7 +96,7 @@ class Simulation {
     const double end = options_.duration_s;
     while (t < end) {
       const std::size_t setting = setting_at(t);
-      current_driver_ = resolved_driver(setting, y.data());
+      current_driver_ = resolved_driver(setting);
       const Driver& driver = current_driver_;
       const BreathPlan plan = plan_breath(driver);
       BreathMetrics breath;
@@ -229,7 +229,7 @@ class Simulation {
   }
 
   // The driver of `setting`, with a spontaneous target tidal volume turned into an amplitude.
-  Driver resolved_driver(std::size_t setting, const double* y);
+  Driver resolved_driver(std::size_t setting);
 
   const Protocol& protocol_;
   const SimulationOptions& options_;
@@ -257,7 +257,7 @@ double steady_tidal_volume(const Mechanics& mechanics, Spontaneous driver, doubl
   return r.breaths.back().tidal_volume_m3;
 }
 
-Driver Simulation::resolved_driver(std::size_t setting, const double*) {
+Driver Simulation::resolved_driver(std::size_t setting) {
   const Setting& s = protocol_.settings[setting];
   const auto* spontaneous = std::get_if<Spontaneous>(&s.driver);
   if (!spontaneous || spontaneous->target_tidal_volume_m3 <= 0.0) return s.driver;
