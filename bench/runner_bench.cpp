@@ -6,7 +6,7 @@
 //     and of u into a second buffer of the same size (48 B read + 48 B written per vertex).
 // displace reads rest and u and writes positions (48 B read + 24 B written per vertex), between
 // the two. Also timed: the runner's whole per-frame update (displace, V(s) from the cubic, A(s)
-// with mesh::AreaMeter), as run_scenario does it.
+// with mesh::AreaMeter) through engine::advance, as run_scenario does it.
 // Meshes: the phantom, both lungs, at edge lengths that give ~100k and ~1M vertices. The field is
 // synthetic (the rest normals times 5 mm): displace's cost does not depend on its values, and the
 // real field at 1M vertices would cost seconds of set-up per size.
@@ -41,13 +41,10 @@ Case& test_case(std::int64_t size) {
   if (!slot) {
     mesh::TriangleMesh rest =
         mesh::make_lung_phantom({.lung = mesh::Lung::both, .edge_length_m = kEdge[static_cast<std::size_t>(size)]});
-    std::vector<Eigen::Vector3d> normals = mesh::vertex_normals(rest);
+    const std::vector<Eigen::Vector3d> normals = mesh::vertex_normals(rest);
     std::vector<Eigen::Vector3d> u(normals.size());
     for (std::size_t i = 0; i < u.size(); ++i) u[i] = 5e-3 * normals[i];
-    engine::VolumeScaleMap map(rest.vertices, u, rest.triangles);
-    const double area = mesh::surface_area(rest);
-    slot = std::make_unique<Case>(Case{
-        engine::BreathingModel{std::move(rest), std::move(u), std::move(normals), 1e-4, std::move(map), area}, {}, {}});
+    slot = std::make_unique<Case>(Case{engine::make_breathing_model(std::move(rest), std::move(u), 1e-4), {}, {}});
     const std::size_t n = slot->model.rest.vertex_count();
     slot->positions.assign(n, Eigen::Vector3d::Zero());  // touched once, outside the timing
     slot->scratch.assign(n, Eigen::Vector3d::Zero());
@@ -76,7 +73,7 @@ void BM_CopyRestAndField(benchmark::State& state) {
   Case& c = test_case(state.range(0));
   for (auto _ : state) {
     std::copy(c.model.rest.vertices.begin(), c.model.rest.vertices.end(), c.positions.begin());
-    std::copy(c.model.field.begin(), c.model.field.end(), c.scratch.begin());
+    std::copy(c.model.unit_displacement.begin(), c.model.unit_displacement.end(), c.scratch.begin());
     benchmark::DoNotOptimize(c.positions.data());
     benchmark::DoNotOptimize(c.scratch.data());
     benchmark::ClobberMemory();
@@ -96,15 +93,15 @@ void BM_Displace(benchmark::State& state) {
   report(state, c, 72.0);
 }
 
-// What run_scenario does per frame before the sinks: displace, V(s) and A(s).
+// What run_scenario does per frame before the sinks: engine::advance (displace, V(s), A(s)).
 void BM_FrameUpdate(benchmark::State& state) {
   Case& c = test_case(state.range(0));
-  mesh::AreaMeter meter(c.model.rest);
+  engine::Frame frame(c.model);
   double s = 0.5;
+  std::size_t k = 0;
   for (auto _ : state) {
-    engine::displace(c.model, s, c.positions);
-    benchmark::DoNotOptimize(c.model.volume_map.volume(s));
-    benchmark::DoNotOptimize(meter.area(c.positions));
+    engine::advance(c.model, {k++, 0.0, 0.0, s}, frame);
+    benchmark::DoNotOptimize(frame.area_m2);
     s = s > 1.0 ? 0.5 : s + 1e-3;
   }
   report(state, c, 72.0);

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <filesystem>
 #include <optional>
-#include <stdexcept>
 
 #include "commands.h"
 #include "pneuma/core/error.h"
@@ -88,21 +87,24 @@ engine::Tissue load_tissue_for_cli(const std::string& name_or_path) {
 
 void run_field(const FieldCliOptions& o) {
   engine::FieldOptions options;
-  if (o.clique < 1 || o.clique > 4) throw UsageError(fmt::format("pneuma: --clique: expected 1 to 4 hops, got {}", o.clique));
+  if (o.clique < 1 || o.clique > engine::kMaxCliqueHops)
+    throw UsageError(fmt::format("pneuma: --clique: expected 1 to {} hops, got {}", engine::kMaxCliqueHops, o.clique));
   if (!(o.tolerance > 0.0 && o.tolerance < 1.0))
     throw UsageError(fmt::format("pneuma: --tol: expected a tolerance between 0 and 1, got {}", o.tolerance));
   options.clique_hops = o.clique;
   options.tolerance = o.tolerance;
-  if (o.solver.empty()) {
-    options.solver = o.clique == 1 ? engine::SolverKind::cg : engine::SolverKind::shot;
-  } else {
+  if (!o.solver.empty()) {
     try {
       options.solver = engine::parse_solver_kind(o.solver);
-    } catch (const std::invalid_argument&) {
+    } catch (const ValueError&) {
       throw UsageError("pneuma: --solver: expected one of shot, sweep, direct, cg; got '" + o.solver + "'");
     }
-    if (options.solver == engine::SolverKind::cg && o.clique != 1)
-      throw UsageError("pneuma: --solver cg: needs --clique 1; use shot, sweep or direct for larger cliques");
+  }
+  if (!engine::solver_takes_clique(options.solver, o.clique)) {
+    throw UsageError(o.solver.empty()
+                         ? fmt::format("pneuma: --clique {}: the default solver (cg) takes clique 1 only; add --solver "
+                                       "shot, sweep or direct", o.clique)
+                         : "pneuma: --solver cg: needs --clique 1; use shot, sweep or direct for larger cliques");
   }
   const engine::Tissue tissue = load_tissue_for_cli(o.tissue);
   const mesh::TriangleMesh rest = load_mesh_for_cli(o.mesh, o.unit, o.edge_m);
@@ -113,13 +115,13 @@ void run_field(const FieldCliOptions& o) {
   if (o.quiet) return;
 
   double lo = std::numeric_limits<double>::infinity(), hi = 0.0, sum = 0.0;
-  for (const auto& u : model.displacement_m) {
+  for (const auto& u : model.unit_displacement) {
     const double n = u.norm();
     lo = std::min(lo, n);
     hi = std::max(hi, n);
     sum += n;
   }
-  const double mean = sum / static_cast<double>(std::max<std::size_t>(1, model.displacement_m.size()));
+  const double mean = sum / static_cast<double>(std::max<std::size_t>(1, model.unit_displacement.size()));
   const auto& r = field.report;
   fmt::print("field: {} mass nodes + {} spring nodes, tissue {}, solver {} (tolerance {:g}, clique {})\n",
              field.mass_nodes, field.spring_nodes, tissue.name, r.method, options.tolerance, options.clique_hops);
@@ -139,7 +141,7 @@ void register_field(CLI::App& app) {
       ->required();
   cmd->add_option("--tissue", options->tissue, "Tissue YAML file or preset (healthy-upright, healthy-supine, fibrotic-lower-lobe)")
       ->required();
-  cmd->add_option("--solver", options->solver, "shot (the paper's), sweep, direct or cg (default: cg; shot for --clique > 1)");
+  cmd->add_option("--solver", options->solver, "shot (the paper's), sweep, direct or cg (default: cg, which takes --clique 1 only)");
   cmd->add_option("--clique", options->clique, "Clique size M in hops, 1 to 4")->capture_default_str();
   cmd->add_option("--tol", options->tolerance, "Stop when max UnShot <= tol * max force")->capture_default_str();
   cmd->add_option("-o,--output", options->output, "Field file to write (HDF5)")->capture_default_str();

@@ -31,7 +31,7 @@ int main(int argc, char** argv) {
   });
   pneuma::cli::register_simulate(app);
   pneuma::cli::register_field(app);
-  pneuma::cli::register_run(app, {pneuma::cli::png_sink_factory()});
+  pneuma::cli::register_run(app);
   pneuma::cli::register_compare(app);
   pneuma::cli::register_mesh(app);
   pneuma::cli::register_phantom(app);

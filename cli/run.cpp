@@ -16,13 +16,13 @@ struct RunCommandOptions {
   bool quiet = false;
 };
 
-void run_command(const RunCommandOptions& o, const std::vector<engine::SinkFactory>& extra_sinks) {
+void run_command(const RunCommandOptions& o) {
   const engine::Scenario scenario = engine::load_scenario(o.scenario);
   engine::RunOptions options;
   options.output_dir = o.output;
   options.quiet = o.quiet;
   if (o.edge_m > 0.0) options.edge_override_m = o.edge_m;
-  const engine::RunResult r = engine::run_scenario(scenario, options, extra_sinks);
+  const engine::RunResult r = engine::run_scenario(scenario, options);
   if (o.quiet) return;
   fmt::print("{}: {} frames at {} Hz over {} s, mesh of {} vertices, field {}\n", scenario.name, r.frame_count,
              scenario.frame_rate_hz, scenario.duration_s, r.vertex_count, r.field_reused ? "reused from cache" : "computed");
@@ -40,7 +40,7 @@ void run_command(const RunCommandOptions& o, const std::vector<engine::SinkFacto
 
 }  // namespace
 
-void register_run(CLI::App& app, std::vector<engine::SinkFactory> extra_sinks) {
+void register_run(CLI::App& app) {
   auto options = std::make_shared<RunCommandOptions>();
   CLI::App* cmd = app.add_subcommand("run", "Run a breathing scenario: physiology, field, frames and every output");
   cmd->add_option("scenario", options->scenario, "Scenario YAML file")->required()->check(CLI::ExistingFile);
@@ -48,7 +48,7 @@ void register_run(CLI::App& app, std::vector<engine::SinkFactory> extra_sinks) {
   add_quantity_option(*cmd, "--edge", options->edge_m, "Override the mesh edge length (e.g. 8mm for a quick run)",
                       "length");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress and no summary");
-  cmd->callback([options, extra_sinks] { run_command(*options, extra_sinks); });
+  cmd->callback([options] { run_command(*options); });
 }
 
 }  // namespace pneuma::cli

@@ -2,7 +2,6 @@
 #include <fmt/format.h>
 
 #include <filesystem>
-#include <stdexcept>
 
 #include "commands.h"
 #include "pneuma/core/error.h"
@@ -24,7 +23,7 @@ void run_simulate(const SimulateOptions& o) {
   physiology::SimulationResult result;
   try {
     result = physiology::simulate(scenario.physiology.protocol, scenario.physiology.options);
-  } catch (const std::invalid_argument& e) {
+  } catch (const ValueError& e) {
     throw InputError(o.scenario + ": physiology: " + e.what());
   }
   const std::filesystem::path csv = o.output;

@@ -6,10 +6,10 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#include <stdexcept>
 
 #include "pneuma/mesh/io.h"
 #include "pneuma/mesh/phantom.h"
+#include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -244,12 +244,12 @@ std::vector<const LungShape*> shapes(Lung lung) {
 double reference_area(const LungShape& s) { return surface_area(sample_lung(s, 48, 0)); }
 
 void check_edge(double h) {
-  if (!(h > 0.0) || !std::isfinite(h)) throw std::invalid_argument("phantom: the target edge length must be positive");
+  if (!(h > 0.0) || !std::isfinite(h)) throw ValueError("phantom: the target edge length must be positive");
 }
 
 int frequency_for(const LungShape& s, double h) {
   const double n = std::sqrt(reference_area(s) / (5.0 * std::sqrt(3.0) * h * h));
-  if (n > 10000.0) throw std::invalid_argument("phantom: the target edge length is too small (over 2^31 triangles)");
+  if (n > 10000.0) throw ValueError("phantom: the target edge length is too small (over 2^31 triangles)");
   return std::max(4, static_cast<int>(std::lround(n)));
 }
 
@@ -257,12 +257,12 @@ int frequency_for(const LungShape& s, double h) {
 
 int phantom_frequency(Lung lung, double edge_length_m) {
   check_edge(edge_length_m);
-  if (lung == Lung::both) throw std::invalid_argument("phantom_frequency: one lung at a time");
+  if (lung == Lung::both) throw ValueError("phantom_frequency: one lung at a time");
   return frequency_for(*shapes(lung)[0], edge_length_m);
 }
 
 Eigen::Vector3d phantom_centre(Lung lung) {
-  if (lung == Lung::both) throw std::invalid_argument("phantom_centre: one lung at a time");
+  if (lung == Lung::both) throw ValueError("phantom_centre: one lung at a time");
   return star_centre(*shapes(lung)[0]) - Eigen::Vector3d(0.0, 0.0, kLowestPoint);
 }
 

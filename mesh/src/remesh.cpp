@@ -5,10 +5,10 @@
 #include <CGAL/Polygon_mesh_processing/remesh.h>
 
 #include <cmath>
-#include <stdexcept>
 
 #include "cgal_surface_mesh.h"
 #include "pneuma/mesh/remesh.h"
+#include "pneuma/core/error.h"
 
 namespace PMP = CGAL::Polygon_mesh_processing;
 
@@ -36,10 +36,10 @@ double max_distance_to(const SurfaceMesh& reference, const TriangleMesh& mesh) {
 
 RemeshResult remesh_isotropic(const TriangleMesh& mesh, const RemeshOptions& options) {
   if (!(options.target_edge_length_m > 0.0) || !std::isfinite(options.target_edge_length_m)) {
-    throw std::invalid_argument("remesh: the target edge length must be positive");
+    throw ValueError("remesh: the target edge length must be positive");
   }
   std::optional<SurfaceMesh> input = detail::to_surface_mesh(mesh);
-  if (!input) throw std::invalid_argument("remesh: the input is not a manifold triangle mesh");
+  if (!input) throw ValueError("remesh: the input is not a manifold triangle mesh");
   RemeshResult result;
   result.before = measure_quality(mesh);
   SurfaceMesh sm = *input;

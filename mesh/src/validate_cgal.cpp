@@ -6,11 +6,11 @@
 
 #include <algorithm>
 #include <iterator>
-#include <stdexcept>
 
 #include "cgal_internal.h"
 #include "cgal_surface_mesh.h"
 #include "pneuma/mesh/validate.h"
+#include "pneuma/core/error.h"
 
 namespace PMP = CGAL::Polygon_mesh_processing;
 
@@ -100,13 +100,13 @@ std::vector<std::pair<std::size_t, std::size_t>> self_intersecting_pairs(const T
 
 double cgal_surface_area(const TriangleMesh& mesh) {
   const auto sm = detail::to_surface_mesh(mesh);
-  if (!sm) throw std::invalid_argument("cgal_surface_area: the triangles do not form a polygon mesh");
+  if (!sm) throw ValueError("cgal_surface_area: the triangles do not form a polygon mesh");
   return PMP::area(*sm);
 }
 
 double cgal_enclosed_volume(const TriangleMesh& mesh) {
   const auto sm = detail::to_surface_mesh(mesh);
-  if (!sm || !CGAL::is_closed(*sm)) throw std::invalid_argument("cgal_enclosed_volume: the surface is not closed");
+  if (!sm || !CGAL::is_closed(*sm)) throw ValueError("cgal_enclosed_volume: the surface is not closed");
   return PMP::volume(*sm);
 }
 

@@ -2,8 +2,8 @@
 
 #include <cmath>
 #include <numbers>
-#include <stdexcept>
 #include <string>
+#include "pneuma/core/error.h"
 
 namespace pneuma::physiology {
 namespace {
@@ -65,7 +65,7 @@ struct DriveOf {
 };
 
 void require(bool ok, const std::string& what) {
-  if (!ok) throw std::invalid_argument(what);
+  if (!ok) throw ValueError(what);
 }
 
 }  // namespace

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <stdexcept>
+#include "pneuma/core/error.h"
 
 namespace pneuma::physiology {
 namespace {
@@ -63,24 +63,24 @@ double compliance_at(const Elasticity& elasticity, double volume_m3) {
 }
 
 void validate(const Mechanics& m) {
-  if (m.compartments.empty()) throw std::invalid_argument("at least one compartment is needed");
-  if (!(m.airway_resistance_pa_s_per_m3 >= 0.0)) throw std::invalid_argument("airway resistance must be >= 0");
+  if (m.compartments.empty()) throw ValueError("at least one compartment is needed");
+  if (!(m.airway_resistance_pa_s_per_m3 >= 0.0)) throw ValueError("airway resistance must be >= 0");
   if (!(m.chest_wall_fraction >= 0.0 && m.chest_wall_fraction <= 1.0))
-    throw std::invalid_argument("chest wall fraction must lie in [0, 1]");
+    throw ValueError("chest wall fraction must lie in [0, 1]");
   for (const Compartment& c : m.compartments) {
     if (m.compartments.size() > 1 && !(c.resistance_pa_s_per_m3 > 0.0))
-      throw std::invalid_argument("compartment '" + c.name + "': a parallel compartment needs a positive resistance");
+      throw ValueError("compartment '" + c.name + "': a parallel compartment needs a positive resistance");
     if (m.compartments.size() == 1 && !(c.resistance_pa_s_per_m3 + m.airway_resistance_pa_s_per_m3 > 0.0))
-      throw std::invalid_argument("the total resistance must be positive");
+      throw ValueError("the total resistance must be positive");
     if (const auto* lin = std::get_if<LinearCompliance>(&c.elasticity)) {
       if (!(lin->compliance_m3_per_pa > 0.0))
-        throw std::invalid_argument("compartment '" + c.name + "': compliance must be positive");
+        throw ValueError("compartment '" + c.name + "': compliance must be positive");
     } else {
       const auto& s = std::get<SigmoidCompliance>(c.elasticity);
       if (!(s.volume_range_m3 > 0.0) || !(s.width_pa > 0.0))
-        throw std::invalid_argument("compartment '" + c.name + "': sigmoid range and width must be positive");
+        throw ValueError("compartment '" + c.name + "': sigmoid range and width must be positive");
       if (!(s.relaxed_volume_m3 > s.lower_volume_m3 && s.relaxed_volume_m3 < s.lower_volume_m3 + s.volume_range_m3))
-        throw std::invalid_argument("compartment '" + c.name +
+        throw ValueError("compartment '" + c.name +
                                     "': the relaxed volume must lie between the sigmoid's lower volume and TLC");
     }
   }

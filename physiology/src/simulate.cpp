@@ -6,7 +6,6 @@
 #include <string>
 #include <limits>
 #include <map>
-#include <stdexcept>
 
 #include "cvode_integrator.h"
 #include "pneuma/core/error.h"
@@ -298,24 +297,24 @@ Driver Simulation::resolved_driver(std::size_t setting) {
 }
 
 void validate(const Protocol& protocol, const SimulationOptions& options) {
-  if (protocol.settings.empty()) throw std::invalid_argument("the protocol has no settings");
-  if (protocol.settings.front().start_time_s != 0.0) throw std::invalid_argument("the first setting must start at 0 s");
+  if (protocol.settings.empty()) throw ValueError("the protocol has no settings");
+  if (protocol.settings.front().start_time_s != 0.0) throw ValueError("the first setting must start at 0 s");
   const std::size_t n = protocol.settings.front().mechanics.compartments.size();
-  if (n > kMaxCompartments) throw std::invalid_argument("at most 8 compartments are supported");
+  if (n > kMaxCompartments) throw ValueError("at most 8 compartments are supported");
   double previous = -1.0;
   for (const Setting& s : protocol.settings) {
-    if (!(s.start_time_s > previous)) throw std::invalid_argument("settings must start at increasing times");
+    if (!(s.start_time_s > previous)) throw ValueError("settings must start at increasing times");
     previous = s.start_time_s;
     if (s.mechanics.compartments.size() != n)
-      throw std::invalid_argument("every setting must keep the same number of compartments");
+      throw ValueError("every setting must keep the same number of compartments");
     validate(s.mechanics);
     validate(s.driver);
   }
   if (!(options.duration_s > 0.0) || !std::isfinite(options.duration_s))
-    throw std::invalid_argument("the duration must be positive");
-  if (!(options.output_rate_hz >= 0.0)) throw std::invalid_argument("the output rate must not be negative");
+    throw ValueError("the duration must be positive");
+  if (!(options.output_rate_hz >= 0.0)) throw ValueError("the output rate must not be negative");
   if (!(options.solver.relative_tolerance > 0.0) || !(options.solver.absolute_tolerance_m3 > 0.0))
-    throw std::invalid_argument("solver tolerances must be positive");
+    throw ValueError("solver tolerances must be positive");
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 
 #include "pneuma/engine/paper_figures.h"
 #include "pneuma/engine/svg_plot.h"
+#include "pneuma/core/error.h"
 
 using namespace pneuma::engine;
 
@@ -30,8 +31,8 @@ TEST(LogLogSlope, RecoversAnExactPowerLaw) {
   EXPECT_NEAR(log_log_slope({1, 10, 100, 1000}, {3, 3 * std::pow(10, 1.5), 3 * std::pow(100, 1.5), 3 * std::pow(1000, 1.5)}),
               1.5, 1e-12);
   EXPECT_NEAR(log_log_slope({2, 4}, {5, 5}), 0.0, 1e-12);
-  EXPECT_THROW(log_log_slope({1}, {1}), std::invalid_argument);
-  EXPECT_THROW(log_log_slope({2, 2}, {1, 3}), std::invalid_argument);
+  EXPECT_THROW(log_log_slope({1}, {1}), pneuma::ValueError);
+  EXPECT_THROW(log_log_slope({2, 2}, {1, 3}), pneuma::ValueError);
 }
 
 TEST(Table1, CountedOperationsGrowLinearlyInN) {
@@ -115,5 +116,5 @@ TEST(SvgPlot, LogAxesSkipNonPositivePointsAndTheDocumentIsComplete) {
   EXPECT_EQ(svg.find("nan"), std::string::npos);
   EXPECT_EQ(svg.find("inf"), std::string::npos);
   p.series[0].y = {0, 0, 0, 0};
-  EXPECT_THROW(render_svg(p), std::invalid_argument);
+  EXPECT_THROW(render_svg(p), pneuma::ValueError);
 }

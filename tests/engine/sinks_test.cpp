@@ -23,8 +23,7 @@ BreathingModel sphere_model() {
   std::vector<Eigen::Vector3d> u(rest.vertex_count());
   const auto n = pneuma::mesh::vertex_normals(rest);
   for (std::size_t i = 0; i < u.size(); ++i) u[i] = (1.0 + rest.vertices[i].z() * 5.0) * 1e-4 * n[i];
-  BreathingModel model{rest, u, n, 1e-4, VolumeScaleMap(rest.vertices, u, rest.triangles), surface_area(rest)};
-  return model;
+  return make_breathing_model(rest, u, 1e-4);
 }
 
 // Drives a sink over a sinusoidal breath, as the runner does.
@@ -34,16 +33,10 @@ std::vector<double> drive(FrameSink& sink, const BreathingModel& model, std::siz
   RunInfo run{frames, rate, *std::min_element(scales.begin(), scales.end()),
               *std::max_element(scales.begin(), scales.end()), {}};
   sink.begin(model, run);
-  Frame f;
-  f.positions.resize(model.rest.vertex_count());
+  Frame f(model);
   for (std::size_t k = 0; k < frames; ++k) {
-    f.index = k;
-    f.time_s = static_cast<double>(k) / rate;
-    f.scale = scales[k];
-    displace(model, f.scale, f.positions);
-    f.mesh_volume_m3 = model.volume_map.volume(f.scale);
-    f.lung_volume_m3 = f.mesh_volume_m3 - model.volume_map.volume(0.0);
-    f.area_m2 = pneuma::mesh::surface_area(f.positions, model.rest.triangles);
+    const double lung_volume = model.volume_map.volume(scales[k]) - model.volume_map.volume(0.0);
+    advance(model, {k, static_cast<double>(k) / rate, lung_volume, scales[k]}, f);
     sink.frame(model, f);
   }
   sink.end();
@@ -116,7 +109,7 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
     EXPECT_FLOAT_EQ(times[k], static_cast<float>(static_cast<double>(k) / 10.0));
     for (std::size_t i = 0; i < n; i += 13) {
       for (int c = 0; c < 3; ++c) {
-        const double expected = model.rest.vertices[i][c] + scales[k] * model.field[i][c];
+        const double expected = model.rest.vertices[i][c] + scales[k] * model.unit_displacement[i][c];
         EXPECT_NEAR(rest[3 * i + static_cast<std::size_t>(c)] + weights[k] * delta[3 * i + static_cast<std::size_t>(c)],
                     expected, 1e-6);
       }
@@ -162,23 +155,44 @@ TEST(Displace, MatchesThePerVertexExpressionBitForBit) {
   for (int subdivisions : {0, 1, 3}) {
     BreathingModel model = sphere_model();
     model.rest = pneuma::mesh::make_icosphere(0.1, subdivisions);
-    model.field.resize(model.rest.vertex_count());
-    for (std::size_t i = 0; i < model.field.size(); ++i) {
+    model.unit_displacement.resize(model.rest.vertex_count());
+    for (std::size_t i = 0; i < model.unit_displacement.size(); ++i) {
       const double t = static_cast<double>(i);
-      model.field[i] = Eigen::Vector3d(std::sin(t) * 1e-3, std::cos(0.7 * t) * 3e-3, 1e-4 / (1.0 + t));
+      model.unit_displacement[i] = Eigen::Vector3d(std::sin(t) * 1e-3, std::cos(0.7 * t) * 3e-3, 1e-4 / (1.0 + t));
     }
     for (std::size_t n : {model.rest.vertex_count(), model.rest.vertex_count() - 1}) {
       model.rest.vertices.resize(n);
-      model.field.resize(n);
+      model.unit_displacement.resize(n);
       for (double s : {0.0, 0.37, -1.9, 12.5}) {
         std::vector<Eigen::Vector3d> positions(n, Eigen::Vector3d::Constant(7.0));
         displace(model, s, positions);
         for (std::size_t i = 0; i < n; ++i) {
-          const Eigen::Vector3d expected = model.rest.vertices[i] + s * model.field[i];
+          const Eigen::Vector3d expected = model.rest.vertices[i] + s * model.unit_displacement[i];
           ASSERT_EQ(std::memcmp(positions[i].data(), expected.data(), sizeof(expected)), 0)
               << "vertex " << i << " of " << n << ", s = " << s;
         }
       }
     }
   }
+}
+
+// advance() is one step of the run: the oracle is each quantity computed directly from the
+// positions (the plain per-vertex expression, the divergence-theorem volume, the triangle sum).
+TEST(Advance, FillsTheFrameFromTheModelAlone) {
+  const BreathingModel model = sphere_model();
+  Frame frame(model);
+  const double* before = frame.positions.data()->data();
+  for (double s : {0.0, 3.5, -2.0}) {
+    advance(model, {7, 1.25, 2e-4, s}, frame);
+    EXPECT_EQ(frame.index, 7u);
+    EXPECT_EQ(frame.time_s, 1.25);
+    EXPECT_EQ(frame.lung_volume_m3, 2e-4);
+    EXPECT_EQ(frame.scale, s);
+    pneuma::mesh::TriangleMesh moved = model.rest;
+    for (std::size_t i = 0; i < moved.vertices.size(); ++i) moved.vertices[i] += s * model.unit_displacement[i];
+    EXPECT_EQ(frame.positions, moved.vertices);
+    EXPECT_NEAR(frame.mesh_volume_m3, pneuma::mesh::enclosed_volume(moved), 1e-12 * std::abs(frame.mesh_volume_m3));
+    EXPECT_NEAR(frame.area_m2, pneuma::mesh::surface_area(moved), 1e-12 * frame.area_m2);
+  }
+  EXPECT_EQ(frame.positions.data()->data(), before) << "advance() must not reallocate the positions";
 }

@@ -49,7 +49,7 @@ TEST(FieldCache, RoundTripsBitForBitAndWritesTheSameBytesTwice) {
   const FieldModel loaded = load_field(dir / "a.h5");
   EXPECT_TRUE(same_bytes(loaded.rest.vertices, model.rest.vertices));
   EXPECT_TRUE(same_bytes(loaded.rest.triangles, model.rest.triangles));
-  EXPECT_TRUE(same_bytes(loaded.displacement_m, model.displacement_m));
+  EXPECT_TRUE(same_bytes(loaded.unit_displacement, model.unit_displacement));
   EXPECT_TRUE(same_bytes(loaded.force, model.force));
   EXPECT_TRUE(same_bytes(loaded.shear_modulus_pa, model.shear_modulus_pa));
   EXPECT_EQ(loaded.metadata.key, model.metadata.key);
@@ -76,7 +76,7 @@ TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
 
   // Edit one stored displacement value in place: the checksum catches it.
   std::string edited = bytes;
-  const auto at = edited.find(std::string(reinterpret_cast<const char*>(model.displacement_m[7].data()), 8));
+  const auto at = edited.find(std::string(reinterpret_cast<const char*>(model.unit_displacement[7].data()), 8));
   ASSERT_NE(at, std::string::npos);
   edited[at + 3] = static_cast<char>(edited[at + 3] ^ 0x10);
   write_bytes(dir / "edited.h5", edited);
@@ -107,7 +107,7 @@ TEST(FieldCache, LoadOrComputeReusesOnlyAMatchingKey) {
   EXPECT_FALSE(first.reused);
   const CachedField second = load_or_compute(path, rest, preset("healthy-upright"));
   EXPECT_TRUE(second.reused);
-  EXPECT_TRUE(same_bytes(first.model.displacement_m, second.model.displacement_m));
+  EXPECT_TRUE(same_bytes(first.model.unit_displacement, second.model.unit_displacement));
   // Another tissue, tolerance or mesh: a new key, so the field is recomputed and replaced.
   EXPECT_FALSE(load_or_compute(path, rest, preset("fibrotic-lower-lobe")).reused);
   FieldOptions tighter;
@@ -156,8 +156,8 @@ TEST(FieldCli, ReadsMeshFilesInTheirUnitAndThePhantom) {
   double largest = 0.0, difference = 0.0;
   for (std::size_t i = 0; i < a.rest.vertex_count(); ++i) {
     EXPECT_LT((a.rest.vertices[i] - b.rest.vertices[i]).norm(), 1e-6);  // float32 in the PLY, in mm
-    largest = std::max(largest, b.displacement_m[i].norm());
-    difference = std::max(difference, (a.displacement_m[i] - b.displacement_m[i]).norm());
+    largest = std::max(largest, b.unit_displacement[i].norm());
+    difference = std::max(difference, (a.unit_displacement[i] - b.unit_displacement[i]).norm());
   }
   EXPECT_LT(difference, 1e-4 * largest);
   r = run_pneuma({"field", "phantom:middle", "--tissue", "healthy-upright", "-o", (dir / "c.h5").string()});
@@ -193,6 +193,9 @@ TEST(FieldCli, BadInputIsOneLineWithItsExitCode) {
       {{"field", "icosphere:0.1:2", "--tissue", "healthy-upright", "--clique", "5", "-o", out},
        2,
        "pneuma: --clique: expected 1 to 4 hops, got 5"},
+      {{"field", "icosphere:0.1:2", "--tissue", "healthy-upright", "--clique", "2", "-o", out},
+       2,
+       "pneuma: --clique 2: the default solver (cg) takes clique 1 only; add --solver shot, sweep or direct"},
       {{"field", "icosphere:0.1:2", "--tissue", "healthy-martian", "-o", out},
        2,
        "pneuma: --tissue: no preset 'healthy-martian' (looked for " +

@@ -225,6 +225,6 @@ TEST(Cliques, LeavingShareNeverExceedsOneHopAndSolversAgree) {
 TEST(Cliques, RefuseOutOfRangeSizes) {
   const auto m = test::single_triangle();
   const FieldGraph g(m, std::vector<double>{1, 1, 1});
-  EXPECT_THROW(clique_operator(g, 0), std::invalid_argument);
-  EXPECT_THROW(clique_operator(g, 9), std::invalid_argument);
+  EXPECT_THROW(clique_operator(g, 0), pneuma::ValueError);
+  EXPECT_THROW(clique_operator(g, 9), pneuma::ValueError);
 }

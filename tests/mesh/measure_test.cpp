@@ -6,6 +6,7 @@
 
 #include "mesh_fixture.h"
 #include "pneuma/mesh/validate.h"
+#include "pneuma/core/error.h"
 
 using namespace pneuma::mesh;
 using pneuma::mesh::test::make_cube;
@@ -67,5 +68,5 @@ TEST(Measure, TorusConvergesToPappus) {
 TEST(Measure, CgalVolumeRefusesAnOpenSurface) {
   TriangleMesh c = make_cube(1.0);
   c.triangles.pop_back();
-  EXPECT_THROW(cgal_enclosed_volume(c), std::invalid_argument);
+  EXPECT_THROW(cgal_enclosed_volume(c), pneuma::ValueError);
 }

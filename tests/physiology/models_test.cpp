@@ -107,7 +107,7 @@ TEST(Models, ActionsChangeMechanicsAtOnceAndTheDriverAtTheNextBreath) {
 
 TEST(Models, InvalidSettingsAreRefusedByName) {
   EXPECT_THROW(simulate(just(single_linear(-0.1, 2.0), PressureControl{0.2, 1000, 1.0, 0}), tight(5)),
-               std::invalid_argument);
+               pneuma::ValueError);
   EXPECT_THROW(simulate(just(single_linear(0.1, 2.0), PressureControl{0.2, 1000, 6.0, 0}), tight(5)),
-               std::invalid_argument);
+               pneuma::ValueError);
 }

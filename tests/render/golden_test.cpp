@@ -75,7 +75,7 @@ render::Image render_case(const GoldenCase& c, const render::Material& material 
     options.msaa_samples = 0;
     options.fxaa = true;
   }
-  render::Renderer renderer(lung.rest, lung.displacement_m, kMaxScale, options);
+  render::Renderer renderer(lung.rest, lung.unit_displacement, kMaxScale, options);
   return renderer.render(c.s);
 }
 

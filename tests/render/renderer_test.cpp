@@ -186,22 +186,28 @@ TEST(Renderer, FramesTheWholeRangeOfScales) {
   EXPECT_THROW(render::Renderer(lung.rest, lung.field, render::ScaleRange{1.0, 0.0}), InputError);
 }
 
-TEST(PngFrameSink, WritesOneFramePerCallAndNothingElse) {
+TEST(PngFrameSink, WritesEveryNthFrameAndNothingElse) {
   const auto lung = make_lung_stand_in(3);
+  const engine::BreathingModel model = engine::make_breathing_model(lung.rest, lung.field, 1e-4);
   test::TempDir dir;
   render::PngSinkOptions options;
   options.render = small_options();
+  options.every = 2;
   render::PngFrameSink sink(dir / "frames", options);
-  sink.begin(lung.rest, lung.field, {-0.5, 1.0});
-  const double scales[] = {-0.5, 0.25, 1.0};
-  for (std::size_t k = 0; k < 3; ++k) sink.frame(k, scales[k]);
+  sink.begin(model, engine::RunInfo{5, 30.0, -0.5, 1.0, dir.path()});
+  const double scales[] = {-0.5, 0.25, 1.0, 0.1, 0.25};
+  engine::Frame frame(model);
+  for (std::size_t k = 0; k < 5; ++k) {
+    engine::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
+    sink.frame(model, frame);
+  }
   const auto written = sink.end();
   ASSERT_EQ(written.size(), 3u);
-  EXPECT_EQ(written[2], dir / "frames" / "frame_00002.png");
+  EXPECT_EQ(written[2], dir / "frames" / "frame_00004.png");
   EXPECT_EQ(dir.files().size(), 3u) << "no temporaries left";
   // Each file is the renderer's image of its frame.
   render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-0.5, 1.0}, small_options());
-  EXPECT_EQ(render::read_png(written[1]).rgba, renderer.render(0.25).rgba);
+  EXPECT_EQ(render::read_png(written[2]).rgba, renderer.render(0.25).rgba);
 }
 
 // FXAA (post-process anti-aliasing) leaves flat neighbourhoods alone (an empty scene, smooth

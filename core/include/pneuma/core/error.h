@@ -52,6 +52,14 @@ class UnsupportedError : public Error {
   explicit UnsupportedError(const std::string& message) : Error(ExitCode::unsupported, message) {}
 };
 
+// A value outside what a library function accepts (a rate of zero, a clique of 9 hops). The
+// message says what was expected; callers that know the file and key path catch it and rethrow
+// an InputError that names them. Uncaught, it is still a bad input (exit 3).
+class ValueError : public Error {
+ public:
+  explicit ValueError(const std::string& message) : Error(ExitCode::bad_input, message) {}
+};
+
 // "file:line:col" with 1-based line and column (pass 0-based values).
 std::string location(const std::string& file, int line0, int column0);
 

@@ -10,6 +10,8 @@
 #include <string>
 #include <string_view>
 
+#include "pneuma/core/error.h"
+
 namespace pneuma::units {
 
 // Exponents of the SI base dimensions (length, mass, time).
@@ -43,9 +45,9 @@ inline constexpr Kind number{"number", {0, 0, 0}, "0.5", true};
 inline constexpr Kind fraction{"fraction", {0, 0, 0}, "0.5 or 50 %", true};
 }  // namespace kind
 
-class UnitError : public std::invalid_argument {
+class UnitError : public ValueError {
  public:
-  using std::invalid_argument::invalid_argument;
+  using ValueError::ValueError;
 };
 
 // Parses "<number> <unit>" into SI. Throws UnitError.

@@ -28,6 +28,7 @@
 #include <cstddef>
 
 #include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 
@@ -53,7 +54,7 @@ double predicted_phantom_triangles(Lung lung, double edge_length_m);
 // triangle of the phantom is positively oriented as seen from it (det(a-c, b-c, c'-c) > 0).
 Eigen::Vector3d phantom_centre(Lung lung);
 
-// Throws std::invalid_argument for a target edge that is not positive and finite, or one
+// Throws ValueError for a target edge that is not positive and finite, or one
 // so small that the mesh would pass 2^31 triangles.
 TriangleMesh make_lung_phantom(const PhantomOptions& options = kDefaultPhantom);
 

@@ -7,6 +7,7 @@
 
 #include "pneuma/mesh/triangle_mesh.h"
 #include "pneuma/mesh/validate.h"
+#include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 
@@ -25,7 +26,7 @@ struct RemeshResult {
   double max_deviation_m = 0.0;  // 0 when not measured
 };
 
-// The input must be a valid surface (validate(mesh).valid()); throws std::invalid_argument
+// The input must be a valid surface (validate(mesh).valid()); throws ValueError
 // otherwise, and for a target edge that is not positive and finite.
 RemeshResult remesh_isotropic(const TriangleMesh& mesh, const RemeshOptions& options = {});
 

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 
@@ -67,7 +68,7 @@ MeshQuality measure_quality(const TriangleMesh& mesh);
 
 // Area and enclosed volume computed by CGAL's Polygon_mesh_processing (area(), volume()),
 // the independent check of the plain Eigen functions in triangle_mesh.h. The volume needs a
-// closed surface; throws std::invalid_argument when the mesh is not a closed polygon mesh.
+// closed surface; throws ValueError when the mesh is not a closed polygon mesh.
 double cgal_surface_area(const TriangleMesh& mesh);
 double cgal_enclosed_volume(const TriangleMesh& mesh);
 

@@ -6,6 +6,7 @@
 // every phase boundary instead of integrating across it.
 #include <array>
 #include <variant>
+#include "pneuma/core/error.h"
 
 namespace pneuma::physiology {
 
@@ -66,7 +67,7 @@ double peep_of(const Driver& driver);
 bool is_ventilator(const Driver& driver);
 const char* mode_name(const Driver& driver);
 
-// Throws std::invalid_argument naming the first setting that cannot work.
+// Throws ValueError naming the first setting that cannot work.
 void validate(const Driver& driver);
 
 }  // namespace pneuma::physiology

@@ -12,6 +12,7 @@
 #include <string>
 #include <variant>
 #include <vector>
+#include "pneuma/core/error.h"
 
 namespace pneuma::physiology {
 
@@ -57,7 +58,7 @@ double compliance_at(const Elasticity& elasticity, double volume_m3);
 // The volume V with Pel(V) = pressure (the inverse of elastic_pressure).
 double volume_at_pressure(const Elasticity& elasticity, double pressure_pa);
 
-// Throws std::invalid_argument naming the first parameter that is not physical.
+// Throws ValueError naming the first parameter that is not physical.
 void validate(const Mechanics& mechanics);
 
 // Flows into each compartment for a driving pressure Pd = Paw + Pmus.

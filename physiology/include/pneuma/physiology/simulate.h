@@ -6,6 +6,7 @@
 
 #include "pneuma/physiology/drivers.h"
 #include "pneuma/physiology/mechanics.h"
+#include "pneuma/core/error.h"
 
 namespace pneuma::physiology {
 
@@ -74,7 +75,7 @@ struct SimulationResult {
   SolverStats stats;
 };
 
-// Throws std::invalid_argument for a protocol that cannot work (named setting), and
+// Throws ValueError for a protocol that cannot work (named setting), and
 // pneuma::Error when CVODE fails or a target tidal volume cannot be reached.
 SimulationResult simulate(const Protocol& protocol, const SimulationOptions& options);
 

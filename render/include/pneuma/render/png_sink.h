@@ -1,21 +1,14 @@
 #pragma once
-// PNG frames of a breathing sequence, in the shape of a frame sink: begin() with the model
-// (rest mesh, field, range of scales), frame() per frame, end(). engine::FrameSink can wrap this
-// class one-to-one (cli/png_sink.cpp: begin: model.rest, model.field, {run.min_scale,
-// run.max_scale}; frame: frame.index, frame.scale; end: the files). The wrapper lives outside
-// render, which must not depend on the engine (it links physiology).
-//
-//   PngFrameSink sink("out/frames", {});
-//   sink.begin(rest, field, {run.min_scale, run.max_scale});
-//   for (k...) sink.frame(k, s[k]);   // writes out/frames/frame_00000.png, ...
-//   sink.end();
-#include <Eigen/Core>
+// PNG frames of a breathing sequence: the `png` output of a scenario, one engine::FrameSink.
+// begin() makes the renderer and uploads the model once (rest mesh and unit displacement, framed
+// over the run's range of scales); frame() renders every `every`-th frame at its scale and writes
+// <prefix><index, 5 digits>.png atomically; end() releases the OpenGL context.
 #include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/engine/frame.h"
 #include "pneuma/render/image.h"
 #include "pneuma/render/renderer.h"
 
@@ -24,24 +17,23 @@ namespace pneuma::render {
 struct PngSinkOptions {
   RenderOptions render;
   PngOptions png{.fast = true};
-  std::string prefix = "frame_";  // files are <prefix><index, 5 digits>.png, as the mesh sequence
+  std::string prefix = "frame_";  // as the mesh sequence
+  std::size_t every = 1;          // every n-th frame
 };
 
-class PngFrameSink {
+class PngFrameSink final : public engine::FrameSink {
  public:
   PngFrameSink(std::filesystem::path directory, PngSinkOptions options = {});
-  ~PngFrameSink();
+  ~PngFrameSink() override;
 
-  // Creates the renderer and uploads the model; `scales` spans every s that frame() will get
-  // (RunInfo's min_scale and max_scale). Throws what Renderer's constructor throws.
-  void begin(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, ScaleRange scales);
-  // Renders the frame at scale s and writes it atomically. Throws IoError.
-  void frame(std::size_t index, double s);
-  // Releases the OpenGL context; returns the files written.
-  std::vector<std::filesystem::path> end();
+  std::string name() const override { return "png"; }
+  // Throws what Renderer's constructor throws (UnsupportedError without OpenGL).
+  void begin(const engine::BreathingModel& model, const engine::RunInfo& run) override;
+  // Throws IoError when the file cannot be written.
+  void frame(const engine::BreathingModel& model, const engine::Frame& frame) override;
+  std::vector<std::filesystem::path> end() override;
 
   std::filesystem::path path_of(std::size_t index) const;
-  const std::vector<std::filesystem::path>& written() const { return written_; }
 
  private:
   std::filesystem::path directory_;

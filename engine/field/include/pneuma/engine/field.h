@@ -1,0 +1,52 @@
+#pragma once
+// The elastostatic field: per-vertex displacement for one unit of surface-area increase
+// (paper section 5; METHOD.md section 4).
+//
+//   load:        the same force f = 1 on every mass node (pressure), 0 on spring nodes
+//   solve:       F = Shot (eq. 4.3 - 4.7) with the chosen solver and clique size
+//   direction:   n_i, the outward area-weighted vertex normal
+//   normalise:   u_i = c F_i n_i with c such that sum_i dA/dx_i . u_i = one area unit, i.e. the
+//                first-order surface-area increase of x + s u is s area units.
+// Only relative moduli matter: multiplying every mu by a constant leaves u unchanged.
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "pneuma/engine/field_graph.h"
+#include "pneuma/engine/field_solver.h"
+#include "pneuma/mesh/triangle_mesh.h"
+
+namespace pneuma::engine {
+
+struct FieldOptions {
+  SolverKind solver = SolverKind::cg;  // the fastest (BENCHMARKS.md); `shot` is the paper's
+  double tolerance = 1e-6;             // max |UnShot| <= tolerance * max f
+  int clique_hops = 1;                 // M (cg supports 1 only)
+  CliquePathRule path_rule = CliquePathRule::sum_of_shortest_paths;
+  double area_unit = 1e-4;  // in the mesh's length unit squared: 1 cm^2 for a mesh in metres
+};
+inline const FieldOptions default_field_options{};
+
+struct ElastostaticField {
+  std::vector<Eigen::Vector3d> unit_displacement;  // u per vertex, mesh units per area unit
+  std::vector<double> force;                  // F per vertex for f = 1 (before normalisation)
+  double scale = 0.0;                         // unit_displacement_i = scale * force_i * n_i
+  std::uint32_t mass_nodes = 0, spring_nodes = 0;
+  SolveReport report;
+  double graph_seconds = 0.0;  // building the graph and the solver (report.seconds: solving)
+};
+
+// Computes the field. Throws InputError for a bad mesh or modulus (FieldGraph),
+// UnsupportedError when a uniform outward load does not increase the area (an inward-facing
+// or degenerate mesh) or the solver cannot take the clique size.
+ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const double> shear_modulus_pa,
+                                const FieldOptions& options = default_field_options);
+
+// The displacement for one area unit from a per-vertex force (the last step above, exposed
+// for the comparators and tests): returns {displacement, scale}.
+std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
+                                                                       std::span<const double> force,
+                                                                       double area_unit);
+
+}  // namespace pneuma::engine

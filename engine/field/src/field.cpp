@@ -1,0 +1,59 @@
+#include "pneuma/engine/field.h"
+
+#include <chrono>
+
+#include "pneuma/core/error.h"
+#include "pneuma/core/stopwatch.h"
+
+namespace pneuma::engine {
+
+std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
+                                                                       std::span<const double> force,
+                                                                       double area_unit) {
+  const std::vector<Eigen::Vector3d> normal = mesh::vertex_normals(mesh);
+  const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
+  double area_rate = 0.0;  // dA/ds of x + s F n
+  for (std::size_t i = 0; i < normal.size(); ++i) area_rate += force[i] * gradient[i].dot(normal[i]);
+  if (!(area_rate > 0.0) || !std::isfinite(area_rate))
+    throw UnsupportedError("mesh: pushing every vertex outward along its normal does not increase the surface area "
+                           "(is the mesh oriented with its normals outward?)");
+  const double scale = area_unit / area_rate;
+  std::vector<Eigen::Vector3d> u(normal.size());
+  for (std::size_t i = 0; i < normal.size(); ++i) u[i] = (scale * force[i]) * normal[i];
+  return {std::move(u), scale};
+}
+
+ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const double> shear_modulus_pa,
+                                const FieldOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (!(options.tolerance > 0.0 && options.tolerance < 1.0))
+    throw ValueError("field tolerance must lie between 0 and 1");
+  if (!(options.area_unit > 0.0)) throw ValueError("field area unit must be positive");
+  const auto shared_graph = std::make_shared<const FieldGraph>(mesh, shear_modulus_pa);
+  const FieldGraph& graph = *shared_graph;
+  std::shared_ptr<const TransferOperator> op;  // null: one hop
+  if (options.clique_hops != 1) {
+    if (options.solver == SolverKind::cg)
+      throw UnsupportedError("the cg solver needs a clique of 1 hop; use shot, sweep or direct for larger cliques");
+    op = std::make_shared<const TransferOperator>(clique_operator(graph, options.clique_hops, options.path_rule));
+  }
+  const SolveOptions solve_options{options.tolerance};
+  const std::unique_ptr<FieldSolver> solver = make_field_solver(options.solver, shared_graph, op, solve_options);
+  ElastostaticField field;
+  field.mass_nodes = graph.mass_count();
+  field.spring_nodes = graph.spring_count();
+  field.graph_seconds = seconds_since(start);
+
+  // The pressure load: the same force on every mass node (paper section 5), none on springs.
+  std::vector<double> load(options.solver == SolverKind::cg ? graph.mass_count() : graph.node_count(), 0.0);
+  std::fill(load.begin(), load.begin() + graph.mass_count(), 1.0);
+  SolveResult result = solver->solve(load);
+  field.report = std::move(result.report);
+  field.force.assign(result.shot.begin(), result.shot.begin() + graph.mass_count());
+  auto [u, scale] = normalise_displacement(mesh, field.force, options.area_unit);
+  field.unit_displacement = std::move(u);
+  field.scale = scale;
+  return field;
+}
+
+}  // namespace pneuma::engine

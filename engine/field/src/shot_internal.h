@@ -1,0 +1,88 @@
+#pragma once
+// Private to engine: the pieces that the production Shot/UnShot solver (field_solver.cpp) and
+// the paper's traced comparator (comparators.cpp) share, so both shoot in exactly one order.
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <vector>
+#include "pneuma/core/error.h"
+
+namespace pneuma::engine::detail {
+
+// Checks a load (one finite value >= 0 per node) and returns max f (0 when all zero).
+// Throws ValueError naming what is wrong.
+double check_load(std::span<const double> load, std::size_t node_count);
+
+// An indexed binary max-heap of nodes keyed by their UnShot: position_[node] says where a node
+// sits (or npos), so a key can grow (sift up) or shrink (sift down) in O(log n).
+class IndexedMaxHeap {
+ public:
+  static constexpr std::uint32_t npos = std::numeric_limits<std::uint32_t>::max();
+  explicit IndexedMaxHeap(std::uint32_t capacity) : position_(capacity, npos) { items_.reserve(1024); }
+
+  bool empty() const { return items_.empty(); }
+  bool contains(std::uint32_t node) const { return position_[node] != npos; }
+  std::uint32_t top() const { return items_.front().node; }
+
+  void push(std::uint32_t node, double key) {
+    items_.push_back({key, node});
+    position_[node] = static_cast<std::uint32_t>(items_.size() - 1);
+    sift_up(items_.size() - 1);
+  }
+  // Changes the key of a node in the heap either way (decrease-key or increase-key).
+  void update(std::uint32_t node, double key) {
+    const std::size_t i = position_[node];
+    const double old = items_[i].key;
+    items_[i].key = key;
+    if (key > old) sift_up(i);
+    else sift_down(i);
+  }
+  void pop() {
+    position_[items_.front().node] = npos;
+    if (items_.size() > 1) {
+      items_.front() = items_.back();
+      position_[items_.front().node] = 0;
+      items_.pop_back();
+      sift_down(0);
+    } else {
+      items_.pop_back();
+    }
+  }
+
+ private:
+  struct Item {
+    double key;
+    std::uint32_t node;
+  };
+  void place(std::size_t i, const Item& item) {
+    items_[i] = item;
+    position_[item.node] = static_cast<std::uint32_t>(i);
+  }
+  void sift_up(std::size_t i) {
+    const Item item = items_[i];
+    while (i > 0) {
+      const std::size_t parent = (i - 1) / 2;
+      if (!(items_[parent].key < item.key)) break;
+      place(i, items_[parent]);
+      i = parent;
+    }
+    place(i, item);
+  }
+  void sift_down(std::size_t i) {
+    const Item item = items_[i];
+    const std::size_t n = items_.size();
+    while (true) {
+      std::size_t child = 2 * i + 1;
+      if (child >= n) break;
+      if (child + 1 < n && items_[child].key < items_[child + 1].key) ++child;
+      if (!(item.key < items_[child].key)) break;
+      place(i, items_[child]);
+      i = child;
+    }
+    place(i, item);
+  }
+  std::vector<Item> items_;
+  std::vector<std::uint32_t> position_;
+};
+
+}  // namespace pneuma::engine::detail

@@ -1,0 +1,88 @@
+#pragma once
+// The field cache: the rest mesh, the field and its metadata in one HDF5 file, keyed by a hash
+// of everything that determines the field (mesh, per-vertex shear modulus, tissue name,
+// solver options, pneuma version). Written atomically; same inputs give the same bytes.
+//
+// Layout (format "pneuma-field", version 2):
+//   /            attributes: format, format_version, pneuma_version, key, checksum, tissue,
+//                solver, tolerance, clique_hops, path_rule, area_unit, shots, iterations, residual
+//   /rest/vertices           V x 3 float64 (metres)
+//   /rest/triangles          T x 3 uint32
+//   /field/unit_displacement V x 3 float64 (metres per area unit)
+//   /field/force             V float64 (F for a unit load)
+//   /field/shear_modulus     V float64 (Pa)
+// `checksum` covers every dataset and attribute, so an edited file is refused.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "pneuma/engine/field.h"
+#include "pneuma/engine/tissue.h"
+#include "pneuma/mesh/triangle_mesh.h"
+
+namespace pneuma::engine {
+
+struct FieldMetadata {
+  std::string key;             // field_key() of the inputs
+  std::string pneuma_version;  // that wrote the file
+  std::string tissue;
+  std::string solver;
+  double tolerance = 0.0;
+  int clique_hops = 1;
+  std::string path_rule;
+  double area_unit_m2 = 0.0;
+  std::uint64_t shots = 0, iterations = 0;
+  double residual = 0.0;
+};
+
+// The immutable model a scenario runs on: frame(s) = rest + s * displacement.
+struct FieldModel {
+  mesh::TriangleMesh rest;
+  std::vector<Eigen::Vector3d> unit_displacement;  // per vertex, for one area unit
+  std::vector<double> force;
+  std::vector<double> shear_modulus_pa;
+  FieldMetadata metadata;
+};
+
+// A 128-bit hex digest of the inputs that determine the field.
+std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> shear_modulus_pa,
+                      const std::string& tissue_name, const FieldOptions& options);
+
+// Computes the field and wraps it with its metadata (`field` gets the solver's report).
+FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& options,
+                               ElastostaticField* field = nullptr);
+
+// Writes the file atomically. Throws IoError when it cannot be written.
+void save_field(const std::filesystem::path& path, const FieldModel& model);
+
+// Reads a file. Throws IoError when it does not exist or cannot be read, and InputError
+// "<file>: not a pneuma field file: <why>" when it is not HDF5, not ours, truncated, of
+// another format version, or edited (checksum mismatch).
+FieldModel load_field(const std::filesystem::path& path);
+
+struct CachedField {
+  FieldModel model;
+  bool reused = false;  // true: read from the cache; false: computed (and written)
+};
+
+// Reuses `path` when it holds a field with the key of these inputs; otherwise computes the
+// field and writes it to `path`. A file that is not a pneuma field file is an error (it is
+// never overwritten: it may be someone's data).
+CachedField load_or_compute(const std::filesystem::path& path, const mesh::TriangleMesh& rest, const Tissue& tissue,
+                            const FieldOptions& options = default_field_options);
+
+// A digest of the bytes of `files` and of `options_text` (whatever else shapes a surface made
+// from them: unit, repair, remeshing target). Throws IoError when a file cannot be read.
+std::string source_key(const std::vector<std::filesystem::path>& files, const std::string& options_text);
+
+// As above for a surface that is expensive to make (a file read, repaired and remeshed): the
+// cache is looked up by `source` (source_key() of its inputs, the tissue file among them) before
+// `make_surface` runs, so a cache hit pays for neither the repair nor the remeshing.
+CachedField load_or_compute(const std::filesystem::path& path, const std::string& source,
+                            const std::function<mesh::TriangleMesh()>& make_surface, const Tissue& tissue,
+                            const FieldOptions& options = default_field_options);
+
+}  // namespace pneuma::engine

@@ -1,0 +1,31 @@
+#pragma once
+// The frame sinks engine/io writes (the PNG sink is render's). The runner's sink registry
+// (engine/runner/src/sink_registry.cpp) is the one place that knows them all.
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "pneuma/engine/frame.h"
+
+namespace pneuma::engine {
+
+struct MeshSequenceSpec {
+  std::string format = "ply";  // ply | obj | stl
+  bool ascii = false;
+  std::size_t every = 1;       // every n-th frame
+};
+
+// glTF 2.0 binary (.glb): the rest mesh, the field as one morph target (u * s_ref with
+// s_ref = max |s| of the run) and s(t) / s_ref as the animated morph weight, sampled at the
+// frame times with LINEAR interpolation. Node rotated so pneuma's z-up becomes glTF's y-up.
+std::unique_ptr<FrameSink> make_gltf_sink(const std::filesystem::path& file);
+
+// HDF5 time series (rest mesh, field, per-frame time, scale, volumes, area and, optionally,
+// positions) and an XDMF file beside it that ParaView opens as a temporal collection.
+std::unique_ptr<FrameSink> make_hdf5_sink(const std::filesystem::path& h5_file, const std::filesystem::path& xdmf_file,
+                                          bool store_positions);
+
+// One mesh file per frame (every `spec.every`-th), frame_00000.<format>, in metres.
+std::unique_ptr<FrameSink> make_mesh_sequence_sink(const std::filesystem::path& dir, const MeshSequenceSpec& spec);
+
+}  // namespace pneuma::engine

@@ -1,0 +1,412 @@
+// The HDF5 field cache. HDF5 (C API) stays inside this file.
+#include "pneuma/engine/field_cache.h"
+
+#include <hdf5.h>
+
+#include <array>
+#include <cstring>
+#include <fstream>
+#include <fmt/format.h>
+
+#include "pneuma/core/atomic_file.h"
+#include "pneuma/core/error.h"
+
+namespace pneuma::engine {
+namespace {
+
+constexpr const char* kFormat = "pneuma-field";
+constexpr int kFormatVersion = 2;  // 2: /field/displacement renamed /field/unit_displacement
+
+// ---- A deterministic 128-bit hash (two independent 64-bit multiply-xorshift lanes) --------
+class Hasher {
+ public:
+  void bytes(const void* data, std::size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    std::uint64_t word = 0;
+    std::size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+      std::memcpy(&word, p + i, 8);
+      mix(word);
+    }
+    word = 0;
+    if (n > i) std::memcpy(&word, p + i, n - i);
+    mix(word ^ (static_cast<std::uint64_t>(n - i) << 56));
+    mix(n);
+  }
+  void text(const std::string& s) { bytes(s.data(), s.size()); }
+  template <typename T>
+  void value(const T& v) {
+    bytes(&v, sizeof v);
+  }
+  std::string hex() const { return fmt::format("{:016x}{:016x}", finish(a_), finish(b_)); }
+
+ private:
+  static std::uint64_t finish(std::uint64_t x) {
+    x ^= x >> 33;
+    x *= 0xff51afd7ed558ccdULL;
+    x ^= x >> 33;
+    x *= 0xc4ceb9fe1a85ec53ULL;
+    x ^= x >> 33;
+    return x;
+  }
+  void mix(std::uint64_t w) {
+    a_ = (a_ ^ w) * 0x100000001b3ULL;
+    a_ ^= a_ >> 29;
+    b_ = (b_ + w) * 0x9e3779b97f4a7c15ULL;
+    b_ ^= b_ >> 31;
+  }
+  std::uint64_t a_ = 0xcbf29ce484222325ULL, b_ = 0x6a09e667f3bcc909ULL;
+};
+
+const char* rule_name(CliquePathRule r) {
+  return r == CliquePathRule::sum_of_shortest_paths ? "sum_of_shortest_paths" : "strongest_path";
+}
+
+// Every array and attribute of the model, in a fixed order.
+std::string checksum(const FieldModel& m) {
+  Hasher h;
+  h.text(kFormat);
+  h.bytes(m.rest.vertices.data(), m.rest.vertices.size() * sizeof(Eigen::Vector3d));
+  h.bytes(m.rest.triangles.data(), m.rest.triangles.size() * sizeof(mesh::Triangle));
+  h.bytes(m.unit_displacement.data(), m.unit_displacement.size() * sizeof(Eigen::Vector3d));
+  h.bytes(m.force.data(), m.force.size() * sizeof(double));
+  h.bytes(m.shear_modulus_pa.data(), m.shear_modulus_pa.size() * sizeof(double));
+  const FieldMetadata& d = m.metadata;
+  for (const std::string* s : {&d.key, &d.pneuma_version, &d.tissue, &d.solver, &d.path_rule}) h.text(*s);
+  h.value(d.tolerance);
+  h.value(static_cast<std::int64_t>(d.clique_hops));
+  h.value(d.area_unit_m2);
+  h.value(d.shots);
+  h.value(d.iterations);
+  h.value(d.residual);
+  return h.hex();
+}
+
+// ---- HDF5 handles ----------------------------------------------------------------------------
+class Handle {
+ public:
+  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  ~Handle() {
+    if (id_ >= 0) close_(id_);
+  }
+  Handle(Handle&& other) noexcept : id_(other.id_), close_(other.close_) { other.id_ = -1; }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  Handle& operator=(Handle&&) = delete;
+  hid_t get() const { return id_; }
+  bool ok() const { return id_ >= 0; }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+void silence_hdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+
+// ---- Writing ----------------------------------------------------------------------------------
+struct Writer {
+  std::string file;
+  [[noreturn]] void fail(const std::string& what) const { throw IoError(file + ": cannot write " + what); }
+  void check(herr_t status, const std::string& what) const {
+    if (status < 0) fail(what);
+  }
+
+  void string_attribute(hid_t object, const char* name, const std::string& value) const {
+    Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+    check(H5Tset_size(type.get(), std::max<std::size_t>(1, value.size())), name);
+    check(H5Tset_strpad(type.get(), H5T_STR_NULLPAD), name);
+    Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+    Handle attr(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+    if (!attr.ok()) fail(name);
+    const std::string padded = value.empty() ? std::string(1, '\0') : value;
+    check(H5Awrite(attr.get(), type.get(), padded.data()), name);
+  }
+  template <typename T>
+  void number_attribute(hid_t object, const char* name, hid_t file_type, hid_t memory_type, T value) const {
+    Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+    Handle attr(H5Acreate2(object, name, file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+    if (!attr.ok()) fail(name);
+    check(H5Awrite(attr.get(), memory_type, &value), name);
+  }
+  void dataset(hid_t parent, const char* name, hid_t file_type, hid_t memory_type, const void* data, hsize_t rows,
+               hsize_t columns) const {
+    const std::array<hsize_t, 2> dims{rows, columns};
+    Handle space(H5Screate_simple(columns == 0 ? 1 : 2, dims.data(), nullptr), H5Sclose);
+    Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+    check(H5Pset_obj_track_times(dcpl.get(), 0), name);  // no timestamps: same inputs, same bytes
+    Handle set(H5Dcreate2(parent, name, file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose);
+    if (!set.ok()) fail(name);
+    if (rows > 0) check(H5Dwrite(set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
+  }
+  Handle group(hid_t parent, const char* name) const {
+    Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
+    check(H5Pset_obj_track_times(gcpl.get(), 0), name);
+    Handle g(H5Gcreate2(parent, name, H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose);
+    if (!g.ok()) fail(name);
+    return g;
+  }
+};
+
+void write_file(const std::filesystem::path& tmp, const std::string& shown, const FieldModel& m) {
+  const Writer w{shown};
+  Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+  w.check(H5Pset_obj_track_times(fcpl.get(), 0), "file properties");
+  Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose);
+  if (!file.ok()) w.fail("the file");
+  const hid_t root = file.get();
+  const FieldMetadata& d = m.metadata;
+  w.string_attribute(root, "format", kFormat);
+  w.number_attribute(root, "format_version", H5T_STD_I32LE, H5T_NATIVE_INT, kFormatVersion);
+  w.string_attribute(root, "pneuma_version", d.pneuma_version);
+  w.string_attribute(root, "key", d.key);
+  w.string_attribute(root, "checksum", checksum(m));
+  w.string_attribute(root, "tissue", d.tissue);
+  w.string_attribute(root, "solver", d.solver);
+  w.number_attribute(root, "tolerance", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, d.tolerance);
+  w.number_attribute(root, "clique_hops", H5T_STD_I32LE, H5T_NATIVE_INT, d.clique_hops);
+  w.string_attribute(root, "path_rule", d.path_rule);
+  w.number_attribute(root, "area_unit", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, d.area_unit_m2);
+  w.number_attribute(root, "shots", H5T_STD_U64LE, H5T_NATIVE_UINT64, d.shots);
+  w.number_attribute(root, "iterations", H5T_STD_U64LE, H5T_NATIVE_UINT64, d.iterations);
+  w.number_attribute(root, "residual", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, d.residual);
+  const hsize_t nv = m.rest.vertices.size(), nt = m.rest.triangles.size();
+  {
+    const Handle rest = w.group(root, "rest");
+    w.dataset(rest.get(), "vertices", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.rest.vertices.data(), nv, 3);
+    w.dataset(rest.get(), "triangles", H5T_STD_U32LE, H5T_NATIVE_UINT32, m.rest.triangles.data(), nt, 3);
+  }
+  {
+    const Handle field = w.group(root, "field");
+    w.dataset(field.get(), "unit_displacement", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.unit_displacement.data(), nv, 3);
+    w.dataset(field.get(), "force", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.force.data(), nv, 0);
+    w.dataset(field.get(), "shear_modulus", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.shear_modulus_pa.data(), nv, 0);
+  }
+  if (H5Fflush(root, H5F_SCOPE_GLOBAL) < 0) w.fail("the file");
+}
+
+// ---- Reading ----------------------------------------------------------------------------------
+struct Reader {
+  std::string file;
+  hid_t root = -1;
+  [[noreturn]] void refuse(const std::string& why) const {
+    throw InputError(file + ": not a pneuma field file: " + why);
+  }
+
+  std::string string_attribute(const char* name) const {
+    if (H5Aexists(root, name) <= 0) refuse(std::string("no '") + name + "' attribute");
+    Handle attr(H5Aopen(root, name, H5P_DEFAULT), H5Aclose);
+    Handle type(H5Aget_type(attr.get()), H5Tclose);
+    if (!type.ok() || H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) != 0)
+      refuse(std::string("attribute '") + name + "' is not a fixed-length string");
+    const std::size_t size = H5Tget_size(type.get());
+    std::string value(size, '\0');
+    Handle memory(H5Tcopy(H5T_C_S1), H5Tclose);
+    H5Tset_size(memory.get(), size);
+    H5Tset_strpad(memory.get(), H5T_STR_NULLPAD);
+    if (H5Aread(attr.get(), memory.get(), value.data()) < 0) refuse(std::string("cannot read attribute '") + name + "'");
+    value.resize(std::strlen(value.c_str()));
+    return value;
+  }
+  template <typename T>
+  T number_attribute(const char* name, hid_t memory_type, H5T_class_t expected) const {
+    if (H5Aexists(root, name) <= 0) refuse(std::string("no '") + name + "' attribute");
+    Handle attr(H5Aopen(root, name, H5P_DEFAULT), H5Aclose);
+    Handle type(H5Aget_type(attr.get()), H5Tclose);
+    Handle space(H5Aget_space(attr.get()), H5Sclose);
+    if (!type.ok() || H5Tget_class(type.get()) != expected || H5Sget_simple_extent_npoints(space.get()) != 1)
+      refuse(std::string("attribute '") + name + "' has the wrong type");
+    T value{};
+    if (H5Aread(attr.get(), memory_type, &value) < 0) refuse(std::string("cannot read attribute '") + name + "'");
+    return value;
+  }
+  // Reads a dataset of `columns` (0: one-dimensional) into `out`, checking type and shape.
+  template <typename T>
+  std::size_t dataset(const char* path, hid_t memory_type, H5T_class_t expected, hsize_t columns,
+                      std::vector<T>& out, std::size_t scalars_per_item) const {
+    if (H5Lexists(root, path, H5P_DEFAULT) <= 0) refuse(std::string("no dataset ") + path);
+    Handle set(H5Dopen2(root, path, H5P_DEFAULT), H5Dclose);
+    if (!set.ok()) refuse(std::string("cannot open dataset ") + path);
+    Handle type(H5Dget_type(set.get()), H5Tclose);
+    Handle space(H5Dget_space(set.get()), H5Sclose);
+    const int rank = H5Sget_simple_extent_ndims(space.get());
+    std::array<hsize_t, 2> dims{0, 0};
+    if (!type.ok() || H5Tget_class(type.get()) != expected || rank != (columns == 0 ? 1 : 2) ||
+        H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr) < 0 || (columns != 0 && dims[1] != columns))
+      refuse(std::string("dataset ") + path + " has the wrong type or shape");
+    const std::size_t rows = dims[0];
+    out.resize(rows * std::max<hsize_t>(columns, 1) / scalars_per_item);
+    if (rows > 0 && H5Dread(set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+      refuse(std::string("cannot read dataset ") + path + " (truncated or damaged)");
+    return rows;
+  }
+};
+
+FieldModel read_file(const std::filesystem::path& path) {
+  const std::string shown = path.string();
+  Reader r{shown};
+  const htri_t is_hdf5 = H5Fis_hdf5(path.c_str());
+  if (is_hdf5 <= 0) r.refuse("not an HDF5 file");
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!file.ok()) r.refuse("cannot open it as HDF5 (truncated or damaged)");
+  r.root = file.get();
+  if (H5Aexists(r.root, "format") <= 0) r.refuse("no 'format' attribute (an HDF5 file from elsewhere)");
+  if (r.string_attribute("format") != kFormat) r.refuse("its format is not '" + std::string(kFormat) + "'");
+  const int version = r.number_attribute<int>("format_version", H5T_NATIVE_INT, H5T_INTEGER);
+  if (version != kFormatVersion)
+    r.refuse("format version " + std::to_string(version) + ", this pneuma reads version " + std::to_string(kFormatVersion));
+
+  FieldModel m;
+  FieldMetadata& d = m.metadata;
+  d.pneuma_version = r.string_attribute("pneuma_version");
+  d.key = r.string_attribute("key");
+  const std::string stored_checksum = r.string_attribute("checksum");
+  d.tissue = r.string_attribute("tissue");
+  d.solver = r.string_attribute("solver");
+  d.tolerance = r.number_attribute<double>("tolerance", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  d.clique_hops = r.number_attribute<int>("clique_hops", H5T_NATIVE_INT, H5T_INTEGER);
+  d.path_rule = r.string_attribute("path_rule");
+  d.area_unit_m2 = r.number_attribute<double>("area_unit", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  d.shots = r.number_attribute<std::uint64_t>("shots", H5T_NATIVE_UINT64, H5T_INTEGER);
+  d.iterations = r.number_attribute<std::uint64_t>("iterations", H5T_NATIVE_UINT64, H5T_INTEGER);
+  d.residual = r.number_attribute<double>("residual", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+
+  const std::size_t nv = r.dataset("/rest/vertices", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, m.rest.vertices, 3);
+  r.dataset("/rest/triangles", H5T_NATIVE_UINT32, H5T_INTEGER, 3, m.rest.triangles, 3);
+  const std::array<std::pair<const char*, std::size_t>, 3> per_vertex{
+      {{"/field/unit_displacement", r.dataset("/field/unit_displacement", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, m.unit_displacement, 3)},
+       {"/field/force", r.dataset("/field/force", H5T_NATIVE_DOUBLE, H5T_FLOAT, 0, m.force, 1)},
+       {"/field/shear_modulus", r.dataset("/field/shear_modulus", H5T_NATIVE_DOUBLE, H5T_FLOAT, 0, m.shear_modulus_pa, 1)}}};
+  for (const auto& [name, rows] : per_vertex) {
+    if (rows != nv) r.refuse(std::string("dataset ") + name + " has " + std::to_string(rows) + " rows for " +
+                             std::to_string(nv) + " vertices");
+  }
+  for (std::size_t t = 0; t < m.rest.triangles.size(); ++t) {
+    for (std::uint32_t v : m.rest.triangles[t]) {
+      if (v >= nv) r.refuse("triangle " + std::to_string(t) + " names vertex " + std::to_string(v) + " of " + std::to_string(nv));
+    }
+  }
+  if (checksum(m) != stored_checksum) r.refuse("checksum mismatch (the file was edited or damaged)");
+  return m;
+}
+
+}  // namespace
+
+std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> mu, const std::string& tissue_name,
+                      const FieldOptions& o) {
+  Hasher h;
+  h.text("pneuma-field-key/1");
+  h.text(PNEUMA_VERSION);
+  h.value(static_cast<std::uint64_t>(rest.vertices.size()));
+  h.bytes(rest.vertices.data(), rest.vertices.size() * sizeof(Eigen::Vector3d));
+  h.value(static_cast<std::uint64_t>(rest.triangles.size()));
+  h.bytes(rest.triangles.data(), rest.triangles.size() * sizeof(mesh::Triangle));
+  h.bytes(mu.data(), mu.size() * sizeof(double));
+  h.text(tissue_name);
+  h.text(solver_name(o.solver));
+  h.value(o.tolerance);
+  h.value(static_cast<std::int64_t>(o.clique_hops));
+  h.text(rule_name(o.path_rule));
+  h.value(o.area_unit);
+  return h.hex();
+}
+
+FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& options,
+                               ElastostaticField* field_out) {
+  FieldModel m;
+  m.shear_modulus_pa = shear_modulus_per_vertex(tissue, rest);
+  ElastostaticField field = compute_field(rest, m.shear_modulus_pa, options);
+  m.rest = rest;
+  m.unit_displacement = field.unit_displacement;
+  m.force = field.force;
+  FieldMetadata& d = m.metadata;
+  d.key = field_key(rest, m.shear_modulus_pa, tissue.name, options);
+  d.pneuma_version = PNEUMA_VERSION;
+  d.tissue = tissue.name;
+  d.solver = solver_name(options.solver);
+  d.tolerance = options.tolerance;
+  d.clique_hops = options.clique_hops;
+  d.path_rule = rule_name(options.path_rule);
+  d.area_unit_m2 = options.area_unit;
+  d.shots = field.report.shots;
+  d.iterations = field.report.iterations;
+  d.residual = field.report.residual;
+  if (field_out) *field_out = std::move(field);
+  return m;
+}
+
+void save_field(const std::filesystem::path& path, const FieldModel& model) {
+  silence_hdf5();
+  write_atomically(path, [&](const std::filesystem::path& tmp) { write_file(tmp, path.string(), model); });
+}
+
+FieldModel load_field(const std::filesystem::path& path) {
+  silence_hdf5();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path.string() + ": cannot open file");
+  return read_file(path);
+}
+
+namespace {
+
+std::string source_field_key(const std::string& source, const std::string& tissue_name, const FieldOptions& o) {
+  Hasher h;
+  h.text("pneuma-field-source-key/1");
+  h.text(PNEUMA_VERSION);
+  h.text(source);
+  h.text(tissue_name);
+  h.text(solver_name(o.solver));
+  h.value(o.tolerance);
+  h.value(static_cast<std::int64_t>(o.clique_hops));
+  h.text(rule_name(o.path_rule));
+  h.value(o.area_unit);
+  return h.hex();
+}
+
+}  // namespace
+
+std::string source_key(const std::vector<std::filesystem::path>& files, const std::string& options_text) {
+  Hasher h;
+  h.text("pneuma-source/1");
+  for (const auto& file : files) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw IoError(file.string() + ": cannot open file");
+    std::vector<char> buffer(1 << 20);
+    while (in) {
+      in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+      h.bytes(buffer.data(), static_cast<std::size_t>(in.gcount()));
+    }
+    if (in.bad()) throw IoError(file.string() + ": cannot read file");
+  }
+  h.text(options_text);
+  return h.hex();
+}
+
+CachedField load_or_compute(const std::filesystem::path& path, const std::string& source,
+                            const std::function<mesh::TriangleMesh()>& make_surface, const Tissue& tissue,
+                            const FieldOptions& options) {
+  const std::string key = source_field_key(source, tissue.name, options);
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec)) {
+    FieldModel cached = load_field(path);  // refuses a file that is not ours
+    if (cached.metadata.key == key) return {std::move(cached), true};
+  }
+  CachedField out{compute_field_model(make_surface(), tissue, options), false};
+  out.model.metadata.key = key;
+  save_field(path, out.model);
+  return out;
+}
+
+CachedField load_or_compute(const std::filesystem::path& path, const mesh::TriangleMesh& rest, const Tissue& tissue,
+                            const FieldOptions& options) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec)) {
+    FieldModel cached = load_field(path);  // refuses a file that is not ours
+    const std::vector<double> mu = shear_modulus_per_vertex(tissue, rest);
+    if (cached.metadata.key == field_key(rest, mu, tissue.name, options)) return {std::move(cached), true};
+  }
+  CachedField out{compute_field_model(rest, tissue, options), false};
+  save_field(path, out.model);
+  return out;
+}
+
+}  // namespace pneuma::engine

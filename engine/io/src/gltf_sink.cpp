@@ -1,0 +1,184 @@
+// glTF 2.0 morph-target animation of a breathing run, written with tinygltf.
+#define TINYGLTF_IMPLEMENTATION
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "pneuma/core/atomic_file.h"
+#include "pneuma/core/error.h"
+#include "pneuma/engine/sinks.h"
+
+namespace pneuma::engine {
+namespace {
+
+// Appends raw bytes to the single buffer, 4-byte aligned as glTF requires; returns a view.
+int add_view(tinygltf::Model& m, const void* data, std::size_t bytes, int target) {
+  auto& buffer = m.buffers[0].data;
+  while (buffer.size() % 4 != 0) buffer.push_back(0);
+  const std::size_t offset = buffer.size();
+  buffer.resize(offset + bytes);
+  std::memcpy(buffer.data() + offset, data, bytes);
+  tinygltf::BufferView view;
+  view.buffer = 0;
+  view.byteOffset = offset;
+  view.byteLength = bytes;
+  if (target != 0) view.target = target;
+  m.bufferViews.push_back(view);
+  return static_cast<int>(m.bufferViews.size() - 1);
+}
+
+int add_accessor(tinygltf::Model& m, int view, int component, std::size_t count, int type,
+                 std::vector<double> min = {}, std::vector<double> max = {}) {
+  tinygltf::Accessor a;
+  a.bufferView = view;
+  a.componentType = component;
+  a.count = count;
+  a.type = type;
+  a.minValues = std::move(min);
+  a.maxValues = std::move(max);
+  m.accessors.push_back(a);
+  return static_cast<int>(m.accessors.size() - 1);
+}
+
+// float32 xyz triples and their per-axis bounds (glTF requires min/max on POSITION).
+int add_vec3(tinygltf::Model& m, const std::vector<Eigen::Vector3d>& v, double factor, bool bounds) {
+  std::vector<float> data(v.size() * 3);
+  std::vector<double> lo(3, std::numeric_limits<double>::infinity()), hi(3, -std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const float x = static_cast<float>(v[i][k] * factor);
+      data[3 * i + static_cast<std::size_t>(k)] = x;
+      lo[static_cast<std::size_t>(k)] = std::min(lo[static_cast<std::size_t>(k)], static_cast<double>(x));
+      hi[static_cast<std::size_t>(k)] = std::max(hi[static_cast<std::size_t>(k)], static_cast<double>(x));
+    }
+  }
+  const int view = add_view(m, data.data(), data.size() * sizeof(float), TINYGLTF_TARGET_ARRAY_BUFFER);
+  if (!bounds) return add_accessor(m, view, TINYGLTF_COMPONENT_TYPE_FLOAT, v.size(), TINYGLTF_TYPE_VEC3);
+  return add_accessor(m, view, TINYGLTF_COMPONENT_TYPE_FLOAT, v.size(), TINYGLTF_TYPE_VEC3, lo, hi);
+}
+
+class GltfSink final : public FrameSink {
+ public:
+  explicit GltfSink(std::filesystem::path file) : file_(std::move(file)) {}
+  std::string name() const override { return "gltf"; }
+
+  void begin(const BreathingModel& model, const RunInfo& run) override {
+    model_ = &model;  // the glb is written in one go at end(), when every weight is known
+    reference_scale_ = std::max(std::abs(run.min_scale), std::abs(run.max_scale));
+    if (reference_scale_ == 0.0) reference_scale_ = 1.0;
+    times_.reserve(run.frame_count);
+    weights_.reserve(run.frame_count);
+  }
+
+  void frame(const BreathingModel&, const Frame& f) override {
+    times_.push_back(static_cast<float>(f.time_s));
+    weights_.push_back(static_cast<float>(f.scale / reference_scale_));
+  }
+
+  std::vector<std::filesystem::path> end() override {
+    write(*model_);
+    return {file_};
+  }
+
+ private:
+  void write(const BreathingModel& model) const {
+    tinygltf::Model m;
+    m.asset.version = "2.0";
+    m.asset.generator = "pneuma " PNEUMA_VERSION;
+    m.buffers.resize(1);
+
+    std::vector<std::uint32_t> indices;
+    indices.reserve(model.rest.triangles.size() * 3);
+    for (const auto& t : model.rest.triangles) indices.insert(indices.end(), t.begin(), t.end());
+    const int index_view = add_view(m, indices.data(), indices.size() * sizeof(std::uint32_t),
+                                    TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    const int index_accessor =
+        add_accessor(m, index_view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, indices.size(), TINYGLTF_TYPE_SCALAR);
+    const int positions = add_vec3(m, model.rest.vertices, 1.0, true);
+    const int normals = add_vec3(m, model.normals, 1.0, false);
+    const int morph = add_vec3(m, model.unit_displacement, reference_scale_, true);
+
+    const auto [t_min, t_max] = std::minmax_element(times_.begin(), times_.end());
+    const int time_view = add_view(m, times_.data(), times_.size() * sizeof(float), 0);
+    const int time_accessor = add_accessor(m, time_view, TINYGLTF_COMPONENT_TYPE_FLOAT, times_.size(),
+                                           TINYGLTF_TYPE_SCALAR, {*t_min}, {*t_max});
+    const int weight_view = add_view(m, weights_.data(), weights_.size() * sizeof(float), 0);
+    const int weight_accessor =
+        add_accessor(m, weight_view, TINYGLTF_COMPONENT_TYPE_FLOAT, weights_.size(), TINYGLTF_TYPE_SCALAR);
+    m.buffers[0].data.resize((m.buffers[0].data.size() + 3) / 4 * 4, 0);
+
+    tinygltf::Material lung;
+    lung.name = "lung";
+    lung.pbrMetallicRoughness.baseColorFactor = {0.86, 0.52, 0.50, 1.0};
+    lung.pbrMetallicRoughness.metallicFactor = 0.0;
+    lung.pbrMetallicRoughness.roughnessFactor = 0.55;
+    lung.doubleSided = false;
+    m.materials.push_back(lung);
+
+    tinygltf::Primitive primitive;
+    primitive.attributes["POSITION"] = positions;
+    primitive.attributes["NORMAL"] = normals;
+    primitive.indices = index_accessor;
+    primitive.material = 0;
+    primitive.mode = TINYGLTF_MODE_TRIANGLES;
+    primitive.targets.push_back({{"POSITION", morph}});
+    tinygltf::Mesh mesh;
+    mesh.name = "lung";
+    mesh.primitives.push_back(primitive);
+    mesh.weights = {0.0};
+    // Names of the morph targets, read by Blender and three.js.
+    mesh.extras = tinygltf::Value(tinygltf::Value::Object{
+        {"targetNames", tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(std::string("breath"))})}});
+    m.meshes.push_back(mesh);
+
+    tinygltf::Node node;
+    node.name = "lung";
+    node.mesh = 0;
+    node.rotation = {-std::sqrt(0.5), 0.0, 0.0, std::sqrt(0.5)};  // z-up (pneuma) to y-up (glTF)
+    m.nodes.push_back(node);
+    tinygltf::Scene scene;
+    scene.nodes = {0};
+    m.scenes.push_back(scene);
+    m.defaultScene = 0;
+
+    tinygltf::Animation animation;
+    animation.name = "breathing";
+    tinygltf::AnimationSampler sampler;
+    sampler.input = time_accessor;
+    sampler.output = weight_accessor;
+    sampler.interpolation = "LINEAR";
+    animation.samplers.push_back(sampler);
+    tinygltf::AnimationChannel channel;
+    channel.sampler = 0;
+    channel.target_node = 0;
+    channel.target_path = "weights";
+    animation.channels.push_back(channel);
+    m.animations.push_back(animation);
+
+    write_atomically(file_, [&](const std::filesystem::path& tmp) {
+      tinygltf::TinyGLTF writer;
+      if (!writer.WriteGltfSceneToFile(&m, tmp.string(), false, true, false, true)) {
+        throw IoError(file_.string() + ": cannot write the glTF file");
+      }
+    });
+  }
+
+  std::filesystem::path file_;
+  const BreathingModel* model_ = nullptr;
+  double reference_scale_ = 1.0;
+  std::vector<float> times_;
+  std::vector<float> weights_;
+};
+
+}  // namespace
+
+std::unique_ptr<FrameSink> make_gltf_sink(const std::filesystem::path& file) {
+  return std::make_unique<GltfSink>(file);
+}
+
+}  // namespace pneuma::engine

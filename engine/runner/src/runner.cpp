@@ -1,0 +1,204 @@
+#include "pneuma/engine/runner.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "pneuma/core/error.h"
+#include "pneuma/core/stopwatch.h"
+#include "pneuma/engine/field_cache.h"
+#include "pneuma/engine/manifest.h"
+#include "pneuma/engine/physiology_csv.h"
+#include "pneuma/engine/progress.h"
+#include "pneuma/engine/sink_registry.h"
+#include "pneuma/engine/tissue.h"
+#include "pneuma/mesh/io.h"
+#include "pneuma/mesh/phantom.h"
+#include "pneuma/mesh/remesh.h"
+#include "pneuma/mesh/repair.h"
+#include "pneuma/mesh/surface_queries.h"
+
+namespace pneuma::engine {
+namespace {
+
+physiology::SimulationResult simulate_or_explain(const Scenario& s, double output_rate_hz) {
+  physiology::SimulationOptions options = s.physiology.options;
+  options.output_rate_hz = output_rate_hz;
+  try {
+    return physiology::simulate(s.physiology.protocol, options);
+  } catch (const ValueError& e) {
+    throw InputError(s.file.string() + ": physiology: " + e.what());
+  }
+}
+
+mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {
+  mesh::PhantomOptions phantom;
+  phantom.lung = spec.phantom_lung == "left" ? mesh::Lung::left : mesh::Lung::right;
+  phantom.edge_length_m = edge_m;
+  return mesh::make_lung_phantom(phantom);
+}
+
+// The file's own surface: read and, where asked, repaired.
+mesh::TriangleMesh file_surface(const MeshSpec& spec) {
+  mesh::ReadOptions read;
+  read.metres_per_unit = spec.metres_per_unit;
+  mesh::TriangleMesh surface = mesh::read_mesh(spec.file, read);
+  if (spec.repair) surface = mesh::repair_or_throw(surface, spec.file.string());
+  return surface;
+}
+
+mesh::TriangleMesh remeshed(mesh::TriangleMesh surface, double edge_m) {
+  if (edge_m <= 0.0) return surface;
+  mesh::RemeshOptions remesh;
+  remesh.target_edge_length_m = edge_m;
+  return mesh::remesh_isotropic(surface, remesh).mesh;
+}
+
+// The field model of the scenario's surface, from the cache where it holds one for these inputs.
+// A file mesh is looked up by its bytes and the options that shape it before it is repaired and
+// remeshed, so a cache hit pays for neither.
+CachedField field_model(const Scenario& s, double edge_m, const std::filesystem::path& output_dir) {
+  const Tissue tissue = load_tissue(s.field.tissue_file);
+  const FieldOptions& field = s.field.options;
+  const bool from_file = s.mesh.phantom_lung.empty();
+  if (s.field.cache == FieldCache::off) {
+    const mesh::TriangleMesh surface =
+        from_file ? remeshed(file_surface(s.mesh), edge_m) : phantom_surface(s.mesh, edge_m);
+    return {compute_field_model(surface, tissue, field), false};
+  }
+  const std::filesystem::path cache = s.field.cache == FieldCache::file ? s.field.cache_file : output_dir / "field.h5";
+  if (!from_file) return load_or_compute(cache, phantom_surface(s.mesh, edge_m), tissue, field);
+  const std::string source = source_key(
+      {s.mesh.file, s.field.tissue_file},
+      fmt::format("unit {:.17g} m, repair {}, edge {:.17g} m", s.mesh.metres_per_unit, s.mesh.repair, edge_m));
+  return load_or_compute(cache, source, [&] { return remeshed(file_surface(s.mesh), edge_m); }, tissue, field);
+}
+
+}  // namespace
+
+BreathingModel prepare_model(const Scenario& s, const RunOptions& options,
+                             std::vector<std::pair<std::string, double>>& timings, bool& field_reused) {
+  auto start = Clock::now();
+  const double edge = options.edge_override_m.value_or(s.mesh.edge_m);
+  CachedField computed = field_model(s, edge, options.output_dir);
+  field_reused = computed.reused;
+  timings.emplace_back(field_reused ? "mesh and field (cached)" : "mesh and field", seconds_since(start));
+
+  mesh::TriangleMesh rest = std::move(computed.model.rest);
+  std::vector<Eigen::Vector3d> u = std::move(computed.model.unit_displacement);
+  if (s.mesh.export_original) {
+    // The field lives on the remeshed surface; carry it to the original vertices through their
+    // closest points on it (barycentric interpolation).
+    start = Clock::now();
+    mesh::TriangleMesh original = file_surface(s.mesh);
+    u = mesh::transfer_vertex_field(rest, u, original.vertices);
+    rest = std::move(original);
+    timings.emplace_back("field transfer", seconds_since(start));
+  }
+  return make_breathing_model(std::move(rest), std::move(u), s.field.options.area_unit);
+}
+
+std::vector<double> frame_scales(const BreathingModel& model, const MeshSpec& mesh, const std::vector<double>& time_s,
+                                 const std::vector<double>& lung_volume_m3) {
+  std::vector<double> scales(time_s.size());
+  const double rest_volume = model.volume_map.volume(0.0);
+  double guess = 0.0;
+  for (std::size_t k = 0; k < time_s.size(); ++k) {
+    const double target = rest_volume + mesh.share * (lung_volume_m3[k] - mesh.reference_volume_m3);
+    try {
+      scales[k] = guess = model.volume_map.scale_for(target, guess);
+    } catch (const UnsupportedError& e) {
+      throw UnsupportedError(fmt::format("frame {} (t = {:.3f} s): {}; lower the tidal volume or the mesh share", k,
+                                         time_s[k], e.what()));
+    }
+  }
+  return scales;
+}
+
+RunResult run_scenario(const Scenario& s, const RunOptions& options) {
+  RunResult result;
+  const auto& out = options.output_dir;
+
+  // Physiology: the CSV at its own rate, the frames at theirs (two cheap runs, no resampling).
+  auto start = Clock::now();
+  const physiology::SimulationResult frames_physiology = simulate_or_explain(s, s.frame_rate_hz);
+  physiology::SimulationResult csv_physiology;
+  if (s.outputs.physiology_csv) csv_physiology = simulate_or_explain(s, s.physiology.options.output_rate_hz);
+  result.timings_s.emplace_back("physiology", seconds_since(start));
+
+  const BreathingModel model = prepare_model(s, options, result.timings_s, result.field_reused);
+  result.vertex_count = model.rest.vertex_count();
+  if (s.field.cache == FieldCache::automatic) result.files.emplace_back("field.h5");  // the cache lives with the outputs
+
+  const auto& t = frames_physiology.series.time_s;
+  const std::vector<double> scales = frame_scales(model, s.mesh, t, frames_physiology.series.volume_m3);
+  const auto [lo, hi] = std::minmax_element(scales.begin(), scales.end());
+  result.min_scale = *lo;
+  result.max_scale = *hi;
+  result.frame_count = scales.size();
+
+  // One CGAL check of the most deformed frame: a self-intersecting surface is refused.
+  start = Clock::now();
+  for (double extreme : {result.min_scale, result.max_scale}) {
+    mesh::TriangleMesh deformed = model.rest;
+    for (std::size_t i = 0; i < deformed.vertices.size(); ++i) deformed.vertices[i] += extreme * model.unit_displacement[i];
+    if (mesh::self_intersects(deformed)) {
+      throw UnsupportedError(fmt::format("{}: the surface self-intersects at scale {:.4g} (mesh volume {:.4g} L); "
+                                         "lower the tidal volume or the mesh share",
+                                         s.file.string(), extreme, model.volume_map.volume(extreme) * 1e3));
+    }
+  }
+  result.timings_s.emplace_back("self-intersection check", seconds_since(start));
+
+  std::vector<std::unique_ptr<FrameSink>> sinks = make_sinks(s, out);
+
+  const RunInfo run{scales.size(), s.frame_rate_hz, result.min_scale, result.max_scale, out};
+  std::vector<double> sink_seconds(sinks.size(), 0.0);
+  for (std::size_t i = 0; i < sinks.size(); ++i) {
+    const auto begin = Clock::now();
+    sinks[i]->begin(model, run);
+    sink_seconds[i] += seconds_since(begin);
+  }
+  Frame frame(model);
+  Progress progress("frames", scales.size(), options.quiet);
+  double update_seconds = 0.0;
+  for (std::size_t k = 0; k < scales.size(); ++k) {
+    const auto update = Clock::now();
+    advance(model, {k, t[k], frames_physiology.series.volume_m3[k], scales[k]}, frame);
+    update_seconds += seconds_since(update);
+    for (std::size_t i = 0; i < sinks.size(); ++i) {
+      const auto begin = Clock::now();
+      sinks[i]->frame(model, frame);
+      sink_seconds[i] += seconds_since(begin);
+    }
+    progress.update(k + 1);
+  }
+  progress.finish();
+  result.timings_s.emplace_back("frame updates", update_seconds);
+  for (std::size_t i = 0; i < sinks.size(); ++i) {
+    const auto begin = Clock::now();
+    for (auto& file : sinks[i]->end()) result.files.push_back(std::filesystem::relative(file, out));
+    sink_seconds[i] += seconds_since(begin);
+    result.timings_s.emplace_back("sink " + sinks[i]->name(), sink_seconds[i]);
+  }
+  if (s.outputs.physiology_csv) {
+    write_time_series_csv(out / "physiology.csv", csv_physiology);
+    write_breaths_csv(out / "physiology-breaths.csv", csv_physiology);
+    result.files.emplace_back("physiology.csv");
+    result.files.emplace_back("physiology-breaths.csv");
+  }
+
+  ManifestInput manifest{s.file, s.name, result.files, result.timings_s,
+                         {{"frames", std::to_string(result.frame_count)},
+                          {"frame_rate_hz", fmt::format("{}", s.frame_rate_hz)},
+                          {"vertices", std::to_string(model.rest.vertex_count())},
+                          {"triangles", std::to_string(model.rest.triangle_count())},
+                          {"rest_volume_m3", fmt::format("{:.9g}", model.volume_map.volume(0.0))},
+                          {"rest_area_m2", fmt::format("{:.9g}", model.rest_area_m2)},
+                          {"scale_range", fmt::format("{:.9g} .. {:.9g}", result.min_scale, result.max_scale)},
+                          {"field", result.field_reused ? "reused from cache" : "computed"}}};
+  result.files.push_back(std::filesystem::relative(write_manifest(out, manifest), out));
+  return result;
+}
+
+}  // namespace pneuma::engine

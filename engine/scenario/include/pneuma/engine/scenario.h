@@ -1,0 +1,64 @@
+#pragma once
+// A breathing scenario (scenarios/*.yaml): the lung mesh, its tissue and field, the physiology
+// that drives it, the frames and the outputs. Every value carries its unit; unknown keys are
+// errors. See README.md for the keys.
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "pneuma/engine/field.h"
+#include "pneuma/engine/physiology_config.h"
+#include "pneuma/engine/sinks.h"
+#include "pneuma/render/png_sink.h"
+
+namespace pneuma::engine {
+
+struct MeshSpec {
+  // The built-in phantom (`phantom: left|right`) or a file read with its unit.
+  std::string phantom_lung = "right";  // empty when `file` is set
+  std::filesystem::path file;
+  double metres_per_unit = 1e-3;
+  double edge_m = 0.0;                  // phantom resolution / remeshing target (0: keep the file's mesh)
+  bool repair = true;                   // repair what is safe before use
+  bool export_original = false;         // export the file's mesh with the field transferred to it
+  double share = 1.0;                   // share of the total volume change this mesh takes (0, 1]
+  double reference_volume_m3 = 0.0;     // physiological volume above FRC that the rest mesh shows
+};
+
+// Where the field is cached: `auto` (<output>/field.h5), `off`, or a file (relative to the scenario).
+enum class FieldCache { automatic, off, file };
+
+struct FieldSpec {
+  std::string tissue = "healthy-upright";  // preset name in configs/tissue or a path
+  std::filesystem::path tissue_file;       // resolved
+  FieldOptions options;                    // solver, tolerance, clique (checked together)
+  FieldCache cache = FieldCache::automatic;
+  std::filesystem::path cache_file;        // resolved, for FieldCache::file
+};
+
+struct OutputsSpec {
+  bool physiology_csv = true;
+  bool gltf = true;
+  bool hdf5 = true;
+  bool hdf5_positions = false;
+  std::optional<MeshSequenceSpec> mesh_sequence;
+  std::optional<render::PngSinkOptions> png;  // frames in png/, rendered headless
+};
+
+struct Scenario {
+  std::filesystem::path file;
+  std::string name;
+  std::string description;
+  double duration_s = 0.0;
+  double frame_rate_hz = 30.0;
+  MeshSpec mesh;
+  FieldSpec field;
+  PhysiologyConfig physiology;
+  OutputsSpec outputs;
+};
+
+// Reads and checks a scenario file; every problem is one line (file:line:col: key: what).
+Scenario load_scenario(const std::filesystem::path& file,
+                       const std::filesystem::path& config_dir = default_config_dir());
+
+}  // namespace pneuma::engine

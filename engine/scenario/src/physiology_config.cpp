@@ -1,0 +1,273 @@
+#include "pneuma/engine/physiology_config.h"
+
+#include <cstdlib>
+#include <optional>
+
+#include "pneuma/core/error.h"
+
+namespace pneuma::engine {
+namespace {
+
+using config::Node;
+using physiology::Driver;
+using physiology::Mechanics;
+namespace kind = units::kind;
+
+const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control"};
+const std::vector<std::string> kModels{"single", "two_compartment"};
+
+// Every driver setting by name, so an action can patch any of them and a mode switch can
+// carry over the ones the new mode shares (rate, PEEP, timing).
+struct DriverFields {
+  std::optional<double> rate, ie_ratio, inspiratory_time, tidal_volume, muscle_pressure, pause, peep,
+      inspiratory_pressure;
+};
+
+DriverFields fields_of(const Driver& driver) {
+  DriverFields f;
+  std::visit([&](const auto& d) {
+    using T = std::decay_t<decltype(d)>;
+    f.rate = d.rate_hz;
+    if constexpr (std::is_same_v<T, physiology::Spontaneous>) {
+      f.ie_ratio = d.ie_ratio;
+      if (d.target_tidal_volume_m3 > 0) f.tidal_volume = d.target_tidal_volume_m3;
+      else f.muscle_pressure = d.amplitude_pa;
+    } else {
+      f.inspiratory_time = d.inspiratory_time_s;
+      f.peep = d.peep_pa;
+      if constexpr (std::is_same_v<T, physiology::VolumeControl>) {
+        f.tidal_volume = d.tidal_volume_m3;
+        f.pause = d.pause_time_s;
+      } else {
+        f.inspiratory_pressure = d.inspiratory_pressure_pa;
+      }
+    }
+  }, driver);
+  return f;
+}
+
+// Which keys each mode takes ("ie_ratio" and "inspiratory_time" are alternatives).
+bool mode_takes(const std::string& mode, const std::string& key) {
+  if (key == "rate") return true;
+  if (mode == "spontaneous") return key == "ie_ratio" || key == "tidal_volume" || key == "muscle_pressure";
+  if (key == "ie_ratio" || key == "inspiratory_time" || key == "peep") return true;
+  if (mode == "volume_control") return key == "tidal_volume" || key == "pause";
+  return key == "inspiratory_pressure";
+}
+
+const std::vector<std::string> kDriverKeys{"rate",  "ie_ratio", "inspiratory_time", "tidal_volume", "muscle_pressure",
+                                           "pause", "peep",     "inspiratory_pressure"};
+
+// Overlays the driver keys present in `n` on `f`, refusing keys the mode does not take.
+void overlay_driver(const Node& n, const std::string& mode, DriverFields& f) {
+  for (const std::string& key : kDriverKeys) {
+    if (n.has(key) && !mode_takes(mode, key)) n.fail_at(key, "not a setting of " + mode + " mode");
+  }
+  if (n.has("ie_ratio") && n.has("inspiratory_time")) n.fail_at("inspiratory_time", "give ie_ratio or inspiratory_time, not both");
+  if (n.has("tidal_volume") && n.has("muscle_pressure")) n.fail_at("muscle_pressure", "give tidal_volume or muscle_pressure, not both");
+  if (auto v = n.optional_quantity("rate", kind::rate)) f.rate = v;
+  if (auto v = n.optional_ratio("ie_ratio")) { f.ie_ratio = v; f.inspiratory_time.reset(); }
+  if (auto v = n.optional_quantity("inspiratory_time", kind::duration)) { f.inspiratory_time = v; f.ie_ratio.reset(); }
+  if (auto v = n.optional_quantity("tidal_volume", kind::volume)) { f.tidal_volume = v; f.muscle_pressure.reset(); }
+  if (auto v = n.optional_quantity("muscle_pressure", kind::pressure)) { f.muscle_pressure = v; f.tidal_volume.reset(); }
+  if (auto v = n.optional_quantity("pause", kind::duration)) f.pause = v;
+  if (auto v = n.optional_quantity("peep", kind::pressure)) f.peep = v;
+  if (auto v = n.optional_quantity("inspiratory_pressure", kind::pressure)) f.inspiratory_pressure = v;
+}
+
+double require(const Node& n, const std::optional<double>& value, const std::string& key, const units::Kind& k) {
+  if (!value) n.fail(std::string("missing key '") + key + "' (expected " + k.name + " such as '" + k.example + "')");
+  return *value;
+}
+
+Driver build_driver(const Node& n, const std::string& mode, const DriverFields& f) {
+  const double rate = require(n, f.rate, "rate", kind::rate);
+  Driver driver;
+  if (mode == "spontaneous") {
+    physiology::Spontaneous s;
+    s.rate_hz = rate;
+    if (!f.ie_ratio) n.fail("missing key 'ie_ratio' (expected a ratio such as '1:2')");
+    s.ie_ratio = *f.ie_ratio;
+    if (f.tidal_volume) s.target_tidal_volume_m3 = *f.tidal_volume;
+    else s.amplitude_pa = require(n, f.muscle_pressure, "tidal_volume' or 'muscle_pressure", kind::volume);
+    driver = s;
+  } else {
+    double ti = 0.0;
+    if (f.inspiratory_time) ti = *f.inspiratory_time;
+    else if (f.ie_ratio) ti = (1.0 / rate) * *f.ie_ratio / (1.0 + *f.ie_ratio);
+    else n.fail("missing key 'inspiratory_time' or 'ie_ratio' (expected a duration such as '1 s')");
+    const double peep = f.peep.value_or(0.0);
+    if (mode == "volume_control") {
+      driver = physiology::VolumeControl{rate, require(n, f.tidal_volume, "tidal_volume", kind::volume), ti,
+                                         f.pause.value_or(0.0), peep};
+    } else {
+      driver = physiology::PressureControl{
+          rate, require(n, f.inspiratory_pressure, "inspiratory_pressure", kind::pressure), ti, peep};
+    }
+  }
+  try {
+    physiology::validate(driver);
+  } catch (const ValueError& e) {
+    n.fail(e.what());
+  }
+  return driver;
+}
+
+// A compartment's elastic recoil: `compliance` (linear) or `pressure_volume_curve` (sigmoid).
+std::optional<physiology::Elasticity> read_elasticity(const Node& n) {
+  if (n.has("compliance") && n.has("pressure_volume_curve"))
+    n.fail_at("pressure_volume_curve", "give compliance or pressure_volume_curve, not both");
+  if (n.has("compliance")) return physiology::LinearCompliance{n.positive_quantity("compliance", kind::compliance)};
+  if (auto curve = n.optional_map("pressure_volume_curve")) {
+    physiology::SigmoidCompliance s;
+    s.lower_volume_m3 = curve->quantity("lower_volume", kind::volume);
+    s.volume_range_m3 = curve->positive_quantity("volume_range", kind::volume);
+    s.inflection_pressure_pa = curve->quantity("inflection_pressure", kind::pressure);
+    s.width_pa = curve->positive_quantity("width", kind::pressure);
+    s.relaxed_volume_m3 = curve->positive_quantity("relaxed_volume", kind::volume);
+    curve->finish();
+    if (!(s.relaxed_volume_m3 > s.lower_volume_m3 && s.relaxed_volume_m3 < s.lower_volume_m3 + s.volume_range_m3))
+      curve->fail_at("relaxed_volume", "expected a volume between lower_volume and lower_volume + volume_range");
+    return s;
+  }
+  return std::nullopt;
+}
+
+void overlay_compartment(const Node& n, physiology::Compartment& c, bool need_resistance) {
+  if (auto e = read_elasticity(n)) c.elasticity = *e;
+  if (auto r = n.optional_quantity("resistance", kind::resistance)) {
+    if (!(*r > 0)) n.fail_at("resistance", "expected a positive resistance");
+    c.resistance_pa_s_per_m3 = *r;
+  } else if (need_resistance) {
+    n.fail("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
+  }
+}
+
+// Mechanics keys: for `single` the compartment's elasticity and the airway resistance;
+// for `two_compartment` the airway resistance and compartments.upper/lower.
+void overlay_mechanics(const Node& n, const std::string& model, Mechanics& m, bool initial) {
+  if (model == "single") {
+    if (n.has("compartments")) n.fail_at("compartments", "only a two_compartment model has compartments");
+    physiology::Compartment& lung = m.compartments[0];
+    const bool had = n.has("compliance") || n.has("pressure_volume_curve");
+    if (auto e = read_elasticity(n)) lung.elasticity = *e;
+    if (initial && !had) n.fail("missing key 'compliance' (expected a compliance such as '0.1 L/cmH2O')");
+  } else {
+    for (const char* key : {"compliance", "pressure_volume_curve"}) {
+      if (n.has(key)) n.fail_at(key, "a two_compartment model sets this per compartment (compartments.upper, compartments.lower)");
+    }
+    auto compartments = n.optional_map("compartments");
+    if (initial && !compartments) n.fail("missing key 'compartments' (with 'upper' and 'lower')");
+    if (compartments) {
+      for (std::size_t i = 0; i < 2; ++i) {
+        const std::string name = i == 0 ? "upper" : "lower";
+        auto c = compartments->optional_map(name);
+        if (initial && !c) compartments->fail("missing key '" + name + "'");
+        if (!c) continue;
+        const bool had = c->has("compliance") || c->has("pressure_volume_curve");
+        if (initial && !had) c->fail("missing key 'compliance' (expected a compliance such as '0.05 L/cmH2O')");
+        overlay_compartment(*c, m.compartments[i], initial);
+        c->finish();
+      }
+      compartments->finish();
+    }
+  }
+  if (auto r = n.optional_quantity("resistance", kind::resistance)) {
+    if (!(*r > 0) && model == "single") n.fail_at("resistance", "expected a positive resistance");
+    if (!(*r >= 0)) n.fail_at("resistance", "expected a resistance >= 0");
+    m.airway_resistance_pa_s_per_m3 = *r;
+  } else if (initial) {
+    n.fail("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
+  }
+}
+
+Node with_preset(const Node& section, const std::filesystem::path& config_dir) {
+  auto preset = section.optional_string("preset");
+  if (!preset) return section;
+  std::filesystem::path file;
+  if (preset->find('/') != std::string::npos || preset->ends_with(".yaml")) {
+    file = section.directory("preset") / *preset;
+  } else {
+    file = config_dir / "physiology" / (*preset + ".yaml");
+  }
+  if (!std::filesystem::exists(file)) {
+    section.fail_at("preset", "no preset '" + *preset + "' (looked for " + file.string() +
+                                  "; shipped presets: healthy-adult, stiff-lung, obstructive)");
+  }
+  return section.with_fallback(Node::load_file(file));
+}
+
+}  // namespace
+
+std::filesystem::path default_config_dir() {
+  if (const char* dir = std::getenv("PNEUMA_CONFIG_DIR"); dir && *dir) return dir;
+  return PNEUMA_SOURCE_CONFIG_DIR;
+}
+
+PhysiologyConfig read_physiology(const Node& raw_section, double duration_s, const std::filesystem::path& config_dir) {
+  const Node section = with_preset(raw_section, config_dir);
+  PhysiologyConfig out;
+  out.options.duration_s = duration_s;
+
+  // Mechanics at t = 0.
+  const std::string model = section.has("model") ? section.choice("model", kModels) : "single";
+  Mechanics mechanics;
+  if (model == "single") {
+    mechanics.compartments = {physiology::Compartment{"lung", physiology::LinearCompliance{}, 0.0}};
+  } else {
+    mechanics.compartments = {physiology::Compartment{"upper", physiology::LinearCompliance{}, 0.0},
+                              physiology::Compartment{"lower", physiology::LinearCompliance{}, 0.0}};
+  }
+  overlay_mechanics(section, model, mechanics, true);
+  if (auto p = section.optional_quantity("transpulmonary_pressure_at_rest", kind::pressure))
+    mechanics.transpulmonary_pressure_at_rest_pa = *p;
+  if (auto f = section.optional_quantity("chest_wall_fraction", kind::fraction)) {
+    if (!(*f >= 0 && *f <= 1)) section.fail_at("chest_wall_fraction", "expected a fraction from 0 to 1");
+    mechanics.chest_wall_fraction = *f;
+  }
+
+  // Driver at t = 0.
+  const Node driver_node = section.map("driver");
+  const std::string mode = driver_node.choice("mode", kModes);
+  DriverFields fields;
+  overlay_driver(driver_node, mode, fields);
+  const Driver driver = build_driver(driver_node, mode, fields);
+  driver_node.finish();
+  out.protocol.settings.push_back(physiology::Setting{0.0, mechanics, driver});
+
+  // Timed actions, each a patch over the setting before it.
+  double previous_time = 0.0;
+  for (const Node& action : section.sequence("actions")) {
+    const double at = action.quantity("at", kind::duration);
+    if (!(at > previous_time)) action.fail_at("at", "expected a time after the previous action's and after 0 s");
+    if (at >= duration_s) action.fail_at("at", "expected a time within the scenario's duration");
+    previous_time = at;
+    physiology::Setting next = out.protocol.settings.back();
+    next.start_time_s = at;
+    std::string next_mode = physiology::mode_name(next.driver);
+    if (action.has("mode")) next_mode = action.choice("mode", kModes);
+    DriverFields f = fields_of(next.driver);
+    bool driver_changed = action.has("mode");
+    for (const auto& key : kDriverKeys) driver_changed = driver_changed || action.has(key);
+    if (driver_changed) {
+      overlay_driver(action, next_mode, f);
+      next.driver = build_driver(action, next_mode, f);
+    }
+    overlay_mechanics(action, model, next.mechanics, false);
+    action.finish();
+    out.protocol.settings.push_back(next);
+  }
+
+  out.options.output_rate_hz = section.has("output_rate") ? section.positive_quantity("output_rate", kind::rate) : 100.0;
+  if (auto solver = section.optional_map("solver")) {
+    out.options.solver.relative_tolerance = solver->positive_quantity("relative_tolerance", kind::number);
+    out.options.solver.absolute_tolerance_m3 = solver->positive_quantity("absolute_tolerance", kind::volume);
+    if (auto h = solver->optional_quantity("max_step", kind::duration)) out.options.solver.max_step_s = *h;
+    solver->finish();
+  }
+  section.accept("preset");
+  section.finish();
+  return out;
+}
+
+}  // namespace pneuma::engine

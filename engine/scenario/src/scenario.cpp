@@ -1,0 +1,178 @@
+#include "pneuma/engine/scenario.h"
+
+#include <fmt/format.h>
+
+#include <cctype>
+
+#include "pneuma/core/error.h"
+#include "pneuma/engine/config.h"
+#include "pneuma/render/camera.h"
+
+namespace pneuma::engine {
+namespace {
+
+namespace kind = units::kind;
+using config::Node;
+
+// Share of the total lung volume change by side: the right lung has three lobes and about
+// 55 % of the volume (Yamaguchi et al., Radiology 1997; textbook 55:45).
+double default_share(const std::string& lung) {
+  if (lung == "right") return 0.55;
+  if (lung == "left") return 0.45;
+  return 1.0;
+}
+
+MeshSpec read_mesh_spec(const Node& n) {
+  MeshSpec m;
+  if (n.has("phantom") && n.has("file")) n.fail_at("file", "give phantom or file, not both");
+  if (n.has("file")) {
+    m.phantom_lung.clear();
+    m.file = n.directory("file") / n.string("file");
+    if (!std::filesystem::exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
+    if (n.has("unit")) {
+      // A unit name ("mm") or a length ("0.5 mm"): the length of one file unit.
+      const std::string text = n.string("unit");
+      const bool bare = !text.empty() && std::isalpha(static_cast<unsigned char>(text.front()));
+      try {
+        m.metres_per_unit = units::parse(bare ? "1 " + text : text, kind::length);
+      } catch (const units::UnitError&) {
+        m.metres_per_unit = 0.0;
+      }
+      if (!(m.metres_per_unit > 0.0)) n.fail_at("unit", "expected a length unit such as 'mm' or '0.5 mm', got '" + text + "'");
+    }
+    m.export_original = n.has("export") && n.choice("export", {"original", "remeshed"}) == "original";
+    m.repair = n.boolean("repair", true);
+  } else {
+    if (n.has("phantom")) m.phantom_lung = n.choice("phantom", {"left", "right"});
+    m.edge_m = 4e-3;
+  }
+  if (n.has("edge")) m.edge_m = n.positive_quantity("edge", kind::length);
+  if (m.export_original && m.edge_m == 0.0) n.fail_at("export", "exporting the original mesh needs an 'edge' to remesh to");
+  m.share = default_share(m.phantom_lung);
+  if (auto share = n.optional_quantity("share", kind::fraction)) {
+    if (!(*share > 0.0 && *share <= 1.0)) n.fail_at("share", "expected a share in (0, 1], such as '0.55' or '55 %'");
+    m.share = *share;
+  }
+  if (n.has("reference_volume")) m.reference_volume_m3 = n.quantity("reference_volume", kind::volume);
+  n.finish();
+  return m;
+}
+
+FieldSpec read_field(const Node& n, const std::filesystem::path& config_dir) {
+  FieldSpec f;
+  if (n.has("tissue")) f.tissue = n.string("tissue");
+  const bool is_path = f.tissue.find('/') != std::string::npos || f.tissue.ends_with(".yaml");
+  f.tissue_file = is_path ? n.directory("tissue") / f.tissue : config_dir / "tissue" / (f.tissue + ".yaml");
+  if (!std::filesystem::exists(f.tissue_file)) {
+    n.fail_at("tissue", "no tissue '" + f.tissue + "' (looked for " + f.tissue_file.string() +
+                            "; shipped: healthy-upright, healthy-supine, fibrotic-lower-lobe)");
+  }
+  FieldOptions& o = f.options;
+  if (n.has("solver")) o.solver = parse_solver_kind(n.choice("solver", solver_names()));
+  if (n.has("tolerance")) o.tolerance = n.positive_quantity("tolerance", kind::number);
+  o.clique_hops = static_cast<int>(n.integer("clique", o.clique_hops, 1, kMaxCliqueHops));
+  if (!solver_takes_clique(o.solver, o.clique_hops)) {
+    n.fail_at("clique", fmt::format("the {} solver{} takes clique 1 only; add 'solver: shot' (or sweep, direct) "
+                                    "for a clique of {} hops",
+                                    solver_name(o.solver), n.has("solver") ? "" : " (the default)", o.clique_hops));
+  }
+  if (n.has("cache")) {
+    const std::string cache = n.string("cache");
+    if (cache == "off") {
+      f.cache = FieldCache::off;
+    } else if (cache != "auto") {
+      f.cache = FieldCache::file;
+      f.cache_file = n.directory("cache") / cache;
+    }
+  }
+  n.finish();
+  return f;
+}
+
+// A sink's section: `name: true|false` or `name: {options}`. Returns the options node when on.
+std::optional<Node> sink_section(const Node& outputs, const std::string& key, bool default_on, bool& on) {
+  on = default_on;
+  if (!outputs.has(key)) return std::nullopt;
+  if (!outputs.is_map(key)) {
+    on = outputs.boolean(key, default_on);
+    return std::nullopt;
+  }
+  if (auto options = outputs.optional_map(key)) {
+    on = options->boolean("enabled", true);
+    return options;
+  }
+  on = outputs.boolean(key, default_on);
+  return std::nullopt;
+}
+
+OutputsSpec read_outputs(const std::optional<Node>& n) {
+  OutputsSpec o;
+  if (!n) return o;
+  bool on = false;
+  if (auto s = sink_section(*n, "physiology_csv", true, on)) s->finish();
+  o.physiology_csv = on;
+  if (auto s = sink_section(*n, "gltf", true, on)) s->finish();
+  o.gltf = on;
+  if (auto s = sink_section(*n, "hdf5", true, on)) {
+    o.hdf5_positions = s->boolean("positions", false);
+    s->finish();
+  }
+  o.hdf5 = on;
+  auto sequence = sink_section(*n, "mesh_sequence", false, on);
+  if (on) {
+    MeshSequenceSpec spec;
+    if (sequence) {
+      if (sequence->has("format")) spec.format = sequence->choice("format", {"ply", "obj", "stl"});
+      spec.ascii = sequence->boolean("ascii", false);
+      spec.every = static_cast<std::size_t>(sequence->integer("every", 1, 1, 1000000));
+    }
+    o.mesh_sequence = spec;
+  }
+  if (sequence) sequence->finish();
+  auto png = sink_section(*n, "png", false, on);
+  if (on) {
+    render::PngSinkOptions spec;
+    if (png) {
+      render::RenderOptions& r = spec.render;
+      r.width = static_cast<int>(png->integer("width", r.width, 16, 8192));
+      r.height = static_cast<int>(png->integer("height", r.height, 16, 8192));
+      if (png->has("camera")) {
+        const std::string camera = png->choice("camera", {"anterior", "posterior", "left", "right", "oblique"});
+        render::parse_camera_preset(camera, r.camera);
+      }
+      spec.every = static_cast<std::size_t>(png->integer("every", 1, 1, 1000000));
+      r.overlay_magnitude = png->boolean("overlay", false);
+    }
+    o.png = spec;
+  }
+  if (png) png->finish();
+  n->finish();
+  return o;
+}
+
+}  // namespace
+
+Scenario load_scenario(const std::filesystem::path& file, const std::filesystem::path& config_dir) {
+  const Node root = Node::load_file(file);
+  Scenario s;
+  s.file = file;
+  s.name = root.optional_string("name").value_or(file.stem().string());
+  s.description = root.optional_string("description").value_or("");
+  s.duration_s = root.positive_quantity("duration", kind::duration);
+  if (auto frames = root.optional_map("frames")) {
+    if (frames->has("rate")) s.frame_rate_hz = frames->positive_quantity("rate", kind::rate);
+    frames->finish();
+  }
+  if (auto mesh = root.optional_map("mesh")) s.mesh = read_mesh_spec(*mesh);
+  if (auto field = root.optional_map("field")) {
+    s.field = read_field(*field, config_dir);
+  } else {
+    s.field.tissue_file = config_dir / "tissue" / (s.field.tissue + ".yaml");
+  }
+  s.physiology = read_physiology(root.map("physiology"), s.duration_s, config_dir);
+  s.outputs = read_outputs(root.optional_map("outputs"));
+  root.finish();
+  return s;
+}
+
+}  // namespace pneuma::engine
