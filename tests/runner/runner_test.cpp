@@ -138,6 +138,33 @@ TEST(Runner, ASecondRunReusesTheCachedField) {
   EXPECT_TRUE(pneuma::test::read_text(dir / "out/series.h5") == h5);
 }
 
+// A file mesh is looked up in the cache by its bytes and the options that shape it (unit, repair,
+// remeshing target, tissue), before it is repaired and remeshed: the same inputs reuse the field;
+// another target edge, or another file, computes it again.
+TEST(Runner, AFileMeshIsLookedUpByItsBytesAndOptions) {
+  TempDir dir;
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "left", "--edge", "10mm", "-o", (dir / "lung.ply").string()}).exit_code, 0);
+  const std::string small(kSmall);
+  const std::string phantom_line = "mesh: {phantom: right, edge: 12 mm, share: 55 %}";
+  auto with_mesh = [&](const std::string& mesh) {
+    return std::string(small).replace(small.find(phantom_line), phantom_line.size(), mesh);
+  };
+  const auto at_14 = dir.write("a.yaml", with_mesh("mesh: {file: lung.ply, unit: mm, edge: 14 mm, share: 45 %}"));
+  const auto at_16 = dir.write("b.yaml", with_mesh("mesh: {file: lung.ply, unit: mm, edge: 16 mm, share: 45 %}"));
+  auto run = [&](const std::filesystem::path& scenario) {
+    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string()});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.out.find("field reused from cache") != std::string::npos;
+  };
+  EXPECT_FALSE(run(at_14));
+  const std::string first = pneuma::test::read_text(dir / "out/series.h5");
+  EXPECT_TRUE(run(at_14));
+  EXPECT_TRUE(pneuma::test::read_text(dir / "out/series.h5") == first) << "a cached field gives the same bytes";
+  EXPECT_FALSE(run(at_16)) << "another remeshing target";
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "left", "--edge", "11mm", "-o", (dir / "lung.ply").string()}).exit_code, 0);
+  EXPECT_FALSE(run(at_16)) << "another file";
+}
+
 struct BadRun {
   const char* name;
   const char* yaml;
@@ -169,7 +196,13 @@ INSTANTIATE_TEST_SUITE_P(
         BadRun{"missing_mesh", "duration: 4 s\nmesh: {file: lungs.stl}\nphysiology: {preset: healthy-adult}\n",
                "2:14: mesh.file: no such file: {dir}/lungs.stl", 3},
         BadRun{"negative_duration", "duration: -4 s\nphysiology: {preset: healthy-adult}\n",
-               "1:11: duration: expected a positive duration, got '-4 s'", 3}),
+               "1:11: duration: expected a positive duration, got '-4 s'", 3},
+        BadRun{"clique_without_solver", "duration: 4 s\nfield: {clique: 2}\nphysiology: {preset: healthy-adult}\n",
+               "2:17: field.clique: the cg solver (the default) takes clique 1 only; add 'solver: shot' (or sweep, "
+               "direct) for a clique of 2 hops",
+               3},
+        BadRun{"clique_too_large", "duration: 4 s\nfield: {solver: shot, clique: 5}\nphysiology: {preset: healthy-adult}\n",
+               "2:31: field.clique: expected a whole number from 1 to 4, got '5'", 3}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 
 TEST(Runner, AreaGrowsByOneAreaUnitPerUnitScaleAtFirstOrder) {
