@@ -4,29 +4,26 @@
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
 
+#include "cgal_surface_mesh.h"
+#include "pneuma/core/error.h"
+
 namespace pneuma::mesh {
 namespace {
 
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
-using Point = Kernel::Point_3;
-using SurfaceMesh = CGAL::Surface_mesh<Point>;
+using detail::Kernel;
+using detail::Point;
+using detail::SurfaceMesh;
 namespace PMP = CGAL::Polygon_mesh_processing;
 
 // Vertex i of `mesh` becomes vertex i of the Surface_mesh (indices are kept).
-SurfaceMesh to_surface_mesh(const TriangleMesh& mesh) {
-  SurfaceMesh sm;
-  sm.reserve(static_cast<SurfaceMesh::size_type>(mesh.vertex_count()), 0,
-             static_cast<SurfaceMesh::size_type>(mesh.triangle_count()));
-  for (const auto& v : mesh.vertices) sm.add_vertex(Point(v.x(), v.y(), v.z()));
-  for (const auto& t : mesh.triangles) {
-    sm.add_face(SurfaceMesh::Vertex_index(t[0]), SurfaceMesh::Vertex_index(t[1]), SurfaceMesh::Vertex_index(t[2]));
-  }
-  return sm;
+SurfaceMesh polygon_mesh_or_throw(const TriangleMesh& mesh) {
+  std::optional<SurfaceMesh> sm = detail::to_surface_mesh(mesh);
+  if (!sm) throw ValueError("the surface is not a polygon mesh (non-manifold edges or vertices); repair it first");
+  return std::move(*sm);
 }
 
 }  // namespace
@@ -37,7 +34,7 @@ struct AreaMeter::Impl {
 };
 
 AreaMeter::AreaMeter(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
-  impl_->surface = to_surface_mesh(mesh);
+  impl_->surface = polygon_mesh_or_throw(mesh);
   for (std::size_t i = 0; i < mesh.vertex_count(); ++i) {
     impl_->vertices.emplace_back(static_cast<SurfaceMesh::size_type>(i));
   }
@@ -53,7 +50,7 @@ double AreaMeter::area(const std::vector<Eigen::Vector3d>& positions) {
   return PMP::area(impl_->surface);
 }
 
-bool self_intersects(const TriangleMesh& mesh) { return PMP::does_self_intersect(to_surface_mesh(mesh)); }
+bool self_intersects(const TriangleMesh& mesh) { return PMP::does_self_intersect(polygon_mesh_or_throw(mesh)); }
 
 std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source, const std::vector<Eigen::Vector3d>& field,
                                                    const std::vector<Eigen::Vector3d>& targets) {

@@ -10,6 +10,7 @@
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
+#include "hdf5_writer.h"
 
 namespace pneuma::engine {
 namespace {
@@ -82,76 +83,11 @@ std::string checksum(const FieldModel& m) {
   return h.hex();
 }
 
-// ---- HDF5 handles ----------------------------------------------------------------------------
-class Handle {
- public:
-  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  ~Handle() {
-    if (id_ >= 0) close_(id_);
-  }
-  Handle(Handle&& other) noexcept : id_(other.id_), close_(other.close_) { other.id_ = -1; }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  Handle& operator=(Handle&&) = delete;
-  hid_t get() const { return id_; }
-  bool ok() const { return id_ >= 0; }
-
- private:
-  hid_t id_;
-  herr_t (*close_)(hid_t);
-};
-
-void silence_hdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
-
-// ---- Writing ----------------------------------------------------------------------------------
-struct Writer {
-  std::string file;
-  [[noreturn]] void fail(const std::string& what) const { throw IoError(file + ": cannot write " + what); }
-  void check(herr_t status, const std::string& what) const {
-    if (status < 0) fail(what);
-  }
-
-  void string_attribute(hid_t object, const char* name, const std::string& value) const {
-    Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
-    check(H5Tset_size(type.get(), std::max<std::size_t>(1, value.size())), name);
-    check(H5Tset_strpad(type.get(), H5T_STR_NULLPAD), name);
-    Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-    Handle attr(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-    if (!attr.ok()) fail(name);
-    const std::string padded = value.empty() ? std::string(1, '\0') : value;
-    check(H5Awrite(attr.get(), type.get(), padded.data()), name);
-  }
-  template <typename T>
-  void number_attribute(hid_t object, const char* name, hid_t file_type, hid_t memory_type, T value) const {
-    Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-    Handle attr(H5Acreate2(object, name, file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-    if (!attr.ok()) fail(name);
-    check(H5Awrite(attr.get(), memory_type, &value), name);
-  }
-  void dataset(hid_t parent, const char* name, hid_t file_type, hid_t memory_type, const void* data, hsize_t rows,
-               hsize_t columns) const {
-    const std::array<hsize_t, 2> dims{rows, columns};
-    Handle space(H5Screate_simple(columns == 0 ? 1 : 2, dims.data(), nullptr), H5Sclose);
-    Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-    check(H5Pset_obj_track_times(dcpl.get(), 0), name);  // no timestamps: same inputs, same bytes
-    Handle set(H5Dcreate2(parent, name, file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose);
-    if (!set.ok()) fail(name);
-    if (rows > 0) check(H5Dwrite(set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
-  }
-  Handle group(hid_t parent, const char* name) const {
-    Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
-    check(H5Pset_obj_track_times(gcpl.get(), 0), name);
-    Handle g(H5Gcreate2(parent, name, H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose);
-    if (!g.ok()) fail(name);
-    return g;
-  }
-};
-
 void write_file(const std::filesystem::path& tmp, const std::string& shown, const FieldModel& m) {
-  const Writer w{shown};
-  Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+  const Hdf5Writer w{shown};
+  Hdf5Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
   w.check(H5Pset_obj_track_times(fcpl.get(), 0), "file properties");
-  Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose);
+  Hdf5Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose);
   if (!file.ok()) w.fail("the file");
   const hid_t root = file.get();
   const FieldMetadata& d = m.metadata;
@@ -171,12 +107,12 @@ void write_file(const std::filesystem::path& tmp, const std::string& shown, cons
   w.number_attribute(root, "residual", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, d.residual);
   const hsize_t nv = m.rest.vertices.size(), nt = m.rest.triangles.size();
   {
-    const Handle rest = w.group(root, "rest");
+    const Hdf5Handle rest = w.group(root, "rest");
     w.dataset(rest.get(), "vertices", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.rest.vertices.data(), nv, 3);
     w.dataset(rest.get(), "triangles", H5T_STD_U32LE, H5T_NATIVE_UINT32, m.rest.triangles.data(), nt, 3);
   }
   {
-    const Handle field = w.group(root, "field");
+    const Hdf5Handle field = w.group(root, "field");
     w.dataset(field.get(), "unit_displacement", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.unit_displacement.data(), nv, 3);
     w.dataset(field.get(), "force", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.force.data(), nv, 0);
     w.dataset(field.get(), "shear_modulus", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.shear_modulus_pa.data(), nv, 0);
@@ -194,13 +130,13 @@ struct Reader {
 
   std::string string_attribute(const char* name) const {
     if (H5Aexists(root, name) <= 0) refuse(std::string("no '") + name + "' attribute");
-    Handle attr(H5Aopen(root, name, H5P_DEFAULT), H5Aclose);
-    Handle type(H5Aget_type(attr.get()), H5Tclose);
+    Hdf5Handle attr(H5Aopen(root, name, H5P_DEFAULT), H5Aclose);
+    Hdf5Handle type(H5Aget_type(attr.get()), H5Tclose);
     if (!type.ok() || H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) != 0)
       refuse(std::string("attribute '") + name + "' is not a fixed-length string");
     const std::size_t size = H5Tget_size(type.get());
     std::string value(size, '\0');
-    Handle memory(H5Tcopy(H5T_C_S1), H5Tclose);
+    Hdf5Handle memory(H5Tcopy(H5T_C_S1), H5Tclose);
     H5Tset_size(memory.get(), size);
     H5Tset_strpad(memory.get(), H5T_STR_NULLPAD);
     if (H5Aread(attr.get(), memory.get(), value.data()) < 0) refuse(std::string("cannot read attribute '") + name + "'");
@@ -210,9 +146,9 @@ struct Reader {
   template <typename T>
   T number_attribute(const char* name, hid_t memory_type, H5T_class_t expected) const {
     if (H5Aexists(root, name) <= 0) refuse(std::string("no '") + name + "' attribute");
-    Handle attr(H5Aopen(root, name, H5P_DEFAULT), H5Aclose);
-    Handle type(H5Aget_type(attr.get()), H5Tclose);
-    Handle space(H5Aget_space(attr.get()), H5Sclose);
+    Hdf5Handle attr(H5Aopen(root, name, H5P_DEFAULT), H5Aclose);
+    Hdf5Handle type(H5Aget_type(attr.get()), H5Tclose);
+    Hdf5Handle space(H5Aget_space(attr.get()), H5Sclose);
     if (!type.ok() || H5Tget_class(type.get()) != expected || H5Sget_simple_extent_npoints(space.get()) != 1)
       refuse(std::string("attribute '") + name + "' has the wrong type");
     T value{};
@@ -224,10 +160,10 @@ struct Reader {
   std::size_t dataset(const char* path, hid_t memory_type, H5T_class_t expected, hsize_t columns,
                       std::vector<T>& out, std::size_t scalars_per_item) const {
     if (H5Lexists(root, path, H5P_DEFAULT) <= 0) refuse(std::string("no dataset ") + path);
-    Handle set(H5Dopen2(root, path, H5P_DEFAULT), H5Dclose);
+    Hdf5Handle set(H5Dopen2(root, path, H5P_DEFAULT), H5Dclose);
     if (!set.ok()) refuse(std::string("cannot open dataset ") + path);
-    Handle type(H5Dget_type(set.get()), H5Tclose);
-    Handle space(H5Dget_space(set.get()), H5Sclose);
+    Hdf5Handle type(H5Dget_type(set.get()), H5Tclose);
+    Hdf5Handle space(H5Dget_space(set.get()), H5Sclose);
     const int rank = H5Sget_simple_extent_ndims(space.get());
     std::array<hsize_t, 2> dims{0, 0};
     if (!type.ok() || H5Tget_class(type.get()) != expected || rank != (columns == 0 ? 1 : 2) ||
@@ -246,7 +182,7 @@ FieldModel read_file(const std::filesystem::path& path) {
   Reader r{shown};
   const htri_t is_hdf5 = H5Fis_hdf5(path.c_str());
   if (is_hdf5 <= 0) r.refuse("not an HDF5 file");
-  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  Hdf5Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) r.refuse("cannot open it as HDF5 (truncated or damaged)");
   r.root = file.get();
   if (H5Aexists(r.root, "format") <= 0) r.refuse("no 'format' attribute (an HDF5 file from elsewhere)");
@@ -335,12 +271,12 @@ FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tis
 }
 
 void save_field(const std::filesystem::path& path, const FieldModel& model) {
-  silence_hdf5();
+  silence_hdf5_errors();
   write_atomically(path, [&](const std::filesystem::path& tmp) { write_file(tmp, path.string(), model); });
 }
 
 FieldModel load_field(const std::filesystem::path& path) {
-  silence_hdf5();
+  silence_hdf5_errors();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path.string() + ": cannot open file");
   return read_file(path);

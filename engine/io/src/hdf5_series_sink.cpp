@@ -14,85 +14,53 @@
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
 #include "pneuma/engine/sinks.h"
+#include "hdf5_writer.h"
 
 namespace pneuma::engine {
 namespace {
 
-// Owns one HDF5 identifier and closes it with the matching function.
-class Handle {
- public:
-  Handle(hid_t id, herr_t (*close)(hid_t), const std::string& what) : id_(id), close_(close) {
-    if (id_ < 0) throw IoError("HDF5: cannot " + what);
-  }
-  ~Handle() {
-    if (id_ >= 0) close_(id_);
-  }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  operator hid_t() const { return id_; }
-
- private:
-  hid_t id_;
-  herr_t (*close_)(hid_t);
-};
+// A handle that must be valid: IoError "HDF5: cannot <what>" otherwise.
+Hdf5Handle checked(hid_t id, herr_t (*close)(hid_t), const std::string& what) {
+  if (id < 0) throw IoError("HDF5: cannot " + what);
+  return Hdf5Handle(id, close);
+}
 
 void check(herr_t status, const std::string& what) {
   if (status < 0) throw IoError("HDF5: cannot " + what);
 }
 
-// Creation properties without modification times: the same run writes the same bytes.
-hid_t untimed(hid_t property_class) {
-  const hid_t properties = H5Pcreate(property_class);
-  if (properties >= 0) H5Pset_obj_track_times(properties, false);
-  return properties;
-}
-
-hid_t create_group(hid_t parent, const char* name) {
-  Handle properties(untimed(H5P_GROUP_CREATE), H5Pclose, "create properties");
-  return H5Gcreate2(parent, name, H5P_DEFAULT, properties, H5P_DEFAULT);
-}
-
-void write_matrix(hid_t parent, const char* name, const void* data, hid_t type, hsize_t rows, hsize_t columns) {
-  const hsize_t dims[2] = {rows, columns};
-  Handle space(H5Screate_simple(columns ? 2 : 1, dims, nullptr), H5Sclose, "create a dataspace");
-  Handle properties(untimed(H5P_DATASET_CREATE), H5Pclose, "create properties");
-  Handle set(H5Dcreate2(parent, name, type, space, H5P_DEFAULT, properties, H5P_DEFAULT), H5Dclose,
-             std::string("create ") + name);
-  if (rows > 0) check(H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), std::string("write ") + name);
-}
-
 class Hdf5Sink final : public FrameSink {
  public:
   Hdf5Sink(std::filesystem::path h5, std::filesystem::path xdmf, bool positions)
-      : h5_path_(std::move(h5)), xdmf_path_(std::move(xdmf)), store_positions_(positions) {}
+      : h5_path_(std::move(h5)), xdmf_path_(std::move(xdmf)), store_positions_(positions), w_{h5_path_.string()} {}
   std::string name() const override { return "hdf5"; }
 
   void begin(const BreathingModel& model, const RunInfo& run) override {
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors become exceptions, not stderr noise
+    silence_hdf5_errors();
     vertex_count_ = model.rest.vertices.size();
     triangle_count_ = model.rest.triangles.size();
     frame_count_ = run.frame_count;
     pending_ = std::make_unique<PendingFile>(h5_path_);
-    Handle file_properties(untimed(H5P_FILE_CREATE), H5Pclose, "create properties");
+    Hdf5Handle file_properties(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+    w_.check(H5Pset_obj_track_times(file_properties, 0), "file properties");
     file_ = H5Fcreate(pending_->temporary().c_str(), H5F_ACC_TRUNC, file_properties, H5P_DEFAULT);
     if (file_ < 0) throw IoError(h5_path_.string() + ": cannot create the HDF5 file");
 
-    Handle rest(create_group(file_, "rest"), H5Gclose, "create /rest");
-    write_matrix(rest, "positions", model.rest.vertices.data(), H5T_NATIVE_DOUBLE, vertex_count_, 3);
-    write_matrix(rest, "triangles", model.rest.triangles.data(), H5T_NATIVE_UINT32, triangle_count_, 3);
-    Handle field(create_group(file_, "field"), H5Gclose, "create /field");
-    write_matrix(field, "unit_displacement", model.unit_displacement.data(), H5T_NATIVE_DOUBLE, vertex_count_, 3);
-    Handle scalar(H5Screate(H5S_SCALAR), H5Sclose, "create a dataspace");
-    Handle unit(H5Acreate2(field, "area_unit_m2", H5T_NATIVE_DOUBLE, scalar, H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
-                "create an attribute");
-    check(H5Awrite(unit, H5T_NATIVE_DOUBLE, &model.area_unit_m2), "write an attribute");
+    const Hdf5Handle rest = w_.group(file_, "rest");
+    w_.dataset(rest, "positions", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, model.rest.vertices.data(), vertex_count_, 3);
+    w_.dataset(rest, "triangles", H5T_STD_U32LE, H5T_NATIVE_UINT32, model.rest.triangles.data(), triangle_count_, 3);
+    const Hdf5Handle field = w_.group(file_, "field");
+    w_.dataset(field, "unit_displacement", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, model.unit_displacement.data(),
+               vertex_count_, 3);
+    w_.number_attribute(field, "area_unit_m2", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, model.area_unit_m2);
 
-    frames_group_ = create_group(file_, "frames");
+    frames_group_ = w_.group(file_, "frames").release();  // closed in close()
     if (store_positions_ && frame_count_ > 0) {
       const hsize_t dims[3] = {frame_count_, vertex_count_, 3};
       const hsize_t chunk[3] = {1, std::max<hsize_t>(1, vertex_count_), 3};
-      Handle space(H5Screate_simple(3, dims, nullptr), H5Sclose, "create a dataspace");
-      Handle properties(untimed(H5P_DATASET_CREATE), H5Pclose, "create properties");
+      const Hdf5Handle space = checked(H5Screate_simple(3, dims, nullptr), H5Sclose, "create a dataspace");
+      const Hdf5Handle properties = checked(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create properties");
+      check(H5Pset_obj_track_times(properties, 0), "create properties");
       check(H5Pset_chunk(properties, 3, chunk), "set chunking");
       positions_ = H5Dcreate2(frames_group_, "positions", H5T_NATIVE_DOUBLE, space, H5P_DEFAULT, properties,
                               H5P_DEFAULT);
@@ -109,9 +77,9 @@ class Hdf5Sink final : public FrameSink {
     area_.push_back(f.area_m2);
     if (positions_ >= 0) {
       const hsize_t start[3] = {f.index, 0, 0}, count[3] = {1, vertex_count_, 3};
-      Handle file_space(H5Dget_space(positions_), H5Sclose, "get a dataspace");
+      const Hdf5Handle file_space = checked(H5Dget_space(positions_), H5Sclose, "get a dataspace");
       check(H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr), "select a frame");
-      Handle memory(H5Screate_simple(3, count, nullptr), H5Sclose, "create a dataspace");
+      const Hdf5Handle memory = checked(H5Screate_simple(3, count, nullptr), H5Sclose, "create a dataspace");
       check(H5Dwrite(positions_, H5T_NATIVE_DOUBLE, memory, file_space, H5P_DEFAULT, f.positions.data()),
             "write frame positions");
     }
@@ -119,11 +87,11 @@ class Hdf5Sink final : public FrameSink {
 
   std::vector<std::filesystem::path> end() override {
     const hsize_t n = time_.size();
-    write_matrix(frames_group_, "time_s", time_.data(), H5T_NATIVE_DOUBLE, n, 0);
-    write_matrix(frames_group_, "scale", scale_.data(), H5T_NATIVE_DOUBLE, n, 0);
-    write_matrix(frames_group_, "lung_volume_m3", lung_volume_.data(), H5T_NATIVE_DOUBLE, n, 0);
-    write_matrix(frames_group_, "mesh_volume_m3", mesh_volume_.data(), H5T_NATIVE_DOUBLE, n, 0);
-    write_matrix(frames_group_, "area_m2", area_.data(), H5T_NATIVE_DOUBLE, n, 0);
+    w_.dataset(frames_group_, "time_s", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, time_.data(), n, 0);
+    w_.dataset(frames_group_, "scale", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, scale_.data(), n, 0);
+    w_.dataset(frames_group_, "lung_volume_m3", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, lung_volume_.data(), n, 0);
+    w_.dataset(frames_group_, "mesh_volume_m3", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, mesh_volume_.data(), n, 0);
+    w_.dataset(frames_group_, "area_m2", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, area_.data(), n, 0);
     close();
     pending_->commit();
     write_stream_atomically(xdmf_path_, false, [&](std::ostream& out) { write_xdmf(out); });
@@ -185,6 +153,7 @@ class Hdf5Sink final : public FrameSink {
 
   std::filesystem::path h5_path_, xdmf_path_;
   bool store_positions_;
+  Hdf5Writer w_;
   std::unique_ptr<PendingFile> pending_;
   hid_t file_ = -1, frames_group_ = -1, positions_ = -1;
   hsize_t vertex_count_ = 0, triangle_count_ = 0, frame_count_ = 0;
