@@ -33,9 +33,6 @@ double check_load(std::span<const double> load, std::size_t node_count) {
 namespace {
 
 using detail::check_load;
-using detail::IndexedMaxHeap;
-
-
 
 template <bool Count>
 SolveResult shot_unshot(const TransferOperator& op, std::span<const double> load, double tolerance) {
@@ -47,38 +44,10 @@ SolveResult shot_unshot(const TransferOperator& op, std::span<const double> load
   if (max_f == 0.0) return out;
   const double threshold = tolerance * max_f;
   std::vector<double> unshot(load.begin(), load.end());
-  IndexedMaxHeap heap(op.node_count);
-  for (std::uint32_t k = 0; k < op.node_count; ++k) {
-    if (unshot[k] > threshold) heap.push(k, unshot[k]);
-  }
-  // Nodes at or below the threshold stay out of the heap until they rise above it, so the
-  // heap empties exactly when max UnShot <= tol * max f.
-  std::uint64_t shots = 0;
   OperationCounts c;
   const std::uint64_t shot_limit = 100'000ULL * std::max<std::uint64_t>(op.node_count, 1);
-  while (!heap.empty()) {
-    const std::uint32_t k = heap.top();
-    heap.pop();
-    const double u = unshot[k];
-    unshot[k] = 0.0;                             // eq. 4.7
-    out.shot[k] += u * op.self_share[k];         // eq. 4.6
-    if constexpr (Count) {
-      ++c.multiplications;
-      ++c.additions;
-    }
-    for (std::uint64_t j = op.offset[k]; j < op.offset[k + 1]; ++j) {  // eq. 4.5
-      const std::uint32_t n = op.target[j];
-      const double value = unshot[n] + u * op.share[j];
-      if constexpr (Count) {
-        ++c.multiplications;
-        ++c.additions;
-      }
-      unshot[n] = value;
-      if (heap.contains(n)) heap.update(n, value);
-      else if (value > threshold) heap.push(n, value);
-    }
-    if (++shots > shot_limit) throw Error(ExitCode::failure, "Shot/UnShot did not converge");
-  }
+  const std::uint64_t shots = detail::shoot_until_below<Count>(op, unshot, out.shot, threshold, shot_limit, c,
+                                                               [](std::uint64_t, const auto&, const auto&) {});
   double max_unshot = 0.0;
   for (double u : unshot) max_unshot = std::max(max_unshot, u);
   out.report.shots = shots;
@@ -193,7 +162,6 @@ Direct_Eigen::Direct_Eigen(std::shared_ptr<const TransferOperator> op, const Sol
 }
 
 Direct_Eigen::~Direct_Eigen() = default;
-
 
 SolveResult Direct_Eigen::solve(std::span<const double> load) const {
   const auto start = Clock::now();

@@ -95,7 +95,7 @@ ConjugateGradient_Schur::ConjugateGradient_Schur(std::shared_ptr<const FieldGrap
 ConjugateGradient_Schur::~ConjugateGradient_Schur() = default;
 
 SolveResult ConjugateGradient_Schur::solve(std::span<const double> load) const {
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   const Impl& m = *impl_;
   const std::vector<double>& weight = m.graph->weight();
   const std::size_t nv = m.mass_count;

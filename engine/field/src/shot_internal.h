@@ -6,6 +6,8 @@
 #include <span>
 #include <vector>
 #include "pneuma/core/error.h"
+#include "pneuma/engine/field_graph.h"
+#include "pneuma/engine/field_solver.h"
 
 namespace pneuma::engine::detail {
 
@@ -84,5 +86,48 @@ class IndexedMaxHeap {
   std::vector<Item> items_;
   std::vector<std::uint32_t> position_;
 };
+
+// The Shot/UnShot iteration (eq. 4.5 - 4.7): shoots the node holding the most UnShot until
+// none holds more than `threshold`. `unshot` starts as the load; `shot` (zeros, same size)
+// receives the result. With Count, every addition and multiplication is counted into
+// `counts`. `after_shot(steps, heap, unshot)` runs after each shot (the comparator's trace).
+// Throws Error(failure) past `step_limit` shots. Returns the number of shots.
+template <bool Count, typename AfterShot>
+std::uint64_t shoot_until_below(const TransferOperator& op, std::vector<double>& unshot, std::vector<double>& shot,
+                                double threshold, std::uint64_t step_limit, OperationCounts& counts,
+                                AfterShot&& after_shot) {
+  IndexedMaxHeap heap(op.node_count);
+  // Nodes at or below the threshold stay out of the heap until they rise above it, so the
+  // heap empties exactly when max UnShot <= threshold.
+  for (std::uint32_t k = 0; k < op.node_count; ++k) {
+    if (unshot[k] > threshold) heap.push(k, unshot[k]);
+  }
+  std::uint64_t steps = 0;
+  while (!heap.empty()) {
+    const std::uint32_t k = heap.top();
+    heap.pop();
+    const double u = unshot[k];
+    unshot[k] = 0.0;                  // eq. 4.7
+    shot[k] += u * op.self_share[k];  // eq. 4.6
+    if constexpr (Count) {
+      ++counts.multiplications;
+      ++counts.additions;
+    }
+    for (std::uint64_t j = op.offset[k]; j < op.offset[k + 1]; ++j) {  // eq. 4.5
+      const std::uint32_t n = op.target[j];
+      const double value = unshot[n] + u * op.share[j];
+      if constexpr (Count) {
+        ++counts.multiplications;
+        ++counts.additions;
+      }
+      unshot[n] = value;
+      if (heap.contains(n)) heap.update(n, value);
+      else if (value > threshold) heap.push(n, value);
+    }
+    if (++steps > step_limit) throw Error(ExitCode::failure, "Shot/UnShot did not converge");
+    after_shot(steps, heap, unshot);
+  }
+  return steps;
+}
 
 }  // namespace pneuma::engine::detail

@@ -82,10 +82,10 @@ Proposed_Santhanam::Proposed_Santhanam(std::shared_ptr<const TransferOperator> o
   if (!op_) throw ValueError("Proposed_Santhanam: no transfer operator");
 }
 
-// The production loop of ShotUnshot_Santhanam (field_solver.cpp) with the same heap, so the
+// The production loop of ShotUnshot_Santhanam (detail::shoot_until_below, one copy), so the
 // shots come in the same order and the result is bit-identical; only the trace is added.
 ComparatorResult Proposed_Santhanam::solve(std::span<const double> vertex_load, const ComparatorOptions& o) const {
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   const TransferOperator& op = *op_;
   const double max_f = detail::check_load(vertex_load, op.mass_count);
   ComparatorResult out;
@@ -95,10 +95,6 @@ ComparatorResult Proposed_Santhanam::solve(std::span<const double> vertex_load, 
   const double threshold = o.tolerance * max_f;
   std::vector<double> unshot(op.node_count, 0.0), shot(op.node_count, 0.0);
   std::copy(vertex_load.begin(), vertex_load.end(), unshot.begin());
-  detail::IndexedMaxHeap heap(op.node_count);
-  for (std::uint32_t k = 0; k < op.node_count; ++k) {
-    if (unshot[k] > threshold) heap.push(k, unshot[k]);
-  }
   detail::TraceSampler sampler;
   OperationCounts c;
   std::uint64_t steps = 0;
@@ -107,29 +103,14 @@ ComparatorResult Proposed_Santhanam::solve(std::span<const double> vertex_load, 
     sampler.record(out.trace, steps, c.additions + c.multiplications, residual / max_f, probe);
   };
   record(max_f);
-  while (!heap.empty()) {
-    const std::uint32_t k = heap.top();
-    heap.pop();
-    const double u = unshot[k];
-    unshot[k] = 0.0;                    // eq. 4.7
-    shot[k] += u * op.self_share[k];    // eq. 4.6
-    ++c.multiplications;
-    ++c.additions;
-    for (std::uint64_t j = op.offset[k]; j < op.offset[k + 1]; ++j) {  // eq. 4.5
-      const std::uint32_t n = op.target[j];
-      const double value = unshot[n] + u * op.share[j];
-      ++c.multiplications;
-      ++c.additions;
-      unshot[n] = value;
-      if (heap.contains(n)) heap.update(n, value);
-      else if (value > threshold) heap.push(n, value);
-    }
-    ++steps;
-    if (steps > o.step_limit) throw Error(ExitCode::failure, "Shot/UnShot did not converge");
-    // The residual is the largest UnShot: the heap's top, or (once the heap is empty) at most
-    // the threshold; the exact value is computed for the last record below.
-    if (!heap.empty() && sampler.due(steps)) record(unshot[heap.top()]);
-  }
+  // The residual is the largest UnShot: the heap's top, or (once the heap is empty) at most
+  // the threshold; the exact value is computed for the last record below.
+  steps = detail::shoot_until_below<true>(op, unshot, shot, threshold, o.step_limit, c,
+                                          [&](std::uint64_t step, const detail::IndexedMaxHeap& heap,
+                                              const std::vector<double>& u) {
+                                            steps = step;
+                                            if (!heap.empty() && sampler.due(step)) record(u[heap.top()]);
+                                          });
   double max_unshot = 0.0;
   for (double u : unshot) max_unshot = std::max(max_unshot, u);
   sampler.force_next();

@@ -19,7 +19,7 @@ CumulativeSweeps::CumulativeSweeps(std::shared_ptr<const TransferOperator> op, s
 }
 
 ComparatorResult CumulativeSweeps::solve(std::span<const double> vertex_load, const ComparatorOptions& o) const {
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   const TransferOperator& op = *op_;
   const double max_f = detail::check_load(vertex_load, op.mass_count);
   ComparatorResult out;

@@ -258,7 +258,7 @@ MassSpring_Witkin::MassSpring_Witkin(SpringNetwork network, double tolerance) : 
 }
 
 ComparatorResult MassSpring_Witkin::solve(std::span<const double> load, const ComparatorOptions& o) const {
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   const SpringNetwork& n = network_;
   detail::check_load(load, n.vertex_count);
   ComparatorResult out;

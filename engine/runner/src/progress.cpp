@@ -9,7 +9,7 @@ namespace pneuma::engine {
 
 Progress::Progress(std::string label, std::size_t total, bool quiet)
     : label_(std::move(label)), total_(total), quiet_(quiet), terminal_(::isatty(STDERR_FILENO) != 0),
-      start_(std::chrono::steady_clock::now()) {}
+      start_(Clock::now()) {}
 
 Progress::~Progress() {
   if (terminal_ && !quiet_ && !finished_ && last_percent_ >= 0) std::fputc('\n', stderr);  // keep the shell tidy
