@@ -33,7 +33,7 @@ physiology::SimulationResult simulate_or_explain(const Scenario& s, double outpu
 
 mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {
   mesh::PhantomOptions phantom;
-  phantom.lung = spec.phantom_lung == "left" ? mesh::Lung::left : mesh::Lung::right;
+  phantom.lung = *spec.phantom;
   phantom.edge_length_m = edge_m;
   return mesh::make_lung_phantom(phantom);
 }
@@ -60,7 +60,7 @@ mesh::TriangleMesh remeshed(mesh::TriangleMesh surface, double edge_m) {
 CachedField field_model(const Scenario& s, double edge_m, const std::filesystem::path& output_dir) {
   const Tissue tissue = load_tissue(s.field.tissue_file);
   const FieldOptions& field = s.field.options;
-  const bool from_file = s.mesh.phantom_lung.empty();
+  const bool from_file = !s.mesh.phantom;
   if (s.field.cache == FieldCache::off) {
     const mesh::TriangleMesh surface =
         from_file ? remeshed(file_surface(s.mesh), edge_m) : phantom_surface(s.mesh, edge_m);

@@ -16,9 +16,9 @@ using config::Node;
 
 // Share of the total lung volume change by side: the right lung has three lobes and about
 // 55 % of the volume (Yamaguchi et al., Radiology 1997; textbook 55:45).
-double default_share(const std::string& lung) {
-  if (lung == "right") return 0.55;
-  if (lung == "left") return 0.45;
+double default_share(const std::optional<mesh::Lung>& lung) {
+  if (lung == mesh::Lung::right) return 0.55;
+  if (lung == mesh::Lung::left) return 0.45;
   return 1.0;
 }
 
@@ -26,7 +26,7 @@ MeshSpec read_mesh_spec(const Node& n) {
   MeshSpec m;
   if (n.has("phantom") && n.has("file")) n.fail_at("file", "give phantom or file, not both");
   if (n.has("file")) {
-    m.phantom_lung.clear();
+    m.phantom.reset();
     m.file = n.directory("file") / n.string("file");
     if (!std::filesystem::exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
     if (n.has("unit")) {
@@ -43,12 +43,12 @@ MeshSpec read_mesh_spec(const Node& n) {
     m.export_original = n.has("export") && n.choice("export", {"original", "remeshed"}) == "original";
     m.repair = n.boolean("repair", true);
   } else {
-    if (n.has("phantom")) m.phantom_lung = n.choice("phantom", {"left", "right"});
+    if (n.has("phantom")) m.phantom = n.choice("phantom", {"left", "right"}) == "left" ? mesh::Lung::left : mesh::Lung::right;
     m.edge_m = 4e-3;
   }
   if (n.has("edge")) m.edge_m = n.positive_quantity("edge", kind::length);
   if (m.export_original && m.edge_m == 0.0) n.fail_at("export", "exporting the original mesh needs an 'edge' to remesh to");
-  m.share = default_share(m.phantom_lung);
+  m.share = default_share(m.phantom);
   if (auto share = n.optional_quantity("share", kind::fraction)) {
     if (!(*share > 0.0 && *share <= 1.0)) n.fail_at("share", "expected a share in (0, 1], such as '0.55' or '55 %'");
     m.share = *share;

@@ -9,13 +9,14 @@
 #include "pneuma/engine/field.h"
 #include "pneuma/engine/physiology_config.h"
 #include "pneuma/engine/sinks.h"
+#include "pneuma/mesh/phantom.h"
 #include "pneuma/render/png_sink.h"
 
 namespace pneuma::engine {
 
 struct MeshSpec {
   // The built-in phantom (`phantom: left|right`) or a file read with its unit.
-  std::string phantom_lung = "right";  // empty when `file` is set
+  std::optional<mesh::Lung> phantom = mesh::Lung::right;  // nullopt when `file` is set
   std::filesystem::path file;
   double metres_per_unit = 1e-3;
   double edge_m = 0.0;                  // phantom resolution / remeshing target (0: keep the file's mesh)
