@@ -1,6 +1,13 @@
 // CGAL answers for the runner: per-frame area, self-intersection, closest-point transfer.
 #include "pneuma/mesh/surface_queries.h"
 
+// CGAL's parallel algorithms (here does_self_intersect<Parallel_tag>) are compiled in only with
+// this macro, which CGAL's CMake sets for targets that link CGAL::TBB_support; this target links
+// TBB::tbb itself (mesh/CMakeLists.txt).
+#ifndef CGAL_LINKED_WITH_TBB
+#define CGAL_LINKED_WITH_TBB
+#endif
+
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
@@ -53,7 +60,13 @@ double AreaMeter::area(const std::vector<Eigen::Vector3d>& positions) {
   return PMP::area(impl_->surface);
 }
 
-bool self_intersects(const TriangleMesh& mesh) { return PMP::does_self_intersect(to_surface_mesh(mesh)); }
+bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency) {
+  const SurfaceMesh surface = to_surface_mesh(mesh);
+  // Parallel: CGAL splits the face boxes (shuffled with a fixed seed) into subtrees handled by TBB
+  // tasks; the first intersection found stops every task. A yes/no answer: the same either way.
+  if (concurrency == Concurrency::parallel) return PMP::does_self_intersect<CGAL::Parallel_tag>(surface);
+  return PMP::does_self_intersect<CGAL::Sequential_tag>(surface);
+}
 
 std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source, const std::vector<Eigen::Vector3d>& field,
                                                    const std::vector<Eigen::Vector3d>& targets) {

@@ -55,3 +55,21 @@ TEST(SurfaceQueries, SelfIntersectionIsFound) {
   sphere.vertices[0] = -1.5 * sphere.vertices[0];  // pushed through to the far side
   EXPECT_TRUE(self_intersects(sphere));
 }
+
+TEST(SurfaceQueries, ParallelSelfIntersectionGivesTheSerialAnswer) {
+  // Large enough (> 2000 faces) for CGAL to split the boxes into parallel subtrees.
+  TriangleMesh sphere = make_icosphere(0.1, 5);
+  EXPECT_FALSE(self_intersects(sphere, Concurrency::serial));
+  EXPECT_FALSE(self_intersects(sphere, Concurrency::parallel));
+  for (std::size_t v : {0u, 5000u, 10000u}) {
+    TriangleMesh dented = sphere;
+    dented.vertices[v] = -1.5 * dented.vertices[v];  // pushed through the far side
+    EXPECT_TRUE(self_intersects(dented, Concurrency::serial)) << v;
+    EXPECT_TRUE(self_intersects(dented, Concurrency::parallel)) << v;
+  }
+  // Pushed outwards: no intersection, however far.
+  TriangleMesh bumped = sphere;
+  bumped.vertices[77] *= 3.0;
+  EXPECT_FALSE(self_intersects(bumped, Concurrency::serial));
+  EXPECT_FALSE(self_intersects(bumped, Concurrency::parallel));
+}

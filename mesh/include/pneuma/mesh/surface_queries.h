@@ -25,9 +25,12 @@ class AreaMeter {
   std::unique_ptr<Impl> impl_;
 };
 
+enum class Concurrency { serial, parallel };
+
 // True when two faces of the surface intersect other than along shared edges or vertices
-// (CGAL::Polygon_mesh_processing::does_self_intersect).
-bool self_intersects(const TriangleMesh& mesh);
+// (CGAL::Polygon_mesh_processing::does_self_intersect; parallel: with TBB on every core, the
+// same answer as serial).
+bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency = Concurrency::parallel);
 
 // A per-vertex field of `source` carried to `targets`: each target point takes the value
 // interpolated (barycentrically) at its closest point on the source surface (CGAL AABB tree).

@@ -1,0 +1,109 @@
+// No include guard and no includes: the including file includes <immintrin.h>, <cstddef>,
+// <cstdint> and deformed_surface_internal.h first, then this file inside its own namespace.
+// The chunk kernel of DeformedSurface (deformed_surface.h), compiled twice: in
+// deformed_surface.cpp for the baseline instruction set (SSE2 on x86-64) and in
+// deformed_surface_avx2.cpp with -mavx2. Each includes this file inside a namespace of its own.
+// It uses no inline function from any other header (no Eigen, no std algorithms), so the two
+// builds cannot be merged by the linker (one definition rule) into code the processor lacks.
+//
+// Arithmetic: IEEE multiplies, adds, subtracts and square roots in a fixed order, in 4 lanes
+// (one AVX register, or two SSE2 registers), never FMA (the AVX2 unit is built without -mfma
+// and with -ffp-contract=off): the same bits on either instruction set.
+// Chunk `k`: positions of its vertex block (into `out` when not null, and into `scratch`), its
+// halo vertices (into `scratch` after the block), then its triangles; sums[0] = 6 V, sums[1] = 2 A
+// of its triangles.
+inline void run_chunk(const KernelData& d, std::size_t k, double s, double* out, double* scratch, double* sums) {
+  const std::size_t v0 = k * d.block;
+  const std::size_t v1 = v0 + d.block < d.vertex_count ? v0 + d.block : d.vertex_count;
+  const std::size_t m = 3 * (v1 - v0);
+  const double* r = d.rest + 3 * v0;
+  const double* u = d.u + 3 * v0;
+  double* S = scratch;
+  // 1. The block: p = r + s u, one multiply and one add per coordinate.
+  std::size_t i = 0;
+  if (out) {
+    double* o = out + 3 * v0;
+#if defined(__AVX__)
+    constexpr std::uintptr_t align = 32;
+#else
+    constexpr std::uintptr_t align = 16;
+#endif
+    for (; i < m && reinterpret_cast<std::uintptr_t>(o + i) % align != 0; ++i) {
+      const double p = r[i] + s * u[i];
+      o[i] = p;
+      S[i] = p;
+    }
+#if defined(__AVX__)
+    const __m256d sv = _mm256_set1_pd(s);
+    for (; i + 4 <= m; i += 4) {
+      const __m256d p = _mm256_add_pd(_mm256_loadu_pd(r + i), _mm256_mul_pd(sv, _mm256_loadu_pd(u + i)));
+      _mm256_stream_pd(o + i, p);
+      _mm256_storeu_pd(S + i, p);
+    }
+#elif defined(__SSE2__)
+    const __m128d sv = _mm_set1_pd(s);
+    for (; i + 2 <= m; i += 2) {
+      const __m128d p = _mm_add_pd(_mm_loadu_pd(r + i), _mm_mul_pd(sv, _mm_loadu_pd(u + i)));
+      _mm_stream_pd(o + i, p);
+      _mm_storeu_pd(S + i, p);
+    }
+#endif
+    for (; i < m; ++i) {
+      const double p = r[i] + s * u[i];
+      o[i] = p;
+      S[i] = p;
+    }
+  } else {
+    for (; i < m; ++i) S[i] = r[i] + s * u[i];
+  }
+  // 2. The halo: vertices of this chunk's triangles outside its block.
+  {
+    const std::uint32_t* h = d.halo + d.halo_begin[k];
+    const std::size_t count = d.halo_begin[k + 1] - d.halo_begin[k];
+    double* q = S + m;
+    for (std::size_t j = 0; j < count; ++j, q += 3) {
+      const std::size_t g = 3 * static_cast<std::size_t>(h[j]);
+      q[0] = d.rest[g] + s * d.u[g];
+      q[1] = d.rest[g + 1] + s * d.u[g + 1];
+      q[2] = d.rest[g + 2] + s * d.u[g + 2];
+    }
+  }
+  // 3. The triangles, 4 at a time (lane j takes triangles 4 i + j). Indices are offsets into
+  // the scratch (3 x the local vertex), grouped by 4: a0 a1 a2 a3 b0 .. b3 c0 .. c3.
+  const std::uint32_t* t = d.triangles + 3 * d.triangle_begin[k];
+  const std::size_t groups = (d.triangle_begin[k + 1] - d.triangle_begin[k]) / 4;
+  typedef double v4d __attribute__((vector_size(32)));
+  const v4d ox = {d.origin[0], d.origin[0], d.origin[0], d.origin[0]};
+  const v4d oy = {d.origin[1], d.origin[1], d.origin[1], d.origin[1]};
+  const v4d oz = {d.origin[2], d.origin[2], d.origin[2], d.origin[2]};
+  v4d volume = {0.0, 0.0, 0.0, 0.0};
+  v4d area = {0.0, 0.0, 0.0, 0.0};
+  for (std::size_t g = 0; g < groups; ++g, t += 12) {
+    const double *a0 = S + t[0], *a1 = S + t[1], *a2 = S + t[2], *a3 = S + t[3];
+    const double *b0 = S + t[4], *b1 = S + t[5], *b2 = S + t[6], *b3 = S + t[7];
+    const double *c0 = S + t[8], *c1 = S + t[9], *c2 = S + t[10], *c3 = S + t[11];
+    const v4d ax = {a0[0], a1[0], a2[0], a3[0]}, ay = {a0[1], a1[1], a2[1], a3[1]}, az = {a0[2], a1[2], a2[2], a3[2]};
+    const v4d bx = {b0[0], b1[0], b2[0], b3[0]}, by = {b0[1], b1[1], b2[1], b3[1]}, bz = {b0[2], b1[2], b2[2], b3[2]};
+    const v4d cx = {c0[0], c1[0], c2[0], c3[0]}, cy = {c0[1], c1[1], c2[1], c3[1]}, cz = {c0[2], c1[2], c2[2], c3[2]};
+    const v4d ex = bx - ax, ey = by - ay, ez = bz - az;
+    const v4d fx = cx - ax, fy = cy - ay, fz = cz - az;
+    const v4d nx = ey * fz - ez * fy;
+    const v4d ny = ez * fx - ex * fz;
+    const v4d nz = ex * fy - ey * fx;
+    const v4d nn = (nx * nx + ny * ny) + nz * nz;
+#if defined(__AVX__)
+    area += (v4d)_mm256_sqrt_pd((__m256d)nn);
+#elif defined(__SSE2__)
+    const __m128d nn_lo = {nn[0], nn[1]}, nn_hi = {nn[2], nn[3]};
+    const __m128d lo = _mm_sqrt_pd(nn_lo), hi = _mm_sqrt_pd(nn_hi);
+    const v4d root = {lo[0], lo[1], hi[0], hi[1]};
+    area += root;
+#else
+    const v4d root = {__builtin_sqrt(nn[0]), __builtin_sqrt(nn[1]), __builtin_sqrt(nn[2]), __builtin_sqrt(nn[3])};
+    area += root;
+#endif
+    volume += ((ax - ox) * nx + (ay - oy) * ny) + (az - oz) * nz;
+  }
+  sums[0] = (volume[0] + volume[1]) + (volume[2] + volume[3]);
+  sums[1] = (area[0] + area[1]) + (area[2] + area[3]);
+}
