@@ -28,9 +28,11 @@ class AreaMeter {
 enum class Concurrency { serial, parallel };
 
 // True when two faces of the surface intersect other than along shared edges or vertices
-// (CGAL::Polygon_mesh_processing::does_self_intersect; parallel: with TBB on every core, the
-// same answer as serial).
-bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency = Concurrency::parallel);
+// (CGAL::Polygon_mesh_processing::does_self_intersect). parallel: CGAL's TBB version, the same
+// answer; measured at 1M vertices on the 2-core machine it does ~1.5x the work of serial (it
+// shuffles the face boxes, losing their locality) and ran 1.2-2.6x slower (BENCHMARKS.md, "Frame
+// kernel"), so serial is the default; parallel pays off only with more free cores.
+bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency = Concurrency::serial);
 
 // A per-vertex field of `source` carried to `targets`: each target point takes the value
 // interpolated (barycentrically) at its closest point on the source surface (CGAL AABB tree).
