@@ -154,7 +154,7 @@ DeformedSurface::DeformedSurface(const std::vector<Eigen::Vector3d>& rest, const
     }
     m.triangle_begin[k + 1] = m.triangle_begin[k] + padded;
   }
-  m.scratch_size = 3 * max_local;
+  m.scratch_size = 3 * max_local + 4;  // + 4: the AVX2 kernel loads 4 doubles from the last vertex
   m.sums.assign(2 * chunks, 0.0);
   m.scratch = tbb::enumerable_thread_specific<std::vector<double>>(m.scratch_size, 0.0);
 

@@ -79,12 +79,32 @@ inline void run_chunk(const KernelData& d, std::size_t k, double s, double* out,
   v4d volume = {0.0, 0.0, 0.0, 0.0};
   v4d area = {0.0, 0.0, 0.0, 0.0};
   for (std::size_t g = 0; g < groups; ++g, t += 12) {
+#if defined(__AVX__)
+    // Each corner as one 4-double load (x, y, z and the next vertex's x, unused; the scratch has
+    // room after its last vertex), four corners transposed into x, y and z vectors.
+    v4d ax, ay, az, bx, by, bz, cx, cy, cz;
+    {
+      const auto corners = [S](const std::uint32_t* q, v4d& x, v4d& y, v4d& z) {
+        const __m256d r0 = _mm256_loadu_pd(S + q[0]), r1 = _mm256_loadu_pd(S + q[1]);
+        const __m256d r2 = _mm256_loadu_pd(S + q[2]), r3 = _mm256_loadu_pd(S + q[3]);
+        const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);  // x0 x1 z0 z1, y0 y1 . .
+        const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+        x = (v4d)_mm256_permute2f128_pd(t0, t2, 0x20);
+        y = (v4d)_mm256_permute2f128_pd(t1, t3, 0x20);
+        z = (v4d)_mm256_permute2f128_pd(t0, t2, 0x31);
+      };
+      corners(t, ax, ay, az);
+      corners(t + 4, bx, by, bz);
+      corners(t + 8, cx, cy, cz);
+    }
+#else
     const double *a0 = S + t[0], *a1 = S + t[1], *a2 = S + t[2], *a3 = S + t[3];
     const double *b0 = S + t[4], *b1 = S + t[5], *b2 = S + t[6], *b3 = S + t[7];
     const double *c0 = S + t[8], *c1 = S + t[9], *c2 = S + t[10], *c3 = S + t[11];
     const v4d ax = {a0[0], a1[0], a2[0], a3[0]}, ay = {a0[1], a1[1], a2[1], a3[1]}, az = {a0[2], a1[2], a2[2], a3[2]};
     const v4d bx = {b0[0], b1[0], b2[0], b3[0]}, by = {b0[1], b1[1], b2[1], b3[1]}, bz = {b0[2], b1[2], b2[2], b3[2]};
     const v4d cx = {c0[0], c1[0], c2[0], c3[0]}, cy = {c0[1], c1[1], c2[1], c3[1]}, cz = {c0[2], c1[2], c2[2], c3[2]};
+#endif
     const v4d ex = bx - ax, ey = by - ay, ez = bz - az;
     const v4d fx = cx - ax, fy = cy - ay, fz = cz - az;
     const v4d nx = ey * fz - ez * fy;
