@@ -53,6 +53,9 @@ inline void run_chunk(const KernelData& d, std::size_t k, double s, double* out,
       o[i] = p;
       S[i] = p;
     }
+#if defined(__SSE2__)
+    _mm_sfence();  // this thread's streamed stores are ordered before it reports the chunk done
+#endif
   } else {
     for (; i < m; ++i) S[i] = r[i] + s * u[i];
   }
@@ -72,6 +75,7 @@ inline void run_chunk(const KernelData& d, std::size_t k, double s, double* out,
   // the scratch (3 x the local vertex), grouped by 4: a0 a1 a2 a3 b0 .. b3 c0 .. c3.
   const std::uint32_t* t = d.triangles + 3 * d.triangle_begin[k];
   const std::size_t groups = (d.triangle_begin[k + 1] - d.triangle_begin[k]) / 4;
+#if defined(__AVX__)
   typedef double v4d __attribute__((vector_size(32)));
   const v4d ox = {d.origin[0], d.origin[0], d.origin[0], d.origin[0]};
   const v4d oy = {d.origin[1], d.origin[1], d.origin[1], d.origin[1]};
@@ -79,7 +83,6 @@ inline void run_chunk(const KernelData& d, std::size_t k, double s, double* out,
   v4d volume = {0.0, 0.0, 0.0, 0.0};
   v4d area = {0.0, 0.0, 0.0, 0.0};
   for (std::size_t g = 0; g < groups; ++g, t += 12) {
-#if defined(__AVX__)
     // Each corner as one 4-double load (x, y, z and the next vertex's x, unused; the scratch has
     // room after its last vertex), four corners transposed into x, y and z vectors.
     v4d ax, ay, az, bx, by, bz, cx, cy, cz;
@@ -97,33 +100,47 @@ inline void run_chunk(const KernelData& d, std::size_t k, double s, double* out,
       corners(t + 4, bx, by, bz);
       corners(t + 8, cx, cy, cz);
     }
-#else
-    const double *a0 = S + t[0], *a1 = S + t[1], *a2 = S + t[2], *a3 = S + t[3];
-    const double *b0 = S + t[4], *b1 = S + t[5], *b2 = S + t[6], *b3 = S + t[7];
-    const double *c0 = S + t[8], *c1 = S + t[9], *c2 = S + t[10], *c3 = S + t[11];
-    const v4d ax = {a0[0], a1[0], a2[0], a3[0]}, ay = {a0[1], a1[1], a2[1], a3[1]}, az = {a0[2], a1[2], a2[2], a3[2]};
-    const v4d bx = {b0[0], b1[0], b2[0], b3[0]}, by = {b0[1], b1[1], b2[1], b3[1]}, bz = {b0[2], b1[2], b2[2], b3[2]};
-    const v4d cx = {c0[0], c1[0], c2[0], c3[0]}, cy = {c0[1], c1[1], c2[1], c3[1]}, cz = {c0[2], c1[2], c2[2], c3[2]};
-#endif
     const v4d ex = bx - ax, ey = by - ay, ez = bz - az;
     const v4d fx = cx - ax, fy = cy - ay, fz = cz - az;
     const v4d nx = ey * fz - ez * fy;
     const v4d ny = ez * fx - ex * fz;
     const v4d nz = ex * fy - ey * fx;
     const v4d nn = (nx * nx + ny * ny) + nz * nz;
-#if defined(__AVX__)
     area += (v4d)_mm256_sqrt_pd((__m256d)nn);
-#elif defined(__SSE2__)
-    const __m128d nn_lo = {nn[0], nn[1]}, nn_hi = {nn[2], nn[3]};
-    const __m128d lo = _mm_sqrt_pd(nn_lo), hi = _mm_sqrt_pd(nn_hi);
-    const v4d root = {lo[0], lo[1], hi[0], hi[1]};
-    area += root;
-#else
-    const v4d root = {__builtin_sqrt(nn[0]), __builtin_sqrt(nn[1]), __builtin_sqrt(nn[2]), __builtin_sqrt(nn[3])};
-    area += root;
-#endif
     volume += ((ax - ox) * nx + (ay - oy) * ny) + (az - oz) * nz;
   }
   sums[0] = (volume[0] + volume[1]) + (volume[2] + volume[3]);
   sums[1] = (area[0] + area[1]) + (area[2] + area[3]);
+#else
+  // Two SSE2 registers per 4 lanes: lanes 0-1 ("lo") and 2-3 ("hi"), the same operations in the
+  // same order as the AVX2 code, so the same bits.
+  typedef double v2d __attribute__((vector_size(16)));
+  const v2d ox = {d.origin[0], d.origin[0]}, oy = {d.origin[1], d.origin[1]}, oz = {d.origin[2], d.origin[2]};
+  v2d volume_lo = {0.0, 0.0}, volume_hi = {0.0, 0.0}, area_lo = {0.0, 0.0}, area_hi = {0.0, 0.0};
+  const auto pair = [S, &ox, &oy, &oz](const std::uint32_t* q, v2d& volume, v2d& area) {
+    const double *a0 = S + q[0], *a1 = S + q[1], *b0 = S + q[4], *b1 = S + q[5], *c0 = S + q[8], *c1 = S + q[9];
+    const v2d ax = {a0[0], a1[0]}, ay = {a0[1], a1[1]}, az = {a0[2], a1[2]};
+    const v2d bx = {b0[0], b1[0]}, by = {b0[1], b1[1]}, bz = {b0[2], b1[2]};
+    const v2d cx = {c0[0], c1[0]}, cy = {c0[1], c1[1]}, cz = {c0[2], c1[2]};
+    const v2d ex = bx - ax, ey = by - ay, ez = bz - az;
+    const v2d fx = cx - ax, fy = cy - ay, fz = cz - az;
+    const v2d nx = ey * fz - ez * fy;
+    const v2d ny = ez * fx - ex * fz;
+    const v2d nz = ex * fy - ey * fx;
+    const v2d nn = (nx * nx + ny * ny) + nz * nz;
+#if defined(__SSE2__)
+    area += (v2d)_mm_sqrt_pd((__m128d)nn);
+#else
+    const v2d root = {__builtin_sqrt(nn[0]), __builtin_sqrt(nn[1])};
+    area += root;
+#endif
+    volume += ((ax - ox) * nx + (ay - oy) * ny) + (az - oz) * nz;
+  };
+  for (std::size_t g = 0; g < groups; ++g, t += 12) {
+    pair(t, volume_lo, area_lo);
+    pair(t + 2, volume_hi, area_hi);
+  }
+  sums[0] = (volume_lo[0] + volume_lo[1]) + (volume_hi[0] + volume_hi[1]);
+  sums[1] = (area_lo[0] + area_lo[1]) + (area_hi[0] + area_hi[1]);
+#endif
 }
