@@ -73,3 +73,18 @@ TEST(SurfaceQueries, ParallelSelfIntersectionGivesTheSerialAnswer) {
   EXPECT_FALSE(self_intersects(bumped, Concurrency::serial));
   EXPECT_FALSE(self_intersects(bumped, Concurrency::parallel));
 }
+
+TEST(SurfaceQueries, ParallelSelfIntersectionFindsIntersectionsBetweenComponentsAndAtSlabBorders) {
+  // Two spheres side by side along x (the slabs' axis): apart, touching nothing; then moved so
+  // that they overlap, wherever the overlap falls among the slabs.
+  const TriangleMesh one = make_icosphere(0.1, 4);
+  for (double gap : {0.25, 0.15, 0.05, -0.1}) {
+    TriangleMesh two = one;
+    const auto offset = static_cast<std::uint32_t>(one.vertex_count());
+    for (const auto& v : one.vertices) two.vertices.push_back(v + Eigen::Vector3d(0.2 + gap, 0.01, 0.0));
+    for (const auto& t : one.triangles) two.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+    const bool expected = gap < 0.0;
+    EXPECT_EQ(self_intersects(two, Concurrency::serial), expected) << gap;
+    EXPECT_EQ(self_intersects(two, Concurrency::parallel), expected) << gap;
+  }
+}

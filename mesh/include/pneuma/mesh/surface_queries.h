@@ -28,11 +28,11 @@ class AreaMeter {
 enum class Concurrency { serial, parallel };
 
 // True when two faces of the surface intersect other than along shared edges or vertices
-// (CGAL::Polygon_mesh_processing::does_self_intersect). parallel: CGAL's TBB version, the same
-// answer; measured at 1M vertices on the 2-core machine it does ~1.5x the work of serial (it
-// shuffles the face boxes, losing their locality) and ran 1.2-2.6x slower (BENCHMARKS.md, "Frame
-// kernel"), so serial is the default; parallel pays off only with more free cores.
-bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency = Concurrency::serial);
+// (CGAL::Polygon_mesh_processing::does_self_intersect). parallel: the faces cut into slabs along
+// x, each slab tested by CGAL in its own TBB task; the same answer as serial, with less work in
+// total (at 1M vertices: 3.0-3.2 s of CPU against 3.9-4.1 s, the calling thread 2.1-2.2 s;
+// BENCHMARKS.md, "Frame kernel").
+bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency = Concurrency::parallel);
 
 // A per-vertex field of `source` carried to `targets`: each target point takes the value
 // interpolated (barycentrically) at its closest point on the source surface (CGAL AABB tree).
