@@ -6,7 +6,7 @@
 //     and of u into a second buffer of the same size (48 B read + 48 B written per vertex).
 // displace reads rest and u and writes positions (48 B read + 24 B written per vertex), between
 // the two. Also timed: the runner's whole per-frame update (displace, V(s) from the cubic, A(s)
-// with mesh::AreaMeter) through engine::advance, as run_scenario does it.
+// with the fused mesh::DeformedSurface kernel) through engine::advance, as run_scenario does it.
 // Meshes: the phantom, both lungs, at edge lengths that give ~100k and ~1M vertices. The field is
 // synthetic (the rest normals times 5 mm): displace's cost does not depend on its values, and the
 // real field at 1M vertices would cost seconds of set-up per size.

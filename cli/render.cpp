@@ -23,6 +23,7 @@ struct RenderCliOptions {
   int threshold = render::default_tolerance.pixel_threshold;
   double max_share = render::default_tolerance.max_share_over;
   bool info = false;
+  render::GlBackend gl = render::GlBackend::automatic;
   bool quiet = false;
 };
 
@@ -49,17 +50,18 @@ void run_compare(const RenderCliOptions& o) {
   if (!match) throw Error(ExitCode::failure, fmt::format("{} and {} differ", path_a, path_b));
 }
 
-void run_info() {
+void run_info(render::GlBackend gl) {
   mesh::TriangleMesh empty;
   render::RenderOptions options;
   options.width = options.height = 16;
+  options.gl = gl;
   const render::Renderer renderer(empty, {}, 0.0, options);
-  fmt::print("OpenGL {}\nrenderer {}\nanti-aliasing {} samples\n", renderer.gl_version(), renderer.gl_renderer(),
-             renderer.msaa_samples());
+  fmt::print("backend {}\nOpenGL {}\nrenderer {}\nanti-aliasing {} samples\n", renderer.gl_backend(),
+             renderer.gl_version(), renderer.gl_renderer(), renderer.msaa_samples());
 }
 
 void run_render(const RenderCliOptions& o) {
-  if (o.info) return run_info();
+  if (o.info) return run_info(o.gl);
   if (o.compare.empty()) {
     throw UsageError("pneuma render: give --compare A.png B.png or --info (rendering a scenario comes with the runner)");
   }
@@ -90,6 +92,16 @@ void register_render(CLI::App& app) {
          },
          "With --compare: the largest share of differing pixels that still matches (default 0.5 %)")
       ->type_name("<0.5 %>");
+  cmd->add_option_function<std::string>(
+         "--gl",
+         [options](const std::string& text) {
+           if (!render::parse_gl_backend(text, options->gl)) {
+             throw UsageError("pneuma: --gl: expected egl, osmesa or auto, got '" + text + "'");
+           }
+         },
+         "Where the OpenGL context comes from: egl (GPU, or Mesa's llvmpipe), osmesa, or auto (EGL when it "
+         "works, else OSMesa; also PNEUMA_GL in the environment)")
+      ->type_name("egl|osmesa|auto");
   cmd->add_flag("--info", options->info, "Print the OpenGL version and renderer that rendering gets here");
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing (the exit status tells)");
   cmd->callback([options] { run_render(*options); });

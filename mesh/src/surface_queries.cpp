@@ -7,12 +7,21 @@
 #include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
 
 #include "cgal_surface_mesh.h"
 #include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 namespace {
+
+// Slabs of the parallel self-intersection test (a fixed number: more than the cores of a usual
+// machine, for balance; the answer does not depend on it).
+constexpr std::size_t kSlabs = 16;
 
 using detail::Kernel;
 using detail::Point;
@@ -50,7 +59,46 @@ double AreaMeter::area(const std::vector<Eigen::Vector3d>& positions) {
   return PMP::area(impl_->surface);
 }
 
-bool self_intersects(const TriangleMesh& mesh) { return PMP::does_self_intersect(polygon_mesh_or_throw(mesh)); }
+bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency) {
+  const SurfaceMesh surface = polygon_mesh_or_throw(mesh);
+  if (concurrency == Concurrency::serial || mesh.triangle_count() < 2 * kSlabs) {
+    return PMP::does_self_intersect<CGAL::Sequential_tag>(surface);
+  }
+  // Parallel: the faces are cut into kSlabs slabs along x (boundaries at quantiles of the face
+  // centres, so the slabs hold about as many faces each); a face goes into every slab its x range
+  // touches. Two intersecting faces overlap in x, so they share a slab, and CGAL's serial test
+  // over that slab's faces (does_self_intersect on a face range; shared edges and vertices are
+  // judged on the whole mesh) finds them. The slabs are tested in parallel; the first that finds
+  // an intersection stops the others. The same yes/no answer as the serial test, with ~1x its
+  // work in total (CGAL's own Parallel_tag version does several times the work: it shuffles the
+  // boxes and intersects every pair of quarter ranges; measured slower on 2 cores).
+  const std::size_t n = mesh.triangle_count();
+  std::vector<double> low(n), high(n), centres(n);
+  for (std::size_t f = 0; f < n; ++f) {
+    const auto& t = mesh.triangles[f];
+    const double a = mesh.vertices[t[0]].x(), b = mesh.vertices[t[1]].x(), c = mesh.vertices[t[2]].x();
+    low[f] = std::min({a, b, c});
+    high[f] = std::max({a, b, c});
+    centres[f] = 0.5 * (low[f] + high[f]);
+  }
+  std::sort(centres.begin(), centres.end());
+  std::array<double, kSlabs - 1> bounds;  // slab k holds x in [bounds[k-1], bounds[k]]
+  for (std::size_t k = 1; k < kSlabs; ++k) bounds[k - 1] = centres[k * n / kSlabs];
+  const auto slab = [&](double x) {
+    return static_cast<std::size_t>(std::upper_bound(bounds.begin(), bounds.end(), x) - bounds.begin());
+  };
+  std::array<std::vector<SurfaceMesh::Face_index>, kSlabs> faces;
+  for (std::size_t f = 0; f < n; ++f) {
+    const SurfaceMesh::Face_index face(static_cast<SurfaceMesh::size_type>(f));
+    for (std::size_t k = slab(low[f]), last = slab(high[f]); k <= last; ++k) faces[k].push_back(face);
+  }
+  std::atomic<bool> found{false};
+  tbb::parallel_for(std::size_t{0}, kSlabs, [&](std::size_t k) {
+    if (found.load(std::memory_order_relaxed)) return;
+    if (PMP::does_self_intersect<CGAL::Sequential_tag>(faces[k], surface)) found.store(true);
+  });
+  return found.load();
+}
 
 std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source, const std::vector<Eigen::Vector3d>& field,
                                                    const std::vector<Eigen::Vector3d>& targets) {

@@ -1,15 +1,24 @@
 #pragma once
-// An OpenGL 3.3 core context from OSMesa (Mesa's off-screen driver, llvmpipe): no window
-// system, no display. Private to the render module.
+// An OpenGL core context (3.3 or newer: drivers give their highest, e.g. 4.5) without a window
+// system or a display, from one of two backends. Private to the render module.
+//   EGL: libEGL.so.1 (glvnd, with Mesa's or NVIDIA's vendor library), first a GPU through the
+//     device platform (EGL_EXT_platform_device: NVIDIA, or Mesa on a DRM render node), then
+//     Mesa's surfaceless platform (EGL_MESA_platform_surfaceless: a GPU or llvmpipe), then the
+//     software device Mesa lists; no surface at all (EGL_KHR_surfaceless_context), everything
+//     is drawn into framebuffer objects.
+//   OSMesa: Mesa's off-screen driver (llvmpipe).
+// automatic: EGL when it gives a context, else OSMesa.
 //
-// libOSMesa is opened with dlopen() rather than linked, so a machine without it still runs
-// every other pneuma subcommand and rendering fails with one line saying what to install.
-// GL entry points come from OSMesaGetProcAddress into a small table (the X-macro below lists
-// every function the module uses), the way a GL loader such as glad does it, so nothing here
-// depends on which library happens to export gl* symbols.
+// Both libraries are opened with dlopen() rather than linked, so a machine without them still
+// runs every other pneuma subcommand and rendering fails with one line saying what to install.
+// GL entry points come from the backend's GetProcAddress into a small table (the X-macro below
+// lists every function the module uses), the way a GL loader such as glad does it, so nothing
+// here depends on which library happens to export gl* symbols.
 #include <GL/glcorearb.h>
 
 #include <string>
+
+#include "pneuma/render/renderer.h"
 
 namespace pneuma::render::detail {
 
@@ -59,13 +68,14 @@ struct GlFunctions {
 #undef PNEUMA_GL_MEMBER
 };
 
-// One OSMesa context. Not copyable; make_current() before any GL call on the calling thread
-// (a context is current on one thread at a time).
+// One context. Not copyable; make_current() before any GL call on the calling thread (a context
+// is current on one thread at a time).
 class GlContext {
  public:
-  // Throws UnsupportedError ("no OpenGL context: ...", naming the package to install) when
-  // libOSMesa cannot be loaded or cannot give an OpenGL 3.3 core context.
-  GlContext();
+  // Throws UnsupportedError ("no OpenGL context: ...", naming the Debian packages to install)
+  // when the backend asked for (or, for automatic, neither) gives an OpenGL 3.3+ core context.
+  // automatic also honours PNEUMA_GL=egl|osmesa|auto in the environment.
+  explicit GlContext(GlBackend backend = GlBackend::automatic);
   ~GlContext();
   GlContext(const GlContext&) = delete;
   GlContext& operator=(const GlContext&) = delete;
@@ -75,8 +85,15 @@ class GlContext {
   // "llvmpipe (LLVM 15.0.6, 256 bits)", "4.5 (Core Profile) Mesa 22.3.6".
   std::string renderer() const;
   std::string version() const;
+  // "EGL (device platform)", "EGL (surfaceless platform)", "EGL (software device)", "OSMesa".
+  const std::string& backend() const { return backend_; }
 
  private:
+  bool try_egl(std::string& why);
+  void make_osmesa();
+  std::string backend_;
+  bool egl_ = false;
+  void* egl_display_ = nullptr;
   void* context_ = nullptr;
   // OSMesa needs a colour buffer to make a context current; everything is drawn into
   // framebuffer objects, so one pixel is enough.

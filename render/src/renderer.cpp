@@ -260,6 +260,7 @@ DrawOrder draw_order(const mesh::TriangleMesh& rest) {
 }  // namespace
 
 struct Renderer::Impl {
+  explicit Impl(GlBackend backend) : context(backend) {}
   detail::GlContext context;
   RenderOptions options;
   std::array<Eigen::Vector3d, 2> bounds;
@@ -504,7 +505,7 @@ Renderer::Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vect
                      "] is not an interval of finite numbers");
   }
 
-  impl_ = std::make_unique<Impl>();
+  impl_ = std::make_unique<Impl>(options.gl);
   Impl& r = *impl_;
   r.options = options;
   r.bounds = bounds_over_range(rest, field, scales);
@@ -612,6 +613,15 @@ const std::array<Eigen::Vector3d, 2>& Renderer::framed_bounds() const { return i
 double Renderer::overlay_max_m() const { return impl_->overlay_max; }
 std::string Renderer::gl_renderer() const { return impl_->context.renderer(); }
 std::string Renderer::gl_version() const { return impl_->context.version(); }
+std::string Renderer::gl_backend() const { return impl_->context.backend(); }
+
+bool parse_gl_backend(const std::string& text, GlBackend& out) {
+  if (text == "auto") out = GlBackend::automatic;
+  else if (text == "egl") out = GlBackend::egl;
+  else if (text == "osmesa") out = GlBackend::osmesa;
+  else return false;
+  return true;
+}
 int Renderer::msaa_samples() const { return impl_->samples; }
 
 }  // namespace pneuma::render

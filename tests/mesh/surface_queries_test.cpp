@@ -55,3 +55,36 @@ TEST(SurfaceQueries, SelfIntersectionIsFound) {
   sphere.vertices[0] = -1.5 * sphere.vertices[0];  // pushed through to the far side
   EXPECT_TRUE(self_intersects(sphere));
 }
+
+TEST(SurfaceQueries, ParallelSelfIntersectionGivesTheSerialAnswer) {
+  // Large enough (> 2000 faces) for CGAL to split the boxes into parallel subtrees.
+  TriangleMesh sphere = make_icosphere(0.1, 5);
+  EXPECT_FALSE(self_intersects(sphere, Concurrency::serial));
+  EXPECT_FALSE(self_intersects(sphere, Concurrency::parallel));
+  for (std::size_t v : {0u, 5000u, 10000u}) {
+    TriangleMesh dented = sphere;
+    dented.vertices[v] = -1.5 * dented.vertices[v];  // pushed through the far side
+    EXPECT_TRUE(self_intersects(dented, Concurrency::serial)) << v;
+    EXPECT_TRUE(self_intersects(dented, Concurrency::parallel)) << v;
+  }
+  // Pushed outwards: no intersection, however far.
+  TriangleMesh bumped = sphere;
+  bumped.vertices[77] *= 3.0;
+  EXPECT_FALSE(self_intersects(bumped, Concurrency::serial));
+  EXPECT_FALSE(self_intersects(bumped, Concurrency::parallel));
+}
+
+TEST(SurfaceQueries, ParallelSelfIntersectionFindsIntersectionsBetweenComponentsAndAtSlabBorders) {
+  // Two spheres side by side along x (the slabs' axis): apart, touching nothing; then moved so
+  // that they overlap, wherever the overlap falls among the slabs.
+  const TriangleMesh one = make_icosphere(0.1, 4);
+  for (double gap : {0.25, 0.15, 0.05, -0.1}) {
+    TriangleMesh two = one;
+    const auto offset = static_cast<std::uint32_t>(one.vertex_count());
+    for (const auto& v : one.vertices) two.vertices.push_back(v + Eigen::Vector3d(0.2 + gap, 0.01, 0.0));
+    for (const auto& t : one.triangles) two.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+    const bool expected = gap < 0.0;
+    EXPECT_EQ(self_intersects(two, Concurrency::serial), expected) << gap;
+    EXPECT_EQ(self_intersects(two, Concurrency::parallel), expected) << gap;
+  }
+}

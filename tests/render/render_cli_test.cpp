@@ -111,12 +111,38 @@ TEST(RenderCli, InfoNamesTheOpenGlInUse) {
 // Without OSMesa: one line that says what to install, exit 5.
 TEST(RenderCli, NoOpenGlContextSaysWhatToInstall) {
   ::setenv("PNEUMA_OSMESA_LIBRARY", "/nonexistent/libOSMesa.so.8", 1);
-  const auto r = run_pneuma({"render", "--info"});
+  ::setenv("PNEUMA_EGL_LIBRARY", "/nonexistent/libEGL.so.1", 1);
+  const auto osmesa = run_pneuma({"render", "--info", "--gl", "osmesa"});
+  const auto egl = run_pneuma({"render", "--info", "--gl", "egl"});
+  const auto neither = run_pneuma({"render", "--info"});
   ::unsetenv("PNEUMA_OSMESA_LIBRARY");
-  EXPECT_EQ(r.exit_code, 5);
-  EXPECT_EQ(r.err,
+  ::unsetenv("PNEUMA_EGL_LIBRARY");
+  EXPECT_EQ(osmesa.exit_code, 5);
+  EXPECT_EQ(osmesa.err,
             "render: no OpenGL context: cannot load /nonexistent/libOSMesa.so.8; install the libosmesa6 package (Mesa's "
             "off-screen OpenGL with llvmpipe)\n");
+  EXPECT_EQ(egl.exit_code, 5);
+  EXPECT_EQ(egl.err,
+            "render: no OpenGL context from EGL: cannot load /nonexistent/libEGL.so.1; install the libegl1, libegl-mesa0 "
+            "and libgl1-mesa-dri packages (EGL with Mesa; on NVIDIA the driver's EGL)\n");
+  EXPECT_EQ(neither.exit_code, 5);
+  EXPECT_EQ(neither.err,
+            "render: no OpenGL context: EGL: cannot load /nonexistent/libEGL.so.1; OSMesa: cannot load "
+            "/nonexistent/libOSMesa.so.8; install the libegl1, libegl-mesa0 and libgl1-mesa-dri packages (or "
+            "libosmesa6)\n");
+}
+
+TEST(RenderCli, InfoNamesTheBackend) {
+  const auto osmesa = run_pneuma({"render", "--info", "--gl", "osmesa"});
+  EXPECT_EQ(osmesa.exit_code, 0);
+  EXPECT_EQ(osmesa.out.rfind("backend OSMesa\n", 0), 0u) << osmesa.out;
+  const auto egl = run_pneuma({"render", "--info", "--gl", "egl"});
+  if (egl.exit_code == 5) GTEST_SKIP() << egl.err;
+  EXPECT_EQ(egl.exit_code, 0);
+  EXPECT_EQ(egl.out.rfind("backend EGL (", 0), 0u) << egl.out;
+  const auto bad = run_pneuma({"render", "--info", "--gl", "vulkan"});
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_EQ(bad.err, "pneuma: --gl: expected egl, osmesa or auto, got 'vulkan'\n");
 }
 
 // `pneuma run` with a `png` output: the renderer as a frame sink, end to end.

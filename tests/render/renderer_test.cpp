@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <memory>
 
 #include "pneuma/core/error.h"
 #include "pneuma/render/compare.h"
@@ -246,4 +247,39 @@ TEST(Renderer, FxaaChangesOnlyContrastedPixelsMostlyAtTheSilhouette) {
 
   render::Renderer empty(mesh::TriangleMesh{}, {}, 1.0, options);
   EXPECT_EQ(test::silhouette_pixels(empty.render(0.0), background), 0u);
+}
+
+TEST(Renderer, EglAndOsmesaGiveTheSameImage) {
+  // Both backends on this machine drive Mesa's llvmpipe through the same shaders: the same
+  // pixels (a GPU through EGL would differ in the last bits; the golden tests allow for that).
+  const test::LungStandIn lung = test::make_lung_stand_in(4);
+  render::RenderOptions options;
+  options.width = 160;
+  options.height = 120;
+  options.gl = render::GlBackend::osmesa;
+  render::Renderer osmesa(lung.rest, lung.field, 1.0, options);
+  EXPECT_EQ(osmesa.gl_backend(), "OSMesa");
+  options.gl = render::GlBackend::egl;
+  std::unique_ptr<render::Renderer> egl;
+  try {
+    egl = std::make_unique<render::Renderer>(lung.rest, lung.field, 1.0, options);
+  } catch (const UnsupportedError& e) {
+    GTEST_SKIP() << e.what();
+  }
+  EXPECT_EQ(egl->gl_backend().rfind("EGL", 0), 0u) << egl->gl_backend();
+  EXPECT_EQ(egl->gl_version().rfind("4.", 0), 0u) << egl->gl_version();  // a 4.x core context
+  const render::Image a = osmesa.render(0.7), b = egl->render(0.7);
+  const render::Difference d = render::compare(a, b, 2);
+  EXPECT_TRUE(d.within({2, 0.001})) << d.pixels_over << " pixels differ";
+}
+
+TEST(GlBackend, ParsesTheCommandLineNames) {
+  render::GlBackend b = render::GlBackend::osmesa;
+  EXPECT_TRUE(render::parse_gl_backend("auto", b));
+  EXPECT_EQ(b, render::GlBackend::automatic);
+  EXPECT_TRUE(render::parse_gl_backend("egl", b));
+  EXPECT_EQ(b, render::GlBackend::egl);
+  EXPECT_TRUE(render::parse_gl_backend("osmesa", b));
+  EXPECT_EQ(b, render::GlBackend::osmesa);
+  EXPECT_FALSE(render::parse_gl_backend("vulkan", b));
 }

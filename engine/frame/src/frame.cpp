@@ -1,6 +1,5 @@
 #include "pneuma/engine/frame.h"
 
-#include "pneuma/mesh/surface_queries.h"
 
 #ifdef __SSE2__
 #include <emmintrin.h>
@@ -54,16 +53,17 @@ BreathingModel make_breathing_model(mesh::TriangleMesh rest, std::vector<Eigen::
                         std::move(map), area};
 }
 
-Frame::Frame(const BreathingModel& model) : positions(model.rest.vertex_count()), area_meter(model.rest) {}
+Frame::Frame(const BreathingModel& model)
+    : positions(model.rest.vertex_count()),
+      surface(model.rest.vertices, model.unit_displacement, model.rest.triangles) {}
 
 void advance(const BreathingModel& model, const FrameInput& input, Frame& frame) {
   frame.index = input.index;
   frame.time_s = input.time_s;
   frame.lung_volume_m3 = input.lung_volume_m3;
   frame.scale = input.scale;
-  displace(model, frame.scale, frame.positions);
+  frame.area_m2 = frame.surface.update(frame.scale, frame.positions).area_m2;
   frame.mesh_volume_m3 = model.volume_map.volume(frame.scale);
-  frame.area_m2 = frame.area_meter.area(frame.positions);
 }
 
 }  // namespace pneuma::engine

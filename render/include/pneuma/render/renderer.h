@@ -30,6 +30,14 @@
 
 namespace pneuma::render {
 
+// Where the OpenGL context comes from (see BENCHMARKS.md, Render): EGL (a GPU through the device
+// platform, or Mesa's surfaceless platform: a GPU or llvmpipe), or OSMesa (llvmpipe). automatic:
+// EGL when it gives a context, else OSMesa; the environment variable PNEUMA_GL=egl|osmesa|auto
+// overrides automatic (so every renderer of a run, e.g. the PNG output, can be pointed at one).
+enum class GlBackend { automatic, egl, osmesa };
+// "auto", "egl", "osmesa"; false for anything else.
+bool parse_gl_backend(const std::string& text, GlBackend& out);
+
 // Colours are sRGB, 0..1; lighting is computed in linear light.
 struct Material {
   Eigen::Vector3d base_colour = {0.87, 0.56, 0.56};  // healthy lung: pink
@@ -59,6 +67,7 @@ struct RenderOptions {
   bool overlay_magnitude = false;
   double overlay_max_m = 0.0;  // top of the colour scale; 0: max |u| * max |s| of the range (fixed across frames)
   bool legend = true;           // the colour bar (drawn only with the overlay)
+  GlBackend gl = GlBackend::automatic;
 };
 inline const RenderOptions default_render_options{};
 
@@ -103,6 +112,7 @@ class Renderer {
   // The OpenGL renderer and version strings, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
   std::string gl_renderer() const;
   std::string gl_version() const;
+  std::string gl_backend() const;  // "EGL (surfaceless platform)", "OSMesa", ...
   int msaa_samples() const;  // after clamping
 
  private:

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "pneuma/engine/volume_scale.h"
-#include "pneuma/mesh/surface_queries.h"
+#include "pneuma/mesh/deformed_surface.h"
 #include "pneuma/mesh/triangle_mesh.h"
 
 namespace pneuma::engine {
@@ -39,7 +39,7 @@ struct Frame {
   double scale = 0.0;            // s
   double area_m2 = 0.0;          // A(s)
   std::vector<Eigen::Vector3d> positions;
-  mesh::AreaMeter area_meter;    // scratch of the area computation (bound to the model's mesh)
+  mesh::DeformedSurface surface;  // the fused positions + area kernel, bound to the model's mesh
 };
 
 // What the run loop knows of frame k before the model is applied.
@@ -50,7 +50,8 @@ struct FrameInput {
   double scale = 0.0;
 };
 
-// One step (cf. mj_step): positions = rest + s u, the volume from the cubic, the area A(s).
+// One step (cf. mj_step): positions = rest + s u and the area A(s) in one fused, threaded pass
+// (mesh::DeformedSurface: the same bits at any thread count), the volume from the exact cubic.
 void advance(const BreathingModel& model, const FrameInput& input, Frame& frame);
 
 // Facts about the whole run that sinks need before the first frame.
