@@ -177,3 +177,38 @@ TEST(MotionSummary, UniformDilationSharesFollowAreasAndDoNotDependOnTheOrigin) {
 
 }  // namespace
 }  // namespace pneuma::mesh
+
+namespace pneuma::mesh {
+namespace {
+
+TEST(Geometry, SphereMeanCurvatureIsOneOverRadiusAndHullDepthIsZero) {
+  const TriangleMesh s = make_icosphere(0.1, 4);
+  // Per vertex within 15 % (the barycentric area is rough at the icosahedron's valence-5
+  // vertices), the area-weighted mean within 1 %.
+  const std::vector<double> h = mean_curvature(s), area = vertex_areas(s);
+  double sum = 0.0;
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    EXPECT_NEAR(h[i], 10.0, 1.5);
+    sum += h[i] * area[i];
+  }
+  EXPECT_NEAR(sum / surface_area(s), 10.0, 0.1);
+  std::vector<Eigen::Vector3d> points = s.vertices;
+  points.push_back(Eigen::Vector3d::Zero());  // the centre lies ~R below the hull
+  const std::vector<double> depth = depth_below_convex_hull(points);
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) EXPECT_NEAR(depth[i], 0.0, 1e-12);
+  EXPECT_NEAR(depth.back(), 0.1, 0.002);
+}
+
+TEST(Regions, SameMeshSameBits) {
+  PhantomOptions o;
+  o.lung = Lung::left;
+  o.edge_length_m = 8e-3;
+  const TriangleMesh m = make_lung_phantom(o);
+  const SurfaceRegions a = find_regions(m), b = find_regions(m);
+  EXPECT_EQ(a.label, b.label);
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) EXPECT_EQ(a.weight[i], b.weight[i]);
+  EXPECT_EQ(anatomical_directions(m, a, 0.02), anatomical_directions(m, b, 0.02));
+}
+
+}  // namespace
+}  // namespace pneuma::mesh
