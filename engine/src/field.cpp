@@ -65,6 +65,7 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   if (!(options.tolerance > 0.0 && options.tolerance < 1.0))
     throw std::invalid_argument("field tolerance must lie between 0 and 1");
   if (!(options.area_unit > 0.0)) throw std::invalid_argument("field area unit must be positive");
+  if (!(options.direction_smoothing > 0.0)) throw std::invalid_argument("field direction smoothing must be positive");
   const auto shared_graph = std::make_shared<const FieldGraph>(mesh, shear_modulus_pa);
   const FieldGraph& graph = *shared_graph;
   std::shared_ptr<const TransferOperator> op;  // null: one hop
@@ -91,7 +92,6 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   SolveResult result = solver->solve(load);
   field.report = std::move(result.report);
   field.force.assign(result.shot.begin(), result.shot.begin() + graph.mass_count());
-  if (!(options.direction_smoothing > 0.0)) throw std::invalid_argument("field direction smoothing must be positive");
   const std::vector<Eigen::Vector3d> direction = displacement_directions(mesh, options);
   auto [u, scale] = normalise_displacement(mesh, field.force, direction, options.area_unit);
   field.displacement = std::move(u);
