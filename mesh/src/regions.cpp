@@ -258,7 +258,7 @@ std::vector<double> regional_load(const SurfaceRegions& regions, const std::arra
   for (std::size_t i = 0; i < f.size(); ++i) {
     const double down = std::max(0.0, -regions.normal[i].dot(regions.frame.up));
     for (std::size_t k = 0; k < kRegionCount; ++k) {
-      const double dome = k == static_cast<std::size_t>(Region::diaphragmatic) ? down * down : 1.0;
+      const double dome = k == static_cast<std::size_t>(Region::diaphragmatic) ? down : 1.0;
       f[i] += regions.weight[i][k] * load[k] * dome;
     }
   }

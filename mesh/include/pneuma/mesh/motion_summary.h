@@ -31,8 +31,8 @@ struct RegionMotion {
 struct MotionSummary {
   std::array<RegionMotion, kRegionCount> region;  // indexed by Region
   double volume_change_m3 = 0.0;                  // V(s) - V(0)
-  // The dome top: mean caudal displacement of the diaphragmatic vertices within
-  // `dome_top_depth_m` of the highest diaphragmatic vertex.
+  // The dome top: mean caudal displacement of the dome's vertices (diaphragmatic, smoothed
+  // normal within 30 degrees of straight down) within `dome_top_depth_m` of the highest of them.
   double dome_top_caudal_m = 0.0;
   // Mean caudal displacement of all vertices in five equal height bands, apex (0) to base (4).
   std::array<double, 5> band_caudal_mean_m{};

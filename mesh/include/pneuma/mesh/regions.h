@@ -95,7 +95,7 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
 std::vector<double> vertex_areas(const TriangleMesh& mesh);
 
 // Per vertex: a load (the pressure drive of the field) blended from one value per region,
-// f_i = sum_r w_ir load_r, with the diaphragmatic term times max(0, -n_i.up)^2: the diaphragm
+// f_i = sum_r w_ir load_r, with the diaphragmatic term times max(0, -n_i.up): the diaphragm
 // drives, most at its dome (normal straight down), least at its rim, where it lies on the ribs
 // (the zone of apposition).
 std::vector<double> regional_load(const SurfaceRegions& regions, const std::array<double, kRegionCount>& load);
