@@ -104,6 +104,11 @@ class Simulation {
       breath.peep_pa = peep_of(driver);
       if (const auto* s = std::get_if<Spontaneous>(&driver)) breath.muscle_amplitude_pa = s->amplitude_pa;
       const double start_volume = total(y.data(), n_);
+      min_volume_ = max_volume_ = start_volume;
+      if (const auto* sp = std::get_if<Spontaneous>(&protocol_.settings[setting].driver))
+        breath.set_tidal_volume_m3 = sp->target_tidal_volume_m3;
+      else if (const auto* vc = std::get_if<VolumeControl>(&driver))
+        breath.set_tidal_volume_m3 = vc->tidal_volume_m3;
       double end_inspiration_volume = start_volume;
       double peak_airway = -std::numeric_limits<double>::infinity();
       double peak_drive = -std::numeric_limits<double>::infinity();
@@ -134,7 +139,8 @@ class Simulation {
       }
       if (!complete) break;
       breath.duration_s = t - breath.start_s;
-      breath.tidal_volume_m3 = end_inspiration_volume - start_volume;
+      breath.inspired_volume_m3 = end_inspiration_volume - start_volume;
+      breath.tidal_volume_m3 = max_volume_ - min_volume_;
       breath.minute_ventilation_m3_per_s = breath.tidal_volume_m3 / breath.duration_s;
       breath.peak_pressure_pa = peak_airway;
       breath.dynamic_compliance_m3_per_pa = peak_drive - breath.peep_pa > 0.0
@@ -207,21 +213,37 @@ class Simulation {
     }
     integrator_.restart(a, y, b);
     std::array<double, kMaxCompartments> sample{};
-    while (series_ && next_output_ < output_count_ && output_time(next_output_) < b) {
-      const double t = output_time(next_output_);
-      // A sample a rounding error after the segment's start takes the start state (CVODE
-      // refuses a first step that small, and the state cannot differ measurably).
-      if (t <= a + 1e-12 * std::max(1.0, a)) {
-        record(t, y);
-        continue;
+    track_volume(total(y, n_));
+    // Output samples, and probes every kProbeInterval (interpolated by CVODE, cheap) so that the
+    // breath's volume extremes are found whatever the output rate (even with no output at all).
+    std::size_t probes = 1;
+    for (;;) {
+      const bool output = series_ && next_output_ < output_count_ && output_time(next_output_) < b;
+      const double probe = a + static_cast<double>(probes) * kProbeInterval;
+      if (output && output_time(next_output_) <= probe) {
+        const double t = output_time(next_output_);
+        // A sample a rounding error after the segment's start takes the start state (CVODE
+        // refuses a first step that small, and the state cannot differ measurably).
+        if (t <= a + 1e-12 * std::max(1.0, a)) {
+          record(t, y);
+          continue;
+        }
+        integrator_.advance(t, sample.data());
+        record(t, sample.data());
+        track_volume(total(sample.data(), n_));
+        const Instant now = evaluate(context_, t, sample.data(), q.data());
+        peak_airway = std::max(peak_airway, now.airway_pressure);
+        peak_drive = std::max(peak_drive, now.airway_pressure + now.muscle_pressure);
+      } else if (probe < b) {
+        integrator_.advance(probe, sample.data());
+        track_volume(total(sample.data(), n_));
+        ++probes;
+      } else {
+        break;
       }
-      integrator_.advance(t, sample.data());
-      record(t, sample.data());
-      const Instant now = evaluate(context_, t, sample.data(), q.data());
-      peak_airway = std::max(peak_airway, now.airway_pressure);
-      peak_drive = std::max(peak_drive, now.airway_pressure + now.muscle_pressure);
     }
     integrator_.advance(b, y);
+    track_volume(total(y, n_));
     last = evaluate(context_, b, y, q.data());  // the left limit at b, still in this phase
     peak_airway = std::max(peak_airway, last.airway_pressure);
     peak_drive = std::max(peak_drive, last.airway_pressure + last.muscle_pressure);
@@ -237,6 +259,12 @@ class Simulation {
   Driver current_driver_;  // the breath in progress; context_ points at it
   detail::CvodeIntegrator integrator_;
   TimeSeries* series_ = nullptr;
+  void track_volume(double v) {
+    min_volume_ = std::min(min_volume_, v);
+    max_volume_ = std::max(max_volume_, v);
+  }
+  static constexpr double kProbeInterval = 1e-3;  // s: the volume extremes to ~1e-6 of the swing
+  double min_volume_ = 0.0, max_volume_ = 0.0;    // over the current breath
   std::size_t next_output_ = 0;
   std::size_t output_count_ = 0;
   std::map<std::size_t, Driver> calibrated_;

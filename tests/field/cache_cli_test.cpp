@@ -66,7 +66,7 @@ TEST(FieldCache, RoundTripsBitForBitAndWritesTheSameBytesTwice) {
 TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
   TempDir dir;
   const auto rest = mesh::make_icosphere(0.1, 2);
-  const FieldModel model = compute_field_model(rest, preset("healthy-supine"), default_field_options);
+  const FieldModel model = compute_field_model(rest, preset("fibrotic-lower-lobe"), default_field_options);
   save_field(dir / "good.h5", model);
   const std::string bytes = read_text(dir / "good.h5");
 

@@ -151,12 +151,13 @@ TEST(Tissue, PresetsFollowPosture) {
     }
     return best;
   };
+  // The healthy presets: a modulus per anatomical region times the posture's gravity factor.
   const auto upright = shear_modulus_per_vertex(preset("healthy-upright"), m);
-  EXPECT_DOUBLE_EQ(upright[extreme({0, 0, 1})], 2400.0);   // apex
-  EXPECT_DOUBLE_EQ(upright[extreme({0, 0, -1})], 600.0);   // base
+  EXPECT_NEAR(upright[extreme({0, 0, 1})], 3000.0 * 1.5, 1e-9);   // apex, top
+  EXPECT_NEAR(upright[extreme({0, 0, -1})], 500.0 * 0.75, 1e-9);  // diaphragmatic, bottom
   const auto supine = shear_modulus_per_vertex(preset("healthy-supine"), m);
-  EXPECT_DOUBLE_EQ(supine[extreme({0, -1, 0})], 1800.0);   // anterior (LPS: -y)
-  EXPECT_DOUBLE_EQ(supine[extreme({0, 1, 0})], 600.0);     // posterior
+  EXPECT_NEAR(supine[extreme({0, -1, 0})], 1500.0 * 1.8, 1e-9);   // costal, anterior (LPS: -y)
+  EXPECT_NEAR(supine[extreme({0, 1, 0})], 1500.0 * 0.6, 1e-9);    // costal, posterior
   const auto fibrotic = shear_modulus_per_vertex(preset("fibrotic-lower-lobe"), m);
   EXPECT_DOUBLE_EQ(fibrotic[extreme({0, 0, -1})], 10e3);
   EXPECT_DOUBLE_EQ(fibrotic[extreme({0, 0, 1})], 2400.0);

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
 #include "pneuma/core/error.h"
 #include "physiology_fixture.h"
@@ -110,4 +111,25 @@ TEST(Models, InvalidSettingsAreRefusedByName) {
                pneuma::ValueError);
   EXPECT_THROW(simulate(just(single_linear(0.1, 2.0), PressureControl{0.2, 1000, 6.0, 0}), tight(5)),
                pneuma::ValueError);
+}
+
+TEST(Models, TidalVolumeIsTheSwingOfTheSampledVolume) {
+  // Spontaneous breathing: the volume keeps rising after the inspiratory phase ends (the muscle
+  // relaxes slowly), so the tidal volume is max - min over the breath, not the inspired volume.
+  const auto r = simulate(just(single_linear(0.1, 2.0), Spontaneous{0.2, 0.5, 0.0, 0.5e-3}), tight(30.0, 1000.0));
+  ASSERT_GE(r.breaths.size(), 4u);
+  for (std::size_t k = 1; k < r.breaths.size(); ++k) {
+    const auto& b = r.breaths[k];
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (std::size_t i = 0; i < r.series.size(); ++i) {
+      const double t = r.series.time_s[i];
+      if (t < b.start_s - 1e-9 || t > b.start_s + b.duration_s + 1e-9) continue;
+      lo = std::min(lo, r.series.volume_m3[i]);
+      hi = std::max(hi, r.series.volume_m3[i]);
+    }
+    EXPECT_NEAR(b.tidal_volume_m3, hi - lo, 1e-5 * b.tidal_volume_m3) << k;
+    EXPECT_NEAR(b.set_tidal_volume_m3, 0.5e-3, 1e-15);
+    EXPECT_GE(b.tidal_volume_m3, b.inspired_volume_m3);
+  }
+  EXPECT_NEAR(r.breaths.back().tidal_volume_m3, 0.5e-3, 1e-6 * 0.5e-3);  // the target is the swing
 }

@@ -34,6 +34,12 @@ outputs:
   hdf5: {positions: true}
 )";
 
+// The paper's reading: a linear apex-to-base gradient, uniform load, vertex normals.
+constexpr const char* kPaperUpright = R"(name: paper-upright
+posture: upright
+stiffness: {model: gradient, profile: linear, nondependent: 2.4 kPa, dependent: 0.6 kPa}
+)";
+
 // Signed-tetrahedron volume of a mesh file, read back with the mesh reader (file in metres).
 double file_volume(const std::filesystem::path& p) {
   pneuma::mesh::ReadOptions o;
@@ -208,8 +214,14 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(Runner, AreaGrowsByOneAreaUnitPerUnitScaleAtFirstOrder) {
   // The field is normalised so that dA/ds = 1 cm^2 at s = 0: the per-frame CGAL area in the
   // HDF5 series must follow A(0) + s * 1e-4 m^2 up to the (small, positive) second-order term.
+  // With the paper's direction (vertex normals; the anatomical direction of the healthy
+  // presets is normalised the same way, tests/field/realism_test.cpp, but stretches more at
+  // second order, where the diaphragm pulls away from the ribs).
   TempDir dir;
-  const auto scenario = dir.write("small.yaml", kSmall);
+  std::string yaml = kSmall;
+  yaml.replace(yaml.find("tissue: healthy-upright"), 23, "tissue: paper-upright.yaml");
+  dir.write("paper-upright.yaml", kPaperUpright);
+  const auto scenario = dir.write("small.yaml", yaml);
   ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"}).exit_code, 0);
   const hid_t file = H5Fopen((dir / "out/series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   ASSERT_GE(file, 0);
@@ -260,8 +272,11 @@ TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
 
 TEST(Runner, AVolumeBeyondWhatTheSurfaceCanTakeIsRefused) {
   // 4 L into one lung of ~1.3 L: refused before any frame is written, with what to change.
+  // (The paper's direction: along the anatomical one the diaphragm can keep descending.)
   TempDir dir;
   std::string yaml = kSmall;
+  yaml.replace(yaml.find("tissue: healthy-upright"), 23, "tissue: paper-upright.yaml");
+  dir.write("paper-upright.yaml", kPaperUpright);
   yaml.replace(yaml.find("share: 55 %"), 11, "share: 100 %");
   yaml.replace(yaml.find("driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}"),
                std::strlen("driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}"),

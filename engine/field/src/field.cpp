@@ -7,16 +7,52 @@
 
 namespace pneuma::engine {
 
+const char* direction_name(DirectionKind kind) {
+  switch (kind) {
+    case DirectionKind::vertex_normal: return "vertex_normal";
+    case DirectionKind::smoothed_normal: return "smoothed_normal";
+    case DirectionKind::anatomical: return "anatomical";
+  }
+  return "vertex_normal";
+}
+
+DirectionKind parse_direction_kind(const std::string& name) {
+  for (DirectionKind k : {DirectionKind::vertex_normal, DirectionKind::smoothed_normal, DirectionKind::anatomical}) {
+    if (name == direction_name(k)) return k;
+  }
+  throw ValueError("unknown displacement direction '" + name + "'");
+}
+
+std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& mesh, const FieldOptions& options) {
+  switch (options.direction) {
+    case DirectionKind::vertex_normal: return mesh::vertex_normals(mesh);
+    case DirectionKind::smoothed_normal: return mesh::smoothed_normals(mesh, options.direction_smoothing);
+    case DirectionKind::anatomical: {
+      mesh::RegionOptions regions;
+      regions.frame = options.frame;
+      return mesh::anatomical_directions(mesh, mesh::find_regions(mesh, regions), options.direction_smoothing);
+    }
+  }
+  return mesh::vertex_normals(mesh);
+}
+
 std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
                                                                        std::span<const double> force,
                                                                        double area_unit) {
   const std::vector<Eigen::Vector3d> normal = mesh::vertex_normals(mesh);
+  return normalise_displacement(mesh, force, normal, area_unit);
+}
+
+std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
+                                                                       std::span<const double> force,
+                                                                       std::span<const Eigen::Vector3d> normal,
+                                                                       double area_unit) {
   const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
   double area_rate = 0.0;  // dA/ds of x + s F n
   for (std::size_t i = 0; i < normal.size(); ++i) area_rate += force[i] * gradient[i].dot(normal[i]);
   if (!(area_rate > 0.0) || !std::isfinite(area_rate))
-    throw UnsupportedError("mesh: pushing every vertex outward along its normal does not increase the surface area "
-                           "(is the mesh oriented with its normals outward?)");
+    throw UnsupportedError("mesh: pushing every vertex outward along its displacement direction does not increase "
+                           "the surface area (is the mesh oriented with its normals outward?)");
   const double scale = area_unit / area_rate;
   std::vector<Eigen::Vector3d> u(normal.size());
   for (std::size_t i = 0; i < normal.size(); ++i) u[i] = (scale * force[i]) * normal[i];
@@ -29,6 +65,7 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   if (!(options.tolerance > 0.0 && options.tolerance < 1.0))
     throw ValueError("field tolerance must lie between 0 and 1");
   if (!(options.area_unit > 0.0)) throw ValueError("field area unit must be positive");
+  if (!(options.direction_smoothing > 0.0)) throw ValueError("field direction smoothing must be positive");
   const auto shared_graph = std::make_shared<const FieldGraph>(mesh, shear_modulus_pa);
   const FieldGraph& graph = *shared_graph;
   std::shared_ptr<const TransferOperator> op;  // null: one hop
@@ -46,11 +83,17 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
 
   // The pressure load: the same force on every mass node (paper section 5), none on springs.
   std::vector<double> load(options.solver == SolverKind::cg ? graph.mass_count() : graph.node_count(), 0.0);
-  std::fill(load.begin(), load.begin() + graph.mass_count(), 1.0);
+  if (options.load.empty()) {
+    std::fill(load.begin(), load.begin() + graph.mass_count(), 1.0);
+  } else {
+    if (options.load.size() != graph.mass_count()) throw ValueError("field load: one value per vertex");
+    std::copy(options.load.begin(), options.load.end(), load.begin());
+  }
   SolveResult result = solver->solve(load);
   field.report = std::move(result.report);
   field.force.assign(result.shot.begin(), result.shot.begin() + graph.mass_count());
-  auto [u, scale] = normalise_displacement(mesh, field.force, options.area_unit);
+  const std::vector<Eigen::Vector3d> direction = displacement_directions(mesh, options);
+  auto [u, scale] = normalise_displacement(mesh, field.force, direction, options.area_unit);
   field.unit_displacement = std::move(u);
   field.scale = scale;
   return field;

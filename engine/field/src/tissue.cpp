@@ -1,6 +1,7 @@
 #include "pneuma/engine/tissue.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -90,6 +91,27 @@ RegionStiffness read_regions(const Node& s) {
   const Node moduli = s.map("moduli");
   for (const std::string& label : moduli.keys()) r.shear_modulus_pa[label] = moduli.positive_quantity(label, kind::shear_modulus);
   if (r.shear_modulus_pa.empty()) s.fail_at("moduli", "expected at least one label with its shear modulus");
+  if (auto g = s.optional_map("gravity")) {
+    r.gravity_nondependent = g->quantity("nondependent", kind::fraction);
+    r.gravity_dependent = g->quantity("dependent", kind::fraction);
+    if (!(r.gravity_nondependent > 0.0)) g->fail_at("nondependent", "expected a positive factor");
+    if (!(r.gravity_dependent > 0.0)) g->fail_at("dependent", "expected a positive factor");
+    g->finish();
+  }
+  if (!s.has("labels")) {
+    // The anatomical regions found on the surface: every region needs a modulus, no other label.
+    r.anatomical = true;
+    r.source = moduli.file();
+    for (const auto& [label, mu] : r.shear_modulus_pa) {
+      if (!mesh::region_from_name(label))
+        moduli.fail_at(label, "expected a region: apex, costal, diaphragmatic or mediastinal (or give 'labels')");
+    }
+    for (mesh::Region region : mesh::kRegions) {
+      if (!r.shear_modulus_pa.count(std::string(mesh::region_name(region))))
+        s.fail_at("moduli", "expected a modulus for every region: apex, costal, diaphragmatic, mediastinal");
+    }
+    return r;
+  }
   const std::filesystem::path file = s.directory("labels") / s.string("labels");
   r.source = file.string();
   for (const Token& t : read_tokens(file)) {
@@ -123,10 +145,36 @@ Tissue read_tissue(const Node& root) {
     for (const char* key : {"values", "unit"}) s.has(key);
     t.stiffness = read_per_vertex(s);
   } else {
-    for (const char* key : {"labels", "moduli"}) s.has(key);
+    for (const char* key : {"labels", "moduli", "gravity"}) s.has(key);
     t.stiffness = read_regions(s);
   }
   s.finish();
+  if (auto l = root.optional_map("load")) {
+    std::array<double, mesh::kRegionCount> load{};
+    double total = 0.0;
+    for (mesh::Region region : mesh::kRegions) {
+      const std::string key(mesh::region_name(region));
+      const double v = l->quantity(key, kind::fraction);
+      if (!(v >= 0.0)) l->fail_at(key, "expected a load of 0 or more");
+      load[static_cast<std::size_t>(region)] = v;
+      total += v;
+    }
+    if (!(total > 0.0)) l->fail("expected a positive load in at least one region");
+    if (auto g = l->optional_map("gravity")) {
+      t.load_nondependent = g->quantity("nondependent", kind::fraction);
+      t.load_dependent = g->quantity("dependent", kind::fraction);
+      if (!(t.load_nondependent > 0.0)) g->fail_at("nondependent", "expected a positive factor");
+      if (!(t.load_dependent > 0.0)) g->fail_at("dependent", "expected a positive factor");
+      g->finish();
+    }
+    l->finish();
+    t.regional_load = load;
+  }
+  if (auto d = root.optional_map("displacement")) {
+    if (d->has("direction")) t.direction = parse_direction_kind(d->choice("direction", {"vertex_normal", "smoothed_normal", "anatomical"}));
+    if (d->has("smoothing")) t.direction_smoothing_m = d->positive_quantity("smoothing", kind::length);
+    d->finish();
+  }
   root.finish();
   return t;
 }
@@ -186,10 +234,51 @@ std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::T
     return p->shear_modulus_pa;
   }
   const auto& r = std::get<RegionStiffness>(tissue.stiffness);
-  check_count(r.labels.size(), r.source, "labels");
   std::vector<double> mu(n);
-  for (std::size_t i = 0; i < n; ++i) mu[i] = r.shear_modulus_pa.at(r.labels[i]);
+  if (r.anatomical) {
+    mesh::RegionOptions options;
+    options.frame = body_frame(tissue);
+    const mesh::SurfaceRegions regions = mesh::find_regions(mesh, options);
+    std::array<double, mesh::kRegionCount> log_mu{};
+    for (mesh::Region region : mesh::kRegions)
+      log_mu[static_cast<std::size_t>(region)] = std::log(r.shear_modulus_pa.at(std::string(mesh::region_name(region))));
+    for (std::size_t i = 0; i < n; ++i) {
+      double sum = 0.0;
+      for (std::size_t k = 0; k < mesh::kRegionCount; ++k) sum += regions.weight[i][k] * log_mu[k];
+      mu[i] = std::exp(sum);
+    }
+  } else {
+    check_count(r.labels.size(), r.source, "labels");
+    for (std::size_t i = 0; i < n; ++i) mu[i] = r.shear_modulus_pa.at(r.labels[i]);
+  }
+  if (r.gravity_nondependent != 1.0 || r.gravity_dependent != 1.0) {
+    const std::vector<double> position = dependent_position(tissue, mesh);
+    for (std::size_t i = 0; i < n; ++i)
+      mu[i] *= r.gravity_nondependent + position[i] * (r.gravity_dependent - r.gravity_nondependent);
+  }
   return mu;
+}
+
+mesh::BodyFrame body_frame(const Tissue& tissue) {
+  mesh::BodyFrame frame;
+  frame.up = tissue.up;
+  frame.anterior = tissue.anterior;
+  return frame;
+}
+
+FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh::TriangleMesh& mesh) {
+  options.direction = tissue.direction;
+  options.direction_smoothing = tissue.direction_smoothing_m;
+  options.frame = body_frame(tissue);
+  if (tissue.regional_load) {
+    mesh::RegionOptions regions;
+    regions.frame = options.frame;
+    options.load = mesh::regional_load(mesh::find_regions(mesh, regions), *tissue.regional_load);
+    const std::vector<double> position = dependent_position(tissue, mesh);
+    for (std::size_t i = 0; i < options.load.size(); ++i)
+      options.load[i] *= tissue.load_nondependent + position[i] * (tissue.load_dependent - tissue.load_nondependent);
+  }
+  return options;
 }
 
 }  // namespace pneuma::engine

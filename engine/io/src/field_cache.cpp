@@ -243,11 +243,20 @@ std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> mu
   h.value(static_cast<std::int64_t>(o.clique_hops));
   h.text(rule_name(o.path_rule));
   h.value(o.area_unit);
+  h.text(direction_name(o.direction));
+  h.value(static_cast<std::uint64_t>(o.load.size()));
+  h.bytes(o.load.data(), o.load.size() * sizeof(double));
+  if (o.direction != DirectionKind::vertex_normal) {
+    h.value(o.direction_smoothing);
+    h.bytes(o.frame.up.data(), 3 * sizeof(double));
+    h.bytes(o.frame.anterior.data(), 3 * sizeof(double));
+  }
   return h.hex();
 }
 
-FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& options,
+FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& given,
                                ElastostaticField* field_out) {
+  const FieldOptions options = with_tissue(given, tissue, rest);
   FieldModel m;
   m.shear_modulus_pa = shear_modulus_per_vertex(tissue, rest);
   ElastostaticField field = compute_field(rest, m.shear_modulus_pa, options);
@@ -333,7 +342,8 @@ CachedField load_or_compute(const std::filesystem::path& path, const std::string
 }
 
 CachedField load_or_compute(const std::filesystem::path& path, const mesh::TriangleMesh& rest, const Tissue& tissue,
-                            const FieldOptions& options) {
+                            const FieldOptions& given) {
+  const FieldOptions options = with_tissue(given, tissue, rest);
   std::error_code ec;
   if (std::filesystem::exists(path, ec)) {
     FieldModel cached = load_field(path);  // refuses a file that is not ours

@@ -44,15 +44,16 @@ void write_breaths_csv(const std::filesystem::path& path, const physiology::Simu
   write_stream_atomically(path, false, [&](std::ostream& out) {
     out << "breath,start_s,duration_s,mode,tidal_volume_mL,minute_ventilation_L_per_min,peak_pressure_cmH2O,"
            "plateau_pressure_cmH2O,peep_cmH2O,dynamic_compliance_mL_per_cmH2O,end_expiratory_volume_mL,"
-           "muscle_amplitude_cmH2O\n";
+           "muscle_amplitude_cmH2O,inspired_volume_mL,set_tidal_volume_mL\n";
     for (std::size_t i = 0; i < result.breaths.size(); ++i) {
       const auto& b = result.breaths[i];
-      out << fmt::format("{},{:.6f},{:.6f},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", i + 1,
+      const std::string set = b.set_tidal_volume_m3 > 0.0 ? fmt::format("{:.9g}", b.set_tidal_volume_m3 * kMl) : "";
+      out << fmt::format("{},{:.6f},{:.6f},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n", i + 1,
                          b.start_s, b.duration_s, b.mode, b.tidal_volume_m3 * kMl,
                          b.minute_ventilation_m3_per_s * kLitre * 60.0, b.peak_pressure_pa * kCmH2O,
                          b.plateau_pressure_pa * kCmH2O, b.peep_pa * kCmH2O,
                          b.dynamic_compliance_m3_per_pa * kMl / kCmH2O, b.end_expiratory_volume_m3 * kMl,
-                         b.muscle_amplitude_pa * kCmH2O);
+                         b.muscle_amplitude_pa * kCmH2O, b.inspired_volume_m3 * kMl, set);
     }
   });
 }

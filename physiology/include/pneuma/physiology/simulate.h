@@ -52,7 +52,9 @@ struct BreathMetrics {
   double start_s = 0.0;
   double duration_s = 0.0;
   const char* mode = "";
-  double tidal_volume_m3 = 0.0;                  // end-inspiratory minus start volume
+  double tidal_volume_m3 = 0.0;                  // the swing: max minus min volume over the breath
+  double inspired_volume_m3 = 0.0;               // end of the inspiratory phase minus start volume
+  double set_tidal_volume_m3 = 0.0;              // the driver's setting (spontaneous target, volume control); 0: none
   double minute_ventilation_m3_per_s = 0.0;      // tidal volume / breath duration
   double peak_pressure_pa = 0.0;                 // highest airway pressure
   double plateau_pressure_pa = 0.0;              // alveolar pressure at the end of inspiration

@@ -4,20 +4,35 @@
 //
 //   load:        the same force f = 1 on every mass node (pressure), 0 on spring nodes
 //   solve:       F = Shot (eq. 4.3 - 4.7) with the chosen solver and clique size
-//   direction:   n_i, the outward area-weighted vertex normal
+//   direction:   d_i, by default n_i, the outward area-weighted vertex normal (the paper's reading);
+//                or the normal of the surface smoothed in space, or the anatomical direction field
+//                (mesh/regions.h, docs/realism.md), which cannot close a crease
 //   normalise:   u_i = c F_i n_i with c such that sum_i dA/dx_i . u_i = one area unit, i.e. the
 //                first-order surface-area increase of x + s u is s area units.
 // Only relative moduli matter: multiplying every mu by a constant leaves u unchanged.
 #include <Eigen/Core>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "pneuma/engine/field_graph.h"
 #include "pneuma/engine/field_solver.h"
+#include "pneuma/mesh/regions.h"
 #include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/core/error.h"
 
 namespace pneuma::engine {
+
+// The direction each vertex moves in (docs/realism.md).
+enum class DirectionKind {
+  vertex_normal,    // the area-weighted vertex normal (METHOD.md section 4, the reference)
+  smoothed_normal,  // the outward normal blurred in space by a Gaussian (mesh::smoothed_normals)
+  anatomical,       // diaphragm down, rib cage out, apex and mediastinum along the smoothed normal
+};
+const char* direction_name(DirectionKind kind);
+// "vertex_normal", "smoothed_normal", "anatomical"; throws ValueError otherwise.
+DirectionKind parse_direction_kind(const std::string& name);
 
 struct FieldOptions {
   SolverKind solver = SolverKind::cg;  // the fastest (BENCHMARKS.md); `shot` is the paper's
@@ -25,6 +40,10 @@ struct FieldOptions {
   int clique_hops = 1;                 // M (cg supports 1 only)
   CliquePathRule path_rule = CliquePathRule::sum_of_shortest_paths;
   double area_unit = 1e-4;  // in the mesh's length unit squared: 1 cm^2 for a mesh in metres
+  DirectionKind direction = DirectionKind::vertex_normal;
+  double direction_smoothing = 0.02;  // Gaussian sigma of the smoothed normals, mesh units (20 mm)
+  mesh::BodyFrame frame;              // up and anterior, for the anatomical directions
+  std::vector<double> load;           // per vertex (>= 0, not all 0); empty: 1 everywhere (the paper)
 };
 inline const FieldOptions default_field_options{};
 
@@ -48,5 +67,12 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
 std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
                                                                        std::span<const double> force,
                                                                        double area_unit);
+// The same along given unit directions (one per vertex): u_i = c F_i d_i, dA/ds = one area unit.
+std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
+                                                                       std::span<const double> force,
+                                                                       std::span<const Eigen::Vector3d> direction,
+                                                                       double area_unit);
+// The unit direction of every vertex for these options.
+std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& mesh, const FieldOptions& options);
 
 }  // namespace pneuma::engine

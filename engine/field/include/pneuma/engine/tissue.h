@@ -14,15 +14,27 @@
 //   gradient    mu = nondependent .. dependent along the axis, `profile` linear or exponential
 //               (geometric interpolation), optionally overridden by `bands` of position.
 //   per_vertex  one value per vertex from a text file (`values`, `unit`).
-//   regions     one label per vertex from a text file (`labels`), a modulus per label (`moduli`).
+//   regions     one label per vertex from a text file (`labels`), a modulus per label (`moduli`);
+//               without `labels`, the anatomical regions found on the surface (mesh/regions.h:
+//               apex, costal, diaphragmatic, mediastinal, each needs a modulus), blended across
+//               borders geometrically with the region weights: mu_i = prod_r mu_r^w_ir.
+//               Optional `gravity: {nondependent: a, dependent: b}` multiplies mu by a factor
+//               running linearly from a to b along the posture's axis (see `position` below).
+//
+// `displacement: {direction: vertex_normal | smoothed_normal | anatomical, smoothing: 20 mm}`
+// (optional, default vertex_normal) chooses the field's displacement direction (field.h).
 #include <Eigen/Core>
 #include <filesystem>
+#include <array>
 #include <map>
+#include <optional>
 #include <string>
 #include <variant>
 #include <vector>
 
 #include "pneuma/engine/config.h"
+#include "pneuma/engine/field.h"
+#include "pneuma/mesh/regions.h"
 #include "pneuma/mesh/triangle_mesh.h"
 
 namespace pneuma::engine {
@@ -48,9 +60,11 @@ struct PerVertexStiffness {
 };
 
 struct RegionStiffness {
-  std::vector<std::string> labels;  // per vertex, read from the file
+  std::vector<std::string> labels;  // per vertex, read from the file; empty: anatomical regions
   std::map<std::string, double> shear_modulus_pa;
   std::string source;
+  bool anatomical = false;                           // the regions are found on the surface
+  double gravity_nondependent = 1.0, gravity_dependent = 1.0;  // factors on mu along the posture's axis
 };
 
 struct Tissue {
@@ -59,7 +73,21 @@ struct Tissue {
   Eigen::Vector3d up{0, 0, 1};
   Eigen::Vector3d anterior{0, -1, 0};
   std::variant<GradientStiffness, PerVertexStiffness, RegionStiffness> stiffness;
+  DirectionKind direction = DirectionKind::vertex_normal;
+  double direction_smoothing_m = 0.02;
+  // `load: {apex: a, costal: c, diaphragmatic: d, mediastinal: m}` (optional): the pressure drive
+  // per anatomical region, relative (mesh::regional_load); none: the same load everywhere.
+  // Optional `gravity: {nondependent: a, dependent: b}` inside `load`: the load times a factor
+  // running linearly from a to b along the posture's axis (dependent regions ventilate more).
+  std::optional<std::array<double, mesh::kRegionCount>> regional_load;
+  double load_nondependent = 1.0, load_dependent = 1.0;
 };
+
+// The body frame of the tissue's coordinates (up, anterior).
+mesh::BodyFrame body_frame(const Tissue& tissue);
+// `options` with the tissue's displacement direction, smoothing, body frame and, when the tissue
+// has a regional load, the load per vertex of `mesh`.
+FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh::TriangleMesh& mesh);
 
 // Reads a tissue file. Throws IoError / InputError ("<file>:<line>:<col>: <key>: <expected>").
 Tissue load_tissue(const std::filesystem::path& path);

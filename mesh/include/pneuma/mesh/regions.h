@@ -1,0 +1,113 @@
+#pragma once
+// Anatomical regions of one lung surface, found from its geometry alone, and the smooth
+// direction fields the elastostatic field can push along (docs/realism.md).
+//
+// Body frame. `up` (superior) and `anterior` are given (DICOM LPS: up +z, anterior -y, the
+// built-in phantom's frame); `left = up x anterior` is the patient's left (+x in LPS). The
+// side of the lung is found, not given: its mediastinal (medial) face is the one toward the
+// body midline, which is the concave face (cardiac impression, hilum, the groove around the
+// mediastinum); the costal face is convex, on the convex hull. So the face (along +left or
+// -left) that lies deeper below the convex hull of the surface is medial.
+//
+// Regions (per vertex, from the normals of the surface smoothed at `classification_length_m`
+// and the height between the lowest and highest vertex, 0 at the base, 1 at the apex):
+//   diaphragmatic  the inferior surface whose normals point down: -n.up rises through
+//                  `diaphragm_cos` (smoothly over +/- `transition`), in the lower `diaphragm_height`
+//   apex           above `apex_height` of the height (the cupola above the first rib)
+//   mediastinal    the medial face, hilum included: n.medial rises through `medial_cos`
+//   costal         the rest: the rib-cage surface (lateral, anterior and posterior)
+// Weights are products of smooth steps, taken in that order, so every vertex's four weights
+// are >= 0 and add up to 1 (a partition of unity); the label is the largest weight.
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string_view>
+#include <vector>
+
+#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/core/error.h"
+
+namespace pneuma::mesh {
+
+enum class Region : std::uint8_t { apex = 0, costal = 1, diaphragmatic = 2, mediastinal = 3 };
+inline constexpr std::size_t kRegionCount = 4;
+inline constexpr std::array<Region, kRegionCount> kRegions{Region::apex, Region::costal, Region::diaphragmatic,
+                                                            Region::mediastinal};
+// "apex", "costal", "diaphragmatic", "mediastinal".
+std::string_view region_name(Region region);
+// The region of a name above, or nothing.
+std::optional<Region> region_from_name(std::string_view name);
+
+enum class LungSide { right, left };
+
+struct BodyFrame {
+  Eigen::Vector3d up{0.0, 0.0, 1.0};         // superior (LPS: +z)
+  Eigen::Vector3d anterior{0.0, -1.0, 0.0};  // LPS: -y (y is posterior)
+  // The patient's left: up x anterior (LPS: +x).
+  Eigen::Vector3d left() const { return up.cross(anterior).normalized(); }
+};
+
+struct RegionOptions {
+  BodyFrame frame;
+  std::optional<LungSide> side;           // nothing: found from the geometry
+  double classification_length_m = 0.01;  // Gaussian smoothing of the normals (mesh units)
+  double diaphragm_cos = 0.4;             // -n.up at the diaphragmatic border (about 24 deg below horizontal)
+  double diaphragm_height = 0.55;         // the diaphragm lies below this height
+  double apex_height = 0.85;              // the apex lies above this height
+  double medial_cos = 0.45;               // n.medial at the mediastinal border
+  double transition = 0.15;               // half-width of the smooth steps in a cosine
+  double height_transition = 0.05;        // half-width of the smooth steps in height
+};
+inline const RegionOptions kDefaultRegionOptions{};
+
+struct SurfaceRegions {
+  LungSide side = LungSide::right;
+  Eigen::Vector3d medial = Eigen::Vector3d::UnitX();  // unit, toward the body midline
+  BodyFrame frame;
+  std::vector<Region> label;                           // per vertex: the largest weight
+  std::vector<std::array<double, kRegionCount>> weight;  // per vertex, indexed by Region, sum 1
+  std::vector<double> height;                          // per vertex: 0 at the lowest, 1 at the highest
+  std::vector<Eigen::Vector3d> normal;                 // per vertex: the smoothed normal classified
+  // The mean depth below the convex hull (m) of the faces toward +left and -left that decided the side.
+  double left_face_depth = 0.0, right_face_depth = 0.0;
+};
+
+// Throws ValueError for an empty mesh or an up/anterior pair that is not at right angles.
+SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& options = kDefaultRegionOptions);
+
+// Per vertex: the outward normal of the surface blurred by a Gaussian of standard deviation
+// `sigma` (mesh units), N(x) = sum_t G(x - c_t) A_t n_t = -grad (G * chi)(x), chi the inside,
+// normalised. A smooth field in space, not only along the surface: the two lips of a narrow
+// crease get nearly the same direction, so moving along it cannot close the crease.
+// Computed on a grid (spacing sigma / 2: splat, separable blur, trilinear interpolation), in a
+// fixed order: the same mesh gives the same bits. Where the blurred field vanishes (|N| below
+// 1e-9 of its largest value), the vertex normal. Throws ValueError for sigma <= 0.
+std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double sigma);
+
+// Per vertex: the mean curvature (1/length, > 0 where convex) from the cotangent Laplacian,
+// H_i = -(Delta x)_i . n_i / 2, Delta the cotangent Laplacian over the barycentric vertex area.
+std::vector<double> mean_curvature(const TriangleMesh& mesh);
+
+// Per point: its distance below the convex hull of all the points (0 on the hull; CGAL).
+std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& points);
+
+// Per vertex: a third of the area of the incident triangles (sums to the surface area).
+std::vector<double> vertex_areas(const TriangleMesh& mesh);
+
+// Per vertex: a load (the pressure drive of the field) blended from one value per region,
+// f_i = sum_r w_ir load_r, with the diaphragmatic term times max(0, -n_i.up): the diaphragm
+// drives, most at its dome (normal straight down), least at its rim, where it lies on the ribs
+// (the zone of apposition).
+std::vector<double> regional_load(const SurfaceRegions& regions, const std::array<double, kRegionCount>& load);
+
+// The displacement directions of the anatomical field, per vertex, unit length: a blend with
+// the region weights of
+//   apex, mediastinal  the smoothed normal (their moduli keep them nearly still)
+//   costal             the horizontal part of the smoothed normal (the rib cage moves out)
+//   diaphragmatic      -up (the diaphragm descends)
+// with the normals smoothed at `sigma` (mesh units). Every part is a smooth field in space.
+std::vector<Eigen::Vector3d> anatomical_directions(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                                   double sigma);
+
+}  // namespace pneuma::mesh

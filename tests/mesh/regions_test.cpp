@@ -1,0 +1,215 @@
+// Anatomical regions, smoothed normals and the motion summary, against geometric oracles.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "mesh_fixture.h"
+#include "pneuma/mesh/motion_summary.h"
+#include "pneuma/mesh/phantom.h"
+#include "pneuma/mesh/regions.h"
+#include "pneuma/core/error.h"
+
+namespace pneuma::mesh {
+namespace {
+
+TriangleMesh phantom(Lung lung, double edge = 6e-3) {
+  PhantomOptions o;
+  o.lung = lung;
+  o.edge_length_m = edge;
+  return make_lung_phantom(o);
+}
+
+// The mirror image through the mid-sagittal plane x = 0 (orientation kept outward).
+TriangleMesh mirrored(TriangleMesh m) {
+  for (auto& v : m.vertices) v.x() = -v.x();
+  for (auto& t : m.triangles) std::swap(t[1], t[2]);
+  return m;
+}
+
+TEST(Regions, PhantomSidesAreFoundFromTheGeometry) {
+  EXPECT_EQ(find_regions(phantom(Lung::right)).side, LungSide::right);
+  EXPECT_EQ(find_regions(phantom(Lung::left)).side, LungSide::left);
+  // The right lung's medial face looks to the patient's left (+x in LPS).
+  EXPECT_GT(find_regions(phantom(Lung::right)).medial.x(), 0.99);
+  EXPECT_LT(find_regions(phantom(Lung::left)).medial.x(), -0.99);
+}
+
+TEST(Regions, WeightsArePartitionOfUnityAndAreasAddUp) {
+  const TriangleMesh m = phantom(Lung::right);
+  const SurfaceRegions r = find_regions(m);
+  const std::vector<double> area = vertex_areas(m);
+  std::array<double, kRegionCount> region_area{};
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    double sum = 0.0;
+    for (double w : r.weight[i]) {
+      EXPECT_GE(w, 0.0);
+      sum += w;
+    }
+    EXPECT_NEAR(sum, 1.0, 1e-12);
+    region_area[static_cast<std::size_t>(r.label[i])] += area[i];
+    EXPECT_EQ(r.weight[i][static_cast<std::size_t>(r.label[i])],
+              *std::max_element(r.weight[i].begin(), r.weight[i].end()));
+  }
+  EXPECT_NEAR(std::accumulate(region_area.begin(), region_area.end(), 0.0), surface_area(m), 1e-12);
+  for (double a : region_area) EXPECT_GT(a, 0.03 * surface_area(m));  // every region is there
+}
+
+TEST(Regions, DownwardNormalsAreDiaphragmaticAndTheTopIsApex) {
+  for (Lung lung : {Lung::right, Lung::left}) {
+    const TriangleMesh m = phantom(lung);
+    const SurfaceRegions r = find_regions(m);
+    int checked = 0;
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+      if (r.normal[i].z() < -0.95 && r.height[i] < 0.4) {
+        EXPECT_EQ(r.label[i], Region::diaphragmatic) << i;
+        ++checked;
+      }
+      if (r.height[i] > 0.95) {
+        EXPECT_EQ(r.label[i], Region::apex) << i;
+      }
+      // A steep face looking straight at the midline, mid-height: mediastinal.
+      if (r.normal[i].dot(r.medial) > 0.9 && r.height[i] > 0.4 && r.height[i] < 0.7) {
+        EXPECT_EQ(r.label[i], Region::mediastinal) << i;
+      }
+    }
+    EXPECT_GT(checked, 3);
+  }
+}
+
+TEST(Regions, MirroredLungGetsMirroredLabels) {
+  const TriangleMesh right = phantom(Lung::right);
+  const SurfaceRegions a = find_regions(right), b = find_regions(mirrored(right));
+  EXPECT_EQ(a.side, LungSide::right);
+  EXPECT_EQ(b.side, LungSide::left);
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < a.label.size(); ++i) differ += a.label[i] != b.label[i];
+  // The grid of the blur is not mirror symmetric: a few border vertices may flip.
+  EXPECT_LE(differ, a.label.size() / 200);
+}
+
+TEST(Regions, SphereBottomIsDiaphragmaticTopIsApex) {
+  const TriangleMesh s = make_icosphere(0.1, 4);
+  RegionOptions o;
+  o.side = LungSide::right;
+  const SurfaceRegions r = find_regions(s, o);
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    const Eigen::Vector3d n = s.vertices[i].normalized();
+    if (n.z() < -0.9) { EXPECT_EQ(r.label[i], Region::diaphragmatic); }
+    if (n.z() > 0.9) { EXPECT_EQ(r.label[i], Region::apex); }
+    if (n.x() > 0.97) {  // steeper than the diaphragmatic border (-n.up > 0.25)
+      EXPECT_EQ(r.label[i], Region::mediastinal);  // right lung: medial is +x
+    }
+    if (n.x() < -0.97) { EXPECT_EQ(r.label[i], Region::costal); }
+  }
+}
+
+TEST(SmoothedNormals, SphereNormalsAreRadial) {
+  const TriangleMesh s = make_icosphere(0.1, 4);
+  const auto n = smoothed_normals(s, 0.02);
+  for (std::size_t i = 0; i < n.size(); ++i) EXPECT_GT(n[i].dot(s.vertices[i].normalized()), 0.999);
+  EXPECT_THROW(smoothed_normals(s, 0.0), pneuma::ValueError);
+}
+
+TEST(SmoothedNormals, TwoLipsOfANarrowCreaseMoveTogether) {
+  // Two parallel plates 4 mm apart (a cube squashed) seen through a 20 mm blur: the facing
+  // faces' normals are opposite, their smoothed normals nearly the same.
+  TriangleMesh thin = make_icosphere(0.05, 4);
+  for (auto& v : thin.vertices) v.z() *= 0.04;
+  const auto raw = vertex_normals(thin);
+  const auto smooth = smoothed_normals(thin, 0.02);
+  // Vertices near the rim: raw normals radial-horizontal, smooth ones too; in the middle the
+  // top and bottom differ in raw normal by 180 degrees but both blur to nearly the same field.
+  double worst_raw = 1.0, worst_smooth = 1.0;
+  for (std::size_t i = 0; i < thin.vertices.size(); ++i) {
+    for (std::size_t j = 0; j < thin.vertices.size(); ++j) {
+      if ((thin.vertices[i] - thin.vertices[j]).norm() > 0.005) continue;
+      worst_raw = std::min(worst_raw, raw[i].dot(raw[j]));
+      worst_smooth = std::min(worst_smooth, smooth[i].dot(smooth[j]));
+    }
+  }
+  EXPECT_LT(worst_raw, -0.9);
+  EXPECT_GT(worst_smooth, worst_raw + 0.5);
+}
+
+TEST(MotionSummary, SweptVolumesAddUpToTheVolumeChange) {
+  const TriangleMesh m = phantom(Lung::left, 8e-3);
+  std::vector<Eigen::Vector3d> d(m.vertices.size());
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    const double x = static_cast<double>(i);
+    d[i] = 0.01 * Eigen::Vector3d(std::sin(3.0 * x), std::cos(7.0 * x), std::sin(11.0 * x + 1));
+  }
+  const auto swept = swept_volumes(m, d);
+  TriangleMesh moved = m;
+  for (std::size_t i = 0; i < d.size(); ++i) moved.vertices[i] += d[i];
+  EXPECT_NEAR(std::accumulate(swept.begin(), swept.end(), 0.0), enclosed_volume(moved) - enclosed_volume(m),
+              1e-12 * enclosed_volume(m));
+}
+
+TEST(MotionSummary, UniformDilationSharesFollowAreasAndDoNotDependOnTheOrigin) {
+  // Every vertex of a sphere moves out by the same amount: each region's share of the volume
+  // change is its share of the area (to the discretisation), wherever the sphere lies.
+  TriangleMesh s = make_icosphere(0.1, 4);
+  RegionOptions o;
+  o.side = LungSide::right;
+  const SurfaceRegions r = find_regions(s, o);
+  std::vector<Eigen::Vector3d> u(s.vertices.size());
+  for (std::size_t i = 0; i < u.size(); ++i) u[i] = s.vertices[i].normalized();
+  const MotionSummary a = summarize_motion(s, u, 0.002, r);
+  const double total_area = surface_area(s);
+  for (Region k : kRegions) {
+    const auto& m = a.region[static_cast<std::size_t>(k)];
+    EXPECT_NEAR(m.volume_share, m.area_m2 / total_area, 0.01) << region_name(k);
+    EXPECT_NEAR(m.magnitude_mean_m, 0.002, 1e-12);
+  }
+  for (auto& v : s.vertices) v += Eigen::Vector3d(1.0, -2.0, 0.5);
+  const MotionSummary b = summarize_motion(s, u, 0.002, r);
+  for (Region k : kRegions)
+    EXPECT_NEAR(a.region[static_cast<std::size_t>(k)].volume_share, b.region[static_cast<std::size_t>(k)].volume_share,
+                1e-9);
+  // A pure downward translation: the diaphragm's mean caudal displacement is the translation.
+  std::vector<Eigen::Vector3d> down(s.vertices.size(), Eigen::Vector3d(0, 0, -1));
+  const MotionSummary c = summarize_motion(s, down, 0.005, r);
+  EXPECT_NEAR(c.region[static_cast<std::size_t>(Region::diaphragmatic)].caudal_mean_m, 0.005, 1e-12);
+  EXPECT_NEAR(c.dome_top_caudal_m, 0.005, 1e-12);
+  EXPECT_NEAR(c.volume_change_m3, 0.0, 1e-15);
+}
+
+}  // namespace
+}  // namespace pneuma::mesh
+
+namespace pneuma::mesh {
+namespace {
+
+TEST(Geometry, SphereMeanCurvatureIsOneOverRadiusAndHullDepthIsZero) {
+  const TriangleMesh s = make_icosphere(0.1, 4);
+  // Per vertex within 15 % (the barycentric area is rough at the icosahedron's valence-5
+  // vertices), the area-weighted mean within 1 %.
+  const std::vector<double> h = mean_curvature(s), area = vertex_areas(s);
+  double sum = 0.0;
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    EXPECT_NEAR(h[i], 10.0, 1.5);
+    sum += h[i] * area[i];
+  }
+  EXPECT_NEAR(sum / surface_area(s), 10.0, 0.1);
+  std::vector<Eigen::Vector3d> points = s.vertices;
+  points.push_back(Eigen::Vector3d::Zero());  // the centre lies ~R below the hull
+  const std::vector<double> depth = depth_below_convex_hull(points);
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) EXPECT_NEAR(depth[i], 0.0, 1e-12);
+  EXPECT_NEAR(depth.back(), 0.1, 0.002);
+}
+
+TEST(Regions, SameMeshSameBits) {
+  PhantomOptions o;
+  o.lung = Lung::left;
+  o.edge_length_m = 8e-3;
+  const TriangleMesh m = make_lung_phantom(o);
+  const SurfaceRegions a = find_regions(m), b = find_regions(m);
+  EXPECT_EQ(a.label, b.label);
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) EXPECT_EQ(a.weight[i], b.weight[i]);
+  EXPECT_EQ(anatomical_directions(m, a, 0.02), anatomical_directions(m, b, 0.02));
+}
+
+}  // namespace
+}  // namespace pneuma::mesh
