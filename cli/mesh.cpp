@@ -1,12 +1,17 @@
 // pneuma mesh info|repair|remesh: inspect, repair and remesh triangle surfaces.
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 
 #include "commands.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/atomic_file.h"
 #include "pneuma/mesh/io.h"
+#include "pneuma/mesh/labels.h"
 #include "pneuma/mesh/remesh.h"
 #include "pneuma/mesh/repair.h"
 #include "pneuma/mesh/validate.h"
@@ -23,6 +28,9 @@ struct MeshOptions {
   double edge_m = 0.0;
   unsigned iterations = 3;
   std::size_t max_hole_edges = mesh::RepairOptions{}.max_hole_edges;
+  // from-labels
+  std::vector<int> labels;
+  mesh::LabelSurfaceOptions from_labels;
 };
 
 std::string yes_no(bool b) { return b ? "yes" : "no"; }
@@ -62,10 +70,22 @@ mesh::TriangleMesh load(const MeshOptions& o) {
   return mesh::read_mesh(o.input, {.metres_per_unit = mesh::parse_length_unit(o.unit)});
 }
 
+// The record `mesh from-labels` leaves beside its output, when there is one.
+void print_provenance(const std::string& mesh_file) {
+  const auto path = mesh::provenance_path(mesh_file);
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return;
+  std::ifstream in(path);
+  std::string line;
+  fmt::print("provenance ({}):\n", path.string());
+  while (std::getline(in, line)) fmt::print("  {}\n", line);
+}
+
 void run_info(const MeshOptions& o) {
   const mesh::TriangleMesh m = load(o);
   const mesh::ValidationReport r = mesh::validate(m, {.check_self_intersections = !o.skip_self_intersections});
   print_report(o.input, m, r);
+  print_provenance(o.input);
   if (!r.valid()) throw InputError(o.input + ": " + r.summary());
 }
 
@@ -98,6 +118,17 @@ void run_remesh(const MeshOptions& o) {
              m.triangle_count(), result.mesh.triangle_count(), v0 * 1e6, v1 * 1e6, 100.0 * (v1 - v0) / v0,
              result.max_deviation_m * 1e3);
   fmt::print("wrote {}\n", o.output);
+}
+
+void run_from_labels(const MeshOptions& o) {
+  mesh::format_for_path(o.output, o.ascii);
+  const mesh::LabelSurface s = mesh::surface_from_labels(o.input, o.labels, o.from_labels);
+  mesh::write_mesh(o.output, s.mesh, {.metres_per_unit = mesh::kMetresPerMillimetre, .ascii = o.ascii});
+  const auto record = mesh::provenance_path(o.output);
+  write_stream_atomically(record, false, [&](std::ostream& out) { out << s.report.provenance(); });
+  for (const auto& step : s.report.steps()) fmt::print("{}: {}\n", o.input, step);
+  fmt::print("wrote {} ({} vertices, {} triangles, LPS millimetres) and {}\n", o.output, s.mesh.vertex_count(),
+             s.mesh.triangle_count(), record.string());
 }
 
 void add_unit_option(CLI::App& cmd, MeshOptions& o) {
@@ -135,6 +166,32 @@ void register_mesh(CLI::App& app) {
   add_unit_option(*remesh, *o);
   remesh->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
   remesh->callback([o] { run_remesh(*o); });
+
+  CLI::App* labels = mesh_cmd->add_subcommand(
+      "from-labels", "Surface of the union of some labels of a NIfTI label map (.nii, .nii.gz), in LPS millimetres");
+  labels->add_option("labels_file", o->input, "NIfTI label map")->required();
+  labels->add_option("--labels", o->labels, "Label values to join, e.g. 3,4,5 (a right lung of a lobe map)")
+      ->delimiter(',')
+      ->required();
+  o->from_labels.edge_length_m = 2e-3;
+  add_quantity_option(*labels, "--edge", o->from_labels.edge_length_m, "Target facet size (default 2 mm)", "length");
+  add_quantity_option(*labels, "--smooth", o->from_labels.smoothing_m,
+                      "Gaussian smoothing of the mask, sigma (default 1 mm; 0 mm: none)", "length");
+  add_quantity_option(*labels, "--closing", o->from_labels.closing_radius_m,
+                      "Morphological closing radius: gaps between lobes, narrow tunnels (default 1.5 mm; grows up to "
+                      "6 mm while the surface has handles)",
+                      "length");
+  labels->add_option("-o,--output", o->output, "Surface (.ply, .obj or .stl, millimetres); a provenance record is "
+                                               "written beside it (<output>.provenance.txt)")
+      ->required();
+  labels->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
+  labels->callback([o] {
+    if (!(o->from_labels.edge_length_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '2 mm'");
+    if (o->from_labels.smoothing_m < 0.0) throw UsageError("pneuma: --smooth: must be a length >= 0 such as '1 mm'");
+    if (o->from_labels.closing_radius_m < 0.0) throw UsageError("pneuma: --closing: must be a length >= 0 such as '1.5 mm'");
+    o->from_labels.max_closing_radius_m = std::max(o->from_labels.max_closing_radius_m, o->from_labels.closing_radius_m);
+    run_from_labels(*o);
+  });
 }
 
 }  // namespace pneuma::cli
