@@ -107,13 +107,26 @@ void run_remesh(const MeshOptions& o) {
   if (!(o.edge_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '3 mm'");
   mesh::format_for_path(o.output, o.ascii);
   const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit});
+  const mesh::RemeshOptions remesh_options{.target_edge_length_m = o.edge_m, .iterations = o.iterations};
   const mesh::ValidationReport r = mesh::validate(m);
-  if (!r.valid()) throw InputError(o.input + ": cannot remesh: " + r.summary() + " (try 'pneuma mesh repair')");
-  const mesh::RemeshResult result = mesh::remesh_isotropic(m, {.target_edge_length_m = o.edge_m, .iterations = o.iterations});
+  mesh::RemeshResult result;
+  double v0 = 0.0;
+  if (r.valid()) {
+    result = mesh::remesh_isotropic(m, remesh_options);
+    v0 = mesh::enclosed_volume(m);
+  } else {
+    // Repairs first, then remeshing, then the verdict (remeshing may remove what repair left).
+    fmt::print("{}: not a valid surface ({}); repairing before remeshing\n", o.input, r.summary());
+    mesh::RepairRemeshResult rr =
+        mesh::repair_and_remesh(m, o.input, {.max_hole_edges = o.max_hole_edges}, remesh_options);
+    for (const auto& a : rr.repair.actions()) fmt::print("{}: {}\n", o.input, a);
+    result = std::move(rr.remesh);
+    v0 = mesh::enclosed_volume(m);
+  }
   mesh::write_mesh(o.output, result.mesh, {.metres_per_unit = unit, .ascii = o.ascii});
   print_quality("before: ", result.before);
   print_quality("after:  ", result.after);
-  const double v0 = mesh::enclosed_volume(m), v1 = mesh::enclosed_volume(result.mesh);
+  const double v1 = mesh::enclosed_volume(result.mesh);
   fmt::print("triangles {} -> {}, volume {:.6g} -> {:.6g} mL ({:+.3f} %), farthest from the input surface {:.4f} mm\n",
              m.triangle_count(), result.mesh.triangle_count(), v0 * 1e6, v1 * 1e6, 100.0 * (v1 - v0) / v0,
              result.max_deviation_m * 1e3);
@@ -159,11 +172,13 @@ void register_mesh(CLI::App& app) {
   repair->callback([o] { run_repair(*o); });
 
   CLI::App* remesh = mesh_cmd->add_subcommand("remesh", "Isotropic remeshing to a target edge length");
-  remesh->add_option("input", o->input, "Mesh file (a valid surface)")->required();
+  remesh->add_option("input", o->input, "Mesh file (repaired first when it is not a valid surface)")->required();
   add_quantity_option(*remesh, "--edge", o->edge_m, "Target edge length", "length")->required();
   remesh->add_option("-o,--output", o->output, "Remeshed surface (.ply, .obj or .stl)")->required();
   remesh->add_option("--iterations", o->iterations, "Remeshing iterations")->capture_default_str()->check(CLI::Range(1u, 100u));
   add_unit_option(*remesh, *o);
+  remesh->add_option("--max-hole", o->max_hole_edges, "When the input needs repair: fill holes of at most this many "
+                                                     "boundary edges")->capture_default_str();
   remesh->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
   remesh->callback([o] { run_remesh(*o); });
 
