@@ -163,7 +163,7 @@ TEST(MeshCli, NotAMesh) {
   expect_info_error(text, 3, "no triangles in the file (not a surface mesh)");
   const auto other = dir.write("notes.txt", "these are notes, not a mesh\n").string();
   expect_info_error(other, 3,
-                    "unknown mesh format '.txt' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ...)");
+                    "unknown mesh format '.txt' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ..., or VTK .vtk, .vtp)");
   const auto ply = dir.write("notes.ply", "these are notes, not a mesh\n").string();
   const auto r = run_pneuma({"mesh", "info", ply});
   EXPECT_EQ(r.exit_code, 3);
