@@ -278,3 +278,13 @@ TEST_P(CtLobes, BothLungsExtractRepairAndRemesh) {
 
 INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtLobes,
                          ::testing::Values("case004", "case005", "case006", "case007", "case008", "case009"));
+
+TEST(Labels, SameInputSameTriangles) {
+  TempDir dir;
+  const Qform q = rotated_qform();
+  write_nifti(dir / "ball.nii", {48, 40, 32}, ball({48, 40, 32}, q.spacing, {24, 20, 16}, 12.0).labels, q);
+  const LabelSurface a = surface_from_labels(dir / "ball.nii", {1}, {.edge_length_m = 2e-3});
+  const LabelSurface b = surface_from_labels(dir / "ball.nii", {1}, {.edge_length_m = 2e-3});
+  EXPECT_EQ(a.mesh.triangles, b.mesh.triangles);
+  EXPECT_EQ(a.mesh.vertices, b.mesh.vertices);
+}
