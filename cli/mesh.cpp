@@ -153,7 +153,7 @@ void add_unit_option(CLI::App& cmd, MeshOptions& o) {
 
 void register_mesh(CLI::App& app) {
   auto o = std::make_shared<MeshOptions>();
-  CLI::App* mesh_cmd = app.add_subcommand("mesh", "Inspect, repair and remesh triangle surfaces (STL, OBJ, PLY, OFF, glTF, ...)");
+  CLI::App* mesh_cmd = app.add_subcommand("mesh", "Inspect, repair and remesh triangle surfaces (STL, OBJ, PLY, OFF, glTF, VTK, ...); surfaces from label maps");
   mesh_cmd->require_subcommand(1);
 
   CLI::App* info = mesh_cmd->add_subcommand("info", "Counts, bounding box, area, volume and the validation report; "
