@@ -270,3 +270,15 @@ TEST(MeshCli, SliversRepairFromTheCommandLine) {
   EXPECT_EQ(r2.exit_code, 0) << r2.err;
   EXPECT_TRUE(validate(read_mesh(dir / "remeshed.ply")).valid());
 }
+
+TEST(MeshCli, InfoOnAnInvalidMeshStillPrintsTheWholeReport) {
+  TempDir dir;
+  const auto file = write(dir, "folded.ply", folded_sphere());
+  const auto r = run_pneuma({"mesh", "info", file});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.out.find(file + ": "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("closed: yes, manifold: yes"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\ninvalid\n"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_EQ(r.err.rfind(file + ": self-intersection", 0), 0u) << r.err;
+}
