@@ -1,12 +1,17 @@
 // pneuma mesh info|repair|remesh: inspect, repair and remesh triangle surfaces.
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 
 #include "commands.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/atomic_file.h"
 #include "pneuma/mesh/io.h"
+#include "pneuma/mesh/labels.h"
 #include "pneuma/mesh/remesh.h"
 #include "pneuma/mesh/repair.h"
 #include "pneuma/mesh/validate.h"
@@ -23,6 +28,9 @@ struct MeshOptions {
   double edge_m = 0.0;
   unsigned iterations = 3;
   std::size_t max_hole_edges = mesh::RepairOptions{}.max_hole_edges;
+  // from-labels
+  std::vector<int> labels;
+  mesh::LabelSurfaceOptions from_labels;
 };
 
 std::string yes_no(bool b) { return b ? "yes" : "no"; }
@@ -62,10 +70,22 @@ mesh::TriangleMesh load(const MeshOptions& o) {
   return mesh::read_mesh(o.input, {.metres_per_unit = mesh::parse_length_unit(o.unit)});
 }
 
+// The record `mesh from-labels` leaves beside its output, when there is one.
+void print_provenance(const std::string& mesh_file) {
+  const auto path = mesh::provenance_path(mesh_file);
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return;
+  std::ifstream in(path);
+  std::string line;
+  fmt::print("provenance ({}):\n", path.string());
+  while (std::getline(in, line)) fmt::print("  {}\n", line);
+}
+
 void run_info(const MeshOptions& o) {
   const mesh::TriangleMesh m = load(o);
   const mesh::ValidationReport r = mesh::validate(m, {.check_self_intersections = !o.skip_self_intersections});
   print_report(o.input, m, r);
+  print_provenance(o.input);
   if (!r.valid()) throw InputError(o.input + ": " + r.summary());
 }
 
@@ -87,17 +107,41 @@ void run_remesh(const MeshOptions& o) {
   if (!(o.edge_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '3 mm'");
   mesh::format_for_path(o.output, o.ascii);
   const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit});
+  const mesh::RemeshOptions remesh_options{.target_edge_length_m = o.edge_m, .iterations = o.iterations};
   const mesh::ValidationReport r = mesh::validate(m);
-  if (!r.valid()) throw InputError(o.input + ": cannot remesh: " + r.summary() + " (try 'pneuma mesh repair')");
-  const mesh::RemeshResult result = mesh::remesh_isotropic(m, {.target_edge_length_m = o.edge_m, .iterations = o.iterations});
+  mesh::RemeshResult result;
+  double v0 = 0.0;
+  if (r.valid()) {
+    result = mesh::remesh_isotropic(m, remesh_options);
+    v0 = mesh::enclosed_volume(m);
+  } else {
+    // Repairs first, then remeshing, then the verdict (remeshing may remove what repair left).
+    fmt::print("{}: not a valid surface ({}); repairing before remeshing\n", o.input, r.summary());
+    mesh::RepairRemeshResult rr =
+        mesh::repair_and_remesh(m, o.input, {.max_hole_edges = o.max_hole_edges}, remesh_options);
+    for (const auto& a : rr.repair.actions()) fmt::print("{}: {}\n", o.input, a);
+    result = std::move(rr.remesh);
+    v0 = mesh::enclosed_volume(m);
+  }
   mesh::write_mesh(o.output, result.mesh, {.metres_per_unit = unit, .ascii = o.ascii});
   print_quality("before: ", result.before);
   print_quality("after:  ", result.after);
-  const double v0 = mesh::enclosed_volume(m), v1 = mesh::enclosed_volume(result.mesh);
+  const double v1 = mesh::enclosed_volume(result.mesh);
   fmt::print("triangles {} -> {}, volume {:.6g} -> {:.6g} mL ({:+.3f} %), farthest from the input surface {:.4f} mm\n",
              m.triangle_count(), result.mesh.triangle_count(), v0 * 1e6, v1 * 1e6, 100.0 * (v1 - v0) / v0,
              result.max_deviation_m * 1e3);
   fmt::print("wrote {}\n", o.output);
+}
+
+void run_from_labels(const MeshOptions& o) {
+  mesh::format_for_path(o.output, o.ascii);
+  const mesh::LabelSurface s = mesh::surface_from_labels(o.input, o.labels, o.from_labels);
+  mesh::write_mesh(o.output, s.mesh, {.metres_per_unit = mesh::kMetresPerMillimetre, .ascii = o.ascii});
+  const auto record = mesh::provenance_path(o.output);
+  write_stream_atomically(record, false, [&](std::ostream& out) { out << s.report.provenance(); });
+  for (const auto& step : s.report.steps()) fmt::print("{}: {}\n", o.input, step);
+  fmt::print("wrote {} ({} vertices, {} triangles, LPS millimetres) and {}\n", o.output, s.mesh.vertex_count(),
+             s.mesh.triangle_count(), record.string());
 }
 
 void add_unit_option(CLI::App& cmd, MeshOptions& o) {
@@ -109,7 +153,7 @@ void add_unit_option(CLI::App& cmd, MeshOptions& o) {
 
 void register_mesh(CLI::App& app) {
   auto o = std::make_shared<MeshOptions>();
-  CLI::App* mesh_cmd = app.add_subcommand("mesh", "Inspect, repair and remesh triangle surfaces (STL, OBJ, PLY, OFF, glTF, ...)");
+  CLI::App* mesh_cmd = app.add_subcommand("mesh", "Inspect, repair and remesh triangle surfaces (STL, OBJ, PLY, OFF, glTF, VTK, ...); surfaces from label maps");
   mesh_cmd->require_subcommand(1);
 
   CLI::App* info = mesh_cmd->add_subcommand("info", "Counts, bounding box, area, volume and the validation report; "
@@ -128,13 +172,41 @@ void register_mesh(CLI::App& app) {
   repair->callback([o] { run_repair(*o); });
 
   CLI::App* remesh = mesh_cmd->add_subcommand("remesh", "Isotropic remeshing to a target edge length");
-  remesh->add_option("input", o->input, "Mesh file (a valid surface)")->required();
+  remesh->add_option("input", o->input, "Mesh file (repaired first when it is not a valid surface)")->required();
   add_quantity_option(*remesh, "--edge", o->edge_m, "Target edge length", "length")->required();
   remesh->add_option("-o,--output", o->output, "Remeshed surface (.ply, .obj or .stl)")->required();
   remesh->add_option("--iterations", o->iterations, "Remeshing iterations")->capture_default_str()->check(CLI::Range(1u, 100u));
   add_unit_option(*remesh, *o);
+  remesh->add_option("--max-hole", o->max_hole_edges, "When the input needs repair: fill holes of at most this many "
+                                                     "boundary edges")->capture_default_str();
   remesh->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
   remesh->callback([o] { run_remesh(*o); });
+
+  CLI::App* labels = mesh_cmd->add_subcommand(
+      "from-labels", "Surface of the union of some labels of a NIfTI label map (.nii, .nii.gz), in LPS millimetres");
+  labels->add_option("labels_file", o->input, "NIfTI label map")->required();
+  labels->add_option("--labels", o->labels, "Label values to join, e.g. 3,4,5 (a right lung of a lobe map)")
+      ->delimiter(',')
+      ->required();
+  o->from_labels.edge_length_m = 2e-3;
+  add_quantity_option(*labels, "--edge", o->from_labels.edge_length_m, "Target facet size (default 2 mm)", "length");
+  add_quantity_option(*labels, "--smooth", o->from_labels.smoothing_m,
+                      "Gaussian smoothing of the mask, sigma (default 1 mm; 0 mm: none)", "length");
+  add_quantity_option(*labels, "--closing", o->from_labels.closing_radius_m,
+                      "Morphological closing radius: gaps between lobes, narrow tunnels (default 1.5 mm; grows up to "
+                      "6 mm while the surface has handles)",
+                      "length");
+  labels->add_option("-o,--output", o->output, "Surface (.ply, .obj or .stl, millimetres); a provenance record is "
+                                               "written beside it (<output>.provenance.txt)")
+      ->required();
+  labels->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
+  labels->callback([o] {
+    if (!(o->from_labels.edge_length_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '2 mm'");
+    if (o->from_labels.smoothing_m < 0.0) throw UsageError("pneuma: --smooth: must be a length >= 0 such as '1 mm'");
+    if (o->from_labels.closing_radius_m < 0.0) throw UsageError("pneuma: --closing: must be a length >= 0 such as '1.5 mm'");
+    o->from_labels.max_closing_radius_m = std::max(o->from_labels.max_closing_radius_m, o->from_labels.closing_radius_m);
+    run_from_labels(*o);
+  });
 }
 
 }  // namespace pneuma::cli

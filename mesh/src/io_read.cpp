@@ -11,9 +11,11 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <unordered_map>
 
+#include "io_vtk.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/units.h"
 #include "pneuma/mesh/io.h"
@@ -128,21 +130,33 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
 
   Assimp::Importer importer;
   const std::string extension = lower(path.extension().string());
-  if (extension.empty() || !importer.IsExtensionSupported(extension)) {
-    throw InputError(name + ": unknown mesh format '" + extension +
-                     "' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ...)");
-  }
-  if (extension == ".stl") check_binary_stl(path, size);
-
-  // Triangulate polygons; no other post-processing (vertex joining is done below, exactly).
-  const aiScene* scene = importer.ReadFile(name, aiProcess_Triangulate);
-  if (scene == nullptr) throw InputError(name + ": cannot read as a mesh: " + importer.GetErrorString());
-
   Soup soup;
-  if (scene->mRootNode != nullptr) {
-    append_node(*scene, *scene->mRootNode, aiMatrix4x4{}, soup);
+  if (extension == ".vtk" || extension == ".vtp") {
+    std::ifstream in(path, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const detail::VtkSoup vtk = extension == ".vtk" ? detail::read_vtk_legacy(name, std::move(bytes))
+                                                    : detail::read_vtk_xml(name, std::move(bytes));
+    soup.vertices.reserve(vtk.points.size());
+    for (const auto& p : vtk.points) {
+      soup.vertices.push_back({static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2])});
+    }
+    soup.triangles = vtk.triangles;
   } else {
-    for (unsigned i = 0; i < scene->mNumMeshes; ++i) append_mesh(*scene->mMeshes[i], aiMatrix4x4{}, soup);
+    if (extension.empty() || !importer.IsExtensionSupported(extension)) {
+      throw InputError(name + ": unknown mesh format '" + extension +
+                       "' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ..., or VTK .vtk, .vtp)");
+    }
+    if (extension == ".stl") check_binary_stl(path, size);
+
+    // Triangulate polygons; no other post-processing (vertex joining is done below, exactly).
+    const aiScene* scene = importer.ReadFile(name, aiProcess_Triangulate);
+    if (scene == nullptr) throw InputError(name + ": cannot read as a mesh: " + importer.GetErrorString());
+
+    if (scene->mRootNode != nullptr) {
+      append_node(*scene, *scene->mRootNode, aiMatrix4x4{}, soup);
+    } else {
+      for (unsigned i = 0; i < scene->mNumMeshes; ++i) append_mesh(*scene->mMeshes[i], aiMatrix4x4{}, soup);
+    }
   }
   if (soup.triangles.empty()) {
     throw InputError(name + ": no triangles in the file" +

@@ -13,7 +13,9 @@
 #include <algorithm>
 #include <iterator>
 #include <map>
+#include <set>
 
+#include "cgal_internal.h"
 #include "cgal_surface_mesh.h"
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/repair.h"
@@ -33,9 +35,12 @@ bool starts_with(const std::string& s, const char* prefix) { return s.rfind(pref
 // The problems repair does not touch, in the validator's words (input indices).
 void refuse_unrepairable(const ValidationReport& report, const std::string& name) {
   for (const std::string& p : report.problems) {
-    const bool unrepairable = p.find("non-manifold") != std::string::npos || starts_with(p, "non-orientable") ||
-                              starts_with(p, "self-intersection");
-    if (unrepairable) throw InputError(name + ": cannot repair: " + p);
+    const bool unrepairable = p.find("non-manifold") != std::string::npos || starts_with(p, "non-orientable");
+    if (unrepairable) {
+      throw InputError(name + ": cannot repair: " + p +
+                       " (no safe automatic repair: re-export the surface, or rebuild it from its label map with "
+                       "'pneuma mesh from-labels')");
+    }
   }
 }
 
@@ -54,15 +59,36 @@ std::vector<std::string> RepairReport::actions() const {
   if (stitched_edges) a.push_back("stitched " + count_of(stitched_edges, "pair of border edges", "pairs of border edges"));
   if (filled_holes) a.push_back("filled " + count_of(filled_holes, "hole", "holes") + " with " + count_of(added_faces, "face", "faces"));
   if (reversed_components) a.push_back("reversed " + count_of(reversed_components, "inside-out component", "inside-out components"));
+  if (self_intersecting_pairs) {
+    a.push_back(fmt::format("removed {} around {} ({}), first faces {} and {}; the holes are refilled",
+                            count_of(removed_intersecting_faces, "face", "faces"),
+                            count_of(self_intersecting_pairs, "pair of intersecting faces", "pairs of intersecting faces"),
+                            rounds == 1 ? "1 round" : fmt::format("{} rounds", rounds), first_intersecting_faces[0],
+                            first_intersecting_faces[1]));
+  }
+  if (dropped_components) {
+    a.push_back(fmt::format("dropped {} ({}, {:.4g} mm^2), each under {:g} % of the largest component's area",
+                            count_of(dropped_components, "small component", "small components"),
+                            count_of(dropped_component_faces, "face", "faces"), dropped_component_area_m2 * 1e6,
+                            100.0 * min_component_fraction));
+  }
+  if (remeshed_edge_m > 0.0) {
+    a.push_back(fmt::format("remeshed at {:.3g} mm before the verdict, which removed what repair left: {}", remeshed_edge_m * 1e3,
+                            left_for_remeshing));
+  }
   if (dropped_vertices) a.push_back("dropped " + count_of(dropped_vertices, "unused vertex", "unused vertices"));
   return a;
 }
 
-RepairResult repair(const TriangleMesh& mesh, const std::string& name, const RepairOptions& options) {
-  const ValidationReport before = validate(mesh);
-  refuse_unrepairable(before, name);
+namespace {
+
+// One pass: soup cleaning (without the faces in `remove`), small components, orientation,
+// stitching, degenerate faces, holes, outward orientation. No verdict.
+RepairResult repair_pass(const TriangleMesh& mesh, const std::string& name, const RepairOptions& options,
+                         const std::vector<char>& remove, std::size_t isolated_vertices) {
   RepairResult result;
   RepairReport& rep = result.report;
+  rep.min_component_fraction = options.min_component_fraction;
 
   // 1. Soup cleaning that keeps the input's vertex numbering (so messages can name vertices):
   //    a vertex at the position of an earlier one becomes that one.
@@ -83,7 +109,9 @@ RepairResult repair(const TriangleMesh& mesh, const std::string& name, const Rep
   polygons.reserve(mesh.triangle_count());
   {
     std::map<std::array<std::size_t, 3>, std::size_t> seen;
-    for (const Triangle& t : mesh.triangles) {
+    for (std::size_t f = 0; f < mesh.triangle_count(); ++f) {
+      if (!remove.empty() && remove[f]) continue;
+      const Triangle& t = mesh.triangles[f];
       const std::array<std::size_t, 3> v{same_as[t[0]], same_as[t[1]], same_as[t[2]]};
       if (v[0] == v[1] || v[1] == v[2] || v[2] == v[0]) {
         ++rep.removed_degenerate_faces;
@@ -97,6 +125,44 @@ RepairResult repair(const TriangleMesh& mesh, const std::string& name, const Rep
       }
       polygons.push_back({v[0], v[1], v[2]});
     }
+  }
+
+  // Small components (islands of a segmentation, stray fragments): by area, against the largest.
+  if (options.min_component_fraction > 0.0 && !polygons.empty()) {
+    std::vector<std::size_t> parent(points.size());
+    for (std::size_t v = 0; v < parent.size(); ++v) parent[v] = v;
+    auto find = [&](std::size_t x) {
+      while (parent[x] != x) x = parent[x] = parent[parent[x]];
+      return x;
+    };
+    for (const Polygon& p : polygons) {
+      for (std::size_t c = 1; c < 3; ++c) {
+        const std::size_t a = find(p[0]), b = find(p[c]);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
+    }
+    std::map<std::size_t, double> area;
+    std::vector<double> face_area(polygons.size());
+    for (std::size_t f = 0; f < polygons.size(); ++f) {
+      const auto& p = polygons[f];
+      face_area[f] = 0.5 * (mesh.vertices[p[1]] - mesh.vertices[p[0]]).cross(mesh.vertices[p[2]] - mesh.vertices[p[0]]).norm();
+      area[find(p[0])] += face_area[f];
+    }
+    double largest = 0.0;
+    for (const auto& [root, a] : area) largest = std::max(largest, a);
+    std::vector<Polygon> kept;
+    kept.reserve(polygons.size());
+    for (std::size_t f = 0; f < polygons.size(); ++f) {
+      const std::size_t root = find(polygons[f][0]);
+      if (area[root] < options.min_component_fraction * largest) {
+        ++rep.dropped_component_faces;
+        rep.dropped_component_area_m2 += face_area[f];
+        continue;
+      }
+      kept.push_back(polygons[f]);
+    }
+    for (const auto& [root, a] : area) rep.dropped_components += a < options.min_component_fraction * largest;
+    polygons = std::move(kept);
   }
 
   // 2. Consistent orientation (the surface is manifold and orientable, so no point is split).
@@ -165,12 +231,132 @@ RepairResult repair(const TriangleMesh& mesh, const std::string& name, const Rep
   }
 
   result.mesh = detail::from_surface_mesh(sm);
-  rep.dropped_vertices = before.isolated_vertex_count;
-
-  const ValidationReport after = validate(result.mesh);
-  if (!after.valid()) throw InputError(name + ": cannot repair: after repair, " + after.summary());
-  if (result.mesh.triangles.empty()) throw InputError(name + ": cannot repair: no faces left");
+  rep.dropped_vertices = isolated_vertices;
   return result;
+}
+
+// Faces in the intersecting pairs and their `rings` rings of neighbours (through vertices).
+std::vector<char> around_intersections(const TriangleMesh& mesh, const std::vector<std::pair<std::size_t, std::size_t>>& pairs,
+                                       int rings) {
+  std::vector<char> face(mesh.triangle_count(), 0), vertex(mesh.vertex_count(), 0);
+  for (const auto& [a, b] : pairs) face[a] = face[b] = 1;
+  for (int r = 0; r < rings; ++r) {
+    for (std::size_t f = 0; f < face.size(); ++f) {
+      if (face[f]) for (std::uint32_t v : mesh.triangles[f]) vertex[v] = 1;
+    }
+    for (std::size_t f = 0; f < face.size(); ++f) {
+      const Triangle& t = mesh.triangles[f];
+      if (vertex[t[0]] || vertex[t[1]] || vertex[t[2]]) face[f] = 1;
+    }
+  }
+  return face;
+}
+
+void accumulate(RepairReport& into, const RepairReport& pass) {
+  into.removed_degenerate_faces += pass.removed_degenerate_faces;
+  into.removed_duplicated_faces += pass.removed_duplicated_faces;
+  into.flipped_faces += pass.flipped_faces;
+  into.stitched_edges += pass.stitched_edges;
+  into.filled_holes += pass.filled_holes;
+  into.added_faces += pass.added_faces;
+  into.reversed_components += pass.reversed_components;
+  into.dropped_components += pass.dropped_components;
+  into.dropped_component_faces += pass.dropped_component_faces;
+  into.dropped_component_area_m2 += pass.dropped_component_area_m2;
+}
+
+std::vector<std::size_t> all_checkable_faces(const TriangleMesh& mesh) {
+  std::vector<char> skip(mesh.triangle_count(), 0);
+  for (std::size_t f : detail::collinear_faces(mesh)) skip[f] = 1;
+  std::vector<std::size_t> faces;
+  std::set<std::array<std::uint32_t, 3>> seen;
+  for (std::size_t f = 0; f < mesh.triangle_count(); ++f) {
+    Triangle t = mesh.triangles[f];
+    if (skip[f] || t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+    std::sort(t.begin(), t.end());
+    if (seen.insert(t).second) faces.push_back(f);
+  }
+  return faces;
+}
+
+}  // namespace
+
+RepairResult repair_unchecked(const TriangleMesh& mesh, const std::string& name, const RepairOptions& options,
+                              ValidationReport* after) {
+  const ValidationReport before = validate(mesh);
+  refuse_unrepairable(before, name);
+  // Self-intersections of the input: the faces involved and one ring around them are removed,
+  // and the holes refilled; a refill that still intersects is redone with a wider ring.
+  std::vector<std::pair<std::size_t, std::size_t>> pairs;
+  if (options.remove_self_intersections && before.self_intersection_count.value_or(0) > 0) {
+    pairs = detail::self_intersecting_pairs(mesh, all_checkable_faces(mesh), 100000);
+  }
+  std::vector<char> remove = pairs.empty() ? std::vector<char>{} : around_intersections(mesh, pairs, 1);
+  RepairResult result = repair_pass(mesh, name, options, remove, before.isolated_vertex_count);
+  RepairReport& rep = result.report;
+  if (!pairs.empty()) {
+    rep.self_intersecting_pairs = pairs.size();
+    rep.first_intersecting_faces = {pairs[0].first, pairs[0].second};
+    rep.removed_intersecting_faces = static_cast<std::size_t>(std::count(remove.begin(), remove.end(), 1));
+    rep.rounds = 1;
+  }
+  ValidationReport check = validate(result.mesh);
+  for (int round = 2; options.remove_self_intersections && round <= options.max_self_intersection_rounds &&
+                      check.self_intersection_count.value_or(0) > 0 && rep.rounds > 0;
+       ++round) {
+    const auto again = detail::self_intersecting_pairs(result.mesh, all_checkable_faces(result.mesh), 100000);
+    const std::vector<char> wider = around_intersections(result.mesh, again, round);
+    RepairResult next = repair_pass(result.mesh, name, options, wider, 0);
+    accumulate(next.report, rep);
+    next.report.self_intersecting_pairs = rep.self_intersecting_pairs;
+    next.report.first_intersecting_faces = rep.first_intersecting_faces;
+    next.report.removed_intersecting_faces = rep.removed_intersecting_faces +
+                                             static_cast<std::size_t>(std::count(wider.begin(), wider.end(), 1));
+    next.report.rounds = round;
+    next.report.merged_vertices = rep.merged_vertices;
+    next.report.dropped_vertices = rep.dropped_vertices;
+    result = std::move(next);
+    check = validate(result.mesh);
+  }
+  if (after != nullptr) *after = std::move(check);
+  return result;
+}
+
+RepairResult repair(const TriangleMesh& mesh, const std::string& name, const RepairOptions& options) {
+  ValidationReport after;
+  RepairResult result = repair_unchecked(mesh, name, options, &after);
+  if (result.mesh.triangles.empty()) throw InputError(name + ": cannot repair: no faces left");
+  if (!after.valid()) {
+    const bool only_intersections = after.problems.size() == 1 && starts_with(after.problems[0], "self-intersection");
+    throw InputError(name + ": cannot repair: after repair, " + after.summary() +
+                     (only_intersections ? " (try 'pneuma mesh remesh " + name +
+                                               " --edge 2mm -o OUT', which remeshes before the verdict)"
+                                         : ""));
+  }
+  return result;
+}
+
+RepairRemeshResult repair_and_remesh(const TriangleMesh& mesh, const std::string& name, const RepairOptions& repair_options,
+                                     const RemeshOptions& remesh_options) {
+  ValidationReport after;
+  RepairResult repaired = repair_unchecked(mesh, name, repair_options, &after);
+  if (repaired.mesh.triangles.empty()) throw InputError(name + ": cannot repair: no faces left");
+  for (const std::string& p : after.problems) {
+    if (!starts_with(p, "self-intersection")) throw InputError(name + ": cannot repair: after repair, " + after.summary());
+  }
+  RepairRemeshResult out;
+  out.repair = repaired.report;
+  out.remesh = remesh_isotropic(repaired.mesh, remesh_options);
+  const ValidationReport final_check = validate(out.remesh.mesh);
+  if (!final_check.valid()) {
+    throw InputError(fmt::format("{}: cannot repair: after repair and remeshing at {:.3g} mm, {}", name,
+                                 remesh_options.target_edge_length_m * 1e3, final_check.summary()));
+  }
+  if (!after.valid()) {
+    out.repair.remeshed_edge_m = remesh_options.target_edge_length_m;
+    out.repair.left_for_remeshing = after.summary();
+  }
+  return out;
 }
 
 }  // namespace pneuma::mesh

@@ -9,6 +9,7 @@
 
 #include "mesh_fixture.h"
 #include "pneuma/mesh/io.h"
+#include "pneuma/mesh/repair.h"
 #include "pneuma/mesh/validate.h"
 #include "test_support.h"
 
@@ -118,7 +119,9 @@ TEST(MeshCli, NonManifoldEdgeIsRefused) {
                               "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
                               "3 0 4 1\n3 0 1 5\n3 0 5 4\n3 1 4 5\n").string();
   expect_info_error(file, 3, "non-manifold edge 0-1 (shared by faces 0, 1, 4, 5)");
-  expect_refused(dir, file, file + ": cannot repair: non-manifold edge 0-1 (shared by faces 0, 1, 4, 5)");
+  expect_refused(dir, file,
+                 file + ": cannot repair: non-manifold edge 0-1 (shared by faces 0, 1, 4, 5) (no safe automatic repair: "
+                        "re-export the surface, or rebuild it from its label map with 'pneuma mesh from-labels')");
 }
 
 TEST(MeshCli, TwoComponentsAreValidAndKept) {
@@ -160,7 +163,7 @@ TEST(MeshCli, NotAMesh) {
   expect_info_error(text, 3, "no triangles in the file (not a surface mesh)");
   const auto other = dir.write("notes.txt", "these are notes, not a mesh\n").string();
   expect_info_error(other, 3,
-                    "unknown mesh format '.txt' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ...)");
+                    "unknown mesh format '.txt' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ..., or VTK .vtk, .vtp)");
   const auto ply = dir.write("notes.ply", "these are notes, not a mesh\n").string();
   const auto r = run_pneuma({"mesh", "info", ply});
   EXPECT_EQ(r.exit_code, 3);
@@ -188,13 +191,94 @@ TEST(MeshCli, MissingFileAndBadOptions) {
   EXPECT_FALSE(std::filesystem::exists(dir / "p.ply"));
 }
 
-TEST(MeshCli, RemeshRefusesAnInvalidSurface) {
+TEST(MeshCli, RemeshRepairsAnInvalidSurfaceFirst) {
   TempDir dir;
   TriangleMesh m = sphere();
   std::swap(m.triangles[3][1], m.triangles[3][2]);
   const auto file = write(dir, "flipped.obj", m);
-  const auto r = run_pneuma({"mesh", "remesh", file, "--edge", "3mm", "-o", (dir / "o.ply").string()});
+  const auto out = (dir / "o.ply").string();
+  const auto r = run_pneuma({"mesh", "remesh", file, "--edge", "3mm", "-o", out});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find(file + ": not a valid surface (face 3 is oriented against its neighbours); repairing before remeshing\n" +
+                       file + ": flipped 1 face to match their neighbours\n"),
+            std::string::npos)
+      << r.out;
+  EXPECT_TRUE(validate(read_mesh(out)).valid());
+}
+
+namespace {
+
+// A 10 mm sphere (1280 faces) with vertex `v` dragged 5 % past its first neighbour: the faces
+// around it fold over their neighbours (thin slivers that intersect).
+TriangleMesh folded_sphere(std::uint32_t v = 100) {
+  TriangleMesh m = test::canonical(make_icosphere(0.01, 3));
+  std::uint32_t w = v;
+  for (const Triangle& t : m.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      if (t[k] == v) w = t[(k + 1) % 3];
+    }
+  }
+  m.vertices[v] = m.vertices[w] + 0.05 * (m.vertices[w] - m.vertices[v]);
+  return m;
+}
+
+}  // namespace
+
+TEST(MeshRepair, SelfIntersectingSliversAreRemovedAndRefilled) {
+  const TriangleMesh m = folded_sphere();
+  const ValidationReport before = validate(m);
+  ASSERT_GT(before.self_intersection_count.value_or(0), 0u) << before.summary();
+  const RepairResult r = repair(m, "folded.obj");
+  const ValidationReport after = validate(r.mesh);
+  EXPECT_TRUE(after.valid()) << after.summary();
+  EXPECT_EQ(after.genus, 0);
+  EXPECT_EQ(r.report.self_intersecting_pairs, *before.self_intersection_count);
+  EXPECT_GE(r.report.removed_intersecting_faces, 2u);
+  EXPECT_GE(r.report.filled_holes, 1u);
+  // The sphere's volume, to the size of the refilled patch.
+  EXPECT_NEAR(enclosed_volume(r.mesh) / enclosed_volume(test::canonical(make_icosphere(0.01, 3))), 1.0, 0.01);
+  bool named = false;
+  for (const auto& a : r.report.actions()) named |= a.find("pairs of intersecting faces") != std::string::npos;
+  EXPECT_TRUE(named);
+}
+
+TEST(MeshRepair, RepairAndRemeshGivesAValidSurface) {
+  const RepairRemeshResult r = repair_and_remesh(folded_sphere(), "folded.obj", {}, {.target_edge_length_m = 1e-3});
+  const ValidationReport after = validate(r.remesh.mesh);
+  EXPECT_TRUE(after.valid()) << after.summary();
+  EXPECT_GT(r.repair.self_intersecting_pairs, 0u);
+  EXPECT_NEAR(r.remesh.after.mean_edge_m / 1e-3, 1.0, 0.2);
+}
+
+TEST(MeshRepair, SmallIslandsAreDroppedLungsAreKept) {
+  const TriangleMesh lungs = test::joined(sphere(), test::translated(sphere(), {0.05, 0, 0}));
+  const TriangleMesh speck = test::translated(test::canonical(make_icosphere(0.0005, 1)), {0.0, 0.05, 0});
+  const RepairResult r = repair(test::joined(lungs, speck), "specks.obj");
+  EXPECT_EQ(r.report.dropped_components, 1u);
+  EXPECT_EQ(r.report.dropped_component_faces, 80u);
+  EXPECT_EQ(validate(r.mesh).component_count, 2u);
+  EXPECT_NEAR(enclosed_volume(r.mesh), enclosed_volume(lungs), 1e-12);
+}
+
+TEST(MeshCli, SliversRepairFromTheCommandLine) {
+  TempDir dir;
+  const auto file = write(dir, "folded.ply", folded_sphere());
+  const auto r = run_pneuma({"mesh", "repair", file, "-o", (dir / "repaired.ply").string()});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("pairs of intersecting faces"), std::string::npos) << r.out;
+  const auto r2 = run_pneuma({"mesh", "remesh", file, "--edge", "1.5mm", "-o", (dir / "remeshed.ply").string()});
+  EXPECT_EQ(r2.exit_code, 0) << r2.err;
+  EXPECT_TRUE(validate(read_mesh(dir / "remeshed.ply")).valid());
+}
+
+TEST(MeshCli, InfoOnAnInvalidMeshStillPrintsTheWholeReport) {
+  TempDir dir;
+  const auto file = write(dir, "folded.ply", folded_sphere());
+  const auto r = run_pneuma({"mesh", "info", file});
   EXPECT_EQ(r.exit_code, 3);
-  EXPECT_EQ(r.err, file + ": cannot remesh: face 3 is oriented against its neighbours (try 'pneuma mesh repair')\n");
-  EXPECT_FALSE(std::filesystem::exists(dir / "o.ply"));
+  EXPECT_NE(r.out.find(file + ": "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("closed: yes, manifold: yes"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\ninvalid\n"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_EQ(r.err.rfind(file + ": self-intersection", 0), 0u) << r.err;
 }

@@ -10,7 +10,10 @@
 #include <cmath>
 #include <cstring>
 
+#include <nlohmann/json.hpp>
+
 #include "pneuma/engine/scenario.h"
+#include "pneuma/mesh/labels.h"
 #include "pneuma/mesh/io.h"
 #include "pneuma/physiology/simulate.h"
 #include "test_support.h"
@@ -197,12 +200,18 @@ INSTANTIATE_TEST_SUITE_P(
         BadRun{"wrong_unit", "duration: 4 s\nframes: {rate: 30 mL}\nphysiology: {preset: healthy-adult}\n",
                "2:16: frames.rate: expected a rate such as '12 /min', got '30 mL'", 3},
         BadRun{"unknown_key", "duration: 4 s\nmesh: {phantom: right, egde: 4 mm}\nphysiology: {preset: healthy-adult}\n",
-               "2:24: mesh.egde: unknown key; expected one of: edge, file, phantom, reference_volume, share",
+               "2:24: mesh.egde: unknown key; expected one of: edge, file, labels, phantom, reference_volume, share",
                3},
         BadRun{"missing_mesh", "duration: 4 s\nmesh: {file: lungs.stl}\nphysiology: {preset: healthy-adult}\n",
                "2:14: mesh.file: no such file: {dir}/lungs.stl", 3},
         BadRun{"negative_duration", "duration: -4 s\nphysiology: {preset: healthy-adult}\n",
                "1:11: duration: expected a positive duration, got '-4 s'", 3},
+        BadRun{"missing_label_map", "duration: 4 s\nmesh: {labels: lungs.nii.gz, values: [3]}\nphysiology: {preset: healthy-adult}\n",
+               "2:16: mesh.labels: no such file: {dir}/lungs.nii.gz", 3},
+        BadRun{"label_value_not_a_number", "duration: 4 s\nmesh: {labels: s.yaml, values: [3, x]}\nphysiology: {preset: healthy-adult}\n",
+               "2:36: mesh.values[1]: expected a whole number from 1 to 1000000, got 'x'", 3},
+        BadRun{"two_mesh_sources", "duration: 4 s\nmesh: {phantom: right, labels: s.yaml, values: [3]}\nphysiology: {preset: healthy-adult}\n",
+               "2:32: mesh.labels: give one of phantom, file or labels", 3},
         BadRun{"clique_without_solver", "duration: 4 s\nfield: {clique: 2}\nphysiology: {preset: healthy-adult}\n",
                "2:17: field.clique: the cg solver (the default) takes clique 1 only; add 'solver: shot' (or sweep, "
                "direct) for a clique of 2 hops",
@@ -305,3 +314,54 @@ TEST(Runner, CtrlCLeavesNoHalfWrittenFile) {
   EXPECT_FALSE(std::filesystem::exists(dir / "out/series.h5"));
   for (const auto& name : dir.files()) EXPECT_EQ(name.find(".tmp-"), std::string::npos) << name;
 }
+
+// A whole `pneuma run` on each real CT label map, both lungs (labels 3+4+5 right, 1+2 left):
+// the surface is extracted, repaired, remeshed to 4 mm and animated. Oracles: the rest volume
+// against the voxel count of the labels (independent of the surface extraction), and the motion
+// summary's anatomy (the diaphragm carries most of the volume change, the mediastinum barely
+// moves, the apex moves less than the diaphragm).
+class CtLobeRuns : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(CtLobeRuns, BothLungsBreathe) {
+  const auto file = pneuma::test::ct_lobes_dir() / (std::string(GetParam()) + "_lobes.nii.gz");
+  if (!std::filesystem::exists(file)) {
+    GTEST_SKIP() << "no CT lobe maps at " << file.parent_path() << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
+  }
+  const pneuma::mesh::LabelMap map = pneuma::mesh::read_label_map(file);
+  struct Lung {
+    const char* values;
+    std::vector<int> labels;
+    const char* share;
+  };
+  for (const Lung& lung : {Lung{"[3, 4, 5]", {3, 4, 5}, "55 %"}, Lung{"[1, 2]", {1, 2}, "45 %"}}) {
+    TempDir dir;
+    const auto scenario = dir.write("ct.yaml", std::string("duration: 5 s\nframes: {rate: 10 Hz}\n") +
+                                                   "mesh: {labels: " + file.string() + ", values: " + lung.values +
+                                                   ", edge: 4 mm, share: " + lung.share + "}\n" +
+                                                   "physiology: {preset: healthy-adult}\n"
+                                                   "outputs: {gltf: false, hdf5: false}\n");
+    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
+    ASSERT_EQ(r.exit_code, 0) << GetParam() << " " << lung.values << ": " << r.err;
+    std::size_t voxels = 0;
+    for (std::int32_t label : map.labels) {
+      voxels += std::find(lung.labels.begin(), lung.labels.end(), label) != lung.labels.end();
+    }
+    const auto manifest = nlohmann::json::parse(pneuma::test::read_text(dir / "out/manifest.json"));
+    const auto& facts = manifest.at("facts");
+    const double rest_volume = std::stod(facts.at("rest_volume_m3").get<std::string>());
+    EXPECT_NEAR(rest_volume / (static_cast<double>(voxels) * map.voxel_volume_m3()), 1.0, 0.05) << lung.values;
+    const double diaphragm_share = std::stod(facts.at("motion.diaphragmatic.volume_share_pct").get<std::string>());
+    const double mediastinum = std::stod(facts.at("motion.mediastinal.magnitude_mean_mm").get<std::string>());
+    const double apex = std::stod(facts.at("motion.apex.caudal_mean_mm").get<std::string>());
+    const double diaphragm = std::stod(facts.at("motion.diaphragmatic.caudal_mean_mm").get<std::string>());
+    EXPECT_GT(diaphragm_share, 50.0) << lung.values;
+    EXPECT_LT(mediastinum, 1.0) << lung.values;
+    EXPECT_LT(apex, diaphragm) << lung.values;
+    std::cout << GetParam() << " " << lung.values << ": rest volume " << rest_volume * 1e3 << " L, diaphragm "
+              << diaphragm << " mm (share " << diaphragm_share << " %), apex " << apex << " mm, mediastinum "
+              << mediastinum << " mm\n";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtLobeRuns,
+                         ::testing::Values("case004", "case005", "case006", "case007", "case008", "case009"));

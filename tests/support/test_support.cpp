@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <csignal>
 #include <fstream>
 #include <thread>
@@ -111,6 +112,15 @@ int count_lines(const std::filesystem::path& path) {
   int n = 0;
   for (std::string line; std::getline(in, line);) ++n;
   return n;
+}
+
+std::filesystem::path ct_lobes_dir() {
+  if (const char* env = std::getenv("PNEUMA_CT_LOBES")) return env;
+  const auto source = source_dir();
+  for (const auto& candidate : {source / ".." / "shared" / "data" / "ct-lobes", source / ".." / ".." / "shared" / "data" / "ct-lobes"}) {
+    if (std::filesystem::exists(candidate / "case004_lobes.nii.gz")) return candidate;
+  }
+  return source / ".." / "shared" / "data" / "ct-lobes";
 }
 
 }  // namespace pneuma::test

@@ -45,4 +45,8 @@ std::string read_text(const std::filesystem::path& path);
 // Number of lines in a text file (0 when it cannot be read).
 int count_lines(const std::filesystem::path& path);
 
+// The folder of the six CT lobe label maps (../shared/data/ct-lobes beside the checkout, or
+// PNEUMA_CT_LOBES); tests skip with a message when case004_lobes.nii.gz is not there.
+std::filesystem::path ct_lobes_dir();
+
 }  // namespace pneuma::test

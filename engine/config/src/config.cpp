@@ -200,21 +200,42 @@ bool Node::boolean(const std::string& key, bool fallback) const {
   fail_at(key, "expected true or false, got '" + value + "'");
 }
 
-long Node::integer(const std::string& key, long fallback, long min_value, long max_value) const {
-  if (!has(key)) return fallback;
-  const std::string value = scalar(key, "expected a whole number");
+namespace {
+
+// The whole number `text` holds within [min_value, max_value], or nothing.
+std::optional<long> whole_number(const std::string& text, long min_value, long max_value) {
   std::size_t used = 0;
   long parsed = 0;
   try {
-    parsed = std::stol(value, &used);
+    parsed = std::stol(text, &used);
   } catch (const std::exception&) {
-    used = 0;
+    return std::nullopt;
   }
-  if (used != value.size() || value.empty() || parsed < min_value || parsed > max_value) {
-    fail_at(key, "expected a whole number from " + std::to_string(min_value) + " to " + std::to_string(max_value) +
-                     ", got '" + value + "'");
-  }
+  if (used != text.size() || text.empty() || parsed < min_value || parsed > max_value) return std::nullopt;
   return parsed;
+}
+
+std::string whole_number_expected(long min_value, long max_value, const std::string& got) {
+  return "expected a whole number from " + std::to_string(min_value) + " to " + std::to_string(max_value) + ", got '" +
+         got + "'";
+}
+
+}  // namespace
+
+long Node::integer(const std::string& key, long fallback, long min_value, long max_value) const {
+  if (!has(key)) return fallback;
+  const std::string value = scalar(key, "expected a whole number");
+  const auto parsed = whole_number(value, min_value, max_value);
+  if (!parsed) fail_at(key, whole_number_expected(min_value, max_value, value));
+  return *parsed;
+}
+
+long Node::as_integer(long min_value, long max_value) const {
+  const YAML::Node& value = layers_.front().node;
+  if (!value.IsScalar()) fail(whole_number_expected(min_value, max_value, value.IsMap() ? "a mapping" : "a list"));
+  const auto parsed = whole_number(value.Scalar(), min_value, max_value);
+  if (!parsed) fail(whole_number_expected(min_value, max_value, value.Scalar()));
+  return *parsed;
 }
 
 std::vector<std::string> Node::keys() const {

@@ -45,12 +45,15 @@ void displace(const BreathingModel& model, double scale, std::vector<Eigen::Vect
 }
 
 BreathingModel make_breathing_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_displacement,
-                                    double area_unit_m2) {
+                                    double area_unit_m2, const mesh::BodyFrame& frame) {
   std::vector<Eigen::Vector3d> normals = mesh::vertex_normals(rest);
   VolumeScaleMap map(rest.vertices, unit_displacement, rest.triangles);
   const double area = mesh::surface_area(rest);
+  mesh::RegionOptions region_options;
+  region_options.frame = frame;
+  mesh::SurfaceRegions regions = mesh::find_regions(rest, region_options);
   return BreathingModel{std::move(rest), std::move(unit_displacement), std::move(normals), area_unit_m2,
-                        std::move(map), area};
+                        std::move(map), area, std::move(regions)};
 }
 
 Frame::Frame(const BreathingModel& model)

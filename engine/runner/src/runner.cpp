@@ -1,6 +1,7 @@
 #include "pneuma/engine/runner.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <cmath>
 
@@ -12,7 +13,9 @@
 #include "pneuma/engine/progress.h"
 #include "pneuma/engine/sink_registry.h"
 #include "pneuma/engine/tissue.h"
+#include "pneuma/engine/motion_csv.h"
 #include "pneuma/mesh/io.h"
+#include "pneuma/mesh/labels.h"
 #include "pneuma/mesh/phantom.h"
 #include "pneuma/mesh/remesh.h"
 #include "pneuma/mesh/repair.h"
@@ -38,40 +41,88 @@ mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {
   return mesh::make_lung_phantom(phantom);
 }
 
-// The file's own surface: read and, where asked, repaired.
-mesh::TriangleMesh file_surface(const MeshSpec& spec) {
+mesh::TriangleMesh read_file_mesh(const MeshSpec& spec) {
   mesh::ReadOptions read;
   read.metres_per_unit = spec.metres_per_unit;
-  mesh::TriangleMesh surface = mesh::read_mesh(spec.file, read);
+  return mesh::read_mesh(spec.file, read);
+}
+
+// The file's own surface: read and, where asked, repaired (what `export: original` exports).
+mesh::TriangleMesh file_surface(const MeshSpec& spec) {
+  mesh::TriangleMesh surface = read_file_mesh(spec);
   if (spec.repair) surface = mesh::repair_or_throw(surface, spec.file.string());
   return surface;
 }
 
-mesh::TriangleMesh remeshed(mesh::TriangleMesh surface, double edge_m) {
-  if (edge_m <= 0.0) return surface;
+mesh::RemeshOptions remesh_options(double edge_m) {
   mesh::RemeshOptions remesh;
   remesh.target_edge_length_m = edge_m;
-  return mesh::remesh_isotropic(surface, remesh).mesh;
+  return remesh;
+}
+
+mesh::TriangleMesh remeshed(mesh::TriangleMesh surface, double edge_m) {
+  if (edge_m <= 0.0) return surface;
+  return mesh::remesh_isotropic(surface, remesh_options(edge_m)).mesh;
+}
+
+// The surface the field is computed on, for a file or a label map. A file with a remeshing
+// target is repaired, remeshed, and only then judged: remeshing removes slivers repair left.
+// A label map is extracted at its own resolution (at most 2 mm, finer for a finer target) and
+// remeshed to the target.
+mesh::TriangleMesh source_surface(const MeshSpec& spec, double edge_m) {
+  if (!spec.labels_file.empty()) {
+    mesh::LabelSurfaceOptions extract;
+    if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
+    return remeshed(mesh::surface_from_labels(spec.labels_file, spec.label_values, extract).mesh, edge_m);
+  }
+  if (!spec.repair) return remeshed(read_file_mesh(spec), edge_m);
+  if (edge_m <= 0.0) return file_surface(spec);
+  return mesh::repair_and_remesh(read_file_mesh(spec), spec.file.string(), {}, remesh_options(edge_m)).remesh.mesh;
 }
 
 // The field model of the scenario's surface, from the cache where it holds one for these inputs.
 // A file mesh is looked up by its bytes and the options that shape it before it is repaired and
 // remeshed, so a cache hit pays for neither.
-CachedField field_model(const Scenario& s, double edge_m, const std::filesystem::path& output_dir) {
-  const Tissue tissue = load_tissue(s.field.tissue_file);
+CachedField field_model(const Scenario& s, const Tissue& tissue, double edge_m, const std::filesystem::path& output_dir) {
   const FieldOptions& field = s.field.options;
-  const bool from_file = !s.mesh.phantom;
+  const bool from_source = !s.mesh.phantom;
   if (s.field.cache == FieldCache::off) {
-    const mesh::TriangleMesh surface =
-        from_file ? remeshed(file_surface(s.mesh), edge_m) : phantom_surface(s.mesh, edge_m);
+    const mesh::TriangleMesh surface = from_source ? source_surface(s.mesh, edge_m) : phantom_surface(s.mesh, edge_m);
     return {compute_field_model(surface, tissue, field), false};
   }
   const std::filesystem::path cache = s.field.cache == FieldCache::file ? s.field.cache_file : output_dir / "field.h5";
-  if (!from_file) return load_or_compute(cache, phantom_surface(s.mesh, edge_m), tissue, field);
-  const std::string source = source_key(
-      {s.mesh.file, s.field.tissue_file},
-      fmt::format("unit {:.17g} m, repair {}, edge {:.17g} m", s.mesh.metres_per_unit, s.mesh.repair, edge_m));
-  return load_or_compute(cache, source, [&] { return remeshed(file_surface(s.mesh), edge_m); }, tissue, field);
+  if (!from_source) return load_or_compute(cache, phantom_surface(s.mesh, edge_m), tissue, field);
+  const bool labels = !s.mesh.labels_file.empty();
+  const std::string source =
+      source_key({labels ? s.mesh.labels_file : s.mesh.file, s.field.tissue_file},
+                 fmt::format("{} unit {:.17g} m, repair {}, edge {:.17g} m, labels {}", labels ? "labels" : "file",
+                             s.mesh.metres_per_unit, s.mesh.repair, edge_m, fmt::join(s.mesh.label_values, ",")));
+  return load_or_compute(cache, source, [&] { return source_surface(s.mesh, edge_m); }, tissue, field);
+}
+
+// How each anatomical region moved in each completed breath: from the breath's lowest to its
+// highest scale (the frames inside it), measured on the surface at the lowest.
+std::vector<BreathMotion> breath_motion(const BreathingModel& model, const physiology::SimulationResult& physiology,
+                                        const std::vector<double>& scales) {
+  std::vector<BreathMotion> out;
+  const auto& t = physiology.series.time_s;
+  mesh::TriangleMesh from = model.rest;
+  for (std::size_t b = 0; b < physiology.breaths.size(); ++b) {
+    const auto& breath = physiology.breaths[b];
+    std::size_t lo = scales.size(), hi = scales.size();
+    for (std::size_t k = 0; k < scales.size(); ++k) {
+      if (t[k] < breath.start_s || t[k] > breath.start_s + breath.duration_s) continue;
+      if (lo == scales.size() || scales[k] < scales[lo]) lo = k;
+      if (hi == scales.size() || scales[k] > scales[hi]) hi = k;
+    }
+    if (lo == scales.size()) continue;
+    for (std::size_t i = 0; i < from.vertices.size(); ++i) {
+      from.vertices[i] = model.rest.vertices[i] + scales[lo] * model.unit_displacement[i];
+    }
+    out.push_back({b, breath.start_s, scales[lo], scales[hi],
+                   mesh::summarize_motion(from, model.unit_displacement, scales[hi] - scales[lo], model.regions)});
+  }
+  return out;
 }
 
 }  // namespace
@@ -80,7 +131,8 @@ BreathingModel prepare_model(const Scenario& s, const RunOptions& options,
                              std::vector<std::pair<std::string, double>>& timings, bool& field_reused) {
   auto start = Clock::now();
   const double edge = options.edge_override_m.value_or(s.mesh.edge_m);
-  CachedField computed = field_model(s, edge, options.output_dir);
+  const Tissue tissue = load_tissue(s.field.tissue_file);
+  CachedField computed = field_model(s, tissue, edge, options.output_dir);
   field_reused = computed.reused;
   timings.emplace_back(field_reused ? "mesh and field (cached)" : "mesh and field", seconds_since(start));
 
@@ -95,7 +147,7 @@ BreathingModel prepare_model(const Scenario& s, const RunOptions& options,
     rest = std::move(original);
     timings.emplace_back("field transfer", seconds_since(start));
   }
-  return make_breathing_model(std::move(rest), std::move(u), s.field.options.area_unit);
+  return make_breathing_model(std::move(rest), std::move(u), s.field.options.area_unit, body_frame(tissue));
 }
 
 std::vector<double> frame_scales(const BreathingModel& model, const MeshSpec& mesh, const std::vector<double>& time_s,
@@ -187,6 +239,12 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options) {
     result.files.emplace_back("physiology.csv");
     result.files.emplace_back("physiology-breaths.csv");
   }
+  std::vector<BreathMotion> motion;
+  if (s.outputs.motion_csv) {
+    motion = breath_motion(model, frames_physiology, scales);
+    write_motion_csv(out / "motion.csv", motion);
+    result.files.emplace_back("motion.csv");
+  }
 
   ManifestInput manifest{s.file, s.name, result.files, result.timings_s,
                          {{"frames", std::to_string(result.frame_count)},
@@ -197,6 +255,7 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options) {
                           {"rest_area_m2", fmt::format("{:.9g}", model.rest_area_m2)},
                           {"scale_range", fmt::format("{:.9g} .. {:.9g}", result.min_scale, result.max_scale)},
                           {"field", result.field_reused ? "reused from cache" : "computed"}}};
+  for (auto& fact : motion_facts(motion)) manifest.facts.push_back(std::move(fact));
   result.files.push_back(std::filesystem::relative(write_manifest(out, manifest), out));
   return result;
 }

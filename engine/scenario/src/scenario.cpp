@@ -24,8 +24,20 @@ double default_share(const std::optional<mesh::Lung>& lung) {
 
 MeshSpec read_mesh_spec(const Node& n) {
   MeshSpec m;
-  if (n.has("phantom") && n.has("file")) n.fail_at("file", "give phantom or file, not both");
-  if (n.has("file")) {
+  if (int(n.has("phantom")) + int(n.has("file")) + int(n.has("labels")) > 1) {
+    n.fail_at(n.has("labels") ? "labels" : "file", "give one of phantom, file or labels");
+  }
+  if (n.has("labels")) {
+    m.phantom.reset();
+    m.labels_file = n.directory("labels") / n.string("labels");
+    if (!std::filesystem::exists(m.labels_file)) n.fail_at("labels", "no such file: " + m.labels_file.string());
+    for (const Node& item : n.sequence("values")) {
+      m.label_values.push_back(static_cast<int>(item.as_integer(1, 1'000'000)));
+    }
+    if (m.label_values.empty()) n.fail_at("values", "expected a list of label values such as [3, 4, 5]");
+    m.edge_m = 4e-3;
+    m.repair = n.boolean("repair", true);
+  } else if (n.has("file")) {
     m.phantom.reset();
     m.file = n.directory("file") / n.string("file");
     if (!std::filesystem::exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
@@ -113,6 +125,8 @@ OutputsSpec read_outputs(const std::optional<Node>& n) {
   o.physiology_csv = on;
   if (auto s = sink_section(*n, "gltf", true, on)) s->finish();
   o.gltf = on;
+  if (auto s = sink_section(*n, "motion_csv", true, on)) s->finish();
+  o.motion_csv = on;
   if (auto s = sink_section(*n, "hdf5", true, on)) {
     o.hdf5_positions = s->boolean("positions", false);
     s->finish();

@@ -55,6 +55,8 @@ class Node {
   std::string choice(const std::string& key, const std::vector<std::string>& choices) const;
   bool boolean(const std::string& key, bool fallback) const;
   long integer(const std::string& key, long fallback, long min_value, long max_value) const;
+  // This node itself as a whole number (an item of a list such as `values: [3, 4, 5]`).
+  long as_integer(long min_value, long max_value) const;
 
   // Throws for the first key of this mapping that was never read.
   void finish() const;

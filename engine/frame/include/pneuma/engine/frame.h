@@ -8,6 +8,7 @@
 
 #include "pneuma/engine/volume_scale.h"
 #include "pneuma/mesh/deformed_surface.h"
+#include "pneuma/mesh/regions.h"
 #include "pneuma/mesh/triangle_mesh.h"
 
 namespace pneuma::engine {
@@ -20,12 +21,13 @@ struct BreathingModel {
   double area_unit_m2 = 1e-4;                       // s counts these: A(s) - A(0) ~ s * area_unit
   VolumeScaleMap volume_map;                        // V(s) of rest + s u, exact cubic
   double rest_area_m2 = 0.0;
+  mesh::SurfaceRegions regions;                     // apex, costal, diaphragmatic, mediastinal (docs/realism.md)
 };
 
-// The model of `rest` moved by `unit_displacement`: normals, the volume cubic and the rest area
-// are computed here, once.
+// The model of `rest` moved by `unit_displacement`: normals, the volume cubic, the rest area and
+// the anatomical regions (in the body axes `frame`) are computed here, once.
 BreathingModel make_breathing_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_displacement,
-                                    double area_unit_m2);
+                                    double area_unit_m2, const mesh::BodyFrame& frame = {});
 
 // The per-frame state (cf. mjData), the only thing that changes during a run. Built once for a
 // model; advance() updates it in place and allocates nothing.

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "pneuma/engine/field.h"
 #include "pneuma/engine/physiology_config.h"
@@ -16,8 +17,11 @@ namespace pneuma::engine {
 
 struct MeshSpec {
   // The built-in phantom (`phantom: left|right`) or a file read with its unit.
-  std::optional<mesh::Lung> phantom = mesh::Lung::right;  // nullopt when `file` is set
+  std::optional<mesh::Lung> phantom = mesh::Lung::right;  // nullopt when `file` or `labels` is set
   std::filesystem::path file;
+  // A NIfTI label map (`labels: FILE, values: [3, 4, 5]`): the surface of the union of `values`.
+  std::filesystem::path labels_file;
+  std::vector<int> label_values;
   double metres_per_unit = 1e-3;
   double edge_m = 0.0;                  // phantom resolution / remeshing target (0: keep the file's mesh)
   bool repair = true;                   // repair what is safe before use
@@ -42,6 +46,7 @@ struct OutputsSpec {
   bool gltf = true;
   bool hdf5 = true;
   bool hdf5_positions = false;
+  bool motion_csv = true;  // per breath and anatomical region (docs/realism.md)
   std::optional<MeshSequenceSpec> mesh_sequence;
   std::optional<render::PngSinkOptions> png;  // frames in png/, rendered headless
 };
