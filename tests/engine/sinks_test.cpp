@@ -91,8 +91,15 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   for (const auto& a : m.accessors) {
     const auto& v = m.bufferViews[static_cast<std::size_t>(a.bufferView)];
     EXPECT_LE(v.byteOffset + v.byteLength, m.buffers[0].data.size());
-    const std::size_t width = a.type == TINYGLTF_TYPE_VEC3 ? 3 : 1;
+    const std::size_t width = a.type == TINYGLTF_TYPE_VEC4 ? 4 : a.type == TINYGLTF_TYPE_VEC3 ? 3 : 1;
     EXPECT_LE(a.byteOffset + a.count * 4 * width, v.byteLength);  // float32 and uint32 alike
+  }
+  // The regions travel as vertex attributes: one label and four weights (summing to 1) per vertex.
+  const float* label = accessor_floats(m, primitive.attributes.at("_REGION"));
+  const float* weight = accessor_floats(m, primitive.attributes.at("_REGION_WEIGHTS"));
+  for (std::size_t i = 0; i < n; ++i) {
+    ASSERT_EQ(label[i], static_cast<float>(model.regions.label[i])) << i;
+    EXPECT_NEAR(weight[4 * i] + weight[4 * i + 1] + weight[4 * i + 2] + weight[4 * i + 3], 1.0, 1e-6) << i;
   }
   ASSERT_EQ(m.animations.size(), 1u);
   const auto& sampler = m.animations[0].samplers[0];

@@ -212,6 +212,8 @@ INSTANTIATE_TEST_SUITE_P(
                "2:36: mesh.values[1]: expected a whole number from 1 to 1000000, got 'x'", 3},
         BadRun{"two_mesh_sources", "duration: 4 s\nmesh: {phantom: right, labels: s.yaml, values: [3]}\nphysiology: {preset: healthy-adult}\n",
                "2:32: mesh.labels: give one of phantom, file or labels", 3},
+        BadRun{"unknown_gl_backend", "duration: 4 s\nphysiology: {preset: healthy-adult}\noutputs: {png: {gl: vulkan}}\n",
+               "3:21: outputs.png.gl: expected one of: auto, egl, osmesa; got 'vulkan'", 3},
         BadRun{"clique_without_solver", "duration: 4 s\nfield: {clique: 2}\nphysiology: {preset: healthy-adult}\n",
                "2:17: field.clique: the cg solver (the default) takes clique 1 only; add 'solver: shot' (or sweep, "
                "direct) for a clique of 2 hops",

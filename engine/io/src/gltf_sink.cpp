@@ -102,6 +102,20 @@ class GltfSink final : public FrameSink {
     const int positions = add_vec3(m, model.rest.vertices, 1.0, true);
     const int normals = add_vec3(m, model.normals, 1.0, false);
     const int morph = add_vec3(m, model.unit_displacement, reference_scale_, true);
+    // The anatomical regions (docs/realism.md) as application-specific vertex attributes: the
+    // label (0 apex, 1 costal, 2 diaphragmatic, 3 mediastinal) and the blend weights. Floats:
+    // glTF wants vertex attributes aligned to 4 bytes.
+    std::vector<float> labels, weights;
+    for (const mesh::Region r : model.regions.label) labels.push_back(static_cast<float>(r));
+    for (const auto& w : model.regions.weight) {
+      for (double x : w) weights.push_back(static_cast<float>(x));
+    }
+    const int region_label = labels.empty() ? -1
+        : add_accessor(m, add_view(m, labels.data(), labels.size() * sizeof(float), TINYGLTF_TARGET_ARRAY_BUFFER),
+                       TINYGLTF_COMPONENT_TYPE_FLOAT, labels.size(), TINYGLTF_TYPE_SCALAR);
+    const int region_weight = weights.empty() ? -1
+        : add_accessor(m, add_view(m, weights.data(), weights.size() * sizeof(float), TINYGLTF_TARGET_ARRAY_BUFFER),
+                       TINYGLTF_COMPONENT_TYPE_FLOAT, weights.size() / 4, TINYGLTF_TYPE_VEC4);
 
     const auto [t_min, t_max] = std::minmax_element(times_.begin(), times_.end());
     const int time_view = add_view(m, times_.data(), times_.size() * sizeof(float), 0);
@@ -123,6 +137,8 @@ class GltfSink final : public FrameSink {
     tinygltf::Primitive primitive;
     primitive.attributes["POSITION"] = positions;
     primitive.attributes["NORMAL"] = normals;
+    if (region_label >= 0) primitive.attributes["_REGION"] = region_label;
+    if (region_weight >= 0) primitive.attributes["_REGION_WEIGHTS"] = region_weight;
     primitive.indices = index_accessor;
     primitive.material = 0;
     primitive.mode = TINYGLTF_MODE_TRIANGLES;
@@ -132,8 +148,11 @@ class GltfSink final : public FrameSink {
     mesh.primitives.push_back(primitive);
     mesh.weights = {0.0};
     // Names of the morph targets, read by Blender and three.js.
+    tinygltf::Value::Array region_names;
+    for (const mesh::Region r : mesh::kRegions) region_names.emplace_back(std::string(mesh::region_name(r)));
     mesh.extras = tinygltf::Value(tinygltf::Value::Object{
-        {"targetNames", tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(std::string("breath"))})}});
+        {"targetNames", tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(std::string("breath"))})},
+        {"regionNames", tinygltf::Value(std::move(region_names))}});
     m.meshes.push_back(mesh);
 
     tinygltf::Node node;

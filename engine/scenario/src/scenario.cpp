@@ -156,6 +156,7 @@ OutputsSpec read_outputs(const std::optional<Node>& n) {
       }
       spec.every = static_cast<std::size_t>(png->integer("every", 1, 1, 1000000));
       r.overlay_magnitude = png->boolean("overlay", false);
+      if (png->has("gl")) render::parse_gl_backend(png->choice("gl", {"auto", "egl", "osmesa"}), r.gl);
     }
     o.png = spec;
   }
