@@ -28,6 +28,14 @@ struct Grid {
   std::size_t stride(int axis) const { return axis == 0 ? 1 : axis == 1 ? n[0] : n[0] * n[1]; }
 };
 
+// The first voxel of line l of the lines along `axis` (count() / n[axis] of them): for axis 0,
+// l indexes (j, k); for axis 1, (i, k); for axis 2, (i, j).
+std::size_t line_start(const Grid& g, int axis, std::size_t l) {
+  if (axis == 0) return l * g.n[0];
+  if (axis == 1) return (l % g.n[0]) + (l / g.n[0]) * g.n[0] * g.n[1];
+  return l;
+}
+
 // Largest 26-connected component of `mask` (1 = inside); the others are cleared.
 // Returns {components dropped, voxels dropped}.
 std::pair<std::size_t, std::size_t> keep_largest_component(const Grid& g, std::vector<std::uint8_t>& mask) {
@@ -136,11 +144,7 @@ std::vector<float> squared_distance_to(const Grid& g, const std::vector<std::uin
     const double w = spacing[axis] * spacing[axis];
     const std::size_t lines = g.count() / n;
     for (std::size_t l = 0; l < lines; ++l) {
-      // The first element of line l: for axis 0, l indexes (j, k); for axis 1, (i, k); for axis 2, (i, j).
-      std::size_t start = 0;
-      if (axis == 0) start = l * g.n[0];
-      else if (axis == 1) start = (l % g.n[0]) + (l / g.n[0]) * g.n[0] * g.n[1];
-      else start = l;
+      const std::size_t start = line_start(g, axis, l);
       for (std::size_t q = 0; q < n; ++q) line_in[q] = d[start + q * stride];
       edt_1d(line_in.data(), line_out.data(), n, w, vv, zz);
       for (std::size_t q = 0; q < n; ++q) d[start + q * stride] = line_out[q];
@@ -276,10 +280,7 @@ std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, co
     line.resize(n);
     const std::size_t lines = g.count() / n;
     for (std::size_t l = 0; l < lines; ++l) {
-      std::size_t start = 0;
-      if (axis == 0) start = l * g.n[0];
-      else if (axis == 1) start = (l % g.n[0]) + (l / g.n[0]) * g.n[0] * g.n[1];
-      else start = l;
+      const std::size_t start = line_start(g, axis, l);
       for (std::size_t q = 0; q < n; ++q) line[q] = a[start + q * stride];
       for (std::ptrdiff_t q = 0; q < nn; ++q) {
         float acc = 0.0f;

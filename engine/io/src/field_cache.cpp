@@ -225,19 +225,8 @@ FieldModel read_file(const std::filesystem::path& path) {
   return m;
 }
 
-}  // namespace
-
-std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> mu, const std::string& tissue_name,
-                      const FieldOptions& o) {
-  Hasher h;
-  h.text("pneuma-field-key/1");
-  h.text(PNEUMA_VERSION);
-  h.value(static_cast<std::uint64_t>(rest.vertices.size()));
-  h.bytes(rest.vertices.data(), rest.vertices.size() * sizeof(Eigen::Vector3d));
-  h.value(static_cast<std::uint64_t>(rest.triangles.size()));
-  h.bytes(rest.triangles.data(), rest.triangles.size() * sizeof(mesh::Triangle));
-  h.bytes(mu.data(), mu.size() * sizeof(double));
-  h.text(tissue_name);
+// Every field option that changes the result, in a fixed order (both cache keys).
+void hash_options(Hasher& h, const FieldOptions& o) {
   h.text(solver_name(o.solver));
   h.value(o.tolerance);
   h.value(static_cast<std::int64_t>(o.clique_hops));
@@ -251,6 +240,22 @@ std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> mu
     h.bytes(o.frame.up.data(), 3 * sizeof(double));
     h.bytes(o.frame.anterior.data(), 3 * sizeof(double));
   }
+}
+
+}  // namespace
+
+std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> mu, const std::string& tissue_name,
+                      const FieldOptions& o) {
+  Hasher h;
+  h.text("pneuma-field-key/1");
+  h.text(PNEUMA_VERSION);
+  h.value(static_cast<std::uint64_t>(rest.vertices.size()));
+  h.bytes(rest.vertices.data(), rest.vertices.size() * sizeof(Eigen::Vector3d));
+  h.value(static_cast<std::uint64_t>(rest.triangles.size()));
+  h.bytes(rest.triangles.data(), rest.triangles.size() * sizeof(mesh::Triangle));
+  h.bytes(mu.data(), mu.size() * sizeof(double));
+  h.text(tissue_name);
+  hash_options(h, o);
   return h.hex();
 }
 
@@ -299,11 +304,7 @@ std::string source_field_key(const std::string& source, const std::string& tissu
   h.text(PNEUMA_VERSION);
   h.text(source);
   h.text(tissue_name);
-  h.text(solver_name(o.solver));
-  h.value(o.tolerance);
-  h.value(static_cast<std::int64_t>(o.clique_hops));
-  h.text(rule_name(o.path_rule));
-  h.value(o.area_unit);
+  hash_options(h, o);
   return h.hex();
 }
 
