@@ -30,6 +30,13 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
       }
       ++k;
     }
+    // CGAL lists a face's vertices from any of the three: start from the lexicographically
+    // smallest (orientation kept), so a face's plane is the same bits whatever the hull's
+    // internal order, and so is every depth (a min over the planes).
+    const auto first = std::min_element(v.begin(), v.end(), [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+      return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
+    });
+    std::rotate(v.begin(), first, v.end());
     const Eigen::Vector3d n = (v[1] - v[0]).cross(v[2] - v[0]);
     const double len = n.norm();
     if (len == 0.0) continue;

@@ -213,3 +213,25 @@ TEST(Regions, SameMeshSameBits) {
 
 }  // namespace
 }  // namespace pneuma::mesh
+
+namespace pneuma::mesh {
+namespace {
+
+// The same surface gives the same regions, bit for bit, on every call in one process (CGAL lists
+// a hull face's vertices from any corner; the planes must not depend on that). On a sphere the
+// two sides tie, so any drift in the hull depths would flip the side and every weight.
+TEST(Regions, TheSameSurfaceGivesTheSameBitsOnEveryCall) {
+  const TriangleMesh sphere = make_icosphere(0.1, 3);
+  const SurfaceRegions first = find_regions(sphere);
+  for (int call = 0; call < 10; ++call) {
+    const SurfaceRegions again = find_regions(sphere);
+    ASSERT_EQ(again.side, first.side) << call;
+    ASSERT_EQ(again.left_face_depth, first.left_face_depth) << call;
+    ASSERT_EQ(again.right_face_depth, first.right_face_depth) << call;
+    ASSERT_EQ(again.weight, first.weight) << call;
+    ASSERT_EQ(again.label, first.label) << call;
+  }
+}
+
+}  // namespace
+}  // namespace pneuma::mesh
