@@ -74,6 +74,10 @@ INSTANTIATE_TEST_SUITE_P(
         BadScenario{"action_after_end",
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  actions:\n    - {at: 30 s, rate: 10 /min}\n",
                     "5:12: physiology.actions[0].at: expected a time within the scenario's duration"},
+        BadScenario{"retired_hdf5_positions",
+                    "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  hdf5: {positions: true}\n",
+                    "5:21: outputs.hdf5.positions: no longer an option: series.h5 always stores every frame's "
+                    "positions (the plain geometry ParaView and meshio read); remove the key"},
         BadScenario{"not_yaml", "duration: [20 s\n", "2:1: not valid YAML: end of sequence flow not found"}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 

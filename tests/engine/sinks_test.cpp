@@ -117,35 +117,134 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   }
 }
 
-TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
-  for (bool positions : {true, false}) {
-    TempDir dir;
-    const BreathingModel model = sphere_model();
-    auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf", positions);
-    const auto scales = drive(*sink, model, 12, 30.0);
+std::string h5_string_attribute(hid_t object, const char* name) {
+  const hid_t attr = H5Aopen(object, name, H5P_DEFAULT);
+  if (attr < 0) return "<missing>";
+  const hid_t type = H5Aget_type(attr);
+  std::string value(H5Tget_size(type), '\0');
+  H5Aread(attr, type, value.data());
+  H5Tclose(type);
+  H5Aclose(attr);
+  return value.substr(0, value.find('\0'));
+}
 
-    pugi::xml_document xml;
-    ASSERT_TRUE(xml.load_file((dir / "series.xdmf").c_str()));
-    const hid_t file = H5Fopen((dir / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-    ASSERT_GE(file, 0);
-    const auto grids = xml.select_nodes("/Xdmf/Domain/Grid/Grid");
-    ASSERT_EQ(grids.size(), scales.size());
-    int checked = 0;
-    for (const auto& item : xml.select_nodes("//DataItem[@Format='HDF']")) {
-      const std::string ref = item.node().text().get();
-      const std::string dataset = ref.substr(ref.find(':') + 1);
-      EXPECT_EQ(parse_dims(item.node().attribute("Dimensions").value()), shape(file, dataset.c_str())) << dataset;
-      ++checked;
-    }
-    EXPECT_GE(checked, static_cast<int>(2 * scales.size()));
-    // The stored scales are the frames' scales.
-    std::vector<double> stored(scales.size());
-    const hid_t set = H5Dopen2(file, "/frames/scale", H5P_DEFAULT);
-    H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, stored.data());
-    H5Dclose(set);
-    H5Fclose(file);
-    EXPECT_EQ(stored, scales);
+std::vector<double> h5_doubles(hid_t file, const std::string& path) {
+  const hid_t set = H5Dopen2(file, path.c_str(), H5P_DEFAULT);
+  if (set < 0) return {};
+  const hid_t space = H5Dget_space(set);
+  std::vector<double> values(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
+  H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data());
+  H5Sclose(space);
+  H5Dclose(set);
+  return values;
+}
+
+TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
+  TempDir dir;
+  const BreathingModel model = sphere_model();
+  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
+  const auto scales = drive(*sink, model, 12, 30.0);
+
+  pugi::xml_document xml;
+  ASSERT_TRUE(xml.load_file((dir / "series.xdmf").c_str()));
+  const hid_t file = H5Fopen((dir / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  const auto grids = xml.select_nodes("/Xdmf/Domain/Grid/Grid");
+  ASSERT_EQ(grids.size(), scales.size());
+  // Plain data items only: no Function or HyperSlab (ParaView's default reader and meshio).
+  EXPECT_TRUE(xml.select_nodes("//DataItem[@ItemType]").empty());
+  EXPECT_TRUE(xml.select_nodes("//DataItem[@Function]").empty());
+  int checked = 0;
+  for (const auto& item : xml.select_nodes("//DataItem[@Format='HDF']")) {
+    const std::string ref = item.node().text().get();
+    const std::string dataset = ref.substr(ref.find(':') + 1);
+    EXPECT_EQ(parse_dims(item.node().attribute("Dimensions").value()), shape(file, dataset.c_str())) << dataset;
+    ++checked;
   }
+  EXPECT_EQ(checked, static_cast<int>(4 * scales.size()));
+  // The stored scales are the frames' scales.
+  EXPECT_EQ(h5_doubles(file, "/frames/scale"), scales);
+  // Frame k's geometry (as the XDMF names it) is rest + s_k u, bit for bit.
+  const std::size_t n = model.rest.vertex_count();
+  for (std::size_t k = 0; k < scales.size(); ++k) {
+    const std::string ref = grids[k].node().select_node("Geometry/DataItem").node().text().get();
+    const auto positions = h5_doubles(file, ref.substr(ref.find(':') + 1));
+    ASSERT_EQ(positions.size(), 3 * n) << ref;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d expected = model.rest.vertices[i] + scales[k] * model.unit_displacement[i];
+      ASSERT_EQ(std::memcmp(&positions[3 * i], expected.data(), sizeof(expected)), 0) << "frame " << k << " vertex " << i;
+    }
+  }
+  H5Fclose(file);
+}
+
+TEST(Hdf5Sink, DescribesItselfWithRootAttributesAndUnits) {
+  TempDir dir;
+  const BreathingModel model = sphere_model();
+  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
+  drive(*sink, model, 3, 30.0);
+  const hid_t file = H5Fopen((dir / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  EXPECT_EQ(h5_string_attribute(file, "format"), "pneuma-series");
+  EXPECT_EQ(h5_string_attribute(file, "generator"), std::string("pneuma ") + PNEUMA_VERSION);
+  EXPECT_EQ(h5_string_attribute(file, "coordinate_frame"), "LPS");
+  EXPECT_EQ(h5_string_attribute(file, "length_unit"), "m");
+  const std::vector<std::pair<const char*, const char*>> units{
+      {"/rest/positions", "m"},        {"/rest/triangles", "1"},        {"/field/unit_displacement", "m"},
+      {"/frames/time_s", "s"},         {"/frames/scale", "1"},          {"/frames/lung_volume_m3", "m3"},
+      {"/frames/mesh_volume_m3", "m3"}, {"/frames/area_m2", "m2"},      {"/frames/positions/000002", "m"}};
+  for (const auto& [path, unit] : units) {
+    const hid_t set = H5Dopen2(file, path, H5P_DEFAULT);
+    ASSERT_GE(set, 0) << path;
+    EXPECT_EQ(h5_string_attribute(set, "units"), unit) << path;
+    H5Dclose(set);
+  }
+  H5Fclose(file);
+}
+
+// Same inputs, same bytes, with compression on (no timestamps; zlib is deterministic).
+TEST(Hdf5Sink, SameInputsSameBytes) {
+  TempDir a, b;
+  const BreathingModel model = sphere_model();
+  for (TempDir* dir : {&a, &b}) {
+    auto sink = make_hdf5_sink(*dir / "series.h5", *dir / "series.xdmf");
+    drive(*sink, model, 5, 30.0);
+  }
+  EXPECT_TRUE(pneuma::test::read_text(a / "series.h5") == pneuma::test::read_text(b / "series.h5"));
+}
+
+// meshio (Debian's python3-meshio, with h5py) reads series.xdmf as a time series: the oracle is
+// rest + s_k u computed in Python from series.h5's own datasets.
+TEST(Hdf5Sink, MeshioReadsEveryFrame) {
+  if (std::system("/usr/bin/python3 -c 'import meshio, h5py' >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "meshio or h5py is not importable by /usr/bin/python3 (scripts/install-deps installs python3-meshio python3-h5py)";
+  TempDir dir;
+  const BreathingModel model = sphere_model();
+  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
+  const auto scales = drive(*sink, model, 9, 30.0);
+  const auto script = dir.write("check.py", R"(import sys, meshio, h5py, numpy as np
+d = sys.argv[1]
+h = h5py.File(d + "/series.h5", "r")
+rest, u, s, t = h["rest/positions"][()], h["field/unit_displacement"][()], h["frames/scale"][()], h["frames/time_s"][()]
+tri = h["rest/triangles"][()]
+worst = 0.0
+with meshio.xdmf.TimeSeriesReader(d + "/series.xdmf") as r:
+    points, cells = r.read_points_cells()
+    assert np.array_equal(cells[0].data, tri), "triangles"
+    assert np.array_equal(points, rest + s[0] * u), "frame 0 points"
+    for k in range(r.num_steps):
+        tk, pd, _ = r.read_data(k)
+        assert tk == t[k], (k, tk, t[k])
+        worst = max(worst, float(np.abs(pd["position"] - (rest + s[k] * u)).max()))
+print("steps", r.num_steps, "points", len(points), "worst", worst)
+)");
+  const std::string out = (dir / "out.txt").string();
+  const int status = std::system(("/usr/bin/python3 " + script.string() + " " + dir.path().string() + " >" + out + " 2>&1").c_str());
+  const std::string text = pneuma::test::read_text(out);
+  ASSERT_EQ(status, 0) << text;
+  const std::string expected = "steps " + std::to_string(scales.size()) + " points " +
+                               std::to_string(model.rest.vertex_count()) + " worst 0.0\n";
+  EXPECT_EQ(text, expected);
 }
 
 // displace() streams its stores in SSE2 packets over the flat 3n doubles; the oracle is the plain

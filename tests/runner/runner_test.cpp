@@ -31,7 +31,7 @@ physiology:
   driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}
 outputs:
   mesh_sequence: {format: ply}
-  hdf5: {positions: true}
+  hdf5: true
 )";
 
 // Signed-tetrahedron volume of a mesh file, read back with the mesh reader (file in metres).
@@ -283,7 +283,6 @@ TEST(Runner, CtrlCLeavesNoHalfWrittenFile) {
   yaml.replace(yaml.find("duration: 4 s"), 13, "duration: 1200 s");
   yaml.replace(yaml.find("edge: 12 mm"), 11, "edge: 2 mm");
   yaml.replace(yaml.find("mesh_sequence: {format: ply}"), 28, "mesh_sequence: false");
-  yaml.replace(yaml.find("hdf5: {positions: true}"), 23, "hdf5: {positions: false}");
   const auto scenario = dir.write("long.yaml", yaml);
   const int status = pneuma::test::interrupt_pneuma({"run", scenario.string(), "-o", (dir / "out").string()}, 1500);
   EXPECT_EQ(status, 130);  // 128 + SIGINT, from the CLI's handler

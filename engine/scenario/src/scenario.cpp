@@ -114,7 +114,10 @@ OutputsSpec read_outputs(const std::optional<Node>& n) {
   if (auto s = sink_section(*n, "gltf", true, on)) s->finish();
   o.gltf = on;
   if (auto s = sink_section(*n, "hdf5", true, on)) {
-    o.hdf5_positions = s->boolean("positions", false);
+    if (s->has("positions"))
+      s->fail_at("positions",
+                 "no longer an option: series.h5 always stores every frame's positions (the plain geometry "
+                 "ParaView and meshio read); remove the key");
     s->finish();
   }
   o.hdf5 = on;

@@ -20,10 +20,11 @@ struct MeshSequenceSpec {
 // frame times with LINEAR interpolation. Node rotated so pneuma's z-up becomes glTF's y-up.
 std::unique_ptr<FrameSink> make_gltf_sink(const std::filesystem::path& file);
 
-// HDF5 time series (rest mesh, field, per-frame time, scale, volumes, area and, optionally,
-// positions) and an XDMF file beside it that ParaView opens as a temporal collection.
-std::unique_ptr<FrameSink> make_hdf5_sink(const std::filesystem::path& h5_file, const std::filesystem::path& xdmf_file,
-                                          bool store_positions);
+// HDF5 time series (rest mesh, field, per-frame time, scale, volumes, area and positions) and
+// an XDMF file beside it that ParaView and meshio open as a temporal collection
+// (docs/formats.md).
+std::unique_ptr<FrameSink> make_hdf5_sink(const std::filesystem::path& h5_file,
+                                          const std::filesystem::path& xdmf_file);
 
 // One mesh file per frame (every `spec.every`-th), frame_00000.<format>, in metres.
 std::unique_ptr<FrameSink> make_mesh_sequence_sink(const std::filesystem::path& dir, const MeshSequenceSpec& spec);

@@ -41,7 +41,6 @@ struct OutputsSpec {
   bool physiology_csv = true;
   bool gltf = true;
   bool hdf5 = true;
-  bool hdf5_positions = false;
   std::optional<MeshSequenceSpec> mesh_sequence;
   std::optional<render::PngSinkOptions> png;  // frames in png/, rendered headless
 };
