@@ -76,8 +76,8 @@ INSTANTIATE_TEST_SUITE_P(
                     "5:12: physiology.actions[0].at: expected a time within the scenario's duration"},
         BadScenario{"retired_hdf5_positions",
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  hdf5: {positions: true}\n",
-                    "5:21: outputs.hdf5.positions: no longer an option: series.h5 always stores every frame's "
-                    "positions (the plain geometry ParaView and meshio read); remove the key"},
+                    "5:21: outputs.hdf5.positions: expected float32 or float64 (the stored type; series.h5 now "
+                    "always stores every frame's positions, the plain geometry ParaView and meshio read), got 'true'"},
         BadScenario{"not_yaml", "duration: [20 s\n", "2:1: not valid YAML: end of sequence flow not found"}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 

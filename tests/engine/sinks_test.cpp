@@ -140,42 +140,50 @@ std::vector<double> h5_doubles(hid_t file, const std::string& path) {
 }
 
 TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
-  TempDir dir;
-  const BreathingModel model = sphere_model();
-  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
-  const auto scales = drive(*sink, model, 12, 30.0);
+  for (const PositionPrecision precision : {PositionPrecision::float32, PositionPrecision::float64}) {
+    const bool is_double = precision == PositionPrecision::float64;
+    TempDir dir;
+    const BreathingModel model = sphere_model();
+    auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf", precision);
+    const auto scales = drive(*sink, model, 12, 30.0);
 
-  pugi::xml_document xml;
-  ASSERT_TRUE(xml.load_file((dir / "series.xdmf").c_str()));
-  const hid_t file = H5Fopen((dir / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  const auto grids = xml.select_nodes("/Xdmf/Domain/Grid/Grid");
-  ASSERT_EQ(grids.size(), scales.size());
-  // Plain data items only: no Function or HyperSlab (ParaView's default reader and meshio).
-  EXPECT_TRUE(xml.select_nodes("//DataItem[@ItemType]").empty());
-  EXPECT_TRUE(xml.select_nodes("//DataItem[@Function]").empty());
-  int checked = 0;
-  for (const auto& item : xml.select_nodes("//DataItem[@Format='HDF']")) {
-    const std::string ref = item.node().text().get();
-    const std::string dataset = ref.substr(ref.find(':') + 1);
-    EXPECT_EQ(parse_dims(item.node().attribute("Dimensions").value()), shape(file, dataset.c_str())) << dataset;
-    ++checked;
-  }
-  EXPECT_EQ(checked, static_cast<int>(4 * scales.size()));
-  // The stored scales are the frames' scales.
-  EXPECT_EQ(h5_doubles(file, "/frames/scale"), scales);
-  // Frame k's geometry (as the XDMF names it) is rest + s_k u, bit for bit.
-  const std::size_t n = model.rest.vertex_count();
-  for (std::size_t k = 0; k < scales.size(); ++k) {
-    const std::string ref = grids[k].node().select_node("Geometry/DataItem").node().text().get();
-    const auto positions = h5_doubles(file, ref.substr(ref.find(':') + 1));
-    ASSERT_EQ(positions.size(), 3 * n) << ref;
-    for (std::size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3d expected = model.rest.vertices[i] + scales[k] * model.unit_displacement[i];
-      ASSERT_EQ(std::memcmp(&positions[3 * i], expected.data(), sizeof(expected)), 0) << "frame " << k << " vertex " << i;
+    pugi::xml_document xml;
+    ASSERT_TRUE(xml.load_file((dir / "series.xdmf").c_str()));
+    const hid_t file = H5Fopen((dir / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const auto grids = xml.select_nodes("/Xdmf/Domain/Grid/Grid");
+    ASSERT_EQ(grids.size(), scales.size());
+    // Plain data items only: no Function or HyperSlab (ParaView's default reader and meshio).
+    EXPECT_TRUE(xml.select_nodes("//DataItem[@ItemType]").empty());
+    EXPECT_TRUE(xml.select_nodes("//DataItem[@Function]").empty());
+    int checked = 0;
+    for (const auto& item : xml.select_nodes("//DataItem[@Format='HDF']")) {
+      const std::string ref = item.node().text().get();
+      const std::string dataset = ref.substr(ref.find(':') + 1);
+      EXPECT_EQ(parse_dims(item.node().attribute("Dimensions").value()), shape(file, dataset.c_str())) << dataset;
+      ++checked;
     }
+    EXPECT_EQ(checked, static_cast<int>(4 * scales.size()));
+    // The stored scales are the frames' scales.
+    EXPECT_EQ(h5_doubles(file, "/frames/scale"), scales);
+    // Frame k's geometry (as the XDMF names it) is rest + s_k u rounded to the stored type, exactly.
+    const std::size_t n = model.rest.vertex_count();
+    for (std::size_t k = 0; k < scales.size(); ++k) {
+      const auto item = grids[k].node().select_node("Geometry/DataItem").node();
+      EXPECT_STREQ(item.attribute("Precision").value(), is_double ? "8" : "4");
+      const std::string ref = item.text().get();
+      const auto positions = h5_doubles(file, ref.substr(ref.find(':') + 1));
+      ASSERT_EQ(positions.size(), 3 * n) << ref;
+      for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d exact = model.rest.vertices[i] + scales[k] * model.unit_displacement[i];
+        for (int c = 0; c < 3; ++c) {
+          const double expected = is_double ? exact[c] : static_cast<double>(static_cast<float>(exact[c]));
+          ASSERT_EQ(positions[3 * i + static_cast<std::size_t>(c)], expected) << "frame " << k << " vertex " << i;
+        }
+      }
+    }
+    H5Fclose(file);
   }
-  H5Fclose(file);
 }
 
 TEST(Hdf5Sink, DescribesItselfWithRootAttributesAndUnits) {
@@ -214,7 +222,8 @@ TEST(Hdf5Sink, SameInputsSameBytes) {
 }
 
 // meshio (Debian's python3-meshio, with h5py) reads series.xdmf as a time series: the oracle is
-// rest + s_k u computed in Python from series.h5's own datasets.
+// rest + s_k u computed in Python (numpy, float64, rounded to the stored float32) from series.h5's
+// own float64 datasets.
 TEST(Hdf5Sink, MeshioReadsEveryFrame) {
   if (std::system("/usr/bin/python3 -c 'import meshio, h5py' >/dev/null 2>&1") != 0)
     GTEST_SKIP() << "meshio or h5py is not importable by /usr/bin/python3 (scripts/install-deps installs python3-meshio python3-h5py)";
@@ -231,11 +240,12 @@ worst = 0.0
 with meshio.xdmf.TimeSeriesReader(d + "/series.xdmf") as r:
     points, cells = r.read_points_cells()
     assert np.array_equal(cells[0].data, tri), "triangles"
-    assert np.array_equal(points, rest + s[0] * u), "frame 0 points"
+    assert points.dtype == np.float32, points.dtype
+    assert np.array_equal(points, (rest + s[0] * u).astype(np.float32)), "frame 0 points"
     for k in range(r.num_steps):
         tk, pd, _ = r.read_data(k)
         assert tk == t[k], (k, tk, t[k])
-        worst = max(worst, float(np.abs(pd["position"] - (rest + s[k] * u)).max()))
+        worst = max(worst, float(np.abs(pd["position"] - (rest + s[k] * u).astype(np.float32)).max()))
 print("steps", r.num_steps, "points", len(points), "worst", worst)
 )");
   const std::string out = (dir / "out.txt").string();

@@ -31,7 +31,7 @@ physiology:
   driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}
 outputs:
   mesh_sequence: {format: ply}
-  hdf5: true
+  hdf5: {positions: float64}
 )";
 
 // Signed-tetrahedron volume of a mesh file, read back with the mesh reader (file in metres).

@@ -8,7 +8,8 @@
 //   /field/unit_displacement (N, 3) float64, m per unit scale   (attribute area_unit_m2)
 //   /frames/time_s, /frames/scale, /frames/lung_volume_m3, /frames/mesh_volume_m3,
 //   /frames/area_m2   (F) float64
-//   /frames/positions/NNNNNN (N, 3) float64, m: frame k's positions (rest + s_k u), shuffle + deflate
+//   /frames/positions/NNNNNN (N, 3) float32 (or float64: outputs.hdf5.positions), m: frame k's
+//     positions, rest + s_k u rounded to the stored type; shuffle + deflate
 #include <hdf5.h>
 
 #include <fmt/format.h>
@@ -29,8 +30,9 @@ constexpr int kSeriesFormatVersion = 2;  // 2: per-frame /frames/positions/NNNNN
 
 class Hdf5Sink final : public FrameSink {
  public:
-  Hdf5Sink(std::filesystem::path h5, std::filesystem::path xdmf)
-      : h5_path_(std::move(h5)), xdmf_path_(std::move(xdmf)), w_{h5_path_.string()} {}
+  Hdf5Sink(std::filesystem::path h5, std::filesystem::path xdmf, PositionPrecision precision)
+      : h5_path_(std::move(h5)), xdmf_path_(std::move(xdmf)), double_(precision == PositionPrecision::float64),
+        w_{h5_path_.string()} {}
   std::string name() const override { return "hdf5"; }
 
   void begin(const BreathingModel& model, const RunInfo& run) override {
@@ -73,7 +75,7 @@ class Hdf5Sink final : public FrameSink {
     mesh_volume_.push_back(f.mesh_volume_m3);
     area_.push_back(f.area_m2);
     const std::string name = frame_name(f.index);
-    w_.dataset(positions_group_, name.c_str(), H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, f.positions.data(), vertex_count_, 3,
+    w_.dataset(positions_group_, name.c_str(), double_ ? H5T_IEEE_F64LE : H5T_IEEE_F32LE, H5T_NATIVE_DOUBLE, f.positions.data(), vertex_count_, 3,
                "m", true);
   }
 
@@ -114,6 +116,8 @@ class Hdf5Sink final : public FrameSink {
     std::ostringstream number;
     number.precision(17);
     const std::string vectors = "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">";
+    const std::string frame_vectors = "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"" +
+                                      (double_ ? "8" : "4") + "\" Format=\"HDF\">";
     for (std::size_t k = 0; k < time_.size(); ++k) {
       number.str("");
       number << time_[k];
@@ -123,9 +127,9 @@ class Hdf5Sink final : public FrameSink {
           << "    <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << m << "\">\n"
           << "     <DataItem Dimensions=\"" << m << " 3\" NumberType=\"UInt\" Precision=\"4\" Format=\"HDF\">" << h5
           << ":/rest/triangles</DataItem>\n    </Topology>\n    <Geometry GeometryType=\"XYZ\">\n"
-          << "     <DataItem " << vectors << positions << "</DataItem>\n    </Geometry>\n"
+          << "     <DataItem " << frame_vectors << positions << "</DataItem>\n    </Geometry>\n"
           << "    <Attribute Name=\"position\" AttributeType=\"Vector\" Center=\"Node\">\n"
-          << "     <DataItem " << vectors << positions << "</DataItem>\n    </Attribute>\n"
+          << "     <DataItem " << frame_vectors << positions << "</DataItem>\n    </Attribute>\n"
           << "    <Attribute Name=\"field_u\" AttributeType=\"Vector\" Center=\"Node\">\n"
           << "     <DataItem " << vectors << h5 << ":/field/unit_displacement</DataItem>\n    </Attribute>\n"
           << "   </Grid>\n";
@@ -134,6 +138,7 @@ class Hdf5Sink final : public FrameSink {
   }
 
   std::filesystem::path h5_path_, xdmf_path_;
+  bool double_;  // per-frame positions stored as float64 (else float32)
   Hdf5Writer w_;
   std::unique_ptr<PendingFile> pending_;
   hid_t file_ = -1, frames_group_ = -1, positions_group_ = -1;
@@ -144,9 +149,9 @@ class Hdf5Sink final : public FrameSink {
 
 }  // namespace
 
-std::unique_ptr<FrameSink> make_hdf5_sink(const std::filesystem::path& h5_file,
-                                          const std::filesystem::path& xdmf_file) {
-  return std::make_unique<Hdf5Sink>(h5_file, xdmf_file);
+std::unique_ptr<FrameSink> make_hdf5_sink(const std::filesystem::path& h5_file, const std::filesystem::path& xdmf_file,
+                                          PositionPrecision positions) {
+  return std::make_unique<Hdf5Sink>(h5_file, xdmf_file, positions);
 }
 
 }  // namespace pneuma::engine

@@ -13,7 +13,8 @@ const std::vector<SinkEntry>& sink_registry() {
        }},
       {"hdf5",
        [](const Scenario& s, const std::filesystem::path& out) -> std::unique_ptr<FrameSink> {
-         return s.outputs.hdf5 ? make_hdf5_sink(out / "series.h5", out / "series.xdmf") : nullptr;
+         return s.outputs.hdf5 ? make_hdf5_sink(out / "series.h5", out / "series.xdmf", s.outputs.hdf5_positions)
+                               : nullptr;
        }},
       {"mesh_sequence",
        [](const Scenario& s, const std::filesystem::path& out) -> std::unique_ptr<FrameSink> {

@@ -114,10 +114,14 @@ OutputsSpec read_outputs(const std::optional<Node>& n) {
   if (auto s = sink_section(*n, "gltf", true, on)) s->finish();
   o.gltf = on;
   if (auto s = sink_section(*n, "hdf5", true, on)) {
-    if (s->has("positions"))
-      s->fail_at("positions",
-                 "no longer an option: series.h5 always stores every frame's positions (the plain geometry "
-                 "ParaView and meshio read); remove the key");
+    if (s->has("positions")) {
+      const std::string value = s->string("positions");
+      if (value == "true" || value == "false")
+        s->fail_at("positions", "expected float32 or float64 (the stored type; series.h5 now always stores every "
+                                "frame's positions, the plain geometry ParaView and meshio read), got '" + value + "'");
+      o.hdf5_positions = s->choice("positions", {"float32", "float64"}) == "float64" ? PositionPrecision::float64
+                                                                                     : PositionPrecision::float32;
+    }
     s->finish();
   }
   o.hdf5 = on;

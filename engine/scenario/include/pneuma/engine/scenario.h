@@ -41,6 +41,7 @@ struct OutputsSpec {
   bool physiology_csv = true;
   bool gltf = true;
   bool hdf5 = true;
+  PositionPrecision hdf5_positions = PositionPrecision::float32;
   std::optional<MeshSequenceSpec> mesh_sequence;
   std::optional<render::PngSinkOptions> png;  // frames in png/, rendered headless
 };
