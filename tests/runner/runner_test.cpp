@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 
 #include "pneuma/engine/scenario.h"
@@ -231,6 +232,39 @@ TEST(Runner, AreaGrowsByOneAreaUnitPerUnitScaleAtFirstOrder) {
     ++checked;
   }
   EXPECT_GT(checked, 10);
+}
+
+// field.h5 and series.h5 of one run call the same data by the same names, describe themselves
+// (root attributes, `units` on every dataset) and hold the same values: read with h5py.
+TEST(Runner, FieldAndSeriesFilesShareNamesAttributesAndValues) {
+  if (std::system("/usr/bin/python3 -c 'import h5py' >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "h5py is not importable by /usr/bin/python3 (scripts/install-deps installs python3-h5py)";
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"}).exit_code, 0);
+  const auto script = dir.write("check.py", R"(import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1] + "/field.h5", "r")
+s = h5py.File(sys.argv[1] + "/series.h5", "r")
+for h, fmt in ((f, "pneuma-field"), (s, "pneuma-series")):
+    a = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h.attrs.items()}
+    assert a["format"] == fmt and a["coordinate_frame"] == "LPS" and a["length_unit"] == "m", a
+    assert a["generator"].startswith("pneuma "), a
+    def units(name, obj):
+        if isinstance(obj, h5py.Dataset):
+            assert "units" in obj.attrs, (fmt, name)
+    h.visititems(units)
+for name in ("rest/positions", "rest/triangles", "field/unit_displacement"):
+    assert np.array_equal(f[name][()], s[name][()]), name
+    assert f[name].attrs["units"] == s[name].attrs["units"], name
+assert f["field"].attrs["area_unit_m2"] == s["field"].attrs["area_unit_m2"] == 1e-4
+print("ok", len(s["frames/positions"]), s["frames/positions/000040"].attrs["units"].decode())
+)");
+  const std::string out = (dir / "check.txt").string();
+  const int status =
+      std::system(("/usr/bin/python3 " + script.string() + " " + (dir / "out").string() + " >" + out + " 2>&1").c_str());
+  const std::string text = pneuma::test::read_text(out);
+  ASSERT_EQ(status, 0) << text;
+  EXPECT_EQ(text, "ok 41 m\n");
 }
 
 TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
