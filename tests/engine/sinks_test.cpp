@@ -8,10 +8,12 @@
 
 #include <cmath>
 #include <cstring>
+#include <tuple>
 #include <fmt/format.h>
 #include <pugixml.hpp>
 
 #include "pneuma/engine/sinks.h"
+#include "pneuma/mesh/io.h"
 #include "test_support.h"
 
 using namespace pneuma::engine;
@@ -289,6 +291,37 @@ print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoi
   for (const char* reader : {"Xdmf3ReaderS", "Xdmf3ReaderS", "XDMFReader"})
     expected += fmt::format("{} {} {}\n", reader, scales.size(), model.rest.vertex_count());
   EXPECT_EQ(text, expected);
+}
+
+// Mesh sequences record their unit (metres) in every format, and read_mesh() with its default
+// (millimetres) then reads metres: the oracle is the frame's positions in the run; an explicit
+// unit (unit_from_file = false) still wins.
+TEST(MeshSequenceSink, RecordsTheUnitAndReadMeshUsesIt) {
+  const BreathingModel model = sphere_model();
+  for (const auto& [format, ascii, header] :
+       {std::tuple{"ply", false, "comment unit m\n"}, {"ply", true, "comment unit m\n"}, {"obj", false, "# unit m\n"},
+        {"stl", false, "binary STL written by pneuma, unit m"}, {"stl", true, "solid pneuma unit m\n"}}) {
+    TempDir dir;
+    auto sink = make_mesh_sequence_sink(dir / "frames", MeshSequenceSpec{format, ascii, 2});
+    const auto scales = drive(*sink, model, 3, 30.0);
+    const auto file = dir / "frames" / (std::string("frame_00002.") + format);
+    const std::string bytes = pneuma::test::read_text(file);
+    EXPECT_NE(bytes.substr(0, 200).find(header), std::string::npos) << format << (ascii ? " ascii" : "");
+    EXPECT_EQ(pneuma::mesh::recorded_unit(file), 1.0);
+    const auto frame = pneuma::mesh::read_mesh(file);  // default: 1 unit = 1 mm, unless recorded
+    // The frame in metres, numbered as read_mesh() numbers OBJ and STL (by first use).
+    pneuma::mesh::TriangleMesh expected = model.rest;
+    for (std::size_t i = 0; i < expected.vertices.size(); ++i)
+      expected.vertices[i] += scales[2] * model.unit_displacement[i];
+    if (std::string(format) != "ply") pneuma::mesh::renumber_vertices_by_first_use(expected);
+    ASSERT_EQ(frame.vertex_count(), expected.vertex_count());
+    double worst = 0.0;
+    for (std::size_t i = 0; i < frame.vertex_count(); ++i)
+      worst = std::max(worst, (frame.vertices[i] - expected.vertices[i]).cwiseAbs().maxCoeff());
+    EXPECT_LT(worst, 1e-7) << format << ": float32 of coordinates around 0.1 m";
+    const auto as_mm = pneuma::mesh::read_mesh(file, {.metres_per_unit = 1e-3, .unit_from_file = false});
+    EXPECT_NEAR(as_mm.vertices[0].norm(), 1e-3 * frame.vertices[0].norm(), 1e-12) << "explicit unit wins";
+  }
 }
 
 // displace() streams its stores in SSE2 packets over the flat 3n doubles; the oracle is the plain

@@ -2,6 +2,7 @@
 #define TINYGLTF_NO_STB_IMAGE
 #define TINYGLTF_NO_STB_IMAGE_WRITE
 #define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 #include <hdf5.h>
@@ -265,6 +266,35 @@ print("ok", len(s["frames/positions"]), s["frames/positions/000040"].attrs["unit
   const std::string text = pneuma::test::read_text(out);
   ASSERT_EQ(status, 0) << text;
   EXPECT_EQ(text, "ok 41 m\n");
+}
+
+// `pneuma mesh info` on a frame of the sequence (written in metres, saying so) reports the lung
+// at its real size without --unit; an explicit --unit still wins.
+TEST(Runner, MeshInfoReadsTheUnitAFrameRecords) {
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"}).exit_code, 0);
+  const std::string frame = frame_file(dir / "out/frames", 0).string();
+  auto bounding_box = [](const std::string& out) {
+    const auto at = out.find("bounding box:");
+    return out.substr(at, out.find('\n', at) - at);
+  };
+  const auto recorded = run_pneuma({"mesh", "info", frame, "--no-self-intersections"});
+  const auto metres = run_pneuma({"mesh", "info", frame, "--no-self-intersections", "--unit", "m"});
+  const auto forced_mm = run_pneuma({"mesh", "info", frame, "--no-self-intersections", "--unit", "mm"});
+  ASSERT_EQ(recorded.exit_code, 0) << recorded.err;
+  EXPECT_EQ(bounding_box(recorded.out), bounding_box(metres.out));
+  EXPECT_NE(bounding_box(recorded.out), bounding_box(forced_mm.out));
+  // The oracle for the size: the frame read with an explicit unit of 1 m.
+  pneuma::mesh::ReadOptions m;
+  m.metres_per_unit = 1.0;
+  m.unit_from_file = false;
+  const auto mesh = pneuma::mesh::read_mesh(frame, m);
+  double z_min = 1e9, z_max = -1e9;
+  for (const auto& v : mesh.vertices) z_min = std::min(z_min, v.z()), z_max = std::max(z_max, v.z());
+  EXPECT_NE(bounding_box(recorded.out).find(fmt::format("z {:.2f} to {:.2f} mm", z_min * 1e3, z_max * 1e3)),
+            std::string::npos)
+      << bounding_box(recorded.out);
 }
 
 TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {

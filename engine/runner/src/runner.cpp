@@ -42,6 +42,7 @@ mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {
 mesh::TriangleMesh file_surface(const MeshSpec& spec) {
   mesh::ReadOptions read;
   read.metres_per_unit = spec.metres_per_unit;
+  read.unit_from_file = !spec.unit_given;
   mesh::TriangleMesh surface = mesh::read_mesh(spec.file, read);
   if (spec.repair) surface = mesh::repair_or_throw(surface, spec.file.string());
   return surface;

@@ -30,6 +30,7 @@ MeshSpec read_mesh_spec(const Node& n) {
     m.file = n.directory("file") / n.string("file");
     if (!std::filesystem::exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
     if (n.has("unit")) {
+      m.unit_given = true;
       // A unit name ("mm") or a length ("0.5 mm"): the length of one file unit.
       const std::string text = n.string("unit");
       const bool bare = !text.empty() && std::isalpha(static_cast<unsigned char>(text.front()));

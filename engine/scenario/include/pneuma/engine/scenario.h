@@ -18,7 +18,8 @@ struct MeshSpec {
   // The built-in phantom (`phantom: left|right`) or a file read with its unit.
   std::optional<mesh::Lung> phantom = mesh::Lung::right;  // nullopt when `file` is set
   std::filesystem::path file;
-  double metres_per_unit = 1e-3;
+  double metres_per_unit = 1e-3;        // `unit`; without it, the unit the file records, else mm
+  bool unit_given = false;              // `unit` set: it wins over a unit recorded in the file
   double edge_m = 0.0;                  // phantom resolution / remeshing target (0: keep the file's mesh)
   bool repair = true;                   // repair what is safe before use
   bool export_original = false;         // export the file's mesh with the field transferred to it
