@@ -29,6 +29,14 @@ TEST(SimulateCli, VersionAndHelp) {
   r = run_pneuma({"--help"});
   EXPECT_EQ(r.exit_code, 0);
   EXPECT_NE(r.out.find("simulate"), std::string::npos);
+  // Usage names the program, not the path it was started from; examples in the footer.
+  EXPECT_NE(r.out.find("Usage: pneuma "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("Examples:\n  pneuma run scenarios/quiet-breathing.yaml -o out/demo\n"), std::string::npos);
+  r = run_pneuma({"run", "--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("Usage: pneuma run "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--edge <length, e.g. 3mm>"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("Examples:"), std::string::npos) << r.out;
 }
 
 struct BadScenario {

@@ -297,6 +297,20 @@ TEST(Runner, MeshInfoReadsTheUnitAFrameRecords) {
       << bounding_box(recorded.out);
 }
 
+// The run summary lists top-level files one by one and a folder of frames as one counted line.
+TEST(Runner, SummaryCountsTheFilesOfEachFolder) {
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::size_t frames = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir / "out/frames")) frames += entry.is_regular_file();
+  EXPECT_EQ(frames, 41u);
+  EXPECT_NE(r.out.find("  " + (dir / "out/frames").string() + "/ 41 files\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("  " + (dir / "out/series.h5").string() + "\n"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("frame_00000"), std::string::npos) << r.out;
+}
+
 TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
   // A file mesh (the phantom at 8 mm, in mm) remeshed to 14 mm for the field, exported at its
   // own resolution: frames keep the file's vertices and still follow the volume exactly.
