@@ -101,6 +101,16 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   const auto& sampler = m.animations[0].samplers[0];
   EXPECT_EQ(m.animations[0].channels[0].target_path, "weights");
   EXPECT_EQ(sampler.interpolation, "LINEAR");
+  // The animation's whole extent in the scene's extras (glTF has no frame range): 40 frames at
+  // 10 Hz end at 3.9 s, the sampler's last key.
+  ASSERT_EQ(m.scenes.size(), 1u);
+  const auto& extras = m.scenes[0].extras;
+  ASSERT_TRUE(extras.Has("animation_duration_s") && extras.Has("frame_rate_hz") && extras.Has("frame_count"));
+  EXPECT_NEAR(extras.Get("animation_duration_s").GetNumberAsDouble(), 3.9, 1e-6);
+  EXPECT_NEAR(extras.Get("animation_duration_s").GetNumberAsDouble(),
+              m.accessors[static_cast<std::size_t>(sampler.input)].maxValues.at(0), 1e-12);
+  EXPECT_EQ(extras.Get("frame_rate_hz").GetNumberAsDouble(), 10.0);
+  EXPECT_EQ(extras.Get("frame_count").GetNumberAsInt(), 40);
   EXPECT_EQ(m.accessors[static_cast<std::size_t>(sampler.input)].count, scales.size());
 
   // The glTF frame at keyframe k: rest + w_k * target, against rest + s_k u in double.
