@@ -27,13 +27,15 @@ struct FieldCliOptions {
   double tolerance = 1e-6;
   std::string output = "field.h5";
   std::string unit = "mm";
+  bool unit_given = false;  // --unit given: it wins over a unit recorded in the file
   double edge_m = 4e-3;
   bool quiet = false;
 };
 
 // MESH: a mesh file (read with --unit), `phantom:left|right|both` (at --edge), or the analytic
 // test shape `icosphere:<radius>:<subdivisions>` (radius in metres, or with a unit: 10cm).
-mesh::TriangleMesh load_mesh_for_cli(const std::string& spec, const std::string& unit, double phantom_edge_m) {
+mesh::TriangleMesh load_mesh_for_cli(const std::string& spec, const std::string& unit, bool unit_given,
+                                     double phantom_edge_m) {
   if (spec.rfind("phantom:", 0) == 0) {
     const std::string side = spec.substr(8);
     mesh::PhantomOptions phantom;
@@ -73,6 +75,7 @@ mesh::TriangleMesh load_mesh_for_cli(const std::string& spec, const std::string&
   }
   mesh::ReadOptions read;
   read.metres_per_unit = mesh::parse_length_unit(unit);
+  read.unit_from_file = !unit_given;
   return mesh::read_mesh(spec, read);
 }
 
@@ -107,7 +110,7 @@ void run_field(const FieldCliOptions& o) {
                          : "pneuma: --solver cg: needs --clique 1; use shot, sweep or direct for larger cliques");
   }
   const engine::Tissue tissue = load_tissue_for_cli(o.tissue);
-  const mesh::TriangleMesh rest = load_mesh_for_cli(o.mesh, o.unit, o.edge_m);
+  const mesh::TriangleMesh rest = load_mesh_for_cli(o.mesh, o.unit, o.unit_given, o.edge_m);
 
   engine::ElastostaticField field;
   const engine::FieldModel model = engine::compute_field_model(rest, tissue, options, &field);
@@ -145,10 +148,14 @@ void register_field(CLI::App& app) {
   cmd->add_option("--clique", options->clique, "Clique size M in hops, 1 to 4")->capture_default_str();
   cmd->add_option("--tol", options->tolerance, "Stop when max UnShot <= tol * max force")->capture_default_str();
   cmd->add_option("-o,--output", options->output, "Field file to write (HDF5)")->capture_default_str();
-  cmd->add_option("--unit", options->unit, "Length of one unit of the mesh file (mm, cm, m, ...)")->capture_default_str();
+  cmd->add_option("--unit", options->unit, "Length of one unit of the mesh file (mm, cm, m, ...; default: the unit "
+                                          "the file records, else mm)")->capture_default_str();
   add_quantity_option(*cmd, "--edge", options->edge_m, "Phantom edge length (default 4 mm)", "length");
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing on success");
-  cmd->callback([options] { run_field(*options); });
+  cmd->callback([options, cmd] {
+    options->unit_given = cmd->count("--unit") > 0;
+    run_field(*options);
+  });
 }
 
 }  // namespace pneuma::cli

@@ -23,6 +23,7 @@ struct MeshOptions {
   std::string input;
   std::string output;
   std::string unit = "mm";
+  bool unit_given = false;  // --unit on the command line: it wins over a unit recorded in the file
   bool ascii = false;
   bool skip_self_intersections = false;
   double edge_m = 0.0;
@@ -67,7 +68,7 @@ void print_report(const std::string& name, const mesh::TriangleMesh& m, const me
 }
 
 mesh::TriangleMesh load(const MeshOptions& o) {
-  return mesh::read_mesh(o.input, {.metres_per_unit = mesh::parse_length_unit(o.unit)});
+  return mesh::read_mesh(o.input, {.metres_per_unit = mesh::parse_length_unit(o.unit), .unit_from_file = !o.unit_given});
 }
 
 // The record `mesh from-labels` leaves beside its output, when there is one.
@@ -92,7 +93,7 @@ void run_info(const MeshOptions& o) {
 void run_repair(const MeshOptions& o) {
   const double unit = mesh::parse_length_unit(o.unit);
   mesh::format_for_path(o.output, o.ascii);  // an unwritable format is a usage error: say so before the work
-  const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit});
+  const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit, .unit_from_file = !o.unit_given});
   const mesh::RepairResult result = mesh::repair(m, o.input, {.max_hole_edges = o.max_hole_edges});
   mesh::write_mesh(o.output, result.mesh, {.metres_per_unit = unit, .ascii = o.ascii});
   const auto actions = result.report.actions();
@@ -106,7 +107,7 @@ void run_remesh(const MeshOptions& o) {
   const double unit = mesh::parse_length_unit(o.unit);
   if (!(o.edge_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '3 mm'");
   mesh::format_for_path(o.output, o.ascii);
-  const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit});
+  const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit, .unit_from_file = !o.unit_given});
   const mesh::RemeshOptions remesh_options{.target_edge_length_m = o.edge_m, .iterations = o.iterations};
   const mesh::ValidationReport r = mesh::validate(m);
   mesh::RemeshResult result;
@@ -145,7 +146,8 @@ void run_from_labels(const MeshOptions& o) {
 }
 
 void add_unit_option(CLI::App& cmd, MeshOptions& o) {
-  cmd.add_option("--unit", o.unit, "Length of one file unit (mm, cm, m, ...), for reading and writing")
+  cmd.add_option("--unit", o.unit, "Length of one file unit (mm, cm, m, ...), for reading (default: the unit the file "
+                 "records, as pneuma's files do, else mm) and writing")
       ->capture_default_str();
 }
 
@@ -161,7 +163,10 @@ void register_mesh(CLI::App& app) {
   info->add_option("file", o->input, "Mesh file")->required();
   add_unit_option(*info, *o);
   info->add_flag("--no-self-intersections", o->skip_self_intersections, "Skip the self-intersection test (the slowest)");
-  info->callback([o] { run_info(*o); });
+  info->callback([o, info] {
+    o->unit_given = info->count("--unit") > 0;
+    run_info(*o);
+  });
 
   CLI::App* repair = mesh_cmd->add_subcommand("repair", "Repair what can be repaired safely, refuse the rest");
   repair->add_option("input", o->input, "Mesh file")->required();
@@ -169,7 +174,10 @@ void register_mesh(CLI::App& app) {
   add_unit_option(*repair, *o);
   repair->add_option("--max-hole", o->max_hole_edges, "Fill holes of at most this many boundary edges")->capture_default_str();
   repair->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
-  repair->callback([o] { run_repair(*o); });
+  repair->callback([o, repair] {
+    o->unit_given = repair->count("--unit") > 0;
+    run_repair(*o);
+  });
 
   CLI::App* remesh = mesh_cmd->add_subcommand("remesh", "Isotropic remeshing to a target edge length");
   remesh->add_option("input", o->input, "Mesh file (repaired first when it is not a valid surface)")->required();
@@ -180,7 +188,10 @@ void register_mesh(CLI::App& app) {
   remesh->add_option("--max-hole", o->max_hole_edges, "When the input needs repair: fill holes of at most this many "
                                                      "boundary edges")->capture_default_str();
   remesh->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
-  remesh->callback([o] { run_remesh(*o); });
+  remesh->callback([o, remesh] {
+    o->unit_given = remesh->count("--unit") > 0;
+    run_remesh(*o);
+  });
 
   CLI::App* labels = mesh_cmd->add_subcommand(
       "from-labels", "Surface of the union of some labels of a NIfTI label map (.nii, .nii.gz), in LPS millimetres");

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <string>
 
 #include "commands.h"
@@ -5,6 +6,14 @@
 #include "pneuma/core/units.h"
 
 namespace pneuma::cli {
+
+namespace {
+// "3 mm" -> "3mm": a placeholder that reads as an example, not as a default.
+std::string compact(std::string text) {
+  text.erase(std::remove(text.begin(), text.end(), ' '), text.end());
+  return text;
+}
+}  // namespace
 
 CLI::Option* add_quantity_option(CLI::App& command, const std::string& name, double& value_si,
                                  const std::string& description, const char* kind_name) {
@@ -26,7 +35,7 @@ CLI::Option* add_quantity_option(CLI::App& command, const std::string& name, dou
             }
           },
           description)
-      ->type_name(std::string("<") + kind->example + ">");
+      ->type_name(std::string("<") + kind_name + ", e.g. " + compact(kind->example) + ">");
 }
 
 }  // namespace pneuma::cli

@@ -1,6 +1,9 @@
 // pneuma run SCENARIO.yaml -o OUTDIR: the whole pipeline, physiology to frames and files.
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <vector>
+#include <utility>
 #include <filesystem>
 
 #include "commands.h"
@@ -28,13 +31,20 @@ void run_command(const RunCommandOptions& o) {
              scenario.frame_rate_hz, scenario.duration_s, r.vertex_count, r.field_reused ? "reused from cache" : "computed");
   fmt::print("scale s from {:.4g} to {:.4g} area units\n", r.min_scale, r.max_scale);
   for (const auto& [stage, seconds] : r.timings_s) fmt::print("  {:<26} {:8.3f} s\n", stage, seconds);
-  std::size_t shown = 0;
+  // Files at the top level one by one; a folder (png/, frames/) as one line with its count.
+  std::vector<std::pair<std::string, std::size_t>> folders;  // in the order they first appear
   for (const auto& file : r.files) {
-    if (file.parent_path().empty() || shown == 0) {
+    if (file.parent_path().empty()) {
       fmt::print("  {}\n", (std::filesystem::path(o.output) / file).string());
-      if (!file.parent_path().empty()) ++shown;
+      continue;
     }
+    const std::string folder = file.parent_path().generic_string();
+    auto it = std::find_if(folders.begin(), folders.end(), [&](const auto& f) { return f.first == folder; });
+    if (it == folders.end()) folders.emplace_back(folder, 1);
+    else ++it->second;
   }
+  for (const auto& [folder, count] : folders)
+    fmt::print("  {}/ {} file{}\n", (std::filesystem::path(o.output) / folder).string(), count, count == 1 ? "" : "s");
   fmt::print("outputs are in {}/ (manifest.json lists every file)\n", o.output);
 }
 
@@ -48,6 +58,9 @@ void register_run(CLI::App& app) {
   add_quantity_option(*cmd, "--edge", options->edge_m, "Override the mesh edge length (e.g. 8mm for a quick run)",
                       "length");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress and no summary");
+  cmd->footer("\nExamples:\n"
+              "  pneuma run scenarios/quiet-breathing.yaml -o out/demo\n"
+              "  pneuma run scenarios/ventilated-patient.yaml -o out/vent --edge 8mm --quiet\n");
   cmd->callback([options] { run_command(*options); });
 }
 

@@ -117,6 +117,49 @@ double parse_length_unit(const std::string& text) {
   }
 }
 
+std::optional<double> recorded_unit(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(4096, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  const std::string extension = lower(path.extension().string());
+  // The header region where pneuma writes the unit, and the marker before it.
+  std::string region, marker;
+  if (head.rfind("ply", 0) == 0) {
+    region = head.substr(0, head.find("end_header"));
+    marker = "\ncomment unit ";
+  } else if (extension == ".obj") {
+    std::size_t end = 0;  // the leading comment lines
+    while (end < head.size() && head[end] == '#') {
+      const std::size_t newline = head.find('\n', end);
+      end = newline == std::string::npos ? head.size() : newline + 1;
+    }
+    region.assign(1, '\n').append(head, 0, end);
+    marker = "\n# unit ";
+  } else if (extension == ".stl" && head.rfind("solid", 0) == 0) {
+    region = head.substr(0, head.find('\n'));
+    marker = " unit ";
+  } else if (extension == ".stl") {
+    region = head.substr(0, std::min<std::size_t>(80, head.size()));
+    region = region.substr(0, region.find('\0'));
+    marker = ", unit ";
+  } else {
+    return std::nullopt;
+  }
+  const std::size_t at = region.find(marker);
+  if (at == std::string::npos) return std::nullopt;
+  std::string text = region.substr(at + marker.size());
+  text = text.substr(0, text.find_first_of("\r\n"));
+  while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back()))) text.pop_back();
+  const bool has_number = !text.empty() && (std::isdigit(static_cast<unsigned char>(text[0])) || text[0] == '.');
+  try {
+    const double metres = units::parse(has_number ? text : "1 " + text, units::kind::length);
+    if (metres > 0.0 && std::isfinite(metres)) return metres;
+  } catch (const units::UnitError&) {
+  }
+  throw InputError(path.string() + ": the recorded unit '" + text + "' is not a length such as 'mm' or 'm'");
+}
+
 TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& options) {
   const std::string name = path.string();
   std::error_code ec;
@@ -130,6 +173,8 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
 
   Assimp::Importer importer;
   const std::string extension = lower(path.extension().string());
+  const double metres_per_unit = options.unit_from_file ? recorded_unit(path).value_or(options.metres_per_unit)
+                                                        : options.metres_per_unit;
   Soup soup;
   if (extension == ".vtk" || extension == ".vtp") {
     std::ifstream in(path, std::ios::binary);
@@ -184,9 +229,9 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
     const std::array<float, 3> key{p[0] == 0.0f ? 0.0f : p[0], p[1] == 0.0f ? 0.0f : p[1], p[2] == 0.0f ? 0.0f : p[2]};
     const auto [it, inserted] = index_of.try_emplace(key, static_cast<std::uint32_t>(mesh.vertices.size()));
     if (inserted) {
-      mesh.vertices.emplace_back(static_cast<double>(key[0]) * options.metres_per_unit,
-                                 static_cast<double>(key[1]) * options.metres_per_unit,
-                                 static_cast<double>(key[2]) * options.metres_per_unit);
+      mesh.vertices.emplace_back(static_cast<double>(key[0]) * metres_per_unit,
+                                 static_cast<double>(key[1]) * metres_per_unit,
+                                 static_cast<double>(key[2]) * metres_per_unit);
     }
     merged[v] = it->second;
   }

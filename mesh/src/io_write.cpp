@@ -1,6 +1,9 @@
 // write_mesh(): small hand-written writers (assimp's exporter is not atomic and rewrites the
 // numbering); every file goes through pneuma::write_stream_atomically.
+#include <fmt/format.h>
+
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <charconv>
@@ -59,6 +62,14 @@ class Buffer {
   std::string data_;
 };
 
+// The text after "unit " in a file's header: a unit name where one fits, else a length.
+std::string unit_label(double metres_per_unit) {
+  for (const auto& [name, metres] : {std::pair{"m", 1.0}, {"cm", 1e-2}, {"mm", 1e-3}, {"um", 1e-6}}) {
+    if (metres_per_unit == metres) return name;
+  }
+  return fmt::format("{:.17g} m", metres_per_unit);
+}
+
 std::array<float, 3> to_file(const Eigen::Vector3d& p, double metres_per_unit) {
   return {static_cast<float>(p.x() / metres_per_unit), static_cast<float>(p.y() / metres_per_unit),
           static_cast<float>(p.z() / metres_per_unit)};
@@ -67,7 +78,7 @@ std::array<float, 3> to_file(const Eigen::Vector3d& p, double metres_per_unit) {
 void write_ply(std::ostream& out, const TriangleMesh& mesh, double unit, bool ascii) {
   Buffer b(out);
   b.text(ascii ? "ply\nformat ascii 1.0\n" : "ply\nformat binary_little_endian 1.0\n");
-  b.text("comment written by pneuma\nelement vertex ");
+  b.text("comment written by pneuma\ncomment unit " + unit_label(unit) + "\nelement vertex ");
   b.number(std::uint64_t{mesh.vertices.size()});
   b.text("\nproperty float x\nproperty float y\nproperty float z\nelement face ");
   b.number(std::uint64_t{mesh.triangles.size()});
@@ -95,7 +106,7 @@ void write_ply(std::ostream& out, const TriangleMesh& mesh, double unit, bool as
 
 void write_obj(std::ostream& out, const TriangleMesh& mesh, double unit) {
   Buffer b(out);
-  b.text("# written by pneuma\n");
+  b.text("# written by pneuma\n# unit " + unit_label(unit) + "\n");
   for (const auto& v : mesh.vertices) {
     const auto p = to_file(v, unit);
     b.text("v "), b.number(p[0]), b.text(" "), b.number(p[1]), b.text(" "), b.number(p[2]), b.text("\n");
@@ -117,10 +128,11 @@ std::array<float, 3> facet_normal(const TriangleMesh& mesh, const Triangle& t) {
 void write_stl(std::ostream& out, const TriangleMesh& mesh, double unit, bool ascii) {
   Buffer b(out);
   if (ascii) {
-    b.text("solid pneuma\n");
+    b.text("solid pneuma unit " + unit_label(unit) + "\n");
   } else {
     char header[80] = {};
-    std::memcpy(header, "binary STL written by pneuma", 28);
+    const std::string text = "binary STL written by pneuma, unit " + unit_label(unit);
+    std::memcpy(header, text.data(), std::min(text.size(), sizeof header));
     b.text(std::string_view(header, sizeof header));
     b.binary(static_cast<std::uint32_t>(mesh.triangles.size()));
   }

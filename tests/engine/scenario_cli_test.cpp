@@ -29,6 +29,14 @@ TEST(SimulateCli, VersionAndHelp) {
   r = run_pneuma({"--help"});
   EXPECT_EQ(r.exit_code, 0);
   EXPECT_NE(r.out.find("simulate"), std::string::npos);
+  // Usage names the program, not the path it was started from; examples in the footer.
+  EXPECT_NE(r.out.find("Usage: pneuma "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("Examples:\n  pneuma run scenarios/quiet-breathing.yaml -o out/demo\n"), std::string::npos);
+  r = run_pneuma({"run", "--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("Usage: pneuma run "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--edge <length, e.g. 3mm>"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("Examples:"), std::string::npos) << r.out;
 }
 
 struct BadScenario {
@@ -74,6 +82,10 @@ INSTANTIATE_TEST_SUITE_P(
         BadScenario{"action_after_end",
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  actions:\n    - {at: 30 s, rate: 10 /min}\n",
                     "5:12: physiology.actions[0].at: expected a time within the scenario's duration"},
+        BadScenario{"retired_hdf5_positions",
+                    "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  hdf5: {positions: true}\n",
+                    "5:21: outputs.hdf5.positions: expected float32 or float64 (the stored type; series.h5 now "
+                    "always stores every frame's positions, the plain geometry ParaView and meshio read), got 'true'"},
         BadScenario{"not_yaml", "duration: [20 s\n", "2:1: not valid YAML: end of sequence flow not found"}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 

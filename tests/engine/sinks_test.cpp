@@ -8,9 +8,12 @@
 
 #include <cmath>
 #include <cstring>
+#include <tuple>
+#include <fmt/format.h>
 #include <pugixml.hpp>
 
 #include "pneuma/engine/sinks.h"
+#include "pneuma/mesh/io.h"
 #include "test_support.h"
 
 using namespace pneuma::engine;
@@ -105,6 +108,16 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   const auto& sampler = m.animations[0].samplers[0];
   EXPECT_EQ(m.animations[0].channels[0].target_path, "weights");
   EXPECT_EQ(sampler.interpolation, "LINEAR");
+  // The animation's whole extent in the scene's extras (glTF has no frame range): 40 frames at
+  // 10 Hz end at 3.9 s, the sampler's last key.
+  ASSERT_EQ(m.scenes.size(), 1u);
+  const auto& extras = m.scenes[0].extras;
+  ASSERT_TRUE(extras.Has("animation_duration_s") && extras.Has("frame_rate_hz") && extras.Has("frame_count"));
+  EXPECT_NEAR(extras.Get("animation_duration_s").GetNumberAsDouble(), 3.9, 1e-6);
+  EXPECT_NEAR(extras.Get("animation_duration_s").GetNumberAsDouble(),
+              m.accessors[static_cast<std::size_t>(sampler.input)].maxValues.at(0), 1e-12);
+  EXPECT_EQ(extras.Get("frame_rate_hz").GetNumberAsDouble(), 10.0);
+  EXPECT_EQ(extras.Get("frame_count").GetNumberAsInt(), 40);
   EXPECT_EQ(m.accessors[static_cast<std::size_t>(sampler.input)].count, scales.size());
 
   // The glTF frame at keyframe k: rest + w_k * target, against rest + s_k u in double.
@@ -124,11 +137,34 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   }
 }
 
+std::string h5_string_attribute(hid_t object, const char* name) {
+  const hid_t attr = H5Aopen(object, name, H5P_DEFAULT);
+  if (attr < 0) return "<missing>";
+  const hid_t type = H5Aget_type(attr);
+  std::string value(H5Tget_size(type), '\0');
+  H5Aread(attr, type, value.data());
+  H5Tclose(type);
+  H5Aclose(attr);
+  return value.substr(0, value.find('\0'));
+}
+
+std::vector<double> h5_doubles(hid_t file, const std::string& path) {
+  const hid_t set = H5Dopen2(file, path.c_str(), H5P_DEFAULT);
+  if (set < 0) return {};
+  const hid_t space = H5Dget_space(set);
+  std::vector<double> values(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
+  H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data());
+  H5Sclose(space);
+  H5Dclose(set);
+  return values;
+}
+
 TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
-  for (bool positions : {true, false}) {
+  for (const PositionPrecision precision : {PositionPrecision::float32, PositionPrecision::float64}) {
+    const bool is_double = precision == PositionPrecision::float64;
     TempDir dir;
     const BreathingModel model = sphere_model();
-    auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf", positions);
+    auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf", precision);
     const auto scales = drive(*sink, model, 12, 30.0);
 
     pugi::xml_document xml;
@@ -137,6 +173,9 @@ TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
     ASSERT_GE(file, 0);
     const auto grids = xml.select_nodes("/Xdmf/Domain/Grid/Grid");
     ASSERT_EQ(grids.size(), scales.size());
+    // Plain data items only: no Function or HyperSlab (ParaView's default reader and meshio).
+    EXPECT_TRUE(xml.select_nodes("//DataItem[@ItemType]").empty());
+    EXPECT_TRUE(xml.select_nodes("//DataItem[@Function]").empty());
     int checked = 0;
     for (const auto& item : xml.select_nodes("//DataItem[@Format='HDF']")) {
       const std::string ref = item.node().text().get();
@@ -144,14 +183,161 @@ TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
       EXPECT_EQ(parse_dims(item.node().attribute("Dimensions").value()), shape(file, dataset.c_str())) << dataset;
       ++checked;
     }
-    EXPECT_GE(checked, static_cast<int>(2 * scales.size()));
+    EXPECT_EQ(checked, static_cast<int>(4 * scales.size()));
     // The stored scales are the frames' scales.
-    std::vector<double> stored(scales.size());
-    const hid_t set = H5Dopen2(file, "/frames/scale", H5P_DEFAULT);
-    H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, stored.data());
-    H5Dclose(set);
+    EXPECT_EQ(h5_doubles(file, "/frames/scale"), scales);
+    // Frame k's geometry (as the XDMF names it) is rest + s_k u rounded to the stored type, exactly.
+    const std::size_t n = model.rest.vertex_count();
+    for (std::size_t k = 0; k < scales.size(); ++k) {
+      const auto item = grids[k].node().select_node("Geometry/DataItem").node();
+      EXPECT_STREQ(item.attribute("Precision").value(), is_double ? "8" : "4");
+      const std::string ref = item.text().get();
+      const auto positions = h5_doubles(file, ref.substr(ref.find(':') + 1));
+      ASSERT_EQ(positions.size(), 3 * n) << ref;
+      for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d exact = model.rest.vertices[i] + scales[k] * model.unit_displacement[i];
+        for (int c = 0; c < 3; ++c) {
+          const double expected = is_double ? exact[c] : static_cast<double>(static_cast<float>(exact[c]));
+          ASSERT_EQ(positions[3 * i + static_cast<std::size_t>(c)], expected) << "frame " << k << " vertex " << i;
+        }
+      }
+    }
     H5Fclose(file);
-    EXPECT_EQ(stored, scales);
+  }
+}
+
+TEST(Hdf5Sink, DescribesItselfWithRootAttributesAndUnits) {
+  TempDir dir;
+  const BreathingModel model = sphere_model();
+  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
+  drive(*sink, model, 3, 30.0);
+  const hid_t file = H5Fopen((dir / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  EXPECT_EQ(h5_string_attribute(file, "format"), "pneuma-series");
+  EXPECT_EQ(h5_string_attribute(file, "generator"), std::string("pneuma ") + PNEUMA_VERSION);
+  EXPECT_EQ(h5_string_attribute(file, "coordinate_frame"), "LPS");
+  EXPECT_EQ(h5_string_attribute(file, "length_unit"), "m");
+  const std::vector<std::pair<const char*, const char*>> units{
+      {"/rest/positions", "m"},        {"/rest/triangles", "1"},        {"/field/unit_displacement", "m"},
+      {"/frames/time_s", "s"},         {"/frames/scale", "1"},          {"/frames/lung_volume_m3", "m3"},
+      {"/frames/mesh_volume_m3", "m3"}, {"/frames/area_m2", "m2"},      {"/frames/positions/000002", "m"}};
+  for (const auto& [path, unit] : units) {
+    const hid_t set = H5Dopen2(file, path, H5P_DEFAULT);
+    ASSERT_GE(set, 0) << path;
+    EXPECT_EQ(h5_string_attribute(set, "units"), unit) << path;
+    H5Dclose(set);
+  }
+  H5Fclose(file);
+}
+
+// Same inputs, same bytes, with compression on (no timestamps; zlib is deterministic).
+TEST(Hdf5Sink, SameInputsSameBytes) {
+  TempDir a, b;
+  const BreathingModel model = sphere_model();
+  for (TempDir* dir : {&a, &b}) {
+    auto sink = make_hdf5_sink(*dir / "series.h5", *dir / "series.xdmf");
+    drive(*sink, model, 5, 30.0);
+  }
+  EXPECT_TRUE(pneuma::test::read_text(a / "series.h5") == pneuma::test::read_text(b / "series.h5"));
+}
+
+// meshio (Debian's python3-meshio, with h5py) reads series.xdmf as a time series: the oracle is
+// rest + s_k u computed in Python (numpy, float64, rounded to the stored float32) from series.h5's
+// own float64 datasets.
+TEST(Hdf5Sink, MeshioReadsEveryFrame) {
+  if (std::system("/usr/bin/python3 -c 'import meshio, h5py' >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "meshio or h5py is not importable by /usr/bin/python3 (scripts/install-deps installs python3-meshio python3-h5py)";
+  TempDir dir;
+  const BreathingModel model = sphere_model();
+  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
+  const auto scales = drive(*sink, model, 9, 30.0);
+  const auto script = dir.write("check.py", R"(import sys, meshio, h5py, numpy as np
+d = sys.argv[1]
+h = h5py.File(d + "/series.h5", "r")
+rest, u, s, t = h["rest/positions"][()], h["field/unit_displacement"][()], h["frames/scale"][()], h["frames/time_s"][()]
+tri = h["rest/triangles"][()]
+worst = 0.0
+with meshio.xdmf.TimeSeriesReader(d + "/series.xdmf") as r:
+    points, cells = r.read_points_cells()
+    assert np.array_equal(cells[0].data, tri), "triangles"
+    assert points.dtype == np.float32, points.dtype
+    assert np.array_equal(points, (rest + s[0] * u).astype(np.float32)), "frame 0 points"
+    for k in range(r.num_steps):
+        tk, pd, _ = r.read_data(k)
+        assert tk == t[k], (k, tk, t[k])
+        worst = max(worst, float(np.abs(pd["position"] - (rest + s[k] * u).astype(np.float32)).max()))
+print("steps", r.num_steps, "points", len(points), "worst", worst)
+)");
+  const std::string out = (dir / "out.txt").string();
+  const int status = std::system(("/usr/bin/python3 " + script.string() + " " + dir.path().string() + " >" + out + " 2>&1").c_str());
+  const std::string text = pneuma::test::read_text(out);
+  ASSERT_EQ(status, 0) << text;
+  const std::string expected = "steps " + std::to_string(scales.size()) + " points " +
+                               std::to_string(model.rest.vertex_count()) + " worst 0.0\n";
+  EXPECT_EQ(text, expected);
+}
+
+// ParaView (when installed: Debian's paraview + python3-paraview; not in install-deps, it is
+// large): its default reader for .xdmf (Xdmf3ReaderS) and the legacy XDMFReader see every frame
+// with all its points, and print nothing else (the Function items of old made them show 0 points
+// or log "Cannot find DataItem element in geometry xml").
+TEST(Hdf5Sink, ParaViewReadsEveryFrameWhenInstalled) {
+  if (std::system("command -v pvbatch >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "pvbatch not found (apt-get install paraview python3-paraview to run this check)";
+  TempDir dir;
+  const BreathingModel model = sphere_model();
+  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
+  const auto scales = drive(*sink, model, 7, 30.0);
+  const auto script = dir.write("check.py", R"(import sys
+from paraview.simple import *
+r = OpenDataFile(sys.argv[1])
+for k in (0, len(r.TimestepValues) - 1):
+    r.UpdatePipeline(r.TimestepValues[k])
+    print(r.GetXMLName(), len(r.TimestepValues), r.GetDataInformation().GetNumberOfPoints())
+l = XDMFReader(FileNames=[sys.argv[1]])
+l.UpdatePipeline(l.TimestepValues[-1])
+print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoints())
+)");
+  const std::string out = (dir / "out.txt").string();
+  const int status = std::system(("env -u DISPLAY pvbatch " + script.string() + " " + (dir / "series.xdmf").string() +
+                                  " >" + out + " 2>&1")
+                                     .c_str());
+  const std::string text = pneuma::test::read_text(out);
+  ASSERT_EQ(status, 0) << text;
+  std::string expected;
+  for (const char* reader : {"Xdmf3ReaderS", "Xdmf3ReaderS", "XDMFReader"})
+    expected += fmt::format("{} {} {}\n", reader, scales.size(), model.rest.vertex_count());
+  EXPECT_EQ(text, expected);
+}
+
+// Mesh sequences record their unit (metres) in every format, and read_mesh() with its default
+// (millimetres) then reads metres: the oracle is the frame's positions in the run; an explicit
+// unit (unit_from_file = false) still wins.
+TEST(MeshSequenceSink, RecordsTheUnitAndReadMeshUsesIt) {
+  const BreathingModel model = sphere_model();
+  for (const auto& [format, ascii, header] :
+       {std::tuple{"ply", false, "comment unit m\n"}, {"ply", true, "comment unit m\n"}, {"obj", false, "# unit m\n"},
+        {"stl", false, "binary STL written by pneuma, unit m"}, {"stl", true, "solid pneuma unit m\n"}}) {
+    TempDir dir;
+    auto sink = make_mesh_sequence_sink(dir / "frames", MeshSequenceSpec{format, ascii, 2});
+    const auto scales = drive(*sink, model, 3, 30.0);
+    const auto file = dir / "frames" / (std::string("frame_00002.") + format);
+    const std::string bytes = pneuma::test::read_text(file);
+    EXPECT_NE(bytes.substr(0, 200).find(header), std::string::npos) << format << (ascii ? " ascii" : "");
+    EXPECT_EQ(pneuma::mesh::recorded_unit(file), 1.0);
+    const auto frame = pneuma::mesh::read_mesh(file);  // default: 1 unit = 1 mm, unless recorded
+    // The frame in metres, numbered as read_mesh() numbers OBJ and STL (by first use).
+    pneuma::mesh::TriangleMesh expected = model.rest;
+    for (std::size_t i = 0; i < expected.vertices.size(); ++i)
+      expected.vertices[i] += scales[2] * model.unit_displacement[i];
+    if (std::string(format) != "ply") pneuma::mesh::renumber_vertices_by_first_use(expected);
+    ASSERT_EQ(frame.vertex_count(), expected.vertex_count());
+    double worst = 0.0;
+    for (std::size_t i = 0; i < frame.vertex_count(); ++i)
+      worst = std::max(worst, (frame.vertices[i] - expected.vertices[i]).cwiseAbs().maxCoeff());
+    EXPECT_LT(worst, 1e-7) << format << ": float32 of coordinates around 0.1 m";
+    const auto as_mm = pneuma::mesh::read_mesh(file, {.metres_per_unit = 1e-3, .unit_from_file = false});
+    EXPECT_NEAR(as_mm.vertices[0].norm(), 1e-3 * frame.vertices[0].norm(), 1e-12) << "explicit unit wins";
   }
 }
 

@@ -65,7 +65,11 @@ TEST(Io, UnitScalesCoordinates) {
   write_mesh(dir / "c.stl", cube, {.metres_per_unit = 0.01});  // in cm
   const TriangleMesh in_cm = read_mesh(dir / "c.stl", {.metres_per_unit = 0.01});
   EXPECT_NEAR(enclosed_volume(in_cm), 8e-6, 1e-12);
-  const TriangleMesh as_mm = read_mesh(dir / "c.stl");  // the same numbers taken as mm
+  const TriangleMesh recorded = read_mesh(dir / "c.stl");  // the file says cm: default mm does not apply
+  EXPECT_NEAR(enclosed_volume(recorded), 8e-6, 1e-12);
+  EXPECT_EQ(recorded_unit(dir / "c.stl"), 0.01);
+  // The same numbers taken as mm when the caller's unit is explicit.
+  const TriangleMesh as_mm = read_mesh(dir / "c.stl", {.metres_per_unit = 1e-3, .unit_from_file = false});
   EXPECT_NEAR(enclosed_volume(as_mm), 8e-9, 1e-15);
   EXPECT_DOUBLE_EQ(parse_length_unit("mm"), 1e-3);
   EXPECT_DOUBLE_EQ(parse_length_unit("cm"), 1e-2);

@@ -2,12 +2,14 @@
 #define TINYGLTF_NO_STB_IMAGE
 #define TINYGLTF_NO_STB_IMAGE_WRITE
 #define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 #include <hdf5.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 
 #include <nlohmann/json.hpp>
@@ -34,7 +36,7 @@ physiology:
   driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}
 outputs:
   mesh_sequence: {format: ply}
-  hdf5: {positions: true}
+  hdf5: {positions: float64}
 )";
 
 // The paper's reading: a linear apex-to-base gradient, uniform load, vertex normals.
@@ -256,6 +258,82 @@ TEST(Runner, AreaGrowsByOneAreaUnitPerUnitScaleAtFirstOrder) {
   EXPECT_GT(checked, 10);
 }
 
+// field.h5 and series.h5 of one run call the same data by the same names, describe themselves
+// (root attributes, `units` on every dataset) and hold the same values: read with h5py.
+TEST(Runner, FieldAndSeriesFilesShareNamesAttributesAndValues) {
+  if (std::system("/usr/bin/python3 -c 'import h5py' >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "h5py is not importable by /usr/bin/python3 (scripts/install-deps installs python3-h5py)";
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"}).exit_code, 0);
+  const auto script = dir.write("check.py", R"(import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1] + "/field.h5", "r")
+s = h5py.File(sys.argv[1] + "/series.h5", "r")
+for h, fmt in ((f, "pneuma-field"), (s, "pneuma-series")):
+    a = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h.attrs.items()}
+    assert a["format"] == fmt and a["coordinate_frame"] == "LPS" and a["length_unit"] == "m", a
+    assert a["generator"].startswith("pneuma "), a
+    def units(name, obj):
+        if isinstance(obj, h5py.Dataset):
+            assert "units" in obj.attrs, (fmt, name)
+    h.visititems(units)
+for name in ("rest/positions", "rest/triangles", "field/unit_displacement"):
+    assert np.array_equal(f[name][()], s[name][()]), name
+    assert f[name].attrs["units"] == s[name].attrs["units"], name
+assert f["field"].attrs["area_unit_m2"] == s["field"].attrs["area_unit_m2"] == 1e-4
+print("ok", len(s["frames/positions"]), s["frames/positions/000040"].attrs["units"].decode())
+)");
+  const std::string out = (dir / "check.txt").string();
+  const int status =
+      std::system(("/usr/bin/python3 " + script.string() + " " + (dir / "out").string() + " >" + out + " 2>&1").c_str());
+  const std::string text = pneuma::test::read_text(out);
+  ASSERT_EQ(status, 0) << text;
+  EXPECT_EQ(text, "ok 41 m\n");
+}
+
+// `pneuma mesh info` on a frame of the sequence (written in metres, saying so) reports the lung
+// at its real size without --unit; an explicit --unit still wins.
+TEST(Runner, MeshInfoReadsTheUnitAFrameRecords) {
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"}).exit_code, 0);
+  const std::string frame = frame_file(dir / "out/frames", 0).string();
+  auto bounding_box = [](const std::string& out) {
+    const auto at = out.find("bounding box:");
+    return out.substr(at, out.find('\n', at) - at);
+  };
+  const auto recorded = run_pneuma({"mesh", "info", frame, "--no-self-intersections"});
+  const auto metres = run_pneuma({"mesh", "info", frame, "--no-self-intersections", "--unit", "m"});
+  const auto forced_mm = run_pneuma({"mesh", "info", frame, "--no-self-intersections", "--unit", "mm"});
+  ASSERT_EQ(recorded.exit_code, 0) << recorded.err;
+  EXPECT_EQ(bounding_box(recorded.out), bounding_box(metres.out));
+  EXPECT_NE(bounding_box(recorded.out), bounding_box(forced_mm.out));
+  // The oracle for the size: the frame read with an explicit unit of 1 m.
+  pneuma::mesh::ReadOptions m;
+  m.metres_per_unit = 1.0;
+  m.unit_from_file = false;
+  const auto mesh = pneuma::mesh::read_mesh(frame, m);
+  double z_min = 1e9, z_max = -1e9;
+  for (const auto& v : mesh.vertices) z_min = std::min(z_min, v.z()), z_max = std::max(z_max, v.z());
+  EXPECT_NE(bounding_box(recorded.out).find(fmt::format("z {:.2f} to {:.2f} mm", z_min * 1e3, z_max * 1e3)),
+            std::string::npos)
+      << bounding_box(recorded.out);
+}
+
+// The run summary lists top-level files one by one and a folder of frames as one counted line.
+TEST(Runner, SummaryCountsTheFilesOfEachFolder) {
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::size_t frames = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir / "out/frames")) frames += entry.is_regular_file();
+  EXPECT_EQ(frames, 41u);
+  EXPECT_NE(r.out.find("  " + (dir / "out/frames").string() + "/ 41 files\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("  " + (dir / "out/series.h5").string() + "\n"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("frame_00000"), std::string::npos) << r.out;
+}
+
 TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
   // A file mesh (the phantom at 8 mm, in mm) remeshed to 14 mm for the field, exported at its
   // own resolution: frames keep the file's vertices and still follow the volume exactly.
@@ -309,7 +387,6 @@ TEST(Runner, CtrlCLeavesNoHalfWrittenFile) {
   yaml.replace(yaml.find("duration: 4 s"), 13, "duration: 1200 s");
   yaml.replace(yaml.find("edge: 12 mm"), 11, "edge: 2 mm");
   yaml.replace(yaml.find("mesh_sequence: {format: ply}"), 28, "mesh_sequence: false");
-  yaml.replace(yaml.find("hdf5: {positions: true}"), 23, "hdf5: {positions: false}");
   const auto scenario = dir.write("long.yaml", yaml);
   const int status = pneuma::test::interrupt_pneuma({"run", scenario.string(), "-o", (dir / "out").string()}, 1500);
   EXPECT_EQ(status, 130);  // 128 + SIGINT, from the CLI's handler

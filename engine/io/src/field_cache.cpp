@@ -16,7 +16,11 @@ namespace pneuma::engine {
 namespace {
 
 constexpr const char* kFormat = "pneuma-field";
-constexpr int kFormatVersion = 2;  // 2: /field/displacement renamed /field/unit_displacement
+// 2: /field/displacement renamed /field/unit_displacement
+// 3: the names of series.h5 (/rest/positions, /field/shear_modulus_pa, /field attribute
+//    area_unit_m2), root generator / coordinate_frame / length_unit, `units` per dataset
+//    (uncompressed: small, and a damaged value must reach the checksum, not the decompressor)
+constexpr int kFormatVersion = 3;
 
 // ---- A deterministic 128-bit hash (two independent 64-bit multiply-xorshift lanes) --------
 class Hasher {
@@ -93,6 +97,9 @@ void write_file(const std::filesystem::path& tmp, const std::string& shown, cons
   const FieldMetadata& d = m.metadata;
   w.string_attribute(root, "format", kFormat);
   w.number_attribute(root, "format_version", H5T_STD_I32LE, H5T_NATIVE_INT, kFormatVersion);
+  w.string_attribute(root, "generator", "pneuma " + d.pneuma_version);
+  w.string_attribute(root, "coordinate_frame", "LPS");
+  w.string_attribute(root, "length_unit", "m");
   w.string_attribute(root, "pneuma_version", d.pneuma_version);
   w.string_attribute(root, "key", d.key);
   w.string_attribute(root, "checksum", checksum(m));
@@ -101,21 +108,22 @@ void write_file(const std::filesystem::path& tmp, const std::string& shown, cons
   w.number_attribute(root, "tolerance", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, d.tolerance);
   w.number_attribute(root, "clique_hops", H5T_STD_I32LE, H5T_NATIVE_INT, d.clique_hops);
   w.string_attribute(root, "path_rule", d.path_rule);
-  w.number_attribute(root, "area_unit", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, d.area_unit_m2);
   w.number_attribute(root, "shots", H5T_STD_U64LE, H5T_NATIVE_UINT64, d.shots);
   w.number_attribute(root, "iterations", H5T_STD_U64LE, H5T_NATIVE_UINT64, d.iterations);
   w.number_attribute(root, "residual", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, d.residual);
   const hsize_t nv = m.rest.vertices.size(), nt = m.rest.triangles.size();
   {
     const Hdf5Handle rest = w.group(root, "rest");
-    w.dataset(rest.get(), "vertices", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.rest.vertices.data(), nv, 3);
-    w.dataset(rest.get(), "triangles", H5T_STD_U32LE, H5T_NATIVE_UINT32, m.rest.triangles.data(), nt, 3);
+    w.dataset(rest.get(), "positions", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.rest.vertices.data(), nv, 3, "m");
+    w.dataset(rest.get(), "triangles", H5T_STD_U32LE, H5T_NATIVE_UINT32, m.rest.triangles.data(), nt, 3, "1");
   }
   {
     const Hdf5Handle field = w.group(root, "field");
-    w.dataset(field.get(), "unit_displacement", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.unit_displacement.data(), nv, 3);
-    w.dataset(field.get(), "force", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.force.data(), nv, 0);
-    w.dataset(field.get(), "shear_modulus", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.shear_modulus_pa.data(), nv, 0);
+    w.number_attribute(field.get(), "area_unit_m2", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, d.area_unit_m2);
+    w.dataset(field.get(), "unit_displacement", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.unit_displacement.data(), nv, 3,
+              "m");
+    w.dataset(field.get(), "force", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.force.data(), nv, 0, "1");
+    w.dataset(field.get(), "shear_modulus_pa", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.shear_modulus_pa.data(), nv, 0, "Pa");
   }
   if (H5Fflush(root, H5F_SCOPE_GLOBAL) < 0) w.fail("the file");
 }
@@ -201,17 +209,23 @@ FieldModel read_file(const std::filesystem::path& path) {
   d.tolerance = r.number_attribute<double>("tolerance", H5T_NATIVE_DOUBLE, H5T_FLOAT);
   d.clique_hops = r.number_attribute<int>("clique_hops", H5T_NATIVE_INT, H5T_INTEGER);
   d.path_rule = r.string_attribute("path_rule");
-  d.area_unit_m2 = r.number_attribute<double>("area_unit", H5T_NATIVE_DOUBLE, H5T_FLOAT);
   d.shots = r.number_attribute<std::uint64_t>("shots", H5T_NATIVE_UINT64, H5T_INTEGER);
   d.iterations = r.number_attribute<std::uint64_t>("iterations", H5T_NATIVE_UINT64, H5T_INTEGER);
   d.residual = r.number_attribute<double>("residual", H5T_NATIVE_DOUBLE, H5T_FLOAT);
 
-  const std::size_t nv = r.dataset("/rest/vertices", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, m.rest.vertices, 3);
+  {
+    if (H5Lexists(r.root, "field", H5P_DEFAULT) <= 0) r.refuse("no group /field");
+    Hdf5Handle group(H5Gopen2(r.root, "field", H5P_DEFAULT), H5Gclose);
+    if (!group.ok()) r.refuse("cannot open group /field");
+    const Reader field{shown, group.get()};
+    d.area_unit_m2 = field.number_attribute<double>("area_unit_m2", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  }
+  const std::size_t nv = r.dataset("/rest/positions", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, m.rest.vertices, 3);
   r.dataset("/rest/triangles", H5T_NATIVE_UINT32, H5T_INTEGER, 3, m.rest.triangles, 3);
   const std::array<std::pair<const char*, std::size_t>, 3> per_vertex{
       {{"/field/unit_displacement", r.dataset("/field/unit_displacement", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, m.unit_displacement, 3)},
        {"/field/force", r.dataset("/field/force", H5T_NATIVE_DOUBLE, H5T_FLOAT, 0, m.force, 1)},
-       {"/field/shear_modulus", r.dataset("/field/shear_modulus", H5T_NATIVE_DOUBLE, H5T_FLOAT, 0, m.shear_modulus_pa, 1)}}};
+       {"/field/shear_modulus_pa", r.dataset("/field/shear_modulus_pa", H5T_NATIVE_DOUBLE, H5T_FLOAT, 0, m.shear_modulus_pa, 1)}}};
   for (const auto& [name, rows] : per_vertex) {
     if (rows != nv) r.refuse(std::string("dataset ") + name + " has " + std::to_string(rows) + " rows for " +
                              std::to_string(nv) + " vertices");

@@ -70,6 +70,7 @@ class GltfSink final : public FrameSink {
   void begin(const BreathingModel& model, const RunInfo& run) override {
     model_ = &model;  // the glb is written in one go at end(), when every weight is known
     reference_scale_ = std::max(std::abs(run.min_scale), std::abs(run.max_scale));
+    frame_rate_hz_ = run.frame_rate_hz;
     if (reference_scale_ == 0.0) reference_scale_ = 1.0;
     times_.reserve(run.frame_count);
     weights_.reserve(run.frame_count);
@@ -162,6 +163,13 @@ class GltfSink final : public FrameSink {
     m.nodes.push_back(node);
     tinygltf::Scene scene;
     scene.nodes = {0};
+    // glTF has no frame range: the animation's extent, for players that keep their own
+    // (Blender's scene end); importers keep extras as custom properties (docs/formats.md).
+    const double duration_s = times_.empty() ? 0.0 : static_cast<double>(times_.back());
+    scene.extras = tinygltf::Value(tinygltf::Value::Object{
+        {"animation_duration_s", tinygltf::Value(duration_s)},
+        {"frame_rate_hz", tinygltf::Value(frame_rate_hz_)},
+        {"frame_count", tinygltf::Value(static_cast<int>(times_.size()))}});
     m.scenes.push_back(scene);
     m.defaultScene = 0;
 
@@ -190,6 +198,7 @@ class GltfSink final : public FrameSink {
   std::filesystem::path file_;
   const BreathingModel* model_ = nullptr;
   double reference_scale_ = 1.0;
+  double frame_rate_hz_ = 0.0;
   std::vector<float> times_;
   std::vector<float> weights_;
 };

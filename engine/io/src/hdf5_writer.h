@@ -66,16 +66,26 @@ struct Hdf5Writer {
     if (!attr.ok()) fail(name);
     check(H5Awrite(attr.get(), memory_type, &value), name);
   }
+  // A 1-D (columns == 0) or 2-D dataset; `units` (e.g. "m") becomes its `units` attribute.
+  // `compress`: shuffle + deflate in one chunk (zlib is deterministic: same data, same bytes).
   void dataset(hid_t parent, const char* name, hid_t file_type, hid_t memory_type, const void* data, hsize_t rows,
-               hsize_t columns) const {
+               hsize_t columns, const char* units = nullptr, bool compress = false) const {
     const std::array<hsize_t, 2> dims{rows, columns};
-    Hdf5Handle space(H5Screate_simple(columns == 0 ? 1 : 2, dims.data(), nullptr), H5Sclose);
+    const int rank = columns == 0 ? 1 : 2;
+    Hdf5Handle space(H5Screate_simple(rank, dims.data(), nullptr), H5Sclose);
     Hdf5Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
     check(H5Pset_obj_track_times(dcpl.get(), 0), name);  // no timestamps: same inputs, same bytes
+    if (compress && rows > 0) {
+      check(H5Pset_chunk(dcpl.get(), rank, dims.data()), name);
+      check(H5Pset_shuffle(dcpl.get()), name);
+      check(H5Pset_deflate(dcpl.get(), kDeflateLevel), name);
+    }
     Hdf5Handle set(H5Dcreate2(parent, name, file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose);
     if (!set.ok()) fail(name);
     if (rows > 0) check(H5Dwrite(set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
+    if (units != nullptr) string_attribute(set.get(), "units", units);
   }
+  static constexpr unsigned kDeflateLevel = 4;
   Hdf5Handle group(hid_t parent, const char* name) const {
     Hdf5Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
     check(H5Pset_obj_track_times(gcpl.get(), 0), name);

@@ -44,6 +44,7 @@ mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {
 mesh::TriangleMesh read_file_mesh(const MeshSpec& spec) {
   mesh::ReadOptions read;
   read.metres_per_unit = spec.metres_per_unit;
+  read.unit_from_file = !spec.unit_given;
   return mesh::read_mesh(spec.file, read);
 }
 

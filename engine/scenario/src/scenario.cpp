@@ -42,6 +42,7 @@ MeshSpec read_mesh_spec(const Node& n) {
     m.file = n.directory("file") / n.string("file");
     if (!std::filesystem::exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
     if (n.has("unit")) {
+      m.unit_given = true;
       // A unit name ("mm") or a length ("0.5 mm"): the length of one file unit.
       const std::string text = n.string("unit");
       const bool bare = !text.empty() && std::isalpha(static_cast<unsigned char>(text.front()));
@@ -128,7 +129,14 @@ OutputsSpec read_outputs(const std::optional<Node>& n) {
   if (auto s = sink_section(*n, "motion_csv", true, on)) s->finish();
   o.motion_csv = on;
   if (auto s = sink_section(*n, "hdf5", true, on)) {
-    o.hdf5_positions = s->boolean("positions", false);
+    if (s->has("positions")) {
+      const std::string value = s->string("positions");
+      if (value == "true" || value == "false")
+        s->fail_at("positions", "expected float32 or float64 (the stored type; series.h5 now always stores every "
+                                "frame's positions, the plain geometry ParaView and meshio read), got '" + value + "'");
+      o.hdf5_positions = s->choice("positions", {"float32", "float64"}) == "float64" ? PositionPrecision::float64
+                                                                                     : PositionPrecision::float32;
+    }
     s->finish();
   }
   o.hdf5 = on;

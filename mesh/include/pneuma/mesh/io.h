@@ -15,9 +15,13 @@
 //
 // Coordinates in files carry a unit that the caller names: `metres_per_unit` is the length of
 // one file unit in metres (1e-3 for millimetres, the default, as medical meshes are in mm).
+// write_mesh() records it in the file (PLY `comment unit mm`, OBJ `# unit mm`, ASCII STL
+// `solid pneuma unit mm`, binary STL header `..., unit mm`); read_mesh() uses a recorded unit
+// instead of `metres_per_unit` unless `unit_from_file` is false (a unit the user gave).
 // Binary formats store 32-bit floats, so a write/read round trip keeps the connectivity
 // exactly and the coordinates to float precision; a second round trip is exact.
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "pneuma/mesh/triangle_mesh.h"
@@ -28,7 +32,13 @@ inline constexpr double kMetresPerMillimetre = 1e-3;
 
 struct ReadOptions {
   double metres_per_unit = kMetresPerMillimetre;
+  bool unit_from_file = true;  // a unit recorded in the file replaces metres_per_unit
 };
+
+// The unit recorded in a PLY, OBJ or STL file's header (as write_mesh() writes it), in metres
+// per file unit; nullopt when there is none. Throws InputError for a recorded unit that is not
+// a length.
+std::optional<double> recorded_unit(const std::filesystem::path& path);
 
 // Throws IoError when the file cannot be opened, InputError ("<file>: <what is wrong>") when
 // it is empty, truncated (binary STL: the header's triangle count against the file size), not

@@ -3,14 +3,17 @@
 // of everything that determines the field (mesh, per-vertex shear modulus, tissue name,
 // solver options, pneuma version). Written atomically; same inputs give the same bytes.
 //
-// Layout (format "pneuma-field", version 2):
-//   /            attributes: format, format_version, pneuma_version, key, checksum, tissue,
-//                solver, tolerance, clique_hops, path_rule, area_unit, shots, iterations, residual
-//   /rest/vertices           V x 3 float64 (metres)
-//   /rest/triangles          T x 3 uint32
-//   /field/unit_displacement V x 3 float64 (metres per area unit)
-//   /field/force             V float64 (F for a unit load)
-//   /field/shear_modulus     V float64 (Pa)
+// Layout (format "pneuma-field", version 3; the same names as series.h5, docs/formats.md):
+//   /            attributes: format, format_version, generator ("pneuma <version>"),
+//                coordinate_frame ("LPS"), length_unit ("m"), pneuma_version, key, checksum,
+//                tissue, solver, tolerance, clique_hops, path_rule, shots, iterations, residual
+//   /rest/positions            V x 3 float64 (m)
+//   /rest/triangles            T x 3 uint32
+//   /field                     attribute area_unit_m2
+//   /field/unit_displacement   V x 3 float64 (m per unit scale: one area unit of area increase)
+//   /field/force               V float64 (F for a unit load)
+//   /field/shear_modulus_pa    V float64 (Pa)
+// Every dataset has a `units` attribute; nothing is compressed (the file is small).
 // `checksum` covers every dataset and attribute, so an edited file is refused.
 #include <cstdint>
 #include <filesystem>

@@ -20,10 +20,15 @@ struct MeshSequenceSpec {
 // frame times with LINEAR interpolation. Node rotated so pneuma's z-up becomes glTF's y-up.
 std::unique_ptr<FrameSink> make_gltf_sink(const std::filesystem::path& file);
 
-// HDF5 time series (rest mesh, field, per-frame time, scale, volumes, area and, optionally,
-// positions) and an XDMF file beside it that ParaView opens as a temporal collection.
+// The stored type of series.h5's per-frame positions (the exact rest + s u is always there in
+// float64: /rest/positions, /field/unit_displacement, /frames/scale).
+enum class PositionPrecision { float32, float64 };
+
+// HDF5 time series (rest mesh, field, per-frame time, scale, volumes, area and positions) and
+// an XDMF file beside it that ParaView and meshio open as a temporal collection
+// (docs/formats.md).
 std::unique_ptr<FrameSink> make_hdf5_sink(const std::filesystem::path& h5_file, const std::filesystem::path& xdmf_file,
-                                          bool store_positions);
+                                          PositionPrecision positions = PositionPrecision::float32);
 
 // One mesh file per frame (every `spec.every`-th), frame_00000.<format>, in metres.
 std::unique_ptr<FrameSink> make_mesh_sequence_sink(const std::filesystem::path& dir, const MeshSequenceSpec& spec);

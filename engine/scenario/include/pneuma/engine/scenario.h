@@ -22,7 +22,8 @@ struct MeshSpec {
   // A NIfTI label map (`labels: FILE, values: [3, 4, 5]`): the surface of the union of `values`.
   std::filesystem::path labels_file;
   std::vector<int> label_values;
-  double metres_per_unit = 1e-3;
+  double metres_per_unit = 1e-3;        // `unit`; without it, the unit the file records, else mm
+  bool unit_given = false;              // `unit` set: it wins over a unit recorded in the file
   double edge_m = 0.0;                  // phantom resolution / remeshing target (0: keep the file's mesh)
   bool repair = true;                   // repair what is safe before use
   bool export_original = false;         // export the file's mesh with the field transferred to it
@@ -45,7 +46,7 @@ struct OutputsSpec {
   bool physiology_csv = true;
   bool gltf = true;
   bool hdf5 = true;
-  bool hdf5_positions = false;
+  PositionPrecision hdf5_positions = PositionPrecision::float32;
   bool motion_csv = true;  // per breath and anatomical region (docs/realism.md)
   std::optional<MeshSequenceSpec> mesh_sequence;
   std::optional<render::PngSinkOptions> png;  // frames in png/, rendered headless
