@@ -220,13 +220,26 @@ TEST(Hdf5Sink, DescribesItselfWithRootAttributesAndUnits) {
   const std::vector<std::pair<const char*, const char*>> units{
       {"/rest/positions", "m"},        {"/rest/triangles", "1"},        {"/field/unit_displacement", "m"},
       {"/frames/time_s", "s"},         {"/frames/scale", "1"},          {"/frames/lung_volume_m3", "m3"},
-      {"/frames/mesh_volume_m3", "m3"}, {"/frames/area_m2", "m2"},      {"/frames/positions/000002", "m"}};
+      {"/frames/mesh_volume_m3", "m3"}, {"/frames/area_m2", "m2"},      {"/frames/positions/000002", "m"},
+      {"/rest/region", "1"},           {"/rest/region_weights", "1"}};
   for (const auto& [path, unit] : units) {
     const hid_t set = H5Dopen2(file, path, H5P_DEFAULT);
     ASSERT_GE(set, 0) << path;
     EXPECT_EQ(h5_string_attribute(set, "units"), unit) << path;
     H5Dclose(set);
   }
+  // The regions are the model's, vertex by vertex (read back as doubles).
+  const std::vector<double> region = h5_doubles(file, "/rest/region");
+  const std::vector<double> weights = h5_doubles(file, "/rest/region_weights");
+  ASSERT_EQ(region.size(), model.rest.vertex_count());
+  ASSERT_EQ(weights.size(), 4 * model.rest.vertex_count());
+  for (std::size_t i = 0; i < region.size(); ++i) {
+    EXPECT_EQ(region[i], static_cast<double>(model.regions.label[i])) << i;
+    for (std::size_t k = 0; k < 4; ++k) EXPECT_EQ(weights[4 * i + k], model.regions.weight[i][k]) << i;
+  }
+  const hid_t rest = H5Gopen2(file, "/rest", H5P_DEFAULT);
+  EXPECT_EQ(h5_string_attribute(rest, "region_names"), "apex,costal,diaphragmatic,mediastinal");
+  H5Gclose(rest);
   H5Fclose(file);
 }
 

@@ -6,6 +6,8 @@
 // Every dataset carries a `units` attribute; SI units throughout.
 //   /rest/positions   (N, 3) float64, m        /rest/triangles (M, 3) uint32
 //   /field/unit_displacement (N, 3) float64, m per unit scale   (attribute area_unit_m2)
+//   /rest/region (N) uint8: 0 apex, 1 costal, 2 diaphragmatic, 3 mediastinal (attribute names);
+//   /rest/region_weights (N, 4) float64, the blend weights in that order (docs/realism.md)
 //   /frames/time_s, /frames/scale, /frames/lung_volume_m3, /frames/mesh_volume_m3,
 //   /frames/area_m2   (F) float64
 //   /frames/positions/NNNNNN (N, 3) float32 (or float64: outputs.hdf5.positions), m: frame k's
@@ -14,7 +16,10 @@
 
 #include <fmt/format.h>
 
+#include <cstdint>
 #include <fstream>
+#include <string>
+#include <vector>
 #include <sstream>
 
 #include "pneuma/core/atomic_file.h"
@@ -57,6 +62,19 @@ class Hdf5Sink final : public FrameSink {
                true);
     w_.dataset(rest, "triangles", H5T_STD_U32LE, H5T_NATIVE_UINT32, model.rest.triangles.data(), triangle_count_, 3,
                "1", true);
+    if (model.regions.label.size() == vertex_count_ && model.regions.weight.size() == vertex_count_) {
+      std::vector<std::uint8_t> region(vertex_count_);
+      for (std::size_t i = 0; i < vertex_count_; ++i) region[i] = static_cast<std::uint8_t>(model.regions.label[i]);
+      w_.dataset(rest, "region", H5T_STD_U8LE, H5T_NATIVE_UINT8, region.data(), vertex_count_, 0, "1", true);
+      w_.dataset(rest, "region_weights", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, model.regions.weight.data(), vertex_count_,
+                 mesh::kRegionCount, "1", true);
+      std::string names;
+      for (const mesh::Region r : mesh::kRegions) {
+        if (!names.empty()) names += ',';
+        names += mesh::region_name(r);
+      }
+      w_.string_attribute(rest, "region_names", names);
+    }
     const Hdf5Handle field = w_.group(file_, "field");
     w_.dataset(field, "unit_displacement", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, model.unit_displacement.data(),
                vertex_count_, 3, "m", true);
