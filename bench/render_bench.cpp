@@ -80,14 +80,11 @@ void label(benchmark::State& state, const Model& m) {
   state.counters["vertices"] = static_cast<double>(m.rest.vertex_count());
 }
 
-// Per frame: uniform s, draw, resolve, read back (the frame's pixels in memory).
-// Arguments: subdivisions, MSAA samples (4: the default), FXAA (0/1).
-void BM_Draw(benchmark::State& state) {
-  const Model& m = model(static_cast<int>(state.range(0)));
-  render::Renderer renderer(m.rest, m.field, 1.0, options(state, 1));
-  name_antialiasing(state, 1);
+// The timed loop of the draw benchmarks: one warm-up draw (shader compilation happens on the
+// first), then a draw and read-back per iteration at a moving s; frames/s and CPU per frame.
+void time_frames(benchmark::State& state, render::Renderer& renderer, const Model& m) {
   render::Image image;
-  renderer.render(0.0, image);  // warm-up: shader compilation happens on the first draw
+  renderer.render(0.0, image);
   int k = 0;
   const double cpu_start = process_cpu_ms();
   for (auto _ : state) {
@@ -97,6 +94,15 @@ void BM_Draw(benchmark::State& state) {
   per_frame_cpu(state, cpu_start);
   label(state, m);
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+// Per frame: uniform s, draw, resolve, read back (the frame's pixels in memory).
+// Arguments: subdivisions, MSAA samples (4: the default), FXAA (0/1).
+void BM_Draw(benchmark::State& state) {
+  const Model& m = model(static_cast<int>(state.range(0)));
+  render::Renderer renderer(m.rest, m.field, 1.0, options(state, 1));
+  name_antialiasing(state, 1);
+  time_frames(state, renderer, m);
 }
 BENCHMARK(BM_Draw)
     ->Args({6, 4, 0})->Args({8, 4, 0})->Args({6, 0, 1})->Args({8, 0, 1})->Args({6, 0, 0})->Args({8, 0, 0})
@@ -189,17 +195,7 @@ void BM_DrawBackend(benchmark::State& state) {
   name_antialiasing(state, 2);
   state.SetLabel(renderer.gl_backend() + ", " + std::to_string(o.width) + "x" + std::to_string(o.height) + ", " +
                  renderer.gl_renderer());
-  render::Image image;
-  renderer.render(0.0, image);
-  int k = 0;
-  const double cpu_start = process_cpu_ms();
-  for (auto _ : state) {
-    renderer.render(0.01 * (k++ % 100), image);
-    benchmark::DoNotOptimize(image.rgba.data());
-  }
-  per_frame_cpu(state, cpu_start);
-  label(state, m);
-  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  time_frames(state, renderer, m);
 }
 BENCHMARK(BM_DrawBackend)
     ->Args({0, 0, 0, 1})->Args({1, 0, 0, 1})->Args({0, 0, 0, 0})->Args({1, 0, 0, 0})

@@ -17,6 +17,7 @@
 
 #include "io_vtk.h"
 #include "pneuma/core/error.h"
+#include "readable_file.h"
 #include "pneuma/core/units.h"
 #include "pneuma/mesh/io.h"
 
@@ -162,11 +163,8 @@ std::optional<double> recorded_unit(const std::filesystem::path& path) {
 
 TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& options) {
   const std::string name = path.string();
+  detail::require_readable_file(path);
   std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) throw IoError(name + ": cannot read: no such file");
-  if (std::filesystem::is_directory(status)) throw IoError(name + ": cannot read: is a folder");
-  if (!std::ifstream(path, std::ios::binary)) throw IoError(name + ": cannot read: permission denied");
   const std::uintmax_t size = std::filesystem::file_size(path, ec);
   if (ec) throw IoError(name + ": cannot read: " + ec.message());
   if (size == 0) throw InputError(name + ": empty file");

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "pneuma/core/error.h"
+#include "readable_file.h"
 #include "pneuma/mesh/labels.h"
 
 namespace pneuma::mesh {
@@ -71,11 +72,7 @@ double LabelMap::voxel_volume_m3() const { return std::abs(ijk_to_lps.block<3, 3
 
 LabelMap read_label_map(const std::filesystem::path& path) {
   const std::string name = path.string();
-  std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) throw IoError(name + ": cannot read: no such file");
-  if (std::filesystem::is_directory(status)) throw IoError(name + ": cannot read: is a folder");
-  if (!std::ifstream(path, std::ios::binary)) throw IoError(name + ": cannot read: permission denied");
+  detail::require_readable_file(path);
   if (!has_nifti_extension(name)) {
     throw InputError(name + ": expected a NIfTI label map (.nii or .nii.gz)");
   }
