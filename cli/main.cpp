@@ -1,27 +1,20 @@
 // pneuma: breathing 3D lungs. This file only parses the command line and reports errors.
-#include <csignal>
+#include <tbb/global_control.h>
+
 #include <cstdio>
-#include <unistd.h>
+#include <cstdlib>
+#include <memory>
+#include <string>
 
 #include <CLI/CLI.hpp>
 
 #include "commands.h"
-#include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
-
-namespace {
-
-// Ctrl-C: remove half-written temporaries, then die with the conventional status.
-void on_interrupt(int signal) {
-  pneuma::remove_pending_temporaries();
-  ::_exit(128 + signal);
-}
-
-}  // namespace
+#include "pneuma/core/interrupt.h"
 
 int main(int argc, char** argv) {
-  std::signal(SIGINT, on_interrupt);
-  std::signal(SIGTERM, on_interrupt);
+  // Ctrl-C and SIGTERM remove half-written files and stages, then exit 130 / 143.
+  pneuma::install_interrupt_handlers();
 
   // Named explicitly: Usage lines say "pneuma", not the path the binary was started from.
   CLI::App app{"pneuma " PNEUMA_VERSION ": breathing 3D lungs for visualization, training and imaging research",
@@ -36,6 +29,20 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.failure_message([](const CLI::App*, const CLI::Error& e) {
     return std::string("pneuma: ") + e.what() + " (see 'pneuma --help')\n";
+  });
+  // Every parallel loop (TBB) and the software renderer (llvmpipe) use at most N threads; the
+  // outputs are the same bytes at any N. Accepted after the subcommand too (fallthrough).
+  unsigned threads = 0;
+  app.add_option("--threads", threads, "Use at most N threads (default: every core); the same outputs at any N")
+      ->option_text("N")
+      ->envname("PNEUMA_THREADS")
+      ->check(CLI::Range(1u, 4096u));
+  app.fallthrough();
+  std::unique_ptr<tbb::global_control> thread_limit;
+  app.parse_complete_callback([&] {
+    if (threads == 0) return;
+    thread_limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
+    ::setenv("LP_NUM_THREADS", std::to_string(threads).c_str(), /*overwrite=*/0);
   });
   pneuma::cli::register_simulate(app);
   pneuma::cli::register_field(app);

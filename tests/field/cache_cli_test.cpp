@@ -117,10 +117,39 @@ TEST(FieldCache, LoadOrComputeReusesOnlyAMatchingKey) {
   mesh::TriangleMesh moved = rest;
   moved.vertices[0].x() += 1e-9;
   EXPECT_FALSE(load_or_compute(path, moved, preset("fibrotic-lower-lobe"), tighter).reused);
-  // A file that is not ours is refused, never overwritten.
-  write_bytes(path, "not a field");
-  EXPECT_THROW(load_or_compute(path, rest, preset("healthy-upright")), InputError);
-  EXPECT_EQ(read_text(path), "not a field");
+}
+
+TEST(FieldCache, ADamagedOrForeignCacheIsRecomputedAndReplacedNeverUsed) {
+  TempDir dir;
+  const auto rest = mesh::make_icosphere(0.1, 2);
+  const auto path = dir / "cache.h5";
+  const CachedField fresh = load_or_compute(path, rest, preset("healthy-upright"));
+  const std::string good = read_text(path);
+  // The oracle: a direct computation of the field for these inputs.
+  const FieldModel direct = compute_field_model(rest, preset("healthy-upright"), default_field_options);
+
+  std::string edited = good;  // one displacement value changed: a wrong field if it were used
+  const auto at = edited.find(std::string(reinterpret_cast<const char*>(direct.unit_displacement[5].data()), 8));
+  ASSERT_NE(at, std::string::npos);
+  edited[at + 2] = static_cast<char>(edited[at + 2] ^ 0x20);
+  std::string foreign = good;
+  foreign.replace(foreign.find("pneuma-field"), 12, "other-format");
+  const std::pair<std::string, std::string> cases[] = {
+      {"not a field", "not an HDF5 file"},
+      {good.substr(0, good.size() / 3), "cannot open it as HDF5 (truncated or damaged)"},
+      {edited, "checksum mismatch (the file was edited or damaged)"},
+      {foreign, "its format is not 'pneuma-field'"},
+  };
+  for (const auto& [bytes, why] : cases) {
+    write_bytes(path, bytes);
+    const CachedField again = load_or_compute(path, rest, preset("healthy-upright"));
+    EXPECT_FALSE(again.reused) << why;
+    EXPECT_EQ(again.discarded, path.string() + ": not a pneuma field file: " + why);
+    EXPECT_TRUE(same_bytes(again.model.unit_displacement, direct.unit_displacement)) << why;
+    EXPECT_EQ(read_text(path), good) << why << ": the file is replaced by the recomputed field";
+    EXPECT_TRUE(load_or_compute(path, rest, preset("healthy-upright")).reused) << why;
+  }
+  EXPECT_TRUE(fresh.discarded.empty());
 }
 
 TEST(FieldCli, WritesTheFieldAndPrintsASummary) {

@@ -107,6 +107,28 @@ int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms) {
   return wait_for(pid);
 }
 
+BackgroundPneuma::BackgroundPneuma(const std::vector<std::string>& args)
+    : pid_(spawn_pneuma(args, "/dev/null", "/dev/null", {})) {}
+
+BackgroundPneuma::~BackgroundPneuma() {
+  if (!reaped_) stop(SIGKILL);
+}
+
+int BackgroundPneuma::stop(int signal) {
+  kill(pid_, signal);
+  reaped_ = true;
+  return wait_for(pid_);
+}
+
+bool wait_until(const std::function<bool()>& condition, int timeout_ms) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return true;
+}
+
 int count_lines(const std::filesystem::path& path) {
   std::ifstream in(path);
   int n = 0;

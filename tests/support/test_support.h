@@ -2,6 +2,7 @@
 // Shared test helpers (in the spirit of MuJoCo's test/fixture.h): temporary folders, files,
 // and running the `pneuma` executable to check its exact one-line errors and exit codes.
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,26 @@ CommandResult run_pneuma(const std::vector<std::string>& args, const std::filesy
 // Starts pneuma with `args`, sends SIGINT after `delay_ms` milliseconds, and returns its exit
 // status (128 + signal when it died of one, as a shell reports it).
 int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms);
+
+// A pneuma process running in the background (stdout and stderr discarded), to be stopped by
+// a signal. Killed and reaped on destruction if still running.
+class BackgroundPneuma {
+ public:
+  explicit BackgroundPneuma(const std::vector<std::string>& args);
+  ~BackgroundPneuma();
+  BackgroundPneuma(const BackgroundPneuma&) = delete;
+  BackgroundPneuma& operator=(const BackgroundPneuma&) = delete;
+  int pid() const { return pid_; }
+  // Sends `signal` and waits: the exit status, 128 + signal when it died of one.
+  int stop(int signal);
+
+ private:
+  int pid_ = -1;
+  bool reaped_ = false;
+};
+
+// Polls `condition` every 10 ms until it holds (true) or `timeout_ms` passes (false).
+bool wait_until(const std::function<bool()>& condition, int timeout_ms);
 
 // The source tree (for shipped scenarios and presets).
 std::filesystem::path source_dir();

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <fmt/format.h>
 
 #include "pneuma/core/atomic_file.h"
@@ -341,16 +342,34 @@ std::string source_key(const std::vector<std::filesystem::path>& files, const st
   return h.hex();
 }
 
+namespace {
+
+// The model cached at `path`, if there is one. A damaged or foreign file (truncated, edited,
+// not HDF5, another format) is derived data, not the user's: `discarded` says why it is not
+// used, and the caller recomputes and replaces it. A file that cannot be read at all
+// (permissions) is still an error: replacing it would fail too.
+std::optional<FieldModel> load_cache(const std::filesystem::path& path, std::string& discarded) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return std::nullopt;
+  try {
+    return load_field(path);
+  } catch (const InputError& e) {
+    discarded = e.what();
+    return std::nullopt;
+  }
+}
+
+}  // namespace
+
 CachedField load_or_compute(const std::filesystem::path& path, const std::string& source,
                             const std::function<mesh::TriangleMesh()>& make_surface, const Tissue& tissue,
                             const FieldOptions& options) {
   const std::string key = source_field_key(source, tissue.name, options);
-  std::error_code ec;
-  if (std::filesystem::exists(path, ec)) {
-    FieldModel cached = load_field(path);  // refuses a file that is not ours
-    if (cached.metadata.key == key) return {std::move(cached), true};
+  std::string discarded;
+  if (std::optional<FieldModel> cached = load_cache(path, discarded); cached && cached->metadata.key == key) {
+    return {std::move(*cached), true, {}};
   }
-  CachedField out{compute_field_model(make_surface(), tissue, options), false};
+  CachedField out{compute_field_model(make_surface(), tissue, options), false, std::move(discarded)};
   out.model.metadata.key = key;
   save_field(path, out.model);
   return out;
@@ -359,13 +378,12 @@ CachedField load_or_compute(const std::filesystem::path& path, const std::string
 CachedField load_or_compute(const std::filesystem::path& path, const mesh::TriangleMesh& rest, const Tissue& tissue,
                             const FieldOptions& given) {
   const FieldOptions options = with_tissue(given, tissue, rest);
-  std::error_code ec;
-  if (std::filesystem::exists(path, ec)) {
-    FieldModel cached = load_field(path);  // refuses a file that is not ours
+  std::string discarded;
+  if (std::optional<FieldModel> cached = load_cache(path, discarded)) {
     const std::vector<double> mu = shear_modulus_per_vertex(tissue, rest);
-    if (cached.metadata.key == field_key(rest, mu, tissue.name, options)) return {std::move(cached), true};
+    if (cached->metadata.key == field_key(rest, mu, tissue.name, options)) return {std::move(*cached), true, {}};
   }
-  CachedField out{compute_field_model(rest, tissue, options), false};
+  CachedField out{compute_field_model(rest, tissue, options), false, std::move(discarded)};
   save_field(path, out.model);
   return out;
 }

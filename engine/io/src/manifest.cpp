@@ -6,6 +6,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <fstream>
 #include <memory>
@@ -76,6 +77,24 @@ std::filesystem::path write_manifest(const std::filesystem::path& output_dir, co
   const auto path = output_dir / "manifest.json";
   write_stream_atomically(path, false, [&](std::ostream& out) { out << j.dump(2) << '\n'; });
   return path;
+}
+
+std::vector<std::string> manifest_entries(const std::filesystem::path& output_dir) {
+  std::ifstream in(output_dir / "manifest.json");
+  if (!in) return {};
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object() || !j.contains("files") || !j["files"].is_array()) return {};
+  std::vector<std::string> entries;
+  for (const auto& file : j["files"]) {
+    if (!file.is_object() || !file.contains("path") || !file["path"].is_string()) continue;
+    const std::filesystem::path path(file["path"].get<std::string>());
+    if (path.empty() || path.is_absolute()) continue;
+    const std::string top = path.begin()->string();
+    if (top != ".." && top != "." && std::find(entries.begin(), entries.end(), top) == entries.end()) {
+      entries.push_back(top);
+    }
+  }
+  return entries;
 }
 
 }  // namespace pneuma::engine

@@ -3,9 +3,13 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/interrupt.h"
+#include "pneuma/core/staged_output.h"
 #include "pneuma/core/stopwatch.h"
 #include "pneuma/engine/field_cache.h"
 #include "pneuma/engine/manifest.h"
@@ -89,7 +93,7 @@ CachedField field_model(const Scenario& s, const Tissue& tissue, double edge_m, 
   const bool from_source = !s.mesh.phantom;
   if (s.field.cache == FieldCache::off) {
     const mesh::TriangleMesh surface = from_source ? source_surface(s.mesh, edge_m) : phantom_surface(s.mesh, edge_m);
-    return {compute_field_model(surface, tissue, field), false};
+    return {compute_field_model(surface, tissue, field), false, {}};
   }
   const std::filesystem::path cache = s.field.cache == FieldCache::file ? s.field.cache_file : output_dir / "field.h5";
   if (!from_source) return load_or_compute(cache, phantom_surface(s.mesh, edge_m), tissue, field);
@@ -135,6 +139,11 @@ BreathingModel prepare_model(const Scenario& s, const RunOptions& options,
   const Tissue tissue = load_tissue(s.field.tissue_file);
   CachedField computed = field_model(s, tissue, edge, options.output_dir);
   field_reused = computed.reused;
+  if (!computed.discarded.empty()) {
+    // The cache is derived data: a damaged one is replaced, never used, and the user told.
+    std::fprintf(stderr, "pneuma: warning: %s; computed the field again and replaced the file\n",
+                 computed.discarded.c_str());
+  }
   timings.emplace_back(field_reused ? "mesh and field (cached)" : "mesh and field", seconds_since(start));
 
   mesh::TriangleMesh rest = std::move(computed.model.rest);
@@ -170,7 +179,13 @@ std::vector<double> frame_scales(const BreathingModel& model, const MeshSpec& me
 
 RunResult run_scenario(const Scenario& s, const RunOptions& options) {
   RunResult result;
-  const auto& out = options.output_dir;
+  // Every output but the field cache is written into a stage and moved into the folder at the
+  // end (staged_output.h): a failed or interrupted run leaves the previous complete output as
+  // it was. The cache stays in the folder itself: it is complete on its own (written
+  // atomically) and worth keeping after an interruption.
+  const std::filesystem::path& folder = options.output_dir;
+  StagedOutput staged(folder);
+  const std::filesystem::path& out = staged.stage();
 
   // Physiology: the CSV at its own rate, the frames at theirs (two cheap runs, no resampling).
   auto start = Clock::now();
@@ -257,7 +272,20 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options) {
                           {"scale_range", fmt::format("{:.9g} .. {:.9g}", result.min_scale, result.max_scale)},
                           {"field", result.field_reused ? "reused from cache" : "computed"}}};
   for (auto& fact : motion_facts(motion)) manifest.facts.push_back(std::move(fact));
-  result.files.push_back(std::filesystem::relative(write_manifest(out, manifest), out));
+  {
+    // The folder holds the previous output or this one, never half of each: Ctrl-C waits.
+    const DeferInterruptions defer;
+    std::vector<std::string> obsolete;  // what the previous run wrote and this one did not
+    for (auto& name : manifest_entries(folder)) {
+      const bool ours = std::any_of(result.files.begin(), result.files.end(),
+                                    [&](const std::filesystem::path& file) { return file.begin()->string() == name; });
+      if (!ours) obsolete.push_back(std::move(name));
+    }
+    std::error_code ec;
+    std::filesystem::remove(folder / "manifest.json", ec);  // no manifest: not complete (yet)
+    staged.commit(obsolete);
+    result.files.push_back(std::filesystem::relative(write_manifest(folder, manifest), folder));
+  }
   return result;
 }
 

@@ -68,12 +68,14 @@ FieldModel load_field(const std::filesystem::path& path);
 
 struct CachedField {
   FieldModel model;
-  bool reused = false;  // true: read from the cache; false: computed (and written)
+  bool reused = false;    // true: read from the cache; false: computed (and written)
+  std::string discarded;  // why a file found at the cache path was not usable (else empty)
 };
 
 // Reuses `path` when it holds a field with the key of these inputs; otherwise computes the
-// field and writes it to `path`. A file that is not a pneuma field file is an error (it is
-// never overwritten: it may be someone's data).
+// field and writes it to `path`. A damaged or foreign file there (truncated, edited, not a
+// pneuma field file) is never used: it is recomputed and replaced, and `discarded` holds the
+// one-line reason for a warning. Throws IoError when the file exists but cannot be read.
 CachedField load_or_compute(const std::filesystem::path& path, const mesh::TriangleMesh& rest, const Tissue& tissue,
                             const FieldOptions& options = default_field_options);
 

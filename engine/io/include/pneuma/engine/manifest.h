@@ -25,4 +25,9 @@ std::vector<std::pair<std::string, std::string>> library_versions();
 // Writes <output_dir>/manifest.json atomically and returns its path.
 std::filesystem::path write_manifest(const std::filesystem::path& output_dir, const ManifestInput& input);
 
+// The top-level names (files, and folders such as frames/) that <output_dir>/manifest.json
+// lists: what a previous run wrote there. Empty when there is no manifest or it cannot be read
+// (then nothing is known to be a previous output, and nothing is removed).
+std::vector<std::string> manifest_entries(const std::filesystem::path& output_dir);
+
 }  // namespace pneuma::engine
