@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "bindings.h"
+#include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/units.h"
 #include "pneuma/engine/runner.h"
@@ -57,16 +58,24 @@ YAML::Node to_yaml(const py::handle& value, const std::string& path) {
                                py::str(value.get_type().attr("__name__")).cast<std::string>()));
 }
 
-engine::Scenario scenario_from_dict(const py::dict& d) {
-  return engine::read_scenario(config::Node::from_yaml(to_yaml(d, ""), kDictName), kDictName);
+// pneuma.Scenario: the typed scenario and, for one made from a dict, its YAML text (run()
+// writes it to <output>/scenario.yaml, so the manifest records and checksums a real file).
+struct ScenarioHandle {
+  engine::Scenario scenario;
+  std::string yaml;  // empty for a scenario read from a file
+};
+
+ScenarioHandle scenario_from_dict(const py::dict& d) {
+  const YAML::Node root = to_yaml(d, "");
+  return {engine::read_scenario(config::Node::from_yaml(root, kDictName), kDictName), YAML::Dump(root) + "\n"};
 }
 
 // A Scenario, a dict, or a path (str or os.PathLike) to a scenario YAML file.
-engine::Scenario to_scenario(const py::handle& scenario) {
-  if (py::isinstance<engine::Scenario>(scenario)) return scenario.cast<engine::Scenario>();
+ScenarioHandle to_scenario(const py::handle& scenario) {
+  if (py::isinstance<ScenarioHandle>(scenario)) return scenario.cast<ScenarioHandle>();
   if (py::isinstance<py::dict>(scenario)) return scenario_from_dict(scenario.cast<py::dict>());
   if (py::isinstance<py::str>(scenario) || py::isinstance(scenario, py::module_::import("os").attr("PathLike"))) {
-    return engine::load_scenario(scenario.cast<std::filesystem::path>());
+    return {engine::load_scenario(scenario.cast<std::filesystem::path>()), ""};
   }
   throw py::type_error("scenario: expected a pneuma.Scenario, a dict or a path to a scenario YAML file, got " +
                        py::str(scenario.get_type().attr("__name__")).cast<std::string>());
@@ -171,7 +180,6 @@ Animation make_animation(const engine::Scenario& given, const std::optional<std:
   py::gil_scoped_release release;
   const physiology::SimulationResult physiology = engine::simulate_physiology(a.scenario, a.scenario.frame_rate_hz);
   std::vector<std::pair<std::string, double>> timings;
-  if (output_dir) std::filesystem::create_directories(*output_dir);
   a.model = std::make_shared<const engine::BreathingModel>(engine::prepare_model(a.scenario, options, timings, a.field_reused));
   a.time_s = physiology.series.time_s;
   a.lung_volume_m3 = physiology.series.volume_m3;
@@ -182,19 +190,28 @@ Animation make_animation(const engine::Scenario& given, const std::optional<std:
 }  // namespace
 
 void register_scenario(py::module_& m) {
-  py::class_<engine::Scenario>(m, "Scenario",
+  py::class_<ScenarioHandle>(m, "Scenario",
                                "A checked scenario (units converted, presets applied). Made by load_scenario(); "
                                "simulate(), run() and Animation() take one, a dict or a path.")
-      .def_property_readonly("file", [](const engine::Scenario& s) { return s.file.string(); },
+      .def_property_readonly("file", [](const ScenarioHandle& h) { return h.scenario.file.string(); },
                              "The YAML file it came from ('<dict>' for a dict).")
-      .def_readonly("name", &engine::Scenario::name, "`name`, else the file's stem.")
-      .def_readonly("description", &engine::Scenario::description, "`description`.")
-      .def_readonly("duration_s", &engine::Scenario::duration_s, "`duration`, seconds.")
-      .def_readonly("frame_rate_hz", &engine::Scenario::frame_rate_hz, "`frames.rate`, Hz.")
-      .def_property_readonly("output_rate_hz", [](const engine::Scenario& s) { return s.physiology.options.output_rate_hz; },
+      .def_property_readonly("name", [](const ScenarioHandle& h) { return h.scenario.name; },
+                             "`name`, else the file's stem.")
+      .def_property_readonly("description", [](const ScenarioHandle& h) { return h.scenario.description; },
+                             "`description`.")
+      .def_property_readonly("duration_s", [](const ScenarioHandle& h) { return h.scenario.duration_s; },
+                             "`duration`, seconds.")
+      .def_property_readonly("frame_rate_hz", [](const ScenarioHandle& h) { return h.scenario.frame_rate_hz; },
+                             "`frames.rate`, Hz.")
+      .def_property_readonly("output_rate_hz",
+                             [](const ScenarioHandle& h) { return h.scenario.physiology.options.output_rate_hz; },
                              "`physiology.output_rate`, Hz: the rate of simulate()'s time series.")
-      .def("__repr__", [](const engine::Scenario& s) {
-        return fmt::format("<pneuma.Scenario '{}' from {}, {} s>", s.name, s.file.string(), s.duration_s);
+      .def_property_readonly("yaml", [](const ScenarioHandle& h) { return h.yaml; },
+                             "For a scenario made from a dict, the YAML it stands for (run() writes it to "
+                             "<output_dir>/scenario.yaml); empty for a file.")
+      .def("__repr__", [](const ScenarioHandle& h) {
+        return fmt::format("<pneuma.Scenario '{}' from {}, {} s>", h.scenario.name, h.scenario.file.string(),
+                           h.scenario.duration_s);
       });
 
   m.def("load_scenario", &to_scenario, py::arg("scenario"),
@@ -247,7 +264,7 @@ void register_scenario(py::module_& m) {
   m.def(
       "simulate",
       [](const py::handle& scenario, std::optional<double> output_rate_hz) {
-        const engine::Scenario s = to_scenario(scenario);
+        const engine::Scenario s = to_scenario(scenario).scenario;
         if (output_rate_hz && !(*output_rate_hz > 0.0)) {
           throw ValueError(fmt::format("output_rate_hz: expected a positive rate, got {}", *output_rate_hz));
         }
@@ -287,19 +304,25 @@ void register_scenario(py::module_& m) {
   m.def(
       "run",
       [](const py::handle& scenario, const std::filesystem::path& output_dir, bool quiet, std::optional<double> edge_m) {
-        const engine::Scenario s = to_scenario(scenario);
+        ScenarioHandle h = to_scenario(scenario);
         if (edge_m && !(*edge_m > 0.0)) throw ValueError(fmt::format("edge_m: expected a positive length, got {}", *edge_m));
+        py::gil_scoped_release release;
+        if (!h.yaml.empty()) {
+          // The manifest records and checksums the scenario file: a dict's is its YAML.
+          h.scenario.file = output_dir / "scenario.yaml";
+          write_stream_atomically(h.scenario.file, false, [&](std::ostream& out) { out << h.yaml; });
+        }
         engine::RunOptions options;
         options.output_dir = output_dir;
         options.quiet = quiet;
         options.edge_override_m = edge_m;
-        py::gil_scoped_release release;
-        return engine::run_scenario(s, options);
+        return engine::run_scenario(h.scenario, options);
       },
       py::arg("scenario"), py::arg("output_dir"), py::kw_only(), py::arg("quiet") = true, py::arg("edge_m") = py::none(),
       "run(scenario, output_dir, *, quiet=True, edge_m=None) -> RunResult\n\n"
       "Runs the whole scenario as `pneuma run` does and writes its outputs to output_dir (field.h5 cache, "
-      "series.h5/.xdmf, breathing.glb, physiology.csv, ..., manifest.json). edge_m overrides the mesh edge "
+      "series.h5/.xdmf, breathing.glb, physiology.csv, ..., manifest.json); a dict scenario is first written to "
+      "output_dir/scenario.yaml, which the manifest records. edge_m overrides the mesh edge "
       "length (metres). quiet=False prints the progress bar. Raises pneuma.Error (one line) on any failure; no "
       "partial file is left behind.");
 
@@ -311,7 +334,7 @@ void register_scenario(py::module_& m) {
              if (edge_m && !(*edge_m > 0.0)) {
                throw ValueError(fmt::format("edge_m: expected a positive length, got {}", *edge_m));
              }
-             return make_animation(to_scenario(scenario), output_dir, edge_m);
+             return make_animation(to_scenario(scenario).scenario, output_dir, edge_m);
            }),
            py::arg("scenario"), py::arg("output_dir") = py::none(), py::kw_only(), py::arg("edge_m") = py::none(),
            "Animation(scenario, output_dir=None, *, edge_m=None)\n\n"
