@@ -107,3 +107,13 @@ def test_a_dict_run_records_its_yaml(tmp_path):
     assert manifest["scenario"]["file"] == str(written)
     assert manifest["scenario"]["sha256"] == hashlib.sha256(written.read_bytes()).hexdigest()
     assert result.frame_count == 41
+
+
+def test_a_scenario_without_mesh_uses_the_default_phantom():
+    # No `mesh` section: the right phantom at 4 mm with its 55 % share, as `mesh: {phantom: right}`.
+    bare = pneuma.Animation({"duration": "1 s", "frames": {"rate": "4 Hz"}, "physiology": {"preset": "healthy-adult"}})
+    explicit = pneuma.Animation({"duration": "1 s", "frames": {"rate": "4 Hz"}, "mesh": {"phantom": "right"},
+                                 "physiology": {"preset": "healthy-adult"}})
+    np.testing.assert_array_equal(bare.vertices, explicit.vertices)
+    np.testing.assert_array_equal(bare.frame(4), explicit.frame(4))
+    assert bare.share == explicit.share == 0.55

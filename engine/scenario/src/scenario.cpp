@@ -189,7 +189,13 @@ Scenario read_scenario(const Node& root, const std::filesystem::path& file, cons
     if (frames->has("rate")) s.frame_rate_hz = frames->positive_quantity("rate", kind::rate);
     frames->finish();
   }
-  if (auto mesh = root.optional_map("mesh")) s.mesh = read_mesh_spec(*mesh);
+  if (auto mesh = root.optional_map("mesh")) {
+    s.mesh = read_mesh_spec(*mesh);
+  } else {
+    // The default phantom, as `mesh: {phantom: right}`: its default resolution and share.
+    s.mesh.edge_m = mesh::kDefaultPhantom.edge_length_m;
+    s.mesh.share = default_share(s.mesh.phantom);
+  }
   if (auto field = root.optional_map("field")) {
     s.field = read_field(*field, config_dir);
   } else {
