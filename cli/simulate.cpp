@@ -20,12 +20,7 @@ struct SimulateOptions {
 
 void run_simulate(const SimulateOptions& o) {
   const engine::Scenario scenario = engine::load_scenario(o.scenario);
-  physiology::SimulationResult result;
-  try {
-    result = physiology::simulate(scenario.physiology.protocol, scenario.physiology.options);
-  } catch (const ValueError& e) {
-    throw InputError(o.scenario + ": physiology: " + e.what());
-  }
+  const physiology::SimulationResult result = engine::simulate_physiology(scenario);
   const std::filesystem::path csv = o.output;
   std::filesystem::path breaths = o.breaths;
   if (breaths.empty()) breaths = csv.parent_path() / (csv.stem().string() + "-breaths.csv");

@@ -37,6 +37,10 @@ Node Node::load_string(const std::string& text, const std::string& name) {
   } catch (const YAML::Exception& e) {
     throw InputError(at(name, e.mark) + ": not valid YAML: " + e.msg);
   }
+  return from_yaml(root, name);
+}
+
+Node Node::from_yaml(const YAML::Node& root, const std::string& name) {
   if (!root.IsMap()) {
     throw InputError(at(name, root.Mark()) + ": expected a YAML mapping of keys at the top level");
   }

@@ -28,16 +28,6 @@
 namespace pneuma::engine {
 namespace {
 
-physiology::SimulationResult simulate_or_explain(const Scenario& s, double output_rate_hz) {
-  physiology::SimulationOptions options = s.physiology.options;
-  options.output_rate_hz = output_rate_hz;
-  try {
-    return physiology::simulate(s.physiology.protocol, options);
-  } catch (const ValueError& e) {
-    throw InputError(s.file.string() + ": physiology: " + e.what());
-  }
-}
-
 mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {
   mesh::PhantomOptions phantom;
   phantom.lung = *spec.phantom;
@@ -189,9 +179,9 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options) {
 
   // Physiology: the CSV at its own rate, the frames at theirs (two cheap runs, no resampling).
   auto start = Clock::now();
-  const physiology::SimulationResult frames_physiology = simulate_or_explain(s, s.frame_rate_hz);
+  const physiology::SimulationResult frames_physiology = simulate_physiology(s, s.frame_rate_hz);
   physiology::SimulationResult csv_physiology;
-  if (s.outputs.physiology_csv) csv_physiology = simulate_or_explain(s, s.physiology.options.output_rate_hz);
+  if (s.outputs.physiology_csv) csv_physiology = simulate_physiology(s, s.physiology.options.output_rate_hz);
   result.timings_s.emplace_back("physiology", seconds_since(start));
 
   const BreathingModel model = prepare_model(s, options, result.timings_s, result.field_reused);

@@ -176,7 +176,10 @@ OutputsSpec read_outputs(const std::optional<Node>& n) {
 }  // namespace
 
 Scenario load_scenario(const std::filesystem::path& file, const std::filesystem::path& config_dir) {
-  const Node root = Node::load_file(file);
+  return read_scenario(Node::load_file(file), file, config_dir);
+}
+
+Scenario read_scenario(const Node& root, const std::filesystem::path& file, const std::filesystem::path& config_dir) {
   Scenario s;
   s.file = file;
   s.name = root.optional_string("name").value_or(file.stem().string());
@@ -186,7 +189,13 @@ Scenario load_scenario(const std::filesystem::path& file, const std::filesystem:
     if (frames->has("rate")) s.frame_rate_hz = frames->positive_quantity("rate", kind::rate);
     frames->finish();
   }
-  if (auto mesh = root.optional_map("mesh")) s.mesh = read_mesh_spec(*mesh);
+  if (auto mesh = root.optional_map("mesh")) {
+    s.mesh = read_mesh_spec(*mesh);
+  } else {
+    // The default phantom, as `mesh: {phantom: right}`: its default resolution and share.
+    s.mesh.edge_m = mesh::kDefaultPhantom.edge_length_m;
+    s.mesh.share = default_share(s.mesh.phantom);
+  }
   if (auto field = root.optional_map("field")) {
     s.field = read_field(*field, config_dir);
   } else {
@@ -196,6 +205,16 @@ Scenario load_scenario(const std::filesystem::path& file, const std::filesystem:
   s.outputs = read_outputs(root.optional_map("outputs"));
   root.finish();
   return s;
+}
+
+physiology::SimulationResult simulate_physiology(const Scenario& s, std::optional<double> output_rate_hz) {
+  physiology::SimulationOptions options = s.physiology.options;
+  if (output_rate_hz) options.output_rate_hz = *output_rate_hz;
+  try {
+    return physiology::simulate(s.physiology.protocol, options);
+  } catch (const ValueError& e) {
+    throw InputError(s.file.string() + ": physiology: " + e.what());
+  }
 }
 
 }  // namespace pneuma::engine

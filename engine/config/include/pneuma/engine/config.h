@@ -26,6 +26,10 @@ class Node {
   static Node load_file(const std::filesystem::path& path);
   // Parses YAML text; `name` stands for the file in messages.
   static Node load_string(const std::string& text, const std::string& name);
+  // Wraps a YAML tree built in memory (e.g. from a Python dict): its nodes have no positions,
+  // so messages read "<name>: <key path>: <what was expected>". Throws InputError when the top
+  // level is not a mapping.
+  static Node from_yaml(const YAML::Node& root, const std::string& name);
 
   const std::string& file() const { return *layers_.front().file; }
   const std::string& path() const { return path_; }  // "physiology.driver"

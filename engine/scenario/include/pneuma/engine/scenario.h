@@ -67,5 +67,14 @@ struct Scenario {
 // Reads and checks a scenario file; every problem is one line (file:line:col: key: what).
 Scenario load_scenario(const std::filesystem::path& file,
                        const std::filesystem::path& config_dir = default_config_dir());
+// The same from YAML already read (a scenario built in memory, e.g. from a Python dict):
+// `file` stands for the file in messages and its folder anchors relative paths.
+Scenario read_scenario(const config::Node& root, const std::filesystem::path& file,
+                       const std::filesystem::path& config_dir = default_config_dir());
+
+// The scenario's physiology, sampled at `output_rate_hz` (default: its own output rate). A
+// protocol that cannot work becomes an InputError "<file>: physiology: <what>".
+physiology::SimulationResult simulate_physiology(const Scenario& scenario,
+                                                 std::optional<double> output_rate_hz = std::nullopt);
 
 }  // namespace pneuma::engine
