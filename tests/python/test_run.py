@@ -79,15 +79,17 @@ def test_animation_without_output_dir_caches_nothing(tmp_path, monkeypatch):
 
 def test_run_errors_are_the_cli_line(tmp_path):
     from conftest import SMALL_SCENARIO, run_cli
-    (tmp_path / "bogus.h5").write_text("not HDF5")
-    scenario = tmp_path / "cached.yaml"
-    scenario.write_text(SMALL_SCENARIO.replace("field: {tissue: healthy-upright}",
-                                               "field: {tissue: healthy-upright, cache: bogus.h5}"))
+    (tmp_path / "broken.stl").write_text("solid broken\nfacet normal 0 0 1\nendsolid\n")
+    scenario = tmp_path / "broken.yaml"
+    scenario.write_text(SMALL_SCENARIO.replace("mesh: {phantom: right, edge: 12 mm, share: 55 %}",
+                                               "mesh: {file: broken.stl, unit: mm, edge: 12 mm, share: 55 %}"))
     code, _, err = run_cli("run", scenario, "-o", tmp_path / "cli", "--quiet")
     with pytest.raises(pneuma.InputError) as e:
         pneuma.run(scenario, tmp_path / "py")
     assert str(e.value) + "\n" == err and e.value.exit_code == code == 3
-    assert str(e.value).startswith(f"{tmp_path / 'bogus.h5'}: not a pneuma field file: ")
+    assert str(e.value).startswith(f"{tmp_path / 'broken.stl'}: ")
+    # Nothing of the failed run is left in its output folder (the stage is removed).
+    assert list((tmp_path / "py").iterdir()) == []
 
 
 def test_a_dict_run_records_its_yaml(tmp_path):

@@ -1,0 +1,12 @@
+// NIfTI label maps (.nii; niftilib underneath): mesh::read_label_map.
+#include "fuzz_input.h"
+#include "pneuma/core/error.h"
+#include "pneuma/mesh/labels.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  try {
+    (void)pneuma::mesh::read_label_map(pneuma::fuzz::write_input(data, size, ".nii"));
+  } catch (const pneuma::Error&) {
+  }
+  return 0;
+}
