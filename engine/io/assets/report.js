@@ -5,7 +5,8 @@
 // page's address (#t=1.5). Every view reads it: the mesh (the glb's morph-weight animation
 // through THREE.AnimationMixer), the plots' cursor and the readouts.
 //
-// Test hook: report.html#selftest=T1,T2 renders the lung at T1 and T2, reads the WebGL canvas
+// Address options: #t=1.5 opens at 1.5 s; #regions colours the surface by anatomical region;
+// #t=1.5&regions both. Test hook: report.html#selftest=T1,T2 renders the lung at T1 and T2, reads the WebGL canvas
 // back and writes one JSON line into the page's #selftest element (see docs/formats.md).
 (function () {
   'use strict';
@@ -42,7 +43,11 @@
     if (text !== undefined) e.textContent = text;
     return e;
   }
-  function fmt(x, digits) { return (x === null || x === undefined || isNaN(x)) ? '-' : Number(x).toFixed(digits); }
+  function fmt(x, digits) {
+    if (x === null || x === undefined || isNaN(x)) return '-';
+    var text = Number(x).toFixed(digits);
+    return /^-0(\.0*)?$/.test(text) ? text.slice(1) : text;  // no "-0.00"
+  }
   function base64ToBytes(text) {
     var raw = atob(text.replace(/\s+/g, ''));
     var bytes = new Uint8Array(raw.length);
@@ -193,7 +198,8 @@
     for (var t = 0; t <= duration + 1e-9; t += xs) {
       var x = Math.round(this.xAt(t)) + 0.5;
       g.beginPath(); g.moveTo(x, this.top); g.lineTo(x, this.bottom); g.stroke();
-      g.fillText(+t.toPrecision(6) + ' s', x, this.bottom + 3 * dpr);
+      g.textAlign = x > this.right - 20 * dpr ? 'right' : 'center';
+      g.fillText(+t.toPrecision(6) + ' s', Math.min(x, this.right), this.bottom + 3 * dpr);
     }
     g.lineWidth = 1.5 * dpr; g.lineJoin = 'round';
     this.lines.forEach(function (l) {
@@ -406,6 +412,10 @@
     var test = /(?:^|&)selftest=([0-9.,]+)/.exec(hash);
     var at = /(?:^|&)t=([0-9.]+)/.exec(hash);
     seek(at ? parseFloat(at[1]) : 0);
+    if (/(?:^|&)regions(?:&|$)/.test(hash) && lung) {
+      document.getElementById('regions').checked = true;
+      regionColours(lung, true);
+    }
     if (test) {
       selftest(test[1].split(',').map(parseFloat));
       return;
