@@ -244,6 +244,10 @@ TEST(Report, EmbedsTheRunsGlbAndEveryPhysiologySample) {
   bool listed = false;
   for (const auto& f : manifest["files"]) listed = listed || f["path"] == "report.html";
   EXPECT_TRUE(listed);
+  // The manifest's motion facts are the same means as the table (the report takes nothing away).
+  EXPECT_NEAR(std::stod(manifest["facts"].at("motion.diaphragmatic.volume_share_pct").get<std::string>()),
+              table["regions"][2]["volume_share_pct"].get<double>(), 0.006);
+  EXPECT_EQ(table["regions"][2]["name"], "diaphragmatic");
 }
 
 TEST(Report, WithoutGltfOutputEmbedsTheSameGlbAndDecimatesLongSeries) {

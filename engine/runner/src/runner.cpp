@@ -131,7 +131,7 @@ std::vector<BreathMotion> breath_motion(const BreathingModel& model, const physi
 // What report.html shows: the physiology.csv series, the motion table, the run's key facts and
 // the glb (the bytes breathing.glb has, made here too when the glTF output is off).
 ReportInput report_input(const Scenario& s, const BreathingModel& model, const RunInfo& run, const RunResult& result,
-                         const physiology::SimulationResult& physiology, std::vector<BreathMotion> motion,
+                         const physiology::SimulationResult& physiology, const std::vector<BreathMotion>& motion,
                          const std::vector<double>& time_s, const std::vector<double>& scales) {
   ReportInput r;
   r.scenario_name = s.name;
@@ -166,7 +166,7 @@ ReportInput report_input(const Scenario& s, const BreathingModel& model, const R
     r.facts.emplace_back("tidal volume (mean)", fmt::format("{:.0f} mL", tidal / n * 1e6));
     r.facts.emplace_back("minute ventilation (mean)", fmt::format("{:.2f} L/min", minute / n * 1e3 * 60.0));
   }
-  r.motion = std::move(motion);
+  r.motion = motion;  // the manifest still needs its facts
   r.glb = make_glb(model, run, time_s, scales);
   return r;
 }
@@ -295,7 +295,7 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options) {
   }
   if (s.outputs.report) {
     start = Clock::now();
-    write_report(out / "report.html", report_input(s, model, run, result, csv_physiology, std::move(motion), t, scales));
+    write_report(out / "report.html", report_input(s, model, run, result, csv_physiology, motion, t, scales));
     result.files.emplace_back("report.html");
     result.timings_s.emplace_back("report", seconds_since(start));
   }
