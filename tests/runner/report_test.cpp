@@ -124,8 +124,10 @@ struct Page {
 Page read_page(const std::filesystem::path& path) {
   Page page;
   page.html = read_text(path);
-  page.data = nlohmann::json::parse(between(page.html, R"(<script type="application/json" id="pneuma-data">)", "</script>"));
-  page.glb = decode_base64(between(page.html, R"(<script type="application/octet-stream" id="pneuma-glb">)", "</script>"));
+  page.data =
+      nlohmann::json::parse(between(page.html, R"(<script type="application/json" id="pneuma-data">)", "</script>"));
+  page.glb =
+      decode_base64(between(page.html, R"(<script type="application/octet-stream" id="pneuma-glb">)", "</script>"));
   return page;
 }
 
@@ -235,8 +237,9 @@ TEST(Report, EmbedsTheRunsGlbAndEveryPhysiologySample) {
   EXPECT_EQ(table["breaths"], 1);
   ASSERT_EQ(table["regions"].size(), 4u);
   for (std::size_t i = 0; i < 4; ++i) {
-    EXPECT_NEAR(table["regions"][i]["magnitude_max_mm"].get<double>(), motion.rows[i][motion.column("magnitude_max_mm")], 1e-3);
-    EXPECT_NEAR(table["regions"][i]["volume_share_pct"].get<double>(), motion.rows[i][motion.column("volume_share_pct")], 1e-2);
+    const auto& region = table["regions"][i];
+    EXPECT_NEAR(region["magnitude_max_mm"].get<double>(), motion.rows[i][motion.column("magnitude_max_mm")], 1e-3);
+    EXPECT_NEAR(region["volume_share_pct"].get<double>(), motion.rows[i][motion.column("volume_share_pct")], 1e-2);
   }
 
   // Listed in the manifest with the others.
@@ -256,8 +259,8 @@ TEST(Report, WithoutGltfOutputEmbedsTheSameGlbAndDecimatesLongSeries) {
   ASSERT_EQ(run_pneuma({"run", dir.write("a.yaml", small_scenario("{hdf5: false, motion_csv: false}")).string(), "-o",
                         with.string(), "--quiet"}).exit_code, 0);
   // 4 s at 1250 Hz: 5001 rows, more than the page keeps.
-  const auto r = run_pneuma({"run", dir.write("b.yaml", small_scenario("{hdf5: false, gltf: false}", "1250 Hz")).string(),
-                             "-o", without.string(), "--quiet"});
+  const auto b = dir.write("b.yaml", small_scenario("{hdf5: false, gltf: false}", "1250 Hz"));
+  const auto r = run_pneuma({"run", b.string(), "-o", without.string(), "--quiet"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_FALSE(std::filesystem::exists(without / "breathing.glb"));
   const Page page = read_page(without / "report.html");

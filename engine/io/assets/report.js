@@ -400,6 +400,7 @@
       for (var i = 0; i < shots[0].p.length; i += 4) if (differs(shots[0].p, i, shots[k].p, i)) ++result.changed;
     }
     result.glb_bytes = base64ToBytes(document.getElementById('pneuma-glb').textContent).length;
+    result.ms = Math.round(performance.now());  // since navigation started: load, parse, both renders
     result.errors = errors.length;
     result.messages = errors.slice(0, 5);
     document.getElementById('selftest').textContent = JSON.stringify(result);

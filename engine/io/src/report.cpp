@@ -180,7 +180,8 @@ std::string fill(std::string_view page, const std::map<std::string, std::string_
     if (end < page.size() && page[end] == '@' && end > at + 1) {
       const auto found = values.find(std::string(page.substr(at + 1, end - at - 1)));
       if (found == values.end()) {
-        throw Error(ExitCode::failure, "report template: unknown placeholder " + std::string(page.substr(at, end - at + 1)));
+        throw Error(ExitCode::failure,
+                    "report template: unknown placeholder " + std::string(page.substr(at, end - at + 1)));
       }
       out.append(page.substr(i, at - i));
       out.append(found->second);

@@ -141,18 +141,20 @@ ReportInput report_input(const Scenario& s, const BreathingModel& model, const R
   r.frame_count = scales.size();
   r.physiology = &physiology;
   const double rest_volume = model.volume_map.volume(0.0);
-  const std::string mesh = s.mesh.phantom ? fmt::format("{} lung phantom", *s.mesh.phantom == mesh::Lung::left ? "left" : "right")
-                           : !s.mesh.labels_file.empty() ? s.mesh.labels_file.filename().string()
-                                                         : s.mesh.file.filename().string();
+  std::string mesh = s.mesh.file.filename().string();
+  if (!s.mesh.labels_file.empty()) mesh = s.mesh.labels_file.filename().string();
+  if (s.mesh.phantom) mesh = *s.mesh.phantom == mesh::Lung::left ? "left lung phantom" : "right lung phantom";
   r.facts = {
       {"scenario", s.file.filename().string()},
-      {"mesh", fmt::format("{}, {} vertices, {} triangles", mesh, model.rest.vertex_count(), model.rest.triangle_count())},
+      {"mesh",
+       fmt::format("{}, {} vertices, {} triangles", mesh, model.rest.vertex_count(), model.rest.triangle_count())},
       {"rest volume, area", fmt::format("{:.1f} mL, {:.1f} cm\u00b2", rest_volume * 1e6, model.rest_area_m2 * 1e4)},
       {"tissue", s.field.tissue},
       {"frames", fmt::format("{} at {:g} Hz, 0 to {:g} s", scales.size(), s.frame_rate_hz, r.duration_s)},
       {"mesh share of each breath", fmt::format("{:g} %", s.mesh.share * 100.0)},
-      {"mesh volume change", fmt::format("{:.1f} to {:.1f} mL", (model.volume_map.volume(run.min_scale) - rest_volume) * 1e6,
-                                         (model.volume_map.volume(run.max_scale) - rest_volume) * 1e6)},
+      {"mesh volume change",
+       fmt::format("{:.1f} to {:.1f} mL", (model.volume_map.volume(run.min_scale) - rest_volume) * 1e6,
+                   (model.volume_map.volume(run.max_scale) - rest_volume) * 1e6)},
       {"field", result.field_reused ? "reused from cache" : "computed"},
   };
   if (!physiology.breaths.empty()) {
@@ -166,7 +168,7 @@ ReportInput report_input(const Scenario& s, const BreathingModel& model, const R
     r.facts.emplace_back("tidal volume (mean)", fmt::format("{:.0f} mL", tidal / n * 1e6));
     r.facts.emplace_back("minute ventilation (mean)", fmt::format("{:.2f} L/min", minute / n * 1e3 * 60.0));
   }
-  r.motion = motion;  // the manifest still needs its facts
+  r.motion = motion;  // a copy: the manifest's facts come from it too
   r.glb = make_glb(model, run, time_s, scales);
   return r;
 }
@@ -309,7 +311,9 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options) {
                           {"rest_area_m2", fmt::format("{:.9g}", model.rest_area_m2)},
                           {"scale_range", fmt::format("{:.9g} .. {:.9g}", result.min_scale, result.max_scale)},
                           {"field", result.field_reused ? "reused from cache" : "computed"}}};
-  for (auto& fact : motion_facts(motion)) manifest.facts.push_back(std::move(fact));
+  if (s.outputs.motion_csv) {
+    for (auto& fact : motion_facts(motion)) manifest.facts.push_back(std::move(fact));
+  }
   result.files.push_back(std::filesystem::relative(write_manifest(out, manifest), out));
   return result;
 }
