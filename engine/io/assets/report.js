@@ -251,7 +251,9 @@
   scrub.addEventListener('input', function () { seek(parseFloat(scrub.value)); });
   document.getElementById('speed').addEventListener('change', function (e) { state.speed = parseFloat(e.target.value); });
   document.addEventListener('keydown', function (e) {
-    if (e.target && (e.target.tagName === 'SELECT' || e.target.tagName === 'INPUT' && e.target.type !== 'range')) return;
+    var tag = e.target && e.target.tagName;
+    if (tag === 'SELECT' || (tag === 'BUTTON' && e.key === ' ')) return;  // the button clicks itself
+    if (tag === 'INPUT' && (e.target.type !== 'range' || e.key !== ' ')) return;  // the slider steps itself
     if (e.key === ' ') { setPlaying(!state.playing); e.preventDefault(); }
     else if (e.key === 'ArrowRight') { setPlaying(false); seek(state.t + frameStep); e.preventDefault(); }
     else if (e.key === 'ArrowLeft') { setPlaying(false); seek(state.t - frameStep); e.preventDefault(); }
@@ -280,6 +282,7 @@
   scene.add(rim);
   var controls = new THREE.OrbitControls(camera, renderer.domElement);
   controls.enableDamping = false;
+  controls.enableKeys = false;  // the arrow keys step through time (below), not pan
   controls.addEventListener('change', function () { needsRender = true; });
   var mixer = null, action = null, lung = null, needsRender = true;
 
