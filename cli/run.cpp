@@ -46,6 +46,10 @@ void run_command(const RunCommandOptions& o) {
   for (const auto& [folder, count] : folders)
     fmt::print("  {}/ {} file{}\n", (std::filesystem::path(o.output) / folder).string(), count, count == 1 ? "" : "s");
   fmt::print("outputs are in {}/ (manifest.json lists every file)\n", o.output);
+  if (std::find(r.files.begin(), r.files.end(), std::filesystem::path("report.html")) != r.files.end()) {
+    fmt::print("open {} in a browser: the lung, the plots and the motion table (no server needed)\n",
+               (std::filesystem::path(o.output) / "report.html").string());
+  }
 }
 
 }  // namespace

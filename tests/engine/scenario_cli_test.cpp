@@ -86,6 +86,12 @@ INSTANTIATE_TEST_SUITE_P(
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  hdf5: {positions: true}\n",
                     "5:21: outputs.hdf5.positions: expected float32 or float64 (the stored type; series.h5 now "
                     "always stores every frame's positions, the plain geometry ParaView and meshio read), got 'true'"},
+        BadScenario{"report_not_a_switch",
+                    "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  report: maybe\n",
+                    "5:11: outputs.report: expected true or false, got 'maybe'"},
+        BadScenario{"report_unknown_option",
+                    "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  report: {open: true}\n",
+                    "5:12: outputs.report.open: unknown key; expected one of: enabled"},
         BadScenario{"not_yaml", "duration: [20 s\n", "2:1: not valid YAML: end of sequence flow not found"}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 

@@ -61,24 +61,29 @@ std::filesystem::path source_dir() { return PNEUMA_SOURCE_DIR; }
 
 namespace {
 
-// Starts pneuma with `args`, its stdout and stderr sent to the given files; returns its pid.
-pid_t spawn_pneuma(const std::vector<std::string>& args, const char* out_path, const char* err_path,
-                   const std::filesystem::path& working_dir) {
+// Starts `program` with `args`, its stdout and stderr sent to the given files; returns its pid.
+pid_t spawn(const std::string& program, const std::vector<std::string>& args, const char* out_path,
+            const char* err_path, const std::filesystem::path& working_dir) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, 1, out_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
   posix_spawn_file_actions_addopen(&actions, 2, err_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
   if (!working_dir.empty()) posix_spawn_file_actions_addchdir_np(&actions, working_dir.c_str());
-  std::vector<std::string> storage{PNEUMA_EXE};
+  std::vector<std::string> storage{program};
   storage.insert(storage.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (auto& s : storage) argv.push_back(s.data());
   argv.push_back(nullptr);
   pid_t pid = 0;
-  const int started = posix_spawn(&pid, PNEUMA_EXE, &actions, nullptr, argv.data(), environ);
+  const int started = posix_spawn(&pid, program.c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
-  if (started != 0) throw std::runtime_error("cannot start " PNEUMA_EXE);
+  if (started != 0) throw std::runtime_error("cannot start " + program);
   return pid;
+}
+
+pid_t spawn_pneuma(const std::vector<std::string>& args, const char* out_path, const char* err_path,
+                   const std::filesystem::path& working_dir) {
+  return spawn(PNEUMA_EXE, args, out_path, err_path, working_dir);
 }
 
 // Waits for `pid`; its exit status, or 128 + signal when it died of one (as a shell says).
@@ -90,14 +95,31 @@ int wait_for(pid_t pid) {
 
 }  // namespace
 
-CommandResult run_pneuma(const std::vector<std::string>& args, const std::filesystem::path& working_dir) {
+CommandResult run_program(const std::filesystem::path& program, const std::vector<std::string>& args,
+                          const std::filesystem::path& working_dir) {
   TempDir capture;
   const auto out_path = capture / "stdout", err_path = capture / "stderr";
   CommandResult result;
-  result.exit_code = wait_for(spawn_pneuma(args, out_path.c_str(), err_path.c_str(), working_dir));
+  result.exit_code = wait_for(spawn(program.string(), args, out_path.c_str(), err_path.c_str(), working_dir));
   result.out = read_text(out_path);
   result.err = read_text(err_path);
   return result;
+}
+
+CommandResult run_pneuma(const std::vector<std::string>& args, const std::filesystem::path& working_dir) {
+  return run_program(PNEUMA_EXE, args, working_dir);
+}
+
+std::filesystem::path find_program(const std::vector<std::string>& names) {
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path ? path : "/usr/bin:/bin");
+  for (std::string dir; std::getline(dirs, dir, ':');) {
+    for (const auto& name : names) {
+      const auto candidate = std::filesystem::path(dir.empty() ? "." : dir) / name;
+      if (access(candidate.c_str(), X_OK) == 0) return candidate;
+    }
+  }
+  return {};
 }
 
 int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms) {

@@ -35,6 +35,13 @@ struct CommandResult {
 // Runs the pneuma executable with `args` (no shell involved), in `working_dir` if given.
 CommandResult run_pneuma(const std::vector<std::string>& args, const std::filesystem::path& working_dir = {});
 
+// Runs any program (a path; no shell, no PATH lookup) with `args`, in `working_dir` if given.
+CommandResult run_program(const std::filesystem::path& program, const std::vector<std::string>& args,
+                          const std::filesystem::path& working_dir = {});
+
+// The first of `names` found on PATH, as a path; empty when none is there.
+std::filesystem::path find_program(const std::vector<std::string>& names);
+
 // Starts pneuma with `args`, sends SIGINT after `delay_ms` milliseconds, and returns its exit
 // status (128 + signal when it died of one, as a shell reports it).
 int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms);

@@ -15,6 +15,8 @@
 #include "pneuma/engine/manifest.h"
 #include "pneuma/engine/physiology_csv.h"
 #include "pneuma/engine/progress.h"
+#include "pneuma/engine/report.h"
+#include "pneuma/engine/sinks.h"
 #include "pneuma/engine/sink_registry.h"
 #include "pneuma/engine/tissue.h"
 #include "pneuma/engine/motion_csv.h"
@@ -120,6 +122,51 @@ std::vector<BreathMotion> breath_motion(const BreathingModel& model, const physi
   return out;
 }
 
+// What report.html shows: the physiology.csv series, the motion table, the run's key facts and
+// the glb (the bytes breathing.glb has, made here too when the glTF output is off).
+ReportInput report_input(const Scenario& s, const BreathingModel& model, const RunInfo& run, const RunResult& result,
+                         const physiology::SimulationResult& physiology, const std::vector<BreathMotion>& motion,
+                         const std::vector<double>& time_s, const std::vector<double>& scales) {
+  ReportInput r;
+  r.scenario_name = s.name;
+  r.description = s.description;
+  r.duration_s = time_s.empty() ? 0.0 : time_s.back();
+  r.frame_rate_hz = s.frame_rate_hz;
+  r.frame_count = scales.size();
+  r.physiology = &physiology;
+  const double rest_volume = model.volume_map.volume(0.0);
+  std::string mesh = s.mesh.file.filename().string();
+  if (!s.mesh.labels_file.empty()) mesh = s.mesh.labels_file.filename().string();
+  if (s.mesh.phantom) mesh = *s.mesh.phantom == mesh::Lung::left ? "left lung phantom" : "right lung phantom";
+  r.facts = {
+      {"scenario", s.file.filename().string()},
+      {"mesh",
+       fmt::format("{}, {} vertices, {} triangles", mesh, model.rest.vertex_count(), model.rest.triangle_count())},
+      {"rest volume, area", fmt::format("{:.1f} mL, {:.1f} cm\u00b2", rest_volume * 1e6, model.rest_area_m2 * 1e4)},
+      {"tissue", s.field.tissue},
+      {"frames", fmt::format("{} at {:g} Hz, 0 to {:g} s", scales.size(), s.frame_rate_hz, r.duration_s)},
+      {"mesh share of each breath", fmt::format("{:g} %", s.mesh.share * 100.0)},
+      {"mesh volume change",
+       fmt::format("{:.1f} to {:.1f} mL", (model.volume_map.volume(run.min_scale) - rest_volume) * 1e6,
+                   (model.volume_map.volume(run.max_scale) - rest_volume) * 1e6)},
+      {"field", result.field_reused ? "reused from cache" : "computed"},
+  };
+  if (!physiology.breaths.empty()) {
+    double tidal = 0.0, minute = 0.0;
+    for (const auto& b : physiology.breaths) {
+      tidal += b.tidal_volume_m3;
+      minute += b.minute_ventilation_m3_per_s;
+    }
+    const double n = static_cast<double>(physiology.breaths.size());
+    r.facts.emplace_back("breaths", std::to_string(physiology.breaths.size()));
+    r.facts.emplace_back("tidal volume (mean)", fmt::format("{:.0f} mL", tidal / n * 1e6));
+    r.facts.emplace_back("minute ventilation (mean)", fmt::format("{:.2f} L/min", minute / n * 1e3 * 60.0));
+  }
+  r.motion = motion;  // a copy: the manifest's facts come from it too
+  r.glb = make_glb(model, run, time_s, scales);
+  return r;
+}
+
 }  // namespace
 
 BreathingModel prepare_model(const Scenario& s, const RunOptions& options,
@@ -181,7 +228,9 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options) {
   auto start = Clock::now();
   const physiology::SimulationResult frames_physiology = simulate_physiology(s, s.frame_rate_hz);
   physiology::SimulationResult csv_physiology;
-  if (s.outputs.physiology_csv) csv_physiology = simulate_physiology(s, s.physiology.options.output_rate_hz);
+  if (s.outputs.physiology_csv || s.outputs.report) {
+    csv_physiology = simulate_physiology(s, s.physiology.options.output_rate_hz);
+  }
   result.timings_s.emplace_back("physiology", seconds_since(start));
 
   const BreathingModel model = prepare_model(s, options, result.timings_s, result.field_reused);
@@ -246,10 +295,16 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options) {
     result.files.emplace_back("physiology-breaths.csv");
   }
   std::vector<BreathMotion> motion;
+  if (s.outputs.motion_csv || s.outputs.report) motion = breath_motion(model, frames_physiology, scales);
   if (s.outputs.motion_csv) {
-    motion = breath_motion(model, frames_physiology, scales);
     write_motion_csv(out / "motion.csv", motion);
     result.files.emplace_back("motion.csv");
+  }
+  if (s.outputs.report) {
+    start = Clock::now();
+    write_report(out / "report.html", report_input(s, model, run, result, csv_physiology, motion, t, scales));
+    result.files.emplace_back("report.html");
+    result.timings_s.emplace_back("report", seconds_since(start));
   }
 
   ManifestInput manifest{s.file, s.name, result.files, result.timings_s,
@@ -261,7 +316,9 @@ RunResult run_scenario(const Scenario& s, const RunOptions& options) {
                           {"rest_area_m2", fmt::format("{:.9g}", model.rest_area_m2)},
                           {"scale_range", fmt::format("{:.9g} .. {:.9g}", result.min_scale, result.max_scale)},
                           {"field", result.field_reused ? "reused from cache" : "computed"}}};
-  for (auto& fact : motion_facts(motion)) manifest.facts.push_back(std::move(fact));
+  if (s.outputs.motion_csv) {
+    for (auto& fact : motion_facts(motion)) manifest.facts.push_back(std::move(fact));
+  }
   {
     // The folder holds the previous output or this one, never half of each: Ctrl-C waits.
     const DeferInterruptions defer;

@@ -128,6 +128,8 @@ OutputsSpec read_outputs(const std::optional<Node>& n) {
   o.gltf = on;
   if (auto s = sink_section(*n, "motion_csv", true, on)) s->finish();
   o.motion_csv = on;
+  if (auto s = sink_section(*n, "report", true, on)) s->finish();
+  o.report = on;
   if (auto s = sink_section(*n, "hdf5", true, on)) {
     if (s->has("positions")) {
       const std::string value = s->string("positions");

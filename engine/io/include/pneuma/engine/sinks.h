@@ -3,6 +3,7 @@
 // (engine/runner/src/sink_registry.cpp) is the one place that knows them all.
 #include <filesystem>
 #include <memory>
+#include <span>
 #include <string>
 
 #include "pneuma/engine/frame.h"
@@ -19,6 +20,12 @@ struct MeshSequenceSpec {
 // s_ref = max |s| of the run) and s(t) / s_ref as the animated morph weight, sampled at the
 // frame times with LINEAR interpolation. Node rotated so pneuma's z-up becomes glTF's y-up.
 std::unique_ptr<FrameSink> make_gltf_sink(const std::filesystem::path& file);
+
+// The bytes that sink writes for a run whose frames are at `time_s` with scales `scale` (the
+// report embeds them, also when no breathing.glb is written). Throws ValueError when the sizes
+// differ.
+std::string make_glb(const BreathingModel& model, const RunInfo& run, std::span<const double> time_s,
+                     std::span<const double> scale);
 
 // The stored type of series.h5's per-frame positions (the exact rest + s u is always there in
 // float64: /rest/positions, /field/unit_displacement, /frames/scale).

@@ -48,6 +48,7 @@ struct OutputsSpec {
   bool hdf5 = true;
   PositionPrecision hdf5_positions = PositionPrecision::float32;
   bool motion_csv = true;  // per breath and anatomical region (docs/realism.md)
+  bool report = true;      // report.html: the lung, the plots and the motion table in one page
   std::optional<MeshSequenceSpec> mesh_sequence;
   std::optional<render::PngSinkOptions> png;  // frames in png/, rendered headless
 };

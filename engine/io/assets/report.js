@@ -1,0 +1,435 @@
+// report.js: the behaviour of report.html (engine/io/assets/report.html). Plain ES5-style
+// script, no modules (file:// pages cannot import them), three.js r111 globals (THREE).
+//
+// One clock: `state.t` in seconds, set by the player, the slider, a click on a plot or the
+// page's address (#t=1.5). Every view reads it: the mesh (the glb's morph-weight animation
+// through THREE.AnimationMixer), the plots' cursor and the readouts.
+//
+// Address options: #t=1.5 opens at 1.5 s; #regions colours the surface by anatomical region;
+// #t=1.5&regions both. Test hook: report.html#selftest=T1,T2 renders the lung at T1 and T2, reads the WebGL canvas
+// back and writes one JSON line into the page's #selftest element (see docs/formats.md).
+(function () {
+  'use strict';
+
+  // ---- errors are counted for the self-test (and still reported to the console) ----
+  var errors = [];
+  window.addEventListener('error', function (e) { errors.push(String(e.message || e)); });
+  window.addEventListener('unhandledrejection', function (e) { errors.push('unhandled rejection: ' + String(e.reason)); });
+  var consoleError = console.error;
+  console.error = function () {
+    errors.push(Array.prototype.map.call(arguments, String).join(' '));
+    consoleError.apply(console, arguments);
+  };
+
+  var data = JSON.parse(document.getElementById('pneuma-data').textContent);
+  var REGION_COLORS = { apex: '#4c78a8', costal: '#f58518', diaphragmatic: '#54a24b', mediastinal: '#b279a2' };
+  var PALETTE = ['#c4524d', '#4c78a8', '#54a24b', '#b279a2', '#f58518', '#72b7b2'];
+  var duration = data.duration_s;
+  var frameStep = data.frame_rate_hz > 0 ? 1 / data.frame_rate_hz : duration / 100;
+
+  var state = { t: 0, playing: false, speed: 1 };
+  var listeners = [];
+  function seek(t) {
+    if (!(t >= 0)) t = 0;
+    if (t > duration) t = duration;
+    state.t = t;
+    for (var i = 0; i < listeners.length; ++i) listeners[i](t);
+  }
+
+  // ---- small helpers ----
+  function el(tag, attrs, text) {
+    var e = document.createElement(tag);
+    if (attrs) for (var k in attrs) e.setAttribute(k, attrs[k]);
+    if (text !== undefined) e.textContent = text;
+    return e;
+  }
+  function fmt(x, digits) {
+    if (x === null || x === undefined || isNaN(x)) return '-';
+    var text = Number(x).toFixed(digits);
+    return /^-0(\.0*)?$/.test(text) ? text.slice(1) : text;  // no "-0.00"
+  }
+  function base64ToBytes(text) {
+    var raw = atob(text.replace(/\s+/g, ''));
+    var bytes = new Uint8Array(raw.length);
+    for (var i = 0; i < raw.length; ++i) bytes[i] = raw.charCodeAt(i);
+    return bytes;
+  }
+  // Index of the last sample at or before t (times ascending).
+  function lowerIndex(times, t) {
+    var lo = 0, hi = times.length - 1;
+    if (t <= times[0]) return 0;
+    if (t >= times[hi]) return hi;
+    while (hi - lo > 1) {
+      var mid = (lo + hi) >> 1;
+      if (times[mid] <= t) lo = mid; else hi = mid;
+    }
+    return lo;
+  }
+  function valueAt(times, values, t) {
+    var i = lowerIndex(times, t);
+    if (i >= times.length - 1) return values[times.length - 1];
+    var a = times[i], b = times[i + 1];
+    var w = b > a ? Math.min(Math.max((t - a) / (b - a), 0), 1) : 0;
+    return values[i] + w * (values[i + 1] - values[i]);
+  }
+  function niceStep(range, count) {
+    var raw = range / Math.max(count, 1);
+    var mag = Math.pow(10, Math.floor(Math.log10(raw)));
+    var n = raw / mag;
+    return (n < 1.5 ? 1 : n < 3 ? 2 : n < 7 ? 5 : 10) * mag;
+  }
+
+  // ---- header, facts, motion table ----
+  document.getElementById('description').textContent = data.description || '';
+  (function facts() {
+    var table = document.getElementById('facts');
+    data.facts.forEach(function (f) {
+      var tr = el('tr');
+      tr.appendChild(el('td', null, f[0]));
+      tr.appendChild(el('td', null, f[1]));
+      table.appendChild(tr);
+    });
+  })();
+  (function motion() {
+    var table = document.getElementById('motion');
+    var note = document.getElementById('motion-note');
+    var m = data.motion;
+    if (!m || !m.breaths) {
+      note.textContent = 'No complete breath in this run: no per-region motion to show.';
+      return;
+    }
+    var columns = [
+      ['area_cm2', 'area (cm\u00b2)', 1], ['caudal_mean_mm', 'caudal mean (mm)', 2],
+      ['anterior_mean_mm', 'anterior mean (mm)', 2], ['lateral_mean_mm', 'lateral mean (mm)', 2],
+      ['magnitude_mean_mm', '|d| mean (mm)', 2], ['magnitude_max_mm', '|d| peak (mm)', 2],
+      ['volume_share_pct', 'share of \u0394V (%)', 1]];
+    var head = el('tr');
+    head.appendChild(el('th', null, 'region'));
+    columns.forEach(function (c) { head.appendChild(el('th', null, c[1])); });
+    table.appendChild(head);
+    m.regions.forEach(function (r) {
+      var tr = el('tr');
+      var name = el('td');
+      var swatch = el('span', { 'class': 'swatch' });
+      swatch.style.background = REGION_COLORS[r.name] || '#999';
+      name.appendChild(swatch);
+      name.appendChild(document.createTextNode(r.name));
+      tr.appendChild(name);
+      columns.forEach(function (c) { tr.appendChild(el('td', null, fmt(r[c[0]], c[2]))); });
+      table.appendChild(tr);
+    });
+    note.textContent = 'Mean over ' + m.breaths + ' complete breath' + (m.breaths === 1 ? '' : 's') +
+        ': the displacement from each breath\'s lowest to its highest volume, in body axes (caudal: downward; ' +
+        'lateral: away from the midline). Dome top: ' + fmt(m.dome_top_caudal_mm, 2) + ' mm caudal. ' +
+        'Per breath: motion.csv.';
+  })();
+
+  // ---- plots: each a <canvas>, its static part drawn once per size, the cursor per frame ----
+  var series = data.series;
+  var times = series.columns.time_s;
+  function Plot(spec, index) {
+    var self = this;
+    this.spec = spec;
+    this.root = el('div', { 'class': 'plot' });
+    var head = el('div', { 'class': 'head' });
+    var title = el('b', null, spec.title + ' (' + spec.unit + ')');
+    head.appendChild(title);
+    this.readouts = [];
+    this.lines = spec.columns.map(function (key, j) {
+      var color = PALETTE[(index === 0 ? j : j) % PALETTE.length];
+      var keyEl = el('span', { 'class': 'key' });
+      var swatch = el('i');
+      swatch.style.background = color;
+      keyEl.appendChild(swatch);
+      keyEl.appendChild(document.createTextNode(series.labels[key] + ' '));
+      var readout = el('span', null, '');
+      keyEl.appendChild(readout);
+      head.appendChild(keyEl);
+      self.readouts.push(readout);
+      return { key: key, values: series.columns[key], color: color };
+    });
+    this.canvas = el('canvas', { 'aria-label': spec.title });
+    this.root.appendChild(head);
+    this.root.appendChild(this.canvas);
+    this.cache = document.createElement('canvas');
+    var lo = Infinity, hi = -Infinity;
+    this.lines.forEach(function (l) {
+      for (var i = 0; i < l.values.length; ++i) { lo = Math.min(lo, l.values[i]); hi = Math.max(hi, l.values[i]); }
+    });
+    if (!(hi > lo)) { lo -= 1; hi += 1; }
+    var pad = 0.06 * (hi - lo);
+    this.y0 = lo - pad; this.y1 = hi + pad;
+    var drag = false;
+    function seekAt(e) {
+      var r = self.canvas.getBoundingClientRect();
+      var x = (e.clientX - r.left) * (self.canvas.width / r.width);
+      seek(self.tAt(x));
+    }
+    this.canvas.addEventListener('pointerdown', function (e) { drag = true; self.canvas.setPointerCapture(e.pointerId); seekAt(e); });
+    this.canvas.addEventListener('pointermove', function (e) { if (drag) seekAt(e); });
+    this.canvas.addEventListener('pointerup', function () { drag = false; });
+  }
+  Plot.prototype.layout = function () {
+    var dpr = window.devicePixelRatio || 1;
+    var w = Math.max(1, Math.round(this.canvas.clientWidth * dpr)), h = Math.max(1, Math.round(this.canvas.clientHeight * dpr));
+    this.canvas.width = w; this.canvas.height = h;
+    this.cache.width = w; this.cache.height = h;
+    this.dpr = dpr;
+    this.left = 46 * dpr; this.right = w - 8 * dpr; this.top = 6 * dpr; this.bottom = h - 18 * dpr;
+    this.drawStatic();
+  };
+  Plot.prototype.xAt = function (t) { return this.left + (this.right - this.left) * (duration > 0 ? t / duration : 0); };
+  Plot.prototype.yAt = function (v) { return this.bottom - (this.bottom - this.top) * (v - this.y0) / (this.y1 - this.y0); };
+  Plot.prototype.tAt = function (x) { return (x - this.left) / (this.right - this.left) * duration; };
+  Plot.prototype.drawStatic = function () {
+    var g = this.cache.getContext('2d'), dpr = this.dpr, self = this;
+    g.clearRect(0, 0, this.cache.width, this.cache.height);
+    g.font = (11 * dpr) + 'px system-ui, sans-serif';
+    g.strokeStyle = '#e3e6ea'; g.fillStyle = '#5d6773'; g.lineWidth = 1;
+    var ys = niceStep(this.y1 - this.y0, 3);
+    g.textAlign = 'right'; g.textBaseline = 'middle';
+    for (var v = Math.ceil(this.y0 / ys) * ys; v <= this.y1; v += ys) {
+      var y = Math.round(this.yAt(v)) + 0.5;
+      g.beginPath(); g.moveTo(this.left, y); g.lineTo(this.right, y); g.stroke();
+      g.fillText(Math.abs(v) < ys * 1e-6 ? '0' : String(+v.toPrecision(6)), this.left - 4 * dpr, y);
+    }
+    var xs = niceStep(duration || 1, Math.max(2, Math.floor((this.right - this.left) / (70 * dpr))));
+    g.textAlign = 'center'; g.textBaseline = 'top';
+    for (var t = 0; t <= duration + 1e-9; t += xs) {
+      var x = Math.round(this.xAt(t)) + 0.5;
+      g.beginPath(); g.moveTo(x, this.top); g.lineTo(x, this.bottom); g.stroke();
+      g.textAlign = x > this.right - 20 * dpr ? 'right' : 'center';
+      g.fillText(+t.toPrecision(6) + ' s', Math.min(x, this.right), this.bottom + 3 * dpr);
+    }
+    g.lineWidth = 1.5 * dpr; g.lineJoin = 'round';
+    this.lines.forEach(function (l) {
+      g.strokeStyle = l.color;
+      g.beginPath();
+      for (var i = 0; i < times.length; ++i) {
+        var px = self.xAt(times[i]), py = self.yAt(l.values[i]);
+        if (i === 0) g.moveTo(px, py); else g.lineTo(px, py);
+      }
+      g.stroke();
+    });
+  };
+  Plot.prototype.drawCursor = function (t) {
+    var g = this.canvas.getContext('2d'), dpr = this.dpr, self = this;
+    g.clearRect(0, 0, this.canvas.width, this.canvas.height);
+    g.drawImage(this.cache, 0, 0);
+    var x = Math.round(this.xAt(t)) + 0.5;
+    g.strokeStyle = '#1d232b'; g.lineWidth = 1 * dpr;
+    g.beginPath(); g.moveTo(x, this.top); g.lineTo(x, this.bottom); g.stroke();
+    this.lines.forEach(function (l, j) {
+      var v = valueAt(times, l.values, t);
+      g.fillStyle = l.color;
+      g.beginPath(); g.arc(x, self.yAt(v), 3 * dpr, 0, 2 * Math.PI); g.fill();
+      self.readouts[j].textContent = fmt(v, Math.abs(v) >= 100 ? 0 : 2);
+    });
+  };
+
+  var plotsRoot = document.getElementById('plots');
+  var plots = data.plots.map(function (spec, i) {
+    var p = new Plot(spec, i);
+    plotsRoot.appendChild(p.root);
+    return p;
+  });
+  function layoutPlots() { plots.forEach(function (p) { p.layout(); p.drawCursor(state.t); }); }
+  listeners.push(function (t) { plots.forEach(function (p) { p.drawCursor(t); }); });
+
+  // ---- controls ----
+  var playButton = document.getElementById('play');
+  var scrub = document.getElementById('scrub');
+  var timeText = document.getElementById('time');
+  scrub.max = String(duration);
+  scrub.step = String(Math.min(frameStep, 0.01));
+  function setPlaying(on) {
+    state.playing = on;
+    playButton.textContent = on ? 'Pause' : 'Play';
+    lastTick = null;
+  }
+  playButton.addEventListener('click', function () { setPlaying(!state.playing); });
+  scrub.addEventListener('input', function () { seek(parseFloat(scrub.value)); });
+  document.getElementById('speed').addEventListener('change', function (e) { state.speed = parseFloat(e.target.value); });
+  document.addEventListener('keydown', function (e) {
+    var tag = e.target && e.target.tagName;
+    if (tag === 'SELECT' || (tag === 'BUTTON' && e.key === ' ')) return;  // the button clicks itself
+    if (tag === 'INPUT' && (e.target.type !== 'range' || e.key !== ' ')) return;  // the slider steps itself
+    if (e.key === ' ') { setPlaying(!state.playing); e.preventDefault(); }
+    else if (e.key === 'ArrowRight') { setPlaying(false); seek(state.t + frameStep); e.preventDefault(); }
+    else if (e.key === 'ArrowLeft') { setPlaying(false); seek(state.t - frameStep); e.preventDefault(); }
+  });
+  listeners.push(function (t) {
+    scrub.value = String(t);
+    timeText.textContent = 't = ' + t.toFixed(3) + ' s / ' + duration.toFixed(1) + ' s';
+  });
+
+  // ---- the 3D view: the run's glb, its morph-weight animation driven by the shared clock ----
+  var view = document.getElementById('view');
+  var renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(window.devicePixelRatio || 1);
+  renderer.gammaOutput = true;
+  renderer.gammaFactor = 2.2;
+  renderer.setClearColor(0xf4f5f7, 1);
+  view.insertBefore(renderer.domElement, view.firstChild);
+  var scene = new THREE.Scene();
+  var camera = new THREE.PerspectiveCamera(35, 1, 0.001, 100);
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x6d7380, 0.55));
+  var key = new THREE.DirectionalLight(0xffffff, 0.75);
+  key.position.set(0.6, 1.0, 1.2);
+  scene.add(key);
+  var rim = new THREE.DirectionalLight(0xffffff, 0.3);
+  rim.position.set(-1.0, 0.2, -0.8);
+  scene.add(rim);
+  var controls = new THREE.OrbitControls(camera, renderer.domElement);
+  controls.enableDamping = false;
+  controls.enableKeys = false;  // the arrow keys step through time (below), not pan
+  controls.addEventListener('change', function () { needsRender = true; });
+  var mixer = null, action = null, lung = null, needsRender = true;
+
+  function resize() {
+    var w = Math.max(1, view.clientWidth), h = Math.max(1, view.clientHeight);
+    renderer.setSize(w, h, false);
+    camera.aspect = w / h;
+    camera.updateProjectionMatrix();
+    needsRender = true;
+  }
+  function render() {
+    renderer.render(scene, camera);
+    needsRender = false;
+  }
+  listeners.push(function (t) {
+    if (action) {
+      action.time = Math.min(t, action.getClip().duration);
+      mixer.update(0);  // evaluates the clip at action.time (no time passes)
+    }
+    needsRender = true;
+  });
+
+  function regionColours(mesh, on) {
+    var geometry = mesh.geometry, material = mesh.material;
+    if (on && !geometry.attributes.color) {
+      var labels = geometry.attributes._region, weights = geometry.attributes._region_weights;
+      if (!labels) return;
+      var names = (mesh.userData && mesh.userData.regionNames) || ['apex', 'costal', 'diaphragmatic', 'mediastinal'];
+      var rgb = names.map(function (n) { return new THREE.Color(REGION_COLORS[n] || '#999999'); });
+      var colors = new Float32Array(labels.count * 3);
+      for (var i = 0; i < labels.count; ++i) {
+        var c = new THREE.Color(0, 0, 0);
+        if (weights) {
+          for (var r = 0; r < 4 && r < rgb.length; ++r) {
+            var w = weights.getComponent ? weights.getComponent(i, r) : weights.array[4 * i + r];
+            c.r += w * rgb[r].r; c.g += w * rgb[r].g; c.b += w * rgb[r].b;
+          }
+        } else {
+          c.copy(rgb[labels.getX(i)] || rgb[0]);
+        }
+        colors[3 * i] = c.r; colors[3 * i + 1] = c.g; colors[3 * i + 2] = c.b;
+      }
+      geometry.setAttribute('color', new THREE.BufferAttribute(colors, 3));
+    }
+    if (!mesh.userData.lungColor) mesh.userData.lungColor = material.color.clone();
+    material.vertexColors = on ? THREE.VertexColors : THREE.NoColors;
+    material.color.copy(on ? new THREE.Color(1, 1, 1) : mesh.userData.lungColor);
+    material.needsUpdate = true;
+    needsRender = true;
+  }
+
+  var loaded = new Promise(function (resolve, reject) {
+    var bytes = base64ToBytes(document.getElementById('pneuma-glb').textContent);
+    new THREE.GLTFLoader().parse(bytes.buffer, '', function (gltf) {
+      scene.add(gltf.scene);
+      gltf.scene.traverse(function (o) { if (o.isMesh && !lung) lung = o; });
+      if (gltf.animations.length > 0) {
+        mixer = new THREE.AnimationMixer(gltf.scene);
+        action = mixer.clipAction(gltf.animations[0]);
+        action.play();
+      }
+      // Frame the lung at rest: anterior-oblique view (glTF +z is the patient's anterior).
+      var box = new THREE.Box3().setFromObject(gltf.scene);
+      var centre = box.getCenter(new THREE.Vector3()), radius = box.getSize(new THREE.Vector3()).length() / 2;
+      var distance = radius / Math.sin(THREE.Math.degToRad(camera.fov / 2)) * 0.8;
+      camera.position.copy(centre).add(new THREE.Vector3(0.35, 0.12, 1).normalize().multiplyScalar(distance));
+      camera.near = distance / 100; camera.far = distance * 10;
+      camera.updateProjectionMatrix();
+      controls.target.copy(centre);
+      controls.update();
+      document.getElementById('regions').addEventListener('change', function (e) { if (lung) regionColours(lung, e.target.checked); });
+      resolve();
+    }, function (e) { reject(e); });
+  });
+
+  function tick(now) {
+    if (state.playing) {
+      if (lastTick !== null && duration > 0) {
+        var t = state.t + (now - lastTick) / 1000 * state.speed;
+        seek(t > duration ? t % duration : t);
+      }
+      lastTick = now;
+    }
+    if (needsRender) render();
+    requestAnimationFrame(tick);
+  }
+  var lastTick = null;
+
+  window.addEventListener('resize', function () { resize(); layoutPlots(); });
+
+  // ---- self-test: render at the given times, read the canvas back, report as JSON ----
+  function pixels() {
+    var gl = renderer.getContext();
+    var w = gl.drawingBufferWidth, h = gl.drawingBufferHeight;
+    var p = new Uint8Array(w * h * 4);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, p);
+    return { w: w, h: h, p: p };
+  }
+  function differs(a, i, b, j) {
+    return Math.abs(a[i] - b[j]) + Math.abs(a[i + 1] - b[j + 1]) + Math.abs(a[i + 2] - b[j + 2]) > 24;
+  }
+  function selftest(at) {
+    var result = { times_s: [], nonblank: [], weights: [], changed: 0, pixels: 0, samples: times.length,
+                   rows: series.rows, stride: series.stride, glb_bytes: 0, errors: 0, messages: [] };
+    var shots = at.map(function (t) {
+      seek(t);
+      render();
+      var shot = pixels();
+      var count = 0;
+      for (var i = 0; i < shot.p.length; i += 4) if (differs(shot.p, i, shot.p, 0)) ++count;  // vs. the corner (background)
+      result.times_s.push(state.t);
+      result.nonblank.push(count);
+      result.weights.push(lung && lung.morphTargetInfluences ? lung.morphTargetInfluences[0] : null);
+      result.pixels = shot.w * shot.h;
+      return shot;
+    });
+    for (var k = 1; k < shots.length; ++k) {
+      for (var i = 0; i < shots[0].p.length; i += 4) if (differs(shots[0].p, i, shots[k].p, i)) ++result.changed;
+    }
+    result.glb_bytes = base64ToBytes(document.getElementById('pneuma-glb').textContent).length;
+    result.ms = Math.round(performance.now());  // since navigation started: load, parse, both renders
+    result.errors = errors.length;
+    result.messages = errors.slice(0, 5);
+    document.getElementById('selftest').textContent = JSON.stringify(result);
+  }
+
+  function start() {
+    resize();
+    layoutPlots();
+    var hash = window.location.hash.replace(/^#/, '');
+    var test = /(?:^|&)selftest=([0-9.,]+)/.exec(hash);
+    var at = /(?:^|&)t=([0-9.]+)/.exec(hash);
+    seek(at ? parseFloat(at[1]) : 0);
+    if (/(?:^|&)regions(?:&|$)/.test(hash) && lung) {
+      document.getElementById('regions').checked = true;
+      regionColours(lung, true);
+    }
+    if (test) {
+      selftest(test[1].split(',').map(parseFloat));
+      return;
+    }
+    render();
+    requestAnimationFrame(tick);
+  }
+  loaded.then(start, function (e) {
+    errors.push('cannot read the embedded glb: ' + String(e && e.message || e));
+    console.error('pneuma report: cannot read the embedded glb:', e);
+    document.getElementById('selftest').textContent = JSON.stringify({ errors: errors.length, messages: errors });
+  });
+})();

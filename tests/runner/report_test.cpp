@@ -1,0 +1,337 @@
+// report.html (#18): what `pneuma run` embeds, checked against the run's other files, and the
+// page itself in headless Chromium (its self-test hook, docs/formats.md).
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <gtest/gtest.h>
+#include <tiny_gltf.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "pneuma/engine/report.h"
+#include "test_support.h"
+
+using pneuma::test::read_text;
+using pneuma::test::run_pneuma;
+using pneuma::test::TempDir;
+
+namespace {
+
+// 4 s of quiet breathing at 10 frames/s on a 12 mm phantom: one complete breath.
+std::string small_scenario(const std::string& outputs, const std::string& output_rate = "100 Hz") {
+  return R"(name: small <report> & "test"
+description: A short run for the report's tests.
+duration: 4 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 12 mm, share: 55 %}
+field: {tissue: healthy-upright}
+physiology:
+  preset: healthy-adult
+  output_rate: )" + output_rate + R"(
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}
+outputs: )" + outputs + "\n";
+}
+
+// The text between `open` and the next `close` after it.
+std::string between(const std::string& text, const std::string& open, const std::string& close) {
+  const auto a = text.find(open);
+  if (a == std::string::npos) return {};
+  const auto b = text.find(close, a + open.size());
+  if (b == std::string::npos) return {};
+  return text.substr(a + open.size(), b - a - open.size());
+}
+
+std::size_t occurrences(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + what.size())) ++n;
+  return n;
+}
+
+// RFC 4648 base64, written here independently of the encoder under test.
+std::string decode_base64(const std::string& text) {
+  auto value = [](char c) -> int {
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    if (c == '+') return 62;
+    if (c == '/') return 63;
+    return -1;
+  };
+  std::string out;
+  unsigned bits = 0;
+  int count = 0;
+  for (char c : text) {
+    if (c == '=') break;
+    const int v = value(c);
+    if (v < 0) continue;
+    bits = (bits << 6) | static_cast<unsigned>(v);
+    count += 6;
+    if (count >= 8) {
+      count -= 8;
+      out += static_cast<char>((bits >> count) & 0xFF);
+    }
+  }
+  return out;
+}
+
+struct Csv {
+  std::vector<std::string> header;
+  std::vector<std::vector<double>> rows;
+  std::size_t column(const std::string& name) const {
+    for (std::size_t i = 0; i < header.size(); ++i) {
+      if (header[i] == name) return i;
+    }
+    ADD_FAILURE() << "no column " << name;
+    return 0;
+  }
+};
+
+Csv read_csv(const std::filesystem::path& path) {
+  Csv csv;
+  std::ifstream in(path);
+  std::string line;
+  auto split = [](const std::string& l) {
+    std::vector<std::string> cells;
+    std::stringstream s(l);
+    for (std::string cell; std::getline(s, cell, ',');) cells.push_back(cell);
+    return cells;
+  };
+  std::getline(in, line);
+  csv.header = split(line);
+  while (std::getline(in, line)) {
+    std::vector<double> row;
+    for (const auto& cell : split(line)) {
+      char* end = nullptr;
+      const double value = std::strtod(cell.c_str(), &end);
+      row.push_back(end != cell.c_str() ? value : NAN);  // text cells (region names) as NaN
+    }
+    csv.rows.push_back(row);
+  }
+  return csv;
+}
+
+struct Page {
+  std::string html;
+  nlohmann::json data;
+  std::string glb;
+};
+
+Page read_page(const std::filesystem::path& path) {
+  Page page;
+  page.html = read_text(path);
+  page.data =
+      nlohmann::json::parse(between(page.html, R"(<script type="application/json" id="pneuma-data">)", "</script>"));
+  page.glb =
+      decode_base64(between(page.html, R"(<script type="application/octet-stream" id="pneuma-glb">)", "</script>"));
+  return page;
+}
+
+// The page must hold everything: no external script, style, image or frame, no CDN.
+void expect_self_contained(const std::string& html) {
+  EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
+  EXPECT_EQ(occurrences(html, "<script src"), 0u);
+  EXPECT_EQ(occurrences(html, "<link"), 0u);
+  EXPECT_EQ(occurrences(html, "<iframe"), 0u);
+  EXPECT_EQ(occurrences(html, "<img"), 0u);
+  EXPECT_EQ(occurrences(html, R"(id="pneuma-data")"), 1u);
+  EXPECT_EQ(occurrences(html, R"(id="pneuma-glb")"), 1u);
+  EXPECT_EQ(occurrences(html, R"(<pre id="selftest">)"), 1u);
+  EXPECT_EQ(occurrences(html, "@GLB_BASE64@"), 0u) << "a placeholder was left";
+  EXPECT_EQ(occurrences(html, "@DATA_JSON@"), 0u);
+  EXPECT_NE(html.find("REVISION=\"111\""), std::string::npos) << "three.js r111 inlined";
+  EXPECT_NE(html.find("THREE.GLTFLoader"), std::string::npos);
+  EXPECT_NE(html.find("THREE.OrbitControls"), std::string::npos);
+}
+
+// The morph weight the glb's animation gives at `t` (its LINEAR sampler, read with tinygltf).
+double glb_weight_at(const std::string& glb, double t) {
+  tinygltf::Model model;
+  tinygltf::TinyGLTF loader;
+  std::string err, warn;
+  const bool ok = loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(glb.data()),
+                                              static_cast<unsigned>(glb.size()));
+  if (!ok) {
+    ADD_FAILURE() << err;
+    return NAN;
+  }
+  auto floats = [&](int index) {
+    const auto& a = model.accessors[static_cast<std::size_t>(index)];
+    const auto& v = model.bufferViews[static_cast<std::size_t>(a.bufferView)];
+    std::vector<float> out(a.count);
+    std::memcpy(out.data(), model.buffers[0].data.data() + v.byteOffset + a.byteOffset, a.count * sizeof(float));
+    return out;
+  };
+  const auto& sampler = model.animations.at(0).samplers.at(0);
+  const auto times = floats(sampler.input), weights = floats(sampler.output);
+  for (std::size_t k = 0; k + 1 < times.size(); ++k) {
+    if (t >= times[k] && t <= times[k + 1]) {
+      const double w = (t - times[k]) / (times[k + 1] - times[k]);
+      return weights[k] + w * (weights[k + 1] - weights[k]);
+    }
+  }
+  return weights.back();
+}
+
+}  // namespace
+
+TEST(Report, StrideKeepsAtMostTheMaximumWithTheLastSample) {
+  using pneuma::engine::report_stride;
+  EXPECT_EQ(report_stride(1), 1u);
+  EXPECT_EQ(report_stride(4000), 1u);
+  EXPECT_EQ(report_stride(4001), 2u);
+  EXPECT_EQ(report_stride(6001), 2u);  // 60 s at 100 Hz: 3001 samples
+  for (std::size_t n : {4001u, 6001u, 7997u, 7998u, 7999u, 12000u, 360001u}) {
+    const std::size_t s = report_stride(n);
+    const std::size_t kept = (n + s - 1) / s + ((n - 1) % s != 0 ? 1 : 0);
+    EXPECT_LE(kept, pneuma::engine::kReportMaxSamples) << n;
+    EXPECT_GT(kept, pneuma::engine::kReportMaxSamples / 2) << n;
+  }
+}
+
+TEST(Report, EmbedsTheRunsGlbAndEveryPhysiologySample) {
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", small_scenario("{hdf5: false}"));
+  const auto out = dir / "out";
+  const auto r = run_pneuma({"run", scenario.string(), "-o", out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_TRUE(std::filesystem::exists(out / "report.html"));
+  EXPECT_NE(r.out.find("open " + (out / "report.html").string() + " in a browser"), std::string::npos) << r.out;
+
+  const Page page = read_page(out / "report.html");
+  expect_self_contained(page.html);
+  // The name, escaped in the title, verbatim in the data.
+  EXPECT_NE(page.html.find("<title>small &lt;report&gt; &amp; &quot;test&quot; - pneuma</title>"), std::string::npos);
+  EXPECT_EQ(page.data["name"], "small <report> & \"test\"");
+  EXPECT_EQ(occurrences(page.html, "<report>"), 0u) << "the name must not appear unescaped";
+
+  // The glb: byte for byte the breathing.glb of the same run.
+  EXPECT_EQ(page.glb, read_text(out / "breathing.glb"));
+
+  // The plots: every physiology.csv row (no decimation below 4000 rows), the same values.
+  const Csv csv = read_csv(out / "physiology.csv");
+  ASSERT_EQ(csv.rows.size(), 401u);  // 4 s at 100 Hz
+  const auto& series = page.data["series"];
+  EXPECT_EQ(series["rows"], csv.rows.size());
+  EXPECT_EQ(series["stride"], 1);
+  for (const std::string name : {"time_s", "volume_mL", "flow_L_per_s", "airway_pressure_cmH2O",
+                                 "alveolar_pressure_cmH2O", "pleural_pressure_cmH2O", "muscle_pressure_cmH2O"}) {
+    const auto& values = series["columns"][name];
+    ASSERT_EQ(values.size(), csv.rows.size()) << name;
+    const std::size_t c = csv.column(name);
+    for (std::size_t k = 0; k < csv.rows.size(); ++k) {
+      ASSERT_NEAR(values[k].get<double>(), csv.rows[k][c], 1e-3) << name << " row " << k;
+    }
+  }
+  EXPECT_EQ(page.data["duration_s"], 4.0);
+  EXPECT_EQ(page.data["frame_count"], 41);
+
+  // The motion table: the means over breaths of motion.csv (one breath here).
+  const Csv motion = read_csv(out / "motion.csv");
+  ASSERT_EQ(motion.rows.size(), 4u);  // one breath, four regions
+  const auto& table = page.data["motion"];
+  EXPECT_EQ(table["breaths"], 1);
+  ASSERT_EQ(table["regions"].size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i) {
+    const auto& region = table["regions"][i];
+    EXPECT_NEAR(region["magnitude_max_mm"].get<double>(), motion.rows[i][motion.column("magnitude_max_mm")], 1e-3);
+    EXPECT_NEAR(region["volume_share_pct"].get<double>(), motion.rows[i][motion.column("volume_share_pct")], 1e-2);
+  }
+
+  // Listed in the manifest with the others.
+  const auto manifest = nlohmann::json::parse(read_text(out / "manifest.json"));
+  bool listed = false;
+  for (const auto& f : manifest["files"]) listed = listed || f["path"] == "report.html";
+  EXPECT_TRUE(listed);
+  // The manifest's motion facts are the same means as the table (the report takes nothing away).
+  EXPECT_NEAR(std::stod(manifest["facts"].at("motion.diaphragmatic.volume_share_pct").get<std::string>()),
+              table["regions"][2]["volume_share_pct"].get<double>(), 0.006);
+  EXPECT_EQ(table["regions"][2]["name"], "diaphragmatic");
+}
+
+TEST(Report, WithoutGltfOutputEmbedsTheSameGlbAndDecimatesLongSeries) {
+  TempDir dir;
+  const auto with = dir / "with", without = dir / "without";
+  ASSERT_EQ(run_pneuma({"run", dir.write("a.yaml", small_scenario("{hdf5: false, motion_csv: false}")).string(), "-o",
+                        with.string(), "--quiet"}).exit_code, 0);
+  // 4 s at 1250 Hz: 5001 rows, more than the page keeps.
+  const auto b = dir.write("b.yaml", small_scenario("{hdf5: false, gltf: false}", "1250 Hz"));
+  const auto r = run_pneuma({"run", b.string(), "-o", without.string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(without / "breathing.glb"));
+  const Page page = read_page(without / "report.html");
+  EXPECT_EQ(page.glb, read_text(with / "breathing.glb"));
+
+  const Csv csv = read_csv(without / "physiology.csv");
+  ASSERT_EQ(csv.rows.size(), 5001u);
+  const auto& series = page.data["series"];
+  const std::size_t stride = pneuma::engine::report_stride(csv.rows.size());
+  EXPECT_EQ(stride, 2u);
+  EXPECT_EQ(series["stride"], stride);
+  const auto& time = series["columns"]["time_s"];
+  ASSERT_EQ(time.size(), 2501u);  // rows 0, 2, ..., 5000
+  for (std::size_t i = 0; i < time.size(); ++i) {
+    const std::size_t k = std::min(i * stride, csv.rows.size() - 1);
+    ASSERT_NEAR(time[i].get<double>(), csv.rows[k][0], 1e-9) << i;
+  }
+}
+
+TEST(Report, OffWhenTheScenarioSaysSo) {
+  TempDir dir;
+  const auto out = dir / "out";
+  const auto r = run_pneuma({"run", dir.write("s.yaml", small_scenario("{hdf5: false, report: false}")).string(), "-o",
+                             out.string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(out / "report.html"));
+  EXPECT_TRUE(std::filesystem::exists(out / "breathing.glb"));
+}
+
+// The page in headless Chromium (Debian's chromium, software WebGL): loads without errors,
+// renders a non-blank lung at two times, the two renders differ (the lung moved), and the
+// mesh's morph weight at each time is the glb's animation there (the one clock drives both).
+TEST(Report, RendersInHeadlessChromiumAtTwoTimes) {
+  const auto chromium = pneuma::test::find_program({"chromium", "chromium-browser"});
+  if (chromium.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
+  TempDir dir;
+  const auto out = dir / "out";
+  ASSERT_EQ(run_pneuma({"run", dir.write("s.yaml", small_scenario("{hdf5: false}")).string(), "-o", out.string(),
+                        "--quiet"}).exit_code, 0);
+  const double t0 = 0.1, t1 = 1.6;  // near rest and near the end of inspiration
+  const auto url = "file://" + std::filesystem::absolute(out / "report.html").string() + "#selftest=0.1,1.6";
+  const auto r = pneuma::test::run_program(
+      "/usr/bin/timeout",
+      {"120", chromium.string(), "--headless=new", "--no-sandbox", "--no-first-run", "--disable-gpu",
+       "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--user-data-dir=" + (dir / "profile").string(),
+       "--window-size=1280,900", "--virtual-time-budget=15000", "--enable-logging=stderr", "--v=0", "--dump-dom", url});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string text = between(r.out, R"(<pre id="selftest">)", "</pre>");
+  ASSERT_FALSE(text.empty()) << r.out.substr(0, 2000);
+  ASSERT_NE(text, "pending") << "the page never finished loading\n" << r.err;
+  const auto result = nlohmann::json::parse(text);
+  EXPECT_EQ(result["errors"], 0) << result["messages"].dump();
+  const double pixels = result["pixels"].get<double>();
+  ASSERT_GT(pixels, 10000.0);
+  ASSERT_EQ(result["nonblank"].size(), 2u);
+  for (const auto& count : result["nonblank"]) EXPECT_GT(count.get<double>(), 0.01 * pixels) << "blank canvas";
+  EXPECT_GT(result["changed"].get<double>(), 0.002 * pixels) << "the lung did not move between the two times";
+  EXPECT_EQ(result["samples"], 401);
+  const std::string glb = read_text(out / "breathing.glb");
+  EXPECT_EQ(result["glb_bytes"], glb.size());
+  EXPECT_NEAR(result["weights"][0].get<double>(), glb_weight_at(glb, t0), 1e-5);
+  EXPECT_NEAR(result["weights"][1].get<double>(), glb_weight_at(glb, t1), 1e-5);
+  EXPECT_GT(result["weights"][1].get<double>(), 0.5);
+
+  // Chromium's own log of the page's console: no uncaught exception, no error.
+  std::stringstream log(r.err);
+  for (std::string line; std::getline(log, line);) {
+    if (line.find("GL Driver Message") != std::string::npos) continue;  // Chromium's note on readPixels
+    EXPECT_EQ(line.find("Uncaught"), std::string::npos) << line;
+    if (line.find(":CONSOLE") != std::string::npos) {
+      EXPECT_EQ(line.find("rror"), std::string::npos) << line;
+    }
+  }
+}
