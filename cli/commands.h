@@ -2,6 +2,7 @@
 // Each subcommand registers itself on the app; its callback does the work and throws
 // pneuma::Error on failure (main() turns that into one line and an exit code).
 #include <CLI/CLI.hpp>
+#include <initializer_list>
 #include <string>
 
 namespace pneuma::cli {
@@ -18,5 +19,8 @@ void register_render(CLI::App& app);
 // Adds `--name VALUE` that parses a quantity with its unit (e.g. "3mm") into SI.
 CLI::Option* add_quantity_option(CLI::App& command, const std::string& name, double& value_si,
                                  const std::string& description, const char* kind_name);
+
+// Ends the command's --help with "Examples:" and one command line per entry.
+void add_examples(CLI::App& command, std::initializer_list<const char*> lines);
 
 }  // namespace pneuma::cli

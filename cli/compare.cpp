@@ -66,6 +66,7 @@ void register_compare(CLI::App& app) {
   cmd->add_option("--grid-side", options->grid_side, "Side of the pushed grid of figures 6-8 (odd; default 21)");
   cmd->add_option("--seed", options->seed, "Seed of the irregular grids of figure 2")->capture_default_str();
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing on success");
+  add_examples(*cmd, {"pneuma compare fig6 -o out/paper", "pneuma compare all --quick -o out/paper-quick"});
   cmd->callback([options] { run_compare(*options); });
 }
 

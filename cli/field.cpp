@@ -152,6 +152,9 @@ void register_field(CLI::App& app) {
                                           "the file records, else mm)")->capture_default_str();
   add_quantity_option(*cmd, "--edge", options->edge_m, "Phantom edge length (default 4 mm)", "length");
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing on success");
+  add_examples(*cmd, {"pneuma field phantom:right --tissue healthy-upright -o field.h5",
+                      "pneuma field right.ply --tissue configs/tissue/healthy-supine.yaml -o right-field.h5",
+                      "pneuma field icosphere:10cm:3 --tissue healthy-upright --solver shot --clique 2 -o sphere.h5"});
   cmd->callback([options, cmd] {
     options->unit_given = cmd->count("--unit") > 0;
     run_field(*options);

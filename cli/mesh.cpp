@@ -157,12 +157,16 @@ void register_mesh(CLI::App& app) {
   auto o = std::make_shared<MeshOptions>();
   CLI::App* mesh_cmd = app.add_subcommand("mesh", "Inspect, repair and remesh triangle surfaces (STL, OBJ, PLY, OFF, glTF, VTK, ...); surfaces from label maps");
   mesh_cmd->require_subcommand(1);
+  add_examples(*mesh_cmd, {"pneuma mesh info patient.stl", "pneuma mesh repair patient.stl -o repaired.ply",
+                           "pneuma mesh remesh patient.vtk --edge 3mm -o remeshed.ply",
+                           "pneuma mesh from-labels lobes.nii.gz --labels 3,4,5 -o right.stl"});
 
   CLI::App* info = mesh_cmd->add_subcommand("info", "Counts, bounding box, area, volume and the validation report; "
                                                     "exit 3 when the surface is not valid");
   info->add_option("file", o->input, "Mesh file")->required();
   add_unit_option(*info, *o);
   info->add_flag("--no-self-intersections", o->skip_self_intersections, "Skip the self-intersection test (the slowest)");
+  add_examples(*info, {"pneuma mesh info patient.stl", "pneuma mesh info scan.obj --unit cm --no-self-intersections"});
   info->callback([o, info] {
     o->unit_given = info->count("--unit") > 0;
     run_info(*o);
@@ -174,6 +178,8 @@ void register_mesh(CLI::App& app) {
   add_unit_option(*repair, *o);
   repair->add_option("--max-hole", o->max_hole_edges, "Fill holes of at most this many boundary edges")->capture_default_str();
   repair->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
+  add_examples(*repair, {"pneuma mesh repair patient.stl -o repaired.ply",
+                         "pneuma mesh repair segmentation.vtp -o repaired.stl --max-hole 200 --ascii"});
   repair->callback([o, repair] {
     o->unit_given = repair->count("--unit") > 0;
     run_repair(*o);
@@ -188,6 +194,8 @@ void register_mesh(CLI::App& app) {
   remesh->add_option("--max-hole", o->max_hole_edges, "When the input needs repair: fill holes of at most this many "
                                                      "boundary edges")->capture_default_str();
   remesh->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
+  add_examples(*remesh, {"pneuma mesh remesh patient.stl --edge 3mm -o remeshed.ply",
+                         "pneuma mesh remesh repaired.ply --edge 1.5mm --iterations 5 -o fine.ply"});
   remesh->callback([o, remesh] {
     o->unit_given = remesh->count("--unit") > 0;
     run_remesh(*o);
@@ -211,6 +219,8 @@ void register_mesh(CLI::App& app) {
                                                "written beside it (<output>.provenance.txt)")
       ->required();
   labels->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
+  add_examples(*labels, {"pneuma mesh from-labels lobes.nii.gz --labels 3,4,5 -o right.stl",
+                         "pneuma mesh from-labels lobes.nii.gz --labels 1,2 --edge 1mm --smooth 0.5mm -o left.ply"});
   labels->callback([o] {
     if (!(o->from_labels.edge_length_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '2 mm'");
     if (o->from_labels.smoothing_m < 0.0) throw UsageError("pneuma: --smooth: must be a length >= 0 such as '1 mm'");

@@ -46,6 +46,8 @@ void register_phantom(CLI::App& app) {
   cmd->add_option("-o,--output", o->output, "Mesh file to write (.ply, .obj or .stl)")->required();
   cmd->add_option("--unit", o->unit, "Length of one file unit (mm, cm, m, ...)")->capture_default_str();
   cmd->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
+  add_examples(*cmd, {"pneuma phantom --lung right --edge 2mm -o right.ply",
+                      "pneuma phantom --lung both -o lungs.stl --unit m"});
   cmd->callback([o] { run_phantom(*o); });
 }
 

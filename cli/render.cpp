@@ -104,6 +104,8 @@ void register_render(CLI::App& app) {
       ->type_name("egl|osmesa|auto");
   cmd->add_flag("--info", options->info, "Print the OpenGL version and renderer that rendering gets here");
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing (the exit status tells)");
+  add_examples(*cmd, {"pneuma render --info --gl egl",
+                      "pneuma render --compare expected.png out/demo/png/frame_00000.png --diff diff.png"});
   cmd->callback([options] { run_render(*options); });
 }
 

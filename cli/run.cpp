@@ -62,9 +62,8 @@ void register_run(CLI::App& app) {
   add_quantity_option(*cmd, "--edge", options->edge_m, "Override the mesh edge length (e.g. 8mm for a quick run)",
                       "length");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress and no summary");
-  cmd->footer("\nExamples:\n"
-              "  pneuma run scenarios/quiet-breathing.yaml -o out/demo\n"
-              "  pneuma run scenarios/ventilated-patient.yaml -o out/vent --edge 8mm --quiet\n");
+  add_examples(*cmd, {"pneuma run scenarios/quiet-breathing.yaml -o out/demo",
+                      "pneuma run scenarios/ventilated-patient.yaml -o out/vent --edge 8mm --quiet"});
   cmd->callback([options] { run_command(*options); });
 }
 

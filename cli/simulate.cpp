@@ -49,6 +49,8 @@ void register_simulate(CLI::App& app) {
   cmd->add_option("-o,--output", options->output, "Time-series CSV to write")->capture_default_str();
   cmd->add_option("--breaths", options->breaths, "Per-breath metrics CSV (default: <output stem>-breaths.csv)");
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing on success");
+  add_examples(*cmd, {"pneuma simulate scenarios/quiet-breathing.yaml -o quiet.csv",
+                      "pneuma simulate scenarios/ventilated-patient.yaml -o vent.csv --breaths vent-breaths.csv"});
   cmd->callback([options] { run_simulate(*options); });
 }
 

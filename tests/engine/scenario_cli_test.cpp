@@ -2,6 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "test_support.h"
 
@@ -37,6 +40,29 @@ TEST(SimulateCli, VersionAndHelp) {
   EXPECT_NE(r.out.find("Usage: pneuma run "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("--edge <length, e.g. 3mm>"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("Examples:"), std::string::npos) << r.out;
+}
+
+// Every command's --help ends with examples of that very command (not the top-level ones).
+TEST(SimulateCli, EveryCommandsHelpShowsItsOwnExamples) {
+  const std::vector<std::vector<std::string>> commands = {
+      {"run"},  {"simulate"}, {"field"},         {"phantom"},          {"render"},          {"compare"},
+      {"mesh"}, {"mesh", "info"}, {"mesh", "repair"}, {"mesh", "remesh"}, {"mesh", "from-labels"}};
+  for (const auto& command : commands) {
+    std::vector<std::string> args = command;
+    args.emplace_back("--help");
+    const auto r = run_pneuma(args);
+    std::string name = "pneuma";
+    for (const auto& word : command) name += " " + word;
+    ASSERT_EQ(r.exit_code, 0) << name;
+    const auto examples = r.out.find("\nExamples:\n");
+    ASSERT_NE(examples, std::string::npos) << name << ":\n" << r.out;
+    std::istringstream lines(r.out.substr(examples + 11));
+    int count = 0;
+    for (std::string line; std::getline(lines, line) && !line.empty(); ++count) {
+      EXPECT_EQ(line.rfind("  " + name + " ", 0), 0u) << name << ": '" << line << "'";
+    }
+    EXPECT_GE(count, command == std::vector<std::string>{"mesh"} ? 4 : 2) << name;
+  }
 }
 
 struct BadScenario {
