@@ -59,7 +59,7 @@ using EGLint = std::int32_t;
 using EGLBoolean = unsigned int;
 using EGLenum = unsigned int;
 using EglProc = void (*)();
-constexpr EGLint kEglSuccess = 0x3000, kEglNone = 0x3038, kEglExtensions = 0x3055, kEglRenderableType = 0x3040,
+constexpr EGLint kEglNone = 0x3038, kEglExtensions = 0x3055, kEglRenderableType = 0x3040,
                  kEglOpenglBit = 0x0008, kEglSurfaceType = 0x3033, kEglPbufferBit = 0x0001,
                  kEglContextMajorVersion = 0x3098, kEglContextMinorVersion = 0x30FB,
                  kEglContextOpenglProfileMask = 0x30FD, kEglContextOpenglCoreProfileBit = 0x0001;

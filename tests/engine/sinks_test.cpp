@@ -7,6 +7,7 @@
 #include <tiny_gltf.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <tuple>
 #include <fmt/format.h>
@@ -135,6 +136,56 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
       }
     }
   }
+}
+
+// Blender (when installed; not in install-deps, it is large) opens the glb with
+// scripts/blender-open.py: the timeline is the whole animation at the run's rate, and the shape
+// key's value at Blender frame k is the glb's morph weight k, read by tinygltf (negative weights,
+// a breath below the rest shape, included).
+TEST(GltfSink, BlenderOpensTheWholeAnimationWithBlenderOpenWhenInstalled) {
+  if (std::system("command -v blender >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "blender not found (apt-get install blender to run this check)";
+  TempDir dir;
+  const BreathingModel model = sphere_model();
+  auto sink = make_gltf_sink(dir / "breathing.glb");
+  const auto scales = drive(*sink, model, 40, 10.0);
+  tinygltf::Model m;
+  tinygltf::TinyGLTF loader;
+  std::string error, warning;
+  ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &error, &warning, (dir / "breathing.glb").string())) << error;
+  const float* weights = accessor_floats(m, m.animations[0].samplers[0].output);
+
+  const auto check = dir.write("check.py", R"(import bpy
+s = bpy.context.scene
+key = [o for o in bpy.data.objects if o.type == 'MESH'][0].data.shape_keys.key_blocks[-1]
+print('range', s.frame_start, s.frame_end, s.render.fps)
+for k in range(s.frame_start, s.frame_end + 1):
+    s.frame_set(k)
+    print('weight', k, repr(key.value))
+)");
+  const std::string out = (dir / "out.txt").string();
+  const std::string blender = "blender -b --factory-startup --python-exit-code 1 ";
+  const int status = std::system((blender + "--python " + PNEUMA_SOURCE_DIR + "/scripts/blender-open.py -- " +
+                                  (dir / "breathing.glb").string() + " --save " + (dir / "b.blend").string() + " >" +
+                                  out + " 2>&1 && " + blender + (dir / "b.blend").string() + " --python " +
+                                  check.string() + " >>" + out + " 2>&1")
+                                     .c_str());
+  const std::string text = pneuma::test::read_text(out);
+  ASSERT_EQ(status, 0) << text;
+  EXPECT_NE(text.find("range 0 39 10\n"), std::string::npos) << text;
+  std::size_t seen = 0;
+  bool negative = false;
+  for (std::size_t at = text.find("weight "); at != std::string::npos; at = text.find("weight ", at + 1)) {
+    std::size_t k = 0;
+    double value = 0.0;
+    ASSERT_EQ(std::sscanf(text.c_str() + at, "weight %zu %lf", &k, &value), 2);
+    ASSERT_LT(k, scales.size());
+    EXPECT_NEAR(value, weights[k], 1e-6) << "frame " << k;
+    negative = negative || weights[k] < 0.0f;
+    ++seen;
+  }
+  EXPECT_EQ(seen, scales.size()) << text;
+  EXPECT_TRUE(negative) << "the drive reaches below the rest shape";
 }
 
 std::string h5_string_attribute(hid_t object, const char* name) {
