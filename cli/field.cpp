@@ -8,6 +8,7 @@
 
 #include "commands.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/paths.h"
 #include "pneuma/core/units.h"
 #include "pneuma/engine/field_cache.h"
 #include "pneuma/engine/physiology_config.h"
@@ -81,7 +82,7 @@ mesh::TriangleMesh load_mesh_for_cli(const std::string& spec, const std::string&
 
 engine::Tissue load_tissue_for_cli(const std::string& name_or_path) {
   const std::filesystem::path file = engine::tissue_file(name_or_path, engine::default_config_dir());
-  if (file.string() != name_or_path && !std::filesystem::exists(file)) {
+  if (file.string() != name_or_path && !path_exists(file)) {
     throw UsageError("pneuma: --tissue: no preset '" + name_or_path + "' (looked for " + file.string() +
                      "; shipped presets: healthy-upright, healthy-supine, fibrotic-lower-lobe)");
   }

@@ -84,6 +84,25 @@ TEST_P(SimulateBadInput, OneLineNamingFilePlaceAndExpectation) {
   EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"}) << "no partial output";
 }
 
+// A name longer than the file system takes (found by fuzz_scenario: std::filesystem::exists threw
+// ENAMETOOLONG past the loader, which aborted): the same one line as any unknown name.
+TEST(SimulateCli, ANameTooLongForTheFileSystemIsTheUsualOneLine) {
+  TempDir dir;
+  const std::string name(300, 'x');
+  const auto file = dir.write("s.yaml", "duration: 20 s\nphysiology:\n  preset: " + name + "\n");
+  auto r = run_pneuma({"simulate", file.string(), "-o", (dir / "out.csv").string()});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() + ":3:11: physiology.preset: no preset '" + name + "' (looked for " PNEUMA_SOURCE_DIR
+                       "/configs/physiology/" + name + ".yaml; shipped presets: healthy-adult, stiff-lung, obstructive)\n");
+  const auto run = dir.write("r.yaml", "duration: 20 s\nphysiology:\n  preset: healthy-adult\nfield:\n  tissue: " +
+                                           name + "\n");
+  r = run_pneuma({"run", run.string(), "-o", (dir / "out").string()});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, run.string() + ":5:11: field.tissue: no tissue '" + name + "' (looked for " PNEUMA_SOURCE_DIR
+                       "/configs/tissue/" + name + ".yaml; shipped: healthy-upright, healthy-supine, fibrotic-lower-lobe)\n");
+  EXPECT_FALSE(std::filesystem::exists(dir / "out"));
+}
+
 INSTANTIATE_TEST_SUITE_P(
     Cases, SimulateBadInput,
     ::testing::Values(

@@ -2,6 +2,7 @@
 // `pneuma field` command's output and one-line errors.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 
@@ -91,6 +92,18 @@ TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
   write_bytes(dir / "foreign.h5", foreign);
   EXPECT_EQ(load_error(dir / "foreign.h5"),
             (dir / "foreign.h5").string() + ": not a pneuma field file: its format is not 'pneuma-field'");
+
+  // A damaged header claiming 2^40 vertices (found by fuzz_field_cache: the reader allocated what
+  // the header claimed, ~26 TB, and died): refused before any allocation.
+  std::string huge = bytes;
+  const std::uint64_t dims[2] = {model.rest.vertex_count(), 3}, claimed = std::uint64_t{1} << 40;
+  const auto dims_at = huge.find(std::string(reinterpret_cast<const char*>(dims), sizeof dims));
+  ASSERT_NE(dims_at, std::string::npos);
+  huge.replace(dims_at, 8, std::string(reinterpret_cast<const char*>(&claimed), 8));
+  write_bytes(dir / "huge.h5", huge);
+  EXPECT_EQ(load_error(dir / "huge.h5"), (dir / "huge.h5").string() +
+                                             ": not a pneuma field file: dataset /rest/positions claims 1099511627776 "
+                                             "items, more than the file can hold (damaged)");
 
   write_bytes(dir / "text.h5", "hello\n");
   EXPECT_EQ(load_error(dir / "text.h5"), (dir / "text.h5").string() + ": not a pneuma field file: not an HDF5 file");

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <optional>
 #include <fmt/format.h>
 
@@ -133,8 +134,15 @@ void write_file(const std::filesystem::path& tmp, const std::string& shown, cons
 struct Reader {
   std::string file;
   hid_t root = -1;
+  // The most bytes a value may claim: a damaged header can claim any size, and a file of B bytes
+  // holds at most ~1032 B after deflate (zlib's largest ratio), so more is damage, not data.
+  std::uint64_t max_value_bytes = std::numeric_limits<std::uint64_t>::max();
   [[noreturn]] void refuse(const std::string& why) const {
     throw InputError(file + ": not a pneuma field file: " + why);
+  }
+  void check_claimed_size(const char* what, std::uint64_t items, std::uint64_t bytes_per_item) const {
+    if (bytes_per_item != 0 && items > max_value_bytes / bytes_per_item)
+      refuse(std::string(what) + " claims " + std::to_string(items) + " items, more than the file can hold (damaged)");
   }
 
   std::string string_attribute(const char* name) const {
@@ -144,6 +152,7 @@ struct Reader {
     if (!type.ok() || H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) != 0)
       refuse(std::string("attribute '") + name + "' is not a fixed-length string");
     const std::size_t size = H5Tget_size(type.get());
+    check_claimed_size((std::string("attribute '") + name + "'").c_str(), size, 1);
     std::string value(size, '\0');
     Hdf5Handle memory(H5Tcopy(H5T_C_S1), H5Tclose);
     H5Tset_size(memory.get(), size);
@@ -179,6 +188,8 @@ struct Reader {
         H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr) < 0 || (columns != 0 && dims[1] != columns))
       refuse(std::string("dataset ") + path + " has the wrong type or shape");
     const std::size_t rows = dims[0];
+    check_claimed_size((std::string("dataset ") + path).c_str(), rows,
+                       std::max<hsize_t>(columns, 1) * sizeof(T) / scalars_per_item);
     out.resize(rows * std::max<hsize_t>(columns, 1) / scalars_per_item);
     if (rows > 0 && H5Dread(set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
       refuse(std::string("cannot read dataset ") + path + " (truncated or damaged)");
@@ -189,6 +200,9 @@ struct Reader {
 FieldModel read_file(const std::filesystem::path& path) {
   const std::string shown = path.string();
   Reader r{shown};
+  std::error_code ec;
+  const std::uint64_t file_bytes = std::filesystem::file_size(path, ec);
+  if (!ec) r.max_value_bytes = 1100 * file_bytes + 65536;
   const htri_t is_hdf5 = H5Fis_hdf5(path.c_str());
   if (is_hdf5 <= 0) r.refuse("not an HDF5 file");
   Hdf5Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
@@ -218,7 +232,7 @@ FieldModel read_file(const std::filesystem::path& path) {
     if (H5Lexists(r.root, "field", H5P_DEFAULT) <= 0) r.refuse("no group /field");
     Hdf5Handle group(H5Gopen2(r.root, "field", H5P_DEFAULT), H5Gclose);
     if (!group.ok()) r.refuse("cannot open group /field");
-    const Reader field{shown, group.get()};
+    const Reader field{shown, group.get(), r.max_value_bytes};
     d.area_unit_m2 = field.number_attribute<double>("area_unit_m2", H5T_NATIVE_DOUBLE, H5T_FLOAT);
   }
   const std::size_t nv = r.dataset("/rest/positions", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, m.rest.vertices, 3);

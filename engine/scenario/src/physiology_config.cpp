@@ -4,6 +4,7 @@
 #include <optional>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/paths.h"
 
 namespace pneuma::engine {
 namespace {
@@ -190,7 +191,7 @@ Node with_preset(const Node& section, const std::filesystem::path& config_dir) {
   } else {
     file = config_dir / "physiology" / (*preset + ".yaml");
   }
-  if (!std::filesystem::exists(file)) {
+  if (!path_exists(file)) {
     section.fail_at("preset", "no preset '" + *preset + "' (looked for " + file.string() +
                                   "; shipped presets: healthy-adult, stiff-lung, obstructive)");
   }

@@ -5,6 +5,7 @@
 #include <cctype>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/paths.h"
 #include "pneuma/engine/config.h"
 #include "pneuma/render/camera.h"
 
@@ -30,7 +31,7 @@ MeshSpec read_mesh_spec(const Node& n) {
   if (n.has("labels")) {
     m.phantom.reset();
     m.labels_file = n.directory("labels") / n.string("labels");
-    if (!std::filesystem::exists(m.labels_file)) n.fail_at("labels", "no such file: " + m.labels_file.string());
+    if (!path_exists(m.labels_file)) n.fail_at("labels", "no such file: " + m.labels_file.string());
     for (const Node& item : n.sequence("values")) {
       m.label_values.push_back(static_cast<int>(item.as_integer(1, 1'000'000)));
     }
@@ -40,7 +41,7 @@ MeshSpec read_mesh_spec(const Node& n) {
   } else if (n.has("file")) {
     m.phantom.reset();
     m.file = n.directory("file") / n.string("file");
-    if (!std::filesystem::exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
+    if (!path_exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
     if (n.has("unit")) {
       m.unit_given = true;
       // A unit name ("mm") or a length ("0.5 mm"): the length of one file unit.
@@ -76,7 +77,7 @@ FieldSpec read_field(const Node& n, const std::filesystem::path& config_dir) {
   if (n.has("tissue")) f.tissue = n.string("tissue");
   const bool is_path = f.tissue.find('/') != std::string::npos || f.tissue.ends_with(".yaml");
   f.tissue_file = is_path ? n.directory("tissue") / f.tissue : config_dir / "tissue" / (f.tissue + ".yaml");
-  if (!std::filesystem::exists(f.tissue_file)) {
+  if (!path_exists(f.tissue_file)) {
     n.fail_at("tissue", "no tissue '" + f.tissue + "' (looked for " + f.tissue_file.string() +
                             "; shipped: healthy-upright, healthy-supine, fibrotic-lower-lobe)");
   }
