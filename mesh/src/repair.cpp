@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <iterator>
 #include <map>
 #include <set>
@@ -20,6 +21,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/repair.h"
 #include "pneuma/mesh/validate.h"
+#include "voxel_rebuild.h"
 
 namespace PMP = CGAL::Polygon_mesh_processing;
 
@@ -32,16 +34,29 @@ using detail::SurfaceMesh;
 
 bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
 
-// The problems repair does not touch, in the validator's words (input indices).
-void refuse_unrepairable(const ValidationReport& report, const std::string& name) {
+// The first problem no face-by-face repair mends, in the validator's words (input indices).
+std::string unrepairable_problem(const ValidationReport& report) {
   for (const std::string& p : report.problems) {
-    const bool unrepairable = p.find("non-manifold") != std::string::npos || starts_with(p, "non-orientable");
-    if (unrepairable) {
-      throw InputError(name + ": cannot repair: " + p +
-                       " (no safe automatic repair: re-export the surface, or rebuild it from its label map with "
-                       "'pneuma mesh from-labels')");
-    }
+    if (p.find("non-manifold") != std::string::npos || starts_with(p, "non-orientable")) return p;
   }
+  return {};
+}
+
+void refuse_unrepairable(const std::string& problem, const std::string& name, bool tried_rebuild) {
+  throw InputError(name + ": cannot repair: " + problem +
+                   (tried_rebuild ? " (and the surface is open, so it cannot be rebuilt from its inside: "
+                                  : " (no safe automatic repair: ") +
+                   "re-export the surface, or rebuild it from its label map with 'pneuma mesh from-labels')");
+}
+
+void record_rebuild(RepairReport& rep, const detail::ComponentsRebuild& rebuilt, std::string why) {
+  rep.rebuilt_components = rebuilt.rebuilt;
+  rep.rebuilt_for = std::move(why);
+  rep.rebuilt_voxel_m = rebuilt.voxel_m;
+  rep.rebuilt_edge_m = rebuilt.edge_m;
+  rep.rebuilt_volume_before_m3 = rebuilt.volume_before_m3;
+  rep.rebuilt_volume_after_m3 = rebuilt.volume_after_m3;
+  rep.handles_removed = std::max(0, rebuilt.genus_before - rebuilt.genus_after);
 }
 
 std::string count_of(std::size_t n, const char* one, const char* many) {
@@ -71,6 +86,20 @@ std::vector<std::string> RepairReport::actions() const {
                             count_of(dropped_components, "small component", "small components"),
                             count_of(dropped_component_faces, "face", "faces"), dropped_component_area_m2 * 1e6,
                             100.0 * min_component_fraction));
+  }
+  if (rebuilt_components) {
+    a.push_back(fmt::format("rebuilt {} from its inside ({}): a {:.3g} mm voxel grid, facets of {:.3g} mm, enclosed "
+                            "volume {:.4g} -> {:.4g} mL ({:+.2f} %)",
+                            count_of(rebuilt_components, "component", "components"), rebuilt_for, rebuilt_voxel_m * 1e3,
+                            rebuilt_edge_m * 1e3, rebuilt_volume_before_m3 * 1e6, rebuilt_volume_after_m3 * 1e6,
+                            rebuilt_volume_before_m3 > 0.0
+                                ? 100.0 * (rebuilt_volume_after_m3 / rebuilt_volume_before_m3 - 1.0)
+                                : 0.0));
+  }
+  if (handles_removed) a.push_back("removed " + count_of(static_cast<std::size_t>(handles_removed), "handle", "handles"));
+  if (handles_kept) {
+    a.push_back("kept " + count_of(static_cast<std::size_t>(handles_kept), "handle", "handles") + " (genus " +
+                std::to_string(handles_kept) + "): " + handles_kept_because);
   }
   if (remeshed_edge_m > 0.0) {
     a.push_back(fmt::format("remeshed at {:.3g} mm before the verdict, which removed what repair left: {}", remeshed_edge_m * 1e3,
@@ -284,7 +313,19 @@ std::vector<std::size_t> all_checkable_faces(const TriangleMesh& mesh) {
 RepairResult repair_unchecked(const TriangleMesh& mesh, const std::string& name, const RepairOptions& options,
                               ValidationReport* after) {
   const ValidationReport before = validate(mesh);
-  refuse_unrepairable(before, name);
+  if (const std::string problem = unrepairable_problem(before); !problem.empty()) {
+    if (options.rebuild_through_voxels) {
+      const auto rebuilt = detail::rebuild_components(mesh, name, detail::rebuild_edge_for(mesh), false);
+      if (!rebuilt.open) {
+        RepairResult result;
+        result.mesh = rebuilt.mesh;
+        record_rebuild(result.report, rebuilt, problem);
+        if (after != nullptr) *after = validate(result.mesh);
+        return result;
+      }
+    }
+    refuse_unrepairable(problem, name, options.rebuild_through_voxels);
+  }
   // Self-intersections of the input: the faces involved and one ring around them are removed,
   // and the holes refilled; a refill that still intersects is redone with a wider ring.
   std::vector<std::pair<std::size_t, std::size_t>> pairs;
@@ -317,6 +358,30 @@ RepairResult repair_unchecked(const TriangleMesh& mesh, const std::string& name,
     next.report.dropped_vertices = rep.dropped_vertices;
     result = std::move(next);
     check = validate(result.mesh);
+  }
+  // Handles (a lung has none): the components that have them are rebuilt; kept when too wide.
+  if (check.valid() && check.genus.value_or(0) > 0) {
+    const int genus = *check.genus;
+    if (options.rebuild_through_voxels) {
+      auto rebuilt = detail::rebuild_components(result.mesh, name, detail::rebuild_edge_for(result.mesh), true);
+      const double change = rebuilt.volume_before_m3 > 0.0 ? rebuilt.volume_after_m3 / rebuilt.volume_before_m3 - 1.0 : 0.0;
+      if (rebuilt.open || rebuilt.genus_after >= rebuilt.genus_before) {
+        rep.handles_kept_because = "wider than the closing that removes small ones";
+      } else if (std::abs(change) > options.max_handle_volume_change) {
+        rep.handles_kept_because = fmt::format("removing them would change the enclosed volume by {:+.1f} % (more than "
+                                               "{:g} %: not a small defect)",
+                                               100.0 * change, 100.0 * options.max_handle_volume_change);
+      } else if (ValidationReport rebuilt_check = validate(rebuilt.mesh); rebuilt_check.valid()) {
+        result.mesh = std::move(rebuilt.mesh);
+        record_rebuild(rep, rebuilt, genus == 1 ? "1 handle" : std::to_string(genus) + " handles");
+        check = std::move(rebuilt_check);
+      } else {
+        rep.handles_kept_because = "the rebuilt surface was not valid: " + rebuilt_check.summary();
+      }
+    } else {
+      rep.handles_kept_because = "rebuilding is off";
+    }
+    rep.handles_kept = check.genus.value_or(0);
   }
   if (after != nullptr) *after = std::move(check);
   return result;

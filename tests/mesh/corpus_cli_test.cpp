@@ -108,20 +108,29 @@ TEST(MeshCli, InsideOut) {
   expect_repaired(dir, file, "reversed 1 inside-out component");
 }
 
-TEST(MeshCli, NonManifoldEdgeIsRefused) {
-  // Two tetrahedra that share the edge 0-1 (and nothing else): four faces on one edge.
+TEST(MeshCli, NonManifoldEdgeOnAnOpenSurfaceIsRefused) {
+  // Two tetrahedra that share the edge 0-1 (and nothing else): four faces on one edge. Closed,
+  // it would be rebuilt from its inside (tests/mesh/rebuild_test.cpp); with a face missing it has
+  // no inside to rebuild from.
   TempDir dir;
   // PLY keeps the file's vertex numbering, which the messages use.
-  const auto file = dir.write("bowtie.ply",
-                              "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
-                              "element face 8\nproperty list uchar int vertex_indices\nend_header\n"
-                              "0 0 0\n0 0 1\n1 0 0\n0 1 0\n-1 0 0\n0 -1 0\n"
-                              "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
-                              "3 0 4 1\n3 0 1 5\n3 0 5 4\n3 1 4 5\n").string();
-  expect_info_error(file, 3, "non-manifold edge 0-1 (shared by faces 0, 1, 4, 5)");
-  expect_refused(dir, file,
-                 file + ": cannot repair: non-manifold edge 0-1 (shared by faces 0, 1, 4, 5) (no safe automatic repair: "
-                        "re-export the surface, or rebuild it from its label map with 'pneuma mesh from-labels')");
+  const std::string header = "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
+                             "element face FACES\nproperty list uchar int vertex_indices\nend_header\n"
+                             "0 0 0\n0 0 1\n1 0 0\n0 1 0\n-1 0 0\n0 -1 0\n"
+                             "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
+                             "3 0 4 1\n3 0 1 5\n3 0 5 4\n";
+  auto with_faces = [&](const char* count) {
+    std::string text = header;
+    text.replace(text.find("FACES"), 5, count);
+    return text;
+  };
+  const auto closed = dir.write("bowtie.ply", with_faces("8") + "3 1 4 5\n").string();
+  expect_info_error(closed, 3, "non-manifold edge 0-1 (shared by faces 0, 1, 4, 5)");
+  const auto open = dir.write("open-bowtie.ply", with_faces("7")).string();
+  expect_refused(dir, open,
+                 open + ": cannot repair: non-manifold edge 0-1 (shared by faces 0, 1, 4, 5) (and the surface is open, so "
+                        "it cannot be rebuilt from its inside: re-export the surface, or rebuild it from its label map "
+                        "with 'pneuma mesh from-labels')");
 }
 
 TEST(MeshCli, TwoComponentsAreValidAndKept) {

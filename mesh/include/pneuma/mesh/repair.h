@@ -10,8 +10,16 @@
 // borders that coincide (stitched), zero-area faces (collapsed), holes of at most
 // `max_hole_edges` boundary edges (CGAL triangulate_refine_and_fair_hole), closed components
 // that enclose a negative volume (reversed), unused vertices (dropped).
+// Rebuilt from the inside (rebuild_through_voxels): what no face-by-face repair mends, when
+// the surface is closed: non-manifold edges and vertices and non-orientable surfaces (every
+// component), and handles (genus > 0: only the components that have them; a lung has none).
+// The inside is found on a voxel grid of half the surface's mean edge by ray parity and meshed
+// again by the label-map pipeline (closing, tunnel filling, one-voxel smoothing, CGAL Mesh_3);
+// the report gives the grid, the facet size and the volume before and after. A handle is
+// removed only when that changes the enclosed volume by at most `max_handle_volume_change`
+// (a narrow bridge or tunnel of a segmentation); wider ones are kept and reported.
 // Refused (InputError "<name>: cannot repair: <problem and where> (<a command that works>)"):
-// non-manifold edges and vertices, non-orientable surfaces, larger holes, and
+// non-manifold or non-orientable surfaces that are also open, larger holes, and
 // self-intersections that survive the rounds (repair_and_remesh() may still remove them);
 // the indices refer to the input mesh.
 #include <array>
@@ -30,6 +38,8 @@ struct RepairOptions {
   bool remove_self_intersections = true;
   int max_self_intersection_rounds = 3;
   double min_component_fraction = 0.01;  // 0: keep every component
+  bool rebuild_through_voxels = true;    // false: refuse non-manifold/non-orientable, keep handles
+  double max_handle_volume_change = 0.05;
 };
 
 struct RepairReport {
@@ -49,6 +59,12 @@ struct RepairReport {
   std::size_t dropped_components = 0, dropped_component_faces = 0;
   double dropped_component_area_m2 = 0.0;
   double min_component_fraction = 0.0;
+  std::size_t rebuilt_components = 0;  // rebuilt through a voxel grid, because of `rebuilt_for`
+  std::string rebuilt_for;             // the validator's words ("non-manifold edge 0-1 ...", "2 handles")
+  double rebuilt_voxel_m = 0.0, rebuilt_edge_m = 0.0;
+  double rebuilt_volume_before_m3 = 0.0, rebuilt_volume_after_m3 = 0.0;
+  int handles_removed = 0, handles_kept = 0;  // genus removed by the rebuild; left (too wide)
+  std::string handles_kept_because;           // why they were left
   double remeshed_edge_m = 0.0;    // repair_and_remesh(): remeshing removed what repair left
   std::string left_for_remeshing;  // what that was (the validator's words)
   // One line per action taken ("flipped 1 face to match its neighbours"); empty: nothing to do.
