@@ -191,8 +191,13 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
     }
     if (extension == ".stl") check_binary_stl(path, size);
 
-    // Triangulate polygons; no other post-processing (vertex joining is done below, exactly).
-    const aiScene* scene = importer.ReadFile(name, aiProcess_Triangulate);
+    // Validate first (assimp's importers trust the file: a face naming a vertex past the end
+    // reached the next step and crashed it, found by fuzz_mesh_ply), then triangulate polygons;
+    // no other post-processing (vertex joining is done below, exactly).
+    const aiScene* scene = importer.ReadFile(name, 0);
+    if (scene != nullptr && scene->mNumMeshes > 0) {  // none: "no triangles" below says it better
+      scene = importer.ApplyPostProcessing(aiProcess_ValidateDataStructure | aiProcess_Triangulate);
+    }
     if (scene == nullptr) throw InputError(name + ": cannot read as a mesh: " + importer.GetErrorString());
 
     if (scene->mRootNode != nullptr) {

@@ -72,6 +72,12 @@ void add_cell(Builder& b, int type, const std::int64_t* v, std::size_t n, std::s
   }
 }
 
+// A number of the file as an index or a count: integral and within int64 (casting anything else
+// is undefined); -1, which every caller refuses as out of range, for anything else.
+std::int64_t as_index(double v) {
+  return v >= -9.2e18 && v <= 9.2e18 && v == std::floor(v) ? static_cast<std::int64_t>(v) : -1;
+}
+
 // ---- legacy ----
 
 class Legacy {
@@ -128,7 +134,7 @@ class Legacy {
         const std::size_t n = count();
         if (n + 1 != cell_offsets.size()) fail(at_line, "CELL_TYPES " + std::to_string(n) + ": expected one type per cell");
         for (std::size_t c = 0; c < n; ++c) {
-          const auto type = static_cast<int>(number("int"));
+          const auto type = static_cast<int>(std::clamp<std::int64_t>(as_index(number("int")), -1, 1000));
           const std::int64_t* v = cell_connectivity.data() + cell_offsets[c];
           add_cell(b, type, v, static_cast<std::size_t>(cell_offsets[c + 1] - cell_offsets[c]), c, fmt_line(at_line) + "CELL_TYPES: ");
         }
@@ -197,6 +203,10 @@ class Legacy {
     char* end = nullptr;
     const long long v = std::strtoll(w.c_str(), &end, 10);
     if (end == w.c_str() || *end != '\0' || v < 0) fail(at, "expected a count, got '" + w + "'");
+    // Every item takes at least one byte: a larger count is damage (and would be allocated).
+    if (static_cast<unsigned long long>(v) > d_.size() - std::min(pos_, d_.size())) {
+      fail(at, "count " + w + ": more items than the rest of the file can hold");
+    }
     return static_cast<std::size_t>(v);
   }
   // The binary block of a section starts after the newline that ends its keyword line.
@@ -255,12 +265,12 @@ class Legacy {
       expect_word("OFFSETS");
       std::string type = word();
       offsets.resize(n);
-      for (auto& o : offsets) o = static_cast<std::int64_t>(number(type));
+      for (auto& o : offsets) o = as_index(number(type));
       binary_started_ = false;
       expect_word("CONNECTIVITY");
       type = word();
       connectivity.resize(size);
-      for (auto& c : connectivity) c = static_cast<std::int64_t>(number(type));
+      for (auto& c : connectivity) c = as_index(number(type));
       binary_started_ = false;
       if (offsets.empty() || offsets.front() != 0 || offsets.back() != static_cast<std::int64_t>(size) ||
           !std::is_sorted(offsets.begin(), offsets.end())) {
@@ -272,12 +282,12 @@ class Legacy {
     connectivity.reserve(size);
     std::size_t used = 0;
     for (std::size_t c = 0; c < n; ++c) {
-      const auto k = static_cast<std::int64_t>(number("int"));
+      const std::int64_t k = as_index(number("int"));
       if (k < 0 || used + 1 + static_cast<std::size_t>(k) > size) {
         fail(line_, "cell " + std::to_string(c) + " has " + std::to_string(k) + " points: expected the list to fit the "
                     "announced size " + std::to_string(size));
       }
-      for (std::int64_t i = 0; i < k; ++i) connectivity.push_back(static_cast<std::int64_t>(number("int")));
+      for (std::int64_t i = 0; i < k; ++i) connectivity.push_back(as_index(number("int")));
       used += 1 + static_cast<std::size_t>(k);
       offsets.push_back(static_cast<std::int64_t>(connectivity.size()));
     }
@@ -373,26 +383,31 @@ std::uint64_t read_header_word(Bytes& b, const XmlContext& x) {
   if (b.pos + n > b.data.size()) throw InputError(x.name + ": truncated binary DataArray header");
   const double v = convert_value(b.data.data() + b.pos, t, x.big_endian);
   b.pos += n;
-  return static_cast<std::uint64_t>(v);
+  const std::int64_t word = as_index(v);
+  if (word < 0) throw InputError(x.name + ": corrupt binary DataArray header");
+  return static_cast<std::uint64_t>(word);
 }
 
 // The payload bytes of a binary array (header, optional zlib blocks) starting at b.pos.
 std::vector<unsigned char> payload(Bytes& b, const XmlContext& x) {
   if (!x.zlib) {
     const std::uint64_t n = read_header_word(b, x);
-    if (b.pos + n > b.data.size()) throw InputError(x.name + ": truncated binary DataArray: " + std::to_string(n) + " bytes announced");
+    if (n > b.data.size() - b.pos) throw InputError(x.name + ": truncated binary DataArray: " + std::to_string(n) + " bytes announced");
     std::vector<unsigned char> out(b.data.begin() + static_cast<std::ptrdiff_t>(b.pos),
                                    b.data.begin() + static_cast<std::ptrdiff_t>(b.pos + n));
     b.pos += n;
     return out;
   }
   const std::uint64_t blocks = read_header_word(b, x), block_size = read_header_word(b, x), last = read_header_word(b, x);
+  if (blocks > b.data.size() - b.pos) throw InputError(x.name + ": truncated compressed DataArray header");
   std::vector<std::uint64_t> sizes(blocks);
   for (auto& s : sizes) s = read_header_word(b, x);
   std::vector<unsigned char> out;
   for (std::uint64_t k = 0; k < blocks; ++k) {
     const std::uint64_t raw = (k + 1 == blocks && last != 0) ? last : block_size;
-    if (b.pos + sizes[k] > b.data.size()) throw InputError(x.name + ": truncated compressed DataArray");
+    if (sizes[k] > b.data.size() - b.pos) throw InputError(x.name + ": truncated compressed DataArray");
+    // zlib expands at most ~1032:1: a block announcing more is damage, not data.
+    if (raw / 1032 > sizes[k] + 1) throw InputError(x.name + ": corrupt zlib block " + std::to_string(k) + " in a DataArray");
     const std::size_t at = out.size();
     out.resize(at + raw);
     uLongf got = static_cast<uLongf>(raw);
@@ -504,13 +519,16 @@ VtkSoup read_vtk_xml(const std::string& name, std::string bytes) {
       std::vector<std::int64_t> v;
       std::size_t start = 0;
       for (std::size_t cell = 0; cell < o.size(); ++cell) {
-        const auto end = static_cast<std::size_t>(o[cell]);
-        if (end < start || end > c.size()) {
+        if (!(o[cell] >= static_cast<double>(start) && o[cell] <= static_cast<double>(c.size()))) {
           throw InputError(name + ": <" + section + "> offset " + std::to_string(cell) + ": expected non-decreasing offsets "
                            "within the connectivity");
         }
+        const auto end = static_cast<std::size_t>(o[cell]);
         v.clear();
-        for (std::size_t k = start; k < end; ++k) v.push_back(static_cast<std::int64_t>(c[k]) + static_cast<std::int64_t>(base));
+        for (std::size_t k = start; k < end; ++k) {
+          const std::int64_t index = as_index(c[k]);
+          v.push_back(index < 0 ? -1 : index + static_cast<std::int64_t>(base));
+        }
         if (std::string(section) == "Polys") b.polygon(v.data(), v.size(), cell, std::string(section) + " ");
         else b.strip(v.data(), v.size(), cell, std::string(section) + " ");
         start = end;

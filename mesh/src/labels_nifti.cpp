@@ -96,11 +96,19 @@ LabelMap read_label_map(const std::filesystem::path& path) {
   if (image->nx < 1 || image->ny < 1 || image->nz < 1) throw InputError(name + ": expected a non-empty 3D volume");
   const char* type = nifti_datatype_string(image->datatype);
   const std::uint64_t expected_bytes = static_cast<std::uint64_t>(image->nvox) * static_cast<std::uint64_t>(image->nbyper);
-  if (nifti_image_load(image.get()) != 0 || image->data == nullptr) {
+  // The header's sizes are checked against the file before niftilib allocates them (a damaged
+  // header claimed 37 GB, found by fuzz_nifti): gzip expands at most ~1032:1.
+  const bool gzipped = lower(name).ends_with(".gz");
+  std::error_code size_error;
+  const double file_bytes = static_cast<double>(std::filesystem::file_size(path, size_error));
+  const double claimed_bytes = static_cast<double>(image->nx) * static_cast<double>(image->ny) *
+                               static_cast<double>(image->nz) * static_cast<double>(image->nbyper);
+  const bool claims_too_much = !size_error && claimed_bytes > (gzipped ? 1032.0 * file_bytes + 4096.0 : file_bytes);
+  if (claims_too_much || nifti_image_load(image.get()) != 0 || image->data == nullptr) {
     throw InputError(name + ": truncated or corrupt: expected " + std::to_string(image->nx) + " x " +
                      std::to_string(image->ny) + " x " + std::to_string(image->nz) + " voxels of " + type + " (" +
                      std::to_string(expected_bytes) + " bytes of data" +
-                     (lower(name).ends_with(".gz") ? " after decompression" : "") + ")");
+                     (gzipped ? " after decompression" : "") + ")");
   }
 
   LabelMap map;

@@ -118,6 +118,23 @@ TEST(Io, SeveralMeshesInOneFileAreKeptAsComponents) {
   EXPECT_NEAR(r.volume_m3, 2e-9 / 6, 1e-18);
 }
 
+// Found by fuzz_mesh_ply: a face naming a vertex past the end crashed assimp's post-processing
+// (segmentation fault); its own validation now refuses the file first, with one line.
+TEST(Io, AFaceNamingAMissingVertexIsRefusedNotACrash) {
+  TempDir dir;
+  const auto file = dir.write("bad.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                         "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+                                         "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 2 1000000\n");
+  try {
+    read_mesh(file);
+    ADD_FAILURE() << "no error";
+  } catch (const pneuma::InputError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind(file.string() + ": cannot read as a mesh: ", 0), 0u) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+}
+
 TEST(Io, UnknownOutputExtensionIsAUsageError) {
   TempDir dir;
   EXPECT_THROW(write_mesh(dir / "m.vtk", make_cube(1.0)), pneuma::UsageError);

@@ -194,6 +194,12 @@ TEST(LabelsCli, BadInputIsOneLineAndExitThree) {
   const auto cut = dir.write("cut.nii.gz", bytes).string();
   expect_error(cut, "1", 3,
                "truncated or corrupt: expected 48 x 40 x 32 voxels of INT16 (122880 bytes of data after decompression)");
+
+  // A header claiming far more voxels than the file holds (found by fuzz_nifti: niftilib
+  // allocated the claim, 37 GB): refused before anything is allocated, with the same line.
+  write_nifti(dir / "claims.nii", {4000, 4000, 1000}, std::vector<std::int16_t>(8, 1), Qform{});
+  expect_error((dir / "claims.nii").string(), "1", 3,
+               "truncated or corrupt: expected 4000 x 4000 x 1000 voxels of INT16 (32000000000 bytes of data)");
 }
 
 // ---- The six real lobe segmentations (CC BY 4.0, see ../shared/data/ct-lobes/README.md) ----

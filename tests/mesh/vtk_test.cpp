@@ -232,4 +232,22 @@ TEST(Vtk, ErrorsNameTheFileAndLine) {
                ": line 9: POLYGONS cell 0 uses point 7: expected an index below the 3 points");
   expect_error(dir.write("img.vtp", "<VTKFile type=\"ImageData\"></VTKFile>"),
                ": expected <VTKFile type=\"PolyData\"> (a .vtp surface)");
+
+  // Found by fuzzing: a count larger than the file (allocated as announced), an index that is
+  // not an integer (an undefined cast), offsets that are not numbers.
+  expect_error(dir.write("count.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 900000000000 float\n"),
+               ":5: count 900000000000: more items than the rest of the file can hold");
+  expect_error(dir.write("nan.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0\n1 0 0\n"
+                                    "0 1 0\nPOLYGONS 1 4\n3 0 1 1e300\n"),
+               ": line 9: POLYGONS cell 0 uses point -1: expected an index below the 3 points");
+  const std::string vtp = "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"3\" NumberOfPolys=\"1\"><Points>"
+                          "<DataArray type=\"Float32\" NumberOfComponents=\"3\">0 0 0 1 0 0 0 1 0</DataArray></Points>"
+                          "<Polys><DataArray type=\"Int64\" Name=\"connectivity\">0 1 2</DataArray>"
+                          "<DataArray type=\"Int64\" Name=\"offsets\">OFFSET</DataArray></Polys></Piece></PolyData></VTKFile>";
+  for (const char* offset : {"-1e300", "-5", "1e300"}) {
+    std::string text = vtp;
+    text.replace(text.find("OFFSET"), 6, offset);
+    expect_error(dir.write("offsets.vtp", text),
+                 ": <Polys> offset 0: expected non-decreasing offsets within the connectivity");
+  }
 }
