@@ -64,6 +64,30 @@ void check_binary_stl(const std::filesystem::path& path, std::uintmax_t size) {
   }
 }
 
+// Assimp 5.2's PLY reader loops forever on a header that never reaches `end_header` (found by
+// fuzz_mesh_ply), so the header is read here first: its lines are keywords until end_header.
+void check_ply_header(const std::filesystem::path& path) {
+  const std::string head = read_prefix(path, 1 << 16);
+  std::size_t at = 0;
+  for (std::size_t line = 1; at < head.size(); ++line) {
+    std::size_t end = head.find('\n', at);
+    if (end == std::string::npos) end = head.size();
+    std::string text = head.substr(at, end - at);
+    if (!text.empty() && text.back() == '\r') text.pop_back();
+    const std::string keyword = text.substr(0, text.find(' '));
+    if (keyword == "end_header") return;
+    if (line == 1 ? keyword != "ply"
+                  : keyword != "format" && keyword != "comment" && keyword != "obj_info" && keyword != "element" &&
+                        keyword != "property") {
+      throw InputError(path.string() + ": PLY header line " + std::to_string(line) + ": expected " +
+                       (line == 1 ? std::string("'ply'") : "format, comment, element, property or end_header") +
+                       ", got '" + text.substr(0, 40) + "'");
+    }
+    at = end + 1;
+  }
+  throw InputError(path.string() + ": PLY header without 'end_header' in its first 64 KiB");
+}
+
 struct PositionHash {
   std::size_t operator()(const std::array<float, 3>& p) const noexcept {
     std::size_t h = 1469598103934665603ull;
@@ -190,6 +214,7 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
                        "' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ..., or VTK .vtk, .vtp)");
     }
     if (extension == ".stl") check_binary_stl(path, size);
+    if (extension == ".ply") check_ply_header(path);
 
     // Validate first (assimp's importers trust the file: a face naming a vertex past the end
     // reached the next step and crashed it, found by fuzz_mesh_ply), then triangulate polygons;

@@ -308,23 +308,14 @@ std::string mL(double m3) { return fmt::format("{:.4g} mL", m3 * 1e6); }
 // Keeps the component with the largest enclosed |volume|, oriented outward. Returns the count dropped.
 std::size_t keep_largest_surface(TriangleMesh& mesh) {
   const std::size_t nf = mesh.triangles.size();
-  // Union-find over faces through shared vertices (a valid surface has manifold vertices).
-  std::vector<std::size_t> parent(mesh.vertices.size());
-  for (std::size_t v = 0; v < parent.size(); ++v) parent[v] = v;
-  auto find = [&](std::size_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
-  for (const Triangle& t : mesh.triangles) {
-    for (int c = 1; c < 3; ++c) {
-      const std::size_t a = find(t[0]), b = find(t[static_cast<std::size_t>(c)]);
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);
-    }
-  }
+  // Components through shared vertices (a valid surface has manifold vertices).
+  std::vector<std::uint32_t> component;
+  face_components(mesh, component);
   std::map<std::size_t, double> six_volume;
-  for (const Triangle& t : mesh.triangles) {
+  for (std::size_t f = 0; f < nf; ++f) {
+    const Triangle& t = mesh.triangles[f];
     const auto& p = mesh.vertices;
-    six_volume[find(t[0])] += p[t[0]].dot(p[t[1]].cross(p[t[2]]));
+    six_volume[component[f]] += p[t[0]].dot(p[t[1]].cross(p[t[2]]));
   }
   std::size_t keep = 0;
   double best = -1.0;
@@ -334,8 +325,9 @@ std::size_t keep_largest_surface(TriangleMesh& mesh) {
   const bool flip = six_volume[keep] < 0.0;
   std::vector<Triangle> kept;
   kept.reserve(nf);
-  for (Triangle t : mesh.triangles) {
-    if (find(t[0]) != keep) continue;
+  for (std::size_t f = 0; f < nf; ++f) {
+    Triangle t = mesh.triangles[f];
+    if (component[f] != keep) continue;
     if (flip) std::swap(t[1], t[2]);
     kept.push_back(t);
   }

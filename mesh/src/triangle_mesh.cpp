@@ -118,4 +118,29 @@ TriangleMesh make_icosphere(double radius, int subdivisions) {
   return m;
 }
 
+std::size_t face_components(const TriangleMesh& mesh, std::vector<std::uint32_t>& component_of_face) {
+  std::vector<std::uint32_t> parent(mesh.vertex_count());
+  for (std::size_t v = 0; v < parent.size(); ++v) parent[v] = static_cast<std::uint32_t>(v);
+  auto find = [&](std::uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (const Triangle& t : mesh.triangles) {
+    for (std::size_t c = 1; c < 3; ++c) {
+      const std::uint32_t a = find(t[0]), b = find(t[c]);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  }
+  constexpr std::uint32_t kNone = ~std::uint32_t{0};
+  std::vector<std::uint32_t> number(mesh.vertex_count(), kNone);
+  std::uint32_t count = 0;
+  component_of_face.resize(mesh.triangle_count());
+  for (std::size_t f = 0; f < mesh.triangle_count(); ++f) {
+    std::uint32_t& n = number[find(mesh.triangles[f][0])];
+    if (n == kNone) n = count++;
+    component_of_face[f] = n;
+  }
+  return count;
+}
+
 }  // namespace pneuma::mesh

@@ -142,28 +142,9 @@ namespace {
 
 // Vertex-connected components: each one's triangles, in input order.
 std::vector<std::vector<std::size_t>> components_of(const TriangleMesh& mesh) {
-  std::vector<std::size_t> parent(mesh.vertex_count());
-  for (std::size_t v = 0; v < parent.size(); ++v) parent[v] = v;
-  auto find = [&](std::size_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
-  for (const Triangle& t : mesh.triangles) {
-    for (int c = 1; c < 3; ++c) {
-      const std::size_t a = find(t[0]), b = find(t[static_cast<std::size_t>(c)]);
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);
-    }
-  }
-  std::vector<std::vector<std::size_t>> groups;
-  std::vector<std::size_t> group_of(mesh.vertex_count(), ~std::size_t{0});
-  for (std::size_t f = 0; f < mesh.triangle_count(); ++f) {
-    const std::size_t root = find(mesh.triangles[f][0]);
-    if (group_of[root] == ~std::size_t{0}) {
-      group_of[root] = groups.size();
-      groups.emplace_back();
-    }
-    groups[group_of[root]].push_back(f);
-  }
+  std::vector<std::uint32_t> component;
+  std::vector<std::vector<std::size_t>> groups(face_components(mesh, component));
+  for (std::size_t f = 0; f < component.size(); ++f) groups[component[f]].push_back(f);
   return groups;
 }
 

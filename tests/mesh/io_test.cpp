@@ -135,6 +135,23 @@ TEST(Io, AFaceNamingAMissingVertexIsRefusedNotACrash) {
   }
 }
 
+// Found by fuzz_mesh_ply: a header that never reaches end_header made assimp loop forever.
+TEST(Io, APlyHeaderWithoutEndHeaderIsRefusedNotAHang) {
+  TempDir dir;
+  const auto file = dir.write("cut.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                                         "property float z\nelement face 4\nproperty list uchar int vertex_indi0 2 1\n"
+                                         "3 0 1 3\n3 0 3 2\n3 1 2 3\n");
+  try {
+    read_mesh(file);
+    ADD_FAILURE() << "no error";
+  } catch (const pneuma::InputError& e) {
+    EXPECT_EQ(std::string(e.what()), file.string() + ": PLY header line 9: expected format, comment, element, property "
+                                                     "or end_header, got '3 0 1 3'");
+  }
+  const auto endless = dir.write("endless.ply", "ply\nformat ascii 1.0\nelement vertex 4\n");
+  EXPECT_THROW(read_mesh(endless), pneuma::InputError);
+}
+
 TEST(Io, UnknownOutputExtensionIsAUsageError) {
   TempDir dir;
   EXPECT_THROW(write_mesh(dir / "m.vtk", make_cube(1.0)), pneuma::UsageError);

@@ -8,6 +8,7 @@
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/markup.h"
 #include "pneuma/core/units.h"
 #include "report_assets.h"
 
@@ -47,19 +48,6 @@ std::string base64(std::string_view bytes) {
   return out;
 }
 
-std::string html_escape(std::string_view text) {
-  std::string out;
-  for (char c : text) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
 
 // JSON inside <script>: no '<' at all (strings are the only place one can be), so neither
 // "</script>" nor "<!--" can end or bend the element.
@@ -223,7 +211,7 @@ std::string report_html(const ReportInput& input) {
 
   const std::string json = script_json(data);
   const std::string glb = base64(input.glb);
-  const std::string title = html_escape(input.scenario_name);
+  const std::string title = escape_markup(input.scenario_name);
   const std::string generator = "pneuma " PNEUMA_VERSION;
   return fill(assets.page, {
                                {"TITLE", title},

@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+
 #include "pneuma/core/error.h"
+#include "pneuma/core/markup.h"
 
 namespace pneuma::engine {
 namespace {
@@ -13,20 +15,6 @@ namespace {
 constexpr double width = 720, height = 450;
 constexpr double left = 80, right = 200, top = 40, bottom = 60;  // margins; the legend sits right
 const char* const palette[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf", "#7f7f7f"};
-
-std::string escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
 
 struct Axis {
   double low = 0, high = 1;
@@ -114,7 +102,7 @@ std::string render_svg(const LinePlot& plot) {
       "font-family=\"sans-serif\" font-size=\"12\">\n"
       "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
       "<text x=\"{:.1f}\" y=\"22\" text-anchor=\"middle\" font-size=\"15\">{}</text>\n",
-      width, height, width, height, (x0 + x1) / 2, escape(plot.title));
+      width, height, width, height, (x0 + x1) / 2, escape_markup(plot.title));
   // Grid, ticks and labels.
   for (double t : ticks(ax)) {
     const double px = ax.map(t, x0, x1);
@@ -131,9 +119,9 @@ std::string render_svg(const LinePlot& plot) {
   svg += fmt::format("<rect x=\"{:.2f}\" y=\"{:.2f}\" width=\"{:.2f}\" height=\"{:.2f}\" fill=\"none\" stroke=\"black\"/>\n",
                      x0, y1, x1 - x0, y0 - y1);
   svg += fmt::format("<text x=\"{:.2f}\" y=\"{:.2f}\" text-anchor=\"middle\">{}</text>\n", (x0 + x1) / 2, height - 18,
-                     escape(plot.x_label));
+                     escape_markup(plot.x_label));
   svg += fmt::format("<text transform=\"translate(18 {:.2f}) rotate(-90)\" text-anchor=\"middle\">{}</text>\n",
-                     (y0 + y1) / 2, escape(plot.y_label));
+                     (y0 + y1) / 2, escape_markup(plot.y_label));
   // Series and legend.
   for (std::size_t k = 0; k < plot.series.size(); ++k) {
     const PlotSeries& s = plot.series[k];
@@ -153,7 +141,7 @@ std::string render_svg(const LinePlot& plot) {
     const double ly = y1 + 14 + 18 * static_cast<double>(k);
     svg += fmt::format("<line x1=\"{:.2f}\" y1=\"{:.2f}\" x2=\"{:.2f}\" y2=\"{:.2f}\" stroke=\"{}\" stroke-width=\"2\"{}/>\n",
                        x1 + 10, ly, x1 + 34, ly, colour, s.dashed ? " stroke-dasharray=\"6 4\"" : "");
-    svg += fmt::format("<text x=\"{:.2f}\" y=\"{:.2f}\">{}</text>\n", x1 + 40, ly + 4, escape(s.label));
+    svg += fmt::format("<text x=\"{:.2f}\" y=\"{:.2f}\">{}</text>\n", x1 + 40, ly + 4, escape_markup(s.label));
   }
   svg += "</svg>\n";
   return svg;

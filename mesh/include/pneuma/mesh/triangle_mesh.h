@@ -37,6 +37,9 @@ std::vector<Eigen::Vector3d> volume_gradient(const TriangleMesh& mesh);
 std::vector<Eigen::Vector3d> area_gradient(const TriangleMesh& mesh);
 // The undirected edges (a < b), sorted, each once.
 std::vector<std::array<std::uint32_t, 2>> unique_edges(const std::vector<Triangle>& triangles);
+// Each face's component, faces joined through shared vertices; numbered 0, 1, ... in the order
+// of each component's first face. Returns the component count.
+std::size_t face_components(const TriangleMesh& mesh, std::vector<std::uint32_t>& component_of_face);
 // Axis-aligned bounds: {min, max}.
 std::array<Eigen::Vector3d, 2> bounding_box(const std::vector<Eigen::Vector3d>& positions);
 
