@@ -12,8 +12,11 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <set>
+#include <sstream>
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include "io_vtk.h"
 #include "pneuma/core/error.h"
@@ -64,26 +67,54 @@ void check_binary_stl(const std::filesystem::path& path, std::uintmax_t size) {
   }
 }
 
-// Assimp 5.2's PLY reader loops forever on a header that never reaches `end_header` (found by
-// fuzz_mesh_ply), so the header is read here first: its lines are keywords until end_header.
+// Assimp 5.2's PLY reader trusts the header: one that never reaches `end_header` made it loop
+// forever, and repeated `format` or `element` lines corrupted its heap (both found by
+// fuzz_mesh_ply). So the header is read here first, against the PLY grammar: `ply`, one
+// `format`, then comments, uniquely named elements and their typed properties, `end_header`.
 void check_ply_header(const std::filesystem::path& path) {
+  static const std::set<std::string> kTypes = {"char",  "uchar",  "short", "ushort", "int",    "uint",
+                                               "float", "double", "int8",  "uint8",  "int16",  "uint16",
+                                               "int32", "uint32", "float32", "float64"};
   const std::string head = read_prefix(path, 1 << 16);
+  auto refuse = [&](std::size_t line, const std::string& expected, const std::string& text) {
+    throw InputError(path.string() + ": PLY header line " + std::to_string(line) + ": expected " + expected + ", got '" +
+                     text.substr(0, 40) + "'");
+  };
+  std::set<std::string> elements;
+  bool in_element = false;
   std::size_t at = 0;
   for (std::size_t line = 1; at < head.size(); ++line) {
     std::size_t end = head.find('\n', at);
     if (end == std::string::npos) end = head.size();
     std::string text = head.substr(at, end - at);
     if (!text.empty() && text.back() == '\r') text.pop_back();
-    const std::string keyword = text.substr(0, text.find(' '));
-    if (keyword == "end_header") return;
-    if (line == 1 ? keyword != "ply"
-                  : keyword != "format" && keyword != "comment" && keyword != "obj_info" && keyword != "element" &&
-                        keyword != "property") {
-      throw InputError(path.string() + ": PLY header line " + std::to_string(line) + ": expected " +
-                       (line == 1 ? std::string("'ply'") : "format, comment, element, property or end_header") +
-                       ", got '" + text.substr(0, 40) + "'");
-    }
     at = end + 1;
+    std::istringstream words(text);
+    std::vector<std::string> w{std::istream_iterator<std::string>(words), std::istream_iterator<std::string>()};
+    const std::string keyword = w.empty() ? std::string() : w[0];
+    if (line == 1) {
+      if (text != "ply") refuse(line, "'ply'", text);
+    } else if (line == 2) {
+      if (w.size() != 3 || keyword != "format" ||
+          (w[1] != "ascii" && w[1] != "binary_little_endian" && w[1] != "binary_big_endian")) {
+        refuse(line, "'format ascii|binary_little_endian|binary_big_endian 1.0'", text);
+      }
+    } else if (keyword == "end_header") {
+      return;
+    } else if (keyword == "comment" || keyword == "obj_info") {
+    } else if (keyword == "element") {
+      if (w.size() != 3 || w[2].find_first_not_of("0123456789") != std::string::npos) {
+        refuse(line, "'element NAME COUNT'", text);
+      }
+      if (!elements.insert(w[1]).second) refuse(line, "each element once", text);
+      in_element = true;
+    } else if (keyword == "property" && in_element) {
+      const bool scalar = w.size() == 3 && kTypes.count(w[1]);
+      const bool list = w.size() == 5 && w[1] == "list" && kTypes.count(w[2]) && kTypes.count(w[3]);
+      if (!scalar && !list) refuse(line, "'property TYPE NAME' or 'property list COUNT_TYPE TYPE NAME'", text);
+    } else {
+      refuse(line, in_element ? "comment, element, property or end_header" : "comment, element or end_header", text);
+    }
   }
   throw InputError(path.string() + ": PLY header without 'end_header' in its first 64 KiB");
 }
