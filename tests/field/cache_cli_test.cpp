@@ -73,37 +73,40 @@ TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
 
   write_bytes(dir / "truncated.h5", bytes.substr(0, bytes.size() / 2));
   EXPECT_EQ(load_error(dir / "truncated.h5"),
-            (dir / "truncated.h5").string() + ": not a pneuma field file: cannot open it as HDF5 (truncated or damaged)");
+            (dir / "truncated.h5").string() + ": not a pneuma field file: its bytes do not match its seal (truncated or damaged)");
 
-  // Edit one stored displacement value in place: the checksum catches it.
+  // Edit one stored displacement value in place: the seal catches it before HDF5 reads a byte.
   std::string edited = bytes;
   const auto at = edited.find(std::string(reinterpret_cast<const char*>(model.unit_displacement[7].data()), 8));
   ASSERT_NE(at, std::string::npos);
   edited[at + 3] = static_cast<char>(edited[at + 3] ^ 0x10);
   write_bytes(dir / "edited.h5", edited);
   EXPECT_EQ(load_error(dir / "edited.h5"),
-            (dir / "edited.h5").string() + ": not a pneuma field file: checksum mismatch (the file was edited or damaged)");
+            (dir / "edited.h5").string() + ": not a pneuma field file: its bytes do not match its seal (truncated or damaged)");
 
-  // Another program's HDF5 file: same container, other format name.
+  // The first "pneuma-field" is the seal's own name: edited, the file is no longer pneuma's.
   std::string foreign = bytes;
   const auto name = foreign.find("pneuma-field");
   ASSERT_NE(name, std::string::npos);
   foreign.replace(name, 12, "other-format");
   write_bytes(dir / "foreign.h5", foreign);
   EXPECT_EQ(load_error(dir / "foreign.h5"),
-            (dir / "foreign.h5").string() + ": not a pneuma field file: its format is not 'pneuma-field'");
+            (dir / "foreign.h5").string() + ": not a pneuma field file: an HDF5 file without pneuma's seal (from elsewhere, or from an older pneuma)");
+  // Another program's HDF5 file (its signature at 0), or one from before the seal.
+  write_bytes(dir / "other.h5", std::string("\x89HDF\r\n\x1a\n", 8) + std::string(600, '\0'));
+  EXPECT_EQ(load_error(dir / "other.h5"), (dir / "other.h5").string() + ": not a pneuma field file: an HDF5 file without "
+                                                                          "pneuma's seal (from elsewhere, or from an older pneuma)");
 
   // A damaged header claiming 2^40 vertices (found by fuzz_field_cache: the reader allocated what
-  // the header claimed, ~26 TB, and died): refused before any allocation.
+  // the header claimed, ~26 TB, and died): the seal refuses it; the reader's own bound on claimed
+  // sizes stays behind it.
   std::string huge = bytes;
   const std::uint64_t dims[2] = {model.rest.vertex_count(), 3}, claimed = std::uint64_t{1} << 40;
   const auto dims_at = huge.find(std::string(reinterpret_cast<const char*>(dims), sizeof dims));
   ASSERT_NE(dims_at, std::string::npos);
   huge.replace(dims_at, 8, std::string(reinterpret_cast<const char*>(&claimed), 8));
   write_bytes(dir / "huge.h5", huge);
-  EXPECT_EQ(load_error(dir / "huge.h5"), (dir / "huge.h5").string() +
-                                             ": not a pneuma field file: dataset /rest/positions claims 1099511627776 "
-                                             "items, more than the file can hold (damaged)");
+  EXPECT_EQ(load_error(dir / "huge.h5"), (dir / "huge.h5").string() + ": not a pneuma field file: its bytes do not match its seal (truncated or damaged)");
 
   write_bytes(dir / "text.h5", "hello\n");
   EXPECT_EQ(load_error(dir / "text.h5"), (dir / "text.h5").string() + ": not a pneuma field file: not an HDF5 file");
@@ -149,9 +152,9 @@ TEST(FieldCache, ADamagedOrForeignCacheIsRecomputedAndReplacedNeverUsed) {
   foreign.replace(foreign.find("pneuma-field"), 12, "other-format");
   const std::pair<std::string, std::string> cases[] = {
       {"not a field", "not an HDF5 file"},
-      {good.substr(0, good.size() / 3), "cannot open it as HDF5 (truncated or damaged)"},
-      {edited, "checksum mismatch (the file was edited or damaged)"},
-      {foreign, "its format is not 'pneuma-field'"},
+      {good.substr(0, good.size() / 3), "its bytes do not match its seal (truncated or damaged)"},
+      {edited, "its bytes do not match its seal (truncated or damaged)"},
+      {foreign, "an HDF5 file without pneuma's seal (from elsewhere, or from an older pneuma)"},
   };
   for (const auto& [bytes, why] : cases) {
     write_bytes(path, bytes);

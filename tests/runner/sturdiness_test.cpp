@@ -145,7 +145,7 @@ TEST(Sturdiness, ADamagedCacheInTheOutputFolderIsReplacedWithAWarning) {
   const auto r = run_pneuma({"run", yaml.string(), "-o", out.string(), "-q"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err, "pneuma: warning: " + (out / "field.h5").string() +
-                       ": not a pneuma field file: cannot open it as HDF5 (truncated or damaged); computed the field "
+                       ": not a pneuma field file: its bytes do not match its seal (truncated or damaged); computed the field "
                        "again and replaced the file\n");
   EXPECT_EQ(read_text(out / "field.h5"), good) << "the recomputed field is the same bytes as the first";
   const auto again = run_pneuma({"run", yaml.string(), "-o", out.string(), "-q"});

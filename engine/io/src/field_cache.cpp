@@ -6,8 +6,10 @@
 #include <array>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <optional>
+#include <string_view>
 #include <fmt/format.h>
 
 #include "pneuma/core/atomic_file.h"
@@ -22,7 +24,9 @@ constexpr const char* kFormat = "pneuma-field";
 // 3: the names of series.h5 (/rest/positions, /field/shear_modulus_pa, /field attribute
 //    area_unit_m2), root generator / coordinate_frame / length_unit, `units` per dataset
 //    (uncompressed: small, and a damaged value must reach the checksum, not the decompressor)
-constexpr int kFormatVersion = 3;
+// 4: sealed: the HDF5 user block (the first 512 bytes, which HDF5 skips) holds the length and
+//    hash of the bytes after it, checked before HDF5 reads anything
+constexpr int kFormatVersion = 4;
 
 // ---- A deterministic 128-bit hash (two independent 64-bit multiply-xorshift lanes) --------
 class Hasher {
@@ -89,10 +93,55 @@ std::string checksum(const FieldModel& m) {
   return h.hex();
 }
 
+// ---- The seal: HDF5 1.10 is not safe on damaged files (fuzz_field_cache found a use after
+// free in H5Aexists and an 80 GB allocation in its metadata cache), and the cache is derived
+// data, so HDF5 only ever parses a file that is byte for byte what pneuma wrote.
+constexpr std::size_t kSealBytes = 512;  // HDF5's smallest user block
+constexpr std::string_view kSealMagic = "pneuma-field-seal 1\n";
+
+std::string seal_of(const std::string& body) {
+  Hasher h;
+  h.text(body);
+  return fmt::format("{}bytes {}\nhash {}\n", kSealMagic, body.size(), h.hex());
+}
+
+std::string read_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+void seal_file(const std::filesystem::path& path, const std::string& shown) {
+  const std::string bytes = read_bytes(path);
+  if (bytes.size() < kSealBytes) throw IoError(shown + ": cannot write: the HDF5 file is shorter than its user block");
+  std::string seal = seal_of(bytes.substr(kSealBytes));
+  seal.resize(kSealBytes, '\0');
+  std::fstream out(path, std::ios::binary | std::ios::in | std::ios::out);
+  out.write(seal.data(), static_cast<std::streamsize>(seal.size()));
+  if (!out.flush()) throw IoError(shown + ": cannot write its seal");
+}
+
+// Refuses (through `refuse`) anything but a sealed file whose bytes match their seal.
+template <typename Refuse>
+void check_seal(const std::filesystem::path& path, Refuse refuse) {
+  const std::string bytes = read_bytes(path);
+  if (bytes.compare(0, kSealMagic.size(), kSealMagic) != 0) {
+    constexpr std::string_view kHdf5Signature = "\x89HDF\r\n\x1a\n";
+    bool hdf5 = false;
+    for (std::size_t at = 0; at + kHdf5Signature.size() <= bytes.size() && !hdf5; at = at == 0 ? 512 : 2 * at)
+      hdf5 = bytes.compare(at, kHdf5Signature.size(), kHdf5Signature) == 0;
+    refuse(hdf5 ? std::string("an HDF5 file without pneuma's seal (from elsewhere, or from an older pneuma)")
+                : std::string("not an HDF5 file"));
+  }
+  if (bytes.size() < kSealBytes) refuse("truncated (shorter than its seal)");
+  const std::string stored = bytes.substr(0, bytes.find('\0'));
+  if (stored != seal_of(bytes.substr(kSealBytes))) refuse("its bytes do not match its seal (truncated or damaged)");
+}
+
 void write_file(const std::filesystem::path& tmp, const std::string& shown, const FieldModel& m) {
   const Hdf5Writer w{shown};
   Hdf5Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
   w.check(H5Pset_obj_track_times(fcpl.get(), 0), "file properties");
+  w.check(H5Pset_userblock(fcpl.get(), kSealBytes), "file properties");
   Hdf5Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose);
   if (!file.ok()) w.fail("the file");
   const hid_t root = file.get();
@@ -200,6 +249,7 @@ struct Reader {
 FieldModel read_file(const std::filesystem::path& path) {
   const std::string shown = path.string();
   Reader r{shown};
+  check_seal(path, [&](const std::string& why) { r.refuse(why); });
   std::error_code ec;
   const std::uint64_t file_bytes = std::filesystem::file_size(path, ec);
   if (!ec) r.max_value_bytes = 1100 * file_bytes + 65536;
@@ -315,7 +365,10 @@ FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tis
 
 void save_field(const std::filesystem::path& path, const FieldModel& model) {
   silence_hdf5_errors();
-  write_atomically(path, [&](const std::filesystem::path& tmp) { write_file(tmp, path.string(), model); });
+  write_atomically(path, [&](const std::filesystem::path& tmp) {
+    write_file(tmp, path.string(), model);  // closes the file
+    seal_file(tmp, path.string());
+  });
 }
 
 FieldModel load_field(const std::filesystem::path& path) {
