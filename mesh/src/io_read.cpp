@@ -12,12 +12,11 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
-#include <set>
-#include <sstream>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
+#include "io_ply.h"
 #include "io_vtk.h"
 #include "pneuma/core/error.h"
 #include "readable_file.h"
@@ -65,58 +64,6 @@ void check_binary_stl(const std::filesystem::path& path, std::uintmax_t size) {
                      " triangles (" + std::to_string(expected) + " bytes), the file has " + std::to_string(size) +
                      " bytes");
   }
-}
-
-// Assimp 5.2's PLY reader trusts the header: one that never reaches `end_header` made it loop
-// forever, and repeated `format` or `element` lines corrupted its heap (both found by
-// fuzz_mesh_ply). So the header is read here first, against the PLY grammar: `ply`, one
-// `format`, then comments, uniquely named elements and their typed properties, `end_header`.
-void check_ply_header(const std::filesystem::path& path) {
-  static const std::set<std::string> kTypes = {"char",  "uchar",  "short", "ushort", "int",    "uint",
-                                               "float", "double", "int8",  "uint8",  "int16",  "uint16",
-                                               "int32", "uint32", "float32", "float64"};
-  const std::string head = read_prefix(path, 1 << 16);
-  auto refuse = [&](std::size_t line, const std::string& expected, const std::string& text) {
-    throw InputError(path.string() + ": PLY header line " + std::to_string(line) + ": expected " + expected + ", got '" +
-                     text.substr(0, 40) + "'");
-  };
-  std::set<std::string> elements;
-  bool in_element = false;
-  std::size_t at = 0;
-  for (std::size_t line = 1; at < head.size(); ++line) {
-    std::size_t end = head.find('\n', at);
-    if (end == std::string::npos) end = head.size();
-    std::string text = head.substr(at, end - at);
-    if (!text.empty() && text.back() == '\r') text.pop_back();
-    at = end + 1;
-    std::istringstream words(text);
-    std::vector<std::string> w{std::istream_iterator<std::string>(words), std::istream_iterator<std::string>()};
-    const std::string keyword = w.empty() ? std::string() : w[0];
-    if (line == 1) {
-      if (text != "ply") refuse(line, "'ply'", text);
-    } else if (line == 2) {
-      if (w.size() != 3 || keyword != "format" ||
-          (w[1] != "ascii" && w[1] != "binary_little_endian" && w[1] != "binary_big_endian")) {
-        refuse(line, "'format ascii|binary_little_endian|binary_big_endian 1.0'", text);
-      }
-    } else if (keyword == "end_header") {
-      return;
-    } else if (keyword == "comment" || keyword == "obj_info") {
-    } else if (keyword == "element") {
-      if (w.size() != 3 || w[2].find_first_not_of("0123456789") != std::string::npos) {
-        refuse(line, "'element NAME COUNT'", text);
-      }
-      if (!elements.insert(w[1]).second) refuse(line, "each element once", text);
-      in_element = true;
-    } else if (keyword == "property" && in_element) {
-      const bool scalar = w.size() == 3 && kTypes.count(w[1]);
-      const bool list = w.size() == 5 && w[1] == "list" && kTypes.count(w[2]) && kTypes.count(w[3]);
-      if (!scalar && !list) refuse(line, "'property TYPE NAME' or 'property list COUNT_TYPE TYPE NAME'", text);
-    } else {
-      refuse(line, in_element ? "comment, element, property or end_header" : "comment, element or end_header", text);
-    }
-  }
-  throw InputError(path.string() + ": PLY header without 'end_header' in its first 64 KiB");
 }
 
 struct PositionHash {
@@ -229,11 +176,12 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
   const double metres_per_unit = options.unit_from_file ? recorded_unit(path).value_or(options.metres_per_unit)
                                                         : options.metres_per_unit;
   Soup soup;
-  if (extension == ".vtk" || extension == ".vtp") {
+  if (extension == ".vtk" || extension == ".vtp" || extension == ".ply") {
     std::ifstream in(path, std::ios::binary);
     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    const detail::VtkSoup vtk = extension == ".vtk" ? detail::read_vtk_legacy(name, std::move(bytes))
-                                                    : detail::read_vtk_xml(name, std::move(bytes));
+    const detail::VtkSoup vtk = extension == ".vtk"   ? detail::read_vtk_legacy(name, std::move(bytes))
+                                : extension == ".vtp" ? detail::read_vtk_xml(name, std::move(bytes))
+                                                      : detail::read_ply(name, bytes);
     soup.vertices.reserve(vtk.points.size());
     for (const auto& p : vtk.points) {
       soup.vertices.push_back({static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2])});
@@ -245,10 +193,9 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
                        "' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ..., or VTK .vtk, .vtp)");
     }
     if (extension == ".stl") check_binary_stl(path, size);
-    if (extension == ".ply") check_ply_header(path);
 
-    // Validate first (assimp's importers trust the file: a face naming a vertex past the end
-    // reached the next step and crashed it, found by fuzz_mesh_ply), then triangulate polygons;
+    // Validate first (assimp's importers trust the file: a PLY face naming a vertex past the end
+    // reached the next step and crashed it, found by fuzzing), then triangulate polygons;
     // no other post-processing (vertex joining is done below, exactly).
     const aiScene* scene = importer.ReadFile(name, 0);
     if (scene != nullptr && scene->mNumMeshes > 0) {  // none: "no triangles" below says it better

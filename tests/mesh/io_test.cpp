@@ -2,6 +2,8 @@
 // (OFF, glTF) and files with several meshes read as expected.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
 #include <cstring>
 #include <fstream>
 
@@ -118,8 +120,51 @@ TEST(Io, SeveralMeshesInOneFileAreKeptAsComponents) {
   EXPECT_NEAR(r.volume_m3, 2e-9 / 6, 1e-18);
 }
 
+// pneuma's PLY reader against hand-made files: a cube of quads (split into fans) in ASCII with an
+// extra property and element to skip, and the same cube in big-endian binary with double
+// coordinates and uint16 counts; the oracle is the cube's volume and the file's numbering.
+TEST(Io, PlyQuadsAsciiAndBigEndianBinary) {
+  TempDir dir;
+  const char* corners[] = {"0 0 0", "1 0 0", "1 1 0", "0 1 0", "0 0 1", "1 0 1", "1 1 1", "0 1 1"};
+  const int quads[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {2, 3, 7, 6}, {1, 2, 6, 5}, {0, 4, 7, 3}};
+  std::string ascii = "ply\nformat ascii 1.0\ncomment unit m\nelement vertex 8\nproperty float x\nproperty float y\n"
+                      "property float z\nproperty uchar red\nelement face 6\nproperty list uchar int vertex_indices\n"
+                      "element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n";
+  for (const char* c : corners) ascii += std::string(c) + " 255\n";
+  for (const auto& q : quads) ascii += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) + " " + std::to_string(q[3]) + "\n";
+  ascii += "0 1\n";
+  std::string binary = "ply\nformat binary_big_endian 1.0\ncomment unit m\nelement vertex 8\nproperty double x\n"
+                       "property double y\nproperty double z\nelement face 6\nproperty list ushort uint vertex_indices\n"
+                       "end_header\n";
+  auto put_be = [&](auto value) {
+    unsigned char b[sizeof value];
+    std::memcpy(b, &value, sizeof value);
+    if constexpr (std::endian::native == std::endian::little) std::reverse(b, b + sizeof value);
+    binary.append(reinterpret_cast<const char*>(b), sizeof value);
+  };
+  for (int v = 0; v < 8; ++v) {
+    put_be(static_cast<double>((v == 1 || v == 2 || v == 5 || v == 6) ? 1 : 0));
+    put_be(static_cast<double>((v == 2 || v == 3 || v == 6 || v == 7) ? 1 : 0));
+    put_be(static_cast<double>(v >= 4 ? 1 : 0));
+  }
+  for (const auto& q : quads) {
+    put_be(std::uint16_t{4});
+    for (int k : q) put_be(static_cast<std::uint32_t>(k));
+  }
+  for (const auto& [name, text] : {std::pair{"ascii.ply", ascii}, std::pair{"binary.ply", binary}}) {
+    const TriangleMesh m = read_mesh(dir.write(name, text));
+    ASSERT_EQ(m.vertex_count(), 8u) << name;
+    EXPECT_EQ(m.triangle_count(), 12u) << name;
+    EXPECT_NEAR(enclosed_volume(m), 1.0, 1e-12) << name;
+    EXPECT_EQ(m.vertices[6], Eigen::Vector3d(1, 1, 1)) << name << ": the file's numbering";
+  }
+  // Cut anywhere, the body is one line naming what ends.
+  const auto cut = dir.write("cut.ply", binary.substr(0, binary.size() - 3));
+  EXPECT_THROW(read_mesh(cut), pneuma::InputError);
+}
+
 // Found by fuzz_mesh_ply: a face naming a vertex past the end crashed assimp's post-processing
-// (segmentation fault); its own validation now refuses the file first, with one line.
+// (segmentation fault); pneuma's own PLY reader refuses it with one line.
 TEST(Io, AFaceNamingAMissingVertexIsRefusedNotACrash) {
   TempDir dir;
   const auto file = dir.write("bad.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
@@ -129,9 +174,7 @@ TEST(Io, AFaceNamingAMissingVertexIsRefusedNotACrash) {
     read_mesh(file);
     ADD_FAILURE() << "no error";
   } catch (const pneuma::InputError& e) {
-    const std::string what = e.what();
-    EXPECT_EQ(what.rfind(file.string() + ": cannot read as a mesh: ", 0), 0u) << what;
-    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    EXPECT_EQ(std::string(e.what()), file.string() + ": PLY face 1 uses vertex 1e+06: expected an index below the 3 vertices");
   }
 }
 
