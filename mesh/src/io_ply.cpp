@@ -21,9 +21,13 @@ namespace {
 
 enum class Encoding { ascii, little_endian, big_endian };
 
+// The PLY scalar types, resolved once from the header (the body is read value by value).
+enum class Type { i8, u8, i16, u16, i32, u32, f32, f64 };
+
 struct Property {
-  std::string name, type;    // type: of the value, or of each item of a list
-  std::string count_type;    // lists only
+  std::string name;
+  Type type = Type::f32;        // of the value, or of each item of a list
+  Type count_type = Type::u8;   // lists only
   bool list = false;
 };
 
@@ -33,12 +37,23 @@ struct Element {
   std::vector<Property> properties;
 };
 
-const std::map<std::string, int>& type_sizes() {
-  static const std::map<std::string, int> sizes = {
-      {"char", 1},  {"uchar", 1},  {"int8", 1},  {"uint8", 1},  {"short", 2},   {"ushort", 2},
-      {"int16", 2}, {"uint16", 2}, {"int", 4},   {"uint", 4},   {"int32", 4},   {"uint32", 4},
-      {"float", 4}, {"float32", 4}, {"double", 8}, {"float64", 8}};
-  return sizes;
+const std::map<std::string, Type>& type_names() {
+  static const std::map<std::string, Type> names = {
+      {"char", Type::i8},    {"int8", Type::i8},     {"uchar", Type::u8},   {"uint8", Type::u8},
+      {"short", Type::i16},  {"int16", Type::i16},   {"ushort", Type::u16}, {"uint16", Type::u16},
+      {"int", Type::i32},    {"int32", Type::i32},   {"uint", Type::u32},   {"uint32", Type::u32},
+      {"float", Type::f32},  {"float32", Type::f32}, {"double", Type::f64}, {"float64", Type::f64}};
+  return names;
+}
+
+std::size_t size_of(Type t) {
+  switch (t) {
+    case Type::i8: case Type::u8: return 1;
+    case Type::i16: case Type::u16: return 2;
+    case Type::i32: case Type::u32: case Type::f32: return 4;
+    case Type::f64: return 8;
+  }
+  return 8;
 }
 
 class Reader {
@@ -114,7 +129,7 @@ class Reader {
   }
 
   void header() {
-    std::set<std::string> names;
+    std::set<std::string> element_names;
     for (std::size_t line = 1;; ++line) {
       if (pos_ >= d_.size() || line > 100000) fail("header without 'end_header'");
       std::size_t end = d_.find('\n', pos_);
@@ -143,14 +158,14 @@ class Reader {
         if (w.size() != 3 || w[2].empty() || w[2].size() > 19 || w[2].find_first_not_of("0123456789") != std::string::npos) {
           refuse("'element NAME COUNT'");
         }
-        if (!names.insert(w[1]).second) refuse("each element once");
+        if (!element_names.insert(w[1]).second) refuse("each element once");
         elements_.push_back({w[1], std::strtoull(w[2].c_str(), nullptr, 10), {}});
       } else if (keyword == "property" && !elements_.empty()) {
-        const auto& sizes = type_sizes();
-        if (w.size() == 3 && sizes.count(w[1])) {
-          elements_.back().properties.push_back({w[2], w[1], "", false});
-        } else if (w.size() == 5 && w[1] == "list" && sizes.count(w[2]) && sizes.count(w[3])) {
-          elements_.back().properties.push_back({w[4], w[3], w[2], true});
+        const auto& names = type_names();
+        if (w.size() == 3 && names.count(w[1])) {
+          elements_.back().properties.push_back({w[2], names.at(w[1]), Type::u8, false});
+        } else if (w.size() == 5 && w[1] == "list" && names.count(w[2]) && names.count(w[3])) {
+          elements_.back().properties.push_back({w[4], names.at(w[3]), names.at(w[2]), true});
         } else {
           refuse("'property TYPE NAME' or 'property list COUNT_TYPE TYPE NAME'");
         }
@@ -161,7 +176,7 @@ class Reader {
   }
 
   // One value of `type` (ASCII: the next token), as a double (exact for every PLY integer type).
-  double value(const std::string& type, const Element& e, std::uint64_t i) {
+  double value(Type type, const Element& e, std::uint64_t i) {
     if (encoding_ == Encoding::ascii) {
       while (pos_ < d_.size() && std::isspace(static_cast<unsigned char>(d_[pos_]))) ++pos_;
       const std::size_t start = pos_;
@@ -174,27 +189,30 @@ class Reader {
       if (*end != '\0') fail(e.name + " " + std::to_string(i) + ": expected a number, got '" + token.substr(0, 20) + "'");
       return v;
     }
-    const int size = type_sizes().at(type);
-    if (static_cast<std::size_t>(size) > d_.size() - pos_) {
+    const std::size_t size = size_of(type);
+    if (size > d_.size() - pos_) {
       fail(e.name + " " + std::to_string(i) + ": the file ends (the header announces " + std::to_string(e.count) + ")");
     }
     unsigned char b[8];
-    std::memcpy(b, d_.data() + pos_, static_cast<std::size_t>(size));
-    pos_ += static_cast<std::size_t>(size);
+    std::memcpy(b, d_.data() + pos_, size);
+    pos_ += size;
     const bool swap = (encoding_ == Encoding::big_endian) != (std::endian::native == std::endian::big);
     if (swap) std::reverse(b, b + size);
     auto as = [&](auto t) {
       std::memcpy(&t, b, sizeof t);
       return static_cast<double>(t);
     };
-    if (type == "char" || type == "int8") return as(std::int8_t{});
-    if (type == "uchar" || type == "uint8") return as(std::uint8_t{});
-    if (type == "short" || type == "int16") return as(std::int16_t{});
-    if (type == "ushort" || type == "uint16") return as(std::uint16_t{});
-    if (type == "int" || type == "int32") return as(std::int32_t{});
-    if (type == "uint" || type == "uint32") return as(std::uint32_t{});
-    if (type == "float" || type == "float32") return as(float{});
-    return as(double{});
+    switch (type) {
+      case Type::i8: return as(std::int8_t{});
+      case Type::u8: return as(std::uint8_t{});
+      case Type::i16: return as(std::int16_t{});
+      case Type::u16: return as(std::uint16_t{});
+      case Type::i32: return as(std::int32_t{});
+      case Type::u32: return as(std::uint32_t{});
+      case Type::f32: return as(float{});
+      case Type::f64: return as(double{});
+    }
+    return 0.0;
   }
 
   const std::string& name_;
