@@ -86,10 +86,37 @@ struct VectorGrid {
       }
     }
   }
+  // A Gaussian of standard deviation sigma (truncated at 3 sigma), separably along the three axes.
+  void gaussian_blur(double sigma) {
+    const auto radius = static_cast<std::size_t>(std::ceil(3.0 * sigma / h));
+    std::vector<double> kernel(radius + 1);
+    for (std::size_t r = 0; r <= radius; ++r) {
+      const double x = static_cast<double>(r) * h / sigma;
+      kernel[r] = std::exp(-0.5 * x * x);
+    }
+    for (int a = 0; a < 3; ++a) blur(a, kernel);
+  }
 };
 
 // The largest grid (cells) the smoothing may allocate; beyond it the spacing grows.
 constexpr double kMaxCells = 8.0e6;
+
+// A zeroed grid of spacing sigma / 2 (coarser past kMaxCells) over the points' box padded by 4 sigma.
+VectorGrid grid_around(const std::vector<Eigen::Vector3d>& points, double sigma) {
+  const auto box = bounding_box(points);
+  const double pad = 4.0 * sigma;
+  const Eigen::Vector3d extent = (box[1] - box[0]).array() + 2.0 * pad;
+  double h = 0.5 * sigma;
+  const double cells = (extent.array() / h + 2.0).prod();
+  if (cells > kMaxCells) h *= std::cbrt(cells / kMaxCells);
+  VectorGrid grid;
+  grid.origin = box[0].array() - pad;
+  grid.h = h;
+  for (std::size_t a = 0; a < 3; ++a) grid.n[a] = static_cast<std::ptrdiff_t>(std::ceil(extent[static_cast<int>(a)] / h)) + 2;
+  grid.value.assign(static_cast<std::size_t>(grid.n[0] * grid.n[1] * grid.n[2]), Eigen::Vector3d::Zero());
+  return grid;
+}
+
 
 }  // namespace
 
@@ -148,30 +175,13 @@ std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double s
   if (!(sigma > 0.0) || !std::isfinite(sigma)) throw ValueError("smoothed_normals: sigma must be positive");
   std::vector<Eigen::Vector3d> result = vertex_normals(mesh);
   if (mesh.vertices.empty() || mesh.triangles.empty()) return result;
-  const auto box = bounding_box(mesh.vertices);
-  const double pad = 4.0 * sigma;
-  const Eigen::Vector3d extent = (box[1] - box[0]).array() + 2.0 * pad;
-  double h = 0.5 * sigma;
-  const double cells = (extent.array() / h + 2.0).prod();
-  if (cells > kMaxCells) h *= std::cbrt(cells / kMaxCells);
-  VectorGrid grid;
-  grid.origin = box[0].array() - pad;
-  grid.h = h;
-  for (std::size_t a = 0; a < 3; ++a) grid.n[a] = static_cast<std::ptrdiff_t>(std::ceil(extent[static_cast<int>(a)] / h)) + 2;
-  grid.value.assign(static_cast<std::size_t>(grid.n[0] * grid.n[1] * grid.n[2]), Eigen::Vector3d::Zero());
-
+  VectorGrid grid = grid_around(mesh.vertices, sigma);
   const auto& p = mesh.vertices;
   for (const Triangle& t : mesh.triangles) {
     const Eigen::Vector3d area_vector = 0.5 * (p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]);
     grid.splat((p[t[0]] + p[t[1]] + p[t[2]]) / 3.0, area_vector);
   }
-  const auto radius = static_cast<std::size_t>(std::ceil(3.0 * sigma / h));
-  std::vector<double> kernel(radius + 1);
-  for (std::size_t r = 0; r <= radius; ++r) {
-    const double x = static_cast<double>(r) * h / sigma;
-    kernel[r] = std::exp(-0.5 * x * x);
-  }
-  for (int a = 0; a < 3; ++a) grid.blur(a, kernel);
+  grid.gaussian_blur(sigma);
 
   std::vector<Eigen::Vector3d> blurred(p.size());
   double largest = 0.0;
@@ -184,6 +194,21 @@ std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double s
     if (len > 1e-9 * largest) result[i] = blurred[i] / len;
   }
   return result;
+}
+
+std::vector<double> blurred_in_space(const TriangleMesh& mesh, const std::vector<double>& value, double sigma) {
+  if (!(sigma > 0.0) || !std::isfinite(sigma)) throw ValueError("blurred_in_space: sigma must be positive");
+  if (value.size() != mesh.vertices.size()) throw ValueError("blurred_in_space: one value per vertex");
+  const std::vector<double> area = vertex_areas(mesh);
+  VectorGrid grid = grid_around(mesh.vertices, sigma);
+  for (std::size_t i = 0; i < value.size(); ++i) grid.splat(mesh.vertices[i], {area[i] * value[i], area[i], 0.0});
+  grid.gaussian_blur(sigma);
+  std::vector<double> out(value.size());
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    const Eigen::Vector3d s = grid.sample(mesh.vertices[i]);
+    out[i] = s.y() > 0.0 ? s.x() / s.y() : value[i];
+  }
+  return out;
 }
 
 SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& o) {

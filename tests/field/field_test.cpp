@@ -158,6 +158,10 @@ TEST(Tissue, PresetsFollowPosture) {
   const auto supine = shear_modulus_per_vertex(preset("healthy-supine"), m);
   EXPECT_NEAR(supine[extreme({0, -1, 0})], 1500.0 * 1.8, 1e-9);   // costal, anterior (LPS: -y)
   EXPECT_NEAR(supine[extreme({0, 1, 0})], 1500.0 * 0.6, 1e-9);    // costal, posterior
+  // Both healthy presets blur the force in space at 3 mm (docs/realism.md).
+  EXPECT_DOUBLE_EQ(with_tissue({}, preset("healthy-upright"), m).magnitude_smoothing, 3e-3);
+  EXPECT_DOUBLE_EQ(with_tissue({}, preset("healthy-supine"), m).magnitude_smoothing, 3e-3);
+  EXPECT_DOUBLE_EQ(with_tissue({}, preset("fibrotic-lower-lobe"), m).magnitude_smoothing, 0.0);
   const auto fibrotic = shear_modulus_per_vertex(preset("fibrotic-lower-lobe"), m);
   EXPECT_DOUBLE_EQ(fibrotic[extreme({0, 0, -1})], 10e3);
   EXPECT_DOUBLE_EQ(fibrotic[extreme({0, 0, 1})], 2400.0);
@@ -215,6 +219,10 @@ TEST(Tissue, BadFilesAreOneLine) {
        "2:86: stiffness.band: unknown key; expected one of: bands, dependent, model, nondependent, profile"},
       {"posture: sideways\nstiffness: {model: gradient}\n",
        "1:10: posture: expected one of: upright, supine, prone; got 'sideways'"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\ndisplacement: {magnitude_smoothing: 3}\n",
+       "3:37: displacement.magnitude_smoothing: expected a length such as '3 mm', got '3'"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\ndisplacement: {magnitude_smoothing: -3 mm}\n",
+       "3:37: displacement.magnitude_smoothing: expected a length >= 0 such as '3 mm'"},
   };
   for (const Bad& c : cases) {
     const auto file = dir.write("t.yaml", c.yaml);

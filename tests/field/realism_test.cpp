@@ -2,13 +2,21 @@
 // the anatomical direction against folding: a deep breath animates without self-intersection.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <filesystem>
+#include <iostream>
+
 #include "pneuma/engine/field_cache.h"
 #include "pneuma/engine/physiology_config.h"
 #include "pneuma/engine/tissue.h"
 #include "pneuma/engine/volume_scale.h"
 #include "pneuma/mesh/motion_summary.h"
 #include "pneuma/mesh/phantom.h"
+#include "pneuma/mesh/labels.h"
+#include "pneuma/mesh/remesh.h"
 #include "pneuma/mesh/surface_queries.h"
+#include "field_fixture.h"
+#include "test_support.h"
 
 namespace pneuma::engine {
 namespace {
@@ -102,6 +110,32 @@ TEST(Realism, DirectionEntersTheCacheKey) {
   FieldOptions d = a;
   d.load.assign(m.vertices.size(), 2.0);
   EXPECT_NE(field_key(m, mu, "t", a), field_key(m, mu, "t", d));
+  FieldOptions e = a;
+  e.magnitude_smoothing = 0.003;
+  EXPECT_NE(field_key(m, mu, "t", a), field_key(m, mu, "t", e));
+}
+
+TEST(Realism, MagnitudeSmoothingBlursTheForceAndKeepsOneAreaUnit) {
+  // The force with smoothing is the blur of the force without (mesh::blurred_in_space, an
+  // independent function), and the field still adds one area unit.
+  mesh::PhantomOptions p;
+  p.edge_length_m = 8e-3;
+  const mesh::TriangleMesh m = mesh::make_lung_phantom(p);
+  const std::vector<double> mu = test::graded_modulus(m, 1e3, 3e3);
+  FieldOptions plain;
+  plain.direction = DirectionKind::anatomical;
+  FieldOptions smooth = plain;
+  smooth.magnitude_smoothing = 0.01;
+  const ElastostaticField a = compute_field(m, mu, plain), b = compute_field(m, mu, smooth);
+  const std::vector<double> oracle = mesh::blurred_in_space(m, a.force, 0.01);
+  EXPECT_LT(test::max_abs_difference(b.force, oracle, oracle.size()), 1e-12 * *std::max_element(oracle.begin(), oracle.end()));
+  EXPECT_GT(test::max_abs_difference(b.force, a.force, a.force.size()), 0.01 * *std::max_element(a.force.begin(), a.force.end()));
+  const auto g = mesh::area_gradient(m);
+  double rate = 0.0;
+  for (std::size_t i = 0; i < g.size(); ++i) rate += g[i].dot(b.unit_displacement[i]);
+  EXPECT_NEAR(rate, smooth.area_unit, 1e-12 * smooth.area_unit);
+  smooth.magnitude_smoothing = -1.0;
+  EXPECT_THROW(compute_field(m, mu, smooth), ValueError);
 }
 
 TEST(Realism, FieldAlongGivenDirectionsIsNormalisedToOneAreaUnit) {
@@ -120,6 +154,53 @@ TEST(Realism, FieldAlongGivenDirectionsIsNormalisedToOneAreaUnit) {
     EXPECT_NEAR(rate, o.area_unit, 1e-12 * o.area_unit) << direction_name(kind);
   }
 }
+
+// The six real CT lungs (../shared/data/ct-lobes, both lungs) with the shipped healthy-upright
+// tissue at 4 and 2 mm edges: a 1.5 L breath above FRC (each lung its share: 55 % right, 45 %
+// left) animates without self-intersection (CGAL, as the runner checks its largest frame), and
+// quiet breathing (500 mL) meets the human figures of docs/realism.md that hold on every lung:
+// diaphragm mean caudal >= 8 mm and >= 60 % of the volume change, apex <= 3 mm, mediastinum <= 1 mm.
+// The dome top is printed, not checked: it falls short of 15-21 mm on most CT lungs (docs/realism.md).
+class CtLungRealism : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(CtLungRealism, DeepBreathDoesNotFoldAndQuietBreathIsHuman) {
+  const auto file = test::ct_lobes_dir() / (std::string(GetParam()) + "_lobes.nii.gz");
+  if (!std::filesystem::exists(file)) {
+    GTEST_SKIP() << "no CT lobe maps at " << file.parent_path() << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
+  }
+  const Tissue tissue = load_tissue(tissue_file("healthy-upright", default_config_dir()));
+  const mesh::LabelMap map = mesh::read_label_map(file);
+  for (const auto& [labels, share] : {std::pair{std::vector<int>{3, 4, 5}, 0.55}, std::pair{std::vector<int>{1, 2}, 0.45}}) {
+    const mesh::TriangleMesh extracted = mesh::surface_from_labels(map, file.string(), labels).mesh;
+    for (double edge : {4e-3, 2e-3}) {
+      const std::string what = std::string(GetParam()) + (share > 0.5 ? " right" : " left") + " at " + std::to_string(edge * 1e3) + " mm";
+      SCOPED_TRACE(what);
+      const mesh::TriangleMesh rest = mesh::remesh_isotropic(extracted, {.target_edge_length_m = edge, .measure_deviation = false}).mesh;
+      const FieldModel field = compute_field_model(rest, tissue, default_field_options);
+      mesh::RegionOptions o;
+      o.frame = body_frame(tissue);
+      const mesh::SurfaceRegions regions = mesh::find_regions(rest, o);
+      const VolumeScaleMap map_v(rest.vertices, field.unit_displacement, rest.triangles);
+      mesh::TriangleMesh deep = rest;
+      const double deep_scale = map_v.scale_for(map_v.volume(0.0) + share * 1.5e-3);
+      for (std::size_t i = 0; i < deep.vertices.size(); ++i) deep.vertices[i] += deep_scale * field.unit_displacement[i];
+      EXPECT_FALSE(mesh::self_intersects(deep));
+      const double quiet_scale = map_v.scale_for(map_v.volume(0.0) + share * 500e-6);
+      const mesh::MotionSummary s = mesh::summarize_motion(rest, field.unit_displacement, quiet_scale, regions);
+      EXPECT_GE(of(s, mesh::Region::diaphragmatic).caudal_mean_m, 8e-3);
+      EXPECT_GE(of(s, mesh::Region::diaphragmatic).volume_share, 0.60);
+      EXPECT_LE(of(s, mesh::Region::apex).magnitude_mean_m, 3e-3);
+      EXPECT_LE(of(s, mesh::Region::mediastinal).magnitude_mean_m, 1e-3);
+      std::cout << what << ": diaphragm " << of(s, mesh::Region::diaphragmatic).caudal_mean_m * 1e3 << " mm ("
+                << of(s, mesh::Region::diaphragmatic).volume_share * 100 << " %), dome top " << s.dome_top_caudal_m * 1e3
+                << " mm, apex " << of(s, mesh::Region::apex).magnitude_mean_m * 1e3 << " mm, mediastinum "
+                << of(s, mesh::Region::mediastinal).magnitude_mean_m * 1e3 << " mm\n";
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtLungRealism,
+                         ::testing::Values("case004", "case005", "case006", "case007", "case008", "case009"));
 
 }  // namespace
 }  // namespace pneuma::engine

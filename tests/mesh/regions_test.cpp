@@ -133,6 +133,34 @@ TEST(SmoothedNormals, TwoLipsOfANarrowCreaseMoveTogether) {
   EXPECT_GT(worst_smooth, worst_raw + 0.5);
 }
 
+// Oracles: a constant is kept exactly (the average of equal values); on a flattened sphere
+// (two sheets 2 mm apart at its middle) with 0 on the top sheet and 1 on the bottom one, the
+// values of vertices close in space (< 3 mm) end up close however far apart along the surface;
+// a blur much smaller than the gap between the sheets keeps them apart.
+TEST(BlurredInSpace, KeepsConstantsAndJoinsTheLipsOfAThinGap) {
+  TriangleMesh thin = make_icosphere(0.05, 4);
+  for (auto& v : thin.vertices) v.z() *= 0.02;
+  const std::vector<double> constant(thin.vertices.size(), 0.37);
+  for (double b : blurred_in_space(thin, constant, 0.004)) EXPECT_NEAR(b, 0.37, 1e-12);
+  std::vector<double> sheet(thin.vertices.size());
+  for (std::size_t i = 0; i < sheet.size(); ++i) sheet[i] = thin.vertices[i].z() > 0.0 ? 0.0 : 1.0;
+  auto widest_jump = [&](const std::vector<double>& v) {
+    double worst = 0.0;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (std::hypot(thin.vertices[i].x(), thin.vertices[i].y()) > 0.03) continue;  // the flat middle
+      for (std::size_t j = 0; j < v.size(); ++j) {
+        if ((thin.vertices[i] - thin.vertices[j]).norm() < 0.003) worst = std::max(worst, std::abs(v[i] - v[j]));
+      }
+    }
+    return worst;
+  };
+  EXPECT_EQ(widest_jump(sheet), 1.0);
+  EXPECT_LT(widest_jump(blurred_in_space(thin, sheet, 0.004)), 0.2);
+  EXPECT_GT(widest_jump(blurred_in_space(thin, sheet, 0.0003)), 0.9);
+  EXPECT_THROW(blurred_in_space(thin, sheet, 0.0), pneuma::ValueError);
+  EXPECT_THROW(blurred_in_space(thin, std::vector<double>(3, 1.0), 0.004), pneuma::ValueError);
+}
+
 TEST(MotionSummary, SweptVolumesAddUpToTheVolumeChange) {
   const TriangleMesh m = phantom(Lung::left, 8e-3);
   std::vector<Eigen::Vector3d> d(m.vertices.size());

@@ -66,6 +66,8 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
     throw ValueError("field tolerance must lie between 0 and 1");
   if (!(options.area_unit > 0.0)) throw ValueError("field area unit must be positive");
   if (!(options.direction_smoothing > 0.0)) throw ValueError("field direction smoothing must be positive");
+  if (!(options.magnitude_smoothing >= 0.0) || !std::isfinite(options.magnitude_smoothing))
+    throw ValueError("field magnitude smoothing must be zero or positive");
   const auto shared_graph = std::make_shared<const FieldGraph>(mesh, shear_modulus_pa);
   const FieldGraph& graph = *shared_graph;
   std::shared_ptr<const TransferOperator> op;  // null: one hop
@@ -92,6 +94,7 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   SolveResult result = solver->solve(load);
   field.report = std::move(result.report);
   field.force.assign(result.shot.begin(), result.shot.begin() + graph.mass_count());
+  if (options.magnitude_smoothing > 0.0) field.force = mesh::blurred_in_space(mesh, field.force, options.magnitude_smoothing);
   const std::vector<Eigen::Vector3d> direction = displacement_directions(mesh, options);
   auto [u, scale] = normalise_displacement(mesh, field.force, direction, options.area_unit);
   field.unit_displacement = std::move(u);

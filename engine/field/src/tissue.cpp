@@ -173,6 +173,10 @@ Tissue read_tissue(const Node& root) {
   if (auto d = root.optional_map("displacement")) {
     if (d->has("direction")) t.direction = parse_direction_kind(d->choice("direction", {"vertex_normal", "smoothed_normal", "anatomical"}));
     if (d->has("smoothing")) t.direction_smoothing_m = d->positive_quantity("smoothing", kind::length);
+    if (d->has("magnitude_smoothing")) {
+      t.magnitude_smoothing_m = d->quantity("magnitude_smoothing", kind::length);
+      if (!(t.magnitude_smoothing_m >= 0.0)) d->fail_at("magnitude_smoothing", "expected a length >= 0 such as '3 mm'");
+    }
     d->finish();
   }
   root.finish();
@@ -269,6 +273,7 @@ mesh::BodyFrame body_frame(const Tissue& tissue) {
 FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh::TriangleMesh& mesh) {
   options.direction = tissue.direction;
   options.direction_smoothing = tissue.direction_smoothing_m;
+  options.magnitude_smoothing = tissue.magnitude_smoothing_m;
   options.frame = body_frame(tissue);
   if (tissue.regional_load) {
     mesh::RegionOptions regions;

@@ -314,6 +314,7 @@ void hash_options(Hasher& h, const FieldOptions& o) {
   h.text(direction_name(o.direction));
   h.value(static_cast<std::uint64_t>(o.load.size()));
   h.bytes(o.load.data(), o.load.size() * sizeof(double));
+  h.value(o.magnitude_smoothing);
   if (o.direction != DirectionKind::vertex_normal) {
     h.value(o.direction_smoothing);
     h.bytes(o.frame.up.data(), 3 * sizeof(double));
@@ -326,7 +327,7 @@ void hash_options(Hasher& h, const FieldOptions& o) {
 std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> mu, const std::string& tissue_name,
                       const FieldOptions& o) {
   Hasher h;
-  h.text("pneuma-field-key/1");
+  h.text("pneuma-field-key/2");  // 2: wider region steps, magnitude smoothing (docs/realism.md)
   h.text(PNEUMA_VERSION);
   h.value(static_cast<std::uint64_t>(rest.vertices.size()));
   h.bytes(rest.vertices.data(), rest.vertices.size() * sizeof(Eigen::Vector3d));

@@ -56,7 +56,7 @@ struct RegionOptions {
   double diaphragm_height = 0.55;         // the diaphragm lies below this height
   double apex_height = 0.85;              // the apex lies above this height
   double medial_cos = 0.45;               // n.medial at the mediastinal border
-  double transition = 0.15;               // half-width of the smooth steps in a cosine
+  double transition = 0.35;               // half-width of the smooth steps in a cosine (wide: docs/realism.md, 4.)
   double height_transition = 0.05;        // half-width of the smooth steps in height
 };
 inline const RegionOptions kDefaultRegionOptions{};
@@ -84,6 +84,13 @@ SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& optio
 // fixed order: the same mesh gives the same bits. Where the blurred field vanishes (|N| below
 // 1e-9 of its largest value), the vertex normal. Throws ValueError for sigma <= 0.
 std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double sigma);
+
+// Per vertex: the area-weighted Gaussian average in space (standard deviation `sigma`, mesh
+// units) of a per-vertex value, sum_j G(x_i - x_j) A_j v_j / sum_j G(x_i - x_j) A_j, on the grid of
+// smoothed_normals(): smooth in space, so vertices close in space get close values however far
+// apart they lie along the surface. Deterministic. Throws ValueError for sigma <= 0 or a size
+// other than one value per vertex.
+std::vector<double> blurred_in_space(const TriangleMesh& mesh, const std::vector<double>& value, double sigma);
 
 // Per vertex: the mean curvature (1/length, > 0 where convex) from the cotangent Laplacian,
 // H_i = -(Delta x)_i . n_i / 2, Delta the cotangent Laplacian over the barycentric vertex area.

@@ -42,6 +42,10 @@ struct FieldOptions {
   double area_unit = 1e-4;  // in the mesh's length unit squared: 1 cm^2 for a mesh in metres
   DirectionKind direction = DirectionKind::vertex_normal;
   double direction_smoothing = 0.02;  // Gaussian sigma of the smoothed normals, mesh units (20 mm)
+  // Gaussian sigma (mesh units) of the force blurred in space before it is turned into a
+  // displacement (mesh::blurred_in_space); 0: none, the paper's. Bounds the field's gradient in
+  // space at any edge length, so a deep breath cannot crumple the surface (docs/realism.md).
+  double magnitude_smoothing = 0.0;
   mesh::BodyFrame frame;              // up and anterior, for the anatomical directions
   std::vector<double> load;           // per vertex (>= 0, not all 0); empty: 1 everywhere (the paper)
 };
@@ -49,7 +53,8 @@ inline const FieldOptions default_field_options{};
 
 struct ElastostaticField {
   std::vector<Eigen::Vector3d> unit_displacement;  // u per vertex, mesh units per area unit
-  std::vector<double> force;                  // F per vertex for f = 1 (before normalisation)
+  std::vector<double> force;                  // F per vertex for f = 1 (before normalisation; blurred
+                                              // in space when options.magnitude_smoothing > 0)
   double scale = 0.0;                         // unit_displacement_i = scale * force_i * n_i
   std::uint32_t mass_nodes = 0, spring_nodes = 0;
   SolveReport report;

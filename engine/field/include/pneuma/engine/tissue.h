@@ -21,8 +21,9 @@
 //               Optional `gravity: {nondependent: a, dependent: b}` multiplies mu by a factor
 //               running linearly from a to b along the posture's axis (see `position` below).
 //
-// `displacement: {direction: vertex_normal | smoothed_normal | anatomical, smoothing: 20 mm}`
-// (optional, default vertex_normal) chooses the field's displacement direction (field.h).
+// `displacement: {direction: vertex_normal | smoothed_normal | anatomical, smoothing: 20 mm,
+// magnitude_smoothing: 3 mm}` (optional, default vertex_normal, no magnitude smoothing) chooses
+// the field's displacement direction and how much its magnitude is blurred in space (field.h).
 #include <Eigen/Core>
 #include <filesystem>
 #include <array>
@@ -75,6 +76,7 @@ struct Tissue {
   std::variant<GradientStiffness, PerVertexStiffness, RegionStiffness> stiffness;
   DirectionKind direction = DirectionKind::vertex_normal;
   double direction_smoothing_m = 0.02;
+  double magnitude_smoothing_m = 0.0;  // 0: none (field.h, FieldOptions::magnitude_smoothing)
   // `load: {apex: a, costal: c, diaphragmatic: d, mediastinal: m}` (optional): the pressure drive
   // per anatomical region, relative (mesh::regional_load); none: the same load everywhere.
   // Optional `gravity: {nondependent: a, dependent: b}` inside `load`: the load times a factor
