@@ -117,7 +117,6 @@ VectorGrid grid_around(const std::vector<Eigen::Vector3d>& points, double sigma)
   return grid;
 }
 
-
 }  // namespace
 
 std::string_view region_name(Region region) {
@@ -199,6 +198,7 @@ std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double s
 std::vector<double> blurred_in_space(const TriangleMesh& mesh, const std::vector<double>& value, double sigma) {
   if (!(sigma > 0.0) || !std::isfinite(sigma)) throw ValueError("blurred_in_space: sigma must be positive");
   if (value.size() != mesh.vertices.size()) throw ValueError("blurred_in_space: one value per vertex");
+  if (value.empty()) return {};
   const std::vector<double> area = vertex_areas(mesh);
   VectorGrid grid = grid_around(mesh.vertices, sigma);
   for (std::size_t i = 0; i < value.size(); ++i) grid.splat(mesh.vertices[i], {area[i] * value[i], area[i], 0.0});

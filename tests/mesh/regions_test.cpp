@@ -159,6 +159,7 @@ TEST(BlurredInSpace, KeepsConstantsAndJoinsTheLipsOfAThinGap) {
   EXPECT_GT(widest_jump(blurred_in_space(thin, sheet, 0.0003)), 0.9);
   EXPECT_THROW(blurred_in_space(thin, sheet, 0.0), pneuma::ValueError);
   EXPECT_THROW(blurred_in_space(thin, std::vector<double>(3, 1.0), 0.004), pneuma::ValueError);
+  EXPECT_TRUE(blurred_in_space(TriangleMesh{}, {}, 0.004).empty());
 }
 
 TEST(MotionSummary, SweptVolumesAddUpToTheVolumeChange) {
