@@ -121,6 +121,9 @@ class Reader {
 
  private:
   [[noreturn]] void fail(const std::string& what) const { throw InputError(name_ + ": PLY " + what); }
+  [[noreturn]] void fail_at_end(const Element& e, std::uint64_t i) const {
+    fail(e.name + " " + std::to_string(i) + ": the file ends (the header announces " + std::to_string(e.count) + ")");
+  }
 
   static std::string number_text(double v) {
     std::ostringstream out;
@@ -181,8 +184,7 @@ class Reader {
       while (pos_ < d_.size() && std::isspace(static_cast<unsigned char>(d_[pos_]))) ++pos_;
       const std::size_t start = pos_;
       while (pos_ < d_.size() && !std::isspace(static_cast<unsigned char>(d_[pos_]))) ++pos_;
-      if (start == pos_) fail(e.name + " " + std::to_string(i) + ": the file ends (the header announces " +
-                              std::to_string(e.count) + ")");
+      if (start == pos_) fail_at_end(e, i);
       const std::string token = d_.substr(start, pos_ - start);
       char* end = nullptr;
       const double v = std::strtod(token.c_str(), &end);
@@ -190,9 +192,7 @@ class Reader {
       return v;
     }
     const std::size_t size = size_of(type);
-    if (size > d_.size() - pos_) {
-      fail(e.name + " " + std::to_string(i) + ": the file ends (the header announces " + std::to_string(e.count) + ")");
-    }
+    if (size > d_.size() - pos_) fail_at_end(e, i);
     unsigned char b[8];
     std::memcpy(b, d_.data() + pos_, size);
     pos_ += size;

@@ -120,6 +120,20 @@ TEST(Io, SeveralMeshesInOneFileAreKeptAsComponents) {
   EXPECT_NEAR(r.volume_m3, 2e-9 / 6, 1e-18);
 }
 
+namespace {
+
+// The one-line message read_mesh() refuses `file` with ("no error" when it reads it).
+std::string read_error(const std::filesystem::path& file) {
+  try {
+    read_mesh(file);
+  } catch (const pneuma::InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+}  // namespace
+
 // pneuma's PLY reader against hand-made files: a cube of quads (split into fans) in ASCII with an
 // extra property and element to skip, and the same cube in big-endian binary with double
 // coordinates and uint16 counts; the oracle is the cube's volume and the file's numbering.
@@ -160,7 +174,7 @@ TEST(Io, PlyQuadsAsciiAndBigEndianBinary) {
   }
   // Cut anywhere, the body is one line naming what ends.
   const auto cut = dir.write("cut.ply", binary.substr(0, binary.size() - 3));
-  EXPECT_THROW(read_mesh(cut), pneuma::InputError);
+  EXPECT_EQ(read_error(cut), cut.string() + ": PLY face 5: the file ends (the header announces 6)");
 }
 
 // Found by fuzz_mesh_ply: a face naming a vertex past the end crashed assimp's post-processing
@@ -170,12 +184,7 @@ TEST(Io, AFaceNamingAMissingVertexIsRefusedNotACrash) {
   const auto file = dir.write("bad.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
                                          "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
                                          "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 2 1000000\n");
-  try {
-    read_mesh(file);
-    ADD_FAILURE() << "no error";
-  } catch (const pneuma::InputError& e) {
-    EXPECT_EQ(std::string(e.what()), file.string() + ": PLY face 1 uses vertex 1e+06: expected an index below the 3 vertices");
-  }
+  EXPECT_EQ(read_error(file), file.string() + ": PLY face 1 uses vertex 1e+06: expected an index below the 3 vertices");
 }
 
 // Found by fuzz_mesh_ply: a header that never reaches end_header made assimp loop forever.
@@ -184,24 +193,14 @@ TEST(Io, APlyHeaderWithoutEndHeaderIsRefusedNotAHang) {
   const auto file = dir.write("cut.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
                                          "property float z\nelement face 4\nproperty list uchar int vertex_indi0 2 1\n"
                                          "3 0 1 3\n3 0 3 2\n3 1 2 3\n");
-  try {
-    read_mesh(file);
-    ADD_FAILURE() << "no error";
-  } catch (const pneuma::InputError& e) {
-    EXPECT_EQ(std::string(e.what()), file.string() + ": PLY header line 8: expected 'property TYPE NAME' or 'property "
-                                                     "list COUNT_TYPE TYPE NAME', got 'property list uchar int vertex_indi0 2 1'");
-  }
+  EXPECT_EQ(read_error(file), file.string() + ": PLY header line 8: expected 'property TYPE NAME' or 'property list "
+                                              "COUNT_TYPE TYPE NAME', got 'property list uchar int vertex_indi0 2 1'");
   const auto endless = dir.write("endless.ply", "ply\nformat ascii 1.0\nelement vertex 4\n");
-  EXPECT_THROW(read_mesh(endless), pneuma::InputError);
+  EXPECT_EQ(read_error(endless), endless.string() + ": PLY header without 'end_header'");
   // Also found: a second format line and repeated elements corrupted assimp's heap.
   const auto twice = dir.write("twice.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
                                             "property float y\nproperty float z\nelement vertex 3\nend_header\n");
-  try {
-    read_mesh(twice);
-    ADD_FAILURE() << "no error";
-  } catch (const pneuma::InputError& e) {
-    EXPECT_EQ(std::string(e.what()), twice.string() + ": PLY header line 7: expected each element once, got 'element vertex 3'");
-  }
+  EXPECT_EQ(read_error(twice), twice.string() + ": PLY header line 7: expected each element once, got 'element vertex 3'");
 }
 
 TEST(Io, UnknownOutputExtensionIsAUsageError) {
