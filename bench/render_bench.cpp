@@ -8,14 +8,20 @@
 // thread, so the "CPU" column only shows the calling thread's share.
 // llvmpipe rasterises on LP_NUM_THREADS threads (default: one per core); run with
 // LP_NUM_THREADS=1 and 2 to see the scaling. BENCHMARKS.md ("## Render") keeps the figures.
+// BM_PngSequence: the scenario's PNG sink, with its encoding threaded or not.
 #include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+#include <unistd.h>
 
 #include <ctime>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <string>
 
+#include "pneuma/engine/frame.h"
 #include "pneuma/render/image.h"
+#include "pneuma/render/png_sink.h"
 #include "pneuma/render/renderer.h"
 
 namespace {
@@ -177,6 +183,45 @@ void BM_FrameToPng(benchmark::State& state) {
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_FrameToPng)->Args({6, 4, 0})->Args({8, 4, 0})->Args({8, 0, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// A PNG sequence through the scenario's sink (render::PngFrameSink): 16 frames drawn, encoded
+// (fast) and written to a temporary folder, the last file on disk included; the sink's set-up
+// (context, upload) is not timed. Arguments: subdivisions, TBB threads for the encoder (1: the
+// frames are encoded on the drawing thread, one after another, the baseline; 2: encoding
+// overlaps the next frame's drawing), then MSAA samples and FXAA as above.
+void BM_PngSequence(benchmark::State& state) {
+  const Model& m = model(static_cast<int>(state.range(0)));
+  const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(state.range(1)));
+  const engine::BreathingModel breathing = engine::make_breathing_model(m.rest, m.field, 1e-4);
+  render::PngSinkOptions sink_options;
+  sink_options.render = options(state, 2);
+  name_antialiasing(state, 2);
+  const auto folder = std::filesystem::temp_directory_path() / ("pneuma-png-bench-" + std::to_string(::getpid()));
+  constexpr std::size_t kFrames = 16;
+  engine::Frame frame(breathing);
+  const double cpu_start = process_cpu_ms();
+  for (auto _ : state) {
+    state.PauseTiming();
+    render::PngFrameSink sink(folder, sink_options);
+    sink.begin(breathing, engine::RunInfo{kFrames, 30.0, 0.0, 1.0, folder});
+    state.ResumeTiming();
+    for (std::size_t k = 0; k < kFrames; ++k) {
+      engine::advance(breathing, {k, 0.0, 0.0, static_cast<double>(k) / kFrames}, frame);
+      sink.frame(breathing, frame);
+    }
+    benchmark::DoNotOptimize(sink.end().size());
+  }
+  std::filesystem::remove_all(folder);
+  state.counters["process_cpu_ms_per_frame"] =
+      (process_cpu_ms() - cpu_start) / static_cast<double>(state.iterations() * kFrames);  // set-up included
+  label(state, m);
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * kFrames), benchmark::Counter::kIsRate);
+  state.counters["encoder_threads"] = static_cast<double>(state.range(1));
+}
+BENCHMARK(BM_PngSequence)
+    ->Args({8, 1, 0, 1})->Args({8, 2, 0, 1})->Args({6, 1, 4, 0})->Args({6, 2, 4, 0})
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // The OpenGL backends (render::GlBackend) side by side on the 1.3M-triangle mesh: per frame, set s,
 // draw, resolve or filter, read back. Arguments: backend (0 OSMesa, 1 EGL), image size (0:

@@ -1,12 +1,72 @@
 #include "pneuma/render/png_sink.h"
 
 #include <fmt/format.h>
+#include <tbb/global_control.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
+#include <mutex>
 
 #include "pneuma/core/error.h"
 
 namespace pneuma::render {
+
+// Encodes and writes frames as TBB tasks, at most `limit` at a time; a frame waits for a free
+// slot. The images' buffers are recycled. With one thread allowed (tbb::global_control) there are
+// no workers: the tasks run on the caller's thread when it waits.
+class PngFrameSink::Encoder {
+ public:
+  explicit Encoder(const PngOptions& png)
+      : png_(png), limit_(2 * tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)) {}
+  Encoder(const Encoder&) = delete;
+  Encoder& operator=(const Encoder&) = delete;
+  // An interrupted run (an exception on its way out): tasks not started are dropped, running ones
+  // finish their atomic write; their errors no longer matter.
+  ~Encoder() {
+    tasks_.cancel();
+    try {
+      tasks_.wait();
+    } catch (...) {
+    }
+  }
+
+  Image take_buffer() {
+    const std::lock_guard lock(mutex_);
+    if (free_.empty()) return {};
+    Image image = std::move(free_.back());
+    free_.pop_back();
+    return image;
+  }
+
+  // Rethrows the error of an earlier frame, if any (tbb::task_group::wait rethrows it).
+  void submit(Image image, std::filesystem::path path) {
+    if (queued_ >= limit_) wait();
+    ++queued_;
+    // TBB calls a task through a const reference; the image is handed back from there.
+    struct Job {
+      mutable Image image;
+      std::filesystem::path path;
+    };
+    tasks_.run([this, job = Job{std::move(image), std::move(path)}] {
+      write_png(job.path, job.image, png_);
+      const std::lock_guard lock(mutex_);
+      free_.push_back(std::move(job.image));
+    });
+  }
+
+  void wait() {
+    queued_ = 0;
+    tasks_.wait();
+  }
+
+ private:
+  const PngOptions png_;
+  const std::size_t limit_;
+  std::size_t queued_ = 0;  // submitted since the last wait
+  tbb::task_group tasks_;
+  std::mutex mutex_;
+  std::vector<Image> free_;
+};
 
 PngFrameSink::PngFrameSink(std::filesystem::path directory, PngSinkOptions options)
     : directory_(std::move(directory)), options_(std::move(options)) {
@@ -19,6 +79,7 @@ void PngFrameSink::begin(const engine::BreathingModel& model, const engine::RunI
   // The rest pose (s = 0) is always in frame, even when every frame of the run inflates.
   const ScaleRange scales{std::min(run.min_scale, 0.0), std::max(run.max_scale, 0.0)};
   renderer_ = std::make_unique<Renderer>(model.rest, model.unit_displacement, scales, options_.render);
+  encoder_ = std::make_unique<Encoder>(options_.png);
   written_.clear();
 }
 
@@ -29,14 +90,19 @@ std::filesystem::path PngFrameSink::path_of(std::size_t index) const {
 void PngFrameSink::frame(const engine::BreathingModel&, const engine::Frame& frame) {
   if (!renderer_) throw Error(ExitCode::failure, "render: PngFrameSink::frame() called before begin()");
   if (frame.index % options_.every != 0) return;
-  renderer_->render(frame.scale, image_);
+  Image image = encoder_->take_buffer();
+  renderer_->render(frame.scale, image);
   const auto path = path_of(frame.index);
-  write_png(path, image_, options_.png);
+  encoder_->submit(std::move(image), path);
   written_.push_back(path);
 }
 
 std::vector<std::filesystem::path> PngFrameSink::end() {
   renderer_.reset();
+  if (encoder_) {
+    const auto encoder = std::move(encoder_);
+    encoder->wait();
+  }
   return written_;
 }
 

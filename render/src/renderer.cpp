@@ -42,8 +42,13 @@ NormalTerms normal_terms(const mesh::TriangleMesh& rest, const std::vector<Eigen
 
 namespace {
 
-// The frame x = rest + s u is computed here, per vertex, from attributes uploaded once.
-constexpr const char* kVertexShader = R"(#version 330 core
+// The frame x = rest + s u is computed here, per vertex, from attributes uploaded once. On
+// llvmpipe the vertex stage and the per-triangle set-up of every varying run on the calling
+// thread, the part of a frame that no core count shortens, so the shaders pass as few varyings
+// as they can: the view direction comes from gl_FragCoord (exact under a perspective camera),
+// and the displacement magnitude only when the overlay shows it (OVERLAY, defined by
+// shader_prelude()).
+constexpr const char* kVertexShader = R"(
 layout(location = 0) in vec3 rest;
 layout(location = 1) in vec3 field;
 layout(location = 2) in vec3 normal0;
@@ -52,34 +57,42 @@ layout(location = 4) in vec3 normal2;
 uniform float s;
 uniform mat4 view_from_model;  // rigid: rotation and translation only
 uniform mat4 clip_from_view;
-out vec3 view_position;
 out vec3 view_normal;
+#ifdef OVERLAY
 out float magnitude;
+#endif
 void main() {
   vec3 position = rest + s * field;
   vec3 normal = normal0 + s * (normal1 + s * normal2);  // area-weighted normal of the frame
-  vec4 view = view_from_model * vec4(position, 1.0);
-  view_position = view.xyz;
   view_normal = mat3(view_from_model) * normal;
+#ifdef OVERLAY
   magnitude = abs(s) * length(field);
-  gl_Position = clip_from_view * view;
+#endif
+  gl_Position = clip_from_view * (view_from_model * vec4(position, 1.0));
 }
 )";
+
+std::string shader_prelude(bool overlay) {
+  return overlay ? "#version 330 core\n#define OVERLAY 1\n" : "#version 330 core\n";
+}
 
 // Lighting in linear light, written out as sRGB. Two lights fixed to the camera (a key light
 // above and left, a weaker fill from the right), wrapped diffuse for a soft tissue look, a
 // broad Blinn-Phong highlight, a faint rim.
-constexpr const char* kFragmentShaderHead = R"(#version 330 core
-in vec3 view_position;
+constexpr const char* kFragmentShaderHead = R"(
 in vec3 view_normal;
+#ifdef OVERLAY
 in float magnitude;
+uniform float overlay_max;
+#endif
 uniform vec3 base_colour;
 uniform float specular;
 uniform float shininess;
 uniform float wrap;
 uniform float rim;
-uniform int overlay;
-uniform float overlay_max;
+// The view ray through a pixel: (ray_scale * gl_FragCoord.xy + ray_offset, -1) in view space.
+uniform vec2 ray_scale;
+uniform vec2 ray_offset;
 out vec4 colour;
 )";
 constexpr const char* kFragmentShaderBody = R"(
@@ -88,12 +101,11 @@ vec3 to_srgb(vec3 c) { return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)); }
 void main() {
   vec3 n = normalize(view_normal);
   if (!gl_FrontFacing) n = -n;
-  vec3 v = normalize(-view_position);
-  if (overlay != 0) {
-    vec3 albedo = to_linear(viridis_srgb(magnitude / overlay_max));
-    colour = vec4(to_srgb(albedo * (0.55 + 0.45 * max(dot(n, v), 0.0))), 1.0);
-    return;
-  }
+  vec3 v = normalize(vec3(-(ray_scale * gl_FragCoord.xy + ray_offset), 1.0));  // towards the eye
+#ifdef OVERLAY
+  vec3 albedo = to_linear(viridis_srgb(magnitude / overlay_max));
+  colour = vec4(to_srgb(albedo * (0.55 + 0.45 * max(dot(n, v), 0.0))), 1.0);
+#else
   vec3 albedo = to_linear(base_colour);
   const vec3 key = normalize(vec3(-0.45, 0.6, 0.65));
   const vec3 fill = normalize(vec3(0.7, -0.15, 0.7));
@@ -104,6 +116,7 @@ void main() {
   float sheen = rim * pow(1.0 - max(dot(n, v), 0.0), 3.0);
   vec3 lit = albedo * (0.06 + 0.85 * key_diffuse + 0.25 * fill_diffuse) + vec3(highlight) + sheen * vec3(1.0, 0.9, 0.9);
   colour = vec4(to_srgb(lit), 1.0);
+#endif
 }
 )";
 
@@ -277,7 +290,7 @@ struct Renderer::Impl {
   GLuint msaa_fbo = 0, image_fbo = 0, output_fbo = 0;
   GLuint msaa_colour_rb = 0, msaa_depth_rb = 0, depth_rb = 0, output_rb = 0, image_texture = 0;
   GLuint fxaa_program = 0, empty_vao = 0;
-  GLint s_location = -1, view_location = -1, projection_location = -1;
+  GLint s_location = -1, view_location = -1, projection_location = -1, ray_scale_location = -1, ray_offset_location = -1;
   std::vector<std::uint8_t> row;  // scratch for flipping rows
 
   const detail::GlFunctions& gl() const { return context.gl(); }
@@ -328,10 +341,14 @@ struct Renderer::Impl {
   }
 
   void build_program() {
-    program = link(kVertexShader, std::string(kFragmentShaderHead) + detail::viridis_glsl() + kFragmentShaderBody);
+    const bool overlay = options.overlay_magnitude;
+    program = link(shader_prelude(overlay) + kVertexShader,
+                   shader_prelude(overlay) + kFragmentShaderHead + detail::viridis_glsl() + kFragmentShaderBody);
     s_location = gl().GetUniformLocation(program, "s");
     view_location = gl().GetUniformLocation(program, "view_from_model");
     projection_location = gl().GetUniformLocation(program, "clip_from_view");
+    ray_scale_location = gl().GetUniformLocation(program, "ray_scale");
+    ray_offset_location = gl().GetUniformLocation(program, "ray_offset");
     gl().UseProgram(program);
     const Material& m = options.material;
     gl().Uniform3f(gl().GetUniformLocation(program, "base_colour"), static_cast<float>(m.base_colour.x()),
@@ -340,8 +357,7 @@ struct Renderer::Impl {
     gl().Uniform1f(gl().GetUniformLocation(program, "shininess"), static_cast<float>(m.shininess));
     gl().Uniform1f(gl().GetUniformLocation(program, "wrap"), static_cast<float>(m.wrap));
     gl().Uniform1f(gl().GetUniformLocation(program, "rim"), static_cast<float>(m.rim));
-    gl().Uniform1i(gl().GetUniformLocation(program, "overlay"), options.overlay_magnitude ? 1 : 0);
-    gl().Uniform1f(gl().GetUniformLocation(program, "overlay_max"), static_cast<float>(overlay_max));
+    if (overlay) gl().Uniform1f(gl().GetUniformLocation(program, "overlay_max"), static_cast<float>(overlay_max));
   }
 
   void upload(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field) {
@@ -458,6 +474,12 @@ struct Renderer::Impl {
     gl().UseProgram(program);
     gl().UniformMatrix4fv(view_location, 1, GL_FALSE, view.data());  // Eigen is column-major, as GL
     gl().UniformMatrix4fv(projection_location, 1, GL_FALSE, projection.data());
+    // The inverse of the projection along a pixel's view ray, for the fragment shader's view
+    // direction: normalized device x = 2 x_window / width - 1, and view x / -z = ndc x * aspect / f.
+    const double f = projection(1, 1);
+    gl().Uniform2f(ray_scale_location, static_cast<float>(2.0 * aspect / (f * options.width)),
+                   static_cast<float>(2.0 / (f * options.height)));
+    gl().Uniform2f(ray_offset_location, static_cast<float>(-aspect / f), static_cast<float>(-1.0 / f));
   }
 
   void check_gl(const char* where) {

@@ -2,7 +2,11 @@
 // bounds, the silhouette's growth and the anatomical orientation of the presets.
 #include <gtest/gtest.h>
 
+#include <tbb/global_control.h>
+
 #include <Eigen/Geometry>
+#include <fstream>
+#include <iterator>
 #include <memory>
 
 #include "pneuma/core/error.h"
@@ -209,6 +213,68 @@ TEST(PngFrameSink, WritesEveryNthFrameAndNothingElse) {
   // Each file is the renderer's image of its frame.
   render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-0.5, 1.0}, small_options());
   EXPECT_EQ(render::read_png(written[2]).rgba, renderer.render(0.25).rgba);
+}
+
+namespace {
+
+// Runs a PngFrameSink over `scales` (every frame) under a TBB thread limit; returns the files.
+std::vector<std::filesystem::path> write_sequence(const test::LungStandIn& lung, const std::filesystem::path& folder,
+                                                  const std::vector<double>& scales, std::size_t threads) {
+  const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  const engine::BreathingModel model = engine::make_breathing_model(lung.rest, lung.field, 1e-4);
+  render::PngSinkOptions options;
+  options.render = small_options(render::CameraPreset::oblique);
+  render::PngFrameSink sink(folder, options);
+  sink.begin(model, engine::RunInfo{scales.size(), 30.0, 0.0, 1.0, folder});
+  engine::Frame frame(model);
+  for (std::size_t k = 0; k < scales.size(); ++k) {
+    engine::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
+    sink.frame(model, frame);
+  }
+  return sink.end();
+}
+
+std::string file_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+}  // namespace
+
+// Frames are encoded on worker threads, several in flight: every file is still its own frame's
+// image, and the bytes do not depend on the thread count.
+TEST(PngFrameSink, ThreadedEncodingGivesTheSameBytesAtAnyThreadCount) {
+  const auto lung = make_lung_stand_in(3);
+  test::TempDir dir;
+  std::vector<double> scales;
+  for (int k = 0; k < 12; ++k) scales.push_back(k / 11.0);
+  const auto one = write_sequence(lung, dir / "one", scales, 1);
+  const auto four = write_sequence(lung, dir / "four", scales, 4);
+  ASSERT_EQ(one.size(), scales.size());
+  ASSERT_EQ(four.size(), scales.size());
+  render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{0.0, 1.0}, small_options(render::CameraPreset::oblique));
+  for (std::size_t k = 0; k < scales.size(); ++k) {
+    EXPECT_EQ(one[k].filename(), four[k].filename());
+    EXPECT_EQ(file_bytes(one[k]), file_bytes(four[k])) << one[k].filename();
+    EXPECT_EQ(render::read_png(four[k]).rgba, renderer.render(scales[k]).rgba) << "frame " << k;
+  }
+}
+
+// A frame that cannot be written (its folder is a file) fails the run with the file's name, on
+// one line, whichever thread wrote it; nothing is left behind.
+TEST(PngFrameSink, AFrameThatCannotBeWrittenIsAnIoError) {
+  const auto lung = make_lung_stand_in(2);
+  test::TempDir dir;
+  const auto blocker = dir.write("frames", "a file where the frames' folder should be");
+  try {
+    write_sequence(lung, blocker, {0.0, 0.5, 1.0}, 4);
+    FAIL() << "expected an IoError";
+  } catch (const IoError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("frame_0000"), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"frames"});
 }
 
 // FXAA (post-process anti-aliasing) leaves flat neighbourhoods alone (an empty scene, smooth

@@ -1,8 +1,11 @@
 #pragma once
 // PNG frames of a breathing sequence: the `png` output of a scenario, one engine::FrameSink.
 // begin() makes the renderer and uploads the model once (rest mesh and unit displacement, framed
-// over the run's range of scales); frame() renders every `every`-th frame at its scale and writes
-// <prefix><index, 5 digits>.png atomically; end() releases the OpenGL context.
+// over the run's range of scales); frame() renders every `every`-th frame at its scale and hands
+// it to an encoder that writes <prefix><index, 5 digits>.png atomically on another thread (TBB,
+// within tbb::global_control's thread limit), so the next frame draws while this one encodes;
+// end() waits for every file and releases the OpenGL context. Each frame is encoded on its own,
+// so the files are the same bytes at any thread count.
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -29,7 +32,7 @@ class PngFrameSink final : public engine::FrameSink {
   std::string name() const override { return "png"; }
   // Throws what Renderer's constructor throws (UnsupportedError without OpenGL).
   void begin(const engine::BreathingModel& model, const engine::RunInfo& run) override;
-  // Throws IoError when the file cannot be written.
+  // A frame that cannot be written throws IoError from a later frame() or from end().
   void frame(const engine::BreathingModel& model, const engine::Frame& frame) override;
   std::vector<std::filesystem::path> end() override;
 
@@ -39,7 +42,8 @@ class PngFrameSink final : public engine::FrameSink {
   std::filesystem::path directory_;
   PngSinkOptions options_;
   std::unique_ptr<Renderer> renderer_;
-  Image image_;  // reused across frames
+  class Encoder;
+  std::unique_ptr<Encoder> encoder_;
   std::vector<std::filesystem::path> written_;
 };
 
