@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -270,6 +271,50 @@ DrawOrder draw_order(const mesh::TriangleMesh& rest) {
   return morton.cache_misses < as_given.cache_misses ? std::move(morton) : std::move(as_given);
 }
 
+// Whether a triangle faces away from the eye at every scale s in [s_min, s_max], with a margin,
+// so that OpenGL's back-face culling would drop it in every frame of the range. The camera is
+// fixed while a run draws, and llvmpipe shades the vertices, assembles and culls every
+// triangle it is given on the calling thread (the part of a frame no core count shortens), so
+// such triangles are left out of the draw: the image is the same, bit for bit, since a culled
+// triangle writes nothing and the others keep their order.
+// With p the first corner and N = (b - a) x (c - a) both moving with s (p + s u, N0 + s N1 +
+// s^2 N2), the triangle faces away where g(s) = (p(s) - eye) . N(s) > 0, a cubic in s whose
+// minimum over the range is at an end or where g' = 0. It is dropped only where that minimum
+// exceeds 1 % of |p - eye| |N| (about 0.6 degrees from edge-on: no float rounding in OpenGL's
+// own test can flip it) and every corner stays in front of the eye (no clipping).
+bool faces_away_throughout(const std::array<Eigen::Vector3d, 3>& p, const std::array<Eigen::Vector3d, 3>& u,
+                           const Eigen::Vector3d& eye, const Eigen::Vector3d& forward, double near_m, ScaleRange s) {
+  for (int k = 0; k < 3; ++k) {
+    for (double end : {s.min, s.max}) {
+      if ((p[k] + end * u[k] - eye).dot(forward) <= near_m) return false;
+    }
+  }
+  const Eigen::Vector3d e1 = p[1] - p[0], e2 = p[2] - p[0], f1 = u[1] - u[0], f2 = u[2] - u[0];
+  const Eigen::Vector3d n0 = e1.cross(e2), n1 = e1.cross(f2) + f1.cross(e2), n2 = f1.cross(f2);
+  const Eigen::Vector3d a0 = p[0] - eye, a1 = u[0];
+  const double c0 = a0.dot(n0), c1 = a0.dot(n1) + a1.dot(n0), c2 = a0.dot(n2) + a1.dot(n1), c3 = a1.dot(n2);
+  auto g = [&](double x) { return c0 + x * (c1 + x * (c2 + x * c3)); };
+  double lowest = std::min(g(s.min), g(s.max));
+  // g'(x) = c1 + 2 c2 x + 3 c3 x^2
+  const double qa = 3.0 * c3, qb = 2.0 * c2, qc = c1;
+  auto consider = [&](double x) {
+    if (x > s.min && x < s.max) lowest = std::min(lowest, g(x));
+  };
+  if (qa != 0.0) {
+    const double disc = qb * qb - 4.0 * qa * qc;
+    if (disc >= 0.0) {
+      const double root = std::sqrt(disc);
+      consider((-qb - root) / (2.0 * qa));
+      consider((-qb + root) / (2.0 * qa));
+    }
+  } else if (qb != 0.0) {
+    consider(-qc / qb);
+  }
+  const double reach = std::max(std::abs(s.min), std::abs(s.max));
+  const double scale = (a0.norm() + reach * a1.norm()) * (n0.norm() + reach * (n1.norm() + reach * n2.norm()));
+  return lowest > 0.01 * scale;
+}
+
 }  // namespace
 
 struct Renderer::Impl {
@@ -282,8 +327,16 @@ struct Renderer::Impl {
   double overlay_max = 0.0;
   int samples = 0;
   GLsizei index_count = 0;
+  // The triangles (in draw order and vertex numbers) and, for the pre-cull, each vertex's rest
+  // position relative to `origin` and field; the scales the pre-cull holds for, and the
+  // triangles that may face the camera somewhere in that range (visible_buffer).
+  std::vector<mesh::Triangle> draw_triangles;
+  std::vector<Eigen::Vector3f> draw_rest, draw_field;
+  ScaleRange scales;
+  GLsizei visible_index_count = 0;
+  bool precull = false;
 
-  GLuint program = 0, vao = 0, vertex_buffer = 0, index_buffer = 0;
+  GLuint program = 0, vao = 0, vertex_buffer = 0, index_buffer = 0, visible_buffer = 0;
   // Geometry is drawn into msaa_fbo (multisampled renderbuffers) and resolved into image_fbo,
   // or drawn into image_fbo directly without MSAA; with FXAA a full-screen pass filters
   // image_fbo's texture into output_fbo. The last of these is read back.
@@ -388,6 +441,16 @@ struct Renderer::Impl {
     gl().BufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(order.triangles.size() * sizeof(mesh::Triangle)),
                     order.triangles.data(), GL_STATIC_DRAW);
     index_count = static_cast<GLsizei>(order.triangles.size() * 3);
+    if (precull) {
+      draw_triangles = order.triangles;
+      draw_rest.resize(vertices.size());
+      draw_field.resize(vertices.size());
+      for (std::size_t k = 0; k < vertices.size(); ++k) {
+        draw_rest[k] = Eigen::Vector3f(vertices[k].rest[0], vertices[k].rest[1], vertices[k].rest[2]);
+        draw_field[k] = Eigen::Vector3f(vertices[k].field[0], vertices[k].field[1], vertices[k].field[2]);
+      }
+      gl().GenBuffers(1, &visible_buffer);
+    }
     gl().BindVertexArray(0);
   }
 
@@ -480,6 +543,28 @@ struct Renderer::Impl {
     gl().Uniform2f(ray_scale_location, static_cast<float>(2.0 * aspect / (f * options.width)),
                    static_cast<float>(2.0 / (f * options.height)));
     gl().Uniform2f(ray_offset_location, static_cast<float>(-aspect / f), static_cast<float>(-1.0 / f));
+    if (precull) upload_visible_triangles();
+  }
+
+  // The pre-cull (faces_away_throughout) for the current camera, uploaded as visible_buffer.
+  void upload_visible_triangles() {
+    const Eigen::Vector3d eye = camera.eye - origin, forward = (camera.target - camera.eye).normalized();
+    std::vector<mesh::Triangle> visible;
+    visible.reserve(draw_triangles.size());
+    for (const mesh::Triangle& t : draw_triangles) {
+      const std::array<Eigen::Vector3d, 3> p{draw_rest[t[0]].cast<double>(), draw_rest[t[1]].cast<double>(),
+                                             draw_rest[t[2]].cast<double>()};
+      const std::array<Eigen::Vector3d, 3> u{draw_field[t[0]].cast<double>(), draw_field[t[1]].cast<double>(),
+                                             draw_field[t[2]].cast<double>()};
+      if (!faces_away_throughout(p, u, eye, forward, camera.near_m, scales)) visible.push_back(t);
+    }
+    // Filled through the array-buffer binding (global state, unlike the element binding, which
+    // belongs to the vertex array); the draw binds it as the element buffer.
+    gl().BindBuffer(GL_ARRAY_BUFFER, visible_buffer);
+    gl().BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(visible.size() * sizeof(mesh::Triangle)), visible.data(),
+                    GL_STATIC_DRAW);
+    gl().BindBuffer(GL_ARRAY_BUFFER, 0);
+    visible_index_count = static_cast<GLsizei>(visible.size() * 3);
   }
 
   void check_gl(const char* where) {
@@ -497,8 +582,8 @@ struct Renderer::Impl {
     gl().DeleteTextures(1, &image_texture);
     gl().DeleteVertexArrays(1, &empty_vao);
     gl().DeleteProgram(fxaa_program);
-    const GLuint buffers[] = {vertex_buffer, index_buffer};
-    gl().DeleteBuffers(2, buffers);
+    const GLuint buffers[] = {vertex_buffer, index_buffer, visible_buffer};
+    gl().DeleteBuffers(3, buffers);
     gl().DeleteVertexArrays(1, &vao);
     gl().DeleteProgram(program);
   }
@@ -542,6 +627,10 @@ Renderer::Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vect
   r.row.resize(static_cast<std::size_t>(options.width) * 4);
 
   const auto& gl = r.gl();
+  r.scales = scales;
+  // PNEUMA_DRAW_ALL_TRIANGLES=1 turns the pre-cull off (to compare; the image is the same).
+  const char* draw_all = std::getenv("PNEUMA_DRAW_ALL_TRIANGLES");
+  r.precull = options.cull_back_faces && !(draw_all && std::string(draw_all) == "1");
   r.create_framebuffers();
   if (options.fxaa) r.build_fxaa();
   r.build_program();
@@ -582,7 +671,10 @@ void Renderer::render(double s, Image& out) {
     gl.UseProgram(r.program);
     gl.Uniform1f(r.s_location, static_cast<float>(s));
     gl.BindVertexArray(r.vao);
-    gl.DrawElements(GL_TRIANGLES, r.index_count, GL_UNSIGNED_INT, nullptr);
+    // The pre-culled triangles hold for the scales of the range only.
+    const bool culled = r.precull && s >= r.scales.min && s <= r.scales.max;
+    gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, culled ? r.visible_buffer : r.index_buffer);
+    gl.DrawElements(GL_TRIANGLES, culled ? r.visible_index_count : r.index_count, GL_UNSIGNED_INT, nullptr);
     gl.BindVertexArray(0);
   }
   if (r.samples > 0) {
@@ -645,5 +737,10 @@ bool parse_gl_backend(const std::string& text, GlBackend& out) {
   return true;
 }
 int Renderer::msaa_samples() const { return impl_->samples; }
+std::size_t Renderer::drawn_triangles(double s) const {
+  const Impl& r = *impl_;
+  const bool culled = r.precull && s >= r.scales.min && s <= r.scales.max;
+  return static_cast<std::size_t>(culled ? r.visible_index_count : r.index_count) / 3;
+}
 
 }  // namespace pneuma::render

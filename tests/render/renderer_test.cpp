@@ -5,6 +5,7 @@
 #include <tbb/global_control.h>
 
 #include <Eigen/Geometry>
+#include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <memory>
@@ -213,6 +214,32 @@ TEST(PngFrameSink, WritesEveryNthFrameAndNothingElse) {
   // Each file is the renderer's image of its frame.
   render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-0.5, 1.0}, small_options());
   EXPECT_EQ(render::read_png(written[2]).rgba, renderer.render(0.25).rgba);
+}
+
+// The pre-cull leaves out the triangles that face away from the camera at every scale of the
+// range; OpenGL's own back-face culling is the oracle: with every triangle drawn
+// (PNEUMA_DRAW_ALL_TRIANGLES=1) the images are the same, bit for bit, at any s of the range and
+// from every side. About half of a closed surface faces away.
+TEST(Renderer, PreCullGivesTheImageOfDrawingEveryTriangle) {
+  const auto lung = make_lung_stand_in(4);
+  const render::ScaleRange range{-0.5, 1.5};
+  for (auto camera : {render::CameraPreset::anterior, render::CameraPreset::oblique, render::CameraPreset::left_lateral}) {
+    render::Renderer culled(lung.rest, lung.field, range, small_options(camera));
+    ::setenv("PNEUMA_DRAW_ALL_TRIANGLES", "1", 1);
+    render::Renderer every(lung.rest, lung.field, range, small_options(camera));
+    ::unsetenv("PNEUMA_DRAW_ALL_TRIANGLES");
+    const std::size_t total = lung.rest.triangle_count();
+    EXPECT_EQ(every.drawn_triangles(0.0), total);
+    EXPECT_GT(culled.drawn_triangles(0.0), total * 3 / 10);
+    EXPECT_LT(culled.drawn_triangles(0.0), total * 7 / 10);
+    for (double s : {-0.5, 0.0, 0.7, 1.5}) EXPECT_EQ(culled.render(s).rgba, every.render(s).rgba) << "s = " << s;
+    // Outside the range the pre-cull does not hold: every triangle is drawn.
+    EXPECT_EQ(culled.drawn_triangles(3.0), total);
+    EXPECT_EQ(culled.render(3.0).rgba, every.render(3.0).rgba);
+  }
+  render::RenderOptions no_culling = small_options();
+  no_culling.cull_back_faces = false;
+  EXPECT_EQ(render::Renderer(lung.rest, lung.field, range, no_culling).drawn_triangles(0.0), lung.rest.triangle_count());
 }
 
 namespace {

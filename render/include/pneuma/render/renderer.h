@@ -114,6 +114,9 @@ class Renderer {
   std::string gl_version() const;
   std::string gl_backend() const;  // "EGL (surfaceless platform)", "OSMesa", ...
   int msaa_samples() const;  // after clamping
+  // The triangles handed to OpenGL for a frame at s: with back-face culling, those that face away
+  // from the camera at every s of the range are left out (the image is the same).
+  std::size_t drawn_triangles(double s) const;
 
  private:
   struct Impl;
