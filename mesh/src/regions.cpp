@@ -234,17 +234,32 @@ SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& o) {
   // The side: the mean depth below the convex hull of the face toward the patient's left and of
   // the face toward the right (steep faces only: |n.left| > 0.5 and |n.up| < 0.7), in the middle
   // of the height (the base's dome is concave on both sides). The deeper, concave one is medial.
-  const std::vector<double> depth = depth_below_convex_hull(mesh.vertices);
+  // A mean needs no more than a sample: at most kSideSample of those vertices, every k-th in index
+  // order (a depth query costs ~50-80 us on a fine surface; all of them took minutes at 10^6).
+  constexpr std::size_t kSideSample = 20000;
+  std::vector<std::size_t> steep;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::abs(normal[i].dot(up)) < 0.7 && r.height[i] >= 0.25 && r.height[i] <= 0.85 &&
+        std::abs(normal[i].dot(left)) > 0.5)
+      steep.push_back(i);
+  }
+  const std::size_t stride = (steep.size() + kSideSample - 1) / kSideSample;
+  std::vector<std::size_t> sample;
+  std::vector<Eigen::Vector3d> queries;
+  for (std::size_t k = 0; k < steep.size(); k += std::max<std::size_t>(stride, 1)) {
+    sample.push_back(steep[k]);
+    queries.push_back(mesh.vertices[steep[k]]);
+  }
+  const std::vector<double> depth = depth_below_convex_hull(mesh.vertices, queries);
   const std::vector<double> area = vertex_areas(mesh);
   double sum_left = 0.0, area_left = 0.0, sum_right = 0.0, area_right = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double along = normal[i].dot(left);
-    if (std::abs(normal[i].dot(up)) >= 0.7 || r.height[i] < 0.25 || r.height[i] > 0.85) continue;
-    if (along > 0.5) {
-      sum_left += depth[i] * area[i];
+  for (std::size_t k = 0; k < sample.size(); ++k) {
+    const std::size_t i = sample[k];
+    if (normal[i].dot(left) > 0.5) {
+      sum_left += depth[k] * area[i];
       area_left += area[i];
-    } else if (along < -0.5) {
-      sum_right += depth[i] * area[i];
+    } else {
+      sum_right += depth[k] * area[i];
       area_right += area[i];
     }
   }

@@ -1,6 +1,8 @@
 // Anatomical regions, smoothed normals and the motion summary, against geometric oracles.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -227,6 +229,20 @@ TEST(Geometry, SphereMeanCurvatureIsOneOverRadiusAndHullDepthIsZero) {
   const std::vector<double> depth = depth_below_convex_hull(points);
   for (std::size_t i = 0; i < s.vertices.size(); ++i) EXPECT_NEAR(depth[i], 0.0, 1e-12);
   EXPECT_NEAR(depth.back(), 0.1, 0.002);
+  // Queries apart from the hull's points: the depth of a point is min over the hull's face
+  // planes of (offset - n.x) (a direct loop over every face here), 0 outside.
+  const std::vector<Eigen::Vector3d> queries{{0.0, 0.0, 0.05}, {0.03, -0.02, 0.01}, {0.0, 0.0, 0.2}};
+  const std::vector<double> queried = depth_below_convex_hull(s.vertices, queries);
+  ASSERT_EQ(queried.size(), 3u);
+  for (std::size_t q = 0; q < 2; ++q) {
+    double direct = std::numeric_limits<double>::infinity();
+    for (const auto& t : s.triangles) {  // the icosphere is its own convex hull
+      const Eigen::Vector3d n = (s.vertices[t[1]] - s.vertices[t[0]]).cross(s.vertices[t[2]] - s.vertices[t[0]]).normalized();
+      direct = std::min(direct, n.dot(s.vertices[t[0]]) - n.dot(queries[q]));
+    }
+    EXPECT_NEAR(queried[q], direct, 1e-12);
+  }
+  EXPECT_EQ(queried[2], 0.0);
 }
 
 TEST(Regions, SameMeshSameBits) {
