@@ -29,8 +29,8 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
   // every plane took minutes at 10^5 points: a fine, mostly convex surface has 10^5 hull faces).
   using Hull = CGAL::Surface_mesh<Point>;
   using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, CGAL::AABB_face_graph_triangle_primitive<Hull>>>;
-  std::vector<std::pair<Eigen::Vector3d, double>> planes(hull.number_of_faces());
-  std::vector<bool> flat(hull.number_of_faces(), false);
+  // A degenerate face keeps the zero plane: the depth below it is 0 (the point is on the surface).
+  std::vector<std::pair<Eigen::Vector3d, double>> planes(hull.number_of_faces(), {Eigen::Vector3d::Zero(), 0.0});
   for (auto f : hull.faces()) {
     std::array<Eigen::Vector3d, 3> v;
     int k = 0;
@@ -50,10 +50,7 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
     std::rotate(v.begin(), first, v.end());
     const Eigen::Vector3d n = (v[1] - v[0]).cross(v[2] - v[0]);
     const double len = n.norm();
-    if (len == 0.0) {
-      flat[f.idx()] = true;
-      continue;
-    }
+    if (len == 0.0) continue;
     planes[f.idx()] = {n / len, n.dot(v[0]) / len};
   }
   std::vector<double> depth(queries.size(), 0.0);
@@ -70,7 +67,6 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
     const Eigen::Vector3d& q = queries[i];
     if (std::binary_search(corners.begin(), corners.end(), std::array<double, 3>{q.x(), q.y(), q.z()})) continue;
     const auto face = tree.closest_point_and_primitive(Point(q.x(), q.y(), q.z())).second;
-    if (flat[face.idx()]) continue;  // a degenerate face: the point lies on the hull's surface
     const auto& [n, offset] = planes[face.idx()];
     depth[i] = std::max(0.0, offset - n.dot(q));
   }

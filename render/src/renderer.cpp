@@ -567,6 +567,9 @@ struct Renderer::Impl {
     visible_index_count = static_cast<GLsizei>(visible.size() * 3);
   }
 
+  // Whether a frame at s draws the pre-culled triangles (they hold for the scales of the range only).
+  bool draws_visible_only(double s) const { return precull && s >= scales.min && s <= scales.max; }
+
   void check_gl(const char* where) {
     const GLenum error = gl().GetError();
     if (error != GL_NO_ERROR) throw Error(ExitCode::failure, std::string("render: OpenGL error 0x") + fmt_hex(error) + " in " + where);
@@ -671,8 +674,7 @@ void Renderer::render(double s, Image& out) {
     gl.UseProgram(r.program);
     gl.Uniform1f(r.s_location, static_cast<float>(s));
     gl.BindVertexArray(r.vao);
-    // The pre-culled triangles hold for the scales of the range only.
-    const bool culled = r.precull && s >= r.scales.min && s <= r.scales.max;
+    const bool culled = r.draws_visible_only(s);
     gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, culled ? r.visible_buffer : r.index_buffer);
     gl.DrawElements(GL_TRIANGLES, culled ? r.visible_index_count : r.index_count, GL_UNSIGNED_INT, nullptr);
     gl.BindVertexArray(0);
@@ -739,8 +741,7 @@ bool parse_gl_backend(const std::string& text, GlBackend& out) {
 int Renderer::msaa_samples() const { return impl_->samples; }
 std::size_t Renderer::drawn_triangles(double s) const {
   const Impl& r = *impl_;
-  const bool culled = r.precull && s >= r.scales.min && s <= r.scales.max;
-  return static_cast<std::size_t>(culled ? r.visible_index_count : r.index_count) / 3;
+  return static_cast<std::size_t>(r.draws_visible_only(s) ? r.visible_index_count : r.index_count) / 3;
 }
 
 }  // namespace pneuma::render
