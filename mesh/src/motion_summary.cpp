@@ -6,10 +6,6 @@
 #include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
-namespace {
-constexpr double kDomeCos = 0.8660254037844387;  // cos 30 degrees
-}  // namespace
-
 std::vector<double> swept_volumes(const TriangleMesh& rest, std::span<const Eigen::Vector3d> d) {
   if (d.size() != rest.vertices.size()) throw ValueError("swept_volumes: one displacement per vertex");
   const auto& p = rest.vertices;
@@ -44,16 +40,7 @@ MotionSummary summarize_motion(const TriangleMesh& rest, std::span<const Eigen::
   }
   const std::vector<double> area = vertex_areas(rest);
   const Eigen::Vector3d up = regions.frame.up, anterior = regions.frame.anterior, lateral = -regions.medial;
-  // The dome: diaphragmatic vertices whose (smoothed) normal lies within 30 degrees of straight
-  // down, i.e. where the diaphragm is nearly horizontal; its top is the highest of them.
-  auto on_dome = [&](std::size_t i) {
-    return regions.label[i] == Region::diaphragmatic &&
-           (regions.normal.size() != n || -regions.normal[i].dot(up) >= kDomeCos);
-  };
-  double top = -std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < n; ++i) {
-    if (on_dome(i)) top = std::max(top, rest.vertices[i].dot(up));
-  }
+  const std::vector<bool> on_dome_top = dome_top_vertices(rest, regions, dome_top_depth_m);
   double dome_sum = 0.0, dome_area = 0.0;
   std::array<double, 5> band_sum{}, band_area{};
   for (std::size_t i = 0; i < n; ++i) {
@@ -69,7 +56,7 @@ MotionSummary summarize_motion(const TriangleMesh& rest, std::span<const Eigen::
     r.lateral_max_m = std::max(r.lateral_max_m, lat);
     r.magnitude_max_m = std::max(r.magnitude_max_m, mag);
     r.volume_change_m3 += vertex_volume[i];
-    if (on_dome(i) && rest.vertices[i].dot(up) >= top - dome_top_depth_m) {
+    if (on_dome_top[i]) {
       dome_sum += area[i] * caudal;
       dome_area += area[i];
     }

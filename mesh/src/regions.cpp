@@ -293,14 +293,68 @@ SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& o) {
   return r;
 }
 
-std::vector<double> regional_load(const SurfaceRegions& regions, const std::array<double, kRegionCount>& load) {
-  std::vector<double> f(regions.weight.size(), 0.0);
-  for (std::size_t i = 0; i < f.size(); ++i) {
-    const double down = std::max(0.0, -regions.normal[i].dot(regions.frame.up));
-    for (std::size_t k = 0; k < kRegionCount; ++k) {
-      const double dome = k == static_cast<std::size_t>(Region::diaphragmatic) ? down : 1.0;
-      f[i] += regions.weight[i][k] * load[k] * dome;
+std::vector<bool> dome_top_vertices(const TriangleMesh& mesh, const SurfaceRegions& regions, double depth_m) {
+  constexpr double kDomeCos = 0.8660254037844387;  // cos 30 degrees
+  const std::size_t n = mesh.vertices.size();
+  if (regions.label.size() != n) throw ValueError("dome_top_vertices: one region label per vertex");
+  const Eigen::Vector3d up = regions.frame.up;
+  auto on_dome = [&](std::size_t i) {
+    return regions.label[i] == Region::diaphragmatic && (regions.normal.size() != n || -regions.normal[i].dot(up) >= kDomeCos);
+  };
+  double top = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (on_dome(i)) top = std::max(top, mesh.vertices[i].dot(up));
+  }
+  std::vector<bool> on_top(n, false);
+  for (std::size_t i = 0; i < n; ++i) on_top[i] = on_dome(i) && mesh.vertices[i].dot(up) >= top - depth_m;
+  return on_top;
+}
+
+std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                  const std::array<double, kRegionCount>& load, const DomeLoad& dome) {
+  if (!(dome.radius_m >= 0.0)) throw ValueError("regional_load: the dome radius must be >= 0");
+  if (!(dome.falloff_m > 0.0)) throw ValueError("regional_load: the dome's falloff must be > 0");
+  if (!(dome.rim >= 0.0 && dome.rim <= 1.0)) throw ValueError("regional_load: the dome rim factor must lie in [0, 1]");
+  const std::size_t n = regions.weight.size();
+  if (mesh.vertices.size() != n) throw ValueError("regional_load: one region weight per vertex");
+  const Eigen::Vector3d up = regions.frame.up;
+  constexpr auto kDiaphragm = static_cast<std::size_t>(Region::diaphragmatic);
+  // The diaphragm's drive before the dome profile: its weight times how far its normal points down.
+  std::vector<double> drive(n);
+  for (std::size_t i = 0; i < n; ++i) drive[i] = regions.weight[i][kDiaphragm] * std::max(0.0, -regions.normal[i].dot(up));
+  if (dome.radius_m > 0.0) {
+    const std::vector<bool> on_top = dome_top_vertices(mesh, regions);
+    const std::vector<double> area = vertex_areas(mesh);
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    double top_area = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!on_top[i]) continue;
+      centre += area[i] * mesh.vertices[i];
+      top_area += area[i];
     }
+    if (top_area > 0.0) {
+      centre /= top_area;
+      // The profile moves the drive toward the dome and keeps its total (so the diaphragm's share
+      // of the volume stays what the regional loads make it).
+      double before = 0.0, after = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d r = mesh.vertices[i] - centre;
+        const double x = ((r - r.dot(up) * up).norm() - dome.radius_m) / dome.falloff_m;  // -1..1 across the falloff
+        const double t = std::clamp(0.5 * (x + 1.0), 0.0, 1.0);
+        const double profile = dome.rim + (1.0 - dome.rim) * (1.0 - t * t * (3.0 - 2.0 * t));
+        before += area[i] * drive[i];
+        drive[i] *= profile;
+        after += area[i] * drive[i];
+      }
+      if (after > 0.0) {
+        for (double& d : drive) d *= before / after;
+      }
+    }
+  }
+  std::vector<double> f(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t k = 0; k < kRegionCount; ++k)
+      f[i] += load[k] * (k == kDiaphragm ? drive[i] : regions.weight[i][k]);
   }
   return f;
 }

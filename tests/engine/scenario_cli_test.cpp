@@ -99,7 +99,7 @@ TEST(SimulateCli, ANameTooLongForTheFileSystemIsTheUsualOneLine) {
   r = run_pneuma({"run", run.string(), "-o", (dir / "out").string()});
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(r.err, run.string() + ":5:11: field.tissue: no tissue '" + name + "' (looked for " PNEUMA_SOURCE_DIR
-                       "/configs/tissue/" + name + ".yaml; shipped: healthy-upright, healthy-supine, fibrotic-lower-lobe)\n");
+                       "/configs/tissue/" + name + ".yaml; shipped: healthy-upright, healthy-upright-ct, healthy-supine, fibrotic-lower-lobe)\n");
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
 }
 

@@ -204,6 +204,22 @@ TEST(Tissue, PerVertexAndRegionFiles) {
   }
 }
 
+TEST(Tissue, DomeProfileIsReadWithItsUnits) {
+  test::TempDir dir;
+  const Tissue t = load_tissue(dir.write(
+      "t.yaml",
+      "posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+      "load: {apex: 0.1, costal: 0.1, diaphragmatic: 1, mediastinal: 0, dome: {radius: 6 cm, falloff: 20 mm, rim: 0.3}}\n"));
+  EXPECT_DOUBLE_EQ(t.dome_load.radius_m, 0.06);
+  EXPECT_DOUBLE_EQ(t.dome_load.falloff_m, 0.02);
+  EXPECT_DOUBLE_EQ(t.dome_load.rim, 0.3);
+  // Without `dome`: no profile.
+  const Tissue plain = load_tissue(dir.write(
+      "p.yaml", "posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+                "load: {apex: 0.1, costal: 0.1, diaphragmatic: 1, mediastinal: 0}\n"));
+  EXPECT_EQ(plain.dome_load.radius_m, 0.0);
+}
+
 TEST(Tissue, BadFilesAreOneLine) {
   test::TempDir dir;
   struct Bad {
@@ -223,6 +239,15 @@ TEST(Tissue, BadFilesAreOneLine) {
        "3:37: displacement.magnitude_smoothing: expected a length such as '3 mm', got '3'"},
       {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\ndisplacement: {magnitude_smoothing: -3 mm}\n",
        "3:37: displacement.magnitude_smoothing: expected a length >= 0 such as '3 mm'"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, dome: {radius: 60, falloff: 2 cm, rim: 0.3}}\n",
+       "3:77: load.dome.radius: expected a length such as '3 mm', got '60'"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, dome: {radius: 6 cm, falloff: 2 cm, rim: 1.3}}\n",
+       "3:103: load.dome.rim: expected a factor from 0 to 1"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, dome: {radius: 6 cm, rim: 0.3}}\n",
+       "3:68: load.dome: missing key 'falloff' (expected length such as '3 mm')"},
   };
   for (const Bad& c : cases) {
     const auto file = dir.write("t.yaml", c.yaml);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 
 #include "mesh_fixture.h"
@@ -205,6 +206,90 @@ TEST(MotionSummary, UniformDilationSharesFollowAreasAndDoNotDependOnTheOrigin) {
   EXPECT_NEAR(c.region[static_cast<std::size_t>(Region::diaphragmatic)].caudal_mean_m, 0.005, 1e-12);
   EXPECT_NEAR(c.dome_top_caudal_m, 0.005, 1e-12);
   EXPECT_NEAR(c.volume_change_m3, 0.0, 1e-15);
+}
+
+TEST(RegionalLoad, BlendsTheRegionsLoadsAndDrivesTheDiaphragmByItsDownwardNormal) {
+  const TriangleMesh s = make_icosphere(0.1, 4);
+  RegionOptions o;
+  o.side = LungSide::right;
+  const SurfaceRegions r = find_regions(s, o);
+  const std::array<double, kRegionCount> load{0.1, 0.2, 1.0, 0.05};  // apex, costal, diaphragmatic, mediastinal
+  const std::vector<double> f = regional_load(s, r, load);
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    const auto& w = r.weight[i];
+    const double expected = 0.1 * w[0] + 0.2 * w[1] + 1.0 * w[2] * std::max(0.0, -r.normal[i].z()) + 0.05 * w[3];
+    EXPECT_NEAR(f[i], expected, 1e-12) << i;
+  }
+}
+
+TEST(RegionalLoad, TheDomeProfileMovesTheDiaphragmsDriveInwardAndKeepsItsTotal) {
+  // A sphere's lower cap: the dome's top is the ring 30 degrees from the bottom, centred on the
+  // z axis, so the profile depends on the distance from the axis. Only the diaphragm is loaded.
+  const TriangleMesh s = make_icosphere(0.1, 4);
+  RegionOptions o;
+  o.side = LungSide::right;
+  const SurfaceRegions r = find_regions(s, o);
+  const std::array<double, kRegionCount> load{0.0, 0.0, 1.0, 0.0};
+  const DomeLoad dome{.radius_m = 0.04, .falloff_m = 0.01, .rim = 0.25};
+  const std::vector<double> plain = regional_load(s, r, load), peaked = regional_load(s, r, load, dome);
+  const std::vector<double> area = vertex_areas(s);
+  double total_plain = 0.0, total_peaked = 0.0;
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    total_plain += area[i] * plain[i];
+    total_peaked += area[i] * peaked[i];
+  }
+  EXPECT_NEAR(total_peaked, total_plain, 1e-12 * total_plain);
+  // Inside radius - falloff the factor is one constant k, beyond radius + falloff it is k * rim,
+  // and it falls with the distance between.
+  // The centre: the area-weighted mean of the dome's top (checked below), near the axis.
+  const std::vector<bool> top = dome_top_vertices(s, r);
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  double top_area = 0.0;
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    if (top[i]) {
+      centre += area[i] * s.vertices[i];
+      top_area += area[i];
+    }
+  }
+  centre /= top_area;
+  EXPECT_LT(centre.head<2>().norm(), 1e-3);
+  std::vector<std::pair<double, double>> ratio;  // (horizontal distance from the centre, peaked / plain)
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    if (plain[i] > 1e-6) ratio.emplace_back((s.vertices[i] - centre).head<2>().norm(), peaked[i] / plain[i]);
+  }
+  std::sort(ratio.begin(), ratio.end());
+  const double k = ratio.front().second;
+  EXPECT_GT(k, 1.0);
+  int inside = 0, outside = 0;
+  for (std::size_t j = 0; j < ratio.size(); ++j) {
+    const auto [distance, factor] = ratio[j];
+    if (distance < 0.03 - 1e-9) {
+      EXPECT_NEAR(factor, k, 1e-12 * k);
+      ++inside;
+    }
+    if (distance > 0.05 + 1e-9) {
+      EXPECT_NEAR(factor, 0.25 * k, 1e-12 * k);
+      ++outside;
+    }
+    if (j > 0) {
+      EXPECT_LE(factor, ratio[j - 1].second + 1e-12) << distance;
+    }
+  }
+  EXPECT_GT(inside, 10);
+  EXPECT_GT(outside, 10);
+  // The dome's top: diaphragmatic, normal within 30 degrees of straight down, within 10 mm of the highest such vertex.
+  double highest = -1.0;
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    if (r.label[i] == Region::diaphragmatic && -r.normal[i].z() >= std::cos(std::numbers::pi / 6)) highest = std::max(highest, s.vertices[i].z());
+  }
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    const bool expected = r.label[i] == Region::diaphragmatic && -r.normal[i].z() >= std::cos(std::numbers::pi / 6) &&
+                          s.vertices[i].z() >= highest - 0.01;
+    EXPECT_EQ(top[i], expected) << i;
+  }
+  EXPECT_THROW(regional_load(s, r, load, {.radius_m = -0.01}), pneuma::ValueError);
+  EXPECT_THROW(regional_load(s, r, load, {.radius_m = 0.04, .falloff_m = 0.0}), pneuma::ValueError);
+  EXPECT_THROW(regional_load(s, r, load, {.radius_m = 0.04, .falloff_m = 0.01, .rim = 1.5}), pneuma::ValueError);
 }
 
 }  // namespace

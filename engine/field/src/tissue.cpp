@@ -167,6 +167,13 @@ Tissue read_tissue(const Node& root) {
       if (!(t.load_dependent > 0.0)) g->fail_at("dependent", "expected a positive factor");
       g->finish();
     }
+    if (auto d = l->optional_map("dome")) {
+      t.dome_load.radius_m = d->positive_quantity("radius", kind::length);
+      t.dome_load.falloff_m = d->positive_quantity("falloff", kind::length);
+      t.dome_load.rim = d->quantity("rim", kind::fraction);
+      if (!(t.dome_load.rim >= 0.0 && t.dome_load.rim <= 1.0)) d->fail_at("rim", "expected a factor from 0 to 1");
+      d->finish();
+    }
     l->finish();
     t.regional_load = load;
   }
@@ -278,7 +285,7 @@ FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh:
   if (tissue.regional_load) {
     mesh::RegionOptions regions;
     regions.frame = options.frame;
-    options.load = mesh::regional_load(mesh::find_regions(mesh, regions), *tissue.regional_load);
+    options.load = mesh::regional_load(mesh, mesh::find_regions(mesh, regions), *tissue.regional_load, tissue.dome_load);
     const std::vector<double> position = dependent_position(tissue, mesh);
     for (std::size_t i = 0; i < options.load.size(); ++i)
       options.load[i] *= tissue.load_nondependent + position[i] * (tissue.load_dependent - tissue.load_nondependent);

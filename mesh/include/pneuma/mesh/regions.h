@@ -109,11 +109,29 @@ inline std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vect
 // Per vertex: a third of the area of the incident triangles (sums to the surface area).
 std::vector<double> vertex_areas(const TriangleMesh& mesh);
 
+// The top of the diaphragm's dome: the diaphragmatic vertices (by label) whose smoothed normal
+// lies within 30 degrees of straight down (where the diaphragm is nearly horizontal) and within
+// `depth_m` below the highest of them. Per vertex; all false when the surface has no dome.
+std::vector<bool> dome_top_vertices(const TriangleMesh& mesh, const SurfaceRegions& regions, double depth_m = 0.01);
+
+// How the diaphragm's load concentrates at its dome (the diaphragm moves as a piston, its rim on
+// the ribs barely): times a profile of the horizontal distance r (across `up`) from the
+// area-weighted centre of the dome's top (dome_top_vertices), 1 inside `radius_m - falloff_m`,
+// `rim` beyond `radius_m + falloff_m`, a smooth step between; then scaled so that the diaphragm's
+// total load is unchanged. radius 0: no profile.
+struct DomeLoad {
+  double radius_m = 0.0;
+  double falloff_m = 0.02;
+  double rim = 1.0;  // the factor far from the dome, in [0, 1]
+};
+
 // Per vertex: a load (the pressure drive of the field) blended from one value per region,
 // f_i = sum_r w_ir load_r, with the diaphragmatic term times max(0, -n_i.up): the diaphragm
 // drives, most at its dome (normal straight down), least at its rim, where it lies on the ribs
-// (the zone of apposition).
-std::vector<double> regional_load(const SurfaceRegions& regions, const std::array<double, kRegionCount>& load);
+// (the zone of apposition); and times the dome profile above. Throws ValueError for a negative
+// radius or a rim outside [0, 1].
+std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                  const std::array<double, kRegionCount>& load, const DomeLoad& dome = {});
 
 // The displacement directions of the anatomical field, per vertex, unit length: a blend with
 // the region weights of

@@ -83,6 +83,9 @@ struct Tissue {
   // running linearly from a to b along the posture's axis (dependent regions ventilate more).
   std::optional<std::array<double, mesh::kRegionCount>> regional_load;
   double load_nondependent = 1.0, load_dependent = 1.0;
+  // Optional `dome: {radius: 60 mm, falloff: 20 mm, rim: 0.3}` inside `load`: the diaphragm's load
+  // concentrated at its dome, its total kept (mesh::DomeLoad); none: no concentration.
+  mesh::DomeLoad dome_load;
 };
 
 // The body frame of the tissue's coordinates (up, anterior).
