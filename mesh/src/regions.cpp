@@ -339,9 +339,7 @@ std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions
       double before = 0.0, after = 0.0;
       for (std::size_t i = 0; i < n; ++i) {
         const Eigen::Vector3d r = mesh.vertices[i] - centre;
-        const double x = ((r - r.dot(up) * up).norm() - dome.radius_m) / dome.falloff_m;  // -1..1 across the falloff
-        const double t = std::clamp(0.5 * (x + 1.0), 0.0, 1.0);
-        const double profile = dome.rim + (1.0 - dome.rim) * (1.0 - t * t * (3.0 - 2.0 * t));
+        const double profile = dome.rim + (1.0 - dome.rim) * (1.0 - ramp((r - r.dot(up) * up).norm(), dome.radius_m, dome.falloff_m));
         before += area[i] * drive[i];
         drive[i] *= profile;
         after += area[i] * drive[i];

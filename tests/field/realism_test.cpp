@@ -170,15 +170,17 @@ TEST_P(CtLungRealism, DeepBreathDoesNotFoldAndQuietBreathIsHuman) {
     GTEST_SKIP() << "no CT lobe maps at " << file.parent_path() << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
   }
   const mesh::LabelMap map = mesh::read_label_map(file);
+  const std::vector<std::pair<std::string, Tissue>> presets{
+      {"healthy-upright", load_tissue(tissue_file("healthy-upright", default_config_dir()))},
+      {"healthy-upright-ct", load_tissue(tissue_file("healthy-upright-ct", default_config_dir()))}};
   for (const auto& [labels, share] : {std::pair{std::vector<int>{3, 4, 5}, 0.55}, std::pair{std::vector<int>{1, 2}, 0.45}}) {
     const mesh::TriangleMesh extracted = mesh::surface_from_labels(map, file.string(), labels).mesh;
     for (double edge : {4e-3, 2e-3}) {
       const mesh::TriangleMesh rest = mesh::remesh_isotropic(extracted, {.target_edge_length_m = edge, .measure_deviation = false}).mesh;
-      for (const char* preset : {"healthy-upright", "healthy-upright-ct"}) {
+      for (const auto& [preset, tissue] : presets) {
         const std::string what = std::string(GetParam()) + (share > 0.5 ? " right" : " left") + " at " +
                                  std::to_string(edge * 1e3) + " mm, " + preset;
         SCOPED_TRACE(what);
-        const Tissue tissue = load_tissue(tissue_file(preset, default_config_dir()));
         const FieldModel field = compute_field_model(rest, tissue, default_field_options);
         mesh::RegionOptions o;
         o.frame = body_frame(tissue);

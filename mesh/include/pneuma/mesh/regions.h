@@ -129,7 +129,7 @@ struct DomeLoad {
 // f_i = sum_r w_ir load_r, with the diaphragmatic term times max(0, -n_i.up): the diaphragm
 // drives, most at its dome (normal straight down), least at its rim, where it lies on the ribs
 // (the zone of apposition); and times the dome profile above. Throws ValueError for a negative
-// radius or a rim outside [0, 1].
+// radius, a falloff <= 0 or a rim outside [0, 1].
 std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions& regions,
                                   const std::array<double, kRegionCount>& load, const DomeLoad& dome = {});
 
