@@ -81,10 +81,11 @@ mesh::TriangleMesh load_mesh_for_cli(const std::string& spec, const std::string&
 }
 
 engine::Tissue load_tissue_for_cli(const std::string& name_or_path) {
-  const std::filesystem::path file = engine::tissue_file(name_or_path, engine::default_config_dir());
+  const std::filesystem::path config_dir = engine::default_config_dir();
+  const std::filesystem::path file = engine::tissue_file(name_or_path, config_dir);
   if (file.string() != name_or_path && !path_exists(file)) {
     throw UsageError("pneuma: --tissue: no preset '" + name_or_path + "' (looked for " + file.string() +
-                     "; shipped presets: healthy-upright, healthy-supine, fibrotic-lower-lobe)");
+                     "; shipped presets: " + join_names(file_stems(config_dir / "tissue", ".yaml")) + ")");
   }
   return engine::load_tissue(file);
 }

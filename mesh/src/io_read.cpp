@@ -19,6 +19,7 @@
 #include "io_ply.h"
 #include "io_vtk.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/paths.h"
 #include "readable_file.h"
 #include "pneuma/core/units.h"
 #include "pneuma/mesh/io.h"
@@ -177,8 +178,7 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
                                                         : options.metres_per_unit;
   Soup soup;
   if (extension == ".vtk" || extension == ".vtp" || extension == ".ply") {
-    std::ifstream in(path, std::ios::binary);
-    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::string bytes = read_file_bytes(path);
     const detail::VtkSoup vtk = extension == ".vtk"   ? detail::read_vtk_legacy(name, std::move(bytes))
                                 : extension == ".vtp" ? detail::read_vtk_xml(name, std::move(bytes))
                                                       : detail::read_ply(name, bytes);

@@ -10,6 +10,7 @@
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/paths.h"
 
 namespace pneuma::render {
 
@@ -75,9 +76,7 @@ void write_png(const std::filesystem::path& path, const Image& image, const PngO
 }
 
 Image read_png(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in || std::filesystem::is_directory(path)) throw IoError(path.string() + ": cannot open file");
-  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string bytes = read_file_bytes(path);
   static constexpr unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   if (bytes.size() < 8 || std::memcmp(bytes.data(), signature, 8) != 0) {
     throw InputError(path.string() + ": not a PNG image (no PNG signature)");

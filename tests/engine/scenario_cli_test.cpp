@@ -93,13 +93,13 @@ TEST(SimulateCli, ANameTooLongForTheFileSystemIsTheUsualOneLine) {
   auto r = run_pneuma({"simulate", file.string(), "-o", (dir / "out.csv").string()});
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(r.err, file.string() + ":3:11: physiology.preset: no preset '" + name + "' (looked for " PNEUMA_SOURCE_DIR
-                       "/configs/physiology/" + name + ".yaml; shipped presets: healthy-adult, stiff-lung, obstructive)\n");
+                       "/configs/physiology/" + name + ".yaml; shipped presets: healthy-adult, obstructive, stiff-lung)\n");
   const auto run = dir.write("r.yaml", "duration: 20 s\nphysiology:\n  preset: healthy-adult\nfield:\n  tissue: " +
                                            name + "\n");
   r = run_pneuma({"run", run.string(), "-o", (dir / "out").string()});
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(r.err, run.string() + ":5:11: field.tissue: no tissue '" + name + "' (looked for " PNEUMA_SOURCE_DIR
-                       "/configs/tissue/" + name + ".yaml; shipped: healthy-upright, healthy-upright-ct, healthy-supine, fibrotic-lower-lobe)\n");
+                       "/configs/tissue/" + name + ".yaml; shipped presets: fibrotic-lower-lobe, healthy-supine, healthy-upright, healthy-upright-ct)\n");
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
 }
 
@@ -118,7 +118,7 @@ INSTANTIATE_TEST_SUITE_P(
                     "resistance, solver, transpulmonary_pressure_at_rest"},
         BadScenario{"unknown_preset", "duration: 20 s\nphysiology:\n  preset: healthy-martian\n",
                     "3:11: physiology.preset: no preset 'healthy-martian' (looked for " PNEUMA_SOURCE_DIR
-                    "/configs/physiology/healthy-martian.yaml; shipped presets: healthy-adult, stiff-lung, obstructive)"},
+                    "/configs/physiology/healthy-martian.yaml; shipped presets: healthy-adult, obstructive, stiff-lung)"},
         BadScenario{"bad_ratio", "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  driver: {ie_ratio: 2}\n",
                     "4:22: physiology.driver.ie_ratio: expected a ratio such as '1:2', got '2'"},
         BadScenario{"wrong_mode_key",

@@ -14,6 +14,7 @@
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/paths.h"
 #include "hdf5_writer.h"
 
 namespace pneuma::engine {
@@ -105,13 +106,8 @@ std::string seal_of(const std::string& body) {
   return fmt::format("{}bytes {}\nhash {}\n", kSealMagic, body.size(), h.hex());
 }
 
-std::string read_bytes(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
 void seal_file(const std::filesystem::path& path, const std::string& shown) {
-  const std::string bytes = read_bytes(path);
+  const std::string bytes = read_file_bytes(path);
   if (bytes.size() < kSealBytes) throw IoError(shown + ": cannot write: the HDF5 file is shorter than its user block");
   std::string seal = seal_of(bytes.substr(kSealBytes));
   seal.resize(kSealBytes, '\0');
@@ -123,7 +119,7 @@ void seal_file(const std::filesystem::path& path, const std::string& shown) {
 // Refuses (through `refuse`) anything but a sealed file whose bytes match their seal.
 template <typename Refuse>
 void check_seal(const std::filesystem::path& path, Refuse refuse) {
-  const std::string bytes = read_bytes(path);
+  const std::string bytes = read_file_bytes(path);
   if (bytes.compare(0, kSealMagic.size(), kSealMagic) != 0) {
     constexpr std::string_view kHdf5Signature = "\x89HDF\r\n\x1a\n";
     bool hdf5 = false;

@@ -193,7 +193,7 @@ Node with_preset(const Node& section, const std::filesystem::path& config_dir) {
   }
   if (!path_exists(file)) {
     section.fail_at("preset", "no preset '" + *preset + "' (looked for " + file.string() +
-                                  "; shipped presets: healthy-adult, stiff-lung, obstructive)");
+                                  "; shipped presets: " + join_names(file_stems(config_dir / "physiology", ".yaml")) + ")");
   }
   return section.with_fallback(Node::load_file(file));
 }

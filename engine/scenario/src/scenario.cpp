@@ -79,7 +79,7 @@ FieldSpec read_field(const Node& n, const std::filesystem::path& config_dir) {
   f.tissue_file = is_path ? n.directory("tissue") / f.tissue : config_dir / "tissue" / (f.tissue + ".yaml");
   if (!path_exists(f.tissue_file)) {
     n.fail_at("tissue", "no tissue '" + f.tissue + "' (looked for " + f.tissue_file.string() +
-                            "; shipped: healthy-upright, healthy-upright-ct, healthy-supine, fibrotic-lower-lobe)");
+                            "; shipped presets: " + join_names(file_stems(config_dir / "tissue", ".yaml")) + ")");
   }
   FieldOptions& o = f.options;
   if (n.has("solver")) o.solver = parse_solver_kind(n.choice("solver", solver_names()));

@@ -3,7 +3,9 @@
 // raise filesystem_error for a name too long for the file system or a folder without
 // permission, which would escape a loader as something other than pneuma::Error.
 #include <filesystem>
+#include <string>
 #include <system_error>
+#include <vector>
 
 namespace pneuma {
 
@@ -12,5 +14,17 @@ inline bool path_exists(const std::filesystem::path& path) noexcept {
   std::error_code ec;
   return std::filesystem::exists(path, ec) && !ec;
 }
+
+// The whole file as bytes. Throws IoError ("<path>: cannot open file") for a missing file, a
+// folder or one without read permission.
+std::string read_file_bytes(const std::filesystem::path& path);
+
+// The names, without extension and sorted, of the regular files in `folder` whose name ends in
+// `extension` (such as ".yaml"); empty where the folder cannot be listed. For messages that
+// name what is available (the shipped presets), so that they cannot drift from the folder.
+std::vector<std::string> file_stems(const std::filesystem::path& folder, const std::string& extension);
+
+// "a, b, c" (or "none" for an empty list).
+std::string join_names(const std::vector<std::string>& names);
 
 }  // namespace pneuma
