@@ -259,3 +259,28 @@ TEST(Tissue, BadFilesAreOneLine) {
     }
   }
 }
+
+// with_tissue finds the surface's regions once, where the tissue needs them; the moduli and the
+// anatomical direction then use those, and give bit for bit what finding them again gives.
+TEST(Tissue, RegionsFoundOnceGiveWhatFindingThemAgainGives) {
+  const auto m = mesh::make_icosphere(0.1, 3);
+  const Tissue upright = preset("healthy-upright");
+  const FieldOptions options = with_tissue({}, upright, m);
+  ASSERT_TRUE(options.regions);
+  mesh::RegionOptions region_options;
+  region_options.frame = body_frame(upright);
+  const mesh::SurfaceRegions direct = mesh::find_regions(m, region_options);
+  EXPECT_EQ(options.regions->label, direct.label);
+  EXPECT_EQ(options.regions->weight, direct.weight);
+  EXPECT_EQ(shear_modulus_per_vertex(upright, m, options.regions.get()), shear_modulus_per_vertex(upright, m));
+  FieldOptions finding_again = options;
+  finding_again.regions = nullptr;
+  ASSERT_EQ(options.direction, DirectionKind::anatomical);
+  EXPECT_EQ(displacement_directions(m, options), displacement_directions(m, finding_again));
+  // A tissue that needs no regions (a height gradient, normal directions, a uniform load) gets none.
+  EXPECT_FALSE(with_tissue({}, preset("fibrotic-lower-lobe"), m).regions);
+  // Regions of another surface are refused, not used.
+  const auto other = mesh::make_icosphere(0.1, 2);
+  EXPECT_THROW(displacement_directions(other, options), ValueError);
+  EXPECT_THROW(shear_modulus_per_vertex(upright, other, options.regions.get()), ValueError);
+}

@@ -28,6 +28,11 @@ std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& m
     case DirectionKind::vertex_normal: return mesh::vertex_normals(mesh);
     case DirectionKind::smoothed_normal: return mesh::smoothed_normals(mesh, options.direction_smoothing);
     case DirectionKind::anatomical: {
+      if (options.regions) {
+        if (options.regions->label.size() != mesh.vertices.size())
+          throw ValueError("displacement_directions: the regions given are of another surface");
+        return mesh::anatomical_directions(mesh, *options.regions, options.direction_smoothing);
+      }
       mesh::RegionOptions regions;
       regions.frame = options.frame;
       return mesh::anatomical_directions(mesh, mesh::find_regions(mesh, regions), options.direction_smoothing);

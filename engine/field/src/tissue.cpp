@@ -123,6 +123,13 @@ RegionStiffness read_regions(const Node& s) {
   return r;
 }
 
+// The surface's anatomical regions in the tissue's body axes (mesh::find_regions).
+mesh::SurfaceRegions regions_of(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
+  mesh::RegionOptions options;
+  options.frame = body_frame(tissue);
+  return mesh::find_regions(mesh, options);
+}
+
 }  // namespace
 
 Tissue read_tissue(const Node& root) {
@@ -219,7 +226,8 @@ std::vector<double> dependent_position(const Tissue& tissue, const mesh::Triangl
   return depth;
 }
 
-std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
+std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::TriangleMesh& mesh,
+                                             const mesh::SurfaceRegions* known_regions) {
   const std::size_t n = mesh.vertices.size();
   auto check_count = [n](std::size_t got, const std::string& source, const char* what) {
     if (got != n)
@@ -247,9 +255,9 @@ std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::T
   const auto& r = std::get<RegionStiffness>(tissue.stiffness);
   std::vector<double> mu(n);
   if (r.anatomical) {
-    mesh::RegionOptions options;
-    options.frame = body_frame(tissue);
-    const mesh::SurfaceRegions regions = mesh::find_regions(mesh, options);
+    if (known_regions && known_regions->label.size() != n)
+      throw ValueError("shear_modulus_per_vertex: the regions given are of another surface");
+    const mesh::SurfaceRegions regions = known_regions ? *known_regions : regions_of(tissue, mesh);
     std::array<double, mesh::kRegionCount> log_mu{};
     for (mesh::Region region : mesh::kRegions)
       log_mu[static_cast<std::size_t>(region)] = std::log(r.shear_modulus_pa.at(std::string(mesh::region_name(region))));
@@ -282,10 +290,12 @@ FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh:
   options.direction_smoothing = tissue.direction_smoothing_m;
   options.magnitude_smoothing = tissue.magnitude_smoothing_m;
   options.frame = body_frame(tissue);
+  const auto* stiffness = std::get_if<RegionStiffness>(&tissue.stiffness);
+  const bool needs_regions = tissue.regional_load || (stiffness && stiffness->anatomical) ||
+                             tissue.direction == DirectionKind::anatomical;
+  options.regions = needs_regions ? std::make_shared<const mesh::SurfaceRegions>(regions_of(tissue, mesh)) : nullptr;
   if (tissue.regional_load) {
-    mesh::RegionOptions regions;
-    regions.frame = options.frame;
-    options.load = mesh::regional_load(mesh, mesh::find_regions(mesh, regions), *tissue.regional_load, tissue.dome_load);
+    options.load = mesh::regional_load(mesh, *options.regions, *tissue.regional_load, tissue.dome_load);
     const std::vector<double> position = dependent_position(tissue, mesh);
     for (std::size_t i = 0; i < options.load.size(); ++i)
       options.load[i] *= tissue.load_nondependent + position[i] * (tissue.load_dependent - tissue.load_nondependent);

@@ -1,5 +1,6 @@
 #include "pneuma/engine/frame.h"
 
+#include "pneuma/core/error.h"
 
 #ifdef __SSE2__
 #include <emmintrin.h>
@@ -45,13 +46,18 @@ void displace(const BreathingModel& model, double scale, std::vector<Eigen::Vect
 }
 
 BreathingModel make_breathing_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_displacement,
-                                    double area_unit_m2, const mesh::BodyFrame& frame) {
+                                    double area_unit_m2, const mesh::BodyFrame& frame,
+                                    const mesh::SurfaceRegions* known_regions) {
+  if (known_regions && (known_regions->label.size() != rest.vertices.size() ||
+                        !known_regions->frame.up.isApprox(frame.up.normalized()) ||
+                        !known_regions->frame.anterior.isApprox(frame.anterior.normalized())))
+    throw ValueError("make_breathing_model: the regions given are of another surface or body frame");
   std::vector<Eigen::Vector3d> normals = mesh::vertex_normals(rest);
   VolumeScaleMap map(rest.vertices, unit_displacement, rest.triangles);
   const double area = mesh::surface_area(rest);
   mesh::RegionOptions region_options;
   region_options.frame = frame;
-  mesh::SurfaceRegions regions = mesh::find_regions(rest, region_options);
+  mesh::SurfaceRegions regions = known_regions ? *known_regions : mesh::find_regions(rest, region_options);
   return BreathingModel{std::move(rest), std::move(unit_displacement), std::move(normals), area_unit_m2,
                         std::move(map), area, std::move(regions)};
 }

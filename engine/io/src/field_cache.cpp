@@ -335,11 +335,13 @@ std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> mu
   return h.hex();
 }
 
-FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& given,
-                               ElastostaticField* field_out) {
-  const FieldOptions options = with_tissue(given, tissue, rest);
+namespace {
+
+// compute_field_model for options that already carry the tissue (with_tissue) and its moduli.
+FieldModel compute_with_tissue(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& options,
+                               std::vector<double> shear_modulus_pa, ElastostaticField* field_out = nullptr) {
   FieldModel m;
-  m.shear_modulus_pa = shear_modulus_per_vertex(tissue, rest);
+  m.shear_modulus_pa = std::move(shear_modulus_pa);
   ElastostaticField field = compute_field(rest, m.shear_modulus_pa, options);
   m.rest = rest;
   m.unit_displacement = field.unit_displacement;
@@ -358,6 +360,21 @@ FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tis
   d.residual = field.report.residual;
   if (field_out) *field_out = std::move(field);
   return m;
+}
+
+}  // namespace
+
+FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& given,
+                               ElastostaticField* field_out) {
+  const FieldOptions options = with_tissue(given, tissue, rest);
+  return compute_with_tissue(rest, tissue, options, shear_modulus_per_vertex(tissue, rest, options.regions.get()),
+                             field_out);
+}
+
+CachedField compute_uncached(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& given) {
+  const FieldOptions options = with_tissue(given, tissue, rest);
+  return {compute_with_tissue(rest, tissue, options, shear_modulus_per_vertex(tissue, rest, options.regions.get())),
+          false, {}, options.regions};
 }
 
 void save_field(const std::filesystem::path& path, const FieldModel& model) {
@@ -431,9 +448,10 @@ CachedField load_or_compute(const std::filesystem::path& path, const std::string
   const std::string key = source_field_key(source, tissue.name, options);
   std::string discarded;
   if (std::optional<FieldModel> cached = load_cache(path, discarded); cached && cached->metadata.key == key) {
-    return {std::move(*cached), true, {}};
+    return {std::move(*cached), true, {}, nullptr};
   }
-  CachedField out{compute_field_model(make_surface(), tissue, options), false, std::move(discarded)};
+  CachedField out = compute_uncached(make_surface(), tissue, options);
+  out.discarded = std::move(discarded);
   out.model.metadata.key = key;
   save_field(path, out.model);
   return out;
@@ -442,12 +460,13 @@ CachedField load_or_compute(const std::filesystem::path& path, const std::string
 CachedField load_or_compute(const std::filesystem::path& path, const mesh::TriangleMesh& rest, const Tissue& tissue,
                             const FieldOptions& given) {
   const FieldOptions options = with_tissue(given, tissue, rest);
+  std::vector<double> mu = shear_modulus_per_vertex(tissue, rest, options.regions.get());
   std::string discarded;
-  if (std::optional<FieldModel> cached = load_cache(path, discarded)) {
-    const std::vector<double> mu = shear_modulus_per_vertex(tissue, rest);
-    if (cached->metadata.key == field_key(rest, mu, tissue.name, options)) return {std::move(*cached), true, {}};
+  if (std::optional<FieldModel> cached = load_cache(path, discarded);
+      cached && cached->metadata.key == field_key(rest, mu, tissue.name, options)) {
+    return {std::move(*cached), true, {}, options.regions};
   }
-  CachedField out{compute_field_model(rest, tissue, options), false, std::move(discarded)};
+  CachedField out{compute_with_tissue(rest, tissue, options, std::move(mu)), false, std::move(discarded), options.regions};
   save_field(path, out.model);
   return out;
 }

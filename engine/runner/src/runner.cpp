@@ -85,7 +85,7 @@ CachedField field_model(const Scenario& s, const Tissue& tissue, double edge_m, 
   const bool from_source = !s.mesh.phantom;
   if (s.field.cache == FieldCache::off) {
     const mesh::TriangleMesh surface = from_source ? source_surface(s.mesh, edge_m) : phantom_surface(s.mesh, edge_m);
-    return {compute_field_model(surface, tissue, field), false, {}};
+    return compute_uncached(surface, tissue, field);
   }
   const std::filesystem::path cache = s.field.cache == FieldCache::file ? s.field.cache_file : output_dir / "field.h5";
   if (!from_source) return load_or_compute(cache, phantom_surface(s.mesh, edge_m), tissue, field);
@@ -194,7 +194,9 @@ BreathingModel prepare_model(const Scenario& s, const RunOptions& options,
     rest = std::move(original);
     timings.emplace_back("field transfer", seconds_since(start));
   }
-  return make_breathing_model(std::move(rest), std::move(u), s.field.options.area_unit, body_frame(tissue));
+  // The field's regions are the rest surface's unless the run exports the original mesh.
+  const mesh::SurfaceRegions* regions = s.mesh.export_original ? nullptr : computed.regions.get();
+  return make_breathing_model(std::move(rest), std::move(u), s.field.options.area_unit, body_frame(tissue), regions);
 }
 
 std::vector<double> frame_scales(const BreathingModel& model, const MeshSpec& mesh, const std::vector<double>& time_s,

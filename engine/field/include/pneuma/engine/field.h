@@ -12,6 +12,7 @@
 // Only relative moduli matter: multiplying every mu by a constant leaves u unchanged.
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -48,6 +49,9 @@ struct FieldOptions {
   double magnitude_smoothing = 0.0;
   mesh::BodyFrame frame;              // up and anterior, for the anatomical directions
   std::vector<double> load;           // per vertex (>= 0, not all 0); empty: 1 everywhere (the paper)
+  // The surface's regions in `frame`, when already found (with_tissue finds them once per
+  // surface: seconds on a fine one); the anatomical direction finds them itself otherwise.
+  std::shared_ptr<const mesh::SurfaceRegions> regions;
 };
 inline const FieldOptions default_field_options{};
 
@@ -77,7 +81,8 @@ std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mes
                                                                        std::span<const double> force,
                                                                        std::span<const Eigen::Vector3d> direction,
                                                                        double area_unit);
-// The unit direction of every vertex for these options.
+// The unit direction of every vertex for these options. Throws ValueError when options.regions
+// is set but holds another vertex count.
 std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& mesh, const FieldOptions& options);
 
 }  // namespace pneuma::engine

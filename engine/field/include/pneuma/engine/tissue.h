@@ -91,7 +91,8 @@ struct Tissue {
 // The body frame of the tissue's coordinates (up, anterior).
 mesh::BodyFrame body_frame(const Tissue& tissue);
 // `options` with the tissue's displacement direction, smoothing, body frame and, when the tissue
-// has a regional load, the load per vertex of `mesh`.
+// has a regional load, the load per vertex of `mesh`; and with the regions of `mesh` (found once,
+// here) when the tissue's load, moduli or direction need them.
 FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh::TriangleMesh& mesh);
 
 // Reads a tissue file. Throws IoError / InputError ("<file>:<line>:<col>: <key>: <expected>").
@@ -107,6 +108,8 @@ std::vector<double> dependent_position(const Tissue& tissue, const mesh::Triangl
 
 // The shear modulus (Pa) of every vertex. Throws InputError when a per-vertex or label file
 // does not hold one entry per vertex, or a label has no modulus.
-std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::TriangleMesh& mesh);
+// `regions`: the surface's regions when already found (with_tissue's), else found here if needed.
+std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::TriangleMesh& mesh,
+                                             const mesh::SurfaceRegions* regions = nullptr);
 
 }  // namespace pneuma::engine

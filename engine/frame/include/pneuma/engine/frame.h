@@ -25,9 +25,12 @@ struct BreathingModel {
 };
 
 // The model of `rest` moved by `unit_displacement`: normals, the volume cubic, the rest area and
-// the anatomical regions (in the body axes `frame`) are computed here, once.
+// the anatomical regions (in the body axes `frame`) are computed here, once; `regions`, when
+// given, are rest's regions already found in `frame` (the field's), and are used instead.
+// Throws ValueError when `regions` hold another vertex count or another frame.
 BreathingModel make_breathing_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_displacement,
-                                    double area_unit_m2, const mesh::BodyFrame& frame = {});
+                                    double area_unit_m2, const mesh::BodyFrame& frame = {},
+                                    const mesh::SurfaceRegions* regions = nullptr);
 
 // The per-frame state (cf. mjData), the only thing that changes during a run. Built once for a
 // model; advance() updates it in place and allocates nothing.

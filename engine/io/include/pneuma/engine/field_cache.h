@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -70,7 +71,13 @@ struct CachedField {
   FieldModel model;
   bool reused = false;    // true: read from the cache; false: computed (and written)
   std::string discarded;  // why a file found at the cache path was not usable (else empty)
+  // The regions of model.rest in the tissue's body axes, where they were found on the way
+  // (null where the tissue did not need them or the field came from a cache keyed by its source).
+  std::shared_ptr<const mesh::SurfaceRegions> regions;
 };
+
+// The field computed, without a cache (reused is false).
+CachedField compute_uncached(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& options);
 
 // Reuses `path` when it holds a field with the key of these inputs; otherwise computes the
 // field and writes it to `path`. A damaged or foreign file there (truncated, edited, not a
