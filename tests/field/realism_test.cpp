@@ -161,7 +161,10 @@ TEST(Realism, FieldAlongGivenDirectionsIsNormalisedToOneAreaUnit) {
 // self-intersection (CGAL, as the runner checks its largest frame), and quiet breathing (500 mL)
 // meets the human figures of docs/realism.md that hold on every lung: diaphragm mean caudal
 // >= 8 mm and >= 60 % of the volume change, apex <= 3 mm, mediastinum <= 1 mm.
-// The dome top is printed, not checked: it falls short of 15-21 mm on some CT lungs (docs/realism.md).
+// The dome top: with healthy-upright-ct within one standard deviation of the mean of either sex
+// (Boussuges et al. 2009, quiet breathing: men 18 +/- 3 mm, women 16 +/- 3 mm, so 13-21 mm); the
+// issue's 15-21 mm holds on 9 of the 12 lungs, not on the flat left lungs of cases 004-006
+// (docs/realism.md), so the narrower window is printed, not checked.
 class CtLungRealism : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(CtLungRealism, DeepBreathDoesNotFoldAndQuietBreathIsHuman) {
@@ -196,6 +199,10 @@ TEST_P(CtLungRealism, DeepBreathDoesNotFoldAndQuietBreathIsHuman) {
         EXPECT_GE(of(s, mesh::Region::diaphragmatic).volume_share, 0.60);
         EXPECT_LE(of(s, mesh::Region::apex).magnitude_mean_m, 3e-3);
         EXPECT_LE(of(s, mesh::Region::mediastinal).magnitude_mean_m, 1e-3);
+        if (preset == "healthy-upright-ct") {
+          EXPECT_GE(s.dome_top_caudal_m, 13e-3);
+          EXPECT_LE(s.dome_top_caudal_m, 21e-3);
+        }
         std::cout << what << ": diaphragm " << of(s, mesh::Region::diaphragmatic).caudal_mean_m * 1e3 << " mm ("
                   << of(s, mesh::Region::diaphragmatic).volume_share * 100 << " %), dome top " << s.dome_top_caudal_m * 1e3
                   << " mm, apex " << of(s, mesh::Region::apex).magnitude_mean_m * 1e3 << " mm, mediastinum "
