@@ -144,7 +144,7 @@ void register_field(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("field", "Precompute the elastostatic field of a mesh and write it to HDF5");
   cmd->add_option("mesh", options->mesh, "Mesh file, phantom:left|right|both, or icosphere:<radius>:<subdivisions>")
       ->required();
-  cmd->add_option("--tissue", options->tissue, "Tissue YAML file or preset (healthy-upright, healthy-supine, fibrotic-lower-lobe)")
+  cmd->add_option("--tissue", options->tissue, "Tissue YAML file or the name of a preset in configs/tissue/ (such as healthy-upright)")
       ->required();
   cmd->add_option("--solver", options->solver, "shot (the paper's), sweep, direct or cg (default: cg, which takes --clique 1 only)");
   cmd->add_option("--clique", options->clique, "Clique size M in hops, 1 to 4")->capture_default_str();

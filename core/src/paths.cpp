@@ -12,7 +12,9 @@ std::string read_file_bytes(const std::filesystem::path& path) {
   std::error_code ec;
   std::ifstream in(path, std::ios::binary);
   if (!in || std::filesystem::is_directory(path, ec)) throw IoError(path.string() + ": cannot open file");
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  std::string bytes(std::istreambuf_iterator<char>(in), {});
+  if (in.bad()) throw IoError(path.string() + ": cannot read file");
+  return bytes;
 }
 
 std::vector<std::string> file_stems(const std::filesystem::path& folder, const std::string& extension) {

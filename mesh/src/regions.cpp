@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 #include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
@@ -291,6 +292,13 @@ SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& o) {
     r.label[i] = static_cast<Region>(best);
   }
   return r;
+}
+
+void require_regions_of(const SurfaceRegions& regions, const TriangleMesh& mesh, const BodyFrame& frame,
+                        const char* who) {
+  if (regions.label.size() != mesh.vertices.size() || regions.weight.size() != mesh.vertices.size() ||
+      !regions.frame.up.isApprox(frame.up.normalized()) || !regions.frame.anterior.isApprox(frame.anterior.normalized()))
+    throw ValueError(std::string(who) + ": the regions given are of another surface or body frame");
 }
 
 std::vector<bool> dome_top_vertices(const TriangleMesh& mesh, const SurfaceRegions& regions, double depth_m) {

@@ -8,18 +8,20 @@
 using namespace pneuma;
 using namespace pneuma::engine;
 
-TEST(BreathingModel, RegionsGivenAreTheRegionsItWouldFind) {
+TEST(BreathingModel, RegionsAreThoseOfTheRestSurfaceWhetherFoundOrGiven) {
   const auto rest = mesh::make_icosphere(0.1, 3);
   const std::vector<Eigen::Vector3d> u = mesh::vertex_normals(rest);
-  mesh::BodyFrame supine;
-  supine.up = {0.0, -1.0, 0.0};  // LPS: anterior is up when lying on the back
-  supine.anterior = {0.0, 0.0, -1.0};
-  const BreathingModel found = make_breathing_model(rest, u, 1e-4, supine);
-  const BreathingModel given = make_breathing_model(rest, u, 1e-4, supine, &found.regions);
-  EXPECT_EQ(given.regions.label, found.regions.label);
-  EXPECT_EQ(given.regions.weight, found.regions.weight);
-  // In another body frame or on another surface they are not the rest surface's regions.
-  EXPECT_THROW(make_breathing_model(rest, u, 1e-4, {}, &found.regions), ValueError);
+  mesh::RegionOptions supine;
+  supine.frame.up = {0.0, -1.0, 0.0};  // LPS: anterior is up when lying on the back
+  supine.frame.anterior = {0.0, 0.0, -1.0};
+  const mesh::SurfaceRegions direct = mesh::find_regions(rest, supine);
+  for (const mesh::SurfaceRegions* given : {static_cast<const mesh::SurfaceRegions*>(nullptr), &direct}) {
+    const BreathingModel model = make_breathing_model(rest, u, 1e-4, supine.frame, given);
+    EXPECT_EQ(model.regions.label, direct.label);
+    EXPECT_EQ(model.regions.weight, direct.weight);
+  }
+  // Regions found in another body frame or on another surface are refused.
+  EXPECT_THROW(make_breathing_model(rest, u, 1e-4, {}, &direct), ValueError);
   const auto other = mesh::make_icosphere(0.1, 2);
-  EXPECT_THROW(make_breathing_model(other, mesh::vertex_normals(other), 1e-4, supine, &found.regions), ValueError);
+  EXPECT_THROW(make_breathing_model(other, mesh::vertex_normals(other), 1e-4, supine.frame, &direct), ValueError);
 }

@@ -283,4 +283,12 @@ TEST(Tissue, RegionsFoundOnceGiveWhatFindingThemAgainGives) {
   const auto other = mesh::make_icosphere(0.1, 2);
   EXPECT_THROW(displacement_directions(other, options), ValueError);
   EXPECT_THROW(shear_modulus_per_vertex(upright, other, options.regions.get()), ValueError);
+  // And so are regions found in other body axes (a surface given with anterior up).
+  Tissue turned = upright;
+  turned.up = {0.0, -1.0, 0.0};
+  turned.anterior = {0.0, 0.0, -1.0};
+  EXPECT_THROW(shear_modulus_per_vertex(turned, m, options.regions.get()), ValueError);
+  FieldOptions other_axes = options;
+  other_axes.frame = body_frame(turned);
+  EXPECT_THROW(displacement_directions(m, other_axes), ValueError);
 }

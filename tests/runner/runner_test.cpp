@@ -14,7 +14,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include "pneuma/engine/runner.h"
 #include "pneuma/engine/scenario.h"
+#include "pneuma/engine/tissue.h"
+#include "pneuma/mesh/regions.h"
 #include "pneuma/mesh/labels.h"
 #include "pneuma/mesh/io.h"
 #include "pneuma/physiology/simulate.h"
@@ -357,6 +360,42 @@ TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
   const auto phys = pneuma::physiology::simulate(s.physiology.protocol, options);
   const double change = file_volume(frame_file(dir / "out/frames", 20)) - file_volume(frame_file(dir / "out/frames", 0));
   EXPECT_NEAR(change, 0.45 * phys.series.volume_m3[20], 1e-3 * 0.45 * 0.5e-3 + 1e-7 * 1.3e-3);
+}
+
+// The regions are found once per run and handed from the field to the breathing model; on every
+// path (no cache, a cache miss, a cache hit, a phantom and a file source, the original mesh
+// exported) they must be those of the model's own rest surface in the tissue's axes.
+TEST(Runner, TheModelsRegionsAreThoseOfItsRestSurfaceOnEveryPath) {
+  TempDir dir;
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "left", "--edge", "8mm", "-o", (dir / "lung.ply").string()}).exit_code, 0);
+  const std::string small(kSmall);
+  auto with = [&](const std::string& from, const std::string& to) {
+    return std::string(small).replace(small.find(from), from.size(), to);
+  };
+  const std::string phantom = "mesh: {phantom: right, edge: 12 mm, share: 55 %}";
+  const std::vector<std::pair<std::string, std::string>> scenarios{
+      {"phantom, no cache", with("field: {tissue: healthy-upright}", "field: {tissue: healthy-upright, cache: off}")},
+      {"phantom", small},
+      {"file", with(phantom, "mesh: {file: lung.ply, unit: mm, edge: 14 mm, share: 45 %}")},
+      {"file, original exported", with(phantom, "mesh: {file: lung.ply, unit: mm, edge: 14 mm, export: original, share: 45 %}")}};
+  for (const auto& [name, yaml] : scenarios) {
+    const auto s = pneuma::engine::load_scenario(dir.write("s.yaml", yaml));
+    pneuma::mesh::RegionOptions axes;
+    axes.frame = pneuma::engine::body_frame(pneuma::engine::load_tissue(s.field.tissue_file));
+    const auto out = dir / ("out-" + std::to_string(name.size()));
+    for (const char* pass : {"first", "second"}) {
+      SCOPED_TRACE(name + ", " + pass + " run");
+      std::vector<std::pair<std::string, double>> timings;
+      bool reused = false;
+      pneuma::engine::RunOptions options;
+      options.output_dir = out;
+      const auto model = pneuma::engine::prepare_model(s, options, timings, reused);
+      EXPECT_EQ(reused, std::string(pass) == "second" && name != "phantom, no cache");
+      const auto direct = pneuma::mesh::find_regions(model.rest, axes);
+      EXPECT_EQ(model.regions.label, direct.label);
+      EXPECT_EQ(model.regions.weight, direct.weight);
+    }
+  }
 }
 
 TEST(Runner, AVolumeBeyondWhatTheSurfaceCanTakeIsRefused) {

@@ -29,8 +29,7 @@ std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& m
     case DirectionKind::smoothed_normal: return mesh::smoothed_normals(mesh, options.direction_smoothing);
     case DirectionKind::anatomical: {
       if (options.regions) {
-        if (options.regions->label.size() != mesh.vertices.size())
-          throw ValueError("displacement_directions: the regions given are of another surface");
+        mesh::require_regions_of(*options.regions, mesh, options.frame, "displacement_directions");
         return mesh::anatomical_directions(mesh, *options.regions, options.direction_smoothing);
       }
       mesh::RegionOptions regions;

@@ -255,8 +255,7 @@ std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::T
   const auto& r = std::get<RegionStiffness>(tissue.stiffness);
   std::vector<double> mu(n);
   if (r.anatomical) {
-    if (known_regions && known_regions->label.size() != n)
-      throw ValueError("shear_modulus_per_vertex: the regions given are of another surface");
+    if (known_regions) mesh::require_regions_of(*known_regions, mesh, body_frame(tissue), "shear_modulus_per_vertex");
     const mesh::SurfaceRegions regions = known_regions ? *known_regions : regions_of(tissue, mesh);
     std::array<double, mesh::kRegionCount> log_mu{};
     for (mesh::Region region : mesh::kRegions)

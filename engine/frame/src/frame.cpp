@@ -48,10 +48,7 @@ void displace(const BreathingModel& model, double scale, std::vector<Eigen::Vect
 BreathingModel make_breathing_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_displacement,
                                     double area_unit_m2, const mesh::BodyFrame& frame,
                                     const mesh::SurfaceRegions* known_regions) {
-  if (known_regions && (known_regions->label.size() != rest.vertices.size() ||
-                        !known_regions->frame.up.isApprox(frame.up.normalized()) ||
-                        !known_regions->frame.anterior.isApprox(frame.anterior.normalized())))
-    throw ValueError("make_breathing_model: the regions given are of another surface or body frame");
+  if (known_regions) mesh::require_regions_of(*known_regions, rest, frame, "make_breathing_model");
   std::vector<Eigen::Vector3d> normals = mesh::vertex_normals(rest);
   VolumeScaleMap map(rest.vertices, unit_displacement, rest.triangles);
   const double area = mesh::surface_area(rest);

@@ -107,7 +107,12 @@ std::string seal_of(const std::string& body) {
 }
 
 void seal_file(const std::filesystem::path& path, const std::string& shown) {
-  const std::string bytes = read_file_bytes(path);
+  std::string bytes;
+  try {
+    bytes = read_file_bytes(path);
+  } catch (const IoError&) {
+    throw IoError(shown + ": cannot write: the HDF5 file written cannot be read back to seal it");
+  }
   if (bytes.size() < kSealBytes) throw IoError(shown + ": cannot write: the HDF5 file is shorter than its user block");
   std::string seal = seal_of(bytes.substr(kSealBytes));
   seal.resize(kSealBytes, '\0');

@@ -16,7 +16,7 @@ inline bool path_exists(const std::filesystem::path& path) noexcept {
 }
 
 // The whole file as bytes. Throws IoError ("<path>: cannot open file") for a missing file, a
-// folder or one without read permission.
+// folder or one without read permission, and ("<path>: cannot read file") for a read that fails.
 std::string read_file_bytes(const std::filesystem::path& path);
 
 // The names, without extension and sorted, of the regular files in `folder` whose name ends in

@@ -76,6 +76,12 @@ struct SurfaceRegions {
 // Throws ValueError for an empty mesh or an up/anterior pair that is not at right angles.
 SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& options = kDefaultRegionOptions);
 
+// Throws ValueError ("<who>: the regions given are of another surface or body frame") unless
+// `regions` hold one entry per vertex of `mesh` and were found in `frame`: regions found once
+// and handed on are checked where they are used.
+void require_regions_of(const SurfaceRegions& regions, const TriangleMesh& mesh, const BodyFrame& frame,
+                        const char* who);
+
 // Per vertex: the outward normal of the surface blurred by a Gaussian of standard deviation
 // `sigma` (mesh units), N(x) = sum_t G(x - c_t) A_t n_t = -grad (G * chi)(x), chi the inside,
 // normalised. A smooth field in space, not only along the surface: the two lips of a narrow

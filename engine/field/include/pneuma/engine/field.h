@@ -82,7 +82,7 @@ std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mes
                                                                        std::span<const Eigen::Vector3d> direction,
                                                                        double area_unit);
 // The unit direction of every vertex for these options. Throws ValueError when options.regions
-// is set but holds another vertex count.
+// is set but is not of `mesh` in options.frame (mesh::require_regions_of).
 std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& mesh, const FieldOptions& options);
 
 }  // namespace pneuma::engine

@@ -27,7 +27,7 @@ struct BreathingModel {
 // The model of `rest` moved by `unit_displacement`: normals, the volume cubic, the rest area and
 // the anatomical regions (in the body axes `frame`) are computed here, once; `regions`, when
 // given, are rest's regions already found in `frame` (the field's), and are used instead.
-// Throws ValueError when `regions` hold another vertex count or another frame.
+// Throws ValueError when `regions` are not of `rest` in `frame` (mesh::require_regions_of).
 BreathingModel make_breathing_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_displacement,
                                     double area_unit_m2, const mesh::BodyFrame& frame = {},
                                     const mesh::SurfaceRegions* regions = nullptr);
