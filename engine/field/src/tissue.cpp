@@ -255,8 +255,9 @@ std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::T
   const auto& r = std::get<RegionStiffness>(tissue.stiffness);
   std::vector<double> mu(n);
   if (r.anatomical) {
+    std::optional<mesh::SurfaceRegions> found;  // only where none were given: no copy of given ones
     if (known_regions) mesh::require_regions_of(*known_regions, mesh, body_frame(tissue), "shear_modulus_per_vertex");
-    const mesh::SurfaceRegions regions = known_regions ? *known_regions : regions_of(tissue, mesh);
+    const mesh::SurfaceRegions& regions = known_regions ? *known_regions : found.emplace(regions_of(tissue, mesh));
     std::array<double, mesh::kRegionCount> log_mu{};
     for (mesh::Region region : mesh::kRegions)
       log_mu[static_cast<std::size_t>(region)] = std::log(r.shear_modulus_pa.at(std::string(mesh::region_name(region))));

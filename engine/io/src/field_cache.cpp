@@ -367,19 +367,24 @@ FieldModel compute_with_tissue(const mesh::TriangleMesh& rest, const Tissue& tis
   return m;
 }
 
+// The tissue applied to `rest` (its regions found once), then the field.
+CachedField compute_applying_tissue(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& given,
+                                    ElastostaticField* field_out = nullptr) {
+  const FieldOptions options = with_tissue(given, tissue, rest);
+  return {compute_with_tissue(rest, tissue, options, shear_modulus_per_vertex(tissue, rest, options.regions.get()),
+                              field_out),
+          false, {}, options.regions};
+}
+
 }  // namespace
 
 FieldModel compute_field_model(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& given,
                                ElastostaticField* field_out) {
-  const FieldOptions options = with_tissue(given, tissue, rest);
-  return compute_with_tissue(rest, tissue, options, shear_modulus_per_vertex(tissue, rest, options.regions.get()),
-                             field_out);
+  return compute_applying_tissue(rest, tissue, given, field_out).model;
 }
 
 CachedField compute_uncached(const mesh::TriangleMesh& rest, const Tissue& tissue, const FieldOptions& given) {
-  const FieldOptions options = with_tissue(given, tissue, rest);
-  return {compute_with_tissue(rest, tissue, options, shear_modulus_per_vertex(tissue, rest, options.regions.get())),
-          false, {}, options.regions};
+  return compute_applying_tissue(rest, tissue, given);
 }
 
 void save_field(const std::filesystem::path& path, const FieldModel& model) {
