@@ -3,10 +3,11 @@
 // lattice pushed at its centre, tolerance 1e-6. Results go in BENCHMARKS.md, never in tests.
 #include <benchmark/benchmark.h>
 
-#include "pneuma/engine/comparators.h"
-#include "pneuma/engine/field_graph.h"
+#include "pneuma/paper/comparators.h"
+#include "pneuma/field/field_graph.h"
 
-using namespace pneuma::engine;
+using namespace pneuma::field;
+using namespace pneuma::paper;
 
 namespace {
 

@@ -12,14 +12,14 @@
 #include <cmath>
 #include <map>
 
-#include "pneuma/engine/field.h"
-#include "pneuma/engine/field_graph.h"
-#include "pneuma/engine/field_solver.h"
+#include "pneuma/field/field.h"
+#include "pneuma/field/field_graph.h"
+#include "pneuma/field/field_solver.h"
 
 namespace {
 
 using namespace pneuma;
-using namespace pneuma::engine;
+using namespace pneuma::field;
 constexpr double kTolerance = 1e-6;
 
 mesh::TriangleMesh geodesic_sphere(double radius, int n) {

@@ -17,9 +17,9 @@
 #include <memory>
 #include <vector>
 
-#include "pneuma/mesh/deformed_surface.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/surface_queries.h"
+#include "pneuma/mesh/geometry/deformed_surface.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
 
 namespace {
 
@@ -38,7 +38,7 @@ Case& test_case(std::int64_t size) {
   auto& slot = cases[size];
   if (!slot) {
     slot = std::make_unique<Case>();
-    slot->rest = mesh::make_lung_phantom({.lung = mesh::Lung::both, .edge_length_m = kEdge[static_cast<std::size_t>(size)]});
+    slot->rest = mesh::make_lung_phantom({.lung = mesh::kBothLungs, .edge_length_m = kEdge[static_cast<std::size_t>(size)]});
     slot->u = mesh::vertex_normals(slot->rest);
     for (auto& v : slot->u) v *= 5e-3;
     slot->positions.assign(slot->rest.vertex_count(), Eigen::Vector3d::Zero());

@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <string>
 
-#include "pneuma/mesh/labels.h"
+#include "pneuma/mesh/labels/labels.h"
 
 namespace {
 

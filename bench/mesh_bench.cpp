@@ -11,10 +11,10 @@
 #include <fstream>
 #include <vector>
 
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/remesh.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/repair/remesh.h"
+#include "pneuma/mesh/geometry/validate.h"
 
 namespace {
 
@@ -25,7 +25,7 @@ constexpr double kEdge = 0.58e-3;  // 4 A / (sqrt(3) h^2) = 1.0e6 triangles for 
 const std::filesystem::path& phantom_file() {
   static const std::filesystem::path path = [] {
     auto p = std::filesystem::temp_directory_path() / "pneuma-mesh-bench.ply";
-    write_mesh(p, make_lung_phantom({.lung = Lung::both, .edge_length_m = kEdge}));
+    write_mesh(p, make_lung_phantom({.lung = kBothLungs, .edge_length_m = kEdge}));
     return p;
   }();
   return path;
@@ -44,7 +44,7 @@ void peak_memory(benchmark::State& state) {
 
 void BM_Generate(benchmark::State& state) {
   for (auto _ : state) {
-    TriangleMesh m = make_lung_phantom({.lung = Lung::both, .edge_length_m = kEdge});
+    TriangleMesh m = make_lung_phantom({.lung = kBothLungs, .edge_length_m = kEdge});
     benchmark::DoNotOptimize(m.vertices.data());
     state.counters["triangles"] = static_cast<double>(m.triangle_count());
   }

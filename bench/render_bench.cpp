@@ -19,7 +19,7 @@
 #include <memory>
 #include <string>
 
-#include "pneuma/engine/frame.h"
+#include "pneuma/frame/frame.h"
 #include "pneuma/render/image.h"
 #include "pneuma/render/png_sink.h"
 #include "pneuma/render/renderer.h"
@@ -192,24 +192,24 @@ BENCHMARK(BM_FrameToPng)->Args({6, 4, 0})->Args({8, 4, 0})->Args({8, 0, 1})->Uni
 void BM_PngSequence(benchmark::State& state) {
   const Model& m = model(static_cast<int>(state.range(0)));
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(state.range(1)));
-  const engine::BreathingModel breathing = engine::make_breathing_model(m.rest, m.field, 1e-4);
+  const model::Model breathing = model::make_model(m.rest, m.field, 1e-4);
   render::PngSinkOptions sink_options;
   sink_options.render = options(state, 2);
   name_antialiasing(state, 2);
   const auto folder = std::filesystem::temp_directory_path() / ("pneuma-png-bench-" + std::to_string(::getpid()));
   constexpr std::size_t kFrames = 16;
-  engine::Frame frame(breathing);
+  frame::Frame frame(breathing);
   const double cpu_start = process_cpu_ms();
   for (auto _ : state) {
     state.PauseTiming();
     render::PngFrameSink sink(folder, sink_options);
-    sink.begin(breathing, engine::RunInfo{kFrames, 30.0, 0.0, 1.0, folder});
+    sink.begin(breathing, outputs::RunInfo{kFrames, 30.0, 0.0, 1.0, folder});
     state.ResumeTiming();
     for (std::size_t k = 0; k < kFrames; ++k) {
-      engine::advance(breathing, {k, 0.0, 0.0, static_cast<double>(k) / kFrames}, frame);
+      frame::advance(breathing, {k, 0.0, 0.0, static_cast<double>(k) / kFrames}, frame);
       sink.frame(breathing, frame);
     }
-    benchmark::DoNotOptimize(sink.end().size());
+    benchmark::DoNotOptimize(sink.finish(breathing, {}).size());
   }
   std::filesystem::remove_all(folder);
   state.counters["process_cpu_ms_per_frame"] =

@@ -1,14 +1,14 @@
-// Per-frame update of the scenario runner: positions = rest + s * u (engine::displace), in
-// vertices per second, against memory-bandwidth baselines measured in the same run:
+// Per-frame update of the scenario runner: positions = rest + s * u with V(s) and A(s)
+// (frame::advance, the fused mesh::DeformedSurface kernel), in vertices per second, against
+// memory-bandwidth baselines measured in the same run:
 //   copy (BM_CopyRest): std::copy of the rest positions into the frame buffer
 //     (24 B read + 24 B written per vertex);
 //   copy rest and u (BM_CopyRestAndField): std::copy of the rest positions into the frame buffer
 //     and of u into a second buffer of the same size (48 B read + 48 B written per vertex).
-// displace reads rest and u and writes positions (48 B read + 24 B written per vertex), between
-// the two. Also timed: the runner's whole per-frame update (displace, V(s) from the cubic, A(s)
-// with the fused mesh::DeformedSurface kernel) through engine::advance, as run_scenario does it.
+// The update reads rest and u and writes positions (48 B read + 24 B written per vertex), between
+// the two, as run_scenario does it.
 // Meshes: the phantom, both lungs, at edge lengths that give ~100k and ~1M vertices. The field is
-// synthetic (the rest normals times 5 mm): displace's cost does not depend on its values, and the
+// synthetic (the rest normals times 5 mm): the update's cost does not depend on its values, and the
 // real field at 1M vertices would cost seconds of set-up per size.
 // Argument: 0 = ~100k vertices, 1 = ~1M vertices. Results: BENCHMARKS.md, "Runner".
 #include <benchmark/benchmark.h>
@@ -18,9 +18,9 @@
 #include <memory>
 #include <vector>
 
-#include "pneuma/engine/frame.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/surface_queries.h"
+#include "pneuma/frame/frame.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
 
 namespace {
 
@@ -30,7 +30,7 @@ using namespace pneuma;
 constexpr double kEdge[] = {1.30e-3, 0.411e-3};
 
 struct Case {
-  engine::BreathingModel model;
+  model::Model model;
   std::vector<Eigen::Vector3d> positions;
   std::vector<Eigen::Vector3d> scratch;  // the second destination of "copy rest and u"
 };
@@ -40,11 +40,11 @@ Case& test_case(std::int64_t size) {
   auto& slot = cases[size];
   if (!slot) {
     mesh::TriangleMesh rest =
-        mesh::make_lung_phantom({.lung = mesh::Lung::both, .edge_length_m = kEdge[static_cast<std::size_t>(size)]});
+        mesh::make_lung_phantom({.lung = mesh::kBothLungs, .edge_length_m = kEdge[static_cast<std::size_t>(size)]});
     const std::vector<Eigen::Vector3d> normals = mesh::vertex_normals(rest);
     std::vector<Eigen::Vector3d> u(normals.size());
     for (std::size_t i = 0; i < u.size(); ++i) u[i] = 5e-3 * normals[i];
-    slot = std::make_unique<Case>(Case{engine::make_breathing_model(std::move(rest), std::move(u), 1e-4), {}, {}});
+    slot = std::make_unique<Case>(Case{model::make_model(std::move(rest), std::move(u), 1e-4), {}, {}});
     const std::size_t n = slot->model.rest.vertex_count();
     slot->positions.assign(n, Eigen::Vector3d::Zero());  // touched once, outside the timing
     slot->scratch.assign(n, Eigen::Vector3d::Zero());
@@ -81,26 +81,14 @@ void BM_CopyRestAndField(benchmark::State& state) {
   report(state, c, 96.0);
 }
 
-void BM_Displace(benchmark::State& state) {
-  Case& c = test_case(state.range(0));
-  double s = 0.5;
-  for (auto _ : state) {
-    engine::displace(c.model, s, c.positions);
-    benchmark::DoNotOptimize(c.positions.data());
-    benchmark::ClobberMemory();
-    s = s > 1.0 ? 0.5 : s + 1e-3;
-  }
-  report(state, c, 72.0);
-}
-
-// What run_scenario does per frame before the sinks: engine::advance (displace, V(s), A(s)).
+// What run_scenario does per frame before the outputs: frame::advance (positions, V(s), A(s)).
 void BM_FrameUpdate(benchmark::State& state) {
   Case& c = test_case(state.range(0));
-  engine::Frame frame(c.model);
+  frame::Frame frame(c.model);
   double s = 0.5;
   std::size_t k = 0;
   for (auto _ : state) {
-    engine::advance(c.model, {k++, 0.0, 0.0, s}, frame);
+    frame::advance(c.model, {k++, 0.0, 0.0, s}, frame);
     benchmark::DoNotOptimize(frame.area_m2);
     s = s > 1.0 ? 0.5 : s + 1e-3;
   }
@@ -117,11 +105,9 @@ double minimum(const std::vector<double>& v) { return *std::min_element(v.begin(
   BENCHMARK(fn)->Arg(size)->Unit(benchmark::kMicrosecond)->Repetitions(reps)->ReportAggregatesOnly(true) \
       ->ComputeStatistics("min", minimum)
 PNEUMA_RUNNER_BENCH(BM_CopyRest, 0, 10);
-PNEUMA_RUNNER_BENCH(BM_Displace, 0, 10);
 PNEUMA_RUNNER_BENCH(BM_CopyRestAndField, 0, 10);
 PNEUMA_RUNNER_BENCH(BM_FrameUpdate, 0, 3);
 PNEUMA_RUNNER_BENCH(BM_CopyRest, 1, 10);
-PNEUMA_RUNNER_BENCH(BM_Displace, 1, 10);
 PNEUMA_RUNNER_BENCH(BM_CopyRestAndField, 1, 10);
 PNEUMA_RUNNER_BENCH(BM_FrameUpdate, 1, 3);
 

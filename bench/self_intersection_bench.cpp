@@ -10,10 +10,10 @@
 
 #include <ctime>
 
-#include "pneuma/mesh/deformed_surface.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/remesh.h"
-#include "pneuma/mesh/surface_queries.h"
+#include "pneuma/mesh/geometry/deformed_surface.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/repair/remesh.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
 
 namespace {
 
@@ -22,7 +22,7 @@ using namespace pneuma::mesh;
 constexpr double kEdge = 0.411e-3;
 
 const TriangleMesh& phantom() {
-  static const TriangleMesh mesh = make_lung_phantom({.lung = Lung::both, .edge_length_m = kEdge});
+  static const TriangleMesh mesh = make_lung_phantom({.lung = kBothLungs, .edge_length_m = kEdge});
   return mesh;
 }
 

@@ -14,7 +14,8 @@
 #include <cmath>
 #include <numeric>
 
-#include "pneuma/engine/scenario.h"
+#include "pneuma/runner/output_registry.h"
+#include "pneuma/scenario/scenario.h"
 
 namespace {
 
@@ -22,8 +23,8 @@ using namespace pneuma;
 
 constexpr double kHour = 3600.0;
 
-engine::Scenario scenario_for(const char* name, double duration_s) {
-  engine::Scenario s = engine::load_scenario(std::string(PNEUMA_BENCH_SOURCE_DIR) + "/scenarios/" + name + ".yaml");
+scenario::Scenario scenario_for(const char* name, double duration_s) {
+  scenario::Scenario s = runner::load_scenario(std::string(PNEUMA_BENCH_SOURCE_DIR) + "/scenarios/" + name + ".yaml");
   s.physiology.options.duration_s = duration_s;
   return s;
 }
@@ -53,10 +54,10 @@ double mean_volume_between(const physiology::TimeSeries& series, double from_s, 
 }
 
 void soak(benchmark::State& state, const char* name, double hours) {
-  const engine::Scenario s = scenario_for(name, hours * kHour);
+  const scenario::Scenario s = scenario_for(name, hours * kHour);
   physiology::SimulationResult r;
   for (auto _ : state) {
-    r = engine::simulate_physiology(s, 10.0);  // 10 Hz: 864,000 samples a day
+    r = scenario::simulate_physiology(s, 10.0);  // 10 Hz: 864,000 samples a day
     benchmark::DoNotOptimize(r.series.volume_m3.data());
   }
   std::vector<double> t, eev, vt;

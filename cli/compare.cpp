@@ -7,7 +7,7 @@
 
 #include "commands.h"
 #include "pneuma/core/error.h"
-#include "pneuma/engine/paper_figures.h"
+#include "pneuma/paper/paper_figures.h"
 
 namespace pneuma::cli {
 namespace {
@@ -23,22 +23,22 @@ struct CompareOptions {
 
 std::string expected_names() {
   std::string out;
-  for (const auto& n : engine::figure_names()) out += n + ", ";
+  for (const auto& n : paper::figure_names()) out += n + ", ";
   return out + "or all";
 }
 
 void run_compare(const CompareOptions& o) {
   std::vector<std::string> names;
   if (o.what == "all") {
-    names = engine::figure_names();
+    names = paper::figure_names();
   } else {
-    for (const auto& n : engine::figure_names()) {
+    for (const auto& n : paper::figure_names()) {
       if (n == o.what) names.push_back(n);
     }
     if (names.empty())
       throw UsageError("pneuma: compare: unknown figure '" + o.what + "' (expected " + expected_names() + ")");
   }
-  engine::ReproductionOptions options = o.quick ? engine::quick_reproduction_options() : engine::ReproductionOptions{};
+  paper::ReproductionOptions options = o.quick ? paper::quick_reproduction_options() : paper::ReproductionOptions{};
   options.seed = o.seed;
   if (o.grid_side != 0) {
     if (o.grid_side < 3 || o.grid_side % 2 == 0)
@@ -46,8 +46,8 @@ void run_compare(const CompareOptions& o) {
     options.grid_side = o.grid_side;
   }
   for (const auto& name : names) {
-    const engine::FigureOutput figure = engine::run_figure(name, options);
-    const auto paths = engine::write_figure(figure, o.output);
+    const paper::FigureOutput figure = paper::run_figure(name, options);
+    const auto paths = paper::write_figure(figure, o.output);
     if (o.quiet) continue;
     for (const auto& line : figure.summary) fmt::print("{}\n", line);
     fmt::print("wrote {} and {}\n", paths[0].string(), paths[1].string());

@@ -10,12 +10,13 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
 #include "pneuma/core/units.h"
-#include "pneuma/engine/field_cache.h"
-#include "pneuma/engine/physiology_config.h"
-#include "pneuma/engine/tissue.h"
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/model/field_cache.h"
+#include "pneuma/scenario/physiology_config.h"
+#include "pneuma/field/tissue.h"
+#include "pneuma/scenario/tissue_config.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::cli {
 namespace {
@@ -43,7 +44,7 @@ mesh::TriangleMesh load_mesh_for_cli(const std::string& spec, const std::string&
     phantom.edge_length_m = phantom_edge_m;
     if (side == "left") phantom.lung = mesh::Lung::left;
     else if (side == "right") phantom.lung = mesh::Lung::right;
-    else if (side == "both") phantom.lung = mesh::Lung::both;
+    else if (side == "both") phantom.lung = mesh::kBothLungs;
     else throw UsageError("pneuma: MESH: expected phantom:left, phantom:right or phantom:both, got '" + spec + "'");
     return mesh::make_lung_phantom(phantom);
   }
@@ -80,53 +81,54 @@ mesh::TriangleMesh load_mesh_for_cli(const std::string& spec, const std::string&
   return mesh::read_mesh(spec, read);
 }
 
-engine::Tissue load_tissue_for_cli(const std::string& name_or_path) {
-  const std::filesystem::path config_dir = engine::default_config_dir();
-  const std::filesystem::path file = engine::tissue_file(name_or_path, config_dir);
+field::Tissue load_tissue_for_cli(const std::string& name_or_path) {
+  const std::filesystem::path config_dir = scenario::default_config_dir();
+  const std::filesystem::path file = scenario::tissue_file(name_or_path, config_dir);
   if (file.string() != name_or_path && !path_exists(file)) {
     throw UsageError("pneuma: --tissue: no preset '" + name_or_path + "' (looked for " + file.string() +
                      "; shipped presets: " + join_names(file_stems(config_dir / "tissue", ".yaml")) + ")");
   }
-  return engine::load_tissue(file);
+  return scenario::load_tissue(file);
 }
 
 void run_field(const FieldCliOptions& o) {
-  engine::FieldOptions options;
-  if (o.clique < 1 || o.clique > engine::kMaxCliqueHops)
-    throw UsageError(fmt::format("pneuma: --clique: expected 1 to {} hops, got {}", engine::kMaxCliqueHops, o.clique));
+  field::FieldOptions options;
+  if (o.clique < 1 || o.clique > field::kMaxCliqueHops)
+    throw UsageError(fmt::format("pneuma: --clique: expected 1 to {} hops, got {}", field::kMaxCliqueHops, o.clique));
   if (!(o.tolerance > 0.0 && o.tolerance < 1.0))
     throw UsageError(fmt::format("pneuma: --tol: expected a tolerance between 0 and 1, got {}", o.tolerance));
   options.clique_hops = o.clique;
   options.tolerance = o.tolerance;
   if (!o.solver.empty()) {
     try {
-      options.solver = engine::parse_solver_kind(o.solver);
+      options.solver = field::parse_solver_kind(o.solver);
     } catch (const ValueError&) {
       throw UsageError("pneuma: --solver: expected one of shot, sweep, direct, cg; got '" + o.solver + "'");
     }
   }
-  if (!engine::solver_takes_clique(options.solver, o.clique)) {
+  if (!field::solver_takes_clique(options.solver, o.clique)) {
     throw UsageError(o.solver.empty()
                          ? fmt::format("pneuma: --clique {}: the default solver (cg) takes clique 1 only; add --solver "
                                        "shot, sweep or direct", o.clique)
                          : "pneuma: --solver cg: needs --clique 1; use shot, sweep or direct for larger cliques");
   }
-  const engine::Tissue tissue = load_tissue_for_cli(o.tissue);
+  const field::Tissue tissue = load_tissue_for_cli(o.tissue);
   const mesh::TriangleMesh rest = load_mesh_for_cli(o.mesh, o.unit, o.unit_given, o.edge_m);
 
-  engine::ElastostaticField field;
-  const engine::FieldModel model = engine::compute_field_model(rest, tissue, options, &field);
-  engine::save_field(o.output, model);
+  const field::TissueFieldInputs inputs = field::tissue_field_inputs(rest, tissue, options);
+  const field::ElastostaticField field = field::compute_field(rest, inputs);
+  const model::FieldRecord record = model::field_record(rest, inputs, field);
+  model::save_field(o.output, record);
   if (o.quiet) return;
 
   double lo = std::numeric_limits<double>::infinity(), hi = 0.0, sum = 0.0;
-  for (const auto& u : model.unit_displacement) {
+  for (const auto& u : record.unit_displacement) {
     const double n = u.norm();
     lo = std::min(lo, n);
     hi = std::max(hi, n);
     sum += n;
   }
-  const double mean = sum / static_cast<double>(std::max<std::size_t>(1, model.unit_displacement.size()));
+  const double mean = sum / static_cast<double>(std::max<std::size_t>(1, record.unit_displacement.size()));
   const auto& r = field.report;
   fmt::print("field: {} mass nodes + {} spring nodes, tissue {}, solver {} (tolerance {:g}, clique {})\n",
              field.mass_nodes, field.spring_nodes, tissue.name, r.method, options.tolerance, options.clique_hops);
@@ -134,7 +136,7 @@ void run_field(const FieldCliOptions& o) {
              r.residual, field.graph_seconds, r.seconds);
   fmt::print("displacement per cm^2 of surface area: min {:.4g} mm, mean {:.4g} mm, max {:.4g} mm\n", lo * 1e3,
              mean * 1e3, hi * 1e3);
-  fmt::print("wrote {} (key {})\n", o.output, model.metadata.key);
+  fmt::print("wrote {} (key {})\n", o.output, record.metadata.key);
 }
 
 }  // namespace

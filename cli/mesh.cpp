@@ -10,11 +10,11 @@
 #include "commands.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/atomic_file.h"
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/labels.h"
-#include "pneuma/mesh/remesh.h"
-#include "pneuma/mesh/repair.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/mesh/repair/remesh.h"
+#include "pneuma/mesh/repair/repair.h"
+#include "pneuma/mesh/geometry/validate.h"
 
 namespace pneuma::cli {
 namespace {

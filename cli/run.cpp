@@ -7,7 +7,8 @@
 #include <filesystem>
 
 #include "commands.h"
-#include "pneuma/engine/runner.h"
+#include "pneuma/runner/output_registry.h"
+#include "pneuma/runner/runner.h"
 
 namespace pneuma::cli {
 namespace {
@@ -20,12 +21,12 @@ struct RunCommandOptions {
 };
 
 void run_command(const RunCommandOptions& o) {
-  const engine::Scenario scenario = engine::load_scenario(o.scenario);
-  engine::RunOptions options;
+  const scenario::Scenario scenario = runner::load_scenario(o.scenario);
+  runner::RunOptions options;
   options.output_dir = o.output;
   options.quiet = o.quiet;
   if (o.edge_m > 0.0) options.edge_override_m = o.edge_m;
-  const engine::RunResult r = engine::run_scenario(scenario, options);
+  const runner::RunResult r = runner::run_scenario(scenario, options);
   if (o.quiet) return;
   fmt::print("{}: {} frames at {} Hz over {} s, mesh of {} vertices, field {}\n", scenario.name, r.frame_count,
              scenario.frame_rate_hz, scenario.duration_s, r.vertex_count, r.field_reused ? "reused from cache" : "computed");

@@ -5,8 +5,9 @@
 
 #include "commands.h"
 #include "pneuma/core/error.h"
-#include "pneuma/engine/physiology_csv.h"
-#include "pneuma/engine/scenario.h"
+#include "pneuma/outputs/physiology_csv.h"
+#include "pneuma/runner/output_registry.h"
+#include "pneuma/scenario/scenario.h"
 
 namespace pneuma::cli {
 namespace {
@@ -19,13 +20,13 @@ struct SimulateOptions {
 };
 
 void run_simulate(const SimulateOptions& o) {
-  const engine::Scenario scenario = engine::load_scenario(o.scenario);
-  const physiology::SimulationResult result = engine::simulate_physiology(scenario);
+  const scenario::Scenario scenario = runner::load_scenario(o.scenario);
+  const physiology::SimulationResult result = scenario::simulate_physiology(scenario);
   const std::filesystem::path csv = o.output;
   std::filesystem::path breaths = o.breaths;
   if (breaths.empty()) breaths = csv.parent_path() / (csv.stem().string() + "-breaths.csv");
-  engine::write_time_series_csv(csv, result);
-  engine::write_breaths_csv(breaths, result);
+  outputs::write_time_series_csv(csv, result);
+  outputs::write_breaths_csv(breaths, result);
   if (o.quiet) return;
   double vt = 0.0, ve = 0.0;
   for (const auto& b : result.breaths) {

@@ -1,12 +1,12 @@
-// The field cache (HDF5): engine::load_field, which must refuse whatever is not a whole,
+// The field cache (HDF5): model::load_field, which must refuse whatever is not a whole,
 // unedited pneuma field file.
 #include "fuzz_input.h"
 #include "pneuma/core/error.h"
-#include "pneuma/engine/field_cache.h"
+#include "pneuma/model/field_cache.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {
-    (void)pneuma::engine::load_field(pneuma::fuzz::write_input(data, size, ".h5"));
+    (void)pneuma::model::load_field(pneuma::fuzz::write_input(data, size, ".h5"));
   } catch (const pneuma::Error&) {
   }
   return 0;

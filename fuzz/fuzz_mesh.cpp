@@ -2,8 +2,8 @@
 // pneuma's VTK/VTP), then the surface checks every loaded mesh goes through.
 #include "fuzz_input.h"
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/geometry/validate.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {

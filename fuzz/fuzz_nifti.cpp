@@ -1,7 +1,7 @@
 // NIfTI label maps (.nii; niftilib underneath): mesh::read_label_map.
 #include "fuzz_input.h"
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/labels.h"
+#include "pneuma/mesh/labels/labels.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::python {
 

@@ -10,12 +10,13 @@
 #include "bindings.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/units.h"
-#include "pneuma/engine/field_cache.h"
-#include "pneuma/engine/frame.h"
-#include "pneuma/engine/physiology_config.h"
-#include "pneuma/engine/tissue.h"
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/phantom.h"
+#include "pneuma/model/field_cache.h"
+#include "pneuma/frame/frame.h"
+#include "pneuma/scenario/physiology_config.h"
+#include "pneuma/field/tissue.h"
+#include "pneuma/scenario/tissue_config.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/anatomy/phantom.h"
 
 namespace pneuma::python {
 namespace {
@@ -30,21 +31,21 @@ mesh::TriangleMesh make_mesh(const py::handle& vertices, const py::handle& trian
 }
 
 // A field with its model: the file's content (rest, u, force, moduli, metadata) and the
-// immutable BreathingModel the run loop uses (normals, volume cubic, area).
+// immutable model::Model the run loop uses (normals, volume cubic, area).
 struct Field {
-  engine::FieldModel data;
-  std::shared_ptr<const engine::BreathingModel> model;
+  model::FieldRecord data;
+  std::shared_ptr<const model::Model> model;
 
-  Field(engine::FieldModel field, const mesh::BodyFrame& frame) : data(std::move(field)) {
-    model = std::make_shared<const engine::BreathingModel>(
-        engine::make_breathing_model(data.rest, data.unit_displacement, data.metadata.area_unit_m2, frame));
+  Field(model::FieldRecord field, const mesh::BodyAxes& axes) : data(std::move(field)) {
+    model = std::make_shared<const model::Model>(
+        model::make_model(data.rest, data.unit_displacement, data.metadata.area_unit_m2, axes));
   }
 
   py::array_t<double> frame_at(double scale) const {
-    engine::Frame frame(*model);
+    frame::Frame frame(*model);
     {
       py::gil_scoped_release release;
-      engine::advance(*model, {0, 0.0, 0.0, scale}, frame);
+      frame::advance(*model, {0, 0.0, 0.0, scale}, frame);
     }
     return points_to_array(frame.positions);
   }
@@ -56,28 +57,28 @@ struct Field {
 
 Field compute(const mesh::TriangleMesh& rest, const std::string& tissue_name, const std::string& solver,
               double tolerance, int clique_hops, double area_unit_m2) {
-  engine::FieldOptions options;
-  options.solver = engine::parse_solver_kind(solver);
+  field::FieldOptions options;
+  options.solver = field::parse_solver_kind(solver);
   if (!(tolerance > 0.0 && tolerance < 1.0)) {
     throw ValueError(fmt::format("tolerance: expected a number between 0 and 1, got {}", tolerance));
   }
-  if (!engine::solver_takes_clique(options.solver, clique_hops)) {
+  if (!field::solver_takes_clique(options.solver, clique_hops)) {
     throw ValueError(fmt::format("clique_hops: the {} solver takes {}, got {}", solver,
-                                 options.solver == engine::SolverKind::cg ? std::string("1 only")
-                                                                          : fmt::format("1 to {}", engine::kMaxCliqueHops),
+                                 options.solver == field::SolverKind::cg ? std::string("1 only")
+                                                                          : fmt::format("1 to {}", field::kMaxCliqueHops),
                                  clique_hops));
   }
   if (!(area_unit_m2 > 0.0)) throw ValueError(fmt::format("area_unit_m2: expected a positive area, got {}", area_unit_m2));
   options.tolerance = tolerance;
   options.clique_hops = clique_hops;
   options.area_unit = area_unit_m2;
-  const engine::Tissue tissue = engine::load_tissue(engine::tissue_file(tissue_name, engine::default_config_dir()));
+  const field::Tissue tissue = scenario::load_tissue(scenario::tissue_file(tissue_name, scenario::default_config_dir()));
   py::gil_scoped_release release;
-  engine::FieldModel field = engine::compute_field_model(rest, tissue, options);
-  return Field(std::move(field), engine::body_frame(tissue));
+  const field::TissueFieldInputs inputs = field::tissue_field_inputs(rest, tissue, options);
+  return Field(model::field_record(rest, inputs, field::compute_field(rest, inputs)), field::body_axes(tissue));
 }
 
-py::dict metadata_dict(const engine::FieldMetadata& d) {
+py::dict metadata_dict(const model::FieldMetadata& d) {
   py::dict out;
   out["key"] = d.key;
   out["pneuma_version"] = d.pneuma_version;
@@ -93,10 +94,10 @@ py::dict metadata_dict(const engine::FieldMetadata& d) {
   return out;
 }
 
-mesh::Lung parse_side(const std::string& side) {
+std::optional<mesh::Lung> parse_side(const std::string& side) {
   if (side == "right") return mesh::Lung::right;
   if (side == "left") return mesh::Lung::left;
-  if (side == "both") return mesh::Lung::both;
+  if (side == "both") return mesh::kBothLungs;
   throw ValueError("side: expected right, left or both, got '" + side + "'");
 }
 
@@ -181,7 +182,7 @@ void register_geometry(py::module_& m) {
           "load",
           [](const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            return Field(engine::load_field(path), mesh::BodyFrame{});
+            return Field(model::load_field(path), mesh::BodyAxes{});
           },
           py::arg("path"),
           "Field.load(path) -> Field\n\nReads a field file (field.h5, as `pneuma field` or `pneuma run` write it). "
@@ -190,7 +191,7 @@ void register_geometry(py::module_& m) {
           "save",
           [](const Field& f, const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            engine::save_field(path, f.data);
+            model::save_field(path, f.data);
           },
           py::arg("path"), "save(path): writes the field file (HDF5, docs/formats.md) atomically.")
       .def_property_readonly("mesh", [](const Field& f) { return f.data.rest; }, "The rest Mesh (a copy).")

@@ -13,8 +13,11 @@
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/units.h"
-#include "pneuma/engine/runner.h"
-#include "pneuma/engine/scenario.h"
+#include "pneuma/frame/frame.h"
+#include "pneuma/model/compile.h"
+#include "pneuma/runner/output_registry.h"
+#include "pneuma/runner/runner.h"
+#include "pneuma/scenario/scenario.h"
 
 namespace pneuma::python {
 namespace {
@@ -61,13 +64,13 @@ YAML::Node to_yaml(const py::handle& value, const std::string& path) {
 // pneuma.Scenario: the typed scenario and, for one made from a dict, its YAML text (run()
 // writes it to <output>/scenario.yaml, so the manifest records and checksums a real file).
 struct ScenarioHandle {
-  engine::Scenario scenario;
+  scenario::Scenario scenario;
   std::string yaml;  // empty for a scenario read from a file
 };
 
 ScenarioHandle scenario_from_dict(const py::dict& d) {
   const YAML::Node root = to_yaml(d, "");
-  return {engine::read_scenario(config::Node::from_yaml(root, kDictName), kDictName), YAML::Dump(root) + "\n"};
+  return {runner::read_scenario(config::Node::from_yaml(root, kDictName), kDictName), YAML::Dump(root) + "\n"};
 }
 
 // A Scenario, a dict, or a path (str or os.PathLike) to a scenario YAML file.
@@ -75,7 +78,7 @@ ScenarioHandle to_scenario(const py::handle& scenario) {
   if (py::isinstance<ScenarioHandle>(scenario)) return scenario.cast<ScenarioHandle>();
   if (py::isinstance<py::dict>(scenario)) return scenario_from_dict(scenario.cast<py::dict>());
   if (py::isinstance<py::str>(scenario) || py::isinstance(scenario, py::module_::import("os").attr("PathLike"))) {
-    return {engine::load_scenario(scenario.cast<std::filesystem::path>()), ""};
+    return {runner::load_scenario(scenario.cast<std::filesystem::path>()), ""};
   }
   throw py::type_error("scenario: expected a pneuma.Scenario, a dict or a path to a scenario YAML file, got " +
                        py::str(scenario.get_type().attr("__name__")).cast<std::string>());
@@ -139,8 +142,8 @@ Simulation to_python(const physiology::SimulationResult& r) {
 // A scenario's frames in memory: its model (mesh, field, volume map) and the scale of every
 // frame, as `pneuma run` computes them, without writing outputs.
 struct Animation {
-  engine::Scenario scenario;
-  std::shared_ptr<const engine::BreathingModel> model;
+  scenario::Scenario scenario;
+  std::shared_ptr<const model::Model> model;
   std::vector<double> time_s, lung_volume_m3, scales;
   bool field_reused = false;
 
@@ -148,10 +151,10 @@ struct Animation {
     if (index >= scales.size()) {
       throw ValueError(fmt::format("index: expected a frame index from 0 to {}, got {}", scales.size() - 1, index));
     }
-    engine::Frame frame(*model);
+    frame::Frame frame(*model);
     {
       py::gil_scoped_release release;
-      engine::advance(*model, {index, time_s[index], lung_volume_m3[index], scales[index]}, frame);
+      frame::advance(*model, {index, time_s[index], lung_volume_m3[index], scales[index]}, frame);
     }
     return points_to_array(frame.positions);
   }
@@ -167,23 +170,23 @@ struct Animation {
   }
 };
 
-Animation make_animation(const engine::Scenario& given, const std::optional<std::filesystem::path>& output_dir,
+Animation make_animation(const scenario::Scenario& given, const std::optional<std::filesystem::path>& output_dir,
                          std::optional<double> edge_m) {
   Animation a;
   a.scenario = given;
   // No output folder: the field is computed (or read from an explicit cache file), not cached in one.
-  if (!output_dir && a.scenario.field.cache == engine::FieldCache::automatic) a.scenario.field.cache = engine::FieldCache::off;
-  engine::RunOptions options;
+  if (!output_dir && a.scenario.field.cache == scenario::FieldCache::automatic) a.scenario.field.cache = scenario::FieldCache::off;
+  model::CompileOptions options;
   if (output_dir) options.output_dir = *output_dir;
-  options.quiet = true;
   options.edge_override_m = edge_m;
   py::gil_scoped_release release;
-  const physiology::SimulationResult physiology = engine::simulate_physiology(a.scenario, a.scenario.frame_rate_hz);
-  std::vector<std::pair<std::string, double>> timings;
-  a.model = std::make_shared<const engine::BreathingModel>(engine::prepare_model(a.scenario, options, timings, a.field_reused));
-  a.time_s = physiology.series.time_s;
-  a.lung_volume_m3 = physiology.series.volume_m3;
-  a.scales = engine::frame_scales(*a.model, a.scenario.mesh, a.time_s, a.lung_volume_m3);
+  const physiology::SimulationResult drive = scenario::simulate_physiology(a.scenario, a.scenario.frame_rate_hz);
+  model::Compiled compiled = model::compile(a.scenario, drive, options);  // what `pneuma run` animates
+  a.model = std::make_shared<const model::Model>(std::move(compiled.model));
+  a.field_reused = compiled.field_reused;
+  a.time_s = drive.series.time_s;
+  a.lung_volume_m3 = drive.series.volume_m3;
+  a.scales = std::move(compiled.scales);
   return a;
 }
 
@@ -264,14 +267,14 @@ void register_scenario(py::module_& m) {
   m.def(
       "simulate",
       [](const py::handle& scenario, std::optional<double> output_rate_hz) {
-        const engine::Scenario s = to_scenario(scenario).scenario;
+        const scenario::Scenario s = to_scenario(scenario).scenario;
         if (output_rate_hz && !(*output_rate_hz > 0.0)) {
           throw ValueError(fmt::format("output_rate_hz: expected a positive rate, got {}", *output_rate_hz));
         }
         physiology::SimulationResult r;
         {
           py::gil_scoped_release release;
-          r = engine::simulate_physiology(s, output_rate_hz);
+          r = scenario::simulate_physiology(s, output_rate_hz);
         }
         return to_python(r);
       },
@@ -281,23 +284,23 @@ void register_scenario(py::module_& m) {
       "numbers as its physiology.csv, sampled at output_rate_hz (default: the scenario's physiology.output_rate). "
       "Raises pneuma.InputError for a bad scenario, pneuma.Error when the solver fails.");
 
-  py::class_<engine::RunResult>(m, "RunResult", "What run() did: files written, counts, scales and timings.")
-      .def_property_readonly("files", [](const engine::RunResult& r) {
+  py::class_<runner::RunResult>(m, "RunResult", "What run() did: files written, counts, scales and timings.")
+      .def_property_readonly("files", [](const runner::RunResult& r) {
         std::vector<std::string> files;
         for (const auto& f : r.files) files.push_back(f.generic_string());
         return files;
       }, "Files written, relative to the output folder, manifest.json last.")
-      .def_property_readonly("timings_s", [](const engine::RunResult& r) {
+      .def_property_readonly("timings_s", [](const runner::RunResult& r) {
         py::dict d;
         for (const auto& [stage, seconds] : r.timings_s) d[py::str(stage)] = seconds;
         return d;
       }, "dict: seconds per stage, in order.")
-      .def_readonly("frame_count", &engine::RunResult::frame_count, "Frames written.")
-      .def_readonly("vertex_count", &engine::RunResult::vertex_count, "Vertices of the mesh.")
-      .def_readonly("field_reused", &engine::RunResult::field_reused, "True when the field came from the cache.")
-      .def_readonly("min_scale", &engine::RunResult::min_scale, "Smallest frame scale s (area units).")
-      .def_readonly("max_scale", &engine::RunResult::max_scale, "Largest frame scale s (area units).")
-      .def("__repr__", [](const engine::RunResult& r) {
+      .def_readonly("frame_count", &runner::RunResult::frame_count, "Frames written.")
+      .def_readonly("vertex_count", &runner::RunResult::vertex_count, "Vertices of the mesh.")
+      .def_readonly("field_reused", &runner::RunResult::field_reused, "True when the field came from the cache.")
+      .def_readonly("min_scale", &runner::RunResult::min_scale, "Smallest frame scale s (area units).")
+      .def_readonly("max_scale", &runner::RunResult::max_scale, "Largest frame scale s (area units).")
+      .def("__repr__", [](const runner::RunResult& r) {
         return fmt::format("<pneuma.RunResult {} frames, {} files>", r.frame_count, r.files.size());
       });
 
@@ -312,11 +315,11 @@ void register_scenario(py::module_& m) {
           h.scenario.file = output_dir / "scenario.yaml";
           write_stream_atomically(h.scenario.file, false, [&](std::ostream& out) { out << h.yaml; });
         }
-        engine::RunOptions options;
+        runner::RunOptions options;
         options.output_dir = output_dir;
         options.quiet = quiet;
         options.edge_override_m = edge_m;
-        return engine::run_scenario(h.scenario, options);
+        return runner::run_scenario(h.scenario, options);
       },
       py::arg("scenario"), py::arg("output_dir"), py::kw_only(), py::arg("quiet") = true, py::arg("edge_m") = py::none(),
       "run(scenario, output_dir, *, quiet=True, edge_m=None) -> RunResult\n\n"

@@ -8,6 +8,7 @@
 #include <mutex>
 
 #include "pneuma/core/error.h"
+#include "pneuma/render/camera.h"
 
 namespace pneuma::render {
 
@@ -75,7 +76,7 @@ PngFrameSink::PngFrameSink(std::filesystem::path directory, PngSinkOptions optio
 
 PngFrameSink::~PngFrameSink() = default;
 
-void PngFrameSink::begin(const engine::BreathingModel& model, const engine::RunInfo& run) {
+void PngFrameSink::begin(const model::Model& model, const outputs::RunInfo& run) {
   // The rest pose (s = 0) is always in frame, even when every frame of the run inflates.
   const ScaleRange scales{std::min(run.min_scale, 0.0), std::max(run.max_scale, 0.0)};
   renderer_ = std::make_unique<Renderer>(model.rest, model.unit_displacement, scales, options_.render);
@@ -87,7 +88,7 @@ std::filesystem::path PngFrameSink::path_of(std::size_t index) const {
   return directory_ / fmt::format("{}{:05d}.png", options_.prefix, index);
 }
 
-void PngFrameSink::frame(const engine::BreathingModel&, const engine::Frame& frame) {
+void PngFrameSink::frame(const model::Model&, const frame::Frame& frame) {
   if (!renderer_) throw Error(ExitCode::failure, "render: PngFrameSink::frame() called before begin()");
   if (frame.index % options_.every != 0) return;
   Image image = encoder_->take_buffer();
@@ -97,13 +98,34 @@ void PngFrameSink::frame(const engine::BreathingModel&, const engine::Frame& fra
   written_.push_back(path);
 }
 
-std::vector<std::filesystem::path> PngFrameSink::end() {
+std::vector<std::filesystem::path> PngFrameSink::finish(const model::Model&, const outputs::RunRecord&) {
   renderer_.reset();
   if (encoder_) {
     const auto encoder = std::move(encoder_);
     encoder->wait();
   }
   return written_;
+}
+
+outputs::OutputPlugin png_output() {
+  const auto read = [](const config::Node* png) -> std::any {
+    PngSinkOptions spec;
+    if (png) {
+      RenderOptions& r = spec.render;
+      r.width = static_cast<int>(png->integer("width", r.width, 16, 8192));
+      r.height = static_cast<int>(png->integer("height", r.height, 16, 8192));
+      if (png->has("camera")) {
+        parse_camera_preset(png->choice("camera", {"anterior", "posterior", "left", "right", "oblique"}), r.camera);
+      }
+      spec.every = static_cast<std::size_t>(png->integer("every", 1, 1, 1000000));
+      r.overlay_magnitude = png->boolean("overlay", false);
+      if (png->has("gl")) parse_gl_backend(png->choice("gl", {"auto", "egl", "osmesa"}), r.gl);
+    }
+    return spec;
+  };
+  return {{"png", false, read}, {}, [](const std::any& settings, const std::filesystem::path& out) {
+            return std::make_unique<PngFrameSink>(out / "png", std::any_cast<const PngSinkOptions&>(settings));
+          }};
 }
 
 }  // namespace pneuma::render

@@ -9,12 +9,13 @@
 
 #include "compare_fixture.h"
 #include "pneuma/core/error.h"
-#include "pneuma/engine/comparators.h"
-#include "pneuma/engine/field_graph.h"
-#include "pneuma/engine/field_solver.h"
+#include "pneuma/paper/comparators.h"
+#include "pneuma/field/field_graph.h"
+#include "pneuma/field/field_solver.h"
 
 using namespace pneuma;
-using namespace pneuma::engine;
+using namespace pneuma::field;
+using namespace pneuma::paper;
 
 namespace {
 

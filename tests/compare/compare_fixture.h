@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "pneuma/engine/comparators.h"
+#include "pneuma/paper/comparators.h"
 
 namespace pneuma::test {
 
@@ -32,7 +32,7 @@ inline std::vector<std::vector<std::uint32_t>> lattice_symmetries(std::uint32_t 
 
 // K u = b on the free vertices, assembled from the network's springs and anchors and solved
 // with a dense Cholesky factorisation (independent of the explicit Euler code).
-inline std::vector<double> direct_equilibrium(const engine::SpringNetwork& n, const std::vector<double>& load) {
+inline std::vector<double> direct_equilibrium(const paper::SpringNetwork& n, const std::vector<double>& load) {
   std::vector<int> index(n.vertex_count, -1);
   int free_count = 0;
   for (std::uint32_t i = 0; i < n.vertex_count; ++i) {

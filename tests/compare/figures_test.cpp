@@ -5,11 +5,11 @@
 #include <cmath>
 #include <map>
 
-#include "pneuma/engine/paper_figures.h"
-#include "pneuma/engine/svg_plot.h"
+#include "pneuma/paper/paper_figures.h"
+#include "pneuma/paper/svg_plot.h"
 #include "pneuma/core/error.h"
 
-using namespace pneuma::engine;
+using namespace pneuma::paper;
 
 namespace {
 

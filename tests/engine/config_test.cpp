@@ -1,10 +1,10 @@
 // The YAML layer: units, locations, key paths, unknown keys, presets.
-#include "pneuma/engine/config.h"
+#include "pneuma/config/config.h"
 
 #include <gtest/gtest.h>
 
 #include "pneuma/core/error.h"
-#include "pneuma/engine/physiology_config.h"
+#include "pneuma/scenario/physiology_config.h"
 #include "test_support.h"
 
 using pneuma::config::Node;
@@ -66,7 +66,7 @@ TEST(PhysiologyConfig, ActionsPatchTheDriverAndRefuseKeysOfAnotherMode) {
   const Node good = Node::load_string(base + "actions:\n  - {at: 10 s, rate: 20 /min}\n"
                                              "  - {at: 20 s, mode: pressure_control, inspiratory_pressure: 15 cmH2O}\n",
                                       "p.yaml");
-  const auto cfg = pneuma::engine::read_physiology(good, 60.0, "/nonexistent");
+  const auto cfg = pneuma::scenario::read_physiology(good, 60.0, "/nonexistent");
   ASSERT_EQ(cfg.protocol.settings.size(), 3u);
   const auto& vc = std::get<pneuma::physiology::VolumeControl>(cfg.protocol.settings[1].driver);
   EXPECT_DOUBLE_EQ(vc.rate_hz, 20.0 / 60.0);
@@ -76,6 +76,6 @@ TEST(PhysiologyConfig, ActionsPatchTheDriverAndRefuseKeysOfAnotherMode) {
   EXPECT_DOUBLE_EQ(pc.inspiratory_pressure_pa, 15 * 98.0665);
 
   const Node bad = Node::load_string(base + "actions:\n  - {at: 10 s, inspiratory_pressure: 15 cmH2O}\n", "p.yaml");
-  EXPECT_EQ(error_of([&] { pneuma::engine::read_physiology(bad, 60.0, "/nonexistent"); }),
+  EXPECT_EQ(error_of([&] { pneuma::scenario::read_physiology(bad, 60.0, "/nonexistent"); }),
             "p.yaml:6:38: actions[0].inspiratory_pressure: not a setting of volume_control mode");
 }

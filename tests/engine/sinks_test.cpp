@@ -13,28 +13,31 @@
 #include <fmt/format.h>
 #include <pugixml.hpp>
 
-#include "pneuma/engine/sinks.h"
-#include "pneuma/mesh/io.h"
+#include "pneuma/outputs/frame_outputs.h"
+#include "pneuma/mesh/io/mesh_io.h"
 #include "test_support.h"
 
-using namespace pneuma::engine;
+using namespace pneuma;
+using namespace pneuma::outputs;
+using pneuma::frame::Frame;
+using pneuma::frame::advance;
 using pneuma::test::TempDir;
 
 namespace {
 
-BreathingModel sphere_model() {
+model::Model sphere_model() {
   const auto rest = pneuma::mesh::make_icosphere(0.1, 2);
   std::vector<Eigen::Vector3d> u(rest.vertex_count());
   const auto n = pneuma::mesh::vertex_normals(rest);
   for (std::size_t i = 0; i < u.size(); ++i) u[i] = (1.0 + rest.vertices[i].z() * 5.0) * 1e-4 * n[i];
-  return make_breathing_model(rest, u, 1e-4);
+  return model::make_model(rest, u, 1e-4);
 }
 
 // Drives a sink over a sinusoidal breath, as the runner does.
-std::vector<double> drive(FrameSink& sink, const BreathingModel& model, std::size_t frames, double rate) {
+std::vector<double> drive(outputs::Output& sink, const model::Model& model, std::size_t frames, double rate) {
   std::vector<double> scales(frames);
   for (std::size_t k = 0; k < frames; ++k) scales[k] = 20.0 * std::sin(static_cast<double>(k) * 0.3) + 5.0;
-  RunInfo run{frames, rate, *std::min_element(scales.begin(), scales.end()),
+  outputs::RunInfo run{frames, rate, *std::min_element(scales.begin(), scales.end()),
               *std::max_element(scales.begin(), scales.end()), {}};
   sink.begin(model, run);
   Frame f(model);
@@ -43,7 +46,7 @@ std::vector<double> drive(FrameSink& sink, const BreathingModel& model, std::siz
     advance(model, {k, static_cast<double>(k) / rate, lung_volume, scales[k]}, f);
     sink.frame(model, f);
   }
-  sink.end();
+  sink.finish(model, {});
   return scales;
 }
 
@@ -74,8 +77,8 @@ std::vector<hsize_t> parse_dims(const char* text) {
 
 TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   TempDir dir;
-  const BreathingModel model = sphere_model();
-  auto sink = make_gltf_sink(dir / "breathing.glb");
+  const model::Model model = sphere_model();
+  auto sink = make_gltf_output(dir / "breathing.glb");
   const auto scales = drive(*sink, model, 40, 10.0);
   EXPECT_EQ(dir.files(), std::vector<std::string>{"breathing.glb"});
 
@@ -146,8 +149,8 @@ TEST(GltfSink, BlenderOpensTheWholeAnimationWithBlenderOpenWhenInstalled) {
   if (std::system("command -v blender >/dev/null 2>&1") != 0)
     GTEST_SKIP() << "blender not found (apt-get install blender to run this check)";
   TempDir dir;
-  const BreathingModel model = sphere_model();
-  auto sink = make_gltf_sink(dir / "breathing.glb");
+  const model::Model model = sphere_model();
+  auto sink = make_gltf_output(dir / "breathing.glb");
   const auto scales = drive(*sink, model, 40, 10.0);
   tinygltf::Model m;
   tinygltf::TinyGLTF loader;
@@ -214,8 +217,8 @@ TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
   for (const PositionPrecision precision : {PositionPrecision::float32, PositionPrecision::float64}) {
     const bool is_double = precision == PositionPrecision::float64;
     TempDir dir;
-    const BreathingModel model = sphere_model();
-    auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf", precision);
+    const model::Model model = sphere_model();
+    auto sink = make_hdf5_output(dir / "series.h5", dir / "series.xdmf", precision);
     const auto scales = drive(*sink, model, 12, 30.0);
 
     pugi::xml_document xml;
@@ -259,8 +262,8 @@ TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
 
 TEST(Hdf5Sink, DescribesItselfWithRootAttributesAndUnits) {
   TempDir dir;
-  const BreathingModel model = sphere_model();
-  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
+  const model::Model model = sphere_model();
+  auto sink = make_hdf5_output(dir / "series.h5", dir / "series.xdmf");
   drive(*sink, model, 3, 30.0);
   const hid_t file = H5Fopen((dir / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   ASSERT_GE(file, 0);
@@ -297,9 +300,9 @@ TEST(Hdf5Sink, DescribesItselfWithRootAttributesAndUnits) {
 // Same inputs, same bytes, with compression on (no timestamps; zlib is deterministic).
 TEST(Hdf5Sink, SameInputsSameBytes) {
   TempDir a, b;
-  const BreathingModel model = sphere_model();
+  const model::Model model = sphere_model();
   for (TempDir* dir : {&a, &b}) {
-    auto sink = make_hdf5_sink(*dir / "series.h5", *dir / "series.xdmf");
+    auto sink = make_hdf5_output(*dir / "series.h5", *dir / "series.xdmf");
     drive(*sink, model, 5, 30.0);
   }
   EXPECT_TRUE(pneuma::test::read_text(a / "series.h5") == pneuma::test::read_text(b / "series.h5"));
@@ -312,8 +315,8 @@ TEST(Hdf5Sink, MeshioReadsEveryFrame) {
   if (std::system("/usr/bin/python3 -c 'import meshio, h5py' >/dev/null 2>&1") != 0)
     GTEST_SKIP() << "meshio or h5py is not importable by /usr/bin/python3 (scripts/install-deps installs python3-meshio python3-h5py)";
   TempDir dir;
-  const BreathingModel model = sphere_model();
-  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
+  const model::Model model = sphere_model();
+  auto sink = make_hdf5_output(dir / "series.h5", dir / "series.xdmf");
   const auto scales = drive(*sink, model, 9, 30.0);
   const auto script = dir.write("check.py", R"(import sys, meshio, h5py, numpy as np
 d = sys.argv[1]
@@ -349,8 +352,8 @@ TEST(Hdf5Sink, ParaViewReadsEveryFrameWhenInstalled) {
   if (std::system("command -v pvbatch >/dev/null 2>&1") != 0)
     GTEST_SKIP() << "pvbatch not found (apt-get install paraview python3-paraview to run this check)";
   TempDir dir;
-  const BreathingModel model = sphere_model();
-  auto sink = make_hdf5_sink(dir / "series.h5", dir / "series.xdmf");
+  const model::Model model = sphere_model();
+  auto sink = make_hdf5_output(dir / "series.h5", dir / "series.xdmf");
   const auto scales = drive(*sink, model, 7, 30.0);
   const auto script = dir.write("check.py", R"(import sys
 from paraview.simple import *
@@ -378,12 +381,12 @@ print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoi
 // (millimetres) then reads metres: the oracle is the frame's positions in the run; an explicit
 // unit (unit_from_file = false) still wins.
 TEST(MeshSequenceSink, RecordsTheUnitAndReadMeshUsesIt) {
-  const BreathingModel model = sphere_model();
+  const model::Model model = sphere_model();
   for (const auto& [format, ascii, header] :
        {std::tuple{"ply", false, "comment unit m\n"}, {"ply", true, "comment unit m\n"}, {"obj", false, "# unit m\n"},
         {"stl", false, "binary STL written by pneuma, unit m"}, {"stl", true, "solid pneuma unit m\n"}}) {
     TempDir dir;
-    auto sink = make_mesh_sequence_sink(dir / "frames", MeshSequenceSpec{format, ascii, 2});
+    auto sink = make_mesh_sequence_output(dir / "frames", MeshSequenceSpec{format, ascii, 2});
     const auto scales = drive(*sink, model, 3, 30.0);
     const auto file = dir / "frames" / (std::string("frame_00002.") + format);
     const std::string bytes = pneuma::test::read_text(file);
@@ -405,38 +408,10 @@ TEST(MeshSequenceSink, RecordsTheUnitAndReadMeshUsesIt) {
   }
 }
 
-// displace() streams its stores in SSE2 packets over the flat 3n doubles; the oracle is the plain
-// per-vertex expression, and the bytes must match exactly (odd and even vertex counts, so the
-// scalar tail runs too, and scales of both signs).
-TEST(Displace, MatchesThePerVertexExpressionBitForBit) {
-  for (int subdivisions : {0, 1, 3}) {
-    BreathingModel model = sphere_model();
-    model.rest = pneuma::mesh::make_icosphere(0.1, subdivisions);
-    model.unit_displacement.resize(model.rest.vertex_count());
-    for (std::size_t i = 0; i < model.unit_displacement.size(); ++i) {
-      const double t = static_cast<double>(i);
-      model.unit_displacement[i] = Eigen::Vector3d(std::sin(t) * 1e-3, std::cos(0.7 * t) * 3e-3, 1e-4 / (1.0 + t));
-    }
-    for (std::size_t n : {model.rest.vertex_count(), model.rest.vertex_count() - 1}) {
-      model.rest.vertices.resize(n);
-      model.unit_displacement.resize(n);
-      for (double s : {0.0, 0.37, -1.9, 12.5}) {
-        std::vector<Eigen::Vector3d> positions(n, Eigen::Vector3d::Constant(7.0));
-        displace(model, s, positions);
-        for (std::size_t i = 0; i < n; ++i) {
-          const Eigen::Vector3d expected = model.rest.vertices[i] + s * model.unit_displacement[i];
-          ASSERT_EQ(std::memcmp(positions[i].data(), expected.data(), sizeof(expected)), 0)
-              << "vertex " << i << " of " << n << ", s = " << s;
-        }
-      }
-    }
-  }
-}
-
 // advance() is one step of the run: the oracle is each quantity computed directly from the
 // positions (the plain per-vertex expression, the divergence-theorem volume, the triangle sum).
 TEST(Advance, FillsTheFrameFromTheModelAlone) {
-  const BreathingModel model = sphere_model();
+  const model::Model model = sphere_model();
   Frame frame(model);
   const double* before = frame.positions.data()->data();
   for (double s : {0.0, 3.5, -2.0}) {

@@ -1,5 +1,5 @@
 // The volume cubic against the directly measured volume, and its inversion.
-#include "pneuma/engine/volume_scale.h"
+#include "pneuma/model/volume_scale.h"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 
 #include "pneuma/core/error.h"
 
-using pneuma::engine::VolumeScaleMap;
+using pneuma::model::VolumeScaleMap;
 using namespace pneuma::mesh;
 
 namespace {

@@ -7,11 +7,14 @@
 #include <fstream>
 
 #include "pneuma/core/error.h"
-#include "pneuma/engine/field_cache.h"
+#include "pneuma/model/field_cache.h"
+#include "pneuma/scenario/tissue_config.h"
 #include "test_support.h"
 
 using namespace pneuma;
-using namespace pneuma::engine;
+using namespace pneuma::field;
+using pneuma::scenario::load_tissue;
+using namespace pneuma::model;
 using pneuma::test::read_text;
 using pneuma::test::run_pneuma;
 using pneuma::test::TempDir;
@@ -45,9 +48,9 @@ std::string load_error(const std::filesystem::path& p) {
 TEST(FieldCache, RoundTripsBitForBitAndWritesTheSameBytesTwice) {
   TempDir dir;
   const auto rest = mesh::make_icosphere(0.1, 3);
-  const FieldModel model = compute_field_model(rest, preset("healthy-upright"), default_field_options);
+  const model::FieldRecord model = model::compute_field_record(rest, preset("healthy-upright"), default_field_options);
   save_field(dir / "a.h5", model);
-  const FieldModel loaded = load_field(dir / "a.h5");
+  const model::FieldRecord loaded = load_field(dir / "a.h5");
   EXPECT_TRUE(same_bytes(loaded.rest.vertices, model.rest.vertices));
   EXPECT_TRUE(same_bytes(loaded.rest.triangles, model.rest.triangles));
   EXPECT_TRUE(same_bytes(loaded.unit_displacement, model.unit_displacement));
@@ -59,7 +62,7 @@ TEST(FieldCache, RoundTripsBitForBitAndWritesTheSameBytesTwice) {
   EXPECT_EQ(loaded.metadata.tolerance, 1e-6);
   EXPECT_EQ(loaded.metadata.pneuma_version, PNEUMA_VERSION);
   save_field(dir / "b.h5", loaded);
-  save_field(dir / "c.h5", compute_field_model(rest, preset("healthy-upright"), default_field_options));
+  save_field(dir / "c.h5", model::compute_field_record(rest, preset("healthy-upright"), default_field_options));
   EXPECT_EQ(read_text(dir / "a.h5"), read_text(dir / "b.h5"));
   EXPECT_EQ(read_text(dir / "a.h5"), read_text(dir / "c.h5"));
 }
@@ -67,7 +70,7 @@ TEST(FieldCache, RoundTripsBitForBitAndWritesTheSameBytesTwice) {
 TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
   TempDir dir;
   const auto rest = mesh::make_icosphere(0.1, 2);
-  const FieldModel model = compute_field_model(rest, preset("fibrotic-lower-lobe"), default_field_options);
+  const model::FieldRecord model = model::compute_field_record(rest, preset("fibrotic-lower-lobe"), default_field_options);
   save_field(dir / "good.h5", model);
   const std::string bytes = read_text(dir / "good.h5");
 
@@ -119,11 +122,11 @@ TEST(FieldCache, LoadOrComputeReusesOnlyAMatchingKey) {
   TempDir dir;
   const auto rest = mesh::make_icosphere(0.1, 2);
   const auto path = dir / "cache.h5";
-  const CachedField first = load_or_compute(path, rest, preset("healthy-upright"));
+  const model::CacheLookup first = load_or_compute(path, rest, preset("healthy-upright"));
   EXPECT_FALSE(first.reused);
-  const CachedField second = load_or_compute(path, rest, preset("healthy-upright"));
+  const model::CacheLookup second = load_or_compute(path, rest, preset("healthy-upright"));
   EXPECT_TRUE(second.reused);
-  EXPECT_TRUE(same_bytes(first.model.unit_displacement, second.model.unit_displacement));
+  EXPECT_TRUE(same_bytes(first.record.unit_displacement, second.record.unit_displacement));
   // Another tissue, tolerance or mesh: a new key, so the field is recomputed and replaced.
   EXPECT_FALSE(load_or_compute(path, rest, preset("fibrotic-lower-lobe")).reused);
   FieldOptions tighter;
@@ -139,10 +142,10 @@ TEST(FieldCache, ADamagedOrForeignCacheIsRecomputedAndReplacedNeverUsed) {
   TempDir dir;
   const auto rest = mesh::make_icosphere(0.1, 2);
   const auto path = dir / "cache.h5";
-  const CachedField fresh = load_or_compute(path, rest, preset("healthy-upright"));
+  const model::CacheLookup fresh = load_or_compute(path, rest, preset("healthy-upright"));
   const std::string good = read_text(path);
   // The oracle: a direct computation of the field for these inputs.
-  const FieldModel direct = compute_field_model(rest, preset("healthy-upright"), default_field_options);
+  const model::FieldRecord direct = model::compute_field_record(rest, preset("healthy-upright"), default_field_options);
 
   std::string edited = good;  // one displacement value changed: a wrong field if it were used
   const auto at = edited.find(std::string(reinterpret_cast<const char*>(direct.unit_displacement[5].data()), 8));
@@ -158,10 +161,10 @@ TEST(FieldCache, ADamagedOrForeignCacheIsRecomputedAndReplacedNeverUsed) {
   };
   for (const auto& [bytes, why] : cases) {
     write_bytes(path, bytes);
-    const CachedField again = load_or_compute(path, rest, preset("healthy-upright"));
+    const model::CacheLookup again = load_or_compute(path, rest, preset("healthy-upright"));
     EXPECT_FALSE(again.reused) << why;
     EXPECT_EQ(again.discarded, path.string() + ": not a pneuma field file: " + why);
-    EXPECT_TRUE(same_bytes(again.model.unit_displacement, direct.unit_displacement)) << why;
+    EXPECT_TRUE(same_bytes(again.record.unit_displacement, direct.unit_displacement)) << why;
     EXPECT_EQ(read_text(path), good) << why << ": the file is replaced by the recomputed field";
     EXPECT_TRUE(load_or_compute(path, rest, preset("healthy-upright")).reused) << why;
   }
@@ -176,7 +179,7 @@ TEST(FieldCli, WritesTheFieldAndPrintsASummary) {
   EXPECT_NE(r.out.find("field: 642 mass nodes + 1920 spring nodes, tissue healthy-upright, solver cg"), std::string::npos)
       << r.out;
   EXPECT_NE(r.out.find("displacement per cm^2 of surface area: min "), std::string::npos) << r.out;
-  const FieldModel m = load_field(dir / "f.h5");
+  const model::FieldRecord m = load_field(dir / "f.h5");
   EXPECT_EQ(m.rest.vertex_count(), 642u);
   EXPECT_EQ(dir.files(), std::vector<std::string>{"f.h5"});
   const auto shot = run_pneuma({"field", "icosphere:0.1:2", "--tissue", "healthy-supine", "--solver", "shot", "--clique",
@@ -196,7 +199,7 @@ TEST(FieldCli, ReadsMeshFilesInTheirUnitAndThePhantom) {
   r = run_pneuma({"field", "phantom:right", "--edge", "15mm", "--tissue", "healthy-upright", "-o",
                   (dir / "b.h5").string(), "--quiet"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const FieldModel a = load_field(dir / "a.h5"), b = load_field(dir / "b.h5");
+  const model::FieldRecord a = load_field(dir / "a.h5"), b = load_field(dir / "b.h5");
   ASSERT_EQ(a.rest.vertex_count(), b.rest.vertex_count());
   double largest = 0.0, difference = 0.0;
   for (std::size_t i = 0; i < a.rest.vertex_count(); ++i) {

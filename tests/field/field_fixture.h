@@ -4,7 +4,7 @@
 #include <cmath>
 #include <vector>
 
-#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::test {
 

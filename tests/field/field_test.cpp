@@ -7,12 +7,14 @@
 
 #include "field_fixture.h"
 #include "pneuma/core/error.h"
-#include "pneuma/engine/field.h"
-#include "pneuma/engine/tissue.h"
+#include "pneuma/field/field.h"
+#include "pneuma/field/tissue.h"
+#include "pneuma/scenario/tissue_config.h"
 #include "test_support.h"
 
 using namespace pneuma;
-using namespace pneuma::engine;
+using namespace pneuma::field;
+using pneuma::scenario::load_tissue;
 
 namespace {
 
@@ -268,7 +270,7 @@ TEST(Tissue, RegionsFoundOnceGiveWhatFindingThemAgainGives) {
   const FieldOptions options = with_tissue({}, upright, m);
   ASSERT_TRUE(options.regions);
   mesh::RegionOptions region_options;
-  region_options.frame = body_frame(upright);
+  region_options.axes = body_axes(upright);
   const mesh::SurfaceRegions direct = mesh::find_regions(m, region_options);
   EXPECT_EQ(options.regions->label, direct.label);
   EXPECT_EQ(options.regions->weight, direct.weight);
@@ -289,6 +291,6 @@ TEST(Tissue, RegionsFoundOnceGiveWhatFindingThemAgainGives) {
   turned.anterior = {0.0, 0.0, -1.0};
   EXPECT_THROW(shear_modulus_per_vertex(turned, m, options.regions.get()), ValueError);
   FieldOptions other_axes = options;
-  other_axes.frame = body_frame(turned);
+  other_axes.axes = body_axes(turned);
   EXPECT_THROW(displacement_directions(m, other_axes), ValueError);
 }

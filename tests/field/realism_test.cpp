@@ -6,24 +6,30 @@
 #include <filesystem>
 #include <iostream>
 
-#include "pneuma/engine/field_cache.h"
-#include "pneuma/engine/physiology_config.h"
-#include "pneuma/engine/tissue.h"
-#include "pneuma/engine/volume_scale.h"
-#include "pneuma/mesh/motion_summary.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/labels.h"
-#include "pneuma/mesh/remesh.h"
-#include "pneuma/mesh/surface_queries.h"
+#include "pneuma/model/field_cache.h"
+#include "pneuma/scenario/physiology_config.h"
+#include "pneuma/field/tissue.h"
+#include "pneuma/model/volume_scale.h"
+#include "pneuma/mesh/anatomy/motion_summary.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/mesh/repair/remesh.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
 #include "field_fixture.h"
+#include "pneuma/scenario/tissue_config.h"
 #include "test_support.h"
 
-namespace pneuma::engine {
+namespace pneuma::field {
+using scenario::default_config_dir;
+using scenario::load_tissue;
+using scenario::tissue_file;
+using model::field_key;
+using model::VolumeScaleMap;
 namespace {
 
 struct Breath {
   mesh::TriangleMesh rest;
-  FieldModel field;
+  model::FieldRecord field;
   mesh::SurfaceRegions regions;
   double scale = 0.0;
 };
@@ -35,9 +41,9 @@ Breath breathe(mesh::Lung lung, const std::string& tissue_name, double volume_m3
   Breath b;
   b.rest = mesh::make_lung_phantom(p);
   const Tissue tissue = load_tissue(tissue_file(tissue_name, default_config_dir()));
-  b.field = compute_field_model(b.rest, tissue, default_field_options);
+  b.field = model::compute_field_record(b.rest, tissue, default_field_options);
   mesh::RegionOptions o;
-  o.frame = body_frame(tissue);
+  o.axes = body_axes(tissue);
   b.regions = mesh::find_regions(b.rest, o);
   const VolumeScaleMap map(b.rest.vertices, b.field.unit_displacement, b.rest.triangles);
   b.scale = map.scale_for(map.volume(0.0) + volume_m3);
@@ -184,9 +190,9 @@ TEST_P(CtLungRealism, DeepBreathDoesNotFoldAndQuietBreathIsHuman) {
         const std::string what = std::string(GetParam()) + (share > 0.5 ? " right" : " left") + " at " +
                                  std::to_string(edge * 1e3) + " mm, " + preset;
         SCOPED_TRACE(what);
-        const FieldModel field = compute_field_model(rest, tissue, default_field_options);
+        const model::FieldRecord field = model::compute_field_record(rest, tissue, default_field_options);
         mesh::RegionOptions o;
-        o.frame = body_frame(tissue);
+        o.axes = body_axes(tissue);
         const mesh::SurfaceRegions regions = mesh::find_regions(rest, o);
         const VolumeScaleMap map_v(rest.vertices, field.unit_displacement, rest.triangles);
         mesh::TriangleMesh deep = rest;
@@ -216,4 +222,4 @@ INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtLungRealism,
                          ::testing::Values("case004", "case005", "case006", "case007", "case008", "case009"));
 
 }  // namespace
-}  // namespace pneuma::engine
+}  // namespace pneuma::field

@@ -10,11 +10,11 @@
 
 #include "field_fixture.h"
 #include "pneuma/core/error.h"
-#include "pneuma/engine/field_graph.h"
-#include "pneuma/engine/field_solver.h"
+#include "pneuma/field/field_graph.h"
+#include "pneuma/field/field_solver.h"
 
 using namespace pneuma;
-using namespace pneuma::engine;
+using namespace pneuma::field;
 
 namespace {
 

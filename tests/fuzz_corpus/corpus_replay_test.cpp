@@ -12,12 +12,14 @@
 #include <vector>
 
 #include "pneuma/core/error.h"
-#include "pneuma/engine/field_cache.h"
-#include "pneuma/engine/scenario.h"
-#include "pneuma/engine/tissue.h"
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/labels.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/model/field_cache.h"
+#include "pneuma/runner/output_registry.h"
+#include "pneuma/scenario/scenario.h"
+#include "pneuma/scenario/tissue_config.h"
+#include "pneuma/field/tissue.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "test_support.h"
 
 namespace {
@@ -35,9 +37,9 @@ void read_and_validate(const fs::path& file) { (void)pneuma::mesh::validate(pneu
 
 const std::vector<Target>& targets() {
   static const std::vector<Target> all = {
-      {"scenario", ".yaml", [](const fs::path& f) { (void)pneuma::engine::load_scenario(f); }},
-      {"tissue", ".yaml", [](const fs::path& f) { (void)pneuma::engine::load_tissue(f); }},
-      {"field_cache", ".h5", [](const fs::path& f) { (void)pneuma::engine::load_field(f); }},
+      {"scenario", ".yaml", [](const fs::path& f) { (void)pneuma::runner::load_scenario(f); }},
+      {"tissue", ".yaml", [](const fs::path& f) { (void)pneuma::scenario::load_tissue(f); }},
+      {"field_cache", ".h5", [](const fs::path& f) { (void)pneuma::model::load_field(f); }},
       {"nifti", ".nii", [](const fs::path& f) { (void)pneuma::mesh::read_label_map(f); }},
       {"mesh_stl", ".stl", read_and_validate},
       {"mesh_ply", ".ply", read_and_validate},

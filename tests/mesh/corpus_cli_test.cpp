@@ -8,9 +8,9 @@
 #include <sstream>
 
 #include "mesh_fixture.h"
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/repair.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/repair/repair.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;

@@ -1,7 +1,7 @@
 // The fused frame kernel against independent oracles: CGAL's area (AreaMeter), the plain
 // per-triangle sums, the exact scaling of a polyhedron, the per-vertex expression; determinism at
 // 1, 2 and 4 threads and on both instruction sets.
-#include "pneuma/mesh/deformed_surface.h"
+#include "pneuma/mesh/geometry/deformed_surface.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -13,8 +13,8 @@
 #include <random>
 
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/surface_queries.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
 
 using namespace pneuma::mesh;
 
@@ -66,7 +66,7 @@ TEST(DeformedSurface, PositionsAreTheSameBitsAsRestPlusScaleTimesField) {
 }
 
 TEST(DeformedSurface, AreaMatchesCgalAndVolumeThePlainSum) {
-  const TriangleMesh phantom = make_lung_phantom({.lung = Lung::both, .edge_length_m = 6e-3});
+  const TriangleMesh phantom = make_lung_phantom({.lung = kBothLungs, .edge_length_m = 6e-3});
   const auto u = random_field(phantom.vertex_count(), 1e-3, 2);
   DeformedSurface surface(phantom.vertices, u, phantom.triangles);
   AreaMeter cgal(phantom);
@@ -118,7 +118,7 @@ TEST(DeformedSurface, AnyVertexNumberingGivesTheSameMeasures) {
 }
 
 TEST(DeformedSurface, SameBitsAtOneTwoAndFourThreadsAndOnEitherInstructionSet) {
-  const TriangleMesh phantom = make_lung_phantom({.lung = Lung::both, .edge_length_m = 1.2e-3});
+  const TriangleMesh phantom = make_lung_phantom({.lung = kBothLungs, .edge_length_m = 1.2e-3});
   const auto u = random_field(phantom.vertex_count(), 2e-3, 5);
   DeformedSurface surface(phantom.vertices, u, phantom.triangles);
   ASSERT_GT(surface.chunk_count(), 8u);

@@ -9,9 +9,9 @@
 
 #include "mesh_fixture.h"
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;
@@ -41,7 +41,7 @@ class RoundTrip : public ::testing::TestWithParam<Format> {};
 
 TEST_P(RoundTrip, WriteThenReadGivesTheSameMesh) {
   TempDir dir;
-  const TriangleMesh original = make_lung_phantom({.lung = Lung::both, .edge_length_m = 0.015});
+  const TriangleMesh original = make_lung_phantom({.lung = kBothLungs, .edge_length_m = 0.015});
   const auto path = dir / GetParam().file;
   write_mesh(path, original, {.ascii = GetParam().ascii});
   const TriangleMesh once = read_mesh(path);

@@ -5,7 +5,7 @@
 #include <numbers>
 
 #include "mesh_fixture.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "pneuma/core/error.h"
 
 using namespace pneuma::mesh;

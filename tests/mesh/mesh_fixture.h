@@ -4,8 +4,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::mesh::test {
 

@@ -5,10 +5,10 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/remesh.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/repair/remesh.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;
@@ -43,7 +43,7 @@ TEST(Phantom, LeftLungIsSmallerAndBothAreTwoComponents) {
   const double right = enclosed_volume(make_lung_phantom({.lung = Lung::right, .edge_length_m = 0.01}));
   const double left = enclosed_volume(make_lung_phantom({.lung = Lung::left, .edge_length_m = 0.01}));
   EXPECT_LT(left, right);  // the heart takes room on the left
-  const TriangleMesh both = make_lung_phantom({.lung = Lung::both, .edge_length_m = 0.01});
+  const TriangleMesh both = make_lung_phantom({.lung = kBothLungs, .edge_length_m = 0.01});
   const ValidationReport r = validate(both);
   EXPECT_TRUE(r.valid()) << r.summary();
   EXPECT_EQ(r.component_count, 2u);

@@ -1,4 +1,4 @@
-// repair()'s last resort, the rebuild from the inside (mesh/src/voxel_rebuild.cpp): handles of
+// repair()'s last resort, the rebuild from the inside (mesh/repair/src/voxel_rebuild.cpp): handles of
 // segmentations removed, non-manifold closed surfaces made valid, and what must stay as it is
 // (a wide handle, an open non-manifold surface) kept or refused. Oracles: analytic volumes, the
 // Euler characteristic, the validator.
@@ -11,9 +11,9 @@
 
 #include "mesh_fixture.h"
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/labels.h"
-#include "pneuma/mesh/repair.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/mesh/repair/repair.h"
+#include "pneuma/mesh/geometry/validate.h"
 
 using namespace pneuma::mesh;
 

@@ -9,9 +9,9 @@
 #include <numeric>
 
 #include "mesh_fixture.h"
-#include "pneuma/mesh/motion_summary.h"
-#include "pneuma/mesh/phantom.h"
-#include "pneuma/mesh/regions.h"
+#include "pneuma/mesh/anatomy/motion_summary.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/anatomy/regions.h"
 #include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
@@ -32,8 +32,8 @@ TriangleMesh mirrored(TriangleMesh m) {
 }
 
 TEST(Regions, PhantomSidesAreFoundFromTheGeometry) {
-  EXPECT_EQ(find_regions(phantom(Lung::right)).side, LungSide::right);
-  EXPECT_EQ(find_regions(phantom(Lung::left)).side, LungSide::left);
+  EXPECT_EQ(find_regions(phantom(Lung::right)).side, Lung::right);
+  EXPECT_EQ(find_regions(phantom(Lung::left)).side, Lung::left);
   // The right lung's medial face looks to the patient's left (+x in LPS).
   EXPECT_GT(find_regions(phantom(Lung::right)).medial.x(), 0.99);
   EXPECT_LT(find_regions(phantom(Lung::left)).medial.x(), -0.99);
@@ -84,8 +84,8 @@ TEST(Regions, DownwardNormalsAreDiaphragmaticAndTheTopIsApex) {
 TEST(Regions, MirroredLungGetsMirroredLabels) {
   const TriangleMesh right = phantom(Lung::right);
   const SurfaceRegions a = find_regions(right), b = find_regions(mirrored(right));
-  EXPECT_EQ(a.side, LungSide::right);
-  EXPECT_EQ(b.side, LungSide::left);
+  EXPECT_EQ(a.side, Lung::right);
+  EXPECT_EQ(b.side, Lung::left);
   std::size_t differ = 0;
   for (std::size_t i = 0; i < a.label.size(); ++i) differ += a.label[i] != b.label[i];
   // The grid of the blur is not mirror symmetric: a few border vertices may flip.
@@ -95,7 +95,7 @@ TEST(Regions, MirroredLungGetsMirroredLabels) {
 TEST(Regions, SphereBottomIsDiaphragmaticTopIsApex) {
   const TriangleMesh s = make_icosphere(0.1, 4);
   RegionOptions o;
-  o.side = LungSide::right;
+  o.side = Lung::right;
   const SurfaceRegions r = find_regions(s, o);
   for (std::size_t i = 0; i < s.vertices.size(); ++i) {
     const Eigen::Vector3d n = s.vertices[i].normalized();
@@ -184,7 +184,7 @@ TEST(MotionSummary, UniformDilationSharesFollowAreasAndDoNotDependOnTheOrigin) {
   // change is its share of the area (to the discretisation), wherever the sphere lies.
   TriangleMesh s = make_icosphere(0.1, 4);
   RegionOptions o;
-  o.side = LungSide::right;
+  o.side = Lung::right;
   const SurfaceRegions r = find_regions(s, o);
   std::vector<Eigen::Vector3d> u(s.vertices.size());
   for (std::size_t i = 0; i < u.size(); ++i) u[i] = s.vertices[i].normalized();
@@ -211,7 +211,7 @@ TEST(MotionSummary, UniformDilationSharesFollowAreasAndDoNotDependOnTheOrigin) {
 TEST(RegionalLoad, BlendsTheRegionsLoadsAndDrivesTheDiaphragmByItsDownwardNormal) {
   const TriangleMesh s = make_icosphere(0.1, 4);
   RegionOptions o;
-  o.side = LungSide::right;
+  o.side = Lung::right;
   const SurfaceRegions r = find_regions(s, o);
   const std::array<double, kRegionCount> load{0.1, 0.2, 1.0, 0.05};  // apex, costal, diaphragmatic, mediastinal
   const std::vector<double> f = regional_load(s, r, load);
@@ -227,7 +227,7 @@ TEST(RegionalLoad, TheDomeProfileMovesTheDiaphragmsDriveInwardAndKeepsItsTotal) 
   // z axis, so the profile depends on the distance from the axis. Only the diaphragm is loaded.
   const TriangleMesh s = make_icosphere(0.1, 4);
   RegionOptions o;
-  o.side = LungSide::right;
+  o.side = Lung::right;
   const SurfaceRegions r = find_regions(s, o);
   const std::array<double, kRegionCount> load{0.0, 0.0, 1.0, 0.0};
   const DomeLoad dome{.radius_m = 0.04, .falloff_m = 0.01, .rim = 0.25};

@@ -1,5 +1,5 @@
 // CGAL-backed queries against independent oracles.
-#include "pneuma/mesh/surface_queries.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
 
 #include <gtest/gtest.h>
 

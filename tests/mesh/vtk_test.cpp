@@ -10,8 +10,8 @@
 
 #include "mesh_fixture.h"
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;

@@ -68,6 +68,25 @@ def test_animation_frames_are_the_run_frames(run_dir):
         animation.frame(41)
 
 
+def test_the_cli_and_the_module_compile_the_same_frames(tmp_path):
+    # `pneuma run` (the CLI) and pneuma.Animation each compile the scenario on their own (no
+    # shared cache: the CLI's is in its folder, the Animation has none) through the same
+    # model::compile: every frame must be the same bits.
+    from conftest import SMALL_SCENARIO, run_cli
+    scenario = tmp_path / "small.yaml"
+    scenario.write_text(SMALL_SCENARIO)
+    code, _, err = run_cli("run", scenario, "-o", tmp_path / "cli", "--quiet")
+    assert code == 0, err
+    animation = pneuma.Animation(scenario)
+    assert not animation.field_reused
+    with h5py.File(tmp_path / "cli" / "series.h5", "r") as h5:
+        assert h5["/frames/scale"].shape[0] == len(animation) == 41
+        np.testing.assert_array_equal(animation.vertices, h5["/rest/positions"][...])
+        np.testing.assert_array_equal(animation.scales, h5["/frames/scale"][...])
+        for k in range(len(animation)):
+            np.testing.assert_array_equal(animation.frame(k), h5[f"/frames/positions/{k:06d}"][...])
+
+
 def test_animation_without_output_dir_caches_nothing(tmp_path, monkeypatch):
     from conftest import SMALL_SCENARIO
     import yaml

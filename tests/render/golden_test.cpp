@@ -14,10 +14,11 @@
 #include <ostream>
 #include <string>
 
-#include "pneuma/engine/field_cache.h"
-#include "pneuma/engine/physiology_config.h"
-#include "pneuma/engine/tissue.h"
-#include "pneuma/mesh/phantom.h"
+#include "pneuma/model/field_cache.h"
+#include "pneuma/scenario/physiology_config.h"
+#include "pneuma/scenario/tissue_config.h"
+#include "pneuma/field/tissue.h"
+#include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/render/compare.h"
 #include "pneuma/render/renderer.h"
 #include "test_support.h"
@@ -37,7 +38,7 @@ struct GoldenCase {
 // gtest names the case in a failure line (instead of dumping its bytes).
 [[maybe_unused]] void PrintTo(const GoldenCase& c, std::ostream* os) { *os << c.name; }
 
-// s in area units of 1 cm^2 (engine::FieldOptions::area_unit): the demo scenario's right lung
+// s in area units of 1 cm^2 (field::FieldOptions::area_unit): the demo scenario's right lung
 // reaches about 75 at the end of a quiet inspiration, so s = 80 is a realistic deep-ish breath.
 const GoldenCase kCases[] = {
     {"phantom-anterior-s0", render::CameraPreset::anterior, 0.0},
@@ -53,18 +54,18 @@ constexpr int kWidth = 200, kHeight = 150;
 
 // The right-lung phantom, coarse (10 mm edges: about 2k triangles) so the test stays fast and
 // the goldens small, and its field as `pneuma field` computes it.
-const engine::FieldModel& phantom_model() {
-  static const engine::FieldModel model = [] {
+const model::FieldRecord& phantom_model() {
+  static const model::FieldRecord model = [] {
     const mesh::TriangleMesh rest = mesh::make_lung_phantom({.lung = mesh::Lung::right, .edge_length_m = 0.010});
-    const engine::Tissue tissue =
-        engine::load_tissue(engine::tissue_file("healthy-upright", engine::default_config_dir()));
-    return engine::compute_field_model(rest, tissue, engine::default_field_options);
+    const field::Tissue tissue =
+        scenario::load_tissue(scenario::tissue_file("healthy-upright", scenario::default_config_dir()));
+    return model::compute_field_record(rest, tissue, field::default_field_options);
   }();
   return model;
 }
 
 render::Image render_case(const GoldenCase& c, const render::Material& material = {}) {
-  const engine::FieldModel& lung = phantom_model();
+  const model::FieldRecord& lung = phantom_model();
   render::RenderOptions options;
   options.width = kWidth;
   options.height = kHeight;

@@ -9,7 +9,7 @@
 #include <cmath>
 #include <vector>
 
-#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
 #include "pneuma/render/image.h"
 
 namespace pneuma::test {

@@ -194,20 +194,20 @@ TEST(Renderer, FramesTheWholeRangeOfScales) {
 
 TEST(PngFrameSink, WritesEveryNthFrameAndNothingElse) {
   const auto lung = make_lung_stand_in(3);
-  const engine::BreathingModel model = engine::make_breathing_model(lung.rest, lung.field, 1e-4);
+  const model::Model model = model::make_model(lung.rest, lung.field, 1e-4);
   test::TempDir dir;
   render::PngSinkOptions options;
   options.render = small_options();
   options.every = 2;
   render::PngFrameSink sink(dir / "frames", options);
-  sink.begin(model, engine::RunInfo{5, 30.0, -0.5, 1.0, dir.path()});
+  sink.begin(model, outputs::RunInfo{5, 30.0, -0.5, 1.0, dir.path()});
   const double scales[] = {-0.5, 0.25, 1.0, 0.1, 0.25};
-  engine::Frame frame(model);
+  frame::Frame frame(model);
   for (std::size_t k = 0; k < 5; ++k) {
-    engine::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
+    frame::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
     sink.frame(model, frame);
   }
-  const auto written = sink.end();
+  const auto written = sink.finish(model, {});
   ASSERT_EQ(written.size(), 3u);
   EXPECT_EQ(written[2], dir / "frames" / "frame_00004.png");
   EXPECT_EQ(dir.files().size(), 3u) << "no temporaries left";
@@ -248,17 +248,17 @@ namespace {
 std::vector<std::filesystem::path> write_sequence(const test::LungStandIn& lung, const std::filesystem::path& folder,
                                                   const std::vector<double>& scales, std::size_t threads) {
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-  const engine::BreathingModel model = engine::make_breathing_model(lung.rest, lung.field, 1e-4);
+  const model::Model model = model::make_model(lung.rest, lung.field, 1e-4);
   render::PngSinkOptions options;
   options.render = small_options(render::CameraPreset::oblique);
   render::PngFrameSink sink(folder, options);
-  sink.begin(model, engine::RunInfo{scales.size(), 30.0, 0.0, 1.0, folder});
-  engine::Frame frame(model);
+  sink.begin(model, outputs::RunInfo{scales.size(), 30.0, 0.0, 1.0, folder});
+  frame::Frame frame(model);
   for (std::size_t k = 0; k < scales.size(); ++k) {
-    engine::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
+    frame::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
     sink.frame(model, frame);
   }
-  return sink.end();
+  return sink.finish(model, {});
 }
 
 std::string file_bytes(const std::filesystem::path& path) {

@@ -13,7 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "pneuma/engine/report.h"
+#include "pneuma/outputs/report.h"
 #include "test_support.h"
 
 using pneuma::test::read_text;
@@ -180,7 +180,7 @@ double glb_weight_at(const std::string& glb, double t) {
 }  // namespace
 
 TEST(Report, StrideKeepsAtMostTheMaximumWithTheLastSample) {
-  using pneuma::engine::report_stride;
+  using pneuma::outputs::report_stride;
   EXPECT_EQ(report_stride(1), 1u);
   EXPECT_EQ(report_stride(4000), 1u);
   EXPECT_EQ(report_stride(4001), 2u);
@@ -188,8 +188,8 @@ TEST(Report, StrideKeepsAtMostTheMaximumWithTheLastSample) {
   for (std::size_t n : {4001u, 6001u, 7997u, 7998u, 7999u, 12000u, 360001u}) {
     const std::size_t s = report_stride(n);
     const std::size_t kept = (n + s - 1) / s + ((n - 1) % s != 0 ? 1 : 0);
-    EXPECT_LE(kept, pneuma::engine::kReportMaxSamples) << n;
-    EXPECT_GT(kept, pneuma::engine::kReportMaxSamples / 2) << n;
+    EXPECT_LE(kept, pneuma::outputs::kReportMaxSamples) << n;
+    EXPECT_GT(kept, pneuma::outputs::kReportMaxSamples / 2) << n;
   }
 }
 
@@ -269,7 +269,7 @@ TEST(Report, WithoutGltfOutputEmbedsTheSameGlbAndDecimatesLongSeries) {
   const Csv csv = read_csv(without / "physiology.csv");
   ASSERT_EQ(csv.rows.size(), 5001u);
   const auto& series = page.data["series"];
-  const std::size_t stride = pneuma::engine::report_stride(csv.rows.size());
+  const std::size_t stride = pneuma::outputs::report_stride(csv.rows.size());
   EXPECT_EQ(stride, 2u);
   EXPECT_EQ(series["stride"], stride);
   const auto& time = series["columns"]["time_s"];

@@ -14,12 +14,14 @@
 
 #include <nlohmann/json.hpp>
 
-#include "pneuma/engine/runner.h"
-#include "pneuma/engine/scenario.h"
-#include "pneuma/engine/tissue.h"
-#include "pneuma/mesh/regions.h"
-#include "pneuma/mesh/labels.h"
-#include "pneuma/mesh/io.h"
+#include "pneuma/model/compile.h"
+#include "pneuma/runner/output_registry.h"
+#include "pneuma/runner/runner.h"
+#include "pneuma/scenario/scenario.h"
+#include "pneuma/field/tissue.h"
+#include "pneuma/mesh/anatomy/regions.h"
+#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/physiology/simulate.h"
 #include "test_support.h"
 
@@ -73,7 +75,7 @@ TEST(Runner, ExportedFrameVolumesFollowTheSimulatedVolumeTimesTheShare) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
 
   // The physiology again, independently of the runner, at the frame times.
-  const auto s = pneuma::engine::load_scenario(scenario);
+  const auto s = pneuma::runner::load_scenario(scenario);
   auto options = s.physiology.options;
   options.output_rate_hz = 10.0;
   const auto phys = pneuma::physiology::simulate(s.physiology.protocol, options);
@@ -354,7 +356,7 @@ TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
   metres.metres_per_unit = 1.0;
   const auto frame = pneuma::mesh::read_mesh(frame_file(dir / "out/frames", 20), metres);
   EXPECT_EQ(frame.vertex_count(), original.vertex_count());
-  const auto s = pneuma::engine::load_scenario(scenario);
+  const auto s = pneuma::runner::load_scenario(scenario);
   auto options = s.physiology.options;
   options.output_rate_hz = 10.0;
   const auto phys = pneuma::physiology::simulate(s.physiology.protocol, options);
@@ -379,18 +381,16 @@ TEST(Runner, TheModelsRegionsAreThoseOfItsRestSurfaceOnEveryPath) {
       {"file", with(phantom, "mesh: {file: lung.ply, unit: mm, edge: 14 mm, share: 45 %}")},
       {"file, original exported", with(phantom, "mesh: {file: lung.ply, unit: mm, edge: 14 mm, export: original, share: 45 %}")}};
   for (const auto& [name, yaml] : scenarios) {
-    const auto s = pneuma::engine::load_scenario(dir.write("s.yaml", yaml));
+    const auto s = pneuma::runner::load_scenario(dir.write("s.yaml", yaml));
     pneuma::mesh::RegionOptions axes;
-    axes.frame = pneuma::engine::body_frame(pneuma::engine::load_tissue(s.field.tissue_file));
+    axes.axes = pneuma::field::body_axes(s.field.tissue);
     const auto out = dir / ("out-" + std::to_string(name.size()));
     for (const char* pass : {"first", "second"}) {
       SCOPED_TRACE(name + ", " + pass + " run");
-      std::vector<std::pair<std::string, double>> timings;
-      bool reused = false;
-      pneuma::engine::RunOptions options;
-      options.output_dir = out;
-      const auto model = pneuma::engine::prepare_model(s, options, timings, reused);
-      EXPECT_EQ(reused, std::string(pass) == "second" && name != "phantom, no cache");
+      const auto drive = pneuma::scenario::simulate_physiology(s, s.frame_rate_hz);
+      const auto compiled = pneuma::model::compile(s, drive, {out, std::nullopt});
+      const auto& model = compiled.model;
+      EXPECT_EQ(compiled.field_reused, std::string(pass) == "second" && name != "phantom, no cache");
       const auto direct = pneuma::mesh::find_regions(model.rest, axes);
       EXPECT_EQ(model.regions.label, direct.label);
       EXPECT_EQ(model.regions.weight, direct.weight);

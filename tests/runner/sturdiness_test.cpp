@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "pneuma/core/staged_output.h"
-#include "pneuma/engine/field_cache.h"
+#include "pneuma/model/field_cache.h"
 #include "test_support.h"
 
 using pneuma::test::BackgroundPneuma;

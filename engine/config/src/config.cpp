@@ -1,4 +1,4 @@
-#include "pneuma/engine/config.h"
+#include "pneuma/config/config.h"
 
 #include <fstream>
 #include <sstream>

@@ -1,11 +1,11 @@
-#include "pneuma/engine/field.h"
+#include "pneuma/field/field.h"
 
 #include <chrono>
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/stopwatch.h"
 
-namespace pneuma::engine {
+namespace pneuma::field {
 
 const char* direction_name(DirectionKind kind) {
   switch (kind) {
@@ -29,11 +29,11 @@ std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& m
     case DirectionKind::smoothed_normal: return mesh::smoothed_normals(mesh, options.direction_smoothing);
     case DirectionKind::anatomical: {
       if (options.regions) {
-        mesh::require_regions_of(*options.regions, mesh, options.frame, "displacement_directions");
+        mesh::require_regions_of(*options.regions, mesh, options.axes, "displacement_directions");
         return mesh::anatomical_directions(mesh, *options.regions, options.direction_smoothing);
       }
       mesh::RegionOptions regions;
-      regions.frame = options.frame;
+      regions.axes = options.axes;
       return mesh::anatomical_directions(mesh, mesh::find_regions(mesh, regions), options.direction_smoothing);
     }
   }
@@ -102,8 +102,8 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   const std::vector<Eigen::Vector3d> direction = displacement_directions(mesh, options);
   auto [u, scale] = normalise_displacement(mesh, field.force, direction, options.area_unit);
   field.unit_displacement = std::move(u);
-  field.scale = scale;
+  field.normalisation = scale;
   return field;
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::field

@@ -1,4 +1,4 @@
-#include "pneuma/engine/field_graph.h"
+#include "pneuma/field/field_graph.h"
 
 #include <algorithm>
 #include <cmath>
@@ -12,7 +12,7 @@
 
 #include "pneuma/core/error.h"
 
-namespace pneuma::engine {
+namespace pneuma::field {
 namespace {
 
 // The undirected edges {a < b}, sorted, each once: a counting sort on a (the smaller end),
@@ -271,4 +271,4 @@ TransferOperator clique_operator(const FieldGraph& graph, int hops, CliquePathRu
   return op;
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::field

@@ -9,10 +9,10 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/stopwatch.h"
-#include "pneuma/engine/field_solver.h"
-#include "shot_internal.h"
+#include "pneuma/field/field_solver.h"
+#include "pneuma/field/shot_unshot_loop.h"
 
-namespace pneuma::engine {
+namespace pneuma::field {
 
 namespace detail {
 
@@ -247,4 +247,4 @@ std::unique_ptr<FieldSolver> make_field_solver(SolverKind kind, std::shared_ptr<
   throw ValueError("unknown solver kind");
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::field

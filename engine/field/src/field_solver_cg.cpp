@@ -18,10 +18,10 @@
 #include <cmath>
 
 #include "pneuma/core/error.h"
-#include "pneuma/engine/field_solver.h"
+#include "pneuma/field/field_solver.h"
 #include "pneuma/core/stopwatch.h"
 
-namespace pneuma::engine {
+namespace pneuma::field {
 namespace {
 
 // Fixed-size blocks: reductions add one partial per block, in block order, so the result does
@@ -194,4 +194,4 @@ SolveResult ConjugateGradient_Schur::solve(std::span<const double> load) const {
   return out;
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::field

@@ -7,10 +7,10 @@
 
 #include "comparators_internal.h"
 #include "pneuma/core/error.h"
-#include "pneuma/engine/comparators.h"
+#include "pneuma/paper/comparators.h"
 #include "pneuma/core/stopwatch.h"
 
-namespace pneuma::engine {
+namespace pneuma::paper {
 
 // ---- Test graphs -------------------------------------------------------------------------------
 
@@ -78,16 +78,16 @@ std::vector<std::uint32_t> lattice_border(std::uint32_t side) {
 
 // ---- Proposed_Santhanam -----------------------------------------------------------------------
 
-Proposed_Santhanam::Proposed_Santhanam(std::shared_ptr<const TransferOperator> op) : op_(std::move(op)) {
+Proposed_Santhanam::Proposed_Santhanam(std::shared_ptr<const field::TransferOperator> op) : op_(std::move(op)) {
   if (!op_) throw ValueError("Proposed_Santhanam: no transfer operator");
 }
 
-// The production loop of ShotUnshot_Santhanam (detail::shoot_until_below, one copy), so the
+// The production loop of field::ShotUnshot_Santhanam (field::detail::shoot_until_below, one copy), so the
 // shots come in the same order and the result is bit-identical; only the trace is added.
 ComparatorResult Proposed_Santhanam::solve(std::span<const double> vertex_load, const ComparatorOptions& o) const {
   const auto start = Clock::now();
-  const TransferOperator& op = *op_;
-  const double max_f = detail::check_load(vertex_load, op.mass_count);
+  const field::TransferOperator& op = *op_;
+  const double max_f = field::detail::check_load(vertex_load, op.mass_count);
   ComparatorResult out;
   out.method = name();
   out.displacement.assign(op.mass_count, 0.0);
@@ -96,7 +96,7 @@ ComparatorResult Proposed_Santhanam::solve(std::span<const double> vertex_load, 
   std::vector<double> unshot(op.node_count, 0.0), shot(op.node_count, 0.0);
   std::copy(vertex_load.begin(), vertex_load.end(), unshot.begin());
   detail::TraceSampler sampler;
-  OperationCounts c;
+  field::OperationCounts c;
   std::uint64_t steps = 0;
   auto record = [&](double residual) {
     const double probe = o.probe_vertex >= 0 ? shot[static_cast<std::size_t>(o.probe_vertex)] : 0.0;
@@ -105,8 +105,8 @@ ComparatorResult Proposed_Santhanam::solve(std::span<const double> vertex_load, 
   record(max_f);
   // The residual is the largest UnShot: the heap's top, or (once the heap is empty) at most
   // the threshold; the exact value is computed for the last record below.
-  steps = detail::shoot_until_below<true>(op, unshot, shot, threshold, o.step_limit, c,
-                                          [&](std::uint64_t step, const detail::IndexedMaxHeap& heap,
+  steps = field::detail::shoot_until_below<true>(op, unshot, shot, threshold, o.step_limit, c,
+                                          [&](std::uint64_t step, const field::detail::IndexedMaxHeap& heap,
                                               const std::vector<double>& u) {
                                             steps = step;
                                             if (!heap.empty() && sampler.due(step)) record(u[heap.top()]);
@@ -123,4 +123,4 @@ ComparatorResult Proposed_Santhanam::solve(std::span<const double> vertex_load, 
   return out;
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::paper

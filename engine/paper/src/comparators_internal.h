@@ -7,12 +7,12 @@
 #include <span>
 #include <vector>
 
-#include "pneuma/engine/comparators.h"
+#include "pneuma/paper/comparators.h"
 
 #include "pneuma/core/stopwatch.h"
-#include "shot_internal.h"
+#include "pneuma/field/shot_unshot_loop.h"
 
-namespace pneuma::engine::detail {
+namespace pneuma::paper::detail {
 
 // splitmix64 (Steele, Lea, Flood 2014): tiny, seedable, and the same numbers on every
 // platform, unlike the standard library's distributions.
@@ -58,4 +58,4 @@ class TraceSampler {
 };
 
 
-}  // namespace pneuma::engine::detail
+}  // namespace pneuma::paper::detail

@@ -7,21 +7,21 @@
 
 #include "comparators_internal.h"
 #include "pneuma/core/error.h"
-#include "pneuma/engine/comparators.h"
+#include "pneuma/paper/comparators.h"
 
-namespace pneuma::engine {
+namespace pneuma::paper {
 
 // ---- CumulativeSweeps ---------------------------------------------------------------------------
 
-CumulativeSweeps::CumulativeSweeps(std::shared_ptr<const TransferOperator> op, std::string name)
+CumulativeSweeps::CumulativeSweeps(std::shared_ptr<const field::TransferOperator> op, std::string name)
     : op_(std::move(op)), name_(std::move(name)) {
   if (!op_) throw ValueError("CumulativeSweeps: no transfer operator");
 }
 
 ComparatorResult CumulativeSweeps::solve(std::span<const double> vertex_load, const ComparatorOptions& o) const {
   const auto start = Clock::now();
-  const TransferOperator& op = *op_;
-  const double max_f = detail::check_load(vertex_load, op.mass_count);
+  const field::TransferOperator& op = *op_;
+  const double max_f = field::detail::check_load(vertex_load, op.mass_count);
   ComparatorResult out;
   out.method = name_;
   out.displacement.assign(op.mass_count, 0.0);
@@ -29,7 +29,7 @@ ComparatorResult CumulativeSweeps::solve(std::span<const double> vertex_load, co
   std::vector<double> held(op.node_count, 0.0), next(op.node_count, 0.0), shot(op.node_count, 0.0);
   std::copy(vertex_load.begin(), vertex_load.end(), held.begin());
   detail::TraceSampler sampler;
-  OperationCounts c;
+  field::OperationCounts c;
   std::uint64_t steps = 0;
   double residual = 0.0;
   while (true) {
@@ -68,7 +68,7 @@ ComparatorResult CumulativeSweeps::solve(std::span<const double> vertex_load, co
 
 namespace {
 
-std::shared_ptr<const TransferOperator> exponential_operator(const LinkGraph& graph, std::span<const double> mu) {
+std::shared_ptr<const field::TransferOperator> exponential_operator(const LinkGraph& graph, std::span<const double> mu) {
   const std::uint32_t v = graph.vertex_count();
   if (mu.size() != v) throw ValueError("exponential: expected one shear modulus per vertex");
   if (graph.links.empty()) throw ValueError("exponential: no links");
@@ -95,7 +95,7 @@ std::shared_ptr<const TransferOperator> exponential_operator(const LinkGraph& gr
       target[fill[l[1]]++] = l[0];
     }
   }
-  auto op = std::make_shared<TransferOperator>();
+  auto op = std::make_shared<field::TransferOperator>();
   op->clique_hops = 1;
   op->mass_count = v;
   op->node_count = v;
@@ -130,4 +130,4 @@ ComparatorResult Exponential_Hauth::solve(std::span<const double> load, const Co
   return r;
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::paper

@@ -8,9 +8,9 @@
 
 #include "comparators_internal.h"
 #include "pneuma/core/error.h"
-#include "pneuma/engine/comparators.h"
+#include "pneuma/paper/comparators.h"
 
-namespace pneuma::engine {
+namespace pneuma::paper {
 namespace {
 
 constexpr std::uint32_t dense_spectrum_limit = 4000;  // free vertices; above: power iterations
@@ -185,7 +185,7 @@ SpringNetwork clamped_network(const LinkGraph& graph, std::span<const double> mu
   return n;
 }
 
-SpringNetwork matched_network(const FieldGraph& g) {
+SpringNetwork matched_network(const field::FieldGraph& g) {
   const std::uint32_t v = g.mass_count();
   SpringNetwork n = empty_network(v);
   const auto& s = g.weight();
@@ -260,7 +260,7 @@ MassSpring_Witkin::MassSpring_Witkin(SpringNetwork network, double tolerance) : 
 ComparatorResult MassSpring_Witkin::solve(std::span<const double> load, const ComparatorOptions& o) const {
   const auto start = Clock::now();
   const SpringNetwork& n = network_;
-  detail::check_load(load, n.vertex_count);
+  field::detail::check_load(load, n.vertex_count);
   ComparatorResult out;
   out.method = name();
   out.displacement.assign(n.vertex_count, 0.0);
@@ -284,7 +284,7 @@ ComparatorResult MassSpring_Witkin::solve(std::span<const double> load, const Co
   const std::uint64_t step_additions = 3 * n.springs.size() + 4ULL * free_count;
   const std::uint64_t step_multiplications = 1 * n.springs.size() + 5ULL * free_count;
   detail::TraceSampler sampler;
-  OperationCounts c;
+  field::OperationCounts c;
   std::uint64_t steps = 0;
   double residual = 0.0;
   while (true) {
@@ -331,4 +331,4 @@ ComparatorResult MassSpring_Witkin::solve(std::span<const double> load, const Co
   return out;
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::paper

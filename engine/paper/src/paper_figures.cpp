@@ -1,6 +1,6 @@
 // The paper's evaluation, experiment by experiment (see paper_figures.h and
 // docs/paper-reproduction.md for what each one means and what it shows).
-#include "pneuma/engine/paper_figures.h"
+#include "pneuma/paper/paper_figures.h"
 
 #include <fmt/format.h>
 
@@ -12,12 +12,12 @@
 #include <ostream>
 
 #include "pneuma/core/atomic_file.h"
-#include "pneuma/engine/comparators.h"
-#include "pneuma/engine/field_graph.h"
-#include "pneuma/engine/field_solver.h"
+#include "pneuma/paper/comparators.h"
+#include "pneuma/field/field_graph.h"
+#include "pneuma/field/field_solver.h"
 #include "pneuma/core/error.h"
 
-namespace pneuma::engine {
+namespace pneuma::paper {
 namespace {
 
 std::string num(double v) { return fmt::format("{:.9g}", v); }
@@ -39,8 +39,8 @@ struct PushSetup {
   std::uint32_t side, centre, probe;
   LinkGraph graph;
   std::vector<double> mu;  // uniform: the regular grid of the paper is isotropic
-  std::unique_ptr<FieldGraph> field;
-  std::shared_ptr<const TransferOperator> one_hop;
+  std::unique_ptr<field::FieldGraph> field;
+  std::shared_ptr<const field::TransferOperator> one_hop;
   std::vector<double> load;
 
   explicit PushSetup(const ReproductionOptions& o) : side(o.grid_side) {
@@ -50,8 +50,8 @@ struct PushSetup {
     probe = centre + offset;
     graph = square_lattice(side);
     mu.assign(graph.vertex_count(), 1e3);
-    field = std::make_unique<FieldGraph>(link_mesh(graph), mu);
-    one_hop = std::make_shared<const TransferOperator>(one_hop_operator(*field));
+    field = std::make_unique<field::FieldGraph>(link_mesh(graph), mu);
+    one_hop = std::make_shared<const field::TransferOperator>(field::one_hop_operator(*field));
     load.assign(graph.vertex_count(), 0.0);
     load[centre] = 1.0;
   }
@@ -99,7 +99,7 @@ void add_trace_rows(FigureOutput& f, const std::string& method, const Convergenc
     f.rows.push_back({method, num(t.step[i]), num(t.operations[i]), num(t.residual[i]), num(t.probe[i] / probe_scale)});
 }
 
-std::uint64_t total(const OperationCounts& c) { return c.additions + c.multiplications; }
+std::uint64_t total(const field::OperationCounts& c) { return c.additions + c.multiplications; }
 
 }  // namespace
 
@@ -213,7 +213,7 @@ FigureOutput figure7(const ReproductionOptions& o) {
   // The exact fixed point (sparse LU) tells how far the stopped Shot/UnShot is from it.
   std::vector<double> node_load(s.field->node_count(), 0.0);
   node_load[s.centre] = 1.0;
-  const SolveResult exact = Direct_Eigen(s.one_hop).solve(node_load);
+  const field::SolveResult exact = field::Direct_Eigen(s.one_hop).solve(node_load);
   double proposed_error = 0.0;
   for (std::uint32_t v = 0; v < s.graph.vertex_count(); ++v)
     proposed_error = std::max(proposed_error, std::abs(proposed.displacement[v] - exact.shot[v]));
@@ -310,13 +310,13 @@ FigureOutput figure2(const ReproductionOptions& o) {
   PlotSeries mean_series{"change of the mean", {}, {}, true, true};
   PlotSeries scatter_series{"seed-to-seed sd of mean", {}, {}, true, true};
   std::vector<double> sizes, node_means, global_means, normalised_means, scatter;
-  const SolveOptions solve{1e-10};
+  const field::SolveOptions solve{1e-10};
   for (std::uint32_t side : o.fig2_sides) {
     const LinkGraph regular = square_lattice(side);
     const std::vector<double> mu(regular.vertex_count(), 1e3);
     const std::vector<double> load(regular.vertex_count(), 1.0);  // the lung's pressure: the same on every vertex
     auto field_of = [&](const LinkGraph& g) {
-      return ConjugateGradient_Schur(std::make_shared<const FieldGraph>(link_mesh(g), mu), solve).solve(load).shot;
+      return field::ConjugateGradient_Schur(std::make_shared<const field::FieldGraph>(link_mesh(g), mu), solve).solve(load).shot;
     };
     const std::vector<double> reference = field_of(regular);
     const double reference_mean = mean(reference);
@@ -395,12 +395,12 @@ FigureOutput table1(const ReproductionOptions& o) {
   for (std::uint32_t side : o.table1_sides) {
     const LinkGraph g = square_lattice(side);
     const std::vector<double> mu(g.vertex_count(), 1e3);
-    const FieldGraph fg(link_mesh(g), mu);
+    const field::FieldGraph fg(link_mesh(g), mu);
     std::vector<double> load(fg.node_count(), 0.0);
     std::fill(load.begin(), load.begin() + fg.mass_count(), 1.0);
     for (int m = 1; m <= o.max_clique; ++m) {
-      auto op = m == 1 ? std::make_shared<const TransferOperator>(one_hop_operator(fg)) : std::make_shared<const TransferOperator>(clique_operator(fg, m));
-      const SolveResult r = ShotUnshot_Santhanam(op, SolveOptions{o.tolerance}, true).solve(load);
+      auto op = m == 1 ? std::make_shared<const field::TransferOperator>(field::one_hop_operator(fg)) : std::make_shared<const field::TransferOperator>(field::clique_operator(fg, m));
+      const field::SolveResult r = field::ShotUnshot_Santhanam(op, field::SolveOptions{o.tolerance}, true).solve(load);
       const double n = fg.mass_count();
       f.rows.push_back({num(std::uint64_t{side}), num(std::uint64_t{fg.mass_count()}), num(std::uint64_t(m)),
                         num(op->entry_count()), num(r.report.shots), num(r.report.counts.additions),
@@ -471,4 +471,4 @@ std::vector<std::filesystem::path> write_figure(const FigureOutput& figure, cons
   return {csv, svg};
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::paper

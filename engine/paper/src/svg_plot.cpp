@@ -1,4 +1,4 @@
-#include "pneuma/engine/svg_plot.h"
+#include "pneuma/paper/svg_plot.h"
 
 #include <fmt/format.h>
 
@@ -9,7 +9,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/markup.h"
 
-namespace pneuma::engine {
+namespace pneuma::paper {
 namespace {
 
 constexpr double width = 720, height = 450;
@@ -147,4 +147,4 @@ std::string render_svg(const LinePlot& plot) {
   return svg;
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::paper

@@ -1,11 +1,11 @@
-#include "pneuma/engine/progress.h"
+#include "pneuma/runner/progress.h"
 #include "pneuma/core/stopwatch.h"
 
 #include <unistd.h>
 
 #include <cstdio>
 
-namespace pneuma::engine {
+namespace pneuma::runner {
 
 Progress::Progress(std::string label, std::size_t total, bool quiet)
     : label_(std::move(label)), total_(total), quiet_(quiet), terminal_(::isatty(STDERR_FILENO) != 0),
@@ -42,4 +42,4 @@ void Progress::finish() {
   if (terminal_ && !quiet_) std::fputc('\n', stderr);
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::runner

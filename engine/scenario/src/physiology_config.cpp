@@ -1,4 +1,4 @@
-#include "pneuma/engine/physiology_config.h"
+#include "pneuma/scenario/physiology_config.h"
 
 #include <cstdlib>
 #include <optional>
@@ -6,7 +6,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
 
-namespace pneuma::engine {
+namespace pneuma::scenario {
 namespace {
 
 using config::Node;
@@ -60,7 +60,7 @@ const std::vector<std::string> kDriverKeys{"rate",  "ie_ratio", "inspiratory_tim
                                            "pause", "peep",     "inspiratory_pressure"};
 
 // Overlays the driver keys present in `n` on `f`, refusing keys the mode does not take.
-void overlay_driver(const Node& n, const std::string& mode, DriverFields& f) {
+void overlay_driver(const config::Node& n, const std::string& mode, DriverFields& f) {
   for (const std::string& key : kDriverKeys) {
     if (n.has(key) && !mode_takes(mode, key)) n.fail_at(key, "not a setting of " + mode + " mode");
   }
@@ -76,12 +76,12 @@ void overlay_driver(const Node& n, const std::string& mode, DriverFields& f) {
   if (auto v = n.optional_quantity("inspiratory_pressure", kind::pressure)) f.inspiratory_pressure = v;
 }
 
-double require(const Node& n, const std::optional<double>& value, const std::string& key, const units::Kind& k) {
+double require(const config::Node& n, const std::optional<double>& value, const std::string& key, const units::Kind& k) {
   if (!value) n.fail(std::string("missing key '") + key + "' (expected " + k.name + " such as '" + k.example + "')");
   return *value;
 }
 
-Driver build_driver(const Node& n, const std::string& mode, const DriverFields& f) {
+Driver build_driver(const config::Node& n, const std::string& mode, const DriverFields& f) {
   const double rate = require(n, f.rate, "rate", kind::rate);
   Driver driver;
   if (mode == "spontaneous") {
@@ -115,7 +115,7 @@ Driver build_driver(const Node& n, const std::string& mode, const DriverFields& 
 }
 
 // A compartment's elastic recoil: `compliance` (linear) or `pressure_volume_curve` (sigmoid).
-std::optional<physiology::Elasticity> read_elasticity(const Node& n) {
+std::optional<physiology::Elasticity> read_elasticity(const config::Node& n) {
   if (n.has("compliance") && n.has("pressure_volume_curve"))
     n.fail_at("pressure_volume_curve", "give compliance or pressure_volume_curve, not both");
   if (n.has("compliance")) return physiology::LinearCompliance{n.positive_quantity("compliance", kind::compliance)};
@@ -134,7 +134,7 @@ std::optional<physiology::Elasticity> read_elasticity(const Node& n) {
   return std::nullopt;
 }
 
-void overlay_compartment(const Node& n, physiology::Compartment& c, bool need_resistance) {
+void overlay_compartment(const config::Node& n, physiology::Compartment& c, bool need_resistance) {
   if (auto e = read_elasticity(n)) c.elasticity = *e;
   if (auto r = n.optional_quantity("resistance", kind::resistance)) {
     if (!(*r > 0)) n.fail_at("resistance", "expected a positive resistance");
@@ -146,7 +146,7 @@ void overlay_compartment(const Node& n, physiology::Compartment& c, bool need_re
 
 // Mechanics keys: for `single` the compartment's elasticity and the airway resistance;
 // for `two_compartment` the airway resistance and compartments.upper/lower.
-void overlay_mechanics(const Node& n, const std::string& model, Mechanics& m, bool initial) {
+void overlay_mechanics(const config::Node& n, const std::string& model, Mechanics& m, bool initial) {
   if (model == "single") {
     if (n.has("compartments")) n.fail_at("compartments", "only a two_compartment model has compartments");
     physiology::Compartment& lung = m.compartments[0];
@@ -182,7 +182,7 @@ void overlay_mechanics(const Node& n, const std::string& model, Mechanics& m, bo
   }
 }
 
-Node with_preset(const Node& section, const std::filesystem::path& config_dir) {
+config::Node with_preset(const config::Node& section, const std::filesystem::path& config_dir) {
   auto preset = section.optional_string("preset");
   if (!preset) return section;
   std::filesystem::path file;
@@ -195,7 +195,7 @@ Node with_preset(const Node& section, const std::filesystem::path& config_dir) {
     section.fail_at("preset", "no preset '" + *preset + "' (looked for " + file.string() +
                                   "; shipped presets: " + join_names(file_stems(config_dir / "physiology", ".yaml")) + ")");
   }
-  return section.with_fallback(Node::load_file(file));
+  return section.with_fallback(config::Node::load_file(file));
 }
 
 }  // namespace
@@ -205,8 +205,8 @@ std::filesystem::path default_config_dir() {
   return PNEUMA_SOURCE_CONFIG_DIR;
 }
 
-PhysiologyConfig read_physiology(const Node& raw_section, double duration_s, const std::filesystem::path& config_dir) {
-  const Node section = with_preset(raw_section, config_dir);
+PhysiologyConfig read_physiology(const config::Node& raw_section, double duration_s, const std::filesystem::path& config_dir) {
+  const config::Node section = with_preset(raw_section, config_dir);
   PhysiologyConfig out;
   out.options.duration_s = duration_s;
 
@@ -228,7 +228,7 @@ PhysiologyConfig read_physiology(const Node& raw_section, double duration_s, con
   }
 
   // Driver at t = 0.
-  const Node driver_node = section.map("driver");
+  const config::Node driver_node = section.map("driver");
   const std::string mode = driver_node.choice("mode", kModes);
   DriverFields fields;
   overlay_driver(driver_node, mode, fields);
@@ -238,7 +238,7 @@ PhysiologyConfig read_physiology(const Node& raw_section, double duration_s, con
 
   // Timed actions, each a patch over the setting before it.
   double previous_time = 0.0;
-  for (const Node& action : section.sequence("actions")) {
+  for (const config::Node& action : section.sequence("actions")) {
     const double at = action.quantity("at", kind::duration);
     if (!(at > previous_time)) action.fail_at("at", "expected a time after the previous action's and after 0 s");
     if (at >= duration_s) action.fail_at("at", "expected a time within the scenario's duration");
@@ -271,4 +271,4 @@ PhysiologyConfig read_physiology(const Node& raw_section, double duration_s, con
   return out;
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::scenario

@@ -1,4 +1,4 @@
-#include "pneuma/engine/scenario.h"
+#include "pneuma/scenario/scenario.h"
 
 #include <fmt/format.h>
 
@@ -6,10 +6,11 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
-#include "pneuma/engine/config.h"
-#include "pneuma/render/camera.h"
+#include "pneuma/config/config.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/scenario/tissue_config.h"
 
-namespace pneuma::engine {
+namespace pneuma::scenario {
 namespace {
 
 namespace kind = units::kind;
@@ -23,7 +24,7 @@ double default_share(const std::optional<mesh::Lung>& lung) {
   return 1.0;
 }
 
-MeshSpec read_mesh_spec(const Node& n) {
+MeshSpec read_mesh_spec(const config::Node& n) {
   MeshSpec m;
   if (int(n.has("phantom")) + int(n.has("file")) + int(n.has("labels")) > 1) {
     n.fail_at(n.has("labels") ? "labels" : "file", "give one of phantom, file or labels");
@@ -32,7 +33,7 @@ MeshSpec read_mesh_spec(const Node& n) {
     m.phantom.reset();
     m.labels_file = n.directory("labels") / n.string("labels");
     if (!path_exists(m.labels_file)) n.fail_at("labels", "no such file: " + m.labels_file.string());
-    for (const Node& item : n.sequence("values")) {
+    for (const config::Node& item : n.sequence("values")) {
       m.label_values.push_back(static_cast<int>(item.as_integer(1, 1'000'000)));
     }
     if (m.label_values.empty()) n.fail_at("values", "expected a list of label values such as [3, 4, 5]");
@@ -72,23 +73,24 @@ MeshSpec read_mesh_spec(const Node& n) {
   return m;
 }
 
-FieldSpec read_field(const Node& n, const std::filesystem::path& config_dir) {
+FieldSpec read_field(const config::Node& n, const std::filesystem::path& config_dir) {
   FieldSpec f;
-  if (n.has("tissue")) f.tissue = n.string("tissue");
-  const bool is_path = f.tissue.find('/') != std::string::npos || f.tissue.ends_with(".yaml");
-  f.tissue_file = is_path ? n.directory("tissue") / f.tissue : config_dir / "tissue" / (f.tissue + ".yaml");
+  if (n.has("tissue")) f.tissue_name = n.string("tissue");
+  const bool is_path = f.tissue_name.find('/') != std::string::npos || f.tissue_name.ends_with(".yaml");
+  f.tissue_file = is_path ? n.directory("tissue") / f.tissue_name : config_dir / "tissue" / (f.tissue_name + ".yaml");
   if (!path_exists(f.tissue_file)) {
-    n.fail_at("tissue", "no tissue '" + f.tissue + "' (looked for " + f.tissue_file.string() +
+    n.fail_at("tissue", "no tissue '" + f.tissue_name + "' (looked for " + f.tissue_file.string() +
                             "; shipped presets: " + join_names(file_stems(config_dir / "tissue", ".yaml")) + ")");
   }
-  FieldOptions& o = f.options;
-  if (n.has("solver")) o.solver = parse_solver_kind(n.choice("solver", solver_names()));
+  f.tissue = load_tissue(f.tissue_file);
+  field::FieldOptions& o = f.options;
+  if (n.has("solver")) o.solver = field::parse_solver_kind(n.choice("solver", field::solver_names()));
   if (n.has("tolerance")) o.tolerance = n.positive_quantity("tolerance", kind::number);
-  o.clique_hops = static_cast<int>(n.integer("clique", o.clique_hops, 1, kMaxCliqueHops));
-  if (!solver_takes_clique(o.solver, o.clique_hops)) {
+  o.clique_hops = static_cast<int>(n.integer("clique", o.clique_hops, 1, field::kMaxCliqueHops));
+  if (!field::solver_takes_clique(o.solver, o.clique_hops)) {
     n.fail_at("clique", fmt::format("the {} solver{} takes clique 1 only; add 'solver: shot' (or sweep, direct) "
                                     "for a clique of {} hops",
-                                    solver_name(o.solver), n.has("solver") ? "" : " (the default)", o.clique_hops));
+                                    field::solver_name(o.solver), n.has("solver") ? "" : " (the default)", o.clique_hops));
   }
   if (n.has("cache")) {
     const std::string cache = n.string("cache");
@@ -103,8 +105,8 @@ FieldSpec read_field(const Node& n, const std::filesystem::path& config_dir) {
   return f;
 }
 
-// A sink's section: `name: true|false` or `name: {options}`. Returns the options node when on.
-std::optional<Node> sink_section(const Node& outputs, const std::string& key, bool default_on, bool& on) {
+// An output's section: `name: true|false` or `name: {options}`. Returns the options node when on.
+std::optional<config::Node> sink_section(const config::Node& outputs, const std::string& key, bool default_on, bool& on) {
   on = default_on;
   if (!outputs.has(key)) return std::nullopt;
   if (!outputs.is_map(key)) {
@@ -119,70 +121,39 @@ std::optional<Node> sink_section(const Node& outputs, const std::string& key, bo
   return std::nullopt;
 }
 
-OutputsSpec read_outputs(const std::optional<Node>& n) {
-  OutputsSpec o;
-  if (!n) return o;
-  bool on = false;
-  if (auto s = sink_section(*n, "physiology_csv", true, on)) s->finish();
-  o.physiology_csv = on;
-  if (auto s = sink_section(*n, "gltf", true, on)) s->finish();
-  o.gltf = on;
-  if (auto s = sink_section(*n, "motion_csv", true, on)) s->finish();
-  o.motion_csv = on;
-  if (auto s = sink_section(*n, "report", true, on)) s->finish();
-  o.report = on;
-  if (auto s = sink_section(*n, "hdf5", true, on)) {
-    if (s->has("positions")) {
-      const std::string value = s->string("positions");
-      if (value == "true" || value == "false")
-        s->fail_at("positions", "expected float32 or float64 (the stored type; series.h5 now always stores every "
-                                "frame's positions, the plain geometry ParaView and meshio read), got '" + value + "'");
-      o.hdf5_positions = s->choice("positions", {"float32", "float64"}) == "float64" ? PositionPrecision::float64
-                                                                                     : PositionPrecision::float32;
+// The outputs on, each with the settings its key read. A section's options are read (and
+// checked) whenever they are given, also for an output they turn off.
+std::vector<OutputRequest> read_outputs(const std::optional<Node>& n, std::span<const OutputKey> keys) {
+  std::vector<OutputRequest> requests;
+  for (const OutputKey& output : keys) {
+    bool on = output.on_by_default;
+    const std::optional<Node> options = n ? sink_section(*n, output.key, output.on_by_default, on) : std::nullopt;
+    if (on || options) {
+      std::any settings = output.read(options ? &*options : nullptr);
+      if (on) requests.push_back({output.key, std::move(settings)});
     }
-    s->finish();
+    if (options) options->finish();
   }
-  o.hdf5 = on;
-  auto sequence = sink_section(*n, "mesh_sequence", false, on);
-  if (on) {
-    MeshSequenceSpec spec;
-    if (sequence) {
-      if (sequence->has("format")) spec.format = sequence->choice("format", {"ply", "obj", "stl"});
-      spec.ascii = sequence->boolean("ascii", false);
-      spec.every = static_cast<std::size_t>(sequence->integer("every", 1, 1, 1000000));
-    }
-    o.mesh_sequence = spec;
-  }
-  if (sequence) sequence->finish();
-  auto png = sink_section(*n, "png", false, on);
-  if (on) {
-    render::PngSinkOptions spec;
-    if (png) {
-      render::RenderOptions& r = spec.render;
-      r.width = static_cast<int>(png->integer("width", r.width, 16, 8192));
-      r.height = static_cast<int>(png->integer("height", r.height, 16, 8192));
-      if (png->has("camera")) {
-        const std::string camera = png->choice("camera", {"anterior", "posterior", "left", "right", "oblique"});
-        render::parse_camera_preset(camera, r.camera);
-      }
-      spec.every = static_cast<std::size_t>(png->integer("every", 1, 1, 1000000));
-      r.overlay_magnitude = png->boolean("overlay", false);
-      if (png->has("gl")) render::parse_gl_backend(png->choice("gl", {"auto", "egl", "osmesa"}), r.gl);
-    }
-    o.png = spec;
-  }
-  if (png) png->finish();
-  n->finish();
-  return o;
+  if (n) n->finish();
+  return requests;
 }
 
 }  // namespace
 
-Scenario load_scenario(const std::filesystem::path& file, const std::filesystem::path& config_dir) {
-  return read_scenario(Node::load_file(file), file, config_dir);
+const OutputRequest* Scenario::output(std::string_view key) const {
+  for (const OutputRequest& request : outputs) {
+    if (request.key == key) return &request;
+  }
+  return nullptr;
 }
 
-Scenario read_scenario(const Node& root, const std::filesystem::path& file, const std::filesystem::path& config_dir) {
+Scenario load_scenario(const std::filesystem::path& file, std::span<const OutputKey> outputs,
+                       const std::filesystem::path& config_dir) {
+  return read_scenario(config::Node::load_file(file), file, outputs, config_dir);
+}
+
+Scenario read_scenario(const config::Node& root, const std::filesystem::path& file, std::span<const OutputKey> outputs,
+                       const std::filesystem::path& config_dir) {
   Scenario s;
   s.file = file;
   s.name = root.optional_string("name").value_or(file.stem().string());
@@ -202,10 +173,11 @@ Scenario read_scenario(const Node& root, const std::filesystem::path& file, cons
   if (auto field = root.optional_map("field")) {
     s.field = read_field(*field, config_dir);
   } else {
-    s.field.tissue_file = config_dir / "tissue" / (s.field.tissue + ".yaml");
+    s.field.tissue_file = config_dir / "tissue" / (s.field.tissue_name + ".yaml");
+    s.field.tissue = load_tissue(s.field.tissue_file);
   }
   s.physiology = read_physiology(root.map("physiology"), s.duration_s, config_dir);
-  s.outputs = read_outputs(root.optional_map("outputs"));
+  s.outputs = read_outputs(root.optional_map("outputs"), outputs);
   root.finish();
   return s;
 }
@@ -220,4 +192,4 @@ physiology::SimulationResult simulate_physiology(const Scenario& s, std::optiona
   }
 }
 
-}  // namespace pneuma::engine
+}  // namespace pneuma::scenario

@@ -1,17 +1,17 @@
 #pragma once
-// PNG frames of a breathing sequence: the `png` output of a scenario, one engine::FrameSink.
+// PNG frames of a breathing sequence: the `png` output of a scenario, one outputs::Output.
 // begin() makes the renderer and uploads the model once (rest mesh and unit displacement, framed
 // over the run's range of scales); frame() renders every `every`-th frame at its scale and hands
 // it to an encoder that writes <prefix><index, 5 digits>.png atomically on another thread (TBB,
 // within tbb::global_control's thread limit), so the next frame draws while this one encodes;
-// end() waits for every file and releases the OpenGL context. Each frame is encoded on its own,
+// finish() waits for every file and releases the OpenGL context. Each frame is encoded on its own,
 // so the files are the same bytes at any thread count.
 #include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "pneuma/engine/frame.h"
+#include "pneuma/outputs/output.h"
 #include "pneuma/render/image.h"
 #include "pneuma/render/renderer.h"
 
@@ -24,17 +24,17 @@ struct PngSinkOptions {
   std::size_t every = 1;          // every n-th frame
 };
 
-class PngFrameSink final : public engine::FrameSink {
+class PngFrameSink final : public outputs::Output {
  public:
   PngFrameSink(std::filesystem::path directory, PngSinkOptions options = {});
   ~PngFrameSink() override;
 
   std::string name() const override { return "png"; }
   // Throws what Renderer's constructor throws (UnsupportedError without OpenGL).
-  void begin(const engine::BreathingModel& model, const engine::RunInfo& run) override;
-  // A frame that cannot be written throws IoError from a later frame() or from end().
-  void frame(const engine::BreathingModel& model, const engine::Frame& frame) override;
-  std::vector<std::filesystem::path> end() override;
+  void begin(const model::Model& model, const outputs::RunInfo& run) override;
+  // A frame that cannot be written throws IoError from a later frame() or from finish().
+  void frame(const model::Model& model, const frame::Frame& frame) override;
+  std::vector<std::filesystem::path> finish(const model::Model& model, const outputs::RunRecord& run) override;
 
   std::filesystem::path path_of(std::size_t index) const;
 
@@ -46,5 +46,9 @@ class PngFrameSink final : public engine::FrameSink {
   std::unique_ptr<Encoder> encoder_;
   std::vector<std::filesystem::path> written_;
 };
+
+// `outputs: {png: {width: 800, height: 600, camera: oblique, every: 1, overlay: false, gl: auto}}`
+// (off by default): frames in png/.
+outputs::OutputPlugin png_output();
 
 }  // namespace pneuma::render

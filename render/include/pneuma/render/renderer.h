@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "pneuma/mesh/triangle_mesh.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
 #include "pneuma/render/camera.h"
 #include "pneuma/render/image.h"
 

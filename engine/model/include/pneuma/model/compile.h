@@ -1,0 +1,50 @@
+#pragma once
+// The compile stage (ARCHITECTURE.md): a scenario and its drive V(t) become the immutable model
+// (surface, regions, field, volume -> scale map) and the scale of every frame, checked once.
+// `pneuma run`, the Python module and the benchmarks call this one function, so they animate
+// the same frames.
+//
+//   surface   the phantom, a file (read, repaired, remeshed) or a label map (extracted, remeshed)
+//   field     field::compute_field with the scenario's tissue, through the HDF5 cache (field_cache.h)
+//   model     make_model: normals, rest area, regions, the volume cubic
+//   scales    s_k for every V_k of the drive: mesh volume = rest + share * (V_k - reference)
+//   check     the most deformed frames (lowest and highest s) must not self-intersect
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pneuma/model/model.h"
+#include "pneuma/physiology/simulate.h"
+#include "pneuma/scenario/scenario.h"
+
+namespace pneuma::model {
+
+struct CompileOptions {
+  std::filesystem::path output_dir;       // where `field: {cache: auto}` keeps field.h5
+  std::optional<double> edge_override_m;  // a coarser or finer mesh than the scenario's
+};
+
+struct Compiled {
+  Model model;
+  std::vector<double> scales;  // s_k for every sample k of the drive
+  double min_scale = 0.0, max_scale = 0.0;
+  bool field_reused = false;   // the field came from the cache
+  std::vector<std::pair<std::string, double>> timings_s;  // each step, in order
+};
+
+// Compiles `scenario` for the volumes of `drive` (its physiology at the frame rate). A cache file
+// found damaged is replaced and a warning printed to stderr. Throws pneuma::Error (one line):
+// InputError / IoError for bad inputs, UnsupportedError when a frame's volume is out of the
+// field's reach or the surface self-intersects at the run's lowest or highest scale.
+Compiled compile(const scenario::Scenario& scenario, const physiology::SimulationResult& drive,
+                 const CompileOptions& options);
+
+// The scale of every frame for the lung volumes `lung_volume_m3` (physiology, above FRC):
+// mesh volume = rest volume + share * (V - reference). Throws UnsupportedError naming the
+// first frame whose volume the field cannot reach.
+std::vector<double> frame_scales(const Model& model, const scenario::MeshSpec& mesh, const std::vector<double>& time_s,
+                                 const std::vector<double>& lung_volume_m3);
+
+}  // namespace pneuma::model

@@ -1,0 +1,50 @@
+#pragma once
+// The per-frame outputs that need no OpenGL (the PNG frames are render's): breathing.glb,
+// series.h5 + series.xdmf, and mesh sequences. Each has its plugin (key, options, factory) and a
+// direct factory for callers that run outputs themselves (tests, benchmarks).
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+
+#include "pneuma/outputs/output.h"
+
+namespace pneuma::outputs {
+
+// ---- breathing.glb (`outputs: {gltf: true}`) ------------------------------------------------------
+// glTF 2.0 binary: the rest mesh, the field as one morph target (u * s_ref with s_ref = max |s| of
+// the run) and s(t) / s_ref as the animated morph weight, sampled at the frame times with LINEAR
+// interpolation. The node is rotated so pneuma's z-up becomes glTF's y-up.
+OutputPlugin gltf_output();
+std::unique_ptr<Output> make_gltf_output(const std::filesystem::path& file);
+
+// The bytes that output writes for a run whose frames are at `time_s` with scales `scale` (the
+// report embeds them, also when no breathing.glb is written). Throws ValueError when the sizes
+// differ.
+std::string make_glb(const model::Model& model, const RunInfo& run, std::span<const double> time_s,
+                     std::span<const double> scale);
+
+// ---- series.h5 + series.xdmf (`outputs: {hdf5: {positions: float32}}`) ---------------------------
+// The stored type of series.h5's per-frame positions (the exact rest + s u is always there in
+// float64: /rest/positions, /field/unit_displacement, /frames/scale).
+enum class PositionPrecision { float32, float64 };
+
+// HDF5 time series (rest mesh, field, per-frame time, scale, volumes, area and positions) and
+// an XDMF file beside it that ParaView and meshio open as a temporal collection
+// (docs/formats.md).
+OutputPlugin hdf5_output();
+std::unique_ptr<Output> make_hdf5_output(const std::filesystem::path& h5_file, const std::filesystem::path& xdmf_file,
+                                         PositionPrecision positions = PositionPrecision::float32);
+
+// ---- frames/frame_NNNNN.<format> (`outputs: {mesh_sequence: {format: ply, ascii: false, every: 1}}`)
+struct MeshSequenceSpec {
+  std::string format = "ply";  // ply | obj | stl
+  bool ascii = false;
+  std::size_t every = 1;  // every n-th frame
+};
+
+// One mesh file per frame (every `spec.every`-th), frame_00000.<format>, in metres. Off by default.
+OutputPlugin mesh_sequence_output();
+std::unique_ptr<Output> make_mesh_sequence_output(const std::filesystem::path& dir, const MeshSequenceSpec& spec);
+
+}  // namespace pneuma::outputs

@@ -1,0 +1,77 @@
+#pragma once
+// The one interface every output implements (ARCHITECTURE.md: a new output is one plugin and one
+// line in runner/src/output_registry.cpp), and what the run hands it.
+//
+// An output plugin owns, in one place: its key under `outputs:` in a scenario and how its options
+// are read (scenario::OutputKey, at load time, so a bad option fails before any work), what it
+// needs of the run, and the Output it makes for a run. The run calls begin() once, frame() for
+// every frame in order, then finish() once with the whole run; finish() returns the files written
+// (for the manifest). Files appear under their final names only when complete: an output that
+// fails or is destroyed early leaves nothing partial behind.
+#include <any>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pneuma/frame/frame.h"
+#include "pneuma/model/model.h"
+#include "pneuma/outputs/breath_motion.h"
+#include "pneuma/physiology/simulate.h"
+#include "pneuma/scenario/scenario.h"
+
+namespace pneuma::outputs {
+
+// Facts about the whole run that outputs need before the first frame.
+struct RunInfo {
+  std::size_t frame_count = 0;
+  double frame_rate_hz = 0.0;
+  double min_scale = 0.0;  // over all frames
+  double max_scale = 0.0;
+  std::filesystem::path output_dir;
+};
+
+// The whole run, as finish() sees it. The runner fills every field; an output reads only what
+// its plugin's OutputNeeds asked for (the rest may be null or empty).
+struct RunRecord {
+  const scenario::Scenario* scenario = nullptr;
+  RunInfo info;
+  const physiology::SimulationResult* drive = nullptr;       // at the frame rate: one sample per frame
+  const physiology::SimulationResult* physiology = nullptr;  // at the scenario's output rate (needs.physiology)
+  std::span<const double> scales;                             // s of every frame
+  const std::vector<BreathMotion>* motion = nullptr;          // per breath and region (needs.breath_motion)
+  bool field_reused = false;
+};
+
+class Output {
+ public:
+  virtual ~Output() = default;
+  virtual std::string name() const = 0;
+  virtual void begin(const model::Model& /*model*/, const RunInfo& /*run*/) {}
+  virtual void frame(const model::Model& /*model*/, const frame::Frame& /*frame*/) {}
+  // Writes what needs the whole run and completes the files; returns them (absolute paths).
+  virtual std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) = 0;
+  // Facts for the manifest ({"motion.apex.caudal_mean_mm", "1.2"}), after finish().
+  virtual std::vector<std::pair<std::string, std::string>> facts() const { return {}; }
+};
+
+// What an output needs the run to compute for it (each computed once, for all that need it).
+struct OutputNeeds {
+  bool physiology = false;     // the physiology at the scenario's output rate (RunRecord::physiology)
+  bool breath_motion = false;  // the motion of each region in each breath (RunRecord::motion)
+};
+
+struct OutputPlugin {
+  scenario::OutputKey key;  // its key, default and options (read at load time)
+  OutputNeeds needs;
+  // The output for a run writing under `output_dir`, from the settings `key.read` returned.
+  std::function<std::unique_ptr<Output>(const std::any& settings, const std::filesystem::path& output_dir)> make;
+};
+
+// For plugins whose options are `key: true|false` only: reads nothing, returns no settings.
+inline std::any no_settings(const config::Node* /*options*/) { return {}; }
+
+}  // namespace pneuma::outputs

@@ -1,0 +1,100 @@
+#include "pneuma/outputs/manifest.h"
+
+#include <H5public.h>
+#include <openssl/evp.h>
+#include <sundials/sundials_config.h>
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "pneuma/core/atomic_file.h"
+#include "pneuma/core/error.h"
+
+namespace pneuma::outputs {
+
+std::string sha256_file(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw IoError(file.string() + ": cannot open file to checksum it");
+  std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> context(EVP_MD_CTX_new(), EVP_MD_CTX_free);
+  EVP_DigestInit_ex(context.get(), EVP_sha256(), nullptr);
+  std::array<char, 1 << 16> chunk{};
+  while (in) {
+    in.read(chunk.data(), chunk.size());
+    EVP_DigestUpdate(context.get(), chunk.data(), static_cast<std::size_t>(in.gcount()));
+  }
+  std::array<unsigned char, EVP_MAX_MD_SIZE> digest{};
+  unsigned int length = 0;
+  EVP_DigestFinal_ex(context.get(), digest.data(), &length);
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string hex;
+  for (unsigned int i = 0; i < length; ++i) {
+    hex += kHex[digest[i] >> 4];
+    hex += kHex[digest[i] & 15];
+  }
+  return hex;
+}
+
+std::vector<std::pair<std::string, std::string>> library_versions() {
+  auto dotted = [](int a, int b, int c) {
+    return std::to_string(a) + "." + std::to_string(b) + "." + std::to_string(c);
+  };
+  return {
+      {"pneuma", PNEUMA_VERSION},
+      {"sundials", SUNDIALS_VERSION},
+      {"eigen", dotted(EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION, EIGEN_MINOR_VERSION)},
+      {"hdf5", dotted(H5_VERS_MAJOR, H5_VERS_MINOR, H5_VERS_RELEASE)},
+      {"openssl", OPENSSL_VERSION_STR},
+  };
+}
+
+std::filesystem::path write_manifest(const std::filesystem::path& output_dir, const ManifestInput& input) {
+  nlohmann::ordered_json j;
+  j["scenario"] = {{"name", input.scenario_name},
+                   {"file", input.scenario_file.string()},
+                   {"sha256", sha256_file(input.scenario_file)}};
+  nlohmann::ordered_json versions = nlohmann::ordered_json::object();
+  for (const auto& [name, version] : library_versions()) versions[name] = version;
+  j["versions"] = versions;
+  nlohmann::ordered_json facts = nlohmann::ordered_json::object();
+  for (const auto& [key, value] : input.facts) facts[key] = value;
+  j["facts"] = facts;
+  nlohmann::ordered_json files = nlohmann::ordered_json::array();
+  for (const auto& file : input.files) {
+    const auto full = file.is_absolute() ? file : output_dir / file;
+    files.push_back({{"path", std::filesystem::relative(full, output_dir).generic_string()},
+                     {"bytes", std::filesystem::file_size(full)},
+                     {"sha256", sha256_file(full)}});
+  }
+  j["files"] = files;
+  nlohmann::ordered_json timings = nlohmann::ordered_json::object();
+  for (const auto& [stage, seconds] : input.timings_s) timings[stage] = seconds;
+  j["timings_s"] = timings;
+  const auto path = output_dir / "manifest.json";
+  write_stream_atomically(path, false, [&](std::ostream& out) { out << j.dump(2) << '\n'; });
+  return path;
+}
+
+std::vector<std::string> manifest_entries(const std::filesystem::path& output_dir) {
+  std::ifstream in(output_dir / "manifest.json");
+  if (!in) return {};
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object() || !j.contains("files") || !j["files"].is_array()) return {};
+  std::vector<std::string> entries;
+  for (const auto& file : j["files"]) {
+    if (!file.is_object() || !file.contains("path") || !file["path"].is_string()) continue;
+    const std::filesystem::path path(file["path"].get<std::string>());
+    if (path.empty() || path.is_absolute()) continue;
+    const std::string top = path.begin()->string();
+    if (top != ".." && top != "." && std::find(entries.begin(), entries.end(), top) == entries.end()) {
+      entries.push_back(top);
+    }
+  }
+  return entries;
+}
+
+}  // namespace pneuma::outputs

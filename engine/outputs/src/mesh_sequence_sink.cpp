@@ -1,0 +1,63 @@
+// One mesh file per frame (PLY, OBJ or STL), named frame_00000.ply, ... so that any viewer
+// that plays numbered sequences (ParaView, Blender's importers, MeshLab) can load them.
+#include <fmt/format.h>
+
+#include "pneuma/outputs/frame_outputs.h"
+#include "pneuma/mesh/io/mesh_io.h"
+
+namespace pneuma::outputs {
+namespace {
+
+class MeshSequenceSink final : public Output {
+ public:
+  MeshSequenceSink(std::filesystem::path dir, MeshSequenceSpec spec) : dir_(std::move(dir)), spec_(std::move(spec)) {}
+  std::string name() const override { return "mesh_sequence"; }
+
+  void begin(const model::Model& model, const RunInfo& run) override {
+    digits_ = std::max<std::size_t>(5, std::to_string(run.frame_count).size());  // every index, at least 5 digits
+    frame_mesh_ = model.rest;  // triangles once; vertices overwritten per frame, same size
+  }
+
+  void frame(const model::Model&, const frame::Frame& f) override {
+    if (f.index % spec_.every != 0) return;
+    frame_mesh_.vertices = f.positions;  // same size: no reallocation
+    const auto path = dir_ / fmt::format("frame_{:0{}}.{}", f.index, digits_, spec_.format);
+    mesh::WriteOptions options;
+    options.metres_per_unit = 1.0;  // frames in metres, as everything pneuma writes
+    options.ascii = spec_.ascii;
+    mesh::write_mesh(path, frame_mesh_, options);
+    files_.push_back(path);
+  }
+
+  std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord&) override { return files_; }
+
+ private:
+  std::filesystem::path dir_;
+  MeshSequenceSpec spec_;
+  std::size_t digits_ = 5;
+  mesh::TriangleMesh frame_mesh_;
+  std::vector<std::filesystem::path> files_;
+};
+
+}  // namespace
+
+std::unique_ptr<Output> make_mesh_sequence_output(const std::filesystem::path& dir, const MeshSequenceSpec& spec) {
+  return std::make_unique<MeshSequenceSink>(dir, spec);
+}
+
+OutputPlugin mesh_sequence_output() {
+  const auto read = [](const config::Node* options) -> std::any {
+    MeshSequenceSpec spec;
+    if (options) {
+      if (options->has("format")) spec.format = options->choice("format", {"ply", "obj", "stl"});
+      spec.ascii = options->boolean("ascii", false);
+      spec.every = static_cast<std::size_t>(options->integer("every", 1, 1, 1000000));
+    }
+    return spec;
+  };
+  return {{"mesh_sequence", false, read}, {}, [](const std::any& settings, const std::filesystem::path& out) {
+            return make_mesh_sequence_output(out / "frames", std::any_cast<const MeshSequenceSpec&>(settings));
+          }};
+}
+
+}  // namespace pneuma::outputs

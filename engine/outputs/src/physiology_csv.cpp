@@ -1,0 +1,84 @@
+#include "pneuma/outputs/physiology_csv.h"
+
+#include <fmt/format.h>
+#include <fmt/os.h>
+
+#include "pneuma/core/atomic_file.h"
+#include "pneuma/core/units.h"
+
+namespace pneuma::outputs {
+namespace {
+
+constexpr double kMl = 1.0 / units::m3_per_ml;
+constexpr double kLitre = 1.0 / units::m3_per_litre;
+constexpr double kCmH2O = 1.0 / units::pa_per_cmh2o;
+
+}  // namespace
+
+void write_time_series_csv(const std::filesystem::path& path, const physiology::SimulationResult& result) {
+  const auto& s = result.series;
+  const bool regional = result.compartment_names.size() > 1;
+  write_stream_atomically(path, false, [&](std::ostream& out) {
+    out << "time_s,volume_mL,flow_L_per_s,airway_pressure_cmH2O,alveolar_pressure_cmH2O,"
+           "pleural_pressure_cmH2O,muscle_pressure_cmH2O";
+    if (regional) {
+      for (const auto& name : result.compartment_names) out << ",volume_" << name << "_mL";
+    }
+    out << '\n';
+    std::string line;
+    for (std::size_t k = 0; k < s.size(); ++k) {
+      line = fmt::format("{:.6f},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}", s.time_s[k], s.volume_m3[k] * kMl,
+                         s.flow_m3_per_s[k] * kLitre, s.airway_pressure_pa[k] * kCmH2O,
+                         s.alveolar_pressure_pa[k] * kCmH2O, s.pleural_pressure_pa[k] * kCmH2O,
+                         s.muscle_pressure_pa[k] * kCmH2O);
+      if (regional) {
+        for (const auto& column : s.compartment_volume_m3) line += fmt::format(",{:.9g}", column[k] * kMl);
+      }
+      line += '\n';
+      out << line;
+    }
+  });
+}
+
+void write_breaths_csv(const std::filesystem::path& path, const physiology::SimulationResult& result) {
+  write_stream_atomically(path, false, [&](std::ostream& out) {
+    out << "breath,start_s,duration_s,mode,tidal_volume_mL,minute_ventilation_L_per_min,peak_pressure_cmH2O,"
+           "plateau_pressure_cmH2O,peep_cmH2O,dynamic_compliance_mL_per_cmH2O,end_expiratory_volume_mL,"
+           "muscle_amplitude_cmH2O,inspired_volume_mL,set_tidal_volume_mL\n";
+    for (std::size_t i = 0; i < result.breaths.size(); ++i) {
+      const auto& b = result.breaths[i];
+      const std::string set = b.set_tidal_volume_m3 > 0.0 ? fmt::format("{:.9g}", b.set_tidal_volume_m3 * kMl) : "";
+      out << fmt::format("{},{:.6f},{:.6f},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n", i + 1,
+                         b.start_s, b.duration_s, b.mode, b.tidal_volume_m3 * kMl,
+                         b.minute_ventilation_m3_per_s * kLitre * 60.0, b.peak_pressure_pa * kCmH2O,
+                         b.plateau_pressure_pa * kCmH2O, b.peep_pa * kCmH2O,
+                         b.dynamic_compliance_m3_per_pa * kMl / kCmH2O, b.end_expiratory_volume_m3 * kMl,
+                         b.muscle_amplitude_pa * kCmH2O, b.inspired_volume_m3 * kMl, set);
+    }
+  });
+}
+
+namespace {
+
+class PhysiologyCsv final : public Output {
+ public:
+  explicit PhysiologyCsv(std::filesystem::path dir) : dir_(std::move(dir)) {}
+  std::string name() const override { return "physiology_csv"; }
+  std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord& run) override {
+    write_time_series_csv(dir_ / "physiology.csv", *run.physiology);
+    write_breaths_csv(dir_ / "physiology-breaths.csv", *run.physiology);
+    return {dir_ / "physiology.csv", dir_ / "physiology-breaths.csv"};
+  }
+
+ private:
+  std::filesystem::path dir_;
+};
+
+}  // namespace
+
+OutputPlugin physiology_csv_output() {
+  return {{"physiology_csv", true, no_settings}, {.physiology = true},
+          [](const std::any&, const std::filesystem::path& out) { return std::make_unique<PhysiologyCsv>(out); }};
+}
+
+}  // namespace pneuma::outputs

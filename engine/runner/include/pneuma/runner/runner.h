@@ -1,0 +1,36 @@
+#pragma once
+// The scenario runner: drive (physiology -> V(t)), compile (model::compile: surface, field,
+// V -> s, checks), then the loop: advance every frame and hand it to every output the scenario
+// asks for (output_registry.h); then each output's end-of-run step and manifest.json.
+// `pneuma run` is a thin wrapper around run_scenario().
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pneuma/scenario/scenario.h"
+
+namespace pneuma::runner {
+
+struct RunOptions {
+  std::filesystem::path output_dir;
+  bool quiet = false;
+  std::optional<double> edge_override_m;  // a coarser or finer mesh than the scenario's
+};
+
+struct RunResult {
+  std::vector<std::filesystem::path> files;  // relative to the output folder, manifest last
+  std::vector<std::pair<std::string, double>> timings_s;
+  std::size_t frame_count = 0;
+  std::size_t vertex_count = 0;
+  bool field_reused = false;
+  double min_scale = 0.0, max_scale = 0.0;
+};
+
+// Runs the whole scenario (loaded with output_keys(): see output_registry.h). Throws
+// pneuma::Error (one line) on any failure; outputs are staged and appear together, so a failed
+// or interrupted run leaves the previous complete output as it was.
+RunResult run_scenario(const scenario::Scenario& scenario, const RunOptions& options);
+
+}  // namespace pneuma::runner

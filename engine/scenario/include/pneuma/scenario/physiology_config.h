@@ -1,0 +1,38 @@
+#pragma once
+// Reads the `physiology` section of a scenario (with its preset) into a physiology::Protocol.
+//
+//   physiology:
+//     preset: healthy-adult          # configs/physiology/healthy-adult.yaml; keys here override it
+//     model: single                  # single | two_compartment
+//     compliance: 0.1 L/cmH2O        # or pressure_volume_curve: {...} (Venegas sigmoid)
+//     resistance: 2 cmH2O*s/L
+//     driver: {mode: spontaneous, rate: 12 /min, ie_ratio: 1:2, tidal_volume: 500 mL}
+//     actions:
+//       - {at: 30 s, rate: 16 /min}                 # patch the current driver
+//       - {at: 60 s, mode: volume_control, tidal_volume: 450 mL, peep: 5 cmH2O}
+//       - {at: 90 s, compliance: 0.04 L/cmH2O}       # patch the mechanics
+//     output_rate: 100 Hz
+//     solver: {relative_tolerance: 1e-8, absolute_tolerance: 1e-9 L, max_step: 0.05 s}
+//
+// Every error is one line naming the file, line:column and key path.
+#include <filesystem>
+
+#include "pneuma/config/config.h"
+#include "pneuma/physiology/simulate.h"
+
+namespace pneuma::scenario {
+
+struct PhysiologyConfig {
+  physiology::Protocol protocol;
+  physiology::SimulationOptions options;  // duration comes from the scenario
+};
+
+// `section` is the scenario's physiology mapping; `config_dir` is where named presets live.
+// Reads every key of the section (and its preset) and calls finish() on each mapping.
+PhysiologyConfig read_physiology(const config::Node& section, double duration_s,
+                                 const std::filesystem::path& config_dir);
+
+// The folder of shipped presets: $PNEUMA_CONFIG_DIR if set, else the source tree's configs/.
+std::filesystem::path default_config_dir();
+
+}  // namespace pneuma::scenario

@@ -1,0 +1,150 @@
+#pragma once
+// Anatomical regions of one lung surface, found from its geometry alone, and the smooth
+// direction fields the elastostatic field can push along (docs/realism.md).
+//
+// Body frame. `up` (superior) and `anterior` are given (DICOM LPS: up +z, anterior -y, the
+// built-in phantom's frame); `left = up x anterior` is the patient's left (+x in LPS). The
+// side of the lung is found, not given: its mediastinal (medial) face is the one toward the
+// body midline, which is the concave face (cardiac impression, hilum, the groove around the
+// mediastinum); the costal face is convex, on the convex hull. So the face (along +left or
+// -left) that lies deeper below the convex hull of the surface is medial.
+//
+// Regions (per vertex, from the normals of the surface smoothed at `classification_length_m`
+// and the height between the lowest and highest vertex, 0 at the base, 1 at the apex):
+//   diaphragmatic  the inferior surface whose normals point down: -n.up rises through
+//                  `diaphragm_cos` (smoothly over +/- `transition`), in the lower `diaphragm_height`
+//   apex           above `apex_height` of the height (the cupola above the first rib)
+//   mediastinal    the medial face, hilum included: n.medial rises through `medial_cos`
+//   costal         the rest: the rib-cage surface (lateral, anterior and posterior)
+// Weights are products of smooth steps, taken in that order, so every vertex's four weights
+// are >= 0 and add up to 1 (a partition of unity); the label is the largest weight.
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string_view>
+#include <vector>
+
+#include "pneuma/mesh/anatomy/lung.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/core/error.h"
+
+namespace pneuma::mesh {
+
+enum class Region : std::uint8_t { apex = 0, costal = 1, diaphragmatic = 2, mediastinal = 3 };
+inline constexpr std::size_t kRegionCount = 4;
+inline constexpr std::array<Region, kRegionCount> kRegions{Region::apex, Region::costal, Region::diaphragmatic,
+                                                            Region::mediastinal};
+// "apex", "costal", "diaphragmatic", "mediastinal".
+std::string_view region_name(Region region);
+// The region of a name above, or nothing.
+std::optional<Region> region_from_name(std::string_view name);
+
+struct BodyAxes {
+  Eigen::Vector3d up{0.0, 0.0, 1.0};         // superior (LPS: +z)
+  Eigen::Vector3d anterior{0.0, -1.0, 0.0};  // LPS: -y (y is posterior)
+  // The patient's left: up x anterior (LPS: +x).
+  Eigen::Vector3d left() const { return up.cross(anterior).normalized(); }
+};
+
+struct RegionOptions {
+  BodyAxes axes;
+  std::optional<Lung> side;           // nothing: found from the geometry
+  double classification_length_m = 0.01;  // Gaussian smoothing of the normals (mesh units)
+  double diaphragm_cos = 0.4;             // -n.up at the diaphragmatic border (about 24 deg below horizontal)
+  double diaphragm_height = 0.55;         // the diaphragm lies below this height
+  double apex_height = 0.85;              // the apex lies above this height
+  double medial_cos = 0.45;               // n.medial at the mediastinal border
+  double transition = 0.35;               // half-width of the smooth steps in a cosine (wide: docs/realism.md, 4.)
+  double height_transition = 0.05;        // half-width of the smooth steps in height
+};
+inline const RegionOptions kDefaultRegionOptions{};
+
+struct SurfaceRegions {
+  Lung side = Lung::right;
+  Eigen::Vector3d medial = Eigen::Vector3d::UnitX();  // unit, toward the body midline
+  BodyAxes axes;
+  std::vector<Region> label;                           // per vertex: the largest weight
+  std::vector<std::array<double, kRegionCount>> weight;  // per vertex, indexed by Region, sum 1
+  std::vector<double> height;                          // per vertex: 0 at the lowest, 1 at the highest
+  std::vector<Eigen::Vector3d> normal;                 // per vertex: the smoothed normal classified
+  // The mean depth below the convex hull (m) of the faces toward +left and -left that decided the side.
+  double left_face_depth = 0.0, right_face_depth = 0.0;
+};
+
+// Throws ValueError for an empty mesh or an up/anterior pair that is not at right angles.
+SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& options = kDefaultRegionOptions);
+
+// Throws ValueError ("<who>: the regions given are of another surface or body frame") unless
+// `regions` hold one entry per vertex of `mesh` and were found in `frame`: regions found once
+// and handed on are checked where they are used.
+void require_regions_of(const SurfaceRegions& regions, const TriangleMesh& mesh, const BodyAxes& frame,
+                        const char* who);
+
+// Per vertex: the outward normal of the surface blurred by a Gaussian of standard deviation
+// `sigma` (mesh units), N(x) = sum_t G(x - c_t) A_t n_t = -grad (G * chi)(x), chi the inside,
+// normalised. A smooth field in space, not only along the surface: the two lips of a narrow
+// crease get nearly the same direction, so moving along it cannot close the crease.
+// Computed on a grid (spacing sigma / 2: splat, separable blur, trilinear interpolation), in a
+// fixed order: the same mesh gives the same bits. Where the blurred field vanishes (|N| below
+// 1e-9 of its largest value), the vertex normal. Throws ValueError for sigma <= 0.
+std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double sigma);
+
+// Per vertex: the area-weighted Gaussian average in space (standard deviation `sigma`, mesh
+// units) of a per-vertex value, sum_j G(x_i - x_j) A_j v_j / sum_j G(x_i - x_j) A_j, on the grid of
+// smoothed_normals(): smooth in space, so vertices close in space get close values however far
+// apart they lie along the surface. Deterministic. Throws ValueError for sigma <= 0 or a size
+// other than one value per vertex.
+std::vector<double> blurred_in_space(const TriangleMesh& mesh, const std::vector<double>& value, double sigma);
+
+// Per vertex: the mean curvature (1/length, > 0 where convex) from the cotangent Laplacian,
+// H_i = -(Delta x)_i . n_i / 2, Delta the cotangent Laplacian over the barycentric vertex area.
+std::vector<double> mean_curvature(const TriangleMesh& mesh);
+
+// Per query point: its distance below the convex hull of `points` (0 on the hull or outside it;
+// CGAL hull, nearest face by an AABB tree). Queries inside a large hull cost ~50-80 us each at
+// 10^5 hull faces, so ask for the points you need.
+std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& points,
+                                            const std::vector<Eigen::Vector3d>& queries);
+// Per point: its distance below the convex hull of all the points.
+inline std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& points) {
+  return depth_below_convex_hull(points, points);
+}
+
+// Per vertex: a third of the area of the incident triangles (sums to the surface area).
+std::vector<double> vertex_areas(const TriangleMesh& mesh);
+
+// The top of the diaphragm's dome: the diaphragmatic vertices (by label) whose smoothed normal
+// lies within 30 degrees of straight down (where the diaphragm is nearly horizontal) and within
+// `depth_m` below the highest of them. Per vertex; all false when the surface has no dome.
+std::vector<bool> dome_top_vertices(const TriangleMesh& mesh, const SurfaceRegions& regions, double depth_m = 0.01);
+
+// How the diaphragm's load concentrates at its dome (the diaphragm moves as a piston, its rim on
+// the ribs barely): times a profile of the horizontal distance r (across `up`) from the
+// area-weighted centre of the dome's top (dome_top_vertices), 1 inside `radius_m - falloff_m`,
+// `rim` beyond `radius_m + falloff_m`, a smooth step between; then scaled so that the diaphragm's
+// total load is unchanged. radius 0: no profile.
+struct DomeLoad {
+  double radius_m = 0.0;
+  double falloff_m = 0.02;
+  double rim = 1.0;  // the factor far from the dome, in [0, 1]
+};
+
+// Per vertex: a load (the pressure drive of the field) blended from one value per region,
+// f_i = sum_r w_ir load_r, with the diaphragmatic term times max(0, -n_i.up): the diaphragm
+// drives, most at its dome (normal straight down), least at its rim, where it lies on the ribs
+// (the zone of apposition); and times the dome profile above. Throws ValueError for a negative
+// radius, a falloff <= 0 or a rim outside [0, 1].
+std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                  const std::array<double, kRegionCount>& load, const DomeLoad& dome = {});
+
+// The displacement directions of the anatomical field, per vertex, unit length: a blend with
+// the region weights of
+//   apex, mediastinal  the smoothed normal (their moduli keep them nearly still)
+//   costal             the horizontal part of the smoothed normal (the rib cage moves out)
+//   diaphragmatic      -up (the diaphragm descends)
+// with the normals smoothed at `sigma` (mesh units). Every part is a smooth field in space.
+std::vector<Eigen::Vector3d> anatomical_directions(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                                   double sigma);
+
+}  // namespace pneuma::mesh

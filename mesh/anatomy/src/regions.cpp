@@ -1,0 +1,388 @@
+#include "pneuma/mesh/anatomy/regions.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include "pneuma/core/error.h"
+
+namespace pneuma::mesh {
+namespace {
+
+double smoothstep(double u) {
+  u = std::clamp(u, 0.0, 1.0);
+  return u * u * (3.0 - 2.0 * u);
+}
+// 0 below centre - half_width, 1 above centre + half_width, smooth (C1) in between.
+double ramp(double x, double centre, double half_width) {
+  return smoothstep((x - (centre - half_width)) / (2.0 * half_width));
+}
+
+// A regular grid of 3-vectors over a box, for splatting and blurring.
+struct VectorGrid {
+  Eigen::Vector3d origin;
+  double h = 0.0;
+  std::array<std::ptrdiff_t, 3> n{};
+  std::vector<Eigen::Vector3d> value;
+
+  std::size_t index(std::ptrdiff_t i, std::ptrdiff_t j, std::ptrdiff_t k) const {
+    return static_cast<std::size_t>((k * n[1] + j) * n[0] + i);
+  }
+  // The cell holding p and the fractional position in it (clamped to the grid).
+  void locate(const Eigen::Vector3d& p, std::array<std::ptrdiff_t, 3>& cell, Eigen::Vector3d& frac) const {
+    for (int a = 0; a < 3; ++a) {
+      const double x = std::clamp((p[a] - origin[a]) / h, 0.0, static_cast<double>(n[static_cast<std::size_t>(a)] - 1) - 1e-9);
+      const double f = std::floor(x);
+      cell[static_cast<std::size_t>(a)] = static_cast<std::ptrdiff_t>(f);
+      frac[a] = x - f;
+    }
+  }
+  void splat(const Eigen::Vector3d& p, const Eigen::Vector3d& v) {
+    std::array<std::ptrdiff_t, 3> c{};
+    Eigen::Vector3d f;
+    locate(p, c, f);
+    for (int corner = 0; corner < 8; ++corner) {
+      const int di = corner & 1, dj = (corner >> 1) & 1, dk = (corner >> 2) & 1;
+      const double w = (di ? f[0] : 1 - f[0]) * (dj ? f[1] : 1 - f[1]) * (dk ? f[2] : 1 - f[2]);
+      value[index(c[0] + di, c[1] + dj, c[2] + dk)] += w * v;
+    }
+  }
+  Eigen::Vector3d sample(const Eigen::Vector3d& p) const {
+    std::array<std::ptrdiff_t, 3> c{};
+    Eigen::Vector3d f;
+    locate(p, c, f);
+    Eigen::Vector3d out = Eigen::Vector3d::Zero();
+    for (int corner = 0; corner < 8; ++corner) {
+      const int di = corner & 1, dj = (corner >> 1) & 1, dk = (corner >> 2) & 1;
+      const double w = (di ? f[0] : 1 - f[0]) * (dj ? f[1] : 1 - f[1]) * (dk ? f[2] : 1 - f[2]);
+      out += w * value[index(c[0] + di, c[1] + dj, c[2] + dk)];
+    }
+    return out;
+  }
+  // Convolves along axis `a` with the symmetric kernel (weights for offsets 0..K), zero outside.
+  void blur(int a, const std::vector<double>& kernel) {
+    const auto radius = static_cast<std::ptrdiff_t>(kernel.size()) - 1;
+    const std::size_t ua = static_cast<std::size_t>(a);
+    const std::ptrdiff_t len = n[ua];
+    std::vector<Eigen::Vector3d> line(static_cast<std::size_t>(len));
+    const std::size_t b1 = (ua + 1) % 3, b2 = (ua + 2) % 3;
+    for (std::ptrdiff_t q = 0; q < n[b2]; ++q) {
+      for (std::ptrdiff_t p = 0; p < n[b1]; ++p) {
+        auto at = [&](std::ptrdiff_t t) {
+          std::array<std::ptrdiff_t, 3> ijk{};
+          ijk[ua] = t;
+          ijk[b1] = p;
+          ijk[b2] = q;
+          return index(ijk[0], ijk[1], ijk[2]);
+        };
+        for (std::ptrdiff_t t = 0; t < len; ++t) line[static_cast<std::size_t>(t)] = value[at(t)];
+        for (std::ptrdiff_t t = 0; t < len; ++t) {
+          Eigen::Vector3d sum = kernel[0] * line[static_cast<std::size_t>(t)];
+          for (std::ptrdiff_t r = 1; r <= radius; ++r) {
+            if (t - r >= 0) sum += kernel[static_cast<std::size_t>(r)] * line[static_cast<std::size_t>(t - r)];
+            if (t + r < len) sum += kernel[static_cast<std::size_t>(r)] * line[static_cast<std::size_t>(t + r)];
+          }
+          value[at(t)] = sum;
+        }
+      }
+    }
+  }
+  // A Gaussian of standard deviation sigma (truncated at 3 sigma), separably along the three axes.
+  void gaussian_blur(double sigma) {
+    const auto radius = static_cast<std::size_t>(std::ceil(3.0 * sigma / h));
+    std::vector<double> kernel(radius + 1);
+    for (std::size_t r = 0; r <= radius; ++r) {
+      const double x = static_cast<double>(r) * h / sigma;
+      kernel[r] = std::exp(-0.5 * x * x);
+    }
+    for (int a = 0; a < 3; ++a) blur(a, kernel);
+  }
+};
+
+// The largest grid (cells) the smoothing may allocate; beyond it the spacing grows.
+constexpr double kMaxCells = 8.0e6;
+
+// A zeroed grid of spacing sigma / 2 (coarser past kMaxCells) over the points' box padded by 4 sigma.
+VectorGrid grid_around(const std::vector<Eigen::Vector3d>& points, double sigma) {
+  const auto box = bounding_box(points);
+  const double pad = 4.0 * sigma;
+  const Eigen::Vector3d extent = (box[1] - box[0]).array() + 2.0 * pad;
+  double h = 0.5 * sigma;
+  const double cells = (extent.array() / h + 2.0).prod();
+  if (cells > kMaxCells) h *= std::cbrt(cells / kMaxCells);
+  VectorGrid grid;
+  grid.origin = box[0].array() - pad;
+  grid.h = h;
+  for (std::size_t a = 0; a < 3; ++a) grid.n[a] = static_cast<std::ptrdiff_t>(std::ceil(extent[static_cast<int>(a)] / h)) + 2;
+  grid.value.assign(static_cast<std::size_t>(grid.n[0] * grid.n[1] * grid.n[2]), Eigen::Vector3d::Zero());
+  return grid;
+}
+
+}  // namespace
+
+std::string_view region_name(Region region) {
+  switch (region) {
+    case Region::apex: return "apex";
+    case Region::costal: return "costal";
+    case Region::diaphragmatic: return "diaphragmatic";
+    case Region::mediastinal: return "mediastinal";
+  }
+  return "costal";
+}
+
+std::optional<Region> region_from_name(std::string_view name) {
+  for (Region r : kRegions) {
+    if (region_name(r) == name) return r;
+  }
+  return std::nullopt;
+}
+
+std::vector<double> vertex_areas(const TriangleMesh& mesh) {
+  std::vector<double> area(mesh.vertices.size(), 0.0);
+  const auto& p = mesh.vertices;
+  for (const Triangle& t : mesh.triangles) {
+    const double a = triangle_area(p[t[0]], p[t[1]], p[t[2]]);
+    for (std::uint32_t v : t) area[v] += a / 3.0;
+  }
+  return area;
+}
+
+std::vector<double> mean_curvature(const TriangleMesh& mesh) {
+  const auto& p = mesh.vertices;
+  std::vector<Eigen::Vector3d> laplacian(p.size(), Eigen::Vector3d::Zero());
+  for (const Triangle& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t c = t[static_cast<std::size_t>(k)], a = t[static_cast<std::size_t>((k + 1) % 3)],
+                          b = t[static_cast<std::size_t>((k + 2) % 3)];
+      const Eigen::Vector3d ea = p[a] - p[c], eb = p[b] - p[c];
+      const double sine = ea.cross(eb).norm();
+      if (sine == 0.0) continue;
+      const double half_cot = 0.5 * ea.dot(eb) / sine;  // the angle at c faces the edge (a, b)
+      laplacian[a] += half_cot * (p[b] - p[a]);
+      laplacian[b] += half_cot * (p[a] - p[b]);
+    }
+  }
+  const std::vector<double> area = vertex_areas(mesh);
+  const std::vector<Eigen::Vector3d> normal = vertex_normals(mesh);
+  std::vector<double> h(p.size(), 0.0);
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (area[i] > 0.0) h[i] = -0.5 * laplacian[i].dot(normal[i]) / area[i];
+  }
+  return h;
+}
+
+std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double sigma) {
+  if (!(sigma > 0.0) || !std::isfinite(sigma)) throw ValueError("smoothed_normals: sigma must be positive");
+  std::vector<Eigen::Vector3d> result = vertex_normals(mesh);
+  if (mesh.vertices.empty() || mesh.triangles.empty()) return result;
+  VectorGrid grid = grid_around(mesh.vertices, sigma);
+  const auto& p = mesh.vertices;
+  for (const Triangle& t : mesh.triangles) {
+    const Eigen::Vector3d area_vector = 0.5 * (p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]);
+    grid.splat((p[t[0]] + p[t[1]] + p[t[2]]) / 3.0, area_vector);
+  }
+  grid.gaussian_blur(sigma);
+
+  std::vector<Eigen::Vector3d> blurred(p.size());
+  double largest = 0.0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    blurred[i] = grid.sample(p[i]);
+    largest = std::max(largest, blurred[i].norm());
+  }
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const double len = blurred[i].norm();
+    if (len > 1e-9 * largest) result[i] = blurred[i] / len;
+  }
+  return result;
+}
+
+std::vector<double> blurred_in_space(const TriangleMesh& mesh, const std::vector<double>& value, double sigma) {
+  if (!(sigma > 0.0) || !std::isfinite(sigma)) throw ValueError("blurred_in_space: sigma must be positive");
+  if (value.size() != mesh.vertices.size()) throw ValueError("blurred_in_space: one value per vertex");
+  if (value.empty()) return {};
+  const std::vector<double> area = vertex_areas(mesh);
+  VectorGrid grid = grid_around(mesh.vertices, sigma);
+  for (std::size_t i = 0; i < value.size(); ++i) grid.splat(mesh.vertices[i], {area[i] * value[i], area[i], 0.0});
+  grid.gaussian_blur(sigma);
+  std::vector<double> out(value.size());
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    const Eigen::Vector3d s = grid.sample(mesh.vertices[i]);
+    out[i] = s.y() > 0.0 ? s.x() / s.y() : value[i];
+  }
+  return out;
+}
+
+SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& o) {
+  if (mesh.vertices.empty() || mesh.triangles.empty()) throw ValueError("find_regions: empty mesh");
+  if (!(o.axes.up.norm() > 0.0 && o.axes.anterior.norm() > 0.0) ||
+      std::abs(o.axes.up.normalized().dot(o.axes.anterior.normalized())) > 1e-6)
+    throw ValueError("find_regions: up and anterior must be non-zero and at right angles");
+  SurfaceRegions r;
+  r.axes.up = o.axes.up.normalized();
+  r.axes.anterior = o.axes.anterior.normalized();
+  const Eigen::Vector3d up = r.axes.up, left = r.axes.left();
+  const std::size_t n = mesh.vertices.size();
+  const std::vector<Eigen::Vector3d> normal = smoothed_normals(mesh, o.classification_length_m);
+
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const auto& v : mesh.vertices) {
+    lo = std::min(lo, v.dot(up));
+    hi = std::max(hi, v.dot(up));
+  }
+  r.height.resize(n);
+  for (std::size_t i = 0; i < n; ++i) r.height[i] = hi > lo ? (mesh.vertices[i].dot(up) - lo) / (hi - lo) : 0.0;
+
+  // The side: the mean depth below the convex hull of the face toward the patient's left and of
+  // the face toward the right (steep faces only: |n.left| > 0.5 and |n.up| < 0.7), in the middle
+  // of the height (the base's dome is concave on both sides). The deeper, concave one is medial.
+  // A mean needs no more than a sample: at most kSideSample of those vertices, every k-th in index
+  // order (a depth query costs ~50-80 us on a fine surface; all of them took minutes at 10^6).
+  constexpr std::size_t kSideSample = 20000;
+  std::vector<std::size_t> steep;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::abs(normal[i].dot(up)) < 0.7 && r.height[i] >= 0.25 && r.height[i] <= 0.85 &&
+        std::abs(normal[i].dot(left)) > 0.5)
+      steep.push_back(i);
+  }
+  const std::size_t stride = (steep.size() + kSideSample - 1) / kSideSample;
+  std::vector<std::size_t> sample;
+  std::vector<Eigen::Vector3d> queries;
+  for (std::size_t k = 0; k < steep.size(); k += std::max<std::size_t>(stride, 1)) {
+    sample.push_back(steep[k]);
+    queries.push_back(mesh.vertices[steep[k]]);
+  }
+  const std::vector<double> depth = depth_below_convex_hull(mesh.vertices, queries);
+  const std::vector<double> area = vertex_areas(mesh);
+  double sum_left = 0.0, area_left = 0.0, sum_right = 0.0, area_right = 0.0;
+  for (std::size_t k = 0; k < sample.size(); ++k) {
+    const std::size_t i = sample[k];
+    if (normal[i].dot(left) > 0.5) {
+      sum_left += depth[k] * area[i];
+      area_left += area[i];
+    } else {
+      sum_right += depth[k] * area[i];
+      area_right += area[i];
+    }
+  }
+  r.left_face_depth = area_left > 0.0 ? sum_left / area_left : 0.0;
+  r.right_face_depth = area_right > 0.0 ? sum_right / area_right : 0.0;
+  // A right lung's medial face looks to the patient's left.
+  r.side = o.side.value_or(r.left_face_depth > r.right_face_depth ? Lung::right : Lung::left);
+  r.medial = r.side == Lung::right ? left : Eigen::Vector3d(-left);
+
+  r.normal = normal;
+  r.weight.resize(n);
+  r.label.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double down = -normal[i].dot(up);
+    const double wd = ramp(down, o.diaphragm_cos, o.transition) *
+                      (1.0 - ramp(r.height[i], o.diaphragm_height, o.height_transition));
+    const double wa = (1.0 - wd) * ramp(r.height[i], o.apex_height, o.height_transition);
+    const double wm = (1.0 - wd - wa) * ramp(normal[i].dot(r.medial), o.medial_cos, o.transition);
+    const double wc = std::max(0.0, 1.0 - wd - wa - wm);
+    auto& w = r.weight[i];
+    w[static_cast<std::size_t>(Region::apex)] = wa;
+    w[static_cast<std::size_t>(Region::costal)] = wc;
+    w[static_cast<std::size_t>(Region::diaphragmatic)] = wd;
+    w[static_cast<std::size_t>(Region::mediastinal)] = wm;
+    std::size_t best = 0;
+    for (std::size_t k = 1; k < kRegionCount; ++k) {
+      if (w[k] > w[best]) best = k;
+    }
+    r.label[i] = static_cast<Region>(best);
+  }
+  return r;
+}
+
+void require_regions_of(const SurfaceRegions& regions, const TriangleMesh& mesh, const BodyAxes& frame,
+                        const char* who) {
+  if (regions.label.size() != mesh.vertices.size() || regions.weight.size() != mesh.vertices.size() ||
+      !regions.axes.up.isApprox(frame.up.normalized()) || !regions.axes.anterior.isApprox(frame.anterior.normalized()))
+    throw ValueError(std::string(who) + ": the regions given are of another surface or body frame");
+}
+
+std::vector<bool> dome_top_vertices(const TriangleMesh& mesh, const SurfaceRegions& regions, double depth_m) {
+  constexpr double kDomeCos = 0.8660254037844387;  // cos 30 degrees
+  const std::size_t n = mesh.vertices.size();
+  if (regions.label.size() != n) throw ValueError("dome_top_vertices: one region label per vertex");
+  const Eigen::Vector3d up = regions.axes.up;
+  auto on_dome = [&](std::size_t i) {
+    return regions.label[i] == Region::diaphragmatic && (regions.normal.size() != n || -regions.normal[i].dot(up) >= kDomeCos);
+  };
+  double top = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (on_dome(i)) top = std::max(top, mesh.vertices[i].dot(up));
+  }
+  std::vector<bool> on_top(n, false);
+  for (std::size_t i = 0; i < n; ++i) on_top[i] = on_dome(i) && mesh.vertices[i].dot(up) >= top - depth_m;
+  return on_top;
+}
+
+std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                  const std::array<double, kRegionCount>& load, const DomeLoad& dome) {
+  if (!(dome.radius_m >= 0.0)) throw ValueError("regional_load: the dome radius must be >= 0");
+  if (!(dome.falloff_m > 0.0)) throw ValueError("regional_load: the dome's falloff must be > 0");
+  if (!(dome.rim >= 0.0 && dome.rim <= 1.0)) throw ValueError("regional_load: the dome rim factor must lie in [0, 1]");
+  const std::size_t n = regions.weight.size();
+  if (mesh.vertices.size() != n) throw ValueError("regional_load: one region weight per vertex");
+  const Eigen::Vector3d up = regions.axes.up;
+  constexpr auto kDiaphragm = static_cast<std::size_t>(Region::diaphragmatic);
+  // The diaphragm's drive before the dome profile: its weight times how far its normal points down.
+  std::vector<double> drive(n);
+  for (std::size_t i = 0; i < n; ++i) drive[i] = regions.weight[i][kDiaphragm] * std::max(0.0, -regions.normal[i].dot(up));
+  if (dome.radius_m > 0.0) {
+    const std::vector<bool> on_top = dome_top_vertices(mesh, regions);
+    const std::vector<double> area = vertex_areas(mesh);
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    double top_area = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!on_top[i]) continue;
+      centre += area[i] * mesh.vertices[i];
+      top_area += area[i];
+    }
+    if (top_area > 0.0) {
+      centre /= top_area;
+      // The profile moves the drive toward the dome and keeps its total (so the diaphragm's share
+      // of the volume stays what the regional loads make it).
+      double before = 0.0, after = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d r = mesh.vertices[i] - centre;
+        const double profile = dome.rim + (1.0 - dome.rim) * (1.0 - ramp((r - r.dot(up) * up).norm(), dome.radius_m, dome.falloff_m));
+        before += area[i] * drive[i];
+        drive[i] *= profile;
+        after += area[i] * drive[i];
+      }
+      if (after > 0.0) {
+        for (double& d : drive) d *= before / after;
+      }
+    }
+  }
+  std::vector<double> f(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t k = 0; k < kRegionCount; ++k)
+      f[i] += load[k] * (k == kDiaphragm ? drive[i] : regions.weight[i][k]);
+  }
+  return f;
+}
+
+std::vector<Eigen::Vector3d> anatomical_directions(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                                   double sigma) {
+  const std::vector<Eigen::Vector3d> normal = smoothed_normals(mesh, sigma);
+  const Eigen::Vector3d up = regions.axes.up;
+  std::vector<Eigen::Vector3d> d(normal.size());
+  for (std::size_t i = 0; i < normal.size(); ++i) {
+    const auto& w = regions.weight[i];
+    Eigen::Vector3d horizontal = normal[i] - normal[i].dot(up) * up;
+    const double len = horizontal.norm();
+    horizontal = len > 1e-6 ? Eigen::Vector3d(horizontal / len) : normal[i];
+    Eigen::Vector3d v = (w[static_cast<std::size_t>(Region::apex)] + w[static_cast<std::size_t>(Region::mediastinal)]) *
+                            normal[i] +
+                        w[static_cast<std::size_t>(Region::costal)] * horizontal -
+                        w[static_cast<std::size_t>(Region::diaphragmatic)] * up;
+    const double vl = v.norm();
+    d[i] = vl > 1e-9 ? Eigen::Vector3d(v / vl) : normal[i];
+  }
+  return d;
+}
+
+}  // namespace pneuma::mesh

@@ -1,0 +1,535 @@
+// surface_from_labels(): the voxel work in plain C++ (mask, islands, closing by exact Euclidean
+// distance transforms, cavities, Gaussian smoothing) on the crop of the map around the labels;
+// the meshing of the level set is in labels_cgal.cpp. Deterministic: every pass runs in
+// voxel order.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <set>
+#include <stdexcept>
+
+#include "pneuma/core/error.h"
+#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/mesh/geometry/validate.h"
+
+namespace pneuma::mesh {
+namespace {
+
+using Size3 = std::array<std::size_t, 3>;
+
+struct Grid {
+  Size3 n{0, 0, 0};
+  std::size_t count() const { return n[0] * n[1] * n[2]; }
+  std::size_t index(std::size_t i, std::size_t j, std::size_t k) const { return i + n[0] * (j + n[1] * k); }
+  std::size_t stride(int axis) const { return axis == 0 ? 1 : axis == 1 ? n[0] : n[0] * n[1]; }
+};
+
+// The first voxel of line l of the lines along `axis` (count() / n[axis] of them): for axis 0,
+// l indexes (j, k); for axis 1, (i, k); for axis 2, (i, j).
+std::size_t line_start(const Grid& g, int axis, std::size_t l) {
+  if (axis == 0) return l * g.n[0];
+  if (axis == 1) return (l % g.n[0]) + (l / g.n[0]) * g.n[0] * g.n[1];
+  return l;
+}
+
+// Largest 26-connected component of `mask` (1 = inside); the others are cleared.
+// Returns {components dropped, voxels dropped}.
+std::pair<std::size_t, std::size_t> keep_largest_component(const Grid& g, std::vector<std::uint8_t>& mask) {
+  constexpr std::uint32_t none = ~std::uint32_t{0};
+  std::vector<std::uint32_t> component(g.count(), none);
+  std::vector<std::size_t> sizes;
+  std::vector<std::size_t> stack;
+  for (std::size_t seed = 0; seed < g.count(); ++seed) {
+    if (!mask[seed] || component[seed] != none) continue;
+    const auto id = static_cast<std::uint32_t>(sizes.size());
+    std::size_t size = 0;
+    stack.assign(1, seed);
+    component[seed] = id;
+    while (!stack.empty()) {
+      const std::size_t v = stack.back();
+      stack.pop_back();
+      ++size;
+      const std::size_t i = v % g.n[0], j = (v / g.n[0]) % g.n[1], k = v / (g.n[0] * g.n[1]);
+      for (int dk = -1; dk <= 1; ++dk) {
+        if ((k == 0 && dk < 0) || (k + 1 == g.n[2] && dk > 0)) continue;
+        for (int dj = -1; dj <= 1; ++dj) {
+          if ((j == 0 && dj < 0) || (j + 1 == g.n[1] && dj > 0)) continue;
+          for (int di = -1; di <= 1; ++di) {
+            if ((i == 0 && di < 0) || (i + 1 == g.n[0] && di > 0)) continue;
+            const std::size_t w = g.index(i + static_cast<std::size_t>(di), j + static_cast<std::size_t>(dj),
+                                          k + static_cast<std::size_t>(dk));
+            if (mask[w] && component[w] == none) {
+              component[w] = id;
+              stack.push_back(w);
+            }
+          }
+        }
+      }
+    }
+    sizes.push_back(size);
+  }
+  if (sizes.size() <= 1) return {0, 0};
+  // The largest; on a tie, the first found (lowest voxel index).
+  const auto keep = static_cast<std::uint32_t>(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
+  std::size_t dropped_voxels = 0;
+  for (std::size_t v = 0; v < g.count(); ++v) {
+    if (mask[v] && component[v] != keep) mask[v] = 0, ++dropped_voxels;
+  }
+  return {sizes.size() - 1, dropped_voxels};
+}
+
+// Squared Euclidean distance transform along one axis (Felzenszwalb and Huttenlocher's lower
+// envelope of parabolas), samples `step` apart, weight w = spacing^2.
+void edt_1d(const float* f, float* d, std::size_t n, double w, std::vector<std::size_t>& v, std::vector<double>& z) {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  v.resize(n);
+  z.resize(n + 1);
+  std::size_t k = 0;
+  // Skip leading infinite samples (no parabola).
+  std::size_t q0 = 0;
+  while (q0 < n && !std::isfinite(f[q0])) ++q0;
+  if (q0 == n) {
+    for (std::size_t q = 0; q < n; ++q) d[q] = std::numeric_limits<float>::infinity();
+    return;
+  }
+  v[0] = q0;
+  z[0] = -inf;
+  z[1] = inf;
+  for (std::size_t q = q0 + 1; q < n; ++q) {
+    if (!std::isfinite(f[q])) continue;
+    const double fq = f[q] + w * static_cast<double>(q) * static_cast<double>(q);
+    while (true) {
+      const double vk = static_cast<double>(v[k]);
+      const double s = (fq - (f[v[k]] + w * vk * vk)) / (2.0 * w * (static_cast<double>(q) - vk));
+      if (s <= z[k]) {
+        if (k == 0) {
+          v[0] = q;
+          z[0] = -inf;
+          z[1] = inf;
+          break;
+        }
+        --k;
+        continue;
+      }
+      ++k;
+      v[k] = q;
+      z[k] = s;
+      z[k + 1] = inf;
+      break;
+    }
+  }
+  k = 0;
+  for (std::size_t q = 0; q < n; ++q) {
+    while (z[k + 1] < static_cast<double>(q)) ++k;
+    const double dq = static_cast<double>(q) - static_cast<double>(v[k]);
+    d[q] = static_cast<float>(w * dq * dq + f[v[k]]);
+  }
+}
+
+// Squared distance (metres^2) from each voxel centre to the nearest voxel where `target` is 1.
+std::vector<float> squared_distance_to(const Grid& g, const std::vector<std::uint8_t>& target, const Eigen::Vector3d& spacing) {
+  std::vector<float> d(g.count());
+  for (std::size_t v = 0; v < g.count(); ++v) d[v] = target[v] ? 0.0f : std::numeric_limits<float>::infinity();
+  std::vector<float> line_in, line_out;
+  std::vector<std::size_t> vv;
+  std::vector<double> zz;
+  for (int axis = 0; axis < 3; ++axis) {
+    const std::size_t n = g.n[static_cast<std::size_t>(axis)], stride = g.stride(axis);
+    line_in.resize(n);
+    line_out.resize(n);
+    const double w = spacing[axis] * spacing[axis];
+    const std::size_t lines = g.count() / n;
+    for (std::size_t l = 0; l < lines; ++l) {
+      const std::size_t start = line_start(g, axis, l);
+      for (std::size_t q = 0; q < n; ++q) line_in[q] = d[start + q * stride];
+      edt_1d(line_in.data(), line_out.data(), n, w, vv, zz);
+      for (std::size_t q = 0; q < n; ++q) d[start + q * stride] = line_out[q];
+    }
+  }
+  return d;
+}
+
+// Morphological closing with a ball of radius r: dilation (distance to the mask <= r), then
+// erosion (distance to the outside of the dilation > r). Returns the voxels added.
+std::size_t close_mask(const Grid& g, std::vector<std::uint8_t>& mask, const Eigen::Vector3d& spacing, double r) {
+  if (r <= 0.0) return 0;
+  const double r2 = r * r * (1.0 + 1e-9);
+  std::vector<float> d = squared_distance_to(g, mask, spacing);
+  std::vector<std::uint8_t> outside(g.count());
+  for (std::size_t v = 0; v < g.count(); ++v) outside[v] = !(static_cast<double>(d[v]) <= r2);
+  d = squared_distance_to(g, outside, spacing);
+  std::size_t added = 0;
+  for (std::size_t v = 0; v < g.count(); ++v) {
+    const bool in = static_cast<double>(d[v]) > r2;
+    if (in && !mask[v]) ++added;
+    mask[v] = mask[v] || in;  // closing is extensive; keep the rare voxel a float rounding would lose
+  }
+  return added;
+}
+
+// Background not 6-connected to the border of the crop becomes inside. Returns {cavities, voxels}.
+std::pair<std::size_t, std::size_t> fill_cavities(const Grid& g, std::vector<std::uint8_t>& mask) {
+  // 0: background not yet reached, 1: inside, 2: outside (reached from the border), 3: cavity.
+  std::vector<std::size_t> stack;
+  std::uint8_t marker = 2;
+  auto push = [&](std::size_t v) {
+    if (mask[v] == 0) mask[v] = marker, stack.push_back(v);
+  };
+  auto flood = [&] {
+    while (!stack.empty()) {
+      const std::size_t v = stack.back();
+      stack.pop_back();
+      const std::size_t i = v % g.n[0], j = (v / g.n[0]) % g.n[1], k = v / (g.n[0] * g.n[1]);
+      if (i > 0) push(v - 1);
+      if (i + 1 < g.n[0]) push(v + 1);
+      if (j > 0) push(v - g.n[0]);
+      if (j + 1 < g.n[1]) push(v + g.n[0]);
+      if (k > 0) push(v - g.n[0] * g.n[1]);
+      if (k + 1 < g.n[2]) push(v + g.n[0] * g.n[1]);
+    }
+  };
+  for (std::size_t k = 0; k < g.n[2]; ++k) {
+    for (std::size_t j = 0; j < g.n[1]; ++j) {
+      for (std::size_t i = 0; i < g.n[0]; ++i) {
+        if (i == 0 || j == 0 || k == 0 || i + 1 == g.n[0] || j + 1 == g.n[1] || k + 1 == g.n[2]) push(g.index(i, j, k));
+      }
+    }
+  }
+  flood();
+  std::size_t cavities = 0, voxels = 0;
+  marker = 3;
+  for (std::size_t v = 0; v < g.count(); ++v) {
+    if (mask[v] != 0) continue;
+    ++cavities;
+    push(v);
+    flood();
+  }
+  for (std::uint8_t& m : mask) {
+    voxels += m == 3;
+    m = m == 1 || m == 3 ? 1 : 0;
+  }
+  return {cavities, voxels};
+}
+
+// Tunnels through the mask: in every slice across each axis, background that the slice's
+// border cannot reach (4-connected within the slice) becomes inside. A tunnel shows as such a
+// hole in the slices across it; concavities open to the outside do not. Returns the voxels added.
+std::size_t fill_slice_holes(const Grid& g, std::vector<std::uint8_t>& mask) {
+  std::size_t added = 0;
+  std::vector<std::uint8_t> reached;
+  std::vector<std::size_t> stack;
+  for (int axis = 0; axis < 3; ++axis) {
+    // The slice spans axes u and w; `axis` is fixed at s.
+    const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+    const std::size_t nu = g.n[static_cast<std::size_t>(u)], nw = g.n[static_cast<std::size_t>(w)];
+    const std::size_t su = g.stride(u), sw = g.stride(w), ss = g.stride(axis);
+    reached.assign(nu * nw, 0);
+    for (std::size_t s = 0; s < g.n[static_cast<std::size_t>(axis)]; ++s) {
+      std::fill(reached.begin(), reached.end(), 0);
+      const std::size_t base = s * ss;
+      auto push = [&](std::size_t a, std::size_t b) {
+        const std::size_t local = a + nu * b;
+        if (!reached[local] && !mask[base + a * su + b * sw]) reached[local] = 1, stack.push_back(local);
+      };
+      for (std::size_t a = 0; a < nu; ++a) push(a, 0), push(a, nw - 1);
+      for (std::size_t b = 0; b < nw; ++b) push(0, b), push(nu - 1, b);
+      while (!stack.empty()) {
+        const std::size_t local = stack.back();
+        stack.pop_back();
+        const std::size_t a = local % nu, b = local / nu;
+        if (a > 0) push(a - 1, b);
+        if (a + 1 < nu) push(a + 1, b);
+        if (b > 0) push(a, b - 1);
+        if (b + 1 < nw) push(a, b + 1);
+      }
+      for (std::size_t b = 0; b < nw; ++b) {
+        for (std::size_t a = 0; a < nu; ++a) {
+          std::uint8_t& m = mask[base + a * su + b * sw];
+          if (!m && !reached[a + nu * b]) m = 1, ++added;
+        }
+      }
+    }
+  }
+  return added;
+}
+
+// Separable Gaussian blur (sigma in metres, truncated at 3 sigma, normalised weights; zero
+// outside the grid).
+std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, const Eigen::Vector3d& spacing, double sigma) {
+  std::vector<float> a(mask.begin(), mask.end());
+  if (sigma <= 0.0) return a;
+  std::vector<float> b(a.size());
+  std::vector<float> line;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double s = sigma / spacing[axis];
+    const auto radius = static_cast<std::ptrdiff_t>(std::ceil(3.0 * s));
+    std::vector<float> kernel(static_cast<std::size_t>(2 * radius + 1));
+    double sum = 0.0;
+    for (std::ptrdiff_t t = -radius; t <= radius; ++t) {
+      const double w = std::exp(-0.5 * static_cast<double>(t * t) / (s * s));
+      kernel[static_cast<std::size_t>(t + radius)] = static_cast<float>(w);
+      sum += w;
+    }
+    for (float& w : kernel) w = static_cast<float>(w / sum);
+    const std::size_t n = g.n[static_cast<std::size_t>(axis)], stride = g.stride(axis);
+    const auto nn = static_cast<std::ptrdiff_t>(n);
+    line.resize(n);
+    const std::size_t lines = g.count() / n;
+    for (std::size_t l = 0; l < lines; ++l) {
+      const std::size_t start = line_start(g, axis, l);
+      for (std::size_t q = 0; q < n; ++q) line[q] = a[start + q * stride];
+      for (std::ptrdiff_t q = 0; q < nn; ++q) {
+        float acc = 0.0f;
+        const std::ptrdiff_t lo = std::max<std::ptrdiff_t>(0, q - radius), hi = std::min<std::ptrdiff_t>(nn - 1, q + radius);
+        for (std::ptrdiff_t t = lo; t <= hi; ++t) acc += kernel[static_cast<std::size_t>(t - q + radius)] * line[static_cast<std::size_t>(t)];
+        b[start + static_cast<std::size_t>(q) * stride] = acc;
+      }
+    }
+    std::swap(a, b);
+  }
+  return a;
+}
+
+std::string join_labels(const std::vector<int>& labels) {
+  std::string s;
+  for (int l : labels) {
+    if (!s.empty()) s += ',';
+    s += std::to_string(l);
+  }
+  return s;
+}
+
+std::string mL(double m3) { return fmt::format("{:.4g} mL", m3 * 1e6); }
+
+// Keeps the component with the largest enclosed |volume|, oriented outward. Returns the count dropped.
+std::size_t keep_largest_surface(TriangleMesh& mesh) {
+  const std::size_t nf = mesh.triangles.size();
+  // Components through shared vertices (a valid surface has manifold vertices).
+  std::vector<std::uint32_t> component;
+  face_components(mesh, component);
+  std::map<std::size_t, double> six_volume;
+  for (std::size_t f = 0; f < nf; ++f) {
+    const Triangle& t = mesh.triangles[f];
+    const auto& p = mesh.vertices;
+    six_volume[component[f]] += p[t[0]].dot(p[t[1]].cross(p[t[2]]));
+  }
+  std::size_t keep = 0;
+  double best = -1.0;
+  for (const auto& [root, v] : six_volume) {
+    if (std::abs(v) > best) best = std::abs(v), keep = root;
+  }
+  const bool flip = six_volume[keep] < 0.0;
+  std::vector<Triangle> kept;
+  kept.reserve(nf);
+  for (std::size_t f = 0; f < nf; ++f) {
+    Triangle t = mesh.triangles[f];
+    if (component[f] != keep) continue;
+    if (flip) std::swap(t[1], t[2]);
+    kept.push_back(t);
+  }
+  mesh.triangles = std::move(kept);
+  renumber_vertices_by_first_use(mesh);
+  return six_volume.size() - 1;
+}
+
+}  // namespace
+
+std::vector<std::string> LabelSurfaceReport::steps() const {
+  std::vector<std::string> s;
+  s.push_back(fmt::format("labels {}: {} voxels of {:.3f} x {:.3f} x {:.3f} mm ({}), {} frame from the {}",
+                          join_labels(labels), label_voxels, spacing_m.x() * 1e3, spacing_m.y() * 1e3, spacing_m.z() * 1e3,
+                          mL(label_volume_m3()), "LPS", transform_source));
+  s.push_back(dropped_islands == 0 ? std::string("islands: none (one connected component)")
+                                   : fmt::format("islands: dropped {} ({} voxels, {}), kept the largest component",
+                                                 dropped_islands, dropped_island_voxels,
+                                                 mL(static_cast<double>(dropped_island_voxels) * voxel_volume_m3)));
+  s.push_back(closing_radius_m <= 0.0 ? std::string("closing: off")
+                                      : fmt::format("closing: ball of {:.2f} mm added {} voxels ({})", closing_radius_m * 1e3,
+                                                    closing_added_voxels,
+                                                    mL(static_cast<double>(closing_added_voxels) * voxel_volume_m3)));
+  if (filled_slice_holes) {
+    s.push_back(fmt::format("tunnels: filled holes in slices across x, y and z: {} voxels ({})", slice_hole_voxels,
+                            mL(static_cast<double>(slice_hole_voxels) * voxel_volume_m3)));
+  }
+  s.push_back(filled_cavities == 0 ? std::string("cavities: none")
+                                   : fmt::format("cavities: filled {} ({} voxels, {})", filled_cavities, filled_cavity_voxels,
+                                                 mL(static_cast<double>(filled_cavity_voxels) * voxel_volume_m3)));
+  s.push_back(fmt::format("surface: Gaussian smoothing sigma {:.2f} mm, CGAL Mesh_3 at {:.2f} mm facets (within {:.3f} mm of "
+                          "the level set){}",
+                          smoothing_m * 1e3, edge_length_m * 1e3, max_distance_m * 1e3,
+                          attempts > 1 ? fmt::format(", {} attempts (handles removed to reach genus 0)", attempts) : ""));
+  if (dropped_surface_components > 0) {
+    s.push_back(fmt::format("surface components: dropped {} small ones", dropped_surface_components));
+  }
+  const double ref = label_volume_m3();
+  s.push_back(fmt::format("result: genus {}, {} enclosed ({:+.2f} % against the voxel count), {:.5g} cm^2", genus,
+                          mL(volume_m3), ref > 0.0 ? 100.0 * (volume_m3 - ref) / ref : 0.0, area_m2 * 1e4));
+  return s;
+}
+
+std::string LabelSurfaceReport::provenance() const {
+  std::string s = "made by: pneuma mesh from-labels\n";
+  s += "source: " + source + "\n";
+  s += "labels: " + join_labels(labels) + "\n";
+  s += fmt::format("grid: {} x {} x {} voxels of {:.4f} x {:.4f} x {:.4f} mm, {} applied, LPS millimetres\n", size[0],
+                   size[1], size[2], spacing_m.x() * 1e3, spacing_m.y() * 1e3, spacing_m.z() * 1e3, transform_source);
+  for (const auto& line : steps()) s += line + "\n";
+  return s;
+}
+
+std::filesystem::path provenance_path(const std::filesystem::path& mesh_path) {
+  std::filesystem::path p = mesh_path;
+  p += ".provenance.txt";
+  return p;
+}
+
+LabelSurface surface_from_labels(const std::filesystem::path& path, const std::vector<int>& labels,
+                                 const LabelSurfaceOptions& options) {
+  return surface_from_labels(read_label_map(path), path.string(), labels, options);
+}
+
+LabelSurface surface_from_labels(const LabelMap& map, const std::string& name, const std::vector<int>& labels,
+                                 const LabelSurfaceOptions& options) {
+  auto positive = [](double x) { return x > 0.0 && std::isfinite(x); };
+  auto non_negative = [](double x) { return x >= 0.0 && std::isfinite(x); };
+  if (!positive(options.edge_length_m)) throw std::invalid_argument("surface_from_labels: the edge length must be positive");
+  if (!non_negative(options.smoothing_m) || !non_negative(options.closing_radius_m) ||
+      !non_negative(options.max_distance_m) || !non_negative(options.max_closing_radius_m)) {
+    throw std::invalid_argument("surface_from_labels: smoothing, closing and distance must be >= 0");
+  }
+  if (labels.empty()) throw std::invalid_argument("surface_from_labels: no labels given");
+  if (map.labels.size() != map.voxel_count()) throw std::invalid_argument("surface_from_labels: label map size mismatch");
+
+  LabelSurface result;
+  LabelSurfaceReport& rep = result.report;
+  rep.source = name;
+  rep.labels = labels;
+  std::sort(rep.labels.begin(), rep.labels.end());
+  rep.labels.erase(std::unique(rep.labels.begin(), rep.labels.end()), rep.labels.end());
+  rep.transform_source = map.transform_source;
+  rep.size = map.size;
+  rep.spacing_m = map.spacing_m();
+  rep.voxel_volume_m3 = map.voxel_volume_m3();
+  rep.smoothing_m = options.smoothing_m;
+  rep.edge_length_m = options.edge_length_m;
+  rep.max_distance_m = options.max_distance_m > 0.0 ? options.max_distance_m : options.edge_length_m / 8.0;
+
+  // 1. The union, its voxel bounds, and a check that every label is there.
+  const std::set<int> wanted(rep.labels.begin(), rep.labels.end());
+  std::map<int, std::size_t> counts;
+  Size3 lo{map.size[0], map.size[1], map.size[2]}, hi{0, 0, 0};
+  {
+    std::size_t v = 0;
+    for (std::size_t k = 0; k < map.size[2]; ++k) {
+      for (std::size_t j = 0; j < map.size[1]; ++j) {
+        for (std::size_t i = 0; i < map.size[0]; ++i, ++v) {
+          const int l = map.labels[v];
+          ++counts[l];
+          if (!wanted.count(l)) continue;
+          const Size3 ijk{i, j, k};
+          for (std::size_t a = 0; a < 3; ++a) lo[a] = std::min(lo[a], ijk[a]), hi[a] = std::max(hi[a], ijk[a]);
+        }
+      }
+    }
+  }
+  for (int l : rep.labels) {
+    if (counts.count(l)) continue;
+    std::string present;
+    std::size_t shown = 0;
+    for (const auto& [value, n] : counts) {
+      if (shown++ == 20) {
+        present += ", ...";
+        break;
+      }
+      if (!present.empty()) present += ", ";
+      present += std::to_string(value);
+    }
+    throw InputError(fmt::format("{}: label {} is not in the file (labels present: {})", name, l, present));
+  }
+  for (int l : rep.labels) rep.label_voxels += counts[l];
+
+  // The crop: the labels' bounds, padded for the largest closing, the blur and a margin.
+  const Eigen::Vector3d spacing = rep.spacing_m;
+  const double reach = std::max(options.closing_radius_m, options.max_closing_radius_m) + 3.0 * options.smoothing_m;
+  Grid g;
+  Size3 origin{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const auto pad = static_cast<std::size_t>(std::ceil(reach / spacing[static_cast<Eigen::Index>(a)])) + 2;
+    origin[a] = lo[a] >= pad ? lo[a] - pad : 0;  // voxels outside the file are background anyway
+    g.n[a] = hi[a] + pad + 1 - origin[a];         // may run past the file: read as background
+  }
+  std::vector<std::uint8_t> base(g.count(), 0);
+  for (std::size_t k = 0; k < g.n[2]; ++k) {
+    const std::size_t fk = origin[2] + k;
+    if (fk >= map.size[2]) break;
+    for (std::size_t j = 0; j < g.n[1]; ++j) {
+      const std::size_t fj = origin[1] + j;
+      if (fj >= map.size[1]) break;
+      for (std::size_t i = 0; i < g.n[0]; ++i) {
+        const std::size_t fi = origin[0] + i;
+        if (fi >= map.size[0]) break;
+        base[g.index(i, j, k)] = wanted.count(map.labels[fi + map.size[0] * (fj + map.size[1] * fk)]) ? 1 : 0;
+      }
+    }
+  }
+
+  // 2. Islands.
+  if (options.keep_largest_component) {
+    std::tie(rep.dropped_islands, rep.dropped_island_voxels) = keep_largest_component(g, base);
+  }
+
+  detail::ScalarGrid field;
+  field.size = g.n;
+  Eigen::Matrix4d shift = Eigen::Matrix4d::Identity();
+  shift.block<3, 1>(0, 3) << static_cast<double>(origin[0]), static_cast<double>(origin[1]), static_cast<double>(origin[2]);
+  field.index_to_lps = map.ijk_to_lps * shift;
+  field.lps_to_index = field.index_to_lps.inverse();
+
+  // Attempts: the closing radius asked for; then with slice holes filled; then a doubled
+  // radius (with slice holes) while the genus is above 0 and the radius allows.
+  double radius = options.closing_radius_m;
+  bool slice_holes = false;
+  for (int attempt = 1;; ++attempt) {
+    std::vector<std::uint8_t> mask = base;
+    // 3. Closing (and tunnels), 4. cavities.
+    rep.closing_radius_m = radius;
+    rep.closing_added_voxels = close_mask(g, mask, spacing, radius);
+    rep.slice_hole_voxels = slice_holes ? fill_slice_holes(g, mask) : 0;
+    rep.filled_slice_holes = slice_holes;
+    rep.filled_cavities = rep.filled_cavity_voxels = 0;
+    if (options.fill_cavities) std::tie(rep.filled_cavities, rep.filled_cavity_voxels) = fill_cavities(g, mask);
+    rep.mask_voxels = static_cast<std::size_t>(std::count(mask.begin(), mask.end(), std::uint8_t{1}));
+    // 5. Smoothing, 6. meshing.
+    field.values = blur(g, mask, spacing, options.smoothing_m);
+    mask.clear();
+    mask.shrink_to_fit();
+    TriangleMesh mesh = detail::mesh_level_set(field, rep.edge_length_m, rep.max_distance_m);
+    field.values.clear();
+    if (mesh.triangles.empty()) {
+      throw InputError(fmt::format("{}: labels {}: no surface found ({} voxels): expected a region at least a few voxels "
+                                   "thick",
+                                   name, join_labels(rep.labels), rep.label_voxels));
+    }
+    rep.dropped_surface_components = keep_largest_surface(mesh);
+    // 7. Genus.
+    const ValidationReport check = validate(mesh, {.check_self_intersections = false});
+    rep.attempts = attempt;
+    rep.genus = check.genus.value_or(-1);
+    const bool can_grow = radius > 0.0 && 2.0 * radius <= options.max_closing_radius_m * (1.0 + 1e-9);
+    const bool done = rep.genus == 0 || !options.remove_handles || (slice_holes && !can_grow);
+    if (done || !check.genus) {
+      rep.volume_m3 = enclosed_volume(mesh);
+      rep.area_m2 = surface_area(mesh);
+      result.mesh = std::move(mesh);
+      break;
+    }
+    if (slice_holes) radius *= 2.0;
+    slice_holes = true;
+  }
+  return result;
+}
+
+}  // namespace pneuma::mesh
