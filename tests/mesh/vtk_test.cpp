@@ -145,6 +145,55 @@ TEST(Vtk, LegacyAsciiPolygonsBothVersions) {
   expect_same(read_mesh(v51), m);
 }
 
+// VTK 9 (3D Slicer, PyVista, ParaView) writes legacy version 5.1 by default: a FIELD block before
+// POINTS (here a time value and a string array, each with its METADATA), points as double, a
+// METADATA block after them, and polygons as OFFSETS / CONNECTIVITY vtktypeint64 arrays; in BINARY
+// every array is big-endian after its own keyword line. Written here as VTK 9's legacy writer lays
+// it out; the file must give the mesh back, in binary and in ASCII.
+TEST(Vtk, Version51AsVtk9WritesItWithFieldData) {
+  TempDir dir;
+  const TriangleMesh m = sphere();
+  for (bool binary : {true, false}) {
+    SCOPED_TRACE(binary ? "BINARY" : "ASCII");
+    auto numbers = [&](std::string& s, const auto& values) {
+      for (const auto& v : values) {
+        if (binary) {
+          put_big(s, v);
+        } else {
+          s += std::to_string(v);
+          s += ' ';
+        }
+      }
+      s += '\n';
+    };
+    std::string s = std::string("# vtk DataFile Version 5.1\nvtk output\n") + (binary ? "BINARY" : "ASCII") +
+                    "\nDATASET POLYDATA\nFIELD FieldData 2\nTimeValue 1 1 double\n";
+    numbers(s, std::vector<double>{0.25});
+    s += "METADATA\nINFORMATION 1\nNAME L2_NORM_RANGE LOCATION vtkDataArray\nDATA 2 0.25 0.25\n\n";
+    s += "Source 1 1 string\nlung from a segmentation\n";
+    s += "POINTS " + std::to_string(m.vertex_count()) + " double\n";
+    std::vector<double> xyz;
+    for (const auto& v : m.vertices) for (int c = 0; c < 3; ++c) xyz.push_back(v[c] * 1e3);
+    numbers(s, xyz);
+    s += "\nMETADATA\nINFORMATION 2\nNAME L2_NORM_RANGE LOCATION vtkDataArray\nDATA 2 10 10\n"
+         "NAME L2_NORM_FINITE_RANGE LOCATION vtkDataArray\nDATA 2 10 10\n\n";
+    std::vector<std::int64_t> offsets{0}, connectivity;
+    for (const auto& t : m.triangles) {
+      for (auto v : t) connectivity.push_back(v);
+      offsets.push_back(static_cast<std::int64_t>(connectivity.size()));
+    }
+    s += "POLYGONS " + std::to_string(offsets.size()) + " " + std::to_string(connectivity.size()) +
+         "\nOFFSETS vtktypeint64\n";
+    numbers(s, offsets);
+    s += "CONNECTIVITY vtktypeint64\n";
+    numbers(s, connectivity);
+    s += "\nPOINT_DATA " + std::to_string(m.vertex_count()) + "\nFIELD FieldData 1\nNormals 3 " +
+         std::to_string(m.vertex_count()) + " float\n";
+    expect_same(read_mesh(dir.write(binary ? "vtk9-binary.vtk" : "vtk9-ascii.vtk", s)), m);
+  }
+}
+
+
 TEST(Vtk, LegacyBinaryIsBigEndian) {
   TempDir dir;
   const TriangleMesh m = sphere();

@@ -1,5 +1,5 @@
 // VTK surfaces without VTK: legacy .vtk (ASCII and big-endian BINARY; versions up to 5.1 with
-// its OFFSETS/CONNECTIVITY cells; POLYDATA polygons and triangle strips, UNSTRUCTURED_GRID
+// its OFFSETS/CONNECTIVITY cells, FIELD and METADATA blocks as VTK 9 writes them; POLYDATA polygons and triangle strips, UNSTRUCTURED_GRID
 // triangles, quads, pixels, polygons and strips) and XML PolyData .vtp (ascii, base64 binary
 // with or without zlib compression, inline or appended, base64 or raw). libvtk9-dev would pull a
 // JDK, Qt and an MPI HDF5 that conflicts with ours, and no light library reads these, so this
@@ -105,6 +105,7 @@ class Legacy {
       if (pos_ >= d_.size()) break;
       const std::size_t at_line = line_;
       const std::string key = upper(word());
+      binary_started_ = false;  // each section's binary block follows its own keyword line
       if (key == "POINTS") {
         const std::size_t n = count();
         const std::string type = word();
@@ -139,18 +140,13 @@ class Legacy {
           add_cell(b, type, v, static_cast<std::size_t>(cell_offsets[c + 1] - cell_offsets[c]), c, fmt_line(at_line) + "CELL_TYPES: ");
         }
       } else if (key == "METADATA") {
-        // The rest of its line, then lines until an empty one.
-        line();
-        while (pos_ < d_.size() && !trim(line()).empty()) {}
+        skip_metadata();
       } else if (key == "FIELD") {
+        // Field data (VTK 9 writes one before POINTS, e.g. a time value): skipped, array by array,
+        // each with its own binary block and optional METADATA.
         word();
         const std::size_t arrays = count();
-        for (std::size_t a = 0; a < arrays; ++a) {
-          word();
-          const std::size_t comps = count(), tuples = count();
-          const std::string type = word();
-          for (std::size_t k = 0; k < comps * tuples; ++k) number(type);
-        }
+        for (std::size_t a = 0; a < arrays; ++a) skip_field_array();
       } else if (key == "POINT_DATA" || key == "CELL_DATA") {
         break;  // attributes: not needed for the surface
       } else {
@@ -292,6 +288,34 @@ class Legacy {
       offsets.push_back(static_cast<std::int64_t>(connectivity.size()));
     }
     binary_started_ = false;
+  }
+
+  // "METADATA" is read: the rest of its line, then lines until an empty one.
+  void skip_metadata() {
+    line();
+    while (pos_ < d_.size() && !trim(line()).empty()) {}
+  }
+  // One array of a FIELD block: "name components tuples type", its values (or "NULL_ARRAY"),
+  // then an optional METADATA block. Strings are one per line (VTK's legacy writer).
+  void skip_field_array() {
+    if (upper(word()) == "NULL_ARRAY") return;
+    const std::size_t comps = count(), tuples = count();
+    const std::string type = word();
+    binary_started_ = false;
+    if (type == "string") {
+      line();  // the end of the array's header line
+      for (std::size_t k = 0; k < comps * tuples; ++k) line();
+    } else {
+      for (std::size_t k = 0; k < comps * tuples; ++k) number(type);
+    }
+    binary_started_ = false;
+    const std::size_t save_pos = pos_, save_line = line_;
+    skip_space();
+    if (pos_ < d_.size() && upper(word()) == "METADATA") {
+      skip_metadata();
+    } else {
+      pos_ = save_pos, line_ = save_line;
+    }
   }
 
   std::string name_;
