@@ -1,7 +1,8 @@
 // VTK surfaces without VTK: legacy .vtk (ASCII and big-endian BINARY; versions up to 5.1 with
 // its OFFSETS/CONNECTIVITY cells, FIELD and METADATA blocks as VTK 9 writes them; POLYDATA
-// polygons and triangle strips, UNSTRUCTURED_GRID triangles, quads, pixels, polygons and strips) and XML PolyData .vtp (ascii, base64 binary
-// with or without zlib compression, inline or appended, base64 or raw). libvtk9-dev would pull a
+// polygons and triangle strips, UNSTRUCTURED_GRID triangles, quads, pixels, polygons and strips)
+// and XML PolyData .vtp (ascii, base64 binary with or without zlib compression, inline or
+// appended, base64 or raw). libvtk9-dev would pull a
 // JDK, Qt and an MPI HDF5 that conflicts with ours, and no light library reads these, so this
 // is a careful reader of its own: every error names the file and, for ASCII, the line.
 #include <pugixml.hpp>
