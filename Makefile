@@ -8,20 +8,32 @@ DEMO_OUT ?= out/demo
 # CI treats warnings as errors.
 export PNEUMA_WERROR ?= $(if $(CI),ON,OFF)
 
-.PHONY: all deps configure build demo test bench clean format
+# The benchmarks are built with the release preset only (the presets say so for the others).
+BUILD_BENCH ?= $(if $(filter release,$(PRESET)),ON,OFF)
+
+.PHONY: all deps deps-demo configure configure-demo build demo test bench clean format
 
 all: build
 
 deps:
 	@scripts/install-deps
 
+# `make demo` installs and builds only what `pneuma run` needs (no test tools, Chromium or
+# clang; only the executable); `make test` adds the rest to the same build folder.
+deps-demo:
+	@scripts/install-deps --demo
+
+configure-demo: deps-demo
+	@cmake --preset $(PRESET) -DPNEUMA_BUILD_TESTS=OFF -DPNEUMA_BUILD_BENCH=OFF >/dev/null
+
 configure: deps
-	@cmake --preset $(PRESET) >/dev/null
+	@cmake --preset $(PRESET) -DPNEUMA_BUILD_TESTS=ON -DPNEUMA_BUILD_BENCH=$(BUILD_BENCH) >/dev/null
 
 build: configure
 	@cmake --build --preset $(PRESET)
 
-demo: build
+demo: configure-demo
+	@cmake --build --preset $(PRESET) --target pneuma
 	@$(PNEUMA) run $(DEMO_SCENARIO) -o $(DEMO_OUT)
 
 test: build
