@@ -11,7 +11,7 @@ export PNEUMA_WERROR ?= $(if $(CI),ON,OFF)
 # The benchmarks are built with the release preset only (the presets say so for the others).
 BUILD_BENCH ?= $(if $(filter release,$(PRESET)),ON,OFF)
 
-.PHONY: all deps deps-demo configure configure-demo build demo test bench clean format
+.PHONY: all deps deps-demo configure configure-demo build demo test bench clean format check-format
 
 all: build
 
@@ -42,8 +42,12 @@ test: build
 bench: build
 	@scripts/run-benchmarks $(BUILD)
 
+# The style is the committed .clang-format (none found: change nothing rather than guess).
 format:
-	@git ls-files '*.cpp' '*.h' | xargs clang-format -i
+	@git ls-files '*.cpp' '*.h' | xargs clang-format -i --style=file --fallback-style=none
+
+check-format:
+	@scripts/check-format
 
 clean:
 	@rm -rf build
