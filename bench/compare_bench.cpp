@@ -3,8 +3,8 @@
 // lattice pushed at its centre, tolerance 1e-6. Results go in BENCHMARKS.md, never in tests.
 #include <benchmark/benchmark.h>
 
-#include "pneuma/paper/comparators.h"
 #include "pneuma/field/field_graph.h"
+#include "pneuma/paper/comparators.h"
 
 using namespace pneuma::field;
 using namespace pneuma::paper;

@@ -24,9 +24,9 @@ constexpr double kTolerance = 1e-6;
 
 mesh::TriangleMesh geodesic_sphere(double radius, int n) {
   const double phi = (1.0 + std::sqrt(5.0)) / 2.0;
-  const std::vector<Eigen::Vector3d> corner = {{-1, phi, 0}, {1, phi, 0},  {-1, -phi, 0}, {1, -phi, 0},
-                                               {0, -1, phi}, {0, 1, phi},  {0, -1, -phi}, {0, 1, -phi},
-                                               {phi, 0, -1}, {phi, 0, 1},  {-phi, 0, -1}, {-phi, 0, 1}};
+  const std::vector<Eigen::Vector3d> corner = {{-1, phi, 0}, {1, phi, 0}, {-1, -phi, 0}, {1, -phi, 0},
+                                               {0, -1, phi}, {0, 1, phi}, {0, -1, -phi}, {0, 1, -phi},
+                                               {phi, 0, -1}, {phi, 0, 1}, {-phi, 0, -1}, {-phi, 0, 1}};
   const std::vector<std::array<int, 3>> face = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
                                                 {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
                                                 {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
@@ -61,7 +61,13 @@ mesh::TriangleMesh geodesic_sphere(double radius, int n) {
         int u = -1, x = -1, wu = 0, wx = 0;
         for (int k = 0; k < 3; ++k) {
           if (!w[k]) continue;
-          if (u < 0) { u = id[k]; wu = w[k]; } else { x = id[k]; wx = w[k]; }
+          if (u < 0) {
+            u = id[k];
+            wu = w[k];
+          } else {
+            x = id[k];
+            wx = w[k];
+          }
         }
         const int step = u < x ? wx : wu;  // distance from the smaller corner
         v = 12 + edge_id.at(std::minmax(u, x)) * per_edge + (step - 1);
@@ -163,7 +169,7 @@ void BM_FieldEigenCG(benchmark::State& state) {
     const Eigen::VectorXd y = cg.solve(b);
     std::vector<double> force(nv);
     for (std::uint32_t i = 0; i < nv; ++i) force[i] = s[i] * y[i];  // F = S y
-    const auto u = normalise_displacement(m.mesh, force, 1e-4);  // as compute_field does
+    const auto u = normalise_displacement(m.mesh, force, 1e-4);     // as compute_field does
     benchmark::DoNotOptimize(u.first.data());
     iterations = static_cast<double>(cg.iterations());
   }
@@ -184,7 +190,9 @@ void BM_Clique(benchmark::State& state) {
   auto field_of = [&](const SolveResult& r) {
     return normalise_displacement(m, std::span<const double>(r.shot.data(), g.mass_count()), 1e-4).first;
   };
-  const auto reference = field_of(ShotUnshot_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(g)), SolveOptions{1e-9}).solve(load));
+  const auto reference =
+      field_of(ShotUnshot_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(g)), SolveOptions{1e-9})
+                   .solve(load));
   OperationCounts build, shots;
   double difference = 0.0, shot_count = 0.0;
   for (auto _ : state) {
@@ -213,13 +221,33 @@ void BM_Clique(benchmark::State& state) {
 
 }  // namespace
 
-BENCHMARK_CAPTURE(BM_Field, cg, SolverKind::cg)->Arg(10)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK_CAPTURE(BM_Field, cg, SolverKind::cg)
+    ->Arg(10)
+    ->Arg(100)
+    ->Arg(1000)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
 // One run in a process that has not run any other field: memory first touched (page faults
 // cost ~4 s/GB on this VM). Run alone: --benchmark_filter=BM_Field/cg_first_run
 BENCHMARK_CAPTURE(BM_Field, cg_first_run, SolverKind::cg)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_FieldEigenCG)->Arg(10)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1);
-BENCHMARK_CAPTURE(BM_Field, direct, SolverKind::direct)->Arg(10)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1);
-BENCHMARK_CAPTURE(BM_Field, sweep, SolverKind::sweep)->Arg(10)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1);
-BENCHMARK_CAPTURE(BM_Field, shot, SolverKind::shot)->Arg(10)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK_CAPTURE(BM_Field, direct, SolverKind::direct)
+    ->Arg(10)
+    ->Arg(100)
+    ->Arg(1000)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_CAPTURE(BM_Field, sweep, SolverKind::sweep)
+    ->Arg(10)
+    ->Arg(100)
+    ->Arg(1000)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_CAPTURE(BM_Field, shot, SolverKind::shot)
+    ->Arg(10)
+    ->Arg(100)
+    ->Arg(1000)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
 BENCHMARK(BM_Clique)->ArgsProduct({{1, 2, 3, 4}, {3, 4, 5}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK_MAIN();

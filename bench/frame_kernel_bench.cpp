@@ -17,8 +17,8 @@
 #include <memory>
 #include <vector>
 
-#include "pneuma/mesh/geometry/deformed_surface.h"
 #include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/geometry/deformed_surface.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
 
 namespace {
@@ -38,7 +38,8 @@ Case& test_case(std::int64_t size) {
   auto& slot = cases[size];
   if (!slot) {
     slot = std::make_unique<Case>();
-    slot->rest = mesh::make_lung_phantom({.lung = mesh::kBothLungs, .edge_length_m = kEdge[static_cast<std::size_t>(size)]});
+    slot->rest =
+        mesh::make_lung_phantom({.lung = mesh::kBothLungs, .edge_length_m = kEdge[static_cast<std::size_t>(size)]});
     slot->u = mesh::vertex_normals(slot->rest);
     for (auto& v : slot->u) v *= 5e-3;
     slot->positions.assign(slot->rest.vertex_count(), Eigen::Vector3d::Zero());
@@ -104,9 +105,8 @@ void BM_FusedKernelSse2(benchmark::State& state) {
 
 }  // namespace
 
-#define PNEUMA_FRAME_BENCH(fn, size, reps)                                                                   \
-  BENCHMARK(fn)->Arg(size)->Unit(benchmark::kMicrosecond)->Repetitions(reps)->ReportAggregatesOnly(true) \
-      ->UseRealTime()
+#define PNEUMA_FRAME_BENCH(fn, size, reps) \
+  BENCHMARK(fn)->Arg(size)->Unit(benchmark::kMicrosecond)->Repetitions(reps)->ReportAggregatesOnly(true)->UseRealTime()
 
 PNEUMA_FRAME_BENCH(BM_Copy, 0, 5);
 PNEUMA_FRAME_BENCH(BM_FusedKernel, 0, 5);

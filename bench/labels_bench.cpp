@@ -47,5 +47,8 @@ void BM_SurfaceFromLabels(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK(BM_ReadLabelMap)->DenseRange(0, 5)->Iterations(1)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_SurfaceFromLabels)->ArgsProduct({{0, 1, 2, 3, 4, 5}, {0, 1}})->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SurfaceFromLabels)
+    ->ArgsProduct({{0, 1, 2, 3, 4, 5}, {0, 1}})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -11,10 +11,10 @@
 #include <fstream>
 #include <vector>
 
-#include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/anatomy/phantom.h"
-#include "pneuma/mesh/repair/remesh.h"
 #include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/repair/remesh.h"
 
 namespace {
 
@@ -98,7 +98,8 @@ void BM_ValidateWithSelfIntersections(benchmark::State& state) {
 
 void BM_Remesh(benchmark::State& state) {
   for (auto _ : state) {
-    RemeshResult r = remesh_isotropic(loaded(), {.target_edge_length_m = kEdge, .iterations = 3, .measure_deviation = false});
+    RemeshResult r =
+        remesh_isotropic(loaded(), {.target_edge_length_m = kEdge, .iterations = 3, .measure_deviation = false});
     state.counters["triangles_out"] = static_cast<double>(r.mesh.triangle_count());
   }
   peak_memory(state);

@@ -39,8 +39,12 @@ void run_hour(benchmark::State& state, const Driver& driver, int compartments) {
 }
 
 void BM_HourSpontaneousSingle(benchmark::State& s) { run_hour(s, Spontaneous{0.2, 0.5, 5 * kCmH2O, 0.0}, 1); }
-void BM_HourVolumeControlSingle(benchmark::State& s) { run_hour(s, VolumeControl{0.25, 0.5e-3, 1.0, 0.2, 5 * kCmH2O}, 1); }
-void BM_HourPressureControlTwo(benchmark::State& s) { run_hour(s, PressureControl{0.25, 12 * kCmH2O, 1.0, 5 * kCmH2O}, 2); }
+void BM_HourVolumeControlSingle(benchmark::State& s) {
+  run_hour(s, VolumeControl{0.25, 0.5e-3, 1.0, 0.2, 5 * kCmH2O}, 1);
+}
+void BM_HourPressureControlTwo(benchmark::State& s) {
+  run_hour(s, PressureControl{0.25, 12 * kCmH2O, 1.0, 5 * kCmH2O}, 2);
+}
 
 // Baseline: the closed-form pressure-control volume written into the same 360,001 samples.
 void BM_HourClosedFormBaseline(benchmark::State& state) {
@@ -50,7 +54,8 @@ void BM_HourClosedFormBaseline(benchmark::State& state) {
     for (std::size_t k = 0; k < t.size(); ++k) {
       t[k] = static_cast<double>(k) / 100.0;
       const double phase = std::fmod(t[k], period);
-      v[k] = phase < ti ? c_dp * (1 - std::exp(-phase / tau)) : c_dp * (1 - std::exp(-ti / tau)) * std::exp(-(phase - ti) / tau);
+      v[k] = phase < ti ? c_dp * (1 - std::exp(-phase / tau))
+                        : c_dp * (1 - std::exp(-ti / tau)) * std::exp(-(phase - ti) / tau);
     }
     benchmark::DoNotOptimize(v.data());
   }

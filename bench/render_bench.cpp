@@ -65,7 +65,9 @@ render::RenderOptions options(const benchmark::State& state, int first_argument)
 void name_antialiasing(benchmark::State& state, int first_argument) {
   const auto msaa = state.range(first_argument);
   const bool fxaa = state.range(first_argument + 1) != 0;
-  state.SetLabel(msaa > 1 ? "MSAA " + std::to_string(msaa) + "x" + (fxaa ? " + FXAA" : "") : fxaa ? "FXAA" : "no anti-aliasing");
+  state.SetLabel(msaa > 1 ? "MSAA " + std::to_string(msaa) + "x" + (fxaa ? " + FXAA" : "")
+                 : fxaa   ? "FXAA"
+                          : "no anti-aliasing");
 }
 
 // CPU time of the whole process (the calling thread and llvmpipe's threads), in ms. On a
@@ -78,7 +80,8 @@ double process_cpu_ms() {
 }
 
 void per_frame_cpu(benchmark::State& state, double cpu_start_ms) {
-  state.counters["process_cpu_ms_per_frame"] = (process_cpu_ms() - cpu_start_ms) / static_cast<double>(state.iterations());
+  state.counters["process_cpu_ms_per_frame"] =
+      (process_cpu_ms() - cpu_start_ms) / static_cast<double>(state.iterations());
 }
 
 void label(benchmark::State& state, const Model& m) {
@@ -99,7 +102,8 @@ void time_frames(benchmark::State& state, render::Renderer& renderer, const Mode
   }
   per_frame_cpu(state, cpu_start);
   label(state, m);
-  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
 // Per frame: uniform s, draw, resolve, read back (the frame's pixels in memory).
@@ -111,8 +115,14 @@ void BM_Draw(benchmark::State& state) {
   time_frames(state, renderer, m);
 }
 BENCHMARK(BM_Draw)
-    ->Args({6, 4, 0})->Args({8, 4, 0})->Args({6, 0, 1})->Args({8, 0, 1})->Args({6, 0, 0})->Args({8, 0, 0})
-    ->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Args({6, 4, 0})
+    ->Args({8, 4, 0})
+    ->Args({6, 0, 1})
+    ->Args({8, 0, 1})
+    ->Args({6, 0, 0})
+    ->Args({8, 0, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // Baseline: the same image size with nothing to draw (arguments: MSAA samples, FXAA).
 void BM_ClearReadbackBaseline(benchmark::State& state) {
@@ -126,9 +136,15 @@ void BM_ClearReadbackBaseline(benchmark::State& state) {
     benchmark::DoNotOptimize(image.rgba.data());
   }
   per_frame_cpu(state, cpu_start);
-  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_ClearReadbackBaseline)->Args({4, 0})->Args({0, 1})->Args({0, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ClearReadbackBaseline)
+    ->Args({4, 0})
+    ->Args({0, 1})
+    ->Args({0, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // Once per run: context, normal terms, vertex and index buffers, framebuffers, shaders, and
 // the first draw (llvmpipe compiles shader variants lazily).
@@ -180,9 +196,15 @@ void BM_FrameToPng(benchmark::State& state) {
   }
   per_frame_cpu(state, cpu_start);
   label(state, m);
-  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_FrameToPng)->Args({6, 4, 0})->Args({8, 4, 0})->Args({8, 0, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FrameToPng)
+    ->Args({6, 4, 0})
+    ->Args({8, 4, 0})
+    ->Args({8, 0, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // A PNG sequence through the scenario's sink (render::PngFrameSink): 16 frames drawn, encoded
 // (fast) and written to a temporary folder, the last file on disk included; the sink's set-up
@@ -191,7 +213,8 @@ BENCHMARK(BM_FrameToPng)->Args({6, 4, 0})->Args({8, 4, 0})->Args({8, 0, 1})->Uni
 // overlaps the next frame's drawing), then MSAA samples and FXAA as above.
 void BM_PngSequence(benchmark::State& state) {
   const Model& m = model(static_cast<int>(state.range(0)));
-  const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(state.range(1)));
+  const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                  static_cast<std::size_t>(state.range(1)));
   const model::Model breathing = model::make_model(m.rest, m.field, 1e-4);
   render::PngSinkOptions sink_options;
   sink_options.render = options(state, 2);
@@ -220,8 +243,12 @@ void BM_PngSequence(benchmark::State& state) {
   state.counters["encoder_threads"] = static_cast<double>(state.range(1));
 }
 BENCHMARK(BM_PngSequence)
-    ->Args({8, 1, 0, 1})->Args({8, 2, 0, 1})->Args({6, 1, 4, 0})->Args({6, 2, 4, 0})
-    ->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Args({8, 1, 0, 1})
+    ->Args({8, 2, 0, 1})
+    ->Args({6, 1, 4, 0})
+    ->Args({6, 2, 4, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // The OpenGL backends (render::GlBackend) side by side on the 1.3M-triangle mesh: per frame, set s,
 // draw, resolve or filter, read back. Arguments: backend (0 OSMesa, 1 EGL), image size (0:
@@ -243,9 +270,15 @@ void BM_DrawBackend(benchmark::State& state) {
   time_frames(state, renderer, m);
 }
 BENCHMARK(BM_DrawBackend)
-    ->Args({0, 0, 0, 1})->Args({1, 0, 0, 1})->Args({0, 0, 0, 0})->Args({1, 0, 0, 0})
-    ->Args({1, 1, 0, 0})->Args({1, 1, 0, 1})->Args({1, 1, 4, 0})
-    ->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Args({0, 0, 0, 1})
+    ->Args({1, 0, 0, 1})
+    ->Args({0, 0, 0, 0})
+    ->Args({1, 0, 0, 0})
+    ->Args({1, 1, 0, 0})
+    ->Args({1, 1, 0, 1})
+    ->Args({1, 1, 4, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // PNG encoding (fast, the sink's setting) of a 1920x1080 frame of the 1.3M-triangle mesh, timed
 // apart from the drawing above.

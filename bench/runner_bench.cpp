@@ -101,8 +101,12 @@ double minimum(const std::vector<double>& v) { return *std::min_element(v.begin(
 
 // Interleaved per size, so a baseline and the update compared with it run close together.
 // Medians and minima of 10 repetitions (3 for the whole frame update).
-#define PNEUMA_RUNNER_BENCH(fn, size, reps)                                                  \
-  BENCHMARK(fn)->Arg(size)->Unit(benchmark::kMicrosecond)->Repetitions(reps)->ReportAggregatesOnly(true) \
+#define PNEUMA_RUNNER_BENCH(fn, size, reps) \
+  BENCHMARK(fn)                             \
+      ->Arg(size)                           \
+      ->Unit(benchmark::kMicrosecond)       \
+      ->Repetitions(reps)                   \
+      ->ReportAggregatesOnly(true)          \
       ->ComputeStatistics("min", minimum)
 PNEUMA_RUNNER_BENCH(BM_CopyRest, 0, 10);
 PNEUMA_RUNNER_BENCH(BM_CopyRestAndField, 0, 10);

@@ -10,10 +10,10 @@
 
 #include <ctime>
 
-#include "pneuma/mesh/geometry/deformed_surface.h"
 #include "pneuma/mesh/anatomy/phantom.h"
-#include "pneuma/mesh/repair/remesh.h"
+#include "pneuma/mesh/geometry/deformed_surface.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
+#include "pneuma/mesh/repair/remesh.h"
 
 namespace {
 
@@ -59,7 +59,8 @@ void BM_SelfIntersects(benchmark::State& state) {
 
 void BM_Remesh(benchmark::State& state) {
   for (auto _ : state) {
-    RemeshResult r = remesh_isotropic(phantom(), {.target_edge_length_m = kEdge, .iterations = 3, .measure_deviation = false});
+    RemeshResult r =
+        remesh_isotropic(phantom(), {.target_edge_length_m = kEdge, .iterations = 3, .measure_deviation = false});
     state.counters["triangles_out"] = static_cast<double>(r.mesh.triangle_count());
   }
   counters(state);

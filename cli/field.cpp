@@ -10,13 +10,13 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
 #include "pneuma/core/units.h"
-#include "pneuma/model/field_cache.h"
-#include "pneuma/scenario/physiology_config.h"
 #include "pneuma/field/tissue.h"
-#include "pneuma/scenario/tissue_config.h"
-#include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/model/field_cache.h"
+#include "pneuma/scenario/physiology_config.h"
+#include "pneuma/scenario/tissue_config.h"
 
 namespace pneuma::cli {
 namespace {
@@ -109,7 +109,8 @@ void run_field(const FieldCliOptions& o) {
   if (!field::solver_takes_clique(options.solver, o.clique)) {
     throw UsageError(o.solver.empty()
                          ? fmt::format("pneuma: --clique {}: the default solver (cg) takes clique 1 only; add --solver "
-                                       "shot, sweep or direct", o.clique)
+                                       "shot, sweep or direct",
+                                       o.clique)
                          : "pneuma: --solver cg: needs --clique 1; use shot, sweep or direct for larger cliques");
   }
   const field::Tissue tissue = load_tissue_for_cli(o.tissue);
@@ -146,14 +147,18 @@ void register_field(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("field", "Precompute the elastostatic field of a mesh and write it to HDF5");
   cmd->add_option("mesh", options->mesh, "Mesh file, phantom:left|right|both, or icosphere:<radius>:<subdivisions>")
       ->required();
-  cmd->add_option("--tissue", options->tissue, "Tissue YAML file or the name of a preset in configs/tissue/ (such as healthy-upright)")
+  cmd->add_option("--tissue", options->tissue,
+                  "Tissue YAML file or the name of a preset in configs/tissue/ (such as healthy-upright)")
       ->required();
-  cmd->add_option("--solver", options->solver, "shot (the paper's), sweep, direct or cg (default: cg, which takes --clique 1 only)");
+  cmd->add_option("--solver", options->solver,
+                  "shot (the paper's), sweep, direct or cg (default: cg, which takes --clique 1 only)");
   cmd->add_option("--clique", options->clique, "Clique size M in hops, 1 to 4")->capture_default_str();
   cmd->add_option("--tol", options->tolerance, "Stop when max UnShot <= tol * max force")->capture_default_str();
   cmd->add_option("-o,--output", options->output, "Field file to write (HDF5)")->capture_default_str();
-  cmd->add_option("--unit", options->unit, "Length of one unit of the mesh file (mm, cm, m, ...; default: the unit "
-                                          "the file records, else mm)")->capture_default_str();
+  cmd->add_option("--unit", options->unit,
+                  "Length of one unit of the mesh file (mm, cm, m, ...; default: the unit "
+                  "the file records, else mm)")
+      ->capture_default_str();
   add_quantity_option(*cmd, "--edge", options->edge_m, "Phantom edge length (default 4 mm)", "length");
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing on success");
   add_examples(*cmd, {"pneuma field phantom:right --tissue healthy-upright -o field.h5",

@@ -19,11 +19,10 @@ int main(int argc, char** argv) {
   // Named explicitly: Usage lines say "pneuma", not the path the binary was started from.
   CLI::App app{"pneuma " PNEUMA_VERSION ": breathing 3D lungs for visualization, training and imaging research",
                "pneuma"};
-  pneuma::cli::add_examples(app, {"pneuma run scenarios/quiet-breathing.yaml -o out/demo",
-                                  "pneuma phantom --lung right --edge 2mm -o right.ply",
-                                  "pneuma mesh info right.ply",
-                                  "pneuma field phantom:right --tissue healthy-upright -o field.h5",
-                                  "pneuma SUBCOMMAND --help"});
+  pneuma::cli::add_examples(
+      app, {"pneuma run scenarios/quiet-breathing.yaml -o out/demo",
+            "pneuma phantom --lung right --edge 2mm -o right.ply", "pneuma mesh info right.ply",
+            "pneuma field phantom:right --tissue healthy-upright -o field.h5", "pneuma SUBCOMMAND --help"});
   app.set_version_flag("--version", "pneuma " PNEUMA_VERSION);
   app.require_subcommand(1);
   app.failure_message([](const CLI::App*, const CLI::Error& e) {

@@ -8,13 +8,13 @@
 #include <string>
 
 #include "commands.h"
-#include "pneuma/core/error.h"
 #include "pneuma/core/atomic_file.h"
+#include "pneuma/core/error.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/labels/labels.h"
 #include "pneuma/mesh/repair/remesh.h"
 #include "pneuma/mesh/repair/repair.h"
-#include "pneuma/mesh/geometry/validate.h"
 
 namespace pneuma::cli {
 namespace {
@@ -48,27 +48,31 @@ void print_report(const std::string& name, const mesh::TriangleMesh& m, const me
              r.edge_count, r.component_count, r.component_count == 1 ? "" : "s");
   const auto box = mesh::bounding_box(m.vertices);
   const Eigen::Vector3d size = box[1] - box[0];
-  fmt::print("bounding box: x {:.2f} to {:.2f}, y {:.2f} to {:.2f}, z {:.2f} to {:.2f} mm (size {:.2f} x {:.2f} x {:.2f} mm)\n",
-             box[0].x() * 1e3, box[1].x() * 1e3, box[0].y() * 1e3, box[1].y() * 1e3, box[0].z() * 1e3, box[1].z() * 1e3,
-             size.x() * 1e3, size.y() * 1e3, size.z() * 1e3);
+  fmt::print(
+      "bounding box: x {:.2f} to {:.2f}, y {:.2f} to {:.2f}, z {:.2f} to {:.2f} mm (size {:.2f} x {:.2f} x {:.2f} mm)\n",
+      box[0].x() * 1e3, box[1].x() * 1e3, box[0].y() * 1e3, box[1].y() * 1e3, box[0].z() * 1e3, box[1].z() * 1e3,
+      size.x() * 1e3, size.y() * 1e3, size.z() * 1e3);
   fmt::print("area: {:.6g} cm^2\n", r.area_m2 * 1e4);
   if (r.closed()) fmt::print("volume: {:.6g} mL\n", r.volume_m3 * 1e6);
   else fmt::print("volume: undefined (open surface)\n");
   print_quality("", mesh::measure_quality(m));
-  fmt::print("closed: {}, manifold: {}, consistently oriented: {}, genus: {}\n", yes_no(r.closed()), yes_no(r.manifold()),
-             yes_no(r.orientable && r.misoriented_face_count == 0), r.genus ? std::to_string(*r.genus) : "undefined");
-  fmt::print("boundary edges: {}, holes: {}, non-manifold edges: {}, non-manifold vertices: {}\n", r.boundary_edge_count,
-             r.hole_count, r.non_manifold_edge_count, r.non_manifold_vertex_count);
-  fmt::print("degenerate faces: {}, duplicated faces: {}, misoriented faces: {}, inside-out components: {}, unused vertices: {}\n",
-             r.degenerate_face_count, r.duplicated_face_count, r.misoriented_face_count, r.inside_out_component_count,
-             r.isolated_vertex_count);
+  fmt::print("closed: {}, manifold: {}, consistently oriented: {}, genus: {}\n", yes_no(r.closed()),
+             yes_no(r.manifold()), yes_no(r.orientable && r.misoriented_face_count == 0),
+             r.genus ? std::to_string(*r.genus) : "undefined");
+  fmt::print("boundary edges: {}, holes: {}, non-manifold edges: {}, non-manifold vertices: {}\n",
+             r.boundary_edge_count, r.hole_count, r.non_manifold_edge_count, r.non_manifold_vertex_count);
+  fmt::print(
+      "degenerate faces: {}, duplicated faces: {}, misoriented faces: {}, inside-out components: {}, unused vertices: {}\n",
+      r.degenerate_face_count, r.duplicated_face_count, r.misoriented_face_count, r.inside_out_component_count,
+      r.isolated_vertex_count);
   fmt::print("self-intersections: {}\n",
              r.self_intersection_count ? std::to_string(*r.self_intersection_count) : std::string("not checked"));
   fmt::print("{}\n", r.valid() ? "valid" : "invalid");
 }
 
 mesh::TriangleMesh load(const MeshOptions& o) {
-  return mesh::read_mesh(o.input, {.metres_per_unit = mesh::parse_length_unit(o.unit), .unit_from_file = !o.unit_given});
+  return mesh::read_mesh(o.input,
+                         {.metres_per_unit = mesh::parse_length_unit(o.unit), .unit_from_file = !o.unit_given});
 }
 
 // The record `mesh from-labels` leaves beside its output, when there is one.
@@ -146,7 +150,8 @@ void run_from_labels(const MeshOptions& o) {
 }
 
 void add_unit_option(CLI::App& cmd, MeshOptions& o) {
-  cmd.add_option("--unit", o.unit, "Length of one file unit (mm, cm, m, ...), for reading (default: the unit the file "
+  cmd.add_option("--unit", o.unit,
+                 "Length of one file unit (mm, cm, m, ...), for reading (default: the unit the file "
                  "records, as pneuma's files do, else mm) and writing")
       ->capture_default_str();
 }
@@ -155,7 +160,9 @@ void add_unit_option(CLI::App& cmd, MeshOptions& o) {
 
 void register_mesh(CLI::App& app) {
   auto o = std::make_shared<MeshOptions>();
-  CLI::App* mesh_cmd = app.add_subcommand("mesh", "Inspect, repair and remesh triangle surfaces (STL, OBJ, PLY, OFF, glTF, VTK, ...); surfaces from label maps");
+  CLI::App* mesh_cmd = app.add_subcommand(
+      "mesh",
+      "Inspect, repair and remesh triangle surfaces (STL, OBJ, PLY, OFF, glTF, VTK, ...); surfaces from label maps");
   mesh_cmd->require_subcommand(1);
   add_examples(*mesh_cmd, {"pneuma mesh info patient.stl", "pneuma mesh repair patient.stl -o repaired.ply",
                            "pneuma mesh remesh patient.vtk --edge 3mm -o remeshed.ply",
@@ -165,7 +172,8 @@ void register_mesh(CLI::App& app) {
                                                     "exit 3 when the surface is not valid");
   info->add_option("file", o->input, "Mesh file")->required();
   add_unit_option(*info, *o);
-  info->add_flag("--no-self-intersections", o->skip_self_intersections, "Skip the self-intersection test (the slowest)");
+  info->add_flag("--no-self-intersections", o->skip_self_intersections,
+                 "Skip the self-intersection test (the slowest)");
   add_examples(*info, {"pneuma mesh info patient.stl", "pneuma mesh info scan.obj --unit cm --no-self-intersections"});
   info->callback([o, info] {
     o->unit_given = info->count("--unit") > 0;
@@ -176,7 +184,8 @@ void register_mesh(CLI::App& app) {
   repair->add_option("input", o->input, "Mesh file")->required();
   repair->add_option("-o,--output", o->output, "Repaired mesh (.ply, .obj or .stl)")->required();
   add_unit_option(*repair, *o);
-  repair->add_option("--max-hole", o->max_hole_edges, "Fill holes of at most this many boundary edges")->capture_default_str();
+  repair->add_option("--max-hole", o->max_hole_edges, "Fill holes of at most this many boundary edges")
+      ->capture_default_str();
   repair->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
   add_examples(*repair, {"pneuma mesh repair patient.stl -o repaired.ply",
                          "pneuma mesh repair segmentation.vtp -o repaired.stl --max-hole 200 --ascii"});
@@ -189,10 +198,15 @@ void register_mesh(CLI::App& app) {
   remesh->add_option("input", o->input, "Mesh file (repaired first when it is not a valid surface)")->required();
   add_quantity_option(*remesh, "--edge", o->edge_m, "Target edge length", "length")->required();
   remesh->add_option("-o,--output", o->output, "Remeshed surface (.ply, .obj or .stl)")->required();
-  remesh->add_option("--iterations", o->iterations, "Remeshing iterations")->capture_default_str()->check(CLI::Range(1u, 100u));
+  remesh->add_option("--iterations", o->iterations, "Remeshing iterations")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 100u));
   add_unit_option(*remesh, *o);
-  remesh->add_option("--max-hole", o->max_hole_edges, "When the input needs repair: fill holes of at most this many "
-                                                     "boundary edges")->capture_default_str();
+  remesh
+      ->add_option("--max-hole", o->max_hole_edges,
+                   "When the input needs repair: fill holes of at most this many "
+                   "boundary edges")
+      ->capture_default_str();
   remesh->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
   add_examples(*remesh, {"pneuma mesh remesh patient.stl --edge 3mm -o remeshed.ply",
                          "pneuma mesh remesh repaired.ply --edge 1.5mm --iterations 5 -o fine.ply"});
@@ -215,17 +229,22 @@ void register_mesh(CLI::App& app) {
                       "Morphological closing radius: gaps between lobes, narrow tunnels (default 1.5 mm; grows up to "
                       "6 mm while the surface has handles)",
                       "length");
-  labels->add_option("-o,--output", o->output, "Surface (.ply, .obj or .stl, millimetres); a provenance record is "
-                                               "written beside it (<output>.provenance.txt)")
+  labels
+      ->add_option("-o,--output", o->output,
+                   "Surface (.ply, .obj or .stl, millimetres); a provenance record is "
+                   "written beside it (<output>.provenance.txt)")
       ->required();
   labels->add_flag("--ascii", o->ascii, "ASCII PLY or STL instead of binary");
   add_examples(*labels, {"pneuma mesh from-labels lobes.nii.gz --labels 3,4,5 -o right.stl",
                          "pneuma mesh from-labels lobes.nii.gz --labels 1,2 --edge 1mm --smooth 0.5mm -o left.ply"});
   labels->callback([o] {
-    if (!(o->from_labels.edge_length_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '2 mm'");
+    if (!(o->from_labels.edge_length_m > 0.0))
+      throw UsageError("pneuma: --edge: must be a positive length such as '2 mm'");
     if (o->from_labels.smoothing_m < 0.0) throw UsageError("pneuma: --smooth: must be a length >= 0 such as '1 mm'");
-    if (o->from_labels.closing_radius_m < 0.0) throw UsageError("pneuma: --closing: must be a length >= 0 such as '1.5 mm'");
-    o->from_labels.max_closing_radius_m = std::max(o->from_labels.max_closing_radius_m, o->from_labels.closing_radius_m);
+    if (o->from_labels.closing_radius_m < 0.0)
+      throw UsageError("pneuma: --closing: must be a length >= 0 such as '1.5 mm'");
+    o->from_labels.max_closing_radius_m =
+        std::max(o->from_labels.max_closing_radius_m, o->from_labels.closing_radius_m);
     run_from_labels(*o);
   });
 }

@@ -17,9 +17,11 @@ std::string compact(std::string text) {
 
 CLI::Option* add_quantity_option(CLI::App& command, const std::string& name, double& value_si,
                                  const std::string& description, const char* kind_name) {
-  static const std::pair<const char*, const units::Kind*> kKinds[] = {
-      {"length", &units::kind::length}, {"duration", &units::kind::duration}, {"rate", &units::kind::rate},
-      {"pressure", &units::kind::pressure}, {"volume", &units::kind::volume}};
+  static const std::pair<const char*, const units::Kind*> kKinds[] = {{"length", &units::kind::length},
+                                                                      {"duration", &units::kind::duration},
+                                                                      {"rate", &units::kind::rate},
+                                                                      {"pressure", &units::kind::pressure},
+                                                                      {"volume", &units::kind::volume}};
   const units::Kind* kind = nullptr;
   for (const auto& [n, k] : kKinds) {
     if (std::string(n) == kind_name) kind = k;

@@ -2,15 +2,15 @@
 #include <fmt/format.h>
 
 #include <map>
-#include <optional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "commands.h"
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/mesh/io/mesh_io.h"
 
 namespace pneuma::cli {
 namespace {
@@ -27,7 +27,8 @@ void run_phantom(const PhantomCliOptions& o) {
   const double unit = mesh::parse_length_unit(o.unit);
   if (!(o.edge_m >= 1e-4)) throw UsageError("pneuma: --edge: must be at least 0.1 mm");
   mesh::format_for_path(o.output, o.ascii);
-  const std::map<std::string, std::optional<mesh::Lung>> lungs{{"right", mesh::Lung::right}, {"left", mesh::Lung::left}, {"both", mesh::kBothLungs}};
+  const std::map<std::string, std::optional<mesh::Lung>> lungs{
+      {"right", mesh::Lung::right}, {"left", mesh::Lung::left}, {"both", mesh::kBothLungs}};
   const auto lung = lungs.find(o.lung);
   if (lung == lungs.end()) throw UsageError("pneuma: --lung: expected left, right or both, got '" + o.lung + "'");
   const mesh::TriangleMesh m = mesh::make_lung_phantom({.lung = lung->second, .edge_length_m = o.edge_m});

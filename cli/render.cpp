@@ -63,7 +63,8 @@ void run_info(render::GlBackend gl) {
 void run_render(const RenderCliOptions& o) {
   if (o.info) return run_info(o.gl);
   if (o.compare.empty()) {
-    throw UsageError("pneuma render: give --compare A.png B.png or --info (rendering a scenario comes with the runner)");
+    throw UsageError(
+        "pneuma render: give --compare A.png B.png or --info (rendering a scenario comes with the runner)");
   }
   run_compare(o);
 }
@@ -78,7 +79,8 @@ void register_render(CLI::App& app) {
       ->expected(2)
       ->type_name("A.png B.png");
   cmd->add_option("--diff", options->diff, "With --compare: write a difference image (differing pixels in red)");
-  cmd->add_option("--threshold", options->threshold, "With --compare: a pixel differs when a channel differs by more than this (0-255)")
+  cmd->add_option("--threshold", options->threshold,
+                  "With --compare: a pixel differs when a channel differs by more than this (0-255)")
       ->check(CLI::Range(0, 255))
       ->capture_default_str();
   cmd->add_option_function<std::string>(

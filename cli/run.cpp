@@ -2,9 +2,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <vector>
-#include <utility>
 #include <filesystem>
+#include <utility>
+#include <vector>
 
 #include "commands.h"
 #include "pneuma/runner/output_registry.h"
@@ -29,7 +29,8 @@ void run_command(const RunCommandOptions& o) {
   const runner::RunResult r = runner::run_scenario(scenario, options);
   if (o.quiet) return;
   fmt::print("{}: {} frames at {} Hz over {} s, mesh of {} vertices, field {}\n", scenario.name, r.frame_count,
-             scenario.frame_rate_hz, scenario.duration_s, r.vertex_count, r.field_reused ? "reused from cache" : "computed");
+             scenario.frame_rate_hz, scenario.duration_s, r.vertex_count,
+             r.field_reused ? "reused from cache" : "computed");
   fmt::print("scale s from {:.4g} to {:.4g} area units\n", r.min_scale, r.max_scale);
   for (const auto& [stage, seconds] : r.timings_s) fmt::print("  {:<26} {:8.3f} s\n", stage, seconds);
   // Files at the top level one by one; a folder (png/, frames/) as one line with its count.

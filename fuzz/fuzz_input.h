@@ -19,10 +19,11 @@ inline std::filesystem::path input_file(const std::string& extension) {
   return dir / ("pneuma-fuzz-" + std::to_string(::getpid()) + extension);
 }
 
-inline const std::filesystem::path& write_input(const std::uint8_t* data, std::size_t size, const std::string& extension) {
+inline const std::filesystem::path& write_input(const std::uint8_t* data, std::size_t size,
+                                                const std::string& extension) {
   static const std::filesystem::path path = input_file(extension);
-  std::ofstream(path, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(data),
-                                                                 static_cast<std::streamsize>(size));
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
   return path;
 }
 

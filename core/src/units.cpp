@@ -13,24 +13,37 @@ struct Atom {
   Dimension dimension;
 };
 
-constexpr Dimension kLength{1, 0, 0}, kVolume{3, 0, 0}, kTime{0, 0, 1}, kMass{0, 1, 0},
-    kPressure{-1, 1, -2}, kFrequency{0, 0, -1}, kForce{1, 1, -2}, kNone{0, 0, 0};
+constexpr Dimension kLength{1, 0, 0}, kVolume{3, 0, 0}, kTime{0, 0, 1}, kMass{0, 1, 0}, kPressure{-1, 1, -2},
+    kFrequency{0, 0, -1}, kForce{1, 1, -2}, kNone{0, 0, 0};
 
 // Symbols are case-sensitive, as in SI ("mL" is not "ML"); "l" is accepted beside "L".
 constexpr std::array kAtoms{
-    Atom{"m", 1.0, kLength},          Atom{"cm", 1e-2, kLength},
-    Atom{"mm", 1e-3, kLength},        Atom{"um", 1e-6, kLength},
-    Atom{"L", 1e-3, kVolume},         Atom{"l", 1e-3, kVolume},
-    Atom{"mL", 1e-6, kVolume},        Atom{"ml", 1e-6, kVolume},
-    Atom{"dL", 1e-4, kVolume},        Atom{"cc", 1e-6, kVolume},
-    Atom{"s", 1.0, kTime},            Atom{"ms", 1e-3, kTime},
-    Atom{"min", 60.0, kTime},         Atom{"h", 3600.0, kTime},
-    Atom{"Hz", 1.0, kFrequency},      Atom{"bpm", 1.0 / 60.0, kFrequency},
-    Atom{"Pa", 1.0, kPressure},       Atom{"hPa", 100.0, kPressure},
-    Atom{"kPa", 1e3, kPressure},      Atom{"MPa", 1e6, kPressure},
-    Atom{"cmH2O", pa_per_cmh2o, kPressure}, Atom{"mmHg", 133.322387415, kPressure},
-    Atom{"mbar", 100.0, kPressure},   Atom{"kg", 1.0, kMass},
-    Atom{"g", 1e-3, kMass},           Atom{"N", 1.0, kForce},
+    Atom{"m", 1.0, kLength},
+    Atom{"cm", 1e-2, kLength},
+    Atom{"mm", 1e-3, kLength},
+    Atom{"um", 1e-6, kLength},
+    Atom{"L", 1e-3, kVolume},
+    Atom{"l", 1e-3, kVolume},
+    Atom{"mL", 1e-6, kVolume},
+    Atom{"ml", 1e-6, kVolume},
+    Atom{"dL", 1e-4, kVolume},
+    Atom{"cc", 1e-6, kVolume},
+    Atom{"s", 1.0, kTime},
+    Atom{"ms", 1e-3, kTime},
+    Atom{"min", 60.0, kTime},
+    Atom{"h", 3600.0, kTime},
+    Atom{"Hz", 1.0, kFrequency},
+    Atom{"bpm", 1.0 / 60.0, kFrequency},
+    Atom{"Pa", 1.0, kPressure},
+    Atom{"hPa", 100.0, kPressure},
+    Atom{"kPa", 1e3, kPressure},
+    Atom{"MPa", 1e6, kPressure},
+    Atom{"cmH2O", pa_per_cmh2o, kPressure},
+    Atom{"mmHg", 133.322387415, kPressure},
+    Atom{"mbar", 100.0, kPressure},
+    Atom{"kg", 1.0, kMass},
+    Atom{"g", 1e-3, kMass},
+    Atom{"N", 1.0, kForce},
     Atom{"%", 1e-2, kNone},
 };
 
@@ -42,8 +55,8 @@ std::string_view trim(std::string_view s) {
 
 [[noreturn]] void fail(const Kind& kind, std::string_view text) {
   std::string article = std::string("aeiou").find(kind.name[0]) != std::string::npos ? "an " : "a ";
-  throw UnitError("expected " + article + kind.name + " such as '" + kind.example + "', got '" +
-                  std::string(text) + "'");
+  throw UnitError("expected " + article + kind.name + " such as '" + kind.example + "', got '" + std::string(text) +
+                  "'");
 }
 
 // Parses one "atom[^power]" factor; returns false when it is not a known unit.
@@ -114,8 +127,8 @@ double parse_ratio(std::string_view text) {
   double x = 0, y = 0;
   auto ra = std::from_chars(a.data(), a.data() + a.size(), x);
   auto rb = std::from_chars(b.data(), b.data() + b.size(), y);
-  if (ra.ec != std::errc() || ra.ptr != a.data() + a.size() || rb.ec != std::errc() ||
-      rb.ptr != b.data() + b.size() || !(x > 0) || !(y > 0) || !std::isfinite(x) || !std::isfinite(y))
+  if (ra.ec != std::errc() || ra.ptr != a.data() + a.size() || rb.ec != std::errc() || rb.ptr != b.data() + b.size() ||
+      !(x > 0) || !(y > 0) || !std::isfinite(x) || !std::isfinite(y))
     return bad();
   return x / y;
 }

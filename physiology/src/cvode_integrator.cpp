@@ -12,8 +12,7 @@ void keep_message(int, const char*, const char* function, char* message, void* s
 
 }  // namespace
 
-CvodeIntegrator::CvodeIntegrator(int size, CVRhsFn rhs, void* user_data, const SolverOptions& options)
-    : size_(size) {
+CvodeIntegrator::CvodeIntegrator(int size, CVRhsFn rhs, void* user_data, const SolverOptions& options) : size_(size) {
   if (SUNContext_Create(nullptr, &context_) != 0) throw Error(ExitCode::failure, "CVODE: cannot create a context");
   state_ = N_VNew_Serial(size, context_);
   matrix_ = SUNDenseMatrix(size, size, context_);
@@ -40,8 +39,8 @@ CvodeIntegrator::~CvodeIntegrator() {
 
 void CvodeIntegrator::check(int flag, const char* call) const {
   if (flag < 0) {
-    throw Error(ExitCode::failure, std::string("CVODE failed in ") + call + " (" + CVodeGetReturnFlagName(flag) +
-                                       ")" + (last_error_.empty() ? "" : ": " + last_error_));
+    throw Error(ExitCode::failure, std::string("CVODE failed in ") + call + " (" + CVodeGetReturnFlagName(flag) + ")" +
+                                       (last_error_.empty() ? "" : ": " + last_error_));
   }
 }
 

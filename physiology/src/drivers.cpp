@@ -18,9 +18,9 @@ struct PlanOf {
   BreathPlan operator()(const VolumeControl& v) const {
     const double period = 1.0 / v.rate_hz;
     if (v.pause_time_s > 0.0) {
-      return BreathPlan{{Phase{v.inspiratory_time_s - v.pause_time_s, true}, Phase{v.inspiratory_time_s, true},
-                         Phase{period, false}},
-                        3};
+      return BreathPlan{
+          {Phase{v.inspiratory_time_s - v.pause_time_s, true}, Phase{v.inspiratory_time_s, true}, Phase{period, false}},
+          3};
     }
     return BreathPlan{{Phase{v.inspiratory_time_s, true}, Phase{period, false}, Phase{}}, 2};
   }
@@ -75,10 +75,12 @@ BreathPlan plan_breath(const Driver& driver) { return std::visit(PlanOf{}, drive
 Drive drive_at(const Driver& driver, int phase, double t) { return std::visit(DriveOf{phase, t}, driver); }
 
 double peep_of(const Driver& driver) {
-  return std::visit([](const auto& d) {
-    if constexpr (requires { d.peep_pa; }) return d.peep_pa;
-    else return 0.0;
-  }, driver);
+  return std::visit(
+      [](const auto& d) {
+        if constexpr (requires { d.peep_pa; }) return d.peep_pa;
+        else return 0.0;
+      },
+      driver);
 }
 
 bool is_ventilator(const Driver& driver) { return !std::holds_alternative<Spontaneous>(driver); }
@@ -89,26 +91,28 @@ const char* mode_name(const Driver& driver) {
 }
 
 void validate(const Driver& driver) {
-  std::visit([](const auto& d) {
-    require(d.rate_hz > 0.0 && std::isfinite(d.rate_hz), "the rate must be positive");
-    using T = std::decay_t<decltype(d)>;
-    if constexpr (std::is_same_v<T, Spontaneous>) {
-      require(d.ie_ratio > 0.0, "the I:E ratio must be positive");
-      require(d.amplitude_pa >= 0.0 && d.target_tidal_volume_m3 >= 0.0,
-              "the muscle pressure amplitude and tidal volume must not be negative");
-    } else {
-      require(d.peep_pa >= 0.0, "PEEP must not be negative");
-      require(d.inspiratory_time_s > 0.0 && d.inspiratory_time_s < 1.0 / d.rate_hz,
-              "the inspiratory time must be positive and shorter than one breath (60 / rate)");
-      if constexpr (std::is_same_v<T, VolumeControl>) {
-        require(d.tidal_volume_m3 > 0.0, "the tidal volume must be positive");
-        require(d.pause_time_s >= 0.0 && d.pause_time_s < d.inspiratory_time_s,
-                "the pause must be shorter than the inspiratory time");
-      } else {
-        require(d.inspiratory_pressure_pa >= 0.0, "the inspiratory pressure must not be negative");
-      }
-    }
-  }, driver);
+  std::visit(
+      [](const auto& d) {
+        require(d.rate_hz > 0.0 && std::isfinite(d.rate_hz), "the rate must be positive");
+        using T = std::decay_t<decltype(d)>;
+        if constexpr (std::is_same_v<T, Spontaneous>) {
+          require(d.ie_ratio > 0.0, "the I:E ratio must be positive");
+          require(d.amplitude_pa >= 0.0 && d.target_tidal_volume_m3 >= 0.0,
+                  "the muscle pressure amplitude and tidal volume must not be negative");
+        } else {
+          require(d.peep_pa >= 0.0, "PEEP must not be negative");
+          require(d.inspiratory_time_s > 0.0 && d.inspiratory_time_s < 1.0 / d.rate_hz,
+                  "the inspiratory time must be positive and shorter than one breath (60 / rate)");
+          if constexpr (std::is_same_v<T, VolumeControl>) {
+            require(d.tidal_volume_m3 > 0.0, "the tidal volume must be positive");
+            require(d.pause_time_s >= 0.0 && d.pause_time_s < d.inspiratory_time_s,
+                    "the pause must be shorter than the inspiratory time");
+          } else {
+            require(d.inspiratory_pressure_pa >= 0.0, "the inspiratory pressure must not be negative");
+          }
+        }
+      },
+      driver);
 }
 
 }  // namespace pneuma::physiology

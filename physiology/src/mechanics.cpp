@@ -81,7 +81,7 @@ void validate(const Mechanics& m) {
         throw ValueError("compartment '" + c.name + "': sigmoid range and width must be positive");
       if (!(s.relaxed_volume_m3 > s.lower_volume_m3 && s.relaxed_volume_m3 < s.lower_volume_m3 + s.volume_range_m3))
         throw ValueError("compartment '" + c.name +
-                                    "': the relaxed volume must lie between the sigmoid's lower volume and TLC");
+                         "': the relaxed volume must lie between the sigmoid's lower volume and TLC");
     }
   }
 }

@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <string>
 #include <limits>
 #include <map>
+#include <string>
 
 #include "cvode_integrator.h"
 #include "pneuma/core/error.h"
@@ -75,7 +75,9 @@ double total(const double* v, std::size_t n) {
 class Simulation {
  public:
   Simulation(const Protocol& protocol, const SimulationOptions& options)
-      : protocol_(protocol), options_(options), n_(protocol.settings.front().mechanics.compartments.size()),
+      : protocol_(protocol),
+        options_(options),
+        n_(protocol.settings.front().mechanics.compartments.size()),
         integrator_(static_cast<int>(n_), right_hand_side, &context_, options.solver) {}
 
   SimulationResult run() {
@@ -107,8 +109,7 @@ class Simulation {
       min_volume_ = max_volume_ = start_volume;
       if (const auto* sp = std::get_if<Spontaneous>(&protocol_.settings[setting].driver))
         breath.set_tidal_volume_m3 = sp->target_tidal_volume_m3;
-      else if (const auto* vc = std::get_if<VolumeControl>(&driver))
-        breath.set_tidal_volume_m3 = vc->tidal_volume_m3;
+      else if (const auto* vc = std::get_if<VolumeControl>(&driver)) breath.set_tidal_volume_m3 = vc->tidal_volume_m3;
       double end_inspiration_volume = start_volume;
       double peak_airway = -std::numeric_limits<double>::infinity();
       double peak_drive = -std::numeric_limits<double>::infinity();

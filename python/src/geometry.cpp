@@ -10,13 +10,13 @@
 #include "bindings.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/units.h"
-#include "pneuma/model/field_cache.h"
-#include "pneuma/frame/frame.h"
-#include "pneuma/scenario/physiology_config.h"
 #include "pneuma/field/tissue.h"
-#include "pneuma/scenario/tissue_config.h"
-#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/frame/frame.h"
 #include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/model/field_cache.h"
+#include "pneuma/scenario/physiology_config.h"
+#include "pneuma/scenario/tissue_config.h"
 
 namespace pneuma::python {
 namespace {
@@ -63,16 +63,18 @@ Field compute(const mesh::TriangleMesh& rest, const std::string& tissue_name, co
     throw ValueError(fmt::format("tolerance: expected a number between 0 and 1, got {}", tolerance));
   }
   if (!field::solver_takes_clique(options.solver, clique_hops)) {
-    throw ValueError(fmt::format("clique_hops: the {} solver takes {}, got {}", solver,
-                                 options.solver == field::SolverKind::cg ? std::string("1 only")
-                                                                          : fmt::format("1 to {}", field::kMaxCliqueHops),
-                                 clique_hops));
+    throw ValueError(fmt::format(
+        "clique_hops: the {} solver takes {}, got {}", solver,
+        options.solver == field::SolverKind::cg ? std::string("1 only") : fmt::format("1 to {}", field::kMaxCliqueHops),
+        clique_hops));
   }
-  if (!(area_unit_m2 > 0.0)) throw ValueError(fmt::format("area_unit_m2: expected a positive area, got {}", area_unit_m2));
+  if (!(area_unit_m2 > 0.0))
+    throw ValueError(fmt::format("area_unit_m2: expected a positive area, got {}", area_unit_m2));
   options.tolerance = tolerance;
   options.clique_hops = clique_hops;
   options.area_unit = area_unit_m2;
-  const field::Tissue tissue = scenario::load_tissue(scenario::tissue_file(tissue_name, scenario::default_config_dir()));
+  const field::Tissue tissue =
+      scenario::load_tissue(scenario::tissue_file(tissue_name, scenario::default_config_dir()));
   py::gil_scoped_release release;
   const field::TissueFieldInputs inputs = field::tissue_field_inputs(rest, tissue, options);
   return Field(model::field_record(rest, inputs, field::compute_field(rest, inputs)), field::body_axes(tissue));
@@ -110,16 +112,19 @@ void register_geometry(py::module_& m) {
       .def(py::init(&make_mesh), py::arg("vertices"), py::arg("triangles"),
            "Mesh(vertices, triangles): vertices (V, 3) in metres, triangles (F, 3) integer indices. Raises "
            "pneuma.ValueError for a wrong shape or an index out of range.")
-      .def_property_readonly("vertices", [](const mesh::TriangleMesh& s) { return points_to_array(s.vertices); },
-                             "(V, 3) float64, metres (a copy).")
-      .def_property_readonly("triangles", [](const mesh::TriangleMesh& s) { return triangles_to_array(s.triangles); },
-                             "(F, 3) uint32 vertex indices (a copy).")
+      .def_property_readonly(
+          "vertices", [](const mesh::TriangleMesh& s) { return points_to_array(s.vertices); },
+          "(V, 3) float64, metres (a copy).")
+      .def_property_readonly(
+          "triangles", [](const mesh::TriangleMesh& s) { return triangles_to_array(s.triangles); },
+          "(F, 3) uint32 vertex indices (a copy).")
       .def_property_readonly("vertex_count", &mesh::TriangleMesh::vertex_count, "Number of vertices V.")
       .def_property_readonly("triangle_count", &mesh::TriangleMesh::triangle_count, "Number of triangles F.")
-      .def_property_readonly("area_m2", [](const mesh::TriangleMesh& s) { return mesh::surface_area(s); },
-                             "Total surface area (m^2).")
-      .def_property_readonly("volume_m3", [](const mesh::TriangleMesh& s) { return mesh::enclosed_volume(s); },
-                             "Enclosed volume (m^3; positive for a closed, outward-oriented surface).")
+      .def_property_readonly(
+          "area_m2", [](const mesh::TriangleMesh& s) { return mesh::surface_area(s); }, "Total surface area (m^2).")
+      .def_property_readonly(
+          "volume_m3", [](const mesh::TriangleMesh& s) { return mesh::enclosed_volume(s); },
+          "Enclosed volume (m^3; positive for a closed, outward-oriented surface).")
       .def("__repr__", [](const mesh::TriangleMesh& s) {
         return fmt::format("<pneuma.Mesh {} vertices, {} triangles>", s.vertex_count(), s.triangle_count());
       });
@@ -194,36 +199,45 @@ void register_geometry(py::module_& m) {
             model::save_field(path, f.data);
           },
           py::arg("path"), "save(path): writes the field file (HDF5, docs/formats.md) atomically.")
-      .def_property_readonly("mesh", [](const Field& f) { return f.data.rest; }, "The rest Mesh (a copy).")
-      .def_property_readonly("vertices", [](const Field& f) { return points_to_array(f.data.rest.vertices); },
-                             "Rest vertices (V, 3) float64, metres.")
-      .def_property_readonly("triangles", [](const Field& f) { return triangles_to_array(f.data.rest.triangles); },
-                             "Triangles (F, 3) uint32.")
-      .def_property_readonly("unit_displacement",
-                             [](const Field& f) { return points_to_array(f.data.unit_displacement); },
-                             "u (V, 3) float64: metres per unit of scale (one area unit of area increase).")
-      .def_property_readonly("force", [](const Field& f) { return column(f.data.force); },
-                             "F per vertex for a unit load (V,) float64.")
-      .def_property_readonly("shear_modulus_pa", [](const Field& f) { return column(f.data.shear_modulus_pa); },
-                             "The tissue's shear modulus per vertex (V,) float64, Pa.")
-      .def_property_readonly("area_unit_m2", [](const Field& f) { return f.data.metadata.area_unit_m2; },
-                             "The area unit s counts (m^2).")
-      .def_property_readonly("metadata", [](const Field& f) { return metadata_dict(f.data.metadata); },
-                             "dict: key, pneuma_version, tissue, solver, tolerance, clique_hops, path_rule, "
-                             "area_unit_m2, shots, iterations, residual.")
-      .def_property_readonly("rest_volume_m3", [](const Field& f) { return f.model->volume_map.volume(0.0); },
-                             "Enclosed volume of the rest mesh (m^3).")
-      .def_property_readonly("rest_area_m2", [](const Field& f) { return f.model->rest_area_m2; },
-                             "Surface area of the rest mesh (m^2).")
-      .def_property_readonly("volume_coefficients",
-                             [](const Field& f) { return f.model->volume_map.coefficients(); },
-                             "(c0, c1, c2, c3): the enclosed volume V(s) = c0 + c1 s + c2 s^2 + c3 s^3 in m^3.")
+      .def_property_readonly(
+          "mesh", [](const Field& f) { return f.data.rest; }, "The rest Mesh (a copy).")
+      .def_property_readonly(
+          "vertices", [](const Field& f) { return points_to_array(f.data.rest.vertices); },
+          "Rest vertices (V, 3) float64, metres.")
+      .def_property_readonly(
+          "triangles", [](const Field& f) { return triangles_to_array(f.data.rest.triangles); },
+          "Triangles (F, 3) uint32.")
+      .def_property_readonly(
+          "unit_displacement", [](const Field& f) { return points_to_array(f.data.unit_displacement); },
+          "u (V, 3) float64: metres per unit of scale (one area unit of area increase).")
+      .def_property_readonly(
+          "force", [](const Field& f) { return column(f.data.force); }, "F per vertex for a unit load (V,) float64.")
+      .def_property_readonly(
+          "shear_modulus_pa", [](const Field& f) { return column(f.data.shear_modulus_pa); },
+          "The tissue's shear modulus per vertex (V,) float64, Pa.")
+      .def_property_readonly(
+          "area_unit_m2", [](const Field& f) { return f.data.metadata.area_unit_m2; }, "The area unit s counts (m^2).")
+      .def_property_readonly(
+          "metadata", [](const Field& f) { return metadata_dict(f.data.metadata); },
+          "dict: key, pneuma_version, tissue, solver, tolerance, clique_hops, path_rule, "
+          "area_unit_m2, shots, iterations, residual.")
+      .def_property_readonly(
+          "rest_volume_m3", [](const Field& f) { return f.model->volume_map.volume(0.0); },
+          "Enclosed volume of the rest mesh (m^3).")
+      .def_property_readonly(
+          "rest_area_m2", [](const Field& f) { return f.model->rest_area_m2; }, "Surface area of the rest mesh (m^2).")
+      .def_property_readonly(
+          "volume_coefficients", [](const Field& f) { return f.model->volume_map.coefficients(); },
+          "(c0, c1, c2, c3): the enclosed volume V(s) = c0 + c1 s + c2 s^2 + c3 s^3 in m^3.")
       .def_property_readonly(
           "scale_range",
           [](const Field& f) { return std::pair(f.model->volume_map.min_scale(), f.model->volume_map.max_scale()); },
           "(min, max): the scales around 0 on which V(s) increases (infinite where it always does).")
       .def(
-          "volume_mL", [](const Field& f, double scale) { return (f.model->volume_map.volume(scale) - f.model->volume_map.volume(0.0)) * kMlPerM3; },
+          "volume_mL",
+          [](const Field& f, double scale) {
+            return (f.model->volume_map.volume(scale) - f.model->volume_map.volume(0.0)) * kMlPerM3;
+          },
           py::arg("scale"), "volume_mL(scale) -> float: enclosed volume of rest + scale * u minus the rest volume, mL.")
       .def("scale_for", &Field::scale_for, py::arg("volume_mL"),
            "scale_for(volume_mL) -> float: the scale s whose frame encloses the rest volume plus volume_mL "

@@ -50,11 +50,12 @@ void register_errors(py::module_& m) {
       "was expected); e.exit_code is the exit code the CLI would return (1-5, README.md).",
       PyExc_Exception);
   error_types.input = new_error_type(m, "InputError", "A bad input file or value (exit code 3).", error_types.error);
-  error_types.io = new_error_type(m, "IoError", "A file that cannot be read or written (exit code 4).", error_types.error);
+  error_types.io =
+      new_error_type(m, "IoError", "A file that cannot be read or written (exit code 4).", error_types.error);
   error_types.usage = new_error_type(m, "UsageError", "A bad option (exit code 2).", error_types.error);
   error_types.unsupported = new_error_type(
-      m, "UnsupportedError", "Valid input that pneuma cannot handle, e.g. a volume the field cannot reach (exit code 5).",
-      error_types.error);
+      m, "UnsupportedError",
+      "Valid input that pneuma cannot handle, e.g. a volume the field cannot reach (exit code 5).", error_types.error);
   py::tuple value_bases = py::make_tuple(py::handle(error_types.error), py::handle(PyExc_ValueError));
   error_types.value = new_error_type(
       m, "ValueError", "A value a function cannot take (exit code 3); also a builtin ValueError.", value_bases.ptr());
@@ -90,7 +91,8 @@ py::array_t<std::uint32_t> triangles_to_array(const std::vector<mesh::Triangle>&
   py::array_t<std::uint32_t> out({static_cast<py::ssize_t>(triangles.size()), py::ssize_t{3}});
   auto view = out.mutable_unchecked<2>();
   for (std::size_t i = 0; i < triangles.size(); ++i) {
-    for (py::ssize_t k = 0; k < 3; ++k) view(static_cast<py::ssize_t>(i), k) = triangles[i][static_cast<std::size_t>(k)];
+    for (py::ssize_t k = 0; k < 3; ++k)
+      view(static_cast<py::ssize_t>(i), k) = triangles[i][static_cast<std::size_t>(k)];
   }
   return out;
 }
@@ -113,7 +115,8 @@ std::vector<Eigen::Vector3d> array_to_points(const py::handle& array, const char
   }
   const auto view = a.unchecked<2>();
   std::vector<Eigen::Vector3d> points(static_cast<std::size_t>(a.shape(0)));
-  for (py::ssize_t i = 0; i < a.shape(0); ++i) points[static_cast<std::size_t>(i)] = {view(i, 0), view(i, 1), view(i, 2)};
+  for (py::ssize_t i = 0; i < a.shape(0); ++i)
+    points[static_cast<std::size_t>(i)] = {view(i, 0), view(i, 1), view(i, 2)};
   return points;
 }
 
@@ -145,9 +148,8 @@ std::vector<mesh::Triangle> array_to_triangles(const py::handle& array, std::siz
 
 PYBIND11_MODULE(_pneuma, m) {
   namespace pp = pneuma::python;
-  m.doc() =
-      "pneuma: breathing 3D lungs. Lumped physiology (CVODE) gives the lung volume V(t); a precomputed "
-      "elastostatic field u moves the rest mesh: frame = rest + s(V) * u. See docs/python.md.";
+  m.doc() = "pneuma: breathing 3D lungs. Lumped physiology (CVODE) gives the lung volume V(t); a precomputed "
+            "elastostatic field u moves the rest mesh: frame = rest + s(V) * u. See docs/python.md.";
   m.attr("__version__") = PNEUMA_VERSION;
   pp::register_errors(m);
   pp::register_geometry(m);

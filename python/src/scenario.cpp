@@ -43,8 +43,8 @@ YAML::Node to_yaml(const py::handle& value, const std::string& path) {
     YAML::Node map(YAML::NodeType::Map);
     for (const auto& [key, item] : value.cast<py::dict>()) {
       if (!py::isinstance<py::str>(key)) {
-        throw ValueError(fmt::format("{}: {}: expected string keys, got {}", kDictName, path.empty() ? "scenario" : path,
-                                     py::repr(key).cast<std::string>()));
+        throw ValueError(fmt::format("{}: {}: expected string keys, got {}", kDictName,
+                                     path.empty() ? "scenario" : path, py::repr(key).cast<std::string>()));
       }
       const std::string name = key.cast<std::string>();
       map[name] = to_yaml(item, path.empty() ? name : path + "." + name);
@@ -125,7 +125,8 @@ Simulation to_python(const physiology::SimulationResult& r) {
   out.breaths["duration_s"] = field([](const auto& x) { return x.duration_s; }, 1.0);
   out.breaths["mode"] = py::module_::import("numpy").attr("array")(modes, "str");
   out.breaths["tidal_volume_mL"] = field([](const auto& x) { return x.tidal_volume_m3; }, kMl);
-  out.breaths["minute_ventilation_L_per_min"] = field([](const auto& x) { return x.minute_ventilation_m3_per_s; }, kLitre * 60.0);
+  out.breaths["minute_ventilation_L_per_min"] =
+      field([](const auto& x) { return x.minute_ventilation_m3_per_s; }, kLitre * 60.0);
   out.breaths["peak_pressure_cmH2O"] = field([](const auto& x) { return x.peak_pressure_pa; }, kCmH2O);
   out.breaths["plateau_pressure_cmH2O"] = field([](const auto& x) { return x.plateau_pressure_pa; }, kCmH2O);
   out.breaths["peep_cmH2O"] = field([](const auto& x) { return x.peep_pa; }, kCmH2O);
@@ -134,8 +135,8 @@ Simulation to_python(const physiology::SimulationResult& r) {
   out.breaths["end_expiratory_volume_mL"] = field([](const auto& x) { return x.end_expiratory_volume_m3; }, kMl);
   out.breaths["muscle_amplitude_cmH2O"] = field([](const auto& x) { return x.muscle_amplitude_pa; }, kCmH2O);
   out.breaths["inspired_volume_mL"] = field([](const auto& x) { return x.inspired_volume_m3; }, kMl);
-  out.breaths["set_tidal_volume_mL"] = field(
-      [](const auto& x) { return x.set_tidal_volume_m3 > 0.0 ? x.set_tidal_volume_m3 : std::nan(""); }, kMl);
+  out.breaths["set_tidal_volume_mL"] =
+      field([](const auto& x) { return x.set_tidal_volume_m3 > 0.0 ? x.set_tidal_volume_m3 : std::nan(""); }, kMl);
   return out;
 }
 
@@ -161,7 +162,8 @@ struct Animation {
   // The frame whose time is nearest to t (frames are 1 / frame_rate apart).
   std::size_t index_at(double t) const {
     if (!(t >= time_s.front() - 1e-9 && t <= time_s.back() + 1e-9)) {
-      throw ValueError(fmt::format("time_s: expected a time from {:g} to {:g} s, got {:g}", time_s.front(), time_s.back(), t));
+      throw ValueError(
+          fmt::format("time_s: expected a time from {:g} to {:g} s, got {:g}", time_s.front(), time_s.back(), t));
     }
     const auto it = std::lower_bound(time_s.begin(), time_s.end(), t);
     std::size_t k = static_cast<std::size_t>(it - time_s.begin());
@@ -175,7 +177,8 @@ Animation make_animation(const scenario::Scenario& given, const std::optional<st
   Animation a;
   a.scenario = given;
   // No output folder: the field is computed (or read from an explicit cache file), not cached in one.
-  if (!output_dir && a.scenario.field.cache == scenario::FieldCache::automatic) a.scenario.field.cache = scenario::FieldCache::off;
+  if (!output_dir && a.scenario.field.cache == scenario::FieldCache::automatic)
+    a.scenario.field.cache = scenario::FieldCache::off;
   model::CompileOptions options;
   if (output_dir) options.output_dir = *output_dir;
   options.edge_override_m = edge_m;
@@ -194,24 +197,26 @@ Animation make_animation(const scenario::Scenario& given, const std::optional<st
 
 void register_scenario(py::module_& m) {
   py::class_<ScenarioHandle>(m, "Scenario",
-                               "A checked scenario (units converted, presets applied). Made by load_scenario(); "
-                               "simulate(), run() and Animation() take one, a dict or a path.")
-      .def_property_readonly("file", [](const ScenarioHandle& h) { return h.scenario.file.string(); },
-                             "The YAML file it came from ('<dict>' for a dict).")
-      .def_property_readonly("name", [](const ScenarioHandle& h) { return h.scenario.name; },
-                             "`name`, else the file's stem.")
-      .def_property_readonly("description", [](const ScenarioHandle& h) { return h.scenario.description; },
-                             "`description`.")
-      .def_property_readonly("duration_s", [](const ScenarioHandle& h) { return h.scenario.duration_s; },
-                             "`duration`, seconds.")
-      .def_property_readonly("frame_rate_hz", [](const ScenarioHandle& h) { return h.scenario.frame_rate_hz; },
-                             "`frames.rate`, Hz.")
-      .def_property_readonly("output_rate_hz",
-                             [](const ScenarioHandle& h) { return h.scenario.physiology.options.output_rate_hz; },
-                             "`physiology.output_rate`, Hz: the rate of simulate()'s time series.")
-      .def_property_readonly("yaml", [](const ScenarioHandle& h) { return h.yaml; },
-                             "For a scenario made from a dict, the YAML it stands for (run() writes it to "
-                             "<output_dir>/scenario.yaml); empty for a file.")
+                             "A checked scenario (units converted, presets applied). Made by load_scenario(); "
+                             "simulate(), run() and Animation() take one, a dict or a path.")
+      .def_property_readonly(
+          "file", [](const ScenarioHandle& h) { return h.scenario.file.string(); },
+          "The YAML file it came from ('<dict>' for a dict).")
+      .def_property_readonly(
+          "name", [](const ScenarioHandle& h) { return h.scenario.name; }, "`name`, else the file's stem.")
+      .def_property_readonly(
+          "description", [](const ScenarioHandle& h) { return h.scenario.description; }, "`description`.")
+      .def_property_readonly(
+          "duration_s", [](const ScenarioHandle& h) { return h.scenario.duration_s; }, "`duration`, seconds.")
+      .def_property_readonly(
+          "frame_rate_hz", [](const ScenarioHandle& h) { return h.scenario.frame_rate_hz; }, "`frames.rate`, Hz.")
+      .def_property_readonly(
+          "output_rate_hz", [](const ScenarioHandle& h) { return h.scenario.physiology.options.output_rate_hz; },
+          "`physiology.output_rate`, Hz: the rate of simulate()'s time series.")
+      .def_property_readonly(
+          "yaml", [](const ScenarioHandle& h) { return h.yaml; },
+          "For a scenario made from a dict, the YAML it stands for (run() writes it to "
+          "<output_dir>/scenario.yaml); empty for a file.")
       .def("__repr__", [](const ScenarioHandle& h) {
         return fmt::format("<pneuma.Scenario '{}' from {}, {} s>", h.scenario.name, h.scenario.file.string(),
                            h.scenario.duration_s);
@@ -228,19 +233,26 @@ void register_scenario(py::module_& m) {
   py::class_<Simulation>(m, "Simulation",
                          "The physiology of a scenario: time series (numpy arrays in the physiology CSV's columns "
                          "and units) and the per-breath table.")
-      .def_property_readonly("time_s", [](const Simulation& s) { return s.columns["time_s"]; }, "(n,) seconds.")
-      .def_property_readonly("volume_mL", [](const Simulation& s) { return s.columns["volume_mL"]; },
-                             "(n,) lung volume above the relaxed volume (FRC at zero pressure), mL.")
-      .def_property_readonly("flow_L_per_s", [](const Simulation& s) { return s.columns["flow_L_per_s"]; },
-                             "(n,) flow into the lung, L/s.")
-      .def_property_readonly("airway_pressure_cmH2O", [](const Simulation& s) { return s.columns["airway_pressure_cmH2O"]; },
-                             "(n,) cmH2O.")
-      .def_property_readonly("alveolar_pressure_cmH2O",
-                             [](const Simulation& s) { return s.columns["alveolar_pressure_cmH2O"]; }, "(n,) cmH2O.")
-      .def_property_readonly("pleural_pressure_cmH2O",
-                             [](const Simulation& s) { return s.columns["pleural_pressure_cmH2O"]; }, "(n,) cmH2O.")
-      .def_property_readonly("muscle_pressure_cmH2O",
-                             [](const Simulation& s) { return s.columns["muscle_pressure_cmH2O"]; }, "(n,) cmH2O.")
+      .def_property_readonly(
+          "time_s", [](const Simulation& s) { return s.columns["time_s"]; }, "(n,) seconds.")
+      .def_property_readonly(
+          "volume_mL", [](const Simulation& s) { return s.columns["volume_mL"]; },
+          "(n,) lung volume above the relaxed volume (FRC at zero pressure), mL.")
+      .def_property_readonly(
+          "flow_L_per_s", [](const Simulation& s) { return s.columns["flow_L_per_s"]; },
+          "(n,) flow into the lung, L/s.")
+      .def_property_readonly(
+          "airway_pressure_cmH2O", [](const Simulation& s) { return s.columns["airway_pressure_cmH2O"]; },
+          "(n,) cmH2O.")
+      .def_property_readonly(
+          "alveolar_pressure_cmH2O", [](const Simulation& s) { return s.columns["alveolar_pressure_cmH2O"]; },
+          "(n,) cmH2O.")
+      .def_property_readonly(
+          "pleural_pressure_cmH2O", [](const Simulation& s) { return s.columns["pleural_pressure_cmH2O"]; },
+          "(n,) cmH2O.")
+      .def_property_readonly(
+          "muscle_pressure_cmH2O", [](const Simulation& s) { return s.columns["muscle_pressure_cmH2O"]; },
+          "(n,) cmH2O.")
       .def_readonly("columns", &Simulation::columns,
                     "dict of every time series by its physiology.csv column name (time_s, volume_mL, flow_L_per_s, "
                     "<airway|alveolar|pleural|muscle>_pressure_cmH2O, and volume_<compartment>_mL for two or more "
@@ -251,14 +263,18 @@ void register_scenario(py::module_& m) {
                     "plateau_pressure_cmH2O, peep_cmH2O, dynamic_compliance_mL_per_cmH2O, end_expiratory_volume_mL, "
                     "muscle_amplitude_cmH2O, inspired_volume_mL, set_tidal_volume_mL (NaN: none set).")
       .def_readonly("compartments", &Simulation::compartments, "Compartment names.")
-      .def_property_readonly("solver_stats", [](const Simulation& s) {
-        py::dict d;
-        d["steps"] = s.stats.steps;
-        d["rhs_evaluations"] = s.stats.rhs_evaluations;
-        d["restarts"] = s.stats.restarts;
-        return d;
-      }, "dict: CVODE steps, rhs_evaluations, restarts.")
-      .def("__len__", [](const Simulation& s) { return py::len(s.columns["time_s"]); }, "Number of samples.")
+      .def_property_readonly(
+          "solver_stats",
+          [](const Simulation& s) {
+            py::dict d;
+            d["steps"] = s.stats.steps;
+            d["rhs_evaluations"] = s.stats.rhs_evaluations;
+            d["restarts"] = s.stats.restarts;
+            return d;
+          },
+          "dict: CVODE steps, rhs_evaluations, restarts.")
+      .def(
+          "__len__", [](const Simulation& s) { return py::len(s.columns["time_s"]); }, "Number of samples.")
       .def("__repr__", [](const Simulation& s) {
         return fmt::format("<pneuma.Simulation {} samples, {} breaths>", py::len(s.columns["time_s"]),
                            py::len(s.breaths["breath"]));
@@ -285,16 +301,22 @@ void register_scenario(py::module_& m) {
       "Raises pneuma.InputError for a bad scenario, pneuma.Error when the solver fails.");
 
   py::class_<runner::RunResult>(m, "RunResult", "What run() did: files written, counts, scales and timings.")
-      .def_property_readonly("files", [](const runner::RunResult& r) {
-        std::vector<std::string> files;
-        for (const auto& f : r.files) files.push_back(f.generic_string());
-        return files;
-      }, "Files written, relative to the output folder, manifest.json last.")
-      .def_property_readonly("timings_s", [](const runner::RunResult& r) {
-        py::dict d;
-        for (const auto& [stage, seconds] : r.timings_s) d[py::str(stage)] = seconds;
-        return d;
-      }, "dict: seconds per stage, in order.")
+      .def_property_readonly(
+          "files",
+          [](const runner::RunResult& r) {
+            std::vector<std::string> files;
+            for (const auto& f : r.files) files.push_back(f.generic_string());
+            return files;
+          },
+          "Files written, relative to the output folder, manifest.json last.")
+      .def_property_readonly(
+          "timings_s",
+          [](const runner::RunResult& r) {
+            py::dict d;
+            for (const auto& [stage, seconds] : r.timings_s) d[py::str(stage)] = seconds;
+            return d;
+          },
+          "dict: seconds per stage, in order.")
       .def_readonly("frame_count", &runner::RunResult::frame_count, "Frames written.")
       .def_readonly("vertex_count", &runner::RunResult::vertex_count, "Vertices of the mesh.")
       .def_readonly("field_reused", &runner::RunResult::field_reused, "True when the field came from the cache.")
@@ -306,9 +328,11 @@ void register_scenario(py::module_& m) {
 
   m.def(
       "run",
-      [](const py::handle& scenario, const std::filesystem::path& output_dir, bool quiet, std::optional<double> edge_m) {
+      [](const py::handle& scenario, const std::filesystem::path& output_dir, bool quiet,
+         std::optional<double> edge_m) {
         ScenarioHandle h = to_scenario(scenario);
-        if (edge_m && !(*edge_m > 0.0)) throw ValueError(fmt::format("edge_m: expected a positive length, got {}", *edge_m));
+        if (edge_m && !(*edge_m > 0.0))
+          throw ValueError(fmt::format("edge_m: expected a positive length, got {}", *edge_m));
         py::gil_scoped_release release;
         if (!h.yaml.empty()) {
           // The manifest records and checksums the scenario file: a dict's is its YAML.
@@ -321,7 +345,8 @@ void register_scenario(py::module_& m) {
         options.edge_override_m = edge_m;
         return runner::run_scenario(h.scenario, options);
       },
-      py::arg("scenario"), py::arg("output_dir"), py::kw_only(), py::arg("quiet") = true, py::arg("edge_m") = py::none(),
+      py::arg("scenario"), py::arg("output_dir"), py::kw_only(), py::arg("quiet") = true,
+      py::arg("edge_m") = py::none(),
       "run(scenario, output_dir, *, quiet=True, edge_m=None) -> RunResult\n\n"
       "Runs the whole scenario as `pneuma run` does and writes its outputs to output_dir (field.h5 cache, "
       "series.h5/.xdmf, breathing.glb, physiology.csv, ..., manifest.json); a dict scenario is first written to "
@@ -344,31 +369,40 @@ void register_scenario(py::module_& m) {
            "scenario: a Scenario, dict or path. output_dir: where the field cache (field.h5) is looked up and "
            "written as in run(); None computes the field without caching it (unless the scenario names a cache "
            "file). edge_m overrides the mesh edge length (metres).")
-      .def_property_readonly("time_s", [](const Animation& a) { return column(a.time_s); }, "(N,) frame times, s.")
-      .def_property_readonly("volume_mL", [](const Animation& a) { return column(a.lung_volume_m3, kMl); },
-                             "(N,) lung volume above FRC at each frame (physiology), mL.")
-      .def_property_readonly("scales", [](const Animation& a) { return column(a.scales); },
-                             "(N,) the scale s of each frame.")
-      .def_property_readonly("frame_count", [](const Animation& a) { return a.scales.size(); }, "N.")
-      .def_property_readonly("vertices", [](const Animation& a) { return points_to_array(a.model->rest.vertices); },
-                             "Rest vertices (V, 3), metres.")
-      .def_property_readonly("triangles", [](const Animation& a) { return triangles_to_array(a.model->rest.triangles); },
-                             "Triangles (F, 3) uint32.")
-      .def_property_readonly("unit_displacement",
-                             [](const Animation& a) { return points_to_array(a.model->unit_displacement); },
-                             "u (V, 3), metres per unit scale.")
-      .def_property_readonly("rest_volume_m3", [](const Animation& a) { return a.model->volume_map.volume(0.0); },
-                             "Enclosed volume of the rest mesh, m^3.")
-      .def_property_readonly("share", [](const Animation& a) { return a.scenario.mesh.share; },
-                             "The mesh's share of the lung volume change (mesh.share).")
-      .def_property_readonly("reference_volume_mL", [](const Animation& a) { return a.scenario.mesh.reference_volume_m3 * kMl; },
-                             "The lung volume the rest mesh shows (mesh.reference_volume), mL.")
+      .def_property_readonly(
+          "time_s", [](const Animation& a) { return column(a.time_s); }, "(N,) frame times, s.")
+      .def_property_readonly(
+          "volume_mL", [](const Animation& a) { return column(a.lung_volume_m3, kMl); },
+          "(N,) lung volume above FRC at each frame (physiology), mL.")
+      .def_property_readonly(
+          "scales", [](const Animation& a) { return column(a.scales); }, "(N,) the scale s of each frame.")
+      .def_property_readonly(
+          "frame_count", [](const Animation& a) { return a.scales.size(); }, "N.")
+      .def_property_readonly(
+          "vertices", [](const Animation& a) { return points_to_array(a.model->rest.vertices); },
+          "Rest vertices (V, 3), metres.")
+      .def_property_readonly(
+          "triangles", [](const Animation& a) { return triangles_to_array(a.model->rest.triangles); },
+          "Triangles (F, 3) uint32.")
+      .def_property_readonly(
+          "unit_displacement", [](const Animation& a) { return points_to_array(a.model->unit_displacement); },
+          "u (V, 3), metres per unit scale.")
+      .def_property_readonly(
+          "rest_volume_m3", [](const Animation& a) { return a.model->volume_map.volume(0.0); },
+          "Enclosed volume of the rest mesh, m^3.")
+      .def_property_readonly(
+          "share", [](const Animation& a) { return a.scenario.mesh.share; },
+          "The mesh's share of the lung volume change (mesh.share).")
+      .def_property_readonly(
+          "reference_volume_mL", [](const Animation& a) { return a.scenario.mesh.reference_volume_m3 * kMl; },
+          "The lung volume the rest mesh shows (mesh.reference_volume), mL.")
       .def_readonly("field_reused", &Animation::field_reused, "True when the field came from the cache.")
       .def("frame", &Animation::frame, py::arg("index"),
            "frame(index) -> (V, 3) float64: the positions of frame `index` (0 to N - 1), metres; its enclosed "
            "volume is rest_volume + share * (volume_mL[index] - reference_volume_mL).")
-      .def("frame_at_time", [](const Animation& a, double t) { return a.frame(a.index_at(t)); }, py::arg("time_s"),
-           "frame_at_time(time_s) -> (V, 3) float64: the frame nearest to time_s (frames are 1 / frame_rate apart).")
+      .def(
+          "frame_at_time", [](const Animation& a, double t) { return a.frame(a.index_at(t)); }, py::arg("time_s"),
+          "frame_at_time(time_s) -> (V, 3) float64: the frame nearest to time_s (frames are 1 / frame_rate apart).")
       .def("index_at_time", &Animation::index_at, py::arg("time_s"), "The index of the frame nearest to time_s.")
       .def("__len__", [](const Animation& a) { return a.scales.size(); })
       .def("__repr__", [](const Animation& a) {

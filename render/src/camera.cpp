@@ -47,8 +47,8 @@ Eigen::Vector3d eye_direction(CameraPreset preset) {
 
 }  // namespace
 
-Camera frame_camera(CameraPreset preset, const std::array<Eigen::Vector3d, 2>& bounds, double aspect,
-                    double fov_y_deg, double margin) {
+Camera frame_camera(CameraPreset preset, const std::array<Eigen::Vector3d, 2>& bounds, double aspect, double fov_y_deg,
+                    double margin) {
   Eigen::Vector3d lo = bounds[0], hi = bounds[1];
   if (!(lo.array() <= hi.array()).all()) {  // an empty mesh: frame a 10 cm box at the origin
     lo = Eigen::Vector3d::Constant(-0.05);
@@ -64,7 +64,8 @@ Camera frame_camera(CameraPreset preset, const std::array<Eigen::Vector3d, 2>& b
   // eye, at distance d along `back`, sees it under |x| / (d - z) <= tan_x and likewise y.
   double distance = 0.0, radius = 0.5 * (hi - lo).norm();
   for (int corner = 0; corner < 8; ++corner) {
-    const Eigen::Vector3d p((corner & 1) ? hi.x() : lo.x(), (corner & 2) ? hi.y() : lo.y(), (corner & 4) ? hi.z() : lo.z());
+    const Eigen::Vector3d p((corner & 1) ? hi.x() : lo.x(), (corner & 2) ? hi.y() : lo.y(),
+                            (corner & 4) ? hi.z() : lo.z());
     const Eigen::Vector3d q = p - centre;
     const double z = q.dot(back);
     distance = std::max({distance, z + std::abs(q.dot(right)) / tan_x, z + std::abs(q.dot(up)) / tan_y});

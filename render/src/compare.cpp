@@ -10,8 +10,9 @@ namespace pneuma::render {
 
 Difference compare(const Image& a, const Image& b, int pixel_threshold) {
   if (a.width != b.width || a.height != b.height) {
-    throw UnsupportedError("render: images differ in size: " + std::to_string(a.width) + "x" + std::to_string(a.height) +
-                           " and " + std::to_string(b.width) + "x" + std::to_string(b.height));
+    throw UnsupportedError("render: images differ in size: " + std::to_string(a.width) + "x" +
+                           std::to_string(a.height) + " and " + std::to_string(b.width) + "x" +
+                           std::to_string(b.height));
   }
   Difference d;
   d.pixel_count = a.pixel_count();

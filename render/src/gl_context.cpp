@@ -24,8 +24,7 @@ using MakeCurrentFn = GLboolean (*)(OSMesaContext, void* buffer, GLenum type, GL
 using DestroyContextFn = void (*)(OSMesaContext);
 using GetProcAddressFn = OSMesaProc (*)(const char* name);
 constexpr int kOsmesaFormat = 0x22, kOsmesaRgba = GL_RGBA, kOsmesaDepthBits = 0x30, kOsmesaStencilBits = 0x31,
-              kOsmesaProfile = 0x33, kOsmesaCoreProfile = 0x34, kOsmesaMajorVersion = 0x36,
-              kOsmesaMinorVersion = 0x37;
+              kOsmesaProfile = 0x33, kOsmesaCoreProfile = 0x34, kOsmesaMajorVersion = 0x36, kOsmesaMinorVersion = 0x37;
 
 const char* const kInstallHint = "install the libosmesa6 package (Mesa's off-screen OpenGL with llvmpipe)";
 const char* const kEglInstallHint =
@@ -59,10 +58,10 @@ using EGLint = std::int32_t;
 using EGLBoolean = unsigned int;
 using EGLenum = unsigned int;
 using EglProc = void (*)();
-constexpr EGLint kEglNone = 0x3038, kEglExtensions = 0x3055, kEglRenderableType = 0x3040,
-                 kEglOpenglBit = 0x0008, kEglSurfaceType = 0x3033, kEglPbufferBit = 0x0001,
-                 kEglContextMajorVersion = 0x3098, kEglContextMinorVersion = 0x30FB,
-                 kEglContextOpenglProfileMask = 0x30FD, kEglContextOpenglCoreProfileBit = 0x0001;
+constexpr EGLint kEglNone = 0x3038, kEglExtensions = 0x3055, kEglRenderableType = 0x3040, kEglOpenglBit = 0x0008,
+                 kEglSurfaceType = 0x3033, kEglPbufferBit = 0x0001, kEglContextMajorVersion = 0x3098,
+                 kEglContextMinorVersion = 0x30FB, kEglContextOpenglProfileMask = 0x30FD,
+                 kEglContextOpenglCoreProfileBit = 0x0001;
 constexpr EGLenum kEglOpenglApi = 0x30A2, kEglPlatformDeviceExt = 0x313F, kEglPlatformSurfacelessMesa = 0x31DD;
 
 struct Egl {
@@ -247,7 +246,8 @@ bool GlContext::try_egl(std::string& why) {
     EGLint count = 0;
     if (api.query_devices(16, devices, &count)) {
       for (EGLint i = 0; i < count; ++i) {
-        const char* extensions = api.query_device_string ? api.query_device_string(devices[i], kEglExtensions) : nullptr;
+        const char* extensions =
+            api.query_device_string ? api.query_device_string(devices[i], kEglExtensions) : nullptr;
         // Mesa lists llvmpipe as a device too; a GPU first, llvmpipe through surfaceless.
         if (has_extension(extensions, "EGL_MESA_device_software")) {
           software.push_back({kEglPlatformDeviceExt, devices[i], "EGL (software device)"});
@@ -290,8 +290,9 @@ bool GlContext::try_egl(std::string& why) {
         continue;
       }
     }
-    const EGLint context_attributes[] = {kEglContextMajorVersion, 3, kEglContextMinorVersion, 3,
-                                         kEglContextOpenglProfileMask, kEglContextOpenglCoreProfileBit, kEglNone};
+    const EGLint context_attributes[] = {
+        kEglContextMajorVersion,         3,       kEglContextMinorVersion, 3, kEglContextOpenglProfileMask,
+        kEglContextOpenglCoreProfileBit, kEglNone};
     EGLContext context = api.create_context(display, config, nullptr, context_attributes);
     if (!context) {
       why = c.name + ": no OpenGL 3.3 core context (EGL error " + egl_error_text(api) + ")";
@@ -305,8 +306,8 @@ bool GlContext::try_egl(std::string& why) {
       continue;
     }
     std::string missing;
-#define PNEUMA_GL_LOAD(type, name)                                            \
-  gl_.name = reinterpret_cast<type>(api.get_proc_address("gl" #name));        \
+#define PNEUMA_GL_LOAD(type, name)                                     \
+  gl_.name = reinterpret_cast<type>(api.get_proc_address("gl" #name)); \
   if (!gl_.name && missing.empty()) missing = "gl" #name;
     PNEUMA_GL_FUNCTIONS(PNEUMA_GL_LOAD)
 #undef PNEUMA_GL_LOAD
@@ -330,9 +331,18 @@ bool GlContext::try_egl(std::string& why) {
 void GlContext::make_osmesa() {
   const OsMesa& api = osmesa();
   backend_ = "OSMesa";
-  const int attributes[] = {kOsmesaFormat,       kOsmesaRgba,        kOsmesaDepthBits,    0,
-                            kOsmesaStencilBits,  0,                  kOsmesaProfile,      kOsmesaCoreProfile,
-                            kOsmesaMajorVersion, 3,                  kOsmesaMinorVersion, 3,
+  const int attributes[] = {kOsmesaFormat,
+                            kOsmesaRgba,
+                            kOsmesaDepthBits,
+                            0,
+                            kOsmesaStencilBits,
+                            0,
+                            kOsmesaProfile,
+                            kOsmesaCoreProfile,
+                            kOsmesaMajorVersion,
+                            3,
+                            kOsmesaMinorVersion,
+                            3,
                             0};
   context_ = api.create_context(attributes, nullptr);
   if (!context_) no_context(api.library + " could not create an OpenGL 3.3 core context");
@@ -342,11 +352,11 @@ void GlContext::make_osmesa() {
   }
   bool complete = true;
   std::string missing;
-#define PNEUMA_GL_LOAD(type, name)                                                     \
-  gl_.name = reinterpret_cast<type>(api.get_proc_address("gl" #name));                 \
-  if (!gl_.name && complete) {                                                          \
-    complete = false;                                                                   \
-    missing = "gl" #name;                                                               \
+#define PNEUMA_GL_LOAD(type, name)                                     \
+  gl_.name = reinterpret_cast<type>(api.get_proc_address("gl" #name)); \
+  if (!gl_.name && complete) {                                         \
+    complete = false;                                                  \
+    missing = "gl" #name;                                              \
   }
   PNEUMA_GL_FUNCTIONS(PNEUMA_GL_LOAD)
 #undef PNEUMA_GL_LOAD

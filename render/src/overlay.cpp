@@ -7,9 +7,9 @@
 
 namespace pneuma::render::detail {
 
-const unsigned char kViridis[kViridisSamples][3] = {
-    {68, 1, 84},   {71, 45, 123},  {59, 82, 139},  {44, 114, 142}, {33, 145, 140},
-    {40, 174, 128}, {94, 201, 98}, {173, 220, 48}, {253, 231, 37}};
+const unsigned char kViridis[kViridisSamples][3] = {{68, 1, 84},    {71, 45, 123},  {59, 82, 139},
+                                                    {44, 114, 142}, {33, 145, 140}, {40, 174, 128},
+                                                    {94, 201, 98},  {173, 220, 48}, {253, 231, 37}};
 
 Rgba viridis(double t) {
   t = std::clamp(t, 0.0, 1.0) * (kViridisSamples - 1);
@@ -27,14 +27,13 @@ std::string viridis_glsl() {
     table += fmt::format("{}vec3({:.6f}, {:.6f}, {:.6f})", i ? ", " : "", kViridis[i][0] / 255.0,
                          kViridis[i][1] / 255.0, kViridis[i][2] / 255.0);
   }
-  return fmt::format(
-      "const vec3 viridis_table[{0}] = vec3[{0}]({1});\n"
-      "vec3 viridis_srgb(float t) {{\n"
-      "  float x = clamp(t, 0.0, 1.0) * {2}.0;\n"
-      "  int i = min(int(x), {3});\n"
-      "  return mix(viridis_table[i], viridis_table[i + 1], x - float(i));\n"
-      "}}\n",
-      kViridisSamples, table, kViridisSamples - 1, kViridisSamples - 2);
+  return fmt::format("const vec3 viridis_table[{0}] = vec3[{0}]({1});\n"
+                     "vec3 viridis_srgb(float t) {{\n"
+                     "  float x = clamp(t, 0.0, 1.0) * {2}.0;\n"
+                     "  int i = min(int(x), {3});\n"
+                     "  return mix(viridis_table[i], viridis_table[i + 1], x - float(i));\n"
+                     "}}\n",
+                     kViridisSamples, table, kViridisSamples - 1, kViridisSamples - 2);
 }
 
 namespace {
@@ -86,7 +85,8 @@ int draw_text(Image& image, int x, int y, const std::string& text, int scale, Rg
       for (int row = 0; row < kGlyphHeight; ++row) {
         for (int col = 0; col < kGlyphWidth; ++col) {
           if (g->rows[row] & (0x10 >> col)) {
-            fill_rect(image, pen + col * scale, y + row * scale, pen + (col + 1) * scale, y + (row + 1) * scale, colour);
+            fill_rect(image, pen + col * scale, y + row * scale, pen + (col + 1) * scale, y + (row + 1) * scale,
+                      colour);
           }
         }
       }

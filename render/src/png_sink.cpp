@@ -13,8 +13,8 @@
 namespace pneuma::render {
 
 // Encodes and writes frames as TBB tasks; after `limit` frames submitted since the last wait, the
-// next one first waits for all of them (so memory stays bounded). The images' buffers are recycled. With one thread allowed (tbb::global_control) there are
-// no workers: the tasks run on the caller's thread when it waits.
+// next one first waits for all of them (so memory stays bounded). The images' buffers are recycled. With one thread
+// allowed (tbb::global_control) there are no workers: the tasks run on the caller's thread when it waits.
 class PngFrameSink::Encoder {
  public:
   explicit Encoder(const PngOptions& png)

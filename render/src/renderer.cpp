@@ -16,7 +16,8 @@ namespace pneuma::render {
 
 NormalTerms normal_terms(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field) {
   const std::size_t n = rest.vertex_count();
-  NormalTerms t{std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero()), std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero()),
+  NormalTerms t{std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero()),
+                std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero()),
                 std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero())};
   for (const mesh::Triangle& tri : rest.triangles) {
     const Eigen::Vector3d& a = rest.vertices[tri[0]];
@@ -183,8 +184,8 @@ void put(float (&out)[3], const Eigen::Vector3d& v) {
   out[2] = static_cast<float>(v.z());
 }
 
-std::array<Eigen::Vector3d, 2> bounds_over_range(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field,
-                                                 ScaleRange scales) {
+std::array<Eigen::Vector3d, 2> bounds_over_range(const mesh::TriangleMesh& rest,
+                                                 const std::vector<Eigen::Vector3d>& field, ScaleRange scales) {
   // Every point of rest + s u for s in [min, max] lies between its two end points, so the box
   // of the two end frames holds all frames in between.
   auto box = mesh::bounding_box(rest.vertices);
@@ -343,7 +344,8 @@ struct Renderer::Impl {
   GLuint msaa_fbo = 0, image_fbo = 0, output_fbo = 0;
   GLuint msaa_colour_rb = 0, msaa_depth_rb = 0, depth_rb = 0, output_rb = 0, image_texture = 0;
   GLuint fxaa_program = 0, empty_vao = 0;
-  GLint s_location = -1, view_location = -1, projection_location = -1, ray_scale_location = -1, ray_offset_location = -1;
+  GLint s_location = -1, view_location = -1, projection_location = -1, ray_scale_location = -1,
+        ray_offset_location = -1;
   std::vector<std::uint8_t> row;  // scratch for flipping rows
 
   const detail::GlFunctions& gl() const { return context.gl(); }
@@ -429,11 +431,13 @@ struct Renderer::Impl {
     gl().BindVertexArray(vao);
     gl().GenBuffers(1, &vertex_buffer);
     gl().BindBuffer(GL_ARRAY_BUFFER, vertex_buffer);
-    gl().BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(vertices.size() * sizeof(Vertex)), vertices.data(), GL_STATIC_DRAW);
+    gl().BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(vertices.size() * sizeof(Vertex)), vertices.data(),
+                    GL_STATIC_DRAW);
     for (GLuint attribute = 0; attribute < 5; ++attribute) {
       gl().EnableVertexAttribArray(attribute);
-      gl().VertexAttribPointer(attribute, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex),
-                               reinterpret_cast<const void*>(static_cast<std::uintptr_t>(attribute * 3 * sizeof(float))));
+      gl().VertexAttribPointer(
+          attribute, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex),
+          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(attribute * 3 * sizeof(float))));
     }
     gl().GenBuffers(1, &index_buffer);
     gl().BindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
@@ -469,8 +473,8 @@ struct Renderer::Impl {
   void check_framebuffer(const char* what) {
     const GLenum status = gl().CheckFramebufferStatus(GL_FRAMEBUFFER);
     if (status != GL_FRAMEBUFFER_COMPLETE) {
-      throw UnsupportedError(std::string("render: the OpenGL driver cannot make the ") + what + " framebuffer (status 0x" +
-                             fmt_hex(status) + ")");
+      throw UnsupportedError(std::string("render: the OpenGL driver cannot make the ") + what +
+                             " framebuffer (status 0x" + fmt_hex(status) + ")");
     }
   }
   static std::string fmt_hex(GLenum value) {
@@ -484,8 +488,9 @@ struct Renderer::Impl {
     gl().GetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_size);
     gl().GetIntegerv(GL_MAX_SAMPLES, &max_samples);
     if (options.width > max_size || options.height > max_size) {
-      throw UnsupportedError("render: image size " + std::to_string(options.width) + "x" + std::to_string(options.height) +
-                             " exceeds the OpenGL limit of " + std::to_string(max_size) + " pixels per side");
+      throw UnsupportedError("render: image size " + std::to_string(options.width) + "x" +
+                             std::to_string(options.height) + " exceeds the OpenGL limit of " +
+                             std::to_string(max_size) + " pixels per side");
     }
     samples = options.msaa_samples > 1 ? std::min(options.msaa_samples, static_cast<int>(max_samples)) : 0;
     if (samples == 1) samples = 0;
@@ -572,7 +577,8 @@ struct Renderer::Impl {
 
   void check_gl(const char* where) {
     const GLenum error = gl().GetError();
-    if (error != GL_NO_ERROR) throw Error(ExitCode::failure, std::string("render: OpenGL error 0x") + fmt_hex(error) + " in " + where);
+    if (error != GL_NO_ERROR)
+      throw Error(ExitCode::failure, std::string("render: OpenGL error 0x") + fmt_hex(error) + " in " + where);
   }
 
   ~Impl() {
@@ -620,8 +626,8 @@ Renderer::Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vect
   r.options = options;
   r.bounds = bounds_over_range(rest, field, scales);
   if (rest.vertex_count() > 0) r.origin = 0.5 * (r.bounds[0] + r.bounds[1]);
-  r.camera = frame_camera(options.camera, r.bounds, static_cast<double>(options.width) / options.height, options.fov_y_deg,
-                          options.margin);
+  r.camera = frame_camera(options.camera, r.bounds, static_cast<double>(options.width) / options.height,
+                          options.fov_y_deg, options.margin);
   double max_field = 0.0;
   for (const auto& u : field) max_field = std::max(max_field, u.norm());
   r.overlay_max = options.overlay_max_m > 0.0 ? options.overlay_max_m

@@ -9,9 +9,9 @@
 
 #include "compare_fixture.h"
 #include "pneuma/core/error.h"
-#include "pneuma/paper/comparators.h"
 #include "pneuma/field/field_graph.h"
 #include "pneuma/field/field_solver.h"
+#include "pneuma/paper/comparators.h"
 
 using namespace pneuma;
 using namespace pneuma::field;
@@ -122,8 +122,8 @@ TEST(MassSpringWitkin, MatchedNetworkReproducesTheFieldsFixedPoint) {
 
 TEST(MassSpringWitkin, StepChoiceIsStableAndTheBoundsHold) {
   const LinkGraph g = square_lattice(9);
-  for (const SpringNetwork& net : {clamped_network(g, graded(g), lattice_border(9)),
-                                   matched_network(FieldGraph(link_mesh(g), graded(g)))}) {
+  for (const SpringNetwork& net :
+       {clamped_network(g, graded(g), lattice_border(9)), matched_network(FieldGraph(link_mesh(g), graded(g)))}) {
     const MassSpring_Witkin ms(net);
     const EulerStepChoice& c = ms.step_choice();
     EXPECT_TRUE(c.exact_spectrum);
@@ -155,10 +155,13 @@ TEST(ProposedSanthanam, TracedShotUnshotIsTheProductionSolverBitForBit) {
   const auto load = uneven_load(g.vertex_count());
   std::vector<double> node_load(fg.node_count(), 0.0);
   std::copy(load.begin(), load.end(), node_load.begin());
-  const SolveResult production = ShotUnshot_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(fg)), SolveOptions{1e-8}, true).solve(node_load);
+  const SolveResult production =
+      ShotUnshot_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(fg)), SolveOptions{1e-8}, true)
+          .solve(node_load);
   ComparatorOptions o = tight(1e-8);
   o.probe_vertex = 5;
-  const ComparatorResult traced = Proposed_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(fg))).solve(load, o);
+  const ComparatorResult traced =
+      Proposed_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(fg))).solve(load, o);
   EXPECT_EQ(traced.steps, production.report.shots);
   EXPECT_EQ(traced.counts.additions, production.report.counts.additions);
   EXPECT_EQ(traced.counts.multiplications, production.report.counts.multiplications);
@@ -180,7 +183,8 @@ TEST(ProposedSanthanam, FieldOnTheRegularGridHasTheGridsSymmetries) {
   const std::uint32_t centre = (side / 2) * side + side / 2;
   push[centre] = 1.0;
   const std::vector<double> exact = field_exact(fg, push);
-  const ComparatorResult shot = Proposed_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(fg))).solve(push, tight(1e-9));
+  const ComparatorResult shot =
+      Proposed_Santhanam(std::make_shared<const TransferOperator>(one_hop_operator(fg))).solve(push, tight(1e-9));
   const LinkGraph lg = square_lattice(side);
   const ComparatorResult membrane =
       MassSpring_Witkin(clamped_network(lg, std::vector<double>(lg.vertex_count(), 1.0), lattice_border(side)))

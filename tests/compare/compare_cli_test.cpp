@@ -6,11 +6,10 @@
 
 #include "test_support.h"
 
-using pneuma::test::read_text;
 using pneuma::test::count_lines;
+using pneuma::test::read_text;
 using pneuma::test::run_pneuma;
 using pneuma::test::TempDir;
-
 
 TEST(CompareCli, Fig6QuickWritesCsvAndSvg) {
   TempDir dir;
@@ -29,7 +28,7 @@ TEST(CompareCli, AllQuickWritesEveryFigureDeterministically) {
   TempDir a, b;
   ASSERT_EQ(run_pneuma({"compare", "all", "-o", a.path().string(), "--quick", "-q"}).exit_code, 0);
   ASSERT_EQ(run_pneuma({"compare", "all", "-o", b.path().string(), "--quick", "-q"}).exit_code, 0);
-  const std::vector<std::string> expected{"fig2.csv", "fig2.svg", "fig6.csv", "fig6.svg", "fig7.csv",
+  const std::vector<std::string> expected{"fig2.csv", "fig2.svg", "fig6.csv", "fig6.svg",   "fig7.csv",
                                           "fig7.svg", "fig8.csv", "fig8.svg", "table1.csv", "table1.svg"};
   std::vector<std::string> written = a.files();
   std::sort(written.begin(), written.end());

@@ -17,12 +17,12 @@ inline std::vector<std::vector<std::uint32_t>> lattice_symmetries(std::uint32_t 
   for (std::uint32_t r = 0; r < side; ++r) {
     for (std::uint32_t c = 0; c < side; ++c) {
       const std::array<std::array<std::uint32_t, 2>, 8> images{{{r, c},
-                                                                {c, e - r},      // rotation by 90 degrees
-                                                                {e - r, e - c},  // 180
-                                                                {e - c, r},      // 270
-                                                                {r, e - c},      // mirror left-right
-                                                                {e - r, c},      // mirror up-down
-                                                                {c, r},          // main diagonal
+                                                                {c, e - r},        // rotation by 90 degrees
+                                                                {e - r, e - c},    // 180
+                                                                {e - c, r},        // 270
+                                                                {r, e - c},        // mirror left-right
+                                                                {e - r, c},        // mirror up-down
+                                                                {c, r},            // main diagonal
                                                                 {e - c, e - r}}};  // anti-diagonal
       for (std::size_t k = 0; k < 8; ++k) maps[k][r * side + c] = images[k][0] * side + images[k][1];
     }

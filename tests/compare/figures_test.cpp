@@ -5,9 +5,9 @@
 #include <cmath>
 #include <map>
 
+#include "pneuma/core/error.h"
 #include "pneuma/paper/paper_figures.h"
 #include "pneuma/paper/svg_plot.h"
-#include "pneuma/core/error.h"
 
 using namespace pneuma::paper;
 
@@ -28,8 +28,9 @@ double cell(const FigureOutput& f, std::size_t row, const std::string& name) {
 }  // namespace
 
 TEST(LogLogSlope, RecoversAnExactPowerLaw) {
-  EXPECT_NEAR(log_log_slope({1, 10, 100, 1000}, {3, 3 * std::pow(10, 1.5), 3 * std::pow(100, 1.5), 3 * std::pow(1000, 1.5)}),
-              1.5, 1e-12);
+  EXPECT_NEAR(
+      log_log_slope({1, 10, 100, 1000}, {3, 3 * std::pow(10, 1.5), 3 * std::pow(100, 1.5), 3 * std::pow(1000, 1.5)}),
+      1.5, 1e-12);
   EXPECT_NEAR(log_log_slope({2, 4}, {5, 5}), 0.0, 1e-12);
   EXPECT_THROW(log_log_slope({1}, {1}), pneuma::ValueError);
   EXPECT_THROW(log_log_slope({2, 2}, {1, 3}), pneuma::ValueError);

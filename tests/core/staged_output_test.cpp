@@ -136,7 +136,7 @@ TEST(StagedOutput, ALiveStageInTheFolderIsRefusedWithOneLine) {
     ADD_FAILURE() << "a folder with a live stage was accepted";
   } catch (const pneuma::IoError& e) {
     EXPECT_EQ(std::string(e.what()), folder.string() + ": another pneuma run (process 1) is writing its outputs here; "
-                                                      "wait for it or choose another output folder");
+                                                       "wait for it or choose another output folder");
   }
   kill(child, SIGKILL);
   waitpid(child, nullptr, 0);

@@ -28,7 +28,7 @@ TEST(Units, MissingOrWrongUnitIsAnErrorNamingTheKind) {
   } catch (const u::UnitError& e) {
     EXPECT_STREQ(e.what(), "expected a compliance such as '0.1 L/cmH2O', got '0.1'");
   }
-  EXPECT_THROW(u::parse("500 cmH2O", u::kind::volume), u::UnitError);  // wrong dimension
+  EXPECT_THROW(u::parse("500 cmH2O", u::kind::volume), u::UnitError);    // wrong dimension
   EXPECT_THROW(u::parse("12 /fortnight", u::kind::rate), u::UnitError);  // unknown unit
   EXPECT_THROW(u::parse("ml 500", u::kind::volume), u::UnitError);
   EXPECT_THROW(u::parse("", u::kind::volume), u::UnitError);

@@ -46,7 +46,9 @@ TEST(Config, MissingKeyAndWrongChoice) {
   const Node root = Node::load_string("driver:\n  mode: jogging\n", "d.yaml");
   EXPECT_EQ(error_of([&] { root.map("driver").quantity("rate", kind::rate); }),
             "d.yaml:2:3: driver: missing key 'rate' (expected rate such as '12 /min')");
-  EXPECT_EQ(error_of([&] { root.map("driver").choice("mode", {"spontaneous", "volume_control"}); }),
+  EXPECT_EQ(error_of([&] {
+              root.map("driver").choice("mode", {"spontaneous", "volume_control"});
+            }),
             "d.yaml:2:9: driver.mode: expected one of: spontaneous, volume_control; got 'jogging'");
 }
 

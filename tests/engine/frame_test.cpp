@@ -2,11 +2,10 @@
 #include <gtest/gtest.h>
 
 #include "pneuma/core/error.h"
-#include "pneuma/model/model.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/model/model.h"
 
 using namespace pneuma;
-
 
 TEST(Model, RegionsAreThoseOfTheRestSurfaceWhetherFoundOrGiven) {
   const auto rest = mesh::make_icosphere(0.1, 3);

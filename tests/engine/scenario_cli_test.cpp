@@ -12,7 +12,6 @@ using pneuma::test::count_lines;
 using pneuma::test::run_pneuma;
 using pneuma::test::TempDir;
 
-
 TEST(SimulateCli, ShippedScenariosRunAndWriteCsv) {
   for (const char* name : {"quiet-breathing", "ventilated-patient"}) {
     TempDir dir;
@@ -44,9 +43,17 @@ TEST(SimulateCli, VersionAndHelp) {
 
 // Every command's --help ends with examples of that very command (not the top-level ones).
 TEST(SimulateCli, EveryCommandsHelpShowsItsOwnExamples) {
-  const std::vector<std::vector<std::string>> commands = {
-      {"run"},  {"simulate"}, {"field"},         {"phantom"},          {"render"},          {"compare"},
-      {"mesh"}, {"mesh", "info"}, {"mesh", "repair"}, {"mesh", "remesh"}, {"mesh", "from-labels"}};
+  const std::vector<std::vector<std::string>> commands = {{"run"},
+                                                          {"simulate"},
+                                                          {"field"},
+                                                          {"phantom"},
+                                                          {"render"},
+                                                          {"compare"},
+                                                          {"mesh"},
+                                                          {"mesh", "info"},
+                                                          {"mesh", "repair"},
+                                                          {"mesh", "remesh"},
+                                                          {"mesh", "from-labels"}};
   for (const auto& command : commands) {
     std::vector<std::string> args = command;
     args.emplace_back("--help");
@@ -92,14 +99,17 @@ TEST(SimulateCli, ANameTooLongForTheFileSystemIsTheUsualOneLine) {
   const auto file = dir.write("s.yaml", "duration: 20 s\nphysiology:\n  preset: " + name + "\n");
   auto r = run_pneuma({"simulate", file.string(), "-o", (dir / "out.csv").string()});
   EXPECT_EQ(r.exit_code, 3);
-  EXPECT_EQ(r.err, file.string() + ":3:11: physiology.preset: no preset '" + name + "' (looked for " PNEUMA_SOURCE_DIR
-                       "/configs/physiology/" + name + ".yaml; shipped presets: healthy-adult, obstructive, stiff-lung)\n");
-  const auto run = dir.write("r.yaml", "duration: 20 s\nphysiology:\n  preset: healthy-adult\nfield:\n  tissue: " +
-                                           name + "\n");
+  EXPECT_EQ(r.err, file.string() + ":3:11: physiology.preset: no preset '" + name +
+                       "' (looked for " PNEUMA_SOURCE_DIR "/configs/physiology/" + name +
+                       ".yaml; shipped presets: healthy-adult, obstructive, stiff-lung)\n");
+  const auto run =
+      dir.write("r.yaml", "duration: 20 s\nphysiology:\n  preset: healthy-adult\nfield:\n  tissue: " + name + "\n");
   r = run_pneuma({"run", run.string(), "-o", (dir / "out").string()});
   EXPECT_EQ(r.exit_code, 3);
-  EXPECT_EQ(r.err, run.string() + ":5:11: field.tissue: no tissue '" + name + "' (looked for " PNEUMA_SOURCE_DIR
-                       "/configs/tissue/" + name + ".yaml; shipped presets: fibrotic-lower-lobe, healthy-supine, healthy-upright, healthy-upright-ct)\n");
+  EXPECT_EQ(r.err,
+            run.string() + ":5:11: field.tissue: no tissue '" + name +
+                "' (looked for " PNEUMA_SOURCE_DIR "/configs/tissue/" + name +
+                ".yaml; shipped presets: fibrotic-lower-lobe, healthy-supine, healthy-upright, healthy-upright-ct)\n");
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
 }
 
@@ -116,17 +126,19 @@ INSTANTIATE_TEST_SUITE_P(
                     "4:3: physiology.complience: unknown key; expected one of: actions, chest_wall_fraction, "
                     "compartments, compliance, driver, model, output_rate, preset, pressure_volume_curve, "
                     "resistance, solver, transpulmonary_pressure_at_rest"},
-        BadScenario{"unknown_preset", "duration: 20 s\nphysiology:\n  preset: healthy-martian\n",
-                    "3:11: physiology.preset: no preset 'healthy-martian' (looked for " PNEUMA_SOURCE_DIR
-                    "/configs/physiology/healthy-martian.yaml; shipped presets: healthy-adult, obstructive, stiff-lung)"},
+        BadScenario{
+            "unknown_preset", "duration: 20 s\nphysiology:\n  preset: healthy-martian\n",
+            "3:11: physiology.preset: no preset 'healthy-martian' (looked for " PNEUMA_SOURCE_DIR
+            "/configs/physiology/healthy-martian.yaml; shipped presets: healthy-adult, obstructive, stiff-lung)"},
         BadScenario{"bad_ratio", "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  driver: {ie_ratio: 2}\n",
                     "4:22: physiology.driver.ie_ratio: expected a ratio such as '1:2', got '2'"},
         BadScenario{"wrong_mode_key",
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  driver: {peep: 5 cmH2O}\n",
                     "4:18: physiology.driver.peep: not a setting of spontaneous mode"},
-        BadScenario{"action_after_end",
-                    "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  actions:\n    - {at: 30 s, rate: 10 /min}\n",
-                    "5:12: physiology.actions[0].at: expected a time within the scenario's duration"},
+        BadScenario{
+            "action_after_end",
+            "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  actions:\n    - {at: 30 s, rate: 10 /min}\n",
+            "5:12: physiology.actions[0].at: expected a time within the scenario's duration"},
         BadScenario{"retired_hdf5_positions",
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  hdf5: {positions: true}\n",
                     "5:21: outputs.hdf5.positions: expected float32 or float64 (the stored type; series.h5 now "

@@ -9,18 +9,18 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <tuple>
 #include <fmt/format.h>
 #include <pugixml.hpp>
+#include <tuple>
 
-#include "pneuma/outputs/frame_outputs.h"
 #include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/outputs/frame_outputs.h"
 #include "test_support.h"
 
 using namespace pneuma;
 using namespace pneuma::outputs;
-using pneuma::frame::Frame;
 using pneuma::frame::advance;
+using pneuma::frame::Frame;
 using pneuma::test::TempDir;
 
 namespace {
@@ -37,8 +37,11 @@ model::Model sphere_model() {
 std::vector<double> drive(outputs::Output& sink, const model::Model& model, std::size_t frames, double rate) {
   std::vector<double> scales(frames);
   for (std::size_t k = 0; k < frames; ++k) scales[k] = 20.0 * std::sin(static_cast<double>(k) * 0.3) + 5.0;
-  outputs::RunInfo run{frames, rate, *std::min_element(scales.begin(), scales.end()),
-              *std::max_element(scales.begin(), scales.end()), {}};
+  outputs::RunInfo run{frames,
+                       rate,
+                       *std::min_element(scales.begin(), scales.end()),
+                       *std::max_element(scales.begin(), scales.end()),
+                       {}};
   sink.begin(model, run);
   Frame f(model);
   for (std::size_t k = 0; k < frames; ++k) {
@@ -271,11 +274,17 @@ TEST(Hdf5Sink, DescribesItselfWithRootAttributesAndUnits) {
   EXPECT_EQ(h5_string_attribute(file, "generator"), std::string("pneuma ") + PNEUMA_VERSION);
   EXPECT_EQ(h5_string_attribute(file, "coordinate_frame"), "LPS");
   EXPECT_EQ(h5_string_attribute(file, "length_unit"), "m");
-  const std::vector<std::pair<const char*, const char*>> units{
-      {"/rest/positions", "m"},        {"/rest/triangles", "1"},        {"/field/unit_displacement", "m"},
-      {"/frames/time_s", "s"},         {"/frames/scale", "1"},          {"/frames/lung_volume_m3", "m3"},
-      {"/frames/mesh_volume_m3", "m3"}, {"/frames/area_m2", "m2"},      {"/frames/positions/000002", "m"},
-      {"/rest/region", "1"},           {"/rest/region_weights", "1"}};
+  const std::vector<std::pair<const char*, const char*>> units{{"/rest/positions", "m"},
+                                                               {"/rest/triangles", "1"},
+                                                               {"/field/unit_displacement", "m"},
+                                                               {"/frames/time_s", "s"},
+                                                               {"/frames/scale", "1"},
+                                                               {"/frames/lung_volume_m3", "m3"},
+                                                               {"/frames/mesh_volume_m3", "m3"},
+                                                               {"/frames/area_m2", "m2"},
+                                                               {"/frames/positions/000002", "m"},
+                                                               {"/rest/region", "1"},
+                                                               {"/rest/region_weights", "1"}};
   for (const auto& [path, unit] : units) {
     const hid_t set = H5Dopen2(file, path, H5P_DEFAULT);
     ASSERT_GE(set, 0) << path;
@@ -313,7 +322,8 @@ TEST(Hdf5Sink, SameInputsSameBytes) {
 // own float64 datasets.
 TEST(Hdf5Sink, MeshioReadsEveryFrame) {
   if (std::system("/usr/bin/python3 -c 'import meshio, h5py' >/dev/null 2>&1") != 0)
-    GTEST_SKIP() << "meshio or h5py is not importable by /usr/bin/python3 (scripts/install-deps installs python3-meshio python3-h5py)";
+    GTEST_SKIP()
+        << "meshio or h5py is not importable by /usr/bin/python3 (scripts/install-deps installs python3-meshio python3-h5py)";
   TempDir dir;
   const model::Model model = sphere_model();
   auto sink = make_hdf5_output(dir / "series.h5", dir / "series.xdmf");
@@ -336,7 +346,8 @@ with meshio.xdmf.TimeSeriesReader(d + "/series.xdmf") as r:
 print("steps", r.num_steps, "points", len(points), "worst", worst)
 )");
   const std::string out = (dir / "out.txt").string();
-  const int status = std::system(("/usr/bin/python3 " + script.string() + " " + dir.path().string() + " >" + out + " 2>&1").c_str());
+  const int status =
+      std::system(("/usr/bin/python3 " + script.string() + " " + dir.path().string() + " >" + out + " 2>&1").c_str());
   const std::string text = pneuma::test::read_text(out);
   ASSERT_EQ(status, 0) << text;
   const std::string expected = "steps " + std::to_string(scales.size()) + " points " +
@@ -366,9 +377,9 @@ l.UpdatePipeline(l.TimestepValues[-1])
 print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoints())
 )");
   const std::string out = (dir / "out.txt").string();
-  const int status = std::system(("env -u DISPLAY pvbatch " + script.string() + " " + (dir / "series.xdmf").string() +
-                                  " >" + out + " 2>&1")
-                                     .c_str());
+  const int status = std::system(
+      ("env -u DISPLAY pvbatch " + script.string() + " " + (dir / "series.xdmf").string() + " >" + out + " 2>&1")
+          .c_str());
   const std::string text = pneuma::test::read_text(out);
   ASSERT_EQ(status, 0) << text;
   std::string expected;
@@ -382,9 +393,11 @@ print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoi
 // unit (unit_from_file = false) still wins.
 TEST(MeshSequenceSink, RecordsTheUnitAndReadMeshUsesIt) {
   const model::Model model = sphere_model();
-  for (const auto& [format, ascii, header] :
-       {std::tuple{"ply", false, "comment unit m\n"}, {"ply", true, "comment unit m\n"}, {"obj", false, "# unit m\n"},
-        {"stl", false, "binary STL written by pneuma, unit m"}, {"stl", true, "solid pneuma unit m\n"}}) {
+  for (const auto& [format, ascii, header] : {std::tuple{"ply", false, "comment unit m\n"},
+                                              {"ply", true, "comment unit m\n"},
+                                              {"obj", false, "# unit m\n"},
+                                              {"stl", false, "binary STL written by pneuma, unit m"},
+                                              {"stl", true, "solid pneuma unit m\n"}}) {
     TempDir dir;
     auto sink = make_mesh_sequence_output(dir / "frames", MeshSequenceSpec{format, ascii, 2});
     const auto scales = drive(*sink, model, 3, 30.0);

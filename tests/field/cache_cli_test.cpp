@@ -70,13 +70,15 @@ TEST(FieldCache, RoundTripsBitForBitAndWritesTheSameBytesTwice) {
 TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
   TempDir dir;
   const auto rest = mesh::make_icosphere(0.1, 2);
-  const model::FieldRecord model = model::compute_field_record(rest, preset("fibrotic-lower-lobe"), default_field_options);
+  const model::FieldRecord model =
+      model::compute_field_record(rest, preset("fibrotic-lower-lobe"), default_field_options);
   save_field(dir / "good.h5", model);
   const std::string bytes = read_text(dir / "good.h5");
 
   write_bytes(dir / "truncated.h5", bytes.substr(0, bytes.size() / 2));
   EXPECT_EQ(load_error(dir / "truncated.h5"),
-            (dir / "truncated.h5").string() + ": not a pneuma field file: its bytes do not match its seal (truncated or damaged)");
+            (dir / "truncated.h5").string() +
+                ": not a pneuma field file: its bytes do not match its seal (truncated or damaged)");
 
   // Edit one stored displacement value in place: the seal catches it before HDF5 reads a byte.
   std::string edited = bytes;
@@ -85,7 +87,8 @@ TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
   edited[at + 3] = static_cast<char>(edited[at + 3] ^ 0x10);
   write_bytes(dir / "edited.h5", edited);
   EXPECT_EQ(load_error(dir / "edited.h5"),
-            (dir / "edited.h5").string() + ": not a pneuma field file: its bytes do not match its seal (truncated or damaged)");
+            (dir / "edited.h5").string() +
+                ": not a pneuma field file: its bytes do not match its seal (truncated or damaged)");
 
   // The first "pneuma-field" is the seal's own name: edited, the file is no longer pneuma's.
   std::string foreign = bytes;
@@ -93,12 +96,15 @@ TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
   ASSERT_NE(name, std::string::npos);
   foreign.replace(name, 12, "other-format");
   write_bytes(dir / "foreign.h5", foreign);
-  EXPECT_EQ(load_error(dir / "foreign.h5"),
-            (dir / "foreign.h5").string() + ": not a pneuma field file: an HDF5 file without pneuma's seal (from elsewhere, or from an older pneuma)");
+  EXPECT_EQ(
+      load_error(dir / "foreign.h5"),
+      (dir / "foreign.h5").string() +
+          ": not a pneuma field file: an HDF5 file without pneuma's seal (from elsewhere, or from an older pneuma)");
   // Another program's HDF5 file (its signature at 0), or one from before the seal.
   write_bytes(dir / "other.h5", std::string("\x89HDF\r\n\x1a\n", 8) + std::string(600, '\0'));
-  EXPECT_EQ(load_error(dir / "other.h5"), (dir / "other.h5").string() + ": not a pneuma field file: an HDF5 file without "
-                                                                          "pneuma's seal (from elsewhere, or from an older pneuma)");
+  EXPECT_EQ(load_error(dir / "other.h5"), (dir / "other.h5").string() +
+                                              ": not a pneuma field file: an HDF5 file without "
+                                              "pneuma's seal (from elsewhere, or from an older pneuma)");
 
   // A damaged header claiming 2^40 vertices (found by fuzz_field_cache: the reader allocated what
   // the header claimed, ~26 TB, and died): the seal refuses it; the reader's own bound on claimed
@@ -109,7 +115,9 @@ TEST(FieldCache, RefusesDamagedAndForeignFilesWithOneLine) {
   ASSERT_NE(dims_at, std::string::npos);
   huge.replace(dims_at, 8, std::string(reinterpret_cast<const char*>(&claimed), 8));
   write_bytes(dir / "huge.h5", huge);
-  EXPECT_EQ(load_error(dir / "huge.h5"), (dir / "huge.h5").string() + ": not a pneuma field file: its bytes do not match its seal (truncated or damaged)");
+  EXPECT_EQ(
+      load_error(dir / "huge.h5"),
+      (dir / "huge.h5").string() + ": not a pneuma field file: its bytes do not match its seal (truncated or damaged)");
 
   write_bytes(dir / "text.h5", "hello\n");
   EXPECT_EQ(load_error(dir / "text.h5"), (dir / "text.h5").string() + ": not a pneuma field file: not an HDF5 file");
@@ -176,14 +184,15 @@ TEST(FieldCli, WritesTheFieldAndPrintsASummary) {
   const auto r = run_pneuma({"field", "icosphere:0.1:3", "--tissue", "healthy-upright", "-o", (dir / "f.h5").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(r.err.empty()) << r.err;
-  EXPECT_NE(r.out.find("field: 642 mass nodes + 1920 spring nodes, tissue healthy-upright, solver cg"), std::string::npos)
+  EXPECT_NE(r.out.find("field: 642 mass nodes + 1920 spring nodes, tissue healthy-upright, solver cg"),
+            std::string::npos)
       << r.out;
   EXPECT_NE(r.out.find("displacement per cm^2 of surface area: min "), std::string::npos) << r.out;
   const model::FieldRecord m = load_field(dir / "f.h5");
   EXPECT_EQ(m.rest.vertex_count(), 642u);
   EXPECT_EQ(dir.files(), std::vector<std::string>{"f.h5"});
-  const auto shot = run_pneuma({"field", "icosphere:0.1:2", "--tissue", "healthy-supine", "--solver", "shot", "--clique",
-                                "2", "-o", (dir / "g.h5").string()});
+  const auto shot = run_pneuma({"field", "icosphere:0.1:2", "--tissue", "healthy-supine", "--solver", "shot",
+                                "--clique", "2", "-o", (dir / "g.h5").string()});
   ASSERT_EQ(shot.exit_code, 0) << shot.err;
   EXPECT_EQ(load_field(dir / "g.h5").metadata.clique_hops, 2);
 }
@@ -192,7 +201,8 @@ TEST(FieldCli, ReadsMeshFilesInTheirUnitAndThePhantom) {
   // A phantom written in millimetres and read back in millimetres is the same surface: the
   // field of the file equals the field of the phantom (same mesh up to float rounding).
   TempDir dir;
-  ASSERT_EQ(run_pneuma({"phantom", "--lung", "right", "--edge", "15mm", "-o", (dir / "lung.ply").string()}).exit_code, 0);
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "right", "--edge", "15mm", "-o", (dir / "lung.ply").string()}).exit_code,
+            0);
   auto r = run_pneuma({"field", (dir / "lung.ply").string(), "--unit", "mm", "--tissue", "healthy-upright", "-o",
                        (dir / "a.h5").string(), "--quiet"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -218,8 +228,9 @@ TEST(FieldCli, BadInputIsOneLineWithItsExitCode) {
   const auto out = (dir / "f.h5").string();
   const auto bad_key = dir.write("bad-key.yaml", "posture: upright\nstiffness:\n  model: gradient\n  profile: linear\n"
                                                  "  nondependent: 2 kPa\n  dependent: 1 kPa\n  slope: 3\n");
-  const auto bad_unit = dir.write("bad-unit.yaml", "posture: upright\nstiffness:\n  model: gradient\n  profile: linear\n"
-                                                   "  nondependent: 2 kPa\n  dependent: 1 cmH2O/L\n");
+  const auto bad_unit =
+      dir.write("bad-unit.yaml", "posture: upright\nstiffness:\n  model: gradient\n  profile: linear\n"
+                                 "  nondependent: 2 kPa\n  dependent: 1 cmH2O/L\n");
   struct Case {
     std::vector<std::string> args;
     int exit_code;
@@ -228,7 +239,8 @@ TEST(FieldCli, BadInputIsOneLineWithItsExitCode) {
   const std::vector<Case> cases = {
       {{"field", "icosphere:0.1:2", "--tissue", bad_key.string(), "-o", out},
        3,
-       bad_key.string() + ":7:3: stiffness.slope: unknown key; expected one of: bands, dependent, model, nondependent, profile"},
+       bad_key.string() +
+           ":7:3: stiffness.slope: unknown key; expected one of: bands, dependent, model, nondependent, profile"},
       {{"field", "icosphere:0.1:2", "--tissue", bad_unit.string(), "-o", out},
        3,
        bad_unit.string() + ":6:14: stiffness.dependent: expected a shear modulus such as '3 kPa', got '1 cmH2O/L'"},

@@ -94,7 +94,8 @@ TEST(Field, MultiplyingEveryModulusByAConstantChangesNothing) {
     for (double c : {1e-3, 7.25, 1e6}) {
       std::vector<double> scaled = mu;
       for (double& v : scaled) v *= c;
-      EXPECT_LT(max_relative_difference(a.unit_displacement, compute_field(m, scaled, o).unit_displacement), allowed) << c;
+      EXPECT_LT(max_relative_difference(a.unit_displacement, compute_field(m, scaled, o).unit_displacement), allowed)
+          << c;
     }
   }
 }
@@ -158,8 +159,8 @@ TEST(Tissue, PresetsFollowPosture) {
   EXPECT_NEAR(upright[extreme({0, 0, 1})], 3000.0 * 1.5, 1e-9);   // apex, top
   EXPECT_NEAR(upright[extreme({0, 0, -1})], 500.0 * 0.75, 1e-9);  // diaphragmatic, bottom
   const auto supine = shear_modulus_per_vertex(preset("healthy-supine"), m);
-  EXPECT_NEAR(supine[extreme({0, -1, 0})], 1500.0 * 1.8, 1e-9);   // costal, anterior (LPS: -y)
-  EXPECT_NEAR(supine[extreme({0, 1, 0})], 1500.0 * 0.6, 1e-9);    // costal, posterior
+  EXPECT_NEAR(supine[extreme({0, -1, 0})], 1500.0 * 1.8, 1e-9);  // costal, anterior (LPS: -y)
+  EXPECT_NEAR(supine[extreme({0, 1, 0})], 1500.0 * 0.6, 1e-9);   // costal, posterior
   // Both healthy presets blur the force in space at 3 mm (docs/realism.md).
   EXPECT_DOUBLE_EQ(with_tissue({}, preset("healthy-upright"), m).magnitude_smoothing, 3e-3);
   EXPECT_DOUBLE_EQ(with_tissue({}, preset("healthy-supine"), m).magnitude_smoothing, 3e-3);
@@ -171,9 +172,9 @@ TEST(Tissue, PresetsFollowPosture) {
 
 TEST(Tissue, ExponentialProfileIsGeometricAndAxesAreConfigurable) {
   test::TempDir dir;
-  const auto file = dir.write("t.yaml",
-                              "posture: upright\ncoordinates: {up: -y, anterior: +z}\n"
-                              "stiffness: {model: gradient, profile: exponential, nondependent: 4 kPa, dependent: 1 kPa}\n");
+  const auto file = dir.write(
+      "t.yaml", "posture: upright\ncoordinates: {up: -y, anterior: +z}\n"
+                "stiffness: {model: gradient, profile: exponential, nondependent: 4 kPa, dependent: 1 kPa}\n");
   const Tissue t = load_tissue(file);
   EXPECT_EQ(t.name, "t");
   mesh::TriangleMesh m;
@@ -188,12 +189,13 @@ TEST(Tissue, PerVertexAndRegionFiles) {
   test::TempDir dir;
   const auto m = test::single_triangle();
   dir.write("mu.txt", "1.5\n2 # comment\n3\n");
-  const Tissue pv = load_tissue(
-      dir.write("pv.yaml", "posture: supine\nstiffness: {model: per_vertex, values: mu.txt, unit: kPa}\n"));
+  const Tissue pv =
+      load_tissue(dir.write("pv.yaml", "posture: supine\nstiffness: {model: per_vertex, values: mu.txt, unit: kPa}\n"));
   EXPECT_EQ(shear_modulus_per_vertex(pv, m), (std::vector<double>{1500.0, 2000.0, 3000.0}));
   dir.write("labels.txt", "upper\nlower lower\n");
   const Tissue rg = load_tissue(dir.write(
-      "rg.yaml", "posture: upright\nstiffness:\n  model: regions\n  labels: labels.txt\n  moduli: {upper: 2 kPa, lower: 10 kPa}\n"));
+      "rg.yaml",
+      "posture: upright\nstiffness:\n  model: regions\n  labels: labels.txt\n  moduli: {upper: 2 kPa, lower: 10 kPa}\n"));
   EXPECT_EQ(shear_modulus_per_vertex(rg, m), (std::vector<double>{2000.0, 10000.0, 10000.0}));
   dir.write("short.txt", "1\n2\n");
   const Tissue bad = load_tissue(
@@ -217,8 +219,9 @@ TEST(Tissue, DomeProfileIsReadWithItsUnits) {
   EXPECT_DOUBLE_EQ(t.dome_load.rim, 0.3);
   // Without `dome`: no profile.
   const Tissue plain = load_tissue(dir.write(
-      "p.yaml", "posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
-                "load: {apex: 0.1, costal: 0.1, diaphragmatic: 1, mediastinal: 0}\n"));
+      "p.yaml",
+      "posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+      "load: {apex: 0.1, costal: 0.1, diaphragmatic: 1, mediastinal: 0}\n"));
   EXPECT_EQ(plain.dome_load.radius_m, 0.0);
 }
 

@@ -6,25 +6,25 @@
 #include <filesystem>
 #include <iostream>
 
-#include "pneuma/model/field_cache.h"
-#include "pneuma/scenario/physiology_config.h"
+#include "field_fixture.h"
 #include "pneuma/field/tissue.h"
-#include "pneuma/model/volume_scale.h"
 #include "pneuma/mesh/anatomy/motion_summary.h"
 #include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
 #include "pneuma/mesh/labels/labels.h"
 #include "pneuma/mesh/repair/remesh.h"
-#include "pneuma/mesh/geometry/surface_queries.h"
-#include "field_fixture.h"
+#include "pneuma/model/field_cache.h"
+#include "pneuma/model/volume_scale.h"
+#include "pneuma/scenario/physiology_config.h"
 #include "pneuma/scenario/tissue_config.h"
 #include "test_support.h"
 
 namespace pneuma::field {
+using model::field_key;
+using model::VolumeScaleMap;
 using scenario::default_config_dir;
 using scenario::load_tissue;
 using scenario::tissue_file;
-using model::field_key;
-using model::VolumeScaleMap;
 namespace {
 
 struct Breath {
@@ -134,8 +134,10 @@ TEST(Realism, MagnitudeSmoothingBlursTheForceAndKeepsOneAreaUnit) {
   smooth.magnitude_smoothing = 0.01;
   const ElastostaticField a = compute_field(m, mu, plain), b = compute_field(m, mu, smooth);
   const std::vector<double> oracle = mesh::blurred_in_space(m, a.force, 0.01);
-  EXPECT_LT(test::max_abs_difference(b.force, oracle, oracle.size()), 1e-12 * *std::max_element(oracle.begin(), oracle.end()));
-  EXPECT_GT(test::max_abs_difference(b.force, a.force, a.force.size()), 0.01 * *std::max_element(a.force.begin(), a.force.end()));
+  EXPECT_LT(test::max_abs_difference(b.force, oracle, oracle.size()),
+            1e-12 * *std::max_element(oracle.begin(), oracle.end()));
+  EXPECT_GT(test::max_abs_difference(b.force, a.force, a.force.size()),
+            0.01 * *std::max_element(a.force.begin(), a.force.end()));
   const auto g = mesh::area_gradient(m);
   double rate = 0.0;
   for (std::size_t i = 0; i < g.size(); ++i) rate += g[i].dot(b.unit_displacement[i]);
@@ -176,16 +178,19 @@ class CtLungRealism : public ::testing::TestWithParam<const char*> {};
 TEST_P(CtLungRealism, DeepBreathDoesNotFoldAndQuietBreathIsHuman) {
   const auto file = test::ct_lobes_dir() / (std::string(GetParam()) + "_lobes.nii.gz");
   if (!std::filesystem::exists(file)) {
-    GTEST_SKIP() << "no CT lobe maps at " << file.parent_path() << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
+    GTEST_SKIP() << "no CT lobe maps at " << file.parent_path()
+                 << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
   }
   const mesh::LabelMap map = mesh::read_label_map(file);
   const std::vector<std::pair<std::string, Tissue>> presets{
       {"healthy-upright", load_tissue(tissue_file("healthy-upright", default_config_dir()))},
       {"healthy-upright-ct", load_tissue(tissue_file("healthy-upright-ct", default_config_dir()))}};
-  for (const auto& [labels, share] : {std::pair{std::vector<int>{3, 4, 5}, 0.55}, std::pair{std::vector<int>{1, 2}, 0.45}}) {
+  for (const auto& [labels, share] :
+       {std::pair{std::vector<int>{3, 4, 5}, 0.55}, std::pair{std::vector<int>{1, 2}, 0.45}}) {
     const mesh::TriangleMesh extracted = mesh::surface_from_labels(map, file.string(), labels).mesh;
     for (double edge : {4e-3, 2e-3}) {
-      const mesh::TriangleMesh rest = mesh::remesh_isotropic(extracted, {.target_edge_length_m = edge, .measure_deviation = false}).mesh;
+      const mesh::TriangleMesh rest =
+          mesh::remesh_isotropic(extracted, {.target_edge_length_m = edge, .measure_deviation = false}).mesh;
       for (const auto& [preset, tissue] : presets) {
         const std::string what = std::string(GetParam()) + (share > 0.5 ? " right" : " left") + " at " +
                                  std::to_string(edge * 1e3) + " mm, " + preset;
@@ -197,7 +202,8 @@ TEST_P(CtLungRealism, DeepBreathDoesNotFoldAndQuietBreathIsHuman) {
         const VolumeScaleMap map_v(rest.vertices, field.unit_displacement, rest.triangles);
         mesh::TriangleMesh deep = rest;
         const double deep_scale = map_v.scale_for(map_v.volume(0.0) + share * 1.5e-3);
-        for (std::size_t i = 0; i < deep.vertices.size(); ++i) deep.vertices[i] += deep_scale * field.unit_displacement[i];
+        for (std::size_t i = 0; i < deep.vertices.size(); ++i)
+          deep.vertices[i] += deep_scale * field.unit_displacement[i];
         EXPECT_FALSE(mesh::self_intersects(deep));
         const double quiet_scale = map_v.scale_for(map_v.volume(0.0) + share * 500e-6);
         const mesh::MotionSummary s = mesh::summarize_motion(rest, field.unit_displacement, quiet_scale, regions);
@@ -210,9 +216,9 @@ TEST_P(CtLungRealism, DeepBreathDoesNotFoldAndQuietBreathIsHuman) {
           EXPECT_LE(s.dome_top_caudal_m, 21e-3);
         }
         std::cout << what << ": diaphragm " << of(s, mesh::Region::diaphragmatic).caudal_mean_m * 1e3 << " mm ("
-                  << of(s, mesh::Region::diaphragmatic).volume_share * 100 << " %), dome top " << s.dome_top_caudal_m * 1e3
-                  << " mm, apex " << of(s, mesh::Region::apex).magnitude_mean_m * 1e3 << " mm, mediastinum "
-                  << of(s, mesh::Region::mediastinal).magnitude_mean_m * 1e3 << " mm\n";
+                  << of(s, mesh::Region::diaphragmatic).volume_share * 100 << " %), dome top "
+                  << s.dome_top_caudal_m * 1e3 << " mm, apex " << of(s, mesh::Region::apex).magnitude_mean_m * 1e3
+                  << " mm, mediastinum " << of(s, mesh::Region::mediastinal).magnitude_mean_m * 1e3 << " mm\n";
       }
     }
   }

@@ -12,14 +12,14 @@
 #include <vector>
 
 #include "pneuma/core/error.h"
+#include "pneuma/field/tissue.h"
+#include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/labels/labels.h"
 #include "pneuma/model/field_cache.h"
 #include "pneuma/runner/output_registry.h"
 #include "pneuma/scenario/scenario.h"
 #include "pneuma/scenario/tissue_config.h"
-#include "pneuma/field/tissue.h"
-#include "pneuma/mesh/io/mesh_io.h"
-#include "pneuma/mesh/labels/labels.h"
-#include "pneuma/mesh/geometry/validate.h"
 #include "test_support.h"
 
 namespace {

@@ -8,9 +8,9 @@
 #include <sstream>
 
 #include "mesh_fixture.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/repair/repair.h"
-#include "pneuma/mesh/geometry/validate.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;
@@ -75,7 +75,8 @@ TEST(MeshCli, Hole) {
   // The first boundary edge in (low, high) order, and the face that still uses it.
   std::array<std::uint32_t, 2> first{~0u, ~0u};
   for (int k = 0; k < 3; ++k) {
-    const std::array<std::uint32_t, 2> e{std::min(removed[k], removed[(k + 1) % 3]), std::max(removed[k], removed[(k + 1) % 3])};
+    const std::array<std::uint32_t, 2> e{std::min(removed[k], removed[(k + 1) % 3]),
+                                         std::max(removed[k], removed[(k + 1) % 3])};
     first = std::min(first, e);
   }
   std::size_t face = 0;
@@ -83,8 +84,9 @@ TEST(MeshCli, Hole) {
     const auto& t = m.triangles[f];
     if (std::count(t.begin(), t.end(), first[0]) && std::count(t.begin(), t.end(), first[1])) face = f;
   }
-  expect_info_error(file, 3, "open surface: 1 hole (3 boundary edges), first at edge " + std::to_string(first[0]) + "-" +
-                                 std::to_string(first[1]) + " of face " + std::to_string(face));
+  expect_info_error(file, 3,
+                    "open surface: 1 hole (3 boundary edges), first at edge " + std::to_string(first[0]) + "-" +
+                        std::to_string(first[1]) + " of face " + std::to_string(face));
   expect_repaired(dir, file, "filled 1 hole with 1 face");
 }
 
@@ -116,7 +118,9 @@ TEST(MeshCli, NonManifoldEdgeOnAnOpenSurfaceIsRefused) {
   // PLY keeps the file's vertex numbering, which the messages use.
   auto with_faces = [](const std::string& count) {
     return "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
-           "element face " + count + "\nproperty list uchar int vertex_indices\nend_header\n"
+           "element face " +
+           count +
+           "\nproperty list uchar int vertex_indices\nend_header\n"
            "0 0 0\n0 0 1\n1 0 0\n0 1 0\n-1 0 0\n0 -1 0\n"
            "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
            "3 0 4 1\n3 0 1 5\n3 0 5 4\n";
@@ -125,9 +129,10 @@ TEST(MeshCli, NonManifoldEdgeOnAnOpenSurfaceIsRefused) {
   expect_info_error(closed, 3, "non-manifold edge 0-1 (shared by faces 0, 1, 4, 5)");
   const auto open = dir.write("open-bowtie.ply", with_faces("7")).string();
   expect_refused(dir, open,
-                 open + ": cannot repair: non-manifold edge 0-1 (shared by faces 0, 1, 4, 5) (and the surface is open, so "
-                        "it cannot be rebuilt from its inside: re-export the surface, or rebuild it from its label map "
-                        "with 'pneuma mesh from-labels')");
+                 open +
+                     ": cannot repair: non-manifold edge 0-1 (shared by faces 0, 1, 4, 5) (and the surface is open, so "
+                     "it cannot be rebuilt from its inside: re-export the surface, or rebuild it from its label map "
+                     "with 'pneuma mesh from-labels')");
 }
 
 TEST(MeshCli, TwoComponentsAreValidAndKept) {
@@ -154,12 +159,14 @@ TEST(MeshCli, TruncatedBinaryStl) {
   ASSERT_EQ(bytes.size(), 4084u);
   bytes.resize(2000);
   const auto file = dir.write("cut.stl", bytes).string();
-  expect_info_error(file, 3, "truncated binary STL: the header announces 80 triangles (4084 bytes), the file has 2000 bytes");
+  expect_info_error(file, 3,
+                    "truncated binary STL: the header announces 80 triangles (4084 bytes), the file has 2000 bytes");
 }
 
 TEST(MeshCli, NanCoordinates) {
   TempDir dir;
-  const auto file = dir.write("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 nan\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n").string();
+  const auto file =
+      dir.write("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 nan\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n").string();
   expect_info_error(file, 3, "face 1 has a non-finite vertex coordinate (nan)");
 }
 
@@ -168,8 +175,9 @@ TEST(MeshCli, NotAMesh) {
   const auto text = dir.write("notes.obj", "these are notes, not a mesh\n").string();
   expect_info_error(text, 3, "no triangles in the file (not a surface mesh)");
   const auto other = dir.write("notes.txt", "these are notes, not a mesh\n").string();
-  expect_info_error(other, 3,
-                    "unknown mesh format '.txt' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ..., or VTK .vtk, .vtp)");
+  expect_info_error(
+      other, 3,
+      "unknown mesh format '.txt' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ..., or VTK .vtk, .vtp)");
   const auto ply = dir.write("notes.ply", "these are notes, not a mesh\n").string();
   expect_info_error(ply, 3, "PLY header line 1: expected 'ply', got 'these are notes, not a mesh'");
 }
@@ -202,9 +210,11 @@ TEST(MeshCli, RemeshRepairsAnInvalidSurfaceFirst) {
   const auto out = (dir / "o.ply").string();
   const auto r = run_pneuma({"mesh", "remesh", file, "--edge", "3mm", "-o", out});
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find(file + ": not a valid surface (face 3 is oriented against its neighbours); repairing before remeshing\n" +
-                       file + ": flipped 1 face to match their neighbours\n"),
-            std::string::npos)
+  EXPECT_NE(
+      r.out.find(file +
+                 ": not a valid surface (face 3 is oriented against its neighbours); repairing before remeshing\n" +
+                 file + ": flipped 1 face to match their neighbours\n"),
+      std::string::npos)
       << r.out;
   EXPECT_TRUE(validate(read_mesh(out)).valid());
 }

@@ -9,14 +9,14 @@
 
 #include "mesh_fixture.h"
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;
-using pneuma::test::TempDir;
 using pneuma::mesh::test::make_cube;
+using pneuma::test::TempDir;
 
 namespace {
 
@@ -31,7 +31,8 @@ void expect_same(const TriangleMesh& a, const TriangleMesh& b, double tolerance_
   ASSERT_EQ(a.triangle_count(), b.triangle_count());
   EXPECT_EQ(a.triangles, b.triangles);
   double worst = 0.0;
-  for (std::size_t i = 0; i < a.vertex_count(); ++i) worst = std::max(worst, (a.vertices[i] - b.vertices[i]).cwiseAbs().maxCoeff());
+  for (std::size_t i = 0; i < a.vertex_count(); ++i)
+    worst = std::max(worst, (a.vertices[i] - b.vertices[i]).cwiseAbs().maxCoeff());
   EXPECT_LE(worst, tolerance_m);
 }
 
@@ -111,9 +112,9 @@ TEST(Io, ReadsOffAndGltfWithNodeTransforms) {
 
 TEST(Io, SeveralMeshesInOneFileAreKeptAsComponents) {
   TempDir dir;
-  const auto obj = dir.write("two.obj",
-                             "o first\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
-                             "o second\nv 5 0 0\nv 6 0 0\nv 5 1 0\nv 5 0 1\nf 5 7 6\nf 5 6 8\nf 5 8 7\nf 6 7 8\n");
+  const auto obj =
+      dir.write("two.obj", "o first\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+                           "o second\nv 5 0 0\nv 6 0 0\nv 5 1 0\nv 5 0 1\nf 5 7 6\nf 5 6 8\nf 5 8 7\nf 6 7 8\n");
   const ValidationReport r = validate(read_mesh(obj));
   EXPECT_EQ(r.component_count, 2u);
   EXPECT_TRUE(r.valid()) << r.summary();
@@ -145,11 +146,14 @@ TEST(Io, PlyQuadsAsciiAndBigEndianBinary) {
                       "property float z\nproperty uchar red\nelement face 6\nproperty list uchar int vertex_indices\n"
                       "element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n";
   for (const char* c : corners) ascii += std::string(c) + " 255\n";
-  for (const auto& q : quads) ascii += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) + " " + std::to_string(q[3]) + "\n";
+  for (const auto& q : quads)
+    ascii += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) + " " +
+             std::to_string(q[3]) + "\n";
   ascii += "0 1\n";
-  std::string binary = "ply\nformat binary_big_endian 1.0\ncomment unit m\nelement vertex 8\nproperty double x\n"
-                       "property double y\nproperty double z\nelement face 6\nproperty list ushort uint vertex_indices\n"
-                       "end_header\n";
+  std::string binary =
+      "ply\nformat binary_big_endian 1.0\ncomment unit m\nelement vertex 8\nproperty double x\n"
+      "property double y\nproperty double z\nelement face 6\nproperty list ushort uint vertex_indices\n"
+      "end_header\n";
   auto put_be = [&](auto value) {
     unsigned char b[sizeof value];
     std::memcpy(b, &value, sizeof value);
@@ -200,7 +204,8 @@ TEST(Io, APlyHeaderWithoutEndHeaderIsRefusedNotAHang) {
   // Also found: a second format line and repeated elements corrupted assimp's heap.
   const auto twice = dir.write("twice.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
                                             "property float y\nproperty float z\nelement vertex 3\nend_header\n");
-  EXPECT_EQ(read_error(twice), twice.string() + ": PLY header line 7: expected each element once, got 'element vertex 3'");
+  EXPECT_EQ(read_error(twice),
+            twice.string() + ": PLY header line 7: expected each element once, got 'element vertex 3'");
 }
 
 TEST(Io, UnknownOutputExtensionIsAUsageError) {

@@ -7,10 +7,10 @@
 #include <numbers>
 
 #include "nifti_fixture.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/labels/labels.h"
 #include "pneuma/mesh/repair/remesh.h"
-#include "pneuma/mesh/geometry/validate.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;
@@ -25,9 +25,7 @@ constexpr double kPi = std::numbers::pi;
 struct Volume {
   std::array<int, 3> size;
   std::vector<std::int16_t> labels;
-  std::int16_t& at(int i, int j, int k) {
-    return labels[static_cast<std::size_t>(i + size[0] * (j + size[1] * k))];
-  }
+  std::int16_t& at(int i, int j, int k) { return labels[static_cast<std::size_t>(i + size[0] * (j + size[1] * k))]; }
 };
 
 Volume empty_volume(std::array<int, 3> size) {
@@ -107,12 +105,14 @@ TEST(Labels, IslandsAndCavitiesAreReported) {
   Volume v = empty_volume({40, 40, 40});
   for (int k = 10; k < 30; ++k)
     for (int j = 10; j < 30; ++j)
-      for (int i = 10; i < 30; ++i) v.at(i, j, k) = (i >= 17 && i < 23 && j >= 17 && j < 23 && k >= 17 && k < 23) ? 0 : 1;
+      for (int i = 10; i < 30; ++i)
+        v.at(i, j, k) = (i >= 17 && i < 23 && j >= 17 && j < 23 && k >= 17 && k < 23) ? 0 : 1;
   for (int k = 2; k < 4; ++k)
     for (int j = 2; j < 4; ++j)
       for (int i = 2; i < 4; ++i) v.at(i, j, k) = 2;
   write_nifti(dir / "box.nii", v.size, v.labels, Qform{});
-  const LabelSurface s = surface_from_labels(dir / "box.nii", {1, 2}, {.edge_length_m = 1.5e-3, .smoothing_m = 0.6e-3, .closing_radius_m = 0.0});
+  const LabelSurface s = surface_from_labels(dir / "box.nii", {1, 2},
+                                             {.edge_length_m = 1.5e-3, .smoothing_m = 0.6e-3, .closing_radius_m = 0.0});
   expect_valid_genus0(s.mesh, "box");
   EXPECT_EQ(s.report.label_voxels, 20u * 20 * 20 - 6 * 6 * 6 + 8);
   EXPECT_EQ(s.report.dropped_islands, 1u);
@@ -141,15 +141,18 @@ TEST(Labels, HandlesAreRemovedOrReported) {
         if (q * q + z * z <= r * r) v.at(i, j, k) = 5;
       }
   write_nifti(dir / "torus.nii.gz", v.size, v.labels, Qform{});
-  const LabelSurface kept = surface_from_labels(dir / "torus.nii.gz", {5}, {.edge_length_m = 1.5e-3, .smoothing_m = 0.6e-3, .remove_handles = false});
+  const LabelSurface kept = surface_from_labels(
+      dir / "torus.nii.gz", {5}, {.edge_length_m = 1.5e-3, .smoothing_m = 0.6e-3, .remove_handles = false});
   EXPECT_EQ(kept.report.genus, 1);
   EXPECT_EQ(validate(kept.mesh).genus, 1);
   EXPECT_NEAR(enclosed_volume(kept.mesh) / (2 * kPi * kPi * R * r * r * 1e-9), 1.0, 0.05);
-  const LabelSurface removed = surface_from_labels(dir / "torus.nii.gz", {5}, {.edge_length_m = 1.5e-3, .smoothing_m = 0.6e-3});
+  const LabelSurface removed =
+      surface_from_labels(dir / "torus.nii.gz", {5}, {.edge_length_m = 1.5e-3, .smoothing_m = 0.6e-3});
   expect_valid_genus0(removed.mesh, "torus");
   EXPECT_TRUE(removed.report.filled_slice_holes);
   EXPECT_EQ(removed.report.attempts, 2);
-  EXPECT_NEAR(enclosed_volume(removed.mesh) / (kPi * (R + r) * (R + r) * 2 * r * 1e-9), 1.0, 0.35);  // filled: a disc-like cake
+  EXPECT_NEAR(enclosed_volume(removed.mesh) / (kPi * (R + r) * (R + r) * 2 * r * 1e-9), 1.0,
+              0.35);  // filled: a disc-like cake
 }
 
 TEST(LabelsCli, WritesTheSurfaceAndItsProvenance) {
@@ -157,7 +160,8 @@ TEST(LabelsCli, WritesTheSurfaceAndItsProvenance) {
   const Qform q = rotated_qform();
   write_nifti(dir / "ball.nii.gz", {48, 40, 32}, ball({48, 40, 32}, q.spacing, {24, 20, 16}, 12.0).labels, q);
   const auto out = (dir / "ball.stl").string();
-  auto r = run_pneuma({"mesh", "from-labels", (dir / "ball.nii.gz").string(), "--labels", "1", "--edge", "2mm", "-o", out});
+  auto r =
+      run_pneuma({"mesh", "from-labels", (dir / "ball.nii.gz").string(), "--labels", "1", "--edge", "2mm", "-o", out});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("result: genus 0"), std::string::npos) << r.out;
   EXPECT_TRUE(std::filesystem::exists(provenance_path(out)));
@@ -192,8 +196,9 @@ TEST(LabelsCli, BadInputIsOneLineAndExitThree) {
   std::string bytes = pneuma::test::read_text(dir / "ball.nii.gz");
   bytes.resize(bytes.size() / 2);
   const auto cut = dir.write("cut.nii.gz", bytes).string();
-  expect_error(cut, "1", 3,
-               "truncated or corrupt: expected 48 x 40 x 32 voxels of INT16 (122880 bytes of data after decompression)");
+  expect_error(
+      cut, "1", 3,
+      "truncated or corrupt: expected 48 x 40 x 32 voxels of INT16 (122880 bytes of data after decompression)");
 
   // A header claiming far more voxels than the file holds (found by fuzz_nifti: niftilib
   // allocated the claim, 37 GB): refused before anything is allocated, with the same line.
@@ -226,7 +231,8 @@ TEST_P(CtLobes, BothLungsExtractRepairAndRemesh) {
   const Eigen::Matrix4d oracle = qform_ijk_to_lps(read_raw_qform(file));
   EXPECT_LT((map.ijk_to_lps - oracle).cwiseAbs().maxCoeff(), 1e-6) << map.ijk_to_lps << "\n" << oracle;
 
-  for (const auto& [lung, labels] : {std::pair{"right", std::vector<int>{3, 4, 5}}, std::pair{"left", std::vector<int>{1, 2}}}) {
+  for (const auto& [lung, labels] :
+       {std::pair{"right", std::vector<int>{3, 4, 5}}, std::pair{"left", std::vector<int>{1, 2}}}) {
     const std::string what = std::string(GetParam()) + " " + lung;
     // Oracles from the voxels: count, and the voxel box (voxel faces) mapped to LPS.
     std::size_t count = 0;
@@ -242,7 +248,8 @@ TEST_P(CtLobes, BothLungsExtractRepairAndRemesh) {
     Eigen::Vector3d box_lo = Eigen::Vector3d::Constant(1e9), box_hi = -box_lo;
     for (int c = 0; c < 8; ++c) {
       auto face = [&](int a, bool upper) {
-        return upper ? static_cast<double>(hi[static_cast<std::size_t>(a)]) + 0.5 : static_cast<double>(lo[static_cast<std::size_t>(a)]) - 0.5;
+        return upper ? static_cast<double>(hi[static_cast<std::size_t>(a)]) + 0.5
+                     : static_cast<double>(lo[static_cast<std::size_t>(a)]) - 0.5;
       };
       const Eigen::Vector4d ijk(face(0, c & 1), face(1, c & 2), face(2, c & 4), 1.0);
       const Eigen::Vector3d p = (oracle * ijk).head<3>();

@@ -5,8 +5,8 @@
 #include <numbers>
 
 #include "mesh_fixture.h"
-#include "pneuma/mesh/geometry/validate.h"
 #include "pneuma/core/error.h"
+#include "pneuma/mesh/geometry/validate.h"
 
 using namespace pneuma::mesh;
 using pneuma::mesh::test::make_cube;

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/mesh/io/mesh_io.h"
 
 namespace pneuma::mesh::test {
 
@@ -26,7 +26,8 @@ inline TriangleMesh make_torus(double R, double r, int nu, int nv) {
   for (int i = 0; i < nu; ++i) {
     for (int j = 0; j < nv; ++j) {
       const double u = 2 * std::numbers::pi * i / nu, v = 2 * std::numbers::pi * j / nv;
-      m.vertices.emplace_back((R + r * std::cos(v)) * std::cos(u), (R + r * std::cos(v)) * std::sin(u), r * std::sin(v));
+      m.vertices.emplace_back((R + r * std::cos(v)) * std::cos(u), (R + r * std::cos(v)) * std::sin(u),
+                              r * std::sin(v));
     }
   }
   auto id = [&](int i, int j) { return static_cast<std::uint32_t>(((i + nu) % nu) * nv + (j + nv) % nv); };

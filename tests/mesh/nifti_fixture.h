@@ -18,10 +18,10 @@
 namespace pneuma::mesh::test {
 
 struct Qform {
-  double b = 0.0, c = 0.0, d = 0.0;           // quaternion (a = sqrt(1 - b^2 - c^2 - d^2))
-  double qfac = 1.0;                          // pixdim[0]: -1 flips k
+  double b = 0.0, c = 0.0, d = 0.0;                  // quaternion (a = sqrt(1 - b^2 - c^2 - d^2))
+  double qfac = 1.0;                                 // pixdim[0]: -1 flips k
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // mm, RAS
-  Eigen::Vector3d spacing{1.0, 1.0, 1.0};     // mm
+  Eigen::Vector3d spacing{1.0, 1.0, 1.0};            // mm
 };
 
 // Voxel (i, j, k) -> LPS metres, by the standard's method 2 and RAS -> LPS.
@@ -30,7 +30,7 @@ inline Eigen::Matrix4d qform_ijk_to_lps(const Qform& q) {
   const double b = q.b, c = q.c, d = q.d;
   Eigen::Matrix3d R;
   R << a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c),  //
-      2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b),  //
+      2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b),   //
       2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - c * c - b * b;
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
   m.block<3, 3>(0, 0) = R * Eigen::Vector3d(q.spacing.x(), q.spacing.y(), q.qfac * q.spacing.z()).asDiagonal();
@@ -47,17 +47,29 @@ inline void write_nifti(const std::filesystem::path& path, const std::array<int,
   std::string bytes(352, '\0');
   auto put = [&](std::size_t at, auto value) { std::memcpy(bytes.data() + at, &value, sizeof value); };
   put(0, std::int32_t{348});
-  const std::int16_t dim[8] = {3, static_cast<std::int16_t>(size[0]), static_cast<std::int16_t>(size[1]),
-                               static_cast<std::int16_t>(size[2]), 1, 1, 1, 1};
+  const std::int16_t dim[8] = {3,
+                               static_cast<std::int16_t>(size[0]),
+                               static_cast<std::int16_t>(size[1]),
+                               static_cast<std::int16_t>(size[2]),
+                               1,
+                               1,
+                               1,
+                               1};
   for (int i = 0; i < 8; ++i) put(40 + 2 * static_cast<std::size_t>(i), dim[i]);
   put(70, std::int16_t{4});   // DT_INT16
   put(72, std::int16_t{16});  // bitpix
-  const float pixdim[8] = {static_cast<float>(q.qfac), static_cast<float>(q.spacing.x()), static_cast<float>(q.spacing.y()),
-                           static_cast<float>(q.spacing.z()), 1, 1, 1, 1};
+  const float pixdim[8] = {static_cast<float>(q.qfac),
+                           static_cast<float>(q.spacing.x()),
+                           static_cast<float>(q.spacing.y()),
+                           static_cast<float>(q.spacing.z()),
+                           1,
+                           1,
+                           1,
+                           1};
   for (int i = 0; i < 8; ++i) put(76 + 4 * static_cast<std::size_t>(i), pixdim[i]);
-  put(108, 352.0f);  // vox_offset
-  put(112, 1.0f);    // scl_slope
-  bytes[123] = 2;    // xyzt_units: mm
+  put(108, 352.0f);           // vox_offset
+  put(112, 1.0f);             // scl_slope
+  bytes[123] = 2;             // xyzt_units: mm
   put(252, std::int16_t{1});  // qform_code: scanner
   put(254, std::int16_t{0});  // sform_code: none
   put(256, static_cast<float>(q.b));

@@ -5,10 +5,10 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
-#include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/anatomy/phantom.h"
-#include "pneuma/mesh/repair/remesh.h"
 #include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/repair/remesh.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;

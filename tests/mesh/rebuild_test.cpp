@@ -11,9 +11,9 @@
 
 #include "mesh_fixture.h"
 #include "pneuma/core/error.h"
+#include "pneuma/mesh/geometry/validate.h"
 #include "pneuma/mesh/labels/labels.h"
 #include "pneuma/mesh/repair/repair.h"
-#include "pneuma/mesh/geometry/validate.h"
 
 using namespace pneuma::mesh;
 
@@ -44,12 +44,14 @@ TriangleMesh bored_ball() {
   for (std::size_t k = 0; k < 80; ++k)
     for (std::size_t j = 0; j < 80; ++j)
       for (std::size_t i = 0; i < 80; ++i) {
-        const double x = static_cast<double>(i) - 39.5, y = static_cast<double>(j) - 39.5, z = static_cast<double>(k) - 39.5;
+        const double x = static_cast<double>(i) - 39.5, y = static_cast<double>(j) - 39.5,
+                     z = static_cast<double>(k) - 39.5;
         const bool ball = x * x + y * y + z * z <= 30.0 * 30.0, tunnel = y * y + z * z <= 2.0 * 2.0;
         map.labels[i + 80 * (j + 80 * k)] = ball && !tunnel ? 1 : 0;
       }
-  return surface_from_labels(map, "bored", {1}, {.edge_length_m = 2e-3, .smoothing_m = 0.6e-3, .closing_radius_m = 0.0,
-                                                 .remove_handles = false})
+  return surface_from_labels(
+             map, "bored", {1},
+             {.edge_length_m = 2e-3, .smoothing_m = 0.6e-3, .closing_radius_m = 0.0, .remove_handles = false})
       .mesh;
 }
 
@@ -116,7 +118,8 @@ TEST(Rebuild, TwoSolidsSharingAWallBecomeOneValidSurface) {
   EXPECT_EQ(after.genus, 0);
   EXPECT_EQ(after.component_count, 1u);
   EXPECT_EQ(r.report.rebuilt_components, 1u);
-  EXPECT_TRUE(mentions(r.report, "rebuilt 1 component from its inside (4 non-manifold edges, first 1-3")) << actions(r.report);
+  EXPECT_TRUE(mentions(r.report, "rebuilt 1 component from its inside (4 non-manifold edges, first 1-3"))
+      << actions(r.report);
   // The 40 x 20 x 20 mm block, 16 mL, its edges rounded by one voxel of smoothing; no wall inside.
   EXPECT_NEAR(enclosed_volume(r.mesh) / 16e-6, 1.0, 0.05);
   const auto box = bounding_box(r.mesh.vertices);

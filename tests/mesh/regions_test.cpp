@@ -9,10 +9,10 @@
 #include <numeric>
 
 #include "mesh_fixture.h"
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/anatomy/motion_summary.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/mesh/anatomy/regions.h"
-#include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -99,12 +99,18 @@ TEST(Regions, SphereBottomIsDiaphragmaticTopIsApex) {
   const SurfaceRegions r = find_regions(s, o);
   for (std::size_t i = 0; i < s.vertices.size(); ++i) {
     const Eigen::Vector3d n = s.vertices[i].normalized();
-    if (n.z() < -0.9) { EXPECT_EQ(r.label[i], Region::diaphragmatic); }
-    if (n.z() > 0.9) { EXPECT_EQ(r.label[i], Region::apex); }
-    if (n.x() > 0.97) {  // steeper than the diaphragmatic border (-n.up > 0.25)
+    if (n.z() < -0.9) {
+      EXPECT_EQ(r.label[i], Region::diaphragmatic);
+    }
+    if (n.z() > 0.9) {
+      EXPECT_EQ(r.label[i], Region::apex);
+    }
+    if (n.x() > 0.97) {                            // steeper than the diaphragmatic border (-n.up > 0.25)
       EXPECT_EQ(r.label[i], Region::mediastinal);  // right lung: medial is +x
     }
-    if (n.x() < -0.97) { EXPECT_EQ(r.label[i], Region::costal); }
+    if (n.x() < -0.97) {
+      EXPECT_EQ(r.label[i], Region::costal);
+    }
   }
 }
 
@@ -280,7 +286,8 @@ TEST(RegionalLoad, TheDomeProfileMovesTheDiaphragmsDriveInwardAndKeepsItsTotal) 
   // The dome's top: diaphragmatic, normal within 30 degrees of straight down, within 10 mm of the highest such vertex.
   double highest = -1.0;
   for (std::size_t i = 0; i < s.vertices.size(); ++i) {
-    if (r.label[i] == Region::diaphragmatic && -r.normal[i].z() >= std::cos(std::numbers::pi / 6)) highest = std::max(highest, s.vertices[i].z());
+    if (r.label[i] == Region::diaphragmatic && -r.normal[i].z() >= std::cos(std::numbers::pi / 6))
+      highest = std::max(highest, s.vertices[i].z());
   }
   for (std::size_t i = 0; i < s.vertices.size(); ++i) {
     const bool expected = r.label[i] == Region::diaphragmatic && -r.normal[i].z() >= std::cos(std::numbers::pi / 6) &&
@@ -322,7 +329,8 @@ TEST(Geometry, SphereMeanCurvatureIsOneOverRadiusAndHullDepthIsZero) {
   for (std::size_t q = 0; q < 2; ++q) {
     double direct = std::numeric_limits<double>::infinity();
     for (const auto& t : s.triangles) {  // the icosphere is its own convex hull
-      const Eigen::Vector3d n = (s.vertices[t[1]] - s.vertices[t[0]]).cross(s.vertices[t[2]] - s.vertices[t[0]]).normalized();
+      const Eigen::Vector3d n =
+          (s.vertices[t[1]] - s.vertices[t[0]]).cross(s.vertices[t[2]] - s.vertices[t[0]]).normalized();
       direct = std::min(direct, n.dot(s.vertices[t[0]]) - n.dot(queries[q]));
     }
     EXPECT_NEAR(queried[q], direct, 1e-12);

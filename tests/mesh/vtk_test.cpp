@@ -10,8 +10,8 @@
 
 #include "mesh_fixture.h"
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;
@@ -37,7 +37,8 @@ std::string points_ascii(const TriangleMesh& m) {
 void expect_same(const TriangleMesh& read, const TriangleMesh& original) {
   ASSERT_EQ(read.vertex_count(), original.vertex_count());
   ASSERT_EQ(read.triangles, original.triangles);
-  for (std::size_t v = 0; v < read.vertex_count(); ++v) EXPECT_LT((read.vertices[v] - original.vertices[v]).norm(), 1e-8);
+  for (std::size_t v = 0; v < read.vertex_count(); ++v)
+    EXPECT_LT((read.vertices[v] - original.vertices[v]).norm(), 1e-8);
   EXPECT_TRUE(validate(read).valid());
 }
 
@@ -73,12 +74,14 @@ std::string base64(const std::string& bytes) {
 
 std::string float_bytes(const TriangleMesh& m) {
   std::string s;
-  for (const auto& v : m.vertices) for (int c = 0; c < 3; ++c) put_little(s, static_cast<float>(v[c] * 1e3));
+  for (const auto& v : m.vertices)
+    for (int c = 0; c < 3; ++c) put_little(s, static_cast<float>(v[c] * 1e3));
   return s;
 }
 std::string conn_bytes(const TriangleMesh& m) {
   std::string s;
-  for (const auto& t : m.triangles) for (auto v : t) put_little(s, static_cast<std::int32_t>(v));
+  for (const auto& t : m.triangles)
+    for (auto v : t) put_little(s, static_cast<std::int32_t>(v));
   return s;
 }
 std::string offs_bytes(const TriangleMesh& m) {
@@ -108,10 +111,11 @@ std::string inline_zlib(const std::string& data) {
 
 std::string vtp(const TriangleMesh& m, const std::string& format, const std::string& pts, const std::string& conn,
                 const std::string& offs, const std::string& extra_root = "", const std::string& appended = "") {
-  return "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\"" + extra_root +
-         ">\n<PolyData>\n<Piece NumberOfPoints=\"" + std::to_string(m.vertex_count()) + "\" NumberOfPolys=\"" +
-         std::to_string(m.triangle_count()) + "\">\n<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"" +
-         format + "\"" + (format == "appended" ? " offset=\"0\"" : "") + ">" + pts +
+  return "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\"" +
+         extra_root + ">\n<PolyData>\n<Piece NumberOfPoints=\"" + std::to_string(m.vertex_count()) +
+         "\" NumberOfPolys=\"" + std::to_string(m.triangle_count()) +
+         "\">\n<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"" + format + "\"" +
+         (format == "appended" ? " offset=\"0\"" : "") + ">" + pts +
          "</DataArray></Points>\n<Polys><DataArray type=\"Int32\" Name=\"connectivity\" format=\"" + format + "\"" +
          (format == "appended" ? " offset=\"" + conn + "\"" : "") + ">" + (format == "appended" ? "" : conn) +
          "</DataArray><DataArray type=\"Int32\" Name=\"offsets\" format=\"" + format + "\"" +
@@ -134,14 +138,17 @@ TEST(Vtk, LegacyAsciiPolygonsBothVersions) {
     offs += ' ';
     offs += std::to_string(3 * (f + 1));
   }
-  const std::string head = "ASCII\nDATASET POLYDATA\nPOINTS " + std::to_string(m.vertex_count()) + " float\n" + points_ascii(m);
-  const auto old = dir.write("old.vtk", std::string("# vtk DataFile Version 3.0\nsphere\n") + head + "POLYGONS " +
-                                            std::to_string(m.triangle_count()) + " " + std::to_string(4 * m.triangle_count()) +
-                                            "\n" + cells + "POINT_DATA 3\nSCALARS s float\n");
+  const std::string head =
+      "ASCII\nDATASET POLYDATA\nPOINTS " + std::to_string(m.vertex_count()) + " float\n" + points_ascii(m);
+  const auto old =
+      dir.write("old.vtk", std::string("# vtk DataFile Version 3.0\nsphere\n") + head + "POLYGONS " +
+                               std::to_string(m.triangle_count()) + " " + std::to_string(4 * m.triangle_count()) +
+                               "\n" + cells + "POINT_DATA 3\nSCALARS s float\n");
   expect_same(read_mesh(old), m);
-  const auto v51 = dir.write("v51.vtk", std::string("# vtk DataFile Version 5.1\nsphere\n") + head + "\nMETADATA\nINFORMATION 0\n\nPOLYGONS " +
-                                            std::to_string(m.triangle_count() + 1) + " " + std::to_string(3 * m.triangle_count()) +
-                                            "\nOFFSETS vtktypeint64\n" + offs + "\nCONNECTIVITY vtktypeint64\n" + conn);
+  const auto v51 = dir.write(
+      "v51.vtk", std::string("# vtk DataFile Version 5.1\nsphere\n") + head + "\nMETADATA\nINFORMATION 0\n\nPOLYGONS " +
+                     std::to_string(m.triangle_count() + 1) + " " + std::to_string(3 * m.triangle_count()) +
+                     "\nOFFSETS vtktypeint64\n" + offs + "\nCONNECTIVITY vtktypeint64\n" + conn);
   expect_same(read_mesh(v51), m);
 }
 
@@ -173,7 +180,8 @@ TEST(Vtk, Version51AsVtk9WritesItWithFieldData) {
     s += "Source 1 1 string\nlung from a segmentation\n";
     s += "POINTS " + std::to_string(m.vertex_count()) + " double\n";
     std::vector<double> xyz;
-    for (const auto& v : m.vertices) for (int c = 0; c < 3; ++c) xyz.push_back(v[c] * 1e3);
+    for (const auto& v : m.vertices)
+      for (int c = 0; c < 3; ++c) xyz.push_back(v[c] * 1e3);
     numbers(s, xyz);
     s += "\nMETADATA\nINFORMATION 2\nNAME L2_NORM_RANGE LOCATION vtkDataArray\nDATA 2 10 10\n"
          "NAME L2_NORM_FINITE_RANGE LOCATION vtkDataArray\nDATA 2 10 10\n\n";
@@ -193,13 +201,13 @@ TEST(Vtk, Version51AsVtk9WritesItWithFieldData) {
   }
 }
 
-
 TEST(Vtk, LegacyBinaryIsBigEndian) {
   TempDir dir;
   const TriangleMesh m = sphere();
-  std::string s = "# vtk DataFile Version 3.0\nsphere\nBINARY\nDATASET POLYDATA\nPOINTS " + std::to_string(m.vertex_count()) +
-                  " float\n";
-  for (const auto& v : m.vertices) for (int c = 0; c < 3; ++c) put_big(s, static_cast<float>(v[c] * 1e3));
+  std::string s = "# vtk DataFile Version 3.0\nsphere\nBINARY\nDATASET POLYDATA\nPOINTS " +
+                  std::to_string(m.vertex_count()) + " float\n";
+  for (const auto& v : m.vertices)
+    for (int c = 0; c < 3; ++c) put_big(s, static_cast<float>(v[c] * 1e3));
   s += "\nPOLYGONS " + std::to_string(m.triangle_count()) + " " + std::to_string(4 * m.triangle_count()) + "\n";
   for (const auto& t : m.triangles) {
     put_big(s, std::int32_t{3});
@@ -218,11 +226,15 @@ TEST(Vtk, StripsAndUnstructuredQuads) {
   EXPECT_EQ(s.triangles, (std::vector<Triangle>{{0, 1, 2}, {2, 1, 3}}));
   // A cube of quads in an unstructured grid: 12 triangles, closed, the cube's volume.
   std::string pts, cells;
-  for (int i = 0; i < 8; ++i) pts += std::to_string(i & 1) + " " + std::to_string((i >> 1) & 1) + " " + std::to_string((i >> 2) & 1) + "\n";
+  for (int i = 0; i < 8; ++i)
+    pts += std::to_string(i & 1) + " " + std::to_string((i >> 1) & 1) + " " + std::to_string((i >> 2) & 1) + "\n";
   const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& q : quads) cells += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) + " " + std::to_string(q[3]) + "\n";
-  const auto cube = dir.write("cube.vtk", "# vtk DataFile Version 3.0\ncube\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 double\n" +
-                                              pts + "CELLS 6 30\n" + cells + "CELL_TYPES 6\n9\n9\n9\n9\n9\n9\n");
+  for (const auto& q : quads)
+    cells += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) + " " +
+             std::to_string(q[3]) + "\n";
+  const auto cube =
+      dir.write("cube.vtk", "# vtk DataFile Version 3.0\ncube\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 double\n" +
+                                pts + "CELLS 6 30\n" + cells + "CELL_TYPES 6\n9\n9\n9\n9\n9\n9\n");
   const TriangleMesh c = read_mesh(cube);
   EXPECT_EQ(c.triangle_count(), 12u);
   const ValidationReport r = validate(c);
@@ -239,12 +251,13 @@ TEST(Vtk, XmlPolyDataEveryEncoding) {
     offs += std::to_string(3 * (f + 1)) + " ";
   }
   expect_same(read_mesh(dir.write("ascii.vtp", vtp(m, "ascii", points_ascii(m), conn, offs))), m);
-  expect_same(read_mesh(dir.write("binary.vtp", vtp(m, "binary", inline_binary(float_bytes(m)), inline_binary(conn_bytes(m)),
-                                                    inline_binary(offs_bytes(m))))),
+  expect_same(read_mesh(dir.write("binary.vtp", vtp(m, "binary", inline_binary(float_bytes(m)),
+                                                    inline_binary(conn_bytes(m)), inline_binary(offs_bytes(m))))),
               m);
-  expect_same(read_mesh(dir.write("zlib.vtp", vtp(m, "binary", inline_zlib(float_bytes(m)), inline_zlib(conn_bytes(m)),
-                                                  inline_zlib(offs_bytes(m)), " compressor=\"vtkZLibDataCompressor\""))),
-              m);
+  expect_same(
+      read_mesh(dir.write("zlib.vtp", vtp(m, "binary", inline_zlib(float_bytes(m)), inline_zlib(conn_bytes(m)),
+                                          inline_zlib(offs_bytes(m)), " compressor=\"vtkZLibDataCompressor\""))),
+      m);
   // Raw appended: each array is a UInt32 byte count and the bytes, at its offset after '_'.
   std::string raw;
   std::vector<std::size_t> at;
@@ -268,31 +281,37 @@ TEST(Vtk, ErrorsNameTheFileAndLine) {
       EXPECT_EQ(std::string(e.what()), file.string() + what);
     }
   };
-  expect_error(dir.write("num.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0\n1 x 0\n"),
-               ":7: expected a number, got 'x'");
-  expect_error(dir.write("tet.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n"
-                                    "0 0 0\n1 0 0\n0 1 0\n0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n"),
-               ": line 12: CELL_TYPES: cell 0 is of VTK type 10 (a volume or higher-order cell): expected surface cells "
-               "(triangles, quads, pixels, polygons, strips)");
+  expect_error(
+      dir.write("num.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0\n1 x 0\n"),
+      ":7: expected a number, got 'x'");
+  expect_error(
+      dir.write("tet.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n"
+                           "0 0 0\n1 0 0\n0 1 0\n0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n"),
+      ": line 12: CELL_TYPES: cell 0 is of VTK type 10 (a volume or higher-order cell): expected surface cells "
+      "(triangles, quads, pixels, polygons, strips)");
   expect_error(dir.write("grid.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET STRUCTURED_POINTS\n"),
                ":4: DATASET STRUCTURED_POINTS: expected POLYDATA or UNSTRUCTURED_GRID (a surface)");
-  expect_error(dir.write("idx.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0\n1 0 0\n0 1 0\n"
-                                    "POLYGONS 1 4\n3 0 1 7\n"),
+  expect_error(dir.write("idx.vtk",
+                         "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0\n1 0 0\n0 1 0\n"
+                         "POLYGONS 1 4\n3 0 1 7\n"),
                ": line 9: POLYGONS cell 0 uses point 7: expected an index below the 3 points");
   expect_error(dir.write("img.vtp", "<VTKFile type=\"ImageData\"></VTKFile>"),
                ": expected <VTKFile type=\"PolyData\"> (a .vtp surface)");
 
   // Found by fuzzing: a count larger than the file (allocated as announced), an index that is
   // not an integer (an undefined cast), offsets that are not numbers.
-  expect_error(dir.write("count.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 900000000000 float\n"),
-               ":5: count 900000000000: more items than the rest of the file can hold");
-  expect_error(dir.write("nan.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0\n1 0 0\n"
-                                    "0 1 0\nPOLYGONS 1 4\n3 0 1 1e300\n"),
-               ": line 9: POLYGONS cell 0 uses point -1: expected an index below the 3 points");
-  const std::string vtp = "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"3\" NumberOfPolys=\"1\"><Points>"
-                          "<DataArray type=\"Float32\" NumberOfComponents=\"3\">0 0 0 1 0 0 0 1 0</DataArray></Points>"
-                          "<Polys><DataArray type=\"Int64\" Name=\"connectivity\">0 1 2</DataArray>"
-                          "<DataArray type=\"Int64\" Name=\"offsets\">OFFSET</DataArray></Polys></Piece></PolyData></VTKFile>";
+  expect_error(
+      dir.write("count.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 900000000000 float\n"),
+      ":5: count 900000000000: more items than the rest of the file can hold");
+  expect_error(
+      dir.write("nan.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0\n1 0 0\n"
+                           "0 1 0\nPOLYGONS 1 4\n3 0 1 1e300\n"),
+      ": line 9: POLYGONS cell 0 uses point -1: expected an index below the 3 points");
+  const std::string vtp =
+      "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"3\" NumberOfPolys=\"1\"><Points>"
+      "<DataArray type=\"Float32\" NumberOfComponents=\"3\">0 0 0 1 0 0 0 1 0</DataArray></Points>"
+      "<Polys><DataArray type=\"Int64\" Name=\"connectivity\">0 1 2</DataArray>"
+      "<DataArray type=\"Int64\" Name=\"offsets\">OFFSET</DataArray></Polys></Piece></PolyData></VTKFile>";
   for (const char* offset : {"-1e300", "-5", "1e300"}) {
     std::string text = vtp;
     text.replace(text.find("OFFSET"), 6, offset);

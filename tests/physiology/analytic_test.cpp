@@ -45,8 +45,7 @@ TEST(Analytic, PassiveExpirationDecaysWithTimeConstantRC) {
 
 TEST(Analytic, PressureControlVolumeRisesAsOneMinusExponential) {
   const double C = 0.05 * kLPerCmH2O, R = 8 * kCmH2OsPerL, dp = 15 * kCmH2O, ti = 1.2;
-  const auto result =
-      simulate(just(single_linear(0.05, 8), PressureControl{0.2, dp, ti, 5 * kCmH2O}), tight(5.0));
+  const auto result = simulate(just(single_linear(0.05, 8), PressureControl{0.2, dp, ti, 5 * kCmH2O}), tight(5.0));
   const auto& s = result.series;
   int checked = 0;
   for (std::size_t k = 0; k < s.size(); ++k) {

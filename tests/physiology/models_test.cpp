@@ -4,8 +4,8 @@
 #include <cmath>
 #include <limits>
 
-#include "pneuma/core/error.h"
 #include "physiology_fixture.h"
+#include "pneuma/core/error.h"
 
 using namespace pneuma::physiology;
 using namespace pneuma::test;
@@ -26,9 +26,9 @@ TEST(Models, TwoEqualHalvesEqualTheSingleModel) {
   // Parallel halves: C = 2 C_i, R = R_aw + R_i / 2.
   const Mechanics single = single_linear(0.08, 1.0 + 4.0 / 2.0);
   const Mechanics halves = two_halves(0.08, 1.0, 4.0);
-  for (const Driver& driver : {Driver{PressureControl{0.25, 12 * kCmH2O, 1.0, 5 * kCmH2O}},
-                               Driver{VolumeControl{0.25, 0.45e-3, 1.1, 0.2, 5 * kCmH2O}},
-                               Driver{Spontaneous{0.2, 0.5, 6 * kCmH2O, 0.0}}}) {
+  for (const Driver& driver :
+       {Driver{PressureControl{0.25, 12 * kCmH2O, 1.0, 5 * kCmH2O}},
+        Driver{VolumeControl{0.25, 0.45e-3, 1.1, 0.2, 5 * kCmH2O}}, Driver{Spontaneous{0.2, 0.5, 6 * kCmH2O, 0.0}}}) {
     const auto a = simulate(just(single, driver), tight(12.0));
     const auto b = simulate(just(halves, driver), tight(12.0));
     ASSERT_EQ(a.series.size(), b.series.size());
@@ -51,7 +51,8 @@ TEST(Models, SigmoidVolumeSaturatesTowardTotalLungCapacity) {
   for (double dp_cmh2o : {10.0, 100.0}) {
     const double dp = dp_cmh2o * kCmH2O;
     const auto r = simulate(just(m, PressureControl{0.05, dp, 15.0, 0.0}), tight(20.0, 10.0));
-    const double equilibrium = s.lower_volume_m3 + s.volume_range_m3 / (1 + std::exp(-(p_rest + dp - s.inflection_pressure_pa) / s.width_pa));
+    const double equilibrium =
+        s.lower_volume_m3 + s.volume_range_m3 / (1 + std::exp(-(p_rest + dp - s.inflection_pressure_pa) / s.width_pa));
     const double absolute = s.relaxed_volume_m3 + r.breaths[0].tidal_volume_m3;
     EXPECT_NEAR(absolute, equilibrium, 1e-6 * equilibrium) << dp_cmh2o << " cmH2O";
     EXPECT_LT(absolute, s.lower_volume_m3 + s.volume_range_m3);

@@ -4,8 +4,8 @@
 
 namespace pneuma::test {
 
-constexpr double kCmH2O = 98.0665;      // Pa
-constexpr double kLitre = 1e-3;         // m^3
+constexpr double kCmH2O = 98.0665;  // Pa
+constexpr double kLitre = 1e-3;     // m^3
 constexpr double kLPerCmH2O = kLitre / kCmH2O;
 constexpr double kCmH2OsPerL = kCmH2O / kLitre;
 

@@ -14,13 +14,13 @@
 #include <ostream>
 #include <string>
 
-#include "pneuma/model/field_cache.h"
-#include "pneuma/scenario/physiology_config.h"
-#include "pneuma/scenario/tissue_config.h"
 #include "pneuma/field/tissue.h"
 #include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/model/field_cache.h"
 #include "pneuma/render/compare.h"
 #include "pneuma/render/renderer.h"
+#include "pneuma/scenario/physiology_config.h"
+#include "pneuma/scenario/tissue_config.h"
 #include "test_support.h"
 
 using namespace pneuma;
@@ -91,7 +91,6 @@ bool regenerating() {
 
 class Golden : public ::testing::TestWithParam<GoldenCase> {};
 
-
 // Compares `actual` with tests/golden/<name>.png; on a mismatch writes <name>-actual.png and
 // <name>-diff.png under `output_dir` and says so in the failure message.
 ::testing::AssertionResult matches_golden(const std::string& name, const render::Image& actual,
@@ -112,9 +111,9 @@ class Golden : public ::testing::TestWithParam<GoldenCase> {};
   render::write_png(actual_path, actual);
   render::write_png(diff_path, d.image);
   return ::testing::AssertionFailure()
-         << golden.string() << ": " << d.pixels_over << " pixels (" << 100.0 * d.share_over() << " %) differ by more than "
-         << d.pixel_threshold << " (max R " << d.max[0] << " G " << d.max[1] << " B " << d.max[2] << "); wrote "
-         << actual_path.string() << " and " << diff_path.string()
+         << golden.string() << ": " << d.pixels_over << " pixels (" << 100.0 * d.share_over()
+         << " %) differ by more than " << d.pixel_threshold << " (max R " << d.max[0] << " G " << d.max[1] << " B "
+         << d.max[2] << "); wrote " << actual_path.string() << " and " << diff_path.string()
          << "; if the change is intended, review them and rerun with PNEUMA_REGENERATE_GOLDEN=1";
 }
 
@@ -130,14 +129,13 @@ TEST_P(Golden, MatchesTheReviewedImage) {
   EXPECT_TRUE(matches_golden(c.name, actual));
 }
 
-INSTANTIATE_TEST_SUITE_P(Phantom, Golden, ::testing::ValuesIn(kCases),
-                         [](const auto& test_info) {
-                           std::string name = test_info.param.name;
-                           for (char& ch : name) {
-                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
-                           }
-                           return name;
-                         });
+INSTANTIATE_TEST_SUITE_P(Phantom, Golden, ::testing::ValuesIn(kCases), [](const auto& test_info) {
+  std::string name = test_info.param.name;
+  for (char& ch : name) {
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  }
+  return name;
+});
 
 // The comparison must catch a real change: a lung a little less red than the reviewed one, and
 // (much smaller) 0.04 less green; a failure leaves the actual and difference images behind.
@@ -151,7 +149,8 @@ TEST(GoldenSensitivity, ChangedMaterialColourFails) {
     changed.base_colour = colour;
     const ::testing::AssertionResult result = matches_golden(c.name, render_case(c, changed), out.path());
     EXPECT_FALSE(result) << "colour " << colour.transpose();
-    EXPECT_NE(std::string(result.message()).find((out / (std::string(c.name) + "-diff.png")).string()), std::string::npos)
+    EXPECT_NE(std::string(result.message()).find((out / (std::string(c.name) + "-diff.png")).string()),
+              std::string::npos)
         << result.message();
     EXPECT_EQ(render::read_png(out / (std::string(c.name) + "-actual.png")).width, kWidth);
     EXPECT_EQ(render::read_png(out / (std::string(c.name) + "-diff.png")).width, kWidth);

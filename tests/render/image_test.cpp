@@ -63,7 +63,7 @@ TEST(Compare, CountsWhatDiffers) {
   EXPECT_EQ(same.pixels_over, 0u);
   EXPECT_TRUE(same.within(render::default_tolerance));
 
-  b.set(3, 4, {0, 0, 0, 255});                                   // one pixel far off
+  b.set(3, 4, {0, 0, 0, 255});  // one pixel far off
   auto p = b.at(5, 5);
   b.set(5, 5, {static_cast<std::uint8_t>(p.r + 2), p.g, p.b, 255});  // one pixel off by rounding
   const render::Difference d = render::compare(a, b, 10);

@@ -32,9 +32,8 @@ TEST(RenderCli, IdenticalImagesMatch) {
   const auto r = run_pneuma({"render", "--compare", (dir / "a.png").string(), (dir / "b.png").string()});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(r.err.empty()) << r.err;
-  EXPECT_EQ(r.out,
-            "64x48 pixels; max difference R 0 G 0 B 0 A 0; mean R 0.000 G 0.000 B 0.000 A 0.000\n"
-            "0 pixels (0.000 %) differ by more than 8; tolerance 0.500 %: match\n");
+  EXPECT_EQ(r.out, "64x48 pixels; max difference R 0 G 0 B 0 A 0; mean R 0.000 G 0.000 B 0.000 A 0.000\n"
+                   "0 pixels (0.000 %) differ by more than 8; tolerance 0.500 %: match\n");
 }
 
 TEST(RenderCli, DifferentImagesExitOneAndWriteTheDifference) {
@@ -45,7 +44,8 @@ TEST(RenderCli, DifferentImagesExitOneAndWriteTheDifference) {
   auto r = run_pneuma({"render", "--compare", a.string(), b.string(), "--diff", diff.string()});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err, a.string() + " and " + b.string() + " differ\n");
-  EXPECT_NE(r.out.find("1536 pixels (50.000 %) differ by more than 8; tolerance 0.500 %: DIFFER"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("1536 pixels (50.000 %) differ by more than 8; tolerance 0.500 %: DIFFER"), std::string::npos)
+      << r.out;
   EXPECT_EQ(render::read_png(diff).width, 64);
   // A looser tolerance accepts them.
   r = run_pneuma({"render", "--compare", a.string(), b.string(), "--threshold", "100", "-q"});
@@ -82,12 +82,11 @@ TEST_P(RenderCliErrors, OneLineAndExitCode) {
   EXPECT_TRUE(r.out.empty()) << r.out;
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Compare, RenderCliErrors,
-    ::testing::Values(BadCompare{"missing", 4, "{b}: cannot open file"},
-                      BadCompare{"not_png", 3, "{b}: not a PNG image (no PNG signature)"},
-                      BadCompare{"size", 1, "{b}: image is 100x80, but {a} is 160x120"}),
-    [](const auto& test_info) { return std::string(test_info.param.name); });
+INSTANTIATE_TEST_SUITE_P(Compare, RenderCliErrors,
+                         ::testing::Values(BadCompare{"missing", 4, "{b}: cannot open file"},
+                                           BadCompare{"not_png", 3, "{b}: not a PNG image (no PNG signature)"},
+                                           BadCompare{"size", 1, "{b}: image is 100x80, but {a} is 160x120"}),
+                         [](const auto& test_info) { return std::string(test_info.param.name); });
 
 TEST(RenderCli, CompareNeedsTwoFilesAndAKnownShare) {
   TempDir dir;
@@ -95,7 +94,8 @@ TEST(RenderCli, CompareNeedsTwoFilesAndAKnownShare) {
   EXPECT_EQ(r.exit_code, 2);
   r = run_pneuma({"render"});
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_EQ(r.err, "pneuma render: give --compare A.png B.png or --info (rendering a scenario comes with the runner)\n");
+  EXPECT_EQ(r.err,
+            "pneuma render: give --compare A.png B.png or --info (rendering a scenario comes with the runner)\n");
   render::write_png(dir / "a.png", checker(8, 8, 200));
   r = run_pneuma({"render", "--compare", (dir / "a.png").string(), (dir / "a.png").string(), "--max-share", "lots"});
   EXPECT_EQ(r.exit_code, 2);
@@ -118,13 +118,15 @@ TEST(RenderCli, NoOpenGlContextSaysWhatToInstall) {
   ::unsetenv("PNEUMA_OSMESA_LIBRARY");
   ::unsetenv("PNEUMA_EGL_LIBRARY");
   EXPECT_EQ(osmesa.exit_code, 5);
-  EXPECT_EQ(osmesa.err,
-            "render: no OpenGL context: cannot load /nonexistent/libOSMesa.so.8; install the libosmesa6 package (Mesa's "
-            "off-screen OpenGL with llvmpipe)\n");
+  EXPECT_EQ(
+      osmesa.err,
+      "render: no OpenGL context: cannot load /nonexistent/libOSMesa.so.8; install the libosmesa6 package (Mesa's "
+      "off-screen OpenGL with llvmpipe)\n");
   EXPECT_EQ(egl.exit_code, 5);
-  EXPECT_EQ(egl.err,
-            "render: no OpenGL context from EGL: cannot load /nonexistent/libEGL.so.1; install the libegl1, libegl-mesa0 "
-            "and libgl1-mesa-dri packages (EGL with Mesa; on NVIDIA the driver's EGL)\n");
+  EXPECT_EQ(
+      egl.err,
+      "render: no OpenGL context from EGL: cannot load /nonexistent/libEGL.so.1; install the libegl1, libegl-mesa0 "
+      "and libgl1-mesa-dri packages (EGL with Mesa; on NVIDIA the driver's EGL)\n");
   EXPECT_EQ(neither.exit_code, 5);
   EXPECT_EQ(neither.err,
             "render: no OpenGL context: EGL: cannot load /nonexistent/libEGL.so.1; OSMesa: cannot load "

@@ -60,7 +60,8 @@ TEST(Renderer, ShaderDisplacementEqualsCpuDisplacement) {
     render::Renderer shader(lung.rest, lung.field, 1.5, small_options(preset));
     for (double s : {-0.6, 0.5, 1.0, 1.5}) {
       const render::Image gpu = shader.render(s);
-      render::Renderer cpu(mesh::TriangleMesh{displaced(lung, s), lung.rest.triangles}, zero, 0.0, small_options(preset));
+      render::Renderer cpu(mesh::TriangleMesh{displaced(lung, s), lung.rest.triangles}, zero, 0.0,
+                           small_options(preset));
       cpu.set_camera(shader.camera());
       const render::Image expected = cpu.render(0.0);
       const render::Difference d = render::compare(gpu, expected);
@@ -99,8 +100,9 @@ TEST(Renderer, EmptySceneIsBackgroundOnly) {
 
 TEST(Renderer, FramingFitsTheBoundsOfTheLargestFrame) {
   const auto lung = make_lung_stand_in(3);
-  for (auto preset : {render::CameraPreset::anterior, render::CameraPreset::posterior, render::CameraPreset::left_lateral,
-                      render::CameraPreset::right_lateral, render::CameraPreset::oblique}) {
+  for (auto preset :
+       {render::CameraPreset::anterior, render::CameraPreset::posterior, render::CameraPreset::left_lateral,
+        render::CameraPreset::right_lateral, render::CameraPreset::oblique}) {
     const auto options = small_options(preset);
     render::Renderer renderer(lung.rest, lung.field, 2.0, options);
     const auto& [lo, hi] = renderer.framed_bounds();
@@ -108,16 +110,19 @@ TEST(Renderer, FramingFitsTheBoundsOfTheLargestFrame) {
     for (const auto& p : displaced(lung, 2.0)) {
       ASSERT_TRUE((p.array() >= lo.array() - 1e-15).all() && (p.array() <= hi.array() + 1e-15).all());
     }
-    const Eigen::Matrix4d clip = render::projection_matrix(renderer.camera(), 160.0 / 120.0) * render::view_matrix(renderer.camera());
+    const Eigen::Matrix4d clip =
+        render::projection_matrix(renderer.camera(), 160.0 / 120.0) * render::view_matrix(renderer.camera());
     double largest = 0.0;
     for (int corner = 0; corner < 8; ++corner) {
-      const Eigen::Vector4d p((corner & 1) ? hi.x() : lo.x(), (corner & 2) ? hi.y() : lo.y(), (corner & 4) ? hi.z() : lo.z(), 1.0);
+      const Eigen::Vector4d p((corner & 1) ? hi.x() : lo.x(), (corner & 2) ? hi.y() : lo.y(),
+                              (corner & 4) ? hi.z() : lo.z(), 1.0);
       const Eigen::Vector4d c = clip * p;
       ASSERT_GT(c.w(), 0.0);
       largest = std::max({largest, std::abs(c.x() / c.w()), std::abs(c.y() / c.w())});
       EXPECT_LT(std::abs(c.z() / c.w()), 1.0) << "inside the depth range";
     }
-    EXPECT_NEAR(largest, 1.0 / options.margin, 1e-9) << render::camera_preset_name(preset) << ": the tightest fit with the margin";
+    EXPECT_NEAR(largest, 1.0 / options.margin, 1e-9)
+        << render::camera_preset_name(preset) << ": the tightest fit with the margin";
   }
 }
 
@@ -134,7 +139,8 @@ TEST(Renderer, PresetsFollowThePatientsAxes) {
     render::CameraPreset preset;
     bool marker_right;
   };
-  for (const Expect& e : {Expect{render::CameraPreset::anterior, true}, Expect{render::CameraPreset::posterior, false}}) {
+  for (const Expect& e :
+       {Expect{render::CameraPreset::anterior, true}, Expect{render::CameraPreset::posterior, false}}) {
     auto options = small_options(e.preset);
     render::Renderer renderer(scene, zero, 0.0, options);
     const render::Image image = renderer.render(0.0);
@@ -223,7 +229,8 @@ TEST(PngFrameSink, WritesEveryNthFrameAndNothingElse) {
 TEST(Renderer, PreCullGivesTheImageOfDrawingEveryTriangle) {
   const auto lung = make_lung_stand_in(4);
   const render::ScaleRange range{-0.5, 1.5};
-  for (auto camera : {render::CameraPreset::anterior, render::CameraPreset::oblique, render::CameraPreset::left_lateral}) {
+  for (auto camera :
+       {render::CameraPreset::anterior, render::CameraPreset::oblique, render::CameraPreset::left_lateral}) {
     render::Renderer culled(lung.rest, lung.field, range, small_options(camera));
     ::setenv("PNEUMA_DRAW_ALL_TRIANGLES", "1", 1);
     render::Renderer every(lung.rest, lung.field, range, small_options(camera));
@@ -239,7 +246,8 @@ TEST(Renderer, PreCullGivesTheImageOfDrawingEveryTriangle) {
   }
   render::RenderOptions no_culling = small_options();
   no_culling.cull_back_faces = false;
-  EXPECT_EQ(render::Renderer(lung.rest, lung.field, range, no_culling).drawn_triangles(0.0), lung.rest.triangle_count());
+  EXPECT_EQ(render::Renderer(lung.rest, lung.field, range, no_culling).drawn_triangles(0.0),
+            lung.rest.triangle_count());
 }
 
 namespace {
@@ -279,7 +287,8 @@ TEST(PngFrameSink, ThreadedEncodingGivesTheSameBytesAtAnyThreadCount) {
   const auto four = write_sequence(lung, dir / "four", scales, 4);
   ASSERT_EQ(one.size(), scales.size());
   ASSERT_EQ(four.size(), scales.size());
-  render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{0.0, 1.0}, small_options(render::CameraPreset::oblique));
+  render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{0.0, 1.0},
+                            small_options(render::CameraPreset::oblique));
   for (std::size_t k = 0; k < scales.size(); ++k) {
     EXPECT_EQ(one[k].filename(), four[k].filename());
     EXPECT_EQ(file_bytes(one[k]), file_bytes(four[k])) << one[k].filename();

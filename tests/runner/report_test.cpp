@@ -32,9 +32,11 @@ mesh: {phantom: right, edge: 12 mm, share: 55 %}
 field: {tissue: healthy-upright}
 physiology:
   preset: healthy-adult
-  output_rate: )" + output_rate + R"(
+  output_rate: )" +
+         output_rate + R"(
   driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}
-outputs: )" + outputs + "\n";
+outputs: )" +
+         outputs + "\n";
 }
 
 // The text between `open` and the next `close` after it.
@@ -257,7 +259,9 @@ TEST(Report, WithoutGltfOutputEmbedsTheSameGlbAndDecimatesLongSeries) {
   TempDir dir;
   const auto with = dir / "with", without = dir / "without";
   ASSERT_EQ(run_pneuma({"run", dir.write("a.yaml", small_scenario("{hdf5: false, motion_csv: false}")).string(), "-o",
-                        with.string(), "--quiet"}).exit_code, 0);
+                        with.string(), "--quiet"})
+                .exit_code,
+            0);
   // 4 s at 1250 Hz: 5001 rows, more than the page keeps.
   const auto b = dir.write("b.yaml", small_scenario("{hdf5: false, gltf: false}", "1250 Hz"));
   const auto r = run_pneuma({"run", b.string(), "-o", without.string(), "--quiet"});
@@ -298,8 +302,10 @@ TEST(Report, RendersInHeadlessChromiumAtTwoTimes) {
   if (chromium.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
   TempDir dir;
   const auto out = dir / "out";
-  ASSERT_EQ(run_pneuma({"run", dir.write("s.yaml", small_scenario("{hdf5: false}")).string(), "-o", out.string(),
-                        "--quiet"}).exit_code, 0);
+  ASSERT_EQ(
+      run_pneuma({"run", dir.write("s.yaml", small_scenario("{hdf5: false}")).string(), "-o", out.string(), "--quiet"})
+          .exit_code,
+      0);
   const double t0 = 0.1, t1 = 1.6;  // near rest and near the end of inspiration
   const auto url = "file://" + std::filesystem::absolute(out / "report.html").string() + "#selftest=0.1,1.6";
   const auto r = pneuma::test::run_program(

@@ -4,8 +4,8 @@
 #define TINYGLTF_NO_EXTERNAL_IMAGE
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <tiny_gltf.h>
 #include <hdf5.h>
+#include <tiny_gltf.h>
 
 #include <algorithm>
 #include <cmath>
@@ -14,15 +14,15 @@
 
 #include <nlohmann/json.hpp>
 
+#include "pneuma/field/tissue.h"
+#include "pneuma/mesh/anatomy/regions.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/labels/labels.h"
 #include "pneuma/model/compile.h"
+#include "pneuma/physiology/simulate.h"
 #include "pneuma/runner/output_registry.h"
 #include "pneuma/runner/runner.h"
 #include "pneuma/scenario/scenario.h"
-#include "pneuma/field/tissue.h"
-#include "pneuma/mesh/anatomy/regions.h"
-#include "pneuma/mesh/labels/labels.h"
-#include "pneuma/mesh/io/mesh_io.h"
-#include "pneuma/physiology/simulate.h"
 #include "test_support.h"
 
 using pneuma::test::run_pneuma;
@@ -118,7 +118,8 @@ TEST(Runner, GltfKeyframeEqualsTheExportedMeshAtTheSameTime) {
   o.metres_per_unit = 1.0;
   for (std::size_t k : {5u, 17u, 33u}) {
     const auto frame = pneuma::mesh::read_mesh(frame_file(dir / "out/frames", k), o);
-    ASSERT_EQ(frame.vertex_count(), m.accessors.at(static_cast<std::size_t>(primitive.attributes.at("POSITION"))).count);
+    ASSERT_EQ(frame.vertex_count(),
+              m.accessors.at(static_cast<std::size_t>(primitive.attributes.at("POSITION"))).count);
     for (std::size_t i = 0; i < frame.vertex_count(); i += 11) {
       for (int c = 0; c < 3; ++c) {
         const std::size_t j = 3 * i + static_cast<std::size_t>(c);
@@ -159,7 +160,8 @@ TEST(Runner, ASecondRunReusesTheCachedField) {
 // another target edge, or another file, computes it again.
 TEST(Runner, AFileMeshIsLookedUpByItsBytesAndOptions) {
   TempDir dir;
-  ASSERT_EQ(run_pneuma({"phantom", "--lung", "left", "--edge", "10mm", "-o", (dir / "lung.ply").string()}).exit_code, 0);
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "left", "--edge", "10mm", "-o", (dir / "lung.ply").string()}).exit_code,
+            0);
   const std::string small(kSmall);
   const std::string phantom_line = "mesh: {phantom: right, edge: 12 mm, share: 55 %}";
   auto with_mesh = [&](const std::string& mesh) {
@@ -177,7 +179,8 @@ TEST(Runner, AFileMeshIsLookedUpByItsBytesAndOptions) {
   EXPECT_TRUE(run(at_14));
   EXPECT_TRUE(pneuma::test::read_text(dir / "out/series.h5") == first) << "a cached field gives the same bytes";
   EXPECT_FALSE(run(at_16)) << "another remeshing target";
-  ASSERT_EQ(run_pneuma({"phantom", "--lung", "left", "--edge", "11mm", "-o", (dir / "lung.ply").string()}).exit_code, 0);
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "left", "--edge", "11mm", "-o", (dir / "lung.ply").string()}).exit_code,
+            0);
   EXPECT_FALSE(run(at_16)) << "another file";
 }
 
@@ -206,26 +209,32 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         BadRun{"wrong_unit", "duration: 4 s\nframes: {rate: 30 mL}\nphysiology: {preset: healthy-adult}\n",
                "2:16: frames.rate: expected a rate such as '12 /min', got '30 mL'", 3},
-        BadRun{"unknown_key", "duration: 4 s\nmesh: {phantom: right, egde: 4 mm}\nphysiology: {preset: healthy-adult}\n",
-               "2:24: mesh.egde: unknown key; expected one of: edge, file, labels, phantom, reference_volume, share",
-               3},
+        BadRun{
+            "unknown_key", "duration: 4 s\nmesh: {phantom: right, egde: 4 mm}\nphysiology: {preset: healthy-adult}\n",
+            "2:24: mesh.egde: unknown key; expected one of: edge, file, labels, phantom, reference_volume, share", 3},
         BadRun{"missing_mesh", "duration: 4 s\nmesh: {file: lungs.stl}\nphysiology: {preset: healthy-adult}\n",
                "2:14: mesh.file: no such file: {dir}/lungs.stl", 3},
         BadRun{"negative_duration", "duration: -4 s\nphysiology: {preset: healthy-adult}\n",
                "1:11: duration: expected a positive duration, got '-4 s'", 3},
-        BadRun{"missing_label_map", "duration: 4 s\nmesh: {labels: lungs.nii.gz, values: [3]}\nphysiology: {preset: healthy-adult}\n",
+        BadRun{"missing_label_map",
+               "duration: 4 s\nmesh: {labels: lungs.nii.gz, values: [3]}\nphysiology: {preset: healthy-adult}\n",
                "2:16: mesh.labels: no such file: {dir}/lungs.nii.gz", 3},
-        BadRun{"label_value_not_a_number", "duration: 4 s\nmesh: {labels: s.yaml, values: [3, x]}\nphysiology: {preset: healthy-adult}\n",
+        BadRun{"label_value_not_a_number",
+               "duration: 4 s\nmesh: {labels: s.yaml, values: [3, x]}\nphysiology: {preset: healthy-adult}\n",
                "2:36: mesh.values[1]: expected a whole number from 1 to 1000000, got 'x'", 3},
-        BadRun{"two_mesh_sources", "duration: 4 s\nmesh: {phantom: right, labels: s.yaml, values: [3]}\nphysiology: {preset: healthy-adult}\n",
-               "2:32: mesh.labels: give one of phantom, file or labels", 3},
-        BadRun{"unknown_gl_backend", "duration: 4 s\nphysiology: {preset: healthy-adult}\noutputs: {png: {gl: vulkan}}\n",
+        BadRun{
+            "two_mesh_sources",
+            "duration: 4 s\nmesh: {phantom: right, labels: s.yaml, values: [3]}\nphysiology: {preset: healthy-adult}\n",
+            "2:32: mesh.labels: give one of phantom, file or labels", 3},
+        BadRun{"unknown_gl_backend",
+               "duration: 4 s\nphysiology: {preset: healthy-adult}\noutputs: {png: {gl: vulkan}}\n",
                "3:21: outputs.png.gl: expected one of: auto, egl, osmesa; got 'vulkan'", 3},
         BadRun{"clique_without_solver", "duration: 4 s\nfield: {clique: 2}\nphysiology: {preset: healthy-adult}\n",
                "2:17: field.clique: the cg solver (the default) takes clique 1 only; add 'solver: shot' (or sweep, "
                "direct) for a clique of 2 hops",
                3},
-        BadRun{"clique_too_large", "duration: 4 s\nfield: {solver: shot, clique: 5}\nphysiology: {preset: healthy-adult}\n",
+        BadRun{"clique_too_large",
+               "duration: 4 s\nfield: {solver: shot, clique: 5}\nphysiology: {preset: healthy-adult}\n",
                "2:31: field.clique: expected a whole number from 1 to 4, got '5'", 3}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 
@@ -289,8 +298,8 @@ assert f["field"].attrs["area_unit_m2"] == s["field"].attrs["area_unit_m2"] == 1
 print("ok", len(s["frames/positions"]), s["frames/positions/000040"].attrs["units"].decode())
 )");
   const std::string out = (dir / "check.txt").string();
-  const int status =
-      std::system(("/usr/bin/python3 " + script.string() + " " + (dir / "out").string() + " >" + out + " 2>&1").c_str());
+  const int status = std::system(
+      ("/usr/bin/python3 " + script.string() + " " + (dir / "out").string() + " >" + out + " 2>&1").c_str());
   const std::string text = pneuma::test::read_text(out);
   ASSERT_EQ(status, 0) << text;
   EXPECT_EQ(text, "ok 41 m\n");
@@ -344,9 +353,10 @@ TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
   // own resolution: frames keep the file's vertices and still follow the volume exactly.
   TempDir dir;
   ASSERT_EQ(run_pneuma({"phantom", "--lung", "left", "--edge", "8mm", "-o", (dir / "lung.ply").string()}).exit_code, 0);
-  const std::string yaml = std::string(kSmall).replace(std::string(kSmall).find("mesh: {phantom: right, edge: 12 mm, share: 55 %}"),
-                                                       std::strlen("mesh: {phantom: right, edge: 12 mm, share: 55 %}"),
-                                                       "mesh: {file: lung.ply, unit: mm, edge: 14 mm, export: original, share: 45 %}");
+  const std::string yaml =
+      std::string(kSmall).replace(std::string(kSmall).find("mesh: {phantom: right, edge: 12 mm, share: 55 %}"),
+                                  std::strlen("mesh: {phantom: right, edge: 12 mm, share: 55 %}"),
+                                  "mesh: {file: lung.ply, unit: mm, edge: 14 mm, export: original, share: 45 %}");
   const auto scenario = dir.write("file.yaml", yaml);
   const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -360,7 +370,8 @@ TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
   auto options = s.physiology.options;
   options.output_rate_hz = 10.0;
   const auto phys = pneuma::physiology::simulate(s.physiology.protocol, options);
-  const double change = file_volume(frame_file(dir / "out/frames", 20)) - file_volume(frame_file(dir / "out/frames", 0));
+  const double change =
+      file_volume(frame_file(dir / "out/frames", 20)) - file_volume(frame_file(dir / "out/frames", 0));
   EXPECT_NEAR(change, 0.45 * phys.series.volume_m3[20], 1e-3 * 0.45 * 0.5e-3 + 1e-7 * 1.3e-3);
 }
 
@@ -379,7 +390,8 @@ TEST(Runner, TheModelsRegionsAreThoseOfItsRestSurfaceOnEveryPath) {
       {"phantom, no cache", with("field: {tissue: healthy-upright}", "field: {tissue: healthy-upright, cache: off}")},
       {"phantom", small},
       {"file", with(phantom, "mesh: {file: lung.ply, unit: mm, edge: 14 mm, share: 45 %}")},
-      {"file, original exported", with(phantom, "mesh: {file: lung.ply, unit: mm, edge: 14 mm, export: original, share: 45 %}")}};
+      {"file, original exported",
+       with(phantom, "mesh: {file: lung.ply, unit: mm, edge: 14 mm, export: original, share: 45 %}")}};
   for (const auto& [name, yaml] : scenarios) {
     const auto s = pneuma::runner::load_scenario(dir.write("s.yaml", yaml));
     pneuma::mesh::RegionOptions axes;
@@ -443,7 +455,8 @@ class CtLobeRuns : public ::testing::TestWithParam<const char*> {};
 TEST_P(CtLobeRuns, BothLungsBreathe) {
   const auto file = pneuma::test::ct_lobes_dir() / (std::string(GetParam()) + "_lobes.nii.gz");
   if (!std::filesystem::exists(file)) {
-    GTEST_SKIP() << "no CT lobe maps at " << file.parent_path() << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
+    GTEST_SKIP() << "no CT lobe maps at " << file.parent_path()
+                 << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
   }
   const pneuma::mesh::LabelMap map = pneuma::mesh::read_label_map(file);
   struct Lung {
@@ -453,11 +466,11 @@ TEST_P(CtLobeRuns, BothLungsBreathe) {
   };
   for (const Lung& lung : {Lung{"[3, 4, 5]", {3, 4, 5}, "55 %"}, Lung{"[1, 2]", {1, 2}, "45 %"}}) {
     TempDir dir;
-    const auto scenario = dir.write("ct.yaml", std::string("duration: 5 s\nframes: {rate: 10 Hz}\n") +
-                                                   "mesh: {labels: " + file.string() + ", values: " + lung.values +
-                                                   ", edge: 4 mm, share: " + lung.share + "}\n" +
-                                                   "physiology: {preset: healthy-adult}\n"
-                                                   "outputs: {gltf: false, hdf5: false}\n");
+    const auto scenario =
+        dir.write("ct.yaml", std::string("duration: 5 s\nframes: {rate: 10 Hz}\n") + "mesh: {labels: " + file.string() +
+                                 ", values: " + lung.values + ", edge: 4 mm, share: " + lung.share + "}\n" +
+                                 "physiology: {preset: healthy-adult}\n"
+                                 "outputs: {gltf: false, hdf5: false}\n");
     const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
     ASSERT_EQ(r.exit_code, 0) << GetParam() << " " << lung.values << ": " << r.err;
     std::size_t voxels = 0;

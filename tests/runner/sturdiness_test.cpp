@@ -3,8 +3,8 @@
 // any thread count.
 #include <gtest/gtest.h>
 
-#include <csignal>
 #include <algorithm>
+#include <csignal>
 #include <fstream>
 #include <map>
 #include <set>
@@ -120,7 +120,8 @@ TEST(Sturdiness, WhatThePreviousRunWroteAndThisOneDoesNotIsRemovedTheUsersFilesK
   ASSERT_EQ(run_pneuma({"run", dir.write("a.yaml", scenario("2 s")).string(), "-o", out.string(), "-q"}).exit_code, 0);
   ASSERT_TRUE(fs::exists(out / "png"));
   dir.write("out/notes.txt", "mine");
-  ASSERT_EQ(run_pneuma({"run", dir.write("b.yaml", scenario("2 s", false)).string(), "-o", out.string(), "-q"}).exit_code, 0);
+  ASSERT_EQ(
+      run_pneuma({"run", dir.write("b.yaml", scenario("2 s", false)).string(), "-o", out.string(), "-q"}).exit_code, 0);
   EXPECT_FALSE(fs::exists(out / "png"));
   EXPECT_EQ(read_text(out / "notes.txt"), "mine");
   const auto manifest = nlohmann::json::parse(read_text(out / "manifest.json"));
@@ -144,9 +145,10 @@ TEST(Sturdiness, ADamagedCacheInTheOutputFolderIsReplacedWithAWarning) {
   }
   const auto r = run_pneuma({"run", yaml.string(), "-o", out.string(), "-q"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(r.err, "pneuma: warning: " + (out / "field.h5").string() +
-                       ": not a pneuma field file: its bytes do not match its seal (truncated or damaged); computed the field "
-                       "again and replaced the file\n");
+  EXPECT_EQ(r.err,
+            "pneuma: warning: " + (out / "field.h5").string() +
+                ": not a pneuma field file: its bytes do not match its seal (truncated or damaged); computed the field "
+                "again and replaced the file\n");
   EXPECT_EQ(read_text(out / "field.h5"), good) << "the recomputed field is the same bytes as the first";
   const auto again = run_pneuma({"run", yaml.string(), "-o", out.string(), "-q"});
   EXPECT_TRUE(again.err.empty()) << again.err;
@@ -170,7 +172,8 @@ TEST(Sturdiness, TheSameBytesAtOneTwoAndFourThreads) {
       continue;
     }
     ASSERT_EQ(files.size(), reference.size());
-    for (const auto& [name, bytes] : files) EXPECT_TRUE(bytes == reference[name]) << name << " at " << threads << " threads";
+    for (const auto& [name, bytes] : files)
+      EXPECT_TRUE(bytes == reference[name]) << name << " at " << threads << " threads";
   }
 }
 

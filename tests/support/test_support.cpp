@@ -6,13 +6,13 @@
 #include <unistd.h>
 
 #include <chrono>
-#include <cstdlib>
 #include <csignal>
+#include <cstdlib>
 #include <fstream>
-#include <thread>
 #include <random>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 extern char** environ;
 
@@ -161,7 +161,8 @@ int count_lines(const std::filesystem::path& path) {
 std::filesystem::path ct_lobes_dir() {
   if (const char* env = std::getenv("PNEUMA_CT_LOBES")) return env;
   const auto source = source_dir();
-  for (const auto& candidate : {source / ".." / "shared" / "data" / "ct-lobes", source / ".." / ".." / "shared" / "data" / "ct-lobes"}) {
+  for (const auto& candidate :
+       {source / ".." / "shared" / "data" / "ct-lobes", source / ".." / ".." / "shared" / "data" / "ct-lobes"}) {
     if (std::filesystem::exists(candidate / "case004_lobes.nii.gz")) return candidate;
   }
   return source / ".." / "shared" / "data" / "ct-lobes";

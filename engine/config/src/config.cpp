@@ -163,7 +163,8 @@ std::optional<double> Node::optional_quantity(const std::string& key, const unit
 
 double Node::positive_quantity(const std::string& key, const units::Kind& kind) const {
   const double value = quantity(key, kind);
-  if (!(value > 0)) fail_at(key, std::string("expected a positive ") + kind.name + ", got '" + child(key).Scalar() + "'");
+  if (!(value > 0))
+    fail_at(key, std::string("expected a positive ") + kind.name + ", got '" + child(key).Scalar() + "'");
   return value;
 }
 

@@ -98,7 +98,8 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   SolveResult result = solver->solve(load);
   field.report = std::move(result.report);
   field.force.assign(result.shot.begin(), result.shot.begin() + graph.mass_count());
-  if (options.magnitude_smoothing > 0.0) field.force = mesh::blurred_in_space(mesh, field.force, options.magnitude_smoothing);
+  if (options.magnitude_smoothing > 0.0)
+    field.force = mesh::blurred_in_space(mesh, field.force, options.magnitude_smoothing);
   const std::vector<Eigen::Vector3d> direction = displacement_directions(mesh, options);
   auto [u, scale] = normalise_displacement(mesh, field.force, direction, options.area_unit);
   field.unit_displacement = std::move(u);

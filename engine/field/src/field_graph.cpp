@@ -60,8 +60,9 @@ void check_inputs(const mesh::TriangleMesh& mesh, std::span<const double> mu) {
   const auto n = static_cast<std::uint32_t>(mesh.vertices.size());
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
     for (std::uint32_t v : mesh.triangles[t]) {
-      if (v >= n) throw InputError("mesh: triangle " + std::to_string(t) + " names vertex " + std::to_string(v) +
-                                   ", but there are " + std::to_string(n));
+      if (v >= n)
+        throw InputError("mesh: triangle " + std::to_string(t) + " names vertex " + std::to_string(v) +
+                         ", but there are " + std::to_string(n));
     }
   }
 }
@@ -135,10 +136,11 @@ FieldGraph::FieldGraph(const mesh::TriangleMesh& mesh, std::span<const double> m
   distance_factor_.resize(ne);
   parallel_for_each(ne, [&](std::uint32_t e) {
     const auto [a, b] = edges_[e];
-    weight_[nv + e] = 0.5 * (relative_modulus_[a] + relative_modulus_[b]);  // S of a spring node
+    weight_[nv + e] = 0.5 * (relative_modulus_[a] + relative_modulus_[b]);     // S of a spring node
     distance_factor_[e] = 0.5 * (mesh.vertices[b] - mesh.vertices[a]).norm();  // half length for now
   });
-  reference_distance_ = deterministic_sum(ne, [&](std::size_t e) { return distance_factor_[e]; }) / static_cast<double>(ne);
+  reference_distance_ =
+      deterministic_sum(ne, [&](std::size_t e) { return distance_factor_[e]; }) / static_cast<double>(ne);
   if (!(reference_distance_ > 0.0) || !std::isfinite(reference_distance_))
     throw InputError("mesh: every edge has zero length, so no field can be computed");
   const double h = reference_distance_;

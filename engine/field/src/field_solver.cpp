@@ -18,8 +18,7 @@ namespace detail {
 
 double check_load(std::span<const double> load, std::size_t node_count) {
   if (load.size() != node_count)
-    throw ValueError("load: expected " + std::to_string(node_count) + " values, got " +
-                                std::to_string(load.size()));
+    throw ValueError("load: expected " + std::to_string(node_count) + " values, got " + std::to_string(load.size()));
   double max_f = 0.0;
   for (double f : load) {
     if (!(f >= 0.0) || !std::isfinite(f)) throw ValueError("load: expected finite values >= 0");

@@ -18,8 +18,8 @@
 #include <cmath>
 
 #include "pneuma/core/error.h"
-#include "pneuma/field/field_solver.h"
 #include "pneuma/core/stopwatch.h"
+#include "pneuma/field/field_solver.h"
 
 namespace pneuma::field {
 namespace {
@@ -76,7 +76,8 @@ ConjugateGradient_Schur::ConjugateGradient_Schur(std::shared_ptr<const FieldGrap
   const auto& factor = g.distance_factor();
   m.edge_weight.resize(ne);
   tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, ne, 8192), [&](const tbb::blocked_range<std::uint32_t>& r) {
-    for (std::uint32_t e = r.begin(); e != r.end(); ++e) m.edge_weight[e] = factor[e] * factor[e] * s[nv + e] / z[nv + e];
+    for (std::uint32_t e = r.begin(); e != r.end(); ++e)
+      m.edge_weight[e] = factor[e] * factor[e] * s[nv + e] / z[nv + e];
   });
   const auto& offset = g.incident_offset();
   const auto& edge = g.incident_edges();
@@ -101,8 +102,8 @@ SolveResult ConjugateGradient_Schur::solve(std::span<const double> load) const {
   const std::size_t nv = m.mass_count;
   const bool mass_only = load.size() == nv;
   if (!mass_only && load.size() != m.node_count)
-    throw ValueError("load: expected " + std::to_string(m.node_count) + " or " + std::to_string(nv) +
-                                " values, got " + std::to_string(load.size()));
+    throw ValueError("load: expected " + std::to_string(m.node_count) + " or " + std::to_string(nv) + " values, got " +
+                     std::to_string(load.size()));
   double max_f = 0.0;
   for (std::size_t k = 0; k < load.size(); ++k) {
     const double f = load[k];

@@ -73,7 +73,8 @@ std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::T
     const mesh::SurfaceRegions& regions = known_regions ? *known_regions : found.emplace(regions_of(tissue, mesh));
     std::array<double, mesh::kRegionCount> log_mu{};
     for (mesh::Region region : mesh::kRegions)
-      log_mu[static_cast<std::size_t>(region)] = std::log(r.shear_modulus_pa.at(std::string(mesh::region_name(region))));
+      log_mu[static_cast<std::size_t>(region)] =
+          std::log(r.shear_modulus_pa.at(std::string(mesh::region_name(region))));
     for (std::size_t i = 0; i < n; ++i) {
       double sum = 0.0;
       for (std::size_t k = 0; k < mesh::kRegionCount; ++k) sum += regions.weight[i][k] * log_mu[k];
@@ -104,8 +105,8 @@ FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh:
   options.magnitude_smoothing = tissue.magnitude_smoothing_m;
   options.axes = body_axes(tissue);
   const auto* stiffness = std::get_if<RegionStiffness>(&tissue.stiffness);
-  const bool needs_regions = tissue.regional_load || (stiffness && stiffness->anatomical) ||
-                             tissue.direction == DirectionKind::anatomical;
+  const bool needs_regions =
+      tissue.regional_load || (stiffness && stiffness->anatomical) || tissue.direction == DirectionKind::anatomical;
   options.regions = needs_regions ? std::make_shared<const mesh::SurfaceRegions>(regions_of(tissue, mesh)) : nullptr;
   if (tissue.regional_load) {
     options.load = mesh::regional_load(mesh, *options.regions, *tissue.regional_load, tissue.dome_load);

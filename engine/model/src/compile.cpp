@@ -130,7 +130,8 @@ Model scenario_model(const Scenario& s, const CompileOptions& options, bool& fie
   }
   // The field's regions are the rest surface's unless the run exports the original mesh.
   const mesh::SurfaceRegions* regions = s.mesh.export_original ? nullptr : computed.regions.get();
-  return make_model(std::move(rest), std::move(u), s.field.options.area_unit, field::body_axes(s.field.tissue), regions);
+  return make_model(std::move(rest), std::move(u), s.field.options.area_unit, field::body_axes(s.field.tissue),
+                    regions);
 }
 
 // One CGAL check of the most deformed frames: a self-intersecting surface is refused.
@@ -159,8 +160,8 @@ std::vector<double> frame_scales(const Model& model, const MeshSpec& mesh, const
     try {
       scales[k] = guess = model.volume_map.scale_for(target, guess);
     } catch (const UnsupportedError& e) {
-      throw UnsupportedError(fmt::format("frame {} (t = {:.3f} s): {}; lower the tidal volume or the mesh share", k,
-                                         time_s[k], e.what()));
+      throw UnsupportedError(
+          fmt::format("frame {} (t = {:.3f} s): {}; lower the tidal volume or the mesh share", k, time_s[k], e.what()));
     }
   }
   return scales;

@@ -5,12 +5,12 @@
 
 #include <array>
 #include <cstring>
+#include <fmt/format.h>
 #include <fstream>
 #include <iterator>
 #include <limits>
 #include <optional>
 #include <string_view>
-#include <fmt/format.h>
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
@@ -175,7 +175,8 @@ void write_file(const std::filesystem::path& tmp, const std::string& shown, cons
     w.dataset(field.get(), "unit_displacement", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.unit_displacement.data(), nv, 3,
               "m");
     w.dataset(field.get(), "force", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.force.data(), nv, 0, "1");
-    w.dataset(field.get(), "shear_modulus_pa", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.shear_modulus_pa.data(), nv, 0, "Pa");
+    w.dataset(field.get(), "shear_modulus_pa", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.shear_modulus_pa.data(), nv, 0,
+              "Pa");
   }
   if (H5Fflush(root, H5F_SCOPE_GLOBAL) < 0) w.fail("the file");
 }
@@ -207,7 +208,8 @@ struct Reader {
     hdf5::Hdf5Handle memory(H5Tcopy(H5T_C_S1), H5Tclose);
     H5Tset_size(memory.get(), size);
     H5Tset_strpad(memory.get(), H5T_STR_NULLPAD);
-    if (H5Aread(attr.get(), memory.get(), value.data()) < 0) refuse(std::string("cannot read attribute '") + name + "'");
+    if (H5Aread(attr.get(), memory.get(), value.data()) < 0)
+      refuse(std::string("cannot read attribute '") + name + "'");
     value.resize(std::strlen(value.c_str()));
     return value;
   }
@@ -225,8 +227,8 @@ struct Reader {
   }
   // Reads a dataset of `columns` (0: one-dimensional) into `out`, checking type and shape.
   template <typename T>
-  std::size_t dataset(const char* path, hid_t memory_type, H5T_class_t expected, hsize_t columns,
-                      std::vector<T>& out, std::size_t scalars_per_item) const {
+  std::size_t dataset(const char* path, hid_t memory_type, H5T_class_t expected, hsize_t columns, std::vector<T>& out,
+                      std::size_t scalars_per_item) const {
     if (H5Lexists(root, path, H5P_DEFAULT) <= 0) refuse(std::string("no dataset ") + path);
     hdf5::Hdf5Handle set(H5Dopen2(root, path, H5P_DEFAULT), H5Dclose);
     if (!set.ok()) refuse(std::string("cannot open dataset ") + path);
@@ -263,7 +265,8 @@ FieldRecord read_file(const std::filesystem::path& path) {
   if (r.string_attribute("format") != kFormat) r.refuse("its format is not '" + std::string(kFormat) + "'");
   const int version = r.number_attribute<int>("format_version", H5T_NATIVE_INT, H5T_INTEGER);
   if (version != kFormatVersion)
-    r.refuse("format version " + std::to_string(version) + ", this pneuma reads version " + std::to_string(kFormatVersion));
+    r.refuse("format version " + std::to_string(version) + ", this pneuma reads version " +
+             std::to_string(kFormatVersion));
 
   FieldRecord m;
   FieldMetadata& d = m.metadata;
@@ -289,16 +292,20 @@ FieldRecord read_file(const std::filesystem::path& path) {
   const std::size_t nv = r.dataset("/rest/positions", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, m.rest.vertices, 3);
   r.dataset("/rest/triangles", H5T_NATIVE_UINT32, H5T_INTEGER, 3, m.rest.triangles, 3);
   const std::array<std::pair<const char*, std::size_t>, 3> per_vertex{
-      {{"/field/unit_displacement", r.dataset("/field/unit_displacement", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, m.unit_displacement, 3)},
+      {{"/field/unit_displacement",
+        r.dataset("/field/unit_displacement", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, m.unit_displacement, 3)},
        {"/field/force", r.dataset("/field/force", H5T_NATIVE_DOUBLE, H5T_FLOAT, 0, m.force, 1)},
-       {"/field/shear_modulus_pa", r.dataset("/field/shear_modulus_pa", H5T_NATIVE_DOUBLE, H5T_FLOAT, 0, m.shear_modulus_pa, 1)}}};
+       {"/field/shear_modulus_pa",
+        r.dataset("/field/shear_modulus_pa", H5T_NATIVE_DOUBLE, H5T_FLOAT, 0, m.shear_modulus_pa, 1)}}};
   for (const auto& [name, rows] : per_vertex) {
-    if (rows != nv) r.refuse(std::string("dataset ") + name + " has " + std::to_string(rows) + " rows for " +
-                             std::to_string(nv) + " vertices");
+    if (rows != nv)
+      r.refuse(std::string("dataset ") + name + " has " + std::to_string(rows) + " rows for " + std::to_string(nv) +
+               " vertices");
   }
   for (std::size_t t = 0; t < m.rest.triangles.size(); ++t) {
     for (std::uint32_t v : m.rest.triangles[t]) {
-      if (v >= nv) r.refuse("triangle " + std::to_string(t) + " names vertex " + std::to_string(v) + " of " + std::to_string(nv));
+      if (v >= nv)
+        r.refuse("triangle " + std::to_string(t) + " names vertex " + std::to_string(v) + " of " + std::to_string(nv));
     }
   }
   if (checksum(m) != stored_checksum) r.refuse("checksum mismatch (the file was edited or damaged)");

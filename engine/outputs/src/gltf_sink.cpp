@@ -33,8 +33,8 @@ int add_view(tinygltf::Model& m, const void* data, std::size_t bytes, int target
   return static_cast<int>(m.bufferViews.size() - 1);
 }
 
-int add_accessor(tinygltf::Model& m, int view, int component, std::size_t count, int type,
-                 std::vector<double> min = {}, std::vector<double> max = {}) {
+int add_accessor(tinygltf::Model& m, int view, int component, std::size_t count, int type, std::vector<double> min = {},
+                 std::vector<double> max = {}) {
   tinygltf::Accessor a;
   a.bufferView = view;
   a.componentType = component;
@@ -74,8 +74,8 @@ std::string glb_bytes(const model::Model& model, double reference_scale, double 
   std::vector<std::uint32_t> indices;
   indices.reserve(model.rest.triangles.size() * 3);
   for (const auto& t : model.rest.triangles) indices.insert(indices.end(), t.begin(), t.end());
-  const int index_view = add_view(m, indices.data(), indices.size() * sizeof(std::uint32_t),
-                                  TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  const int index_view =
+      add_view(m, indices.data(), indices.size() * sizeof(std::uint32_t), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
   const int index_accessor =
       add_accessor(m, index_view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, indices.size(), TINYGLTF_TYPE_SCALAR);
   const int positions = add_vec3(m, model.rest.vertices, 1.0, true);
@@ -89,17 +89,21 @@ std::string glb_bytes(const model::Model& model, double reference_scale, double 
   for (const auto& w : model.regions.weight) {
     for (double x : w) weights.push_back(static_cast<float>(x));
   }
-  const int region_label = labels.empty() ? -1
-      : add_accessor(m, add_view(m, labels.data(), labels.size() * sizeof(float), TINYGLTF_TARGET_ARRAY_BUFFER),
-                     TINYGLTF_COMPONENT_TYPE_FLOAT, labels.size(), TINYGLTF_TYPE_SCALAR);
-  const int region_weight = weights.empty() ? -1
-      : add_accessor(m, add_view(m, weights.data(), weights.size() * sizeof(float), TINYGLTF_TARGET_ARRAY_BUFFER),
-                     TINYGLTF_COMPONENT_TYPE_FLOAT, weights.size() / 4, TINYGLTF_TYPE_VEC4);
+  const int region_label =
+      labels.empty()
+          ? -1
+          : add_accessor(m, add_view(m, labels.data(), labels.size() * sizeof(float), TINYGLTF_TARGET_ARRAY_BUFFER),
+                         TINYGLTF_COMPONENT_TYPE_FLOAT, labels.size(), TINYGLTF_TYPE_SCALAR);
+  const int region_weight =
+      weights.empty()
+          ? -1
+          : add_accessor(m, add_view(m, weights.data(), weights.size() * sizeof(float), TINYGLTF_TARGET_ARRAY_BUFFER),
+                         TINYGLTF_COMPONENT_TYPE_FLOAT, weights.size() / 4, TINYGLTF_TYPE_VEC4);
 
   const auto [t_min, t_max] = std::minmax_element(times.begin(), times.end());
   const int time_view = add_view(m, times.data(), times.size() * sizeof(float), 0);
-  const int time_accessor = add_accessor(m, time_view, TINYGLTF_COMPONENT_TYPE_FLOAT, times.size(),
-                                         TINYGLTF_TYPE_SCALAR, {*t_min}, {*t_max});
+  const int time_accessor =
+      add_accessor(m, time_view, TINYGLTF_COMPONENT_TYPE_FLOAT, times.size(), TINYGLTF_TYPE_SCALAR, {*t_min}, {*t_max});
   const int weight_view = add_view(m, morph_weights.data(), morph_weights.size() * sizeof(float), 0);
   const int weight_accessor =
       add_accessor(m, weight_view, TINYGLTF_COMPONENT_TYPE_FLOAT, morph_weights.size(), TINYGLTF_TYPE_SCALAR);
@@ -144,10 +148,10 @@ std::string glb_bytes(const model::Model& model, double reference_scale, double 
   // glTF has no frame range: the animation's extent, for players that keep their own
   // (Blender's scene end); importers keep extras as custom properties (docs/formats.md).
   const double duration_s = times.empty() ? 0.0 : static_cast<double>(times.back());
-  scene.extras = tinygltf::Value(tinygltf::Value::Object{
-      {"animation_duration_s", tinygltf::Value(duration_s)},
-      {"frame_rate_hz", tinygltf::Value(frame_rate_hz)},
-      {"frame_count", tinygltf::Value(static_cast<int>(times.size()))}});
+  scene.extras =
+      tinygltf::Value(tinygltf::Value::Object{{"animation_duration_s", tinygltf::Value(duration_s)},
+                                              {"frame_rate_hz", tinygltf::Value(frame_rate_hz)},
+                                              {"frame_count", tinygltf::Value(static_cast<int>(times.size()))}});
   m.scenes.push_back(scene);
   m.defaultScene = 0;
 
@@ -197,9 +201,8 @@ class GltfSink final : public Output {
 
   std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord&) override {
     const std::string bytes = glb_bytes(*model_, reference_scale_, frame_rate_hz_, times_, weights_);
-    write_stream_atomically(file_, true, [&](std::ostream& out) {
-      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    });
+    write_stream_atomically(
+        file_, true, [&](std::ostream& out) { out.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
     return {file_};
   }
 

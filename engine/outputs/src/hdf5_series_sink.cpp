@@ -18,14 +18,14 @@
 
 #include <cstdint>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
-#include <sstream>
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
-#include "pneuma/outputs/frame_outputs.h"
 #include "pneuma/hdf5/hdf5_writer.h"
+#include "pneuma/outputs/frame_outputs.h"
 
 namespace pneuma::outputs {
 namespace {
@@ -36,7 +36,9 @@ constexpr int kSeriesFormatVersion = 2;  // 2: per-frame /frames/positions/NNNNN
 class Hdf5Sink final : public Output {
  public:
   Hdf5Sink(std::filesystem::path h5, std::filesystem::path xdmf, PositionPrecision precision)
-      : h5_path_(std::move(h5)), xdmf_path_(std::move(xdmf)), double_(precision == PositionPrecision::float64),
+      : h5_path_(std::move(h5)),
+        xdmf_path_(std::move(xdmf)),
+        double_(precision == PositionPrecision::float64),
         w_{h5_path_.string()} {}
   std::string name() const override { return "hdf5"; }
 
@@ -93,8 +95,8 @@ class Hdf5Sink final : public Output {
     mesh_volume_.push_back(f.mesh_volume_m3);
     area_.push_back(f.area_m2);
     const std::string name = frame_name(f.index);
-    w_.dataset(positions_group_, name.c_str(), double_ ? H5T_IEEE_F64LE : H5T_IEEE_F32LE, H5T_NATIVE_DOUBLE, f.positions.data(), vertex_count_, 3,
-               "m", true);
+    w_.dataset(positions_group_, name.c_str(), double_ ? H5T_IEEE_F64LE : H5T_IEEE_F32LE, H5T_NATIVE_DOUBLE,
+               f.positions.data(), vertex_count_, 3, "m", true);
   }
 
   std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord&) override {
@@ -134,8 +136,8 @@ class Hdf5Sink final : public Output {
     std::ostringstream number;
     number.precision(17);
     const std::string vectors = "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">";
-    const std::string frame_vectors = "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"" +
-                                      (double_ ? "8" : "4") + "\" Format=\"HDF\">";
+    const std::string frame_vectors =
+        "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"" + (double_ ? "8" : "4") + "\" Format=\"HDF\">";
     for (std::size_t k = 0; k < time_.size(); ++k) {
       number.str("");
       number << time_[k];

@@ -2,8 +2,8 @@
 // that plays numbered sequences (ParaView, Blender's importers, MeshLab) can load them.
 #include <fmt/format.h>
 
-#include "pneuma/outputs/frame_outputs.h"
 #include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/outputs/frame_outputs.h"
 
 namespace pneuma::outputs {
 namespace {

@@ -14,12 +14,12 @@ void write_motion_csv(const std::filesystem::path& path, const std::vector<Breat
     for (const BreathMotion& b : breaths) {
       for (mesh::Region region : mesh::kRegions) {
         const mesh::RegionMotion& r = b.summary.region[static_cast<std::size_t>(region)];
-        out << fmt::format("{},{:.3f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.3f},{:.4f},{:.4f}\n",
-                           b.breath, b.start_s, mesh::region_name(region), r.area_m2 * 1e4, r.caudal_mean_m * 1e3,
-                           r.caudal_max_m * 1e3, r.anterior_mean_m * 1e3, r.anterior_max_m * 1e3,
-                           r.lateral_mean_m * 1e3, r.lateral_max_m * 1e3, r.magnitude_mean_m * 1e3,
-                           r.magnitude_max_m * 1e3, r.volume_share * 100.0, b.summary.volume_change_m3 * 1e6,
-                           b.summary.dome_top_caudal_m * 1e3);
+        out << fmt::format(
+            "{},{:.3f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.3f},{:.4f},{:.4f}\n",
+            b.breath, b.start_s, mesh::region_name(region), r.area_m2 * 1e4, r.caudal_mean_m * 1e3,
+            r.caudal_max_m * 1e3, r.anterior_mean_m * 1e3, r.anterior_max_m * 1e3, r.lateral_mean_m * 1e3,
+            r.lateral_max_m * 1e3, r.magnitude_mean_m * 1e3, r.magnitude_max_m * 1e3, r.volume_share * 100.0,
+            b.summary.volume_change_m3 * 1e6, b.summary.dome_top_caudal_m * 1e3);
       }
     }
   });
@@ -35,19 +35,24 @@ std::vector<std::pair<std::string, std::string>> motion_facts(const std::vector<
     return sum / n;
   };
   facts.emplace_back("motion.breaths", std::to_string(breaths.size()));
-  facts.emplace_back("motion.dome_top_caudal_mm",
-                     fmt::format("{:.3f}", mean([](const BreathMotion& b) { return b.summary.dome_top_caudal_m * 1e3; })));
+  facts.emplace_back(
+      "motion.dome_top_caudal_mm",
+      fmt::format("{:.3f}", mean([](const BreathMotion& b) { return b.summary.dome_top_caudal_m * 1e3; })));
   for (mesh::Region region : mesh::kRegions) {
     const auto i = static_cast<std::size_t>(region);
     const std::string prefix = fmt::format("motion.{}.", mesh::region_name(region));
-    facts.emplace_back(prefix + "caudal_mean_mm",
-                       fmt::format("{:.3f}", mean([&](const BreathMotion& b) { return b.summary.region[i].caudal_mean_m * 1e3; })));
-    facts.emplace_back(prefix + "magnitude_mean_mm",
-                       fmt::format("{:.3f}", mean([&](const BreathMotion& b) { return b.summary.region[i].magnitude_mean_m * 1e3; })));
-    facts.emplace_back(prefix + "magnitude_max_mm",
-                       fmt::format("{:.3f}", mean([&](const BreathMotion& b) { return b.summary.region[i].magnitude_max_m * 1e3; })));
-    facts.emplace_back(prefix + "volume_share_pct",
-                       fmt::format("{:.2f}", mean([&](const BreathMotion& b) { return b.summary.region[i].volume_share * 100.0; })));
+    facts.emplace_back(
+        prefix + "caudal_mean_mm",
+        fmt::format("{:.3f}", mean([&](const BreathMotion& b) { return b.summary.region[i].caudal_mean_m * 1e3; })));
+    facts.emplace_back(
+        prefix + "magnitude_mean_mm",
+        fmt::format("{:.3f}", mean([&](const BreathMotion& b) { return b.summary.region[i].magnitude_mean_m * 1e3; })));
+    facts.emplace_back(
+        prefix + "magnitude_max_mm",
+        fmt::format("{:.3f}", mean([&](const BreathMotion& b) { return b.summary.region[i].magnitude_max_m * 1e3; })));
+    facts.emplace_back(
+        prefix + "volume_share_pct",
+        fmt::format("{:.2f}", mean([&](const BreathMotion& b) { return b.summary.region[i].volume_share * 100.0; })));
   }
   return facts;
 }
@@ -73,8 +78,11 @@ class MotionCsv final : public Output {
 }  // namespace
 
 OutputPlugin motion_csv_output() {
-  return {{"motion_csv", true, no_settings}, {.breath_motion = true},
-          [](const std::any&, const std::filesystem::path& out) { return std::make_unique<MotionCsv>(out / "motion.csv"); }};
+  return {{"motion_csv", true, no_settings},
+          {.breath_motion = true},
+          [](const std::any&, const std::filesystem::path& out) {
+            return std::make_unique<MotionCsv>(out / "motion.csv");
+          }};
 }
 
 }  // namespace pneuma::outputs

@@ -27,10 +27,10 @@ void write_time_series_csv(const std::filesystem::path& path, const physiology::
     out << '\n';
     std::string line;
     for (std::size_t k = 0; k < s.size(); ++k) {
-      line = fmt::format("{:.6f},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}", s.time_s[k], s.volume_m3[k] * kMl,
-                         s.flow_m3_per_s[k] * kLitre, s.airway_pressure_pa[k] * kCmH2O,
-                         s.alveolar_pressure_pa[k] * kCmH2O, s.pleural_pressure_pa[k] * kCmH2O,
-                         s.muscle_pressure_pa[k] * kCmH2O);
+      line =
+          fmt::format("{:.6f},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}", s.time_s[k], s.volume_m3[k] * kMl,
+                      s.flow_m3_per_s[k] * kLitre, s.airway_pressure_pa[k] * kCmH2O, s.alveolar_pressure_pa[k] * kCmH2O,
+                      s.pleural_pressure_pa[k] * kCmH2O, s.muscle_pressure_pa[k] * kCmH2O);
       if (regional) {
         for (const auto& column : s.compartment_volume_m3) line += fmt::format(",{:.9g}", column[k] * kMl);
       }
@@ -48,8 +48,8 @@ void write_breaths_csv(const std::filesystem::path& path, const physiology::Simu
     for (std::size_t i = 0; i < result.breaths.size(); ++i) {
       const auto& b = result.breaths[i];
       const std::string set = b.set_tidal_volume_m3 > 0.0 ? fmt::format("{:.9g}", b.set_tidal_volume_m3 * kMl) : "";
-      out << fmt::format("{},{:.6f},{:.6f},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n", i + 1,
-                         b.start_s, b.duration_s, b.mode, b.tidal_volume_m3 * kMl,
+      out << fmt::format("{},{:.6f},{:.6f},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n",
+                         i + 1, b.start_s, b.duration_s, b.mode, b.tidal_volume_m3 * kMl,
                          b.minute_ventilation_m3_per_s * kLitre * 60.0, b.peak_pressure_pa * kCmH2O,
                          b.plateau_pressure_pa * kCmH2O, b.peep_pa * kCmH2O,
                          b.dynamic_compliance_m3_per_pa * kMl / kCmH2O, b.end_expiratory_volume_m3 * kMl,
@@ -77,7 +77,8 @@ class PhysiologyCsv final : public Output {
 }  // namespace
 
 OutputPlugin physiology_csv_output() {
-  return {{"physiology_csv", true, no_settings}, {.physiology = true},
+  return {{"physiology_csv", true, no_settings},
+          {.physiology = true},
           [](const std::any&, const std::filesystem::path& out) { return std::make_unique<PhysiologyCsv>(out); }};
 }
 

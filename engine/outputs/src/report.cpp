@@ -48,7 +48,6 @@ std::string base64(std::string_view bytes) {
   return out;
 }
 
-
 // JSON inside <script>: no '<' at all (strings are the only place one can be), so neither
 // "</script>" nor "<!--" can end or bend the element.
 std::string script_json(const Json& j) {
@@ -116,8 +115,8 @@ void add_series(Json& data, const physiology::SimulationResult& result, std::siz
     labels[key] = name;
     pressure_keys.push_back(key);
   }
-  data["series"] = Json{{"rows", s.size()}, {"stride", stride}, {"samples", keep.size()}, {"labels", labels},
-                        {"columns", columns}};
+  data["series"] =
+      Json{{"rows", s.size()}, {"stride", stride}, {"samples", keep.size()}, {"labels", labels}, {"columns", columns}};
   data["plots"] = Json::array({
       Json{{"title", "Volume above FRC"}, {"unit", "mL"}, {"columns", volumes}},
       Json{{"title", "Flow"}, {"unit", "L/s"}, {"columns", {"flow_L_per_s"}}},
@@ -133,7 +132,7 @@ Json motion_json(const std::vector<BreathMotion>& motion) {
   for (const BreathMotion& b : motion) dome += b.summary.dome_top_caudal_m / n;
   for (mesh::Region region : mesh::kRegions) {
     const auto i = static_cast<std::size_t>(region);
-    auto mean = [&](double mesh::RegionMotion::* field, double factor, int decimals) {
+    auto mean = [&](double mesh::RegionMotion::*field, double factor, int decimals) {
       double sum = 0.0;
       for (const BreathMotion& b : motion) sum += b.summary.region[i].*field;
       return motion.empty() ? 0.0 : rounded(sum / n * factor, decimals);
@@ -227,9 +226,8 @@ std::string report_html(const ReportInput& input) {
 
 void write_report(const std::filesystem::path& path, const ReportInput& input) {
   const std::string page = report_html(input);
-  write_stream_atomically(path, true, [&](std::ostream& out) {
-    out.write(page.data(), static_cast<std::streamsize>(page.size()));
-  });
+  write_stream_atomically(
+      path, true, [&](std::ostream& out) { out.write(page.data(), static_cast<std::streamsize>(page.size())); });
 }
 
 }  // namespace pneuma::outputs

@@ -8,17 +8,17 @@
 #include "report_assets.h"
 
 // Defines <name> and <name>_end around the bytes of `file` in .rodata, plus a NUL after them.
-#define PNEUMA_EMBED(name, file)                                      \
-  asm(".pushsection .rodata\n"                                        \
-      ".balign 16\n"                                                  \
-      ".global " #name "\n"                                           \
-      ".hidden " #name "\n" #name ":\n"                               \
-      ".incbin \"" file "\"\n"                                        \
-      ".global " #name "_end\n"                                       \
-      ".hidden " #name "_end\n" #name "_end:\n"                       \
-      ".byte 0\n"                                                     \
-      ".popsection\n");                                               \
-  extern "C" const char name[];                                       \
+#define PNEUMA_EMBED(name, file)                \
+  asm(".pushsection .rodata\n"                  \
+      ".balign 16\n"                            \
+      ".global " #name "\n"                     \
+      ".hidden " #name "\n" #name ":\n"         \
+      ".incbin \"" file "\"\n"                  \
+      ".global " #name "_end\n"                 \
+      ".hidden " #name "_end\n" #name "_end:\n" \
+      ".byte 0\n"                               \
+      ".popsection\n");                         \
+  extern "C" const char name[];                 \
   extern "C" const char name##_end[];
 
 PNEUMA_EMBED(pneuma_report_page, PNEUMA_REPORT_PAGE)
@@ -30,9 +30,7 @@ PNEUMA_EMBED(pneuma_report_orbit_controls, PNEUMA_THREE_ORBIT_CONTROLS_JS)
 namespace pneuma::outputs::detail {
 namespace {
 
-std::string_view span(const char* begin, const char* end) {
-  return {begin, static_cast<std::size_t>(end - begin)};
-}
+std::string_view span(const char* begin, const char* end) { return {begin, static_cast<std::size_t>(end - begin)}; }
 
 }  // namespace
 

@@ -69,8 +69,11 @@ class ReportOutput final : public Output {
 }  // namespace
 
 OutputPlugin report_output() {
-  return {{"report", true, no_settings}, {.physiology = true, .breath_motion = true},
-          [](const std::any&, const std::filesystem::path& out) { return std::make_unique<ReportOutput>(out / "report.html"); }};
+  return {{"report", true, no_settings},
+          {.physiology = true, .breath_motion = true},
+          [](const std::any&, const std::filesystem::path& out) {
+            return std::make_unique<ReportOutput>(out / "report.html");
+          }};
 }
 
 }  // namespace pneuma::outputs

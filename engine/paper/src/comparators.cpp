@@ -7,8 +7,8 @@
 
 #include "comparators_internal.h"
 #include "pneuma/core/error.h"
-#include "pneuma/paper/comparators.h"
 #include "pneuma/core/stopwatch.h"
+#include "pneuma/paper/comparators.h"
 
 namespace pneuma::paper {
 
@@ -35,8 +35,7 @@ LinkGraph square_lattice(std::uint32_t side) {
 }
 
 LinkGraph remove_links(const LinkGraph& graph, double probability, std::uint64_t seed) {
-  if (!(probability >= 0.0 && probability <= 1.0))
-    throw ValueError("link removal probability must lie in [0, 1]");
+  if (!(probability >= 0.0 && probability <= 1.0)) throw ValueError("link removal probability must lie in [0, 1]");
   std::vector<std::uint32_t> degree(graph.vertex_count(), 0);
   for (const auto& l : graph.links) {
     ++degree[l[0]];
@@ -105,12 +104,12 @@ ComparatorResult Proposed_Santhanam::solve(std::span<const double> vertex_load, 
   record(max_f);
   // The residual is the largest UnShot: the heap's top, or (once the heap is empty) at most
   // the threshold; the exact value is computed for the last record below.
-  steps = field::detail::shoot_until_below<true>(op, unshot, shot, threshold, o.step_limit, c,
-                                          [&](std::uint64_t step, const field::detail::IndexedMaxHeap& heap,
-                                              const std::vector<double>& u) {
-                                            steps = step;
-                                            if (!heap.empty() && sampler.due(step)) record(u[heap.top()]);
-                                          });
+  steps = field::detail::shoot_until_below<true>(
+      op, unshot, shot, threshold, o.step_limit, c,
+      [&](std::uint64_t step, const field::detail::IndexedMaxHeap& heap, const std::vector<double>& u) {
+        steps = step;
+        if (!heap.empty() && sampler.due(step)) record(u[heap.top()]);
+      });
   double max_unshot = 0.0;
   for (double u : unshot) max_unshot = std::max(max_unshot, u);
   sampler.force_next();

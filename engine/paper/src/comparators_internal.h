@@ -32,7 +32,6 @@ class SplitMix64 {
   std::uint64_t state_;
 };
 
-
 // Records a trace at steps 0, 1, 2, ... growing by about 3 % each time (a few hundred records
 // for millions of steps), and wherever force_next() asks.
 class TraceSampler {
@@ -56,6 +55,5 @@ class TraceSampler {
  private:
   std::uint64_t next_ = 0;
 };
-
 
 }  // namespace pneuma::paper::detail

@@ -68,7 +68,8 @@ ComparatorResult CumulativeSweeps::solve(std::span<const double> vertex_load, co
 
 namespace {
 
-std::shared_ptr<const field::TransferOperator> exponential_operator(const LinkGraph& graph, std::span<const double> mu) {
+std::shared_ptr<const field::TransferOperator> exponential_operator(const LinkGraph& graph,
+                                                                    std::span<const double> mu) {
   const std::uint32_t v = graph.vertex_count();
   if (mu.size() != v) throw ValueError("exponential: expected one shear modulus per vertex");
   if (graph.links.empty()) throw ValueError("exponential: no links");

@@ -17,8 +17,8 @@ constexpr std::uint32_t dense_spectrum_limit = 4000;  // free vertices; above: p
 
 void check_network(const SpringNetwork& n) {
   const std::size_t v = n.vertex_count;
-  if (n.stiffness.size() != n.springs.size() || n.anchor.size() != v || n.mass.size() != v ||
-      n.clamped.size() != v || n.load_scale.size() != v || n.output_scale.size() != v)
+  if (n.stiffness.size() != n.springs.size() || n.anchor.size() != v || n.mass.size() != v || n.clamped.size() != v ||
+      n.load_scale.size() != v || n.output_scale.size() != v)
     throw ValueError("spring network: array sizes do not match");
   for (std::size_t s = 0; s < n.springs.size(); ++s) {
     if (n.springs[s][0] >= v || n.springs[s][1] >= v || n.springs[s][0] == n.springs[s][1])
@@ -304,10 +304,9 @@ ComparatorResult MassSpring_Witkin::solve(std::span<const double> load, const Co
     const bool done = residual <= o.tolerance;
     if (done) sampler.force_next();
     if (sampler.due(steps)) {
-      const double probe = o.probe_vertex >= 0
-                               ? n.output_scale[static_cast<std::size_t>(o.probe_vertex)] *
-                                     u[static_cast<std::size_t>(o.probe_vertex)]
-                               : 0.0;
+      const double probe = o.probe_vertex >= 0 ? n.output_scale[static_cast<std::size_t>(o.probe_vertex)] *
+                                                     u[static_cast<std::size_t>(o.probe_vertex)]
+                                               : 0.0;
       sampler.record(out.trace, steps, c.additions + c.multiplications, residual, probe);
     }
     if (done) break;

@@ -12,10 +12,10 @@
 #include <ostream>
 
 #include "pneuma/core/atomic_file.h"
-#include "pneuma/paper/comparators.h"
+#include "pneuma/core/error.h"
 #include "pneuma/field/field_graph.h"
 #include "pneuma/field/field_solver.h"
-#include "pneuma/core/error.h"
+#include "pneuma/paper/comparators.h"
 
 namespace pneuma::paper {
 namespace {
@@ -147,8 +147,14 @@ FigureOutput figure6(const ReproductionOptions& o) {
 
   FigureOutput f;
   f.name = "fig6";
-  f.columns = {"vertex", "row", "column", "proposed", "mass_spring_matched", "mass_spring_clamped",
-               "difference_matched", "difference_clamped"};
+  f.columns = {"vertex",
+               "row",
+               "column",
+               "proposed",
+               "mass_spring_matched",
+               "mass_spring_clamped",
+               "difference_matched",
+               "difference_clamped"};
   double max_dm = 0.0, max_dc = 0.0, ss_dc = 0.0;
   std::uint32_t worst_c = 0;
   for (std::uint32_t v = 0; v < s.graph.vertex_count(); ++v) {
@@ -303,8 +309,15 @@ FigureOutput figure8(const ReproductionOptions& o) {
 FigureOutput figure2(const ReproductionOptions& o) {
   FigureOutput f;
   f.name = "fig2";
-  f.columns = {"side", "vertices", "links_removed_fraction", "node_rms_variation", "node_rms_variation_sd",
-               "normalised_node_rms_variation", "mean_variation", "mean_variation_sd", "max_node_variation"};
+  f.columns = {"side",
+               "vertices",
+               "links_removed_fraction",
+               "node_rms_variation",
+               "node_rms_variation_sd",
+               "normalised_node_rms_variation",
+               "mean_variation",
+               "mean_variation_sd",
+               "max_node_variation"};
   PlotSeries node_series{"per-vertex RMS", {}, {}, false, true};
   PlotSeries normalised_series{"per-vertex RMS, same mean", {}, {}, false, true};
   PlotSeries mean_series{"change of the mean", {}, {}, true, true};
@@ -316,7 +329,9 @@ FigureOutput figure2(const ReproductionOptions& o) {
     const std::vector<double> mu(regular.vertex_count(), 1e3);
     const std::vector<double> load(regular.vertex_count(), 1.0);  // the lung's pressure: the same on every vertex
     auto field_of = [&](const LinkGraph& g) {
-      return field::ConjugateGradient_Schur(std::make_shared<const field::FieldGraph>(link_mesh(g), mu), solve).solve(load).shot;
+      return field::ConjugateGradient_Schur(std::make_shared<const field::FieldGraph>(link_mesh(g), mu), solve)
+          .solve(load)
+          .shot;
     };
     const std::vector<double> reference = field_of(regular);
     const double reference_mean = mean(reference);
@@ -368,16 +383,16 @@ FigureOutput figure2(const ReproductionOptions& o) {
   f.plot.log_x = f.plot.log_y = true;
   f.plot.series = {node_series, normalised_series, mean_series, scatter_series};
   f.summary = {
-      fmt::format("fig2: uniform load, {} seeds per size, sizes {} to {} vertices", o.seeds, sizes.front(), sizes.back()),
+      fmt::format("fig2: uniform load, {} seeds per size, sizes {} to {} vertices", o.seeds, sizes.front(),
+                  sizes.back()),
       fmt::format("fig2: per-vertex RMS variation {:.3g} -> {:.3g} (log-log slope {:.3f})", node_means.front(),
                   node_means.back(), sizes.size() > 1 ? log_log_slope(sizes, node_means) : 0.0),
       fmt::format("fig2: per-vertex RMS variation with both fields scaled to the same mean {:.3g} -> {:.3g} "
                   "(log-log slope {:.3f})",
                   normalised_means.front(), normalised_means.back(),
                   sizes.size() > 1 ? log_log_slope(sizes, normalised_means) : 0.0),
-      fmt::format("fig2: change of the mean displacement {:.3g} -> {:.3g} (log-log slope {:.3f})",
-                  global_means.front(), global_means.back(),
-                  sizes.size() > 1 ? log_log_slope(sizes, global_means) : 0.0),
+      fmt::format("fig2: change of the mean displacement {:.3g} -> {:.3g} (log-log slope {:.3f})", global_means.front(),
+                  global_means.back(), sizes.size() > 1 ? log_log_slope(sizes, global_means) : 0.0),
       fmt::format("fig2: seed-to-seed standard deviation of that change {:.3g} -> {:.3g} (log-log slope {:.3f})",
                   scatter.front(), scatter.back(), sizes.size() > 1 ? log_log_slope(sizes, scatter) : 0.0),
   };
@@ -389,7 +404,14 @@ FigureOutput figure2(const ReproductionOptions& o) {
 FigureOutput table1(const ReproductionOptions& o) {
   FigureOutput f;
   f.name = "table1";
-  f.columns = {"side", "N", "M", "operator_entries", "shots", "additions", "multiplications", "build_additions",
+  f.columns = {"side",
+               "N",
+               "M",
+               "operator_entries",
+               "shots",
+               "additions",
+               "multiplications",
+               "build_additions",
                "build_multiplications"};
   std::map<int, std::vector<double>> n_of, add_of, mul_of, build_of;
   for (std::uint32_t side : o.table1_sides) {
@@ -399,7 +421,8 @@ FigureOutput table1(const ReproductionOptions& o) {
     std::vector<double> load(fg.node_count(), 0.0);
     std::fill(load.begin(), load.begin() + fg.mass_count(), 1.0);
     for (int m = 1; m <= o.max_clique; ++m) {
-      auto op = m == 1 ? std::make_shared<const field::TransferOperator>(field::one_hop_operator(fg)) : std::make_shared<const field::TransferOperator>(field::clique_operator(fg, m));
+      auto op = m == 1 ? std::make_shared<const field::TransferOperator>(field::one_hop_operator(fg))
+                       : std::make_shared<const field::TransferOperator>(field::clique_operator(fg, m));
       const field::SolveResult r = field::ShotUnshot_Santhanam(op, field::SolveOptions{o.tolerance}, true).solve(load);
       const double n = fg.mass_count();
       f.rows.push_back({num(std::uint64_t{side}), num(std::uint64_t{fg.mass_count()}), num(std::uint64_t(m)),
@@ -424,9 +447,8 @@ FigureOutput table1(const ReproductionOptions& o) {
     f.summary.push_back(fmt::format(
         "table1: M={}: slope in N: additions {:.3f}, multiplications {:.3f}; per mass node at N={}: {:.1f} additions, "
         "{:.1f} multiplications (building the clique: {:.1f} multiplications per node)",
-        m, fit ? log_log_slope(n_of[m], add_of[m]) : 0.0, fit ? log_log_slope(n_of[m], mul_of[m]) : 0.0,
-        n_of[m].back(), add_of[m].back() / n_of[m].back(), mul_of[m].back() / n_of[m].back(),
-        build_of[m].back() / n_of[m].back()));
+        m, fit ? log_log_slope(n_of[m], add_of[m]) : 0.0, fit ? log_log_slope(n_of[m], mul_of[m]) : 0.0, n_of[m].back(),
+        add_of[m].back() / n_of[m].back(), mul_of[m].back() / n_of[m].back(), build_of[m].back() / n_of[m].back()));
     ms.push_back(m);
     mul_per_n.push_back(mul_of[m].back() / n_of[m].back());
     add_per_n.push_back(add_of[m].back() / n_of[m].back());

@@ -97,27 +97,30 @@ std::string render_svg(const LinePlot& plot) {
   const Axis ax = make_axis(xs, plot.log_x), ay = make_axis(ys, plot.log_y);
   const double x0 = left, x1 = width - right, y0 = height - bottom, y1 = top;
 
-  std::string svg = fmt::format(
-      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" viewBox=\"0 0 {} {}\" "
-      "font-family=\"sans-serif\" font-size=\"12\">\n"
-      "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-      "<text x=\"{:.1f}\" y=\"22\" text-anchor=\"middle\" font-size=\"15\">{}</text>\n",
-      width, height, width, height, (x0 + x1) / 2, escape_markup(plot.title));
+  std::string svg =
+      fmt::format("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" viewBox=\"0 0 {} {}\" "
+                  "font-family=\"sans-serif\" font-size=\"12\">\n"
+                  "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+                  "<text x=\"{:.1f}\" y=\"22\" text-anchor=\"middle\" font-size=\"15\">{}</text>\n",
+                  width, height, width, height, (x0 + x1) / 2, escape_markup(plot.title));
   // Grid, ticks and labels.
   for (double t : ticks(ax)) {
     const double px = ax.map(t, x0, x1);
-    svg += fmt::format("<line x1=\"{0:.2f}\" y1=\"{1:.2f}\" x2=\"{0:.2f}\" y2=\"{2:.2f}\" stroke=\"#e0e0e0\"/>\n", px, y0, y1);
+    svg += fmt::format("<line x1=\"{0:.2f}\" y1=\"{1:.2f}\" x2=\"{0:.2f}\" y2=\"{2:.2f}\" stroke=\"#e0e0e0\"/>\n", px,
+                       y0, y1);
     svg += fmt::format("<text x=\"{:.2f}\" y=\"{:.2f}\" text-anchor=\"middle\">{}</text>\n", px, y0 + 16,
                        tick_label(t, ax.log));
   }
   for (double t : ticks(ay)) {
     const double py = ay.map(t, y0, y1);
-    svg += fmt::format("<line x1=\"{0:.2f}\" y1=\"{1:.2f}\" x2=\"{2:.2f}\" y2=\"{1:.2f}\" stroke=\"#e0e0e0\"/>\n", x0, py, x1);
+    svg += fmt::format("<line x1=\"{0:.2f}\" y1=\"{1:.2f}\" x2=\"{2:.2f}\" y2=\"{1:.2f}\" stroke=\"#e0e0e0\"/>\n", x0,
+                       py, x1);
     svg += fmt::format("<text x=\"{:.2f}\" y=\"{:.2f}\" text-anchor=\"end\">{}</text>\n", x0 - 6, py + 4,
                        tick_label(t, ay.log));
   }
-  svg += fmt::format("<rect x=\"{:.2f}\" y=\"{:.2f}\" width=\"{:.2f}\" height=\"{:.2f}\" fill=\"none\" stroke=\"black\"/>\n",
-                     x0, y1, x1 - x0, y0 - y1);
+  svg += fmt::format(
+      "<rect x=\"{:.2f}\" y=\"{:.2f}\" width=\"{:.2f}\" height=\"{:.2f}\" fill=\"none\" stroke=\"black\"/>\n", x0, y1,
+      x1 - x0, y0 - y1);
   svg += fmt::format("<text x=\"{:.2f}\" y=\"{:.2f}\" text-anchor=\"middle\">{}</text>\n", (x0 + x1) / 2, height - 18,
                      escape_markup(plot.x_label));
   svg += fmt::format("<text transform=\"translate(18 {:.2f}) rotate(-90)\" text-anchor=\"middle\">{}</text>\n",
@@ -132,15 +135,17 @@ std::string render_svg(const LinePlot& plot) {
       if (!drawable(s.x[i], plot.log_x) || !drawable(s.y[i], plot.log_y)) continue;
       const double px = ax.map(s.x[i], x0, x1), py = ay.map(s.y[i], y0, y1);
       points += fmt::format("{:.2f},{:.2f} ", px, py);
-      if (s.markers) dots += fmt::format("<circle cx=\"{:.2f}\" cy=\"{:.2f}\" r=\"2.5\" fill=\"{}\"/>\n", px, py, colour);
+      if (s.markers)
+        dots += fmt::format("<circle cx=\"{:.2f}\" cy=\"{:.2f}\" r=\"2.5\" fill=\"{}\"/>\n", px, py, colour);
     }
     if (!points.empty()) points.pop_back();
     svg += fmt::format("<polyline fill=\"none\" stroke=\"{}\" stroke-width=\"1.6\"{} points=\"{}\"/>\n", colour,
                        s.dashed ? " stroke-dasharray=\"6 4\"" : "", points);
     svg += dots;
     const double ly = y1 + 14 + 18 * static_cast<double>(k);
-    svg += fmt::format("<line x1=\"{:.2f}\" y1=\"{:.2f}\" x2=\"{:.2f}\" y2=\"{:.2f}\" stroke=\"{}\" stroke-width=\"2\"{}/>\n",
-                       x1 + 10, ly, x1 + 34, ly, colour, s.dashed ? " stroke-dasharray=\"6 4\"" : "");
+    svg += fmt::format(
+        "<line x1=\"{:.2f}\" y1=\"{:.2f}\" x2=\"{:.2f}\" y2=\"{:.2f}\" stroke=\"{}\" stroke-width=\"2\"{}/>\n", x1 + 10,
+        ly, x1 + 34, ly, colour, s.dashed ? " stroke-dasharray=\"6 4\"" : "");
     svg += fmt::format("<text x=\"{:.2f}\" y=\"{:.2f}\">{}</text>\n", x1 + 40, ly + 4, escape_markup(s.label));
   }
   svg += "</svg>\n";

@@ -8,7 +8,10 @@
 namespace pneuma::runner {
 
 Progress::Progress(std::string label, std::size_t total, bool quiet)
-    : label_(std::move(label)), total_(total), quiet_(quiet), terminal_(::isatty(STDERR_FILENO) != 0),
+    : label_(std::move(label)),
+      total_(total),
+      quiet_(quiet),
+      terminal_(::isatty(STDERR_FILENO) != 0),
       start_(Clock::now()) {}
 
 Progress::~Progress() {

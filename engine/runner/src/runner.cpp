@@ -52,7 +52,8 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   StagedOutput staged(folder);
   const std::filesystem::path& out = staged.stage();
   const std::vector<const outputs::OutputPlugin*> plugins = requested_outputs(s);
-  const bool needs_physiology = std::any_of(plugins.begin(), plugins.end(), [](auto* p) { return p->needs.physiology; });
+  const bool needs_physiology =
+      std::any_of(plugins.begin(), plugins.end(), [](auto* p) { return p->needs.physiology; });
   const bool needs_motion = std::any_of(plugins.begin(), plugins.end(), [](auto* p) { return p->needs.breath_motion; });
 
   // Drive: the physiology at the frame rate, and at its own output rate for the outputs that
@@ -72,7 +73,8 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   result.min_scale = compiled.min_scale;
   result.max_scale = compiled.max_scale;
   result.frame_count = compiled.scales.size();
-  if (s.field.cache == scenario::FieldCache::automatic) result.files.emplace_back("field.h5");  // lives with the outputs
+  if (s.field.cache == scenario::FieldCache::automatic)
+    result.files.emplace_back("field.h5");  // lives with the outputs
 
   // The loop: every frame advanced once and handed to every output.
   const outputs::RunInfo info{compiled.scales.size(), s.frame_rate_hz, compiled.min_scale, compiled.max_scale, out};
@@ -107,7 +109,10 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   std::vector<outputs::BreathMotion> motion;
   if (needs_motion) motion = outputs::breath_motion(model, drive, compiled.scales);
   const outputs::RunRecord record{&s, info, &drive, &physiology, compiled.scales, &motion, compiled.field_reused};
-  outputs::ManifestInput manifest{s.file, s.name, {}, {},
+  outputs::ManifestInput manifest{s.file,
+                                  s.name,
+                                  {},
+                                  {},
                                   {{"frames", std::to_string(result.frame_count)},
                                    {"frame_rate_hz", fmt::format("{}", s.frame_rate_hz)},
                                    {"vertices", std::to_string(model.rest.vertex_count())},

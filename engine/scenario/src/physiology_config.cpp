@@ -26,24 +26,26 @@ struct DriverFields {
 
 DriverFields fields_of(const Driver& driver) {
   DriverFields f;
-  std::visit([&](const auto& d) {
-    using T = std::decay_t<decltype(d)>;
-    f.rate = d.rate_hz;
-    if constexpr (std::is_same_v<T, physiology::Spontaneous>) {
-      f.ie_ratio = d.ie_ratio;
-      if (d.target_tidal_volume_m3 > 0) f.tidal_volume = d.target_tidal_volume_m3;
-      else f.muscle_pressure = d.amplitude_pa;
-    } else {
-      f.inspiratory_time = d.inspiratory_time_s;
-      f.peep = d.peep_pa;
-      if constexpr (std::is_same_v<T, physiology::VolumeControl>) {
-        f.tidal_volume = d.tidal_volume_m3;
-        f.pause = d.pause_time_s;
-      } else {
-        f.inspiratory_pressure = d.inspiratory_pressure_pa;
-      }
-    }
-  }, driver);
+  std::visit(
+      [&](const auto& d) {
+        using T = std::decay_t<decltype(d)>;
+        f.rate = d.rate_hz;
+        if constexpr (std::is_same_v<T, physiology::Spontaneous>) {
+          f.ie_ratio = d.ie_ratio;
+          if (d.target_tidal_volume_m3 > 0) f.tidal_volume = d.target_tidal_volume_m3;
+          else f.muscle_pressure = d.amplitude_pa;
+        } else {
+          f.inspiratory_time = d.inspiratory_time_s;
+          f.peep = d.peep_pa;
+          if constexpr (std::is_same_v<T, physiology::VolumeControl>) {
+            f.tidal_volume = d.tidal_volume_m3;
+            f.pause = d.pause_time_s;
+          } else {
+            f.inspiratory_pressure = d.inspiratory_pressure_pa;
+          }
+        }
+      },
+      driver);
   return f;
 }
 
@@ -56,27 +58,42 @@ bool mode_takes(const std::string& mode, const std::string& key) {
   return key == "inspiratory_pressure";
 }
 
-const std::vector<std::string> kDriverKeys{"rate",  "ie_ratio", "inspiratory_time", "tidal_volume", "muscle_pressure",
-                                           "pause", "peep",     "inspiratory_pressure"};
+const std::vector<std::string> kDriverKeys{
+    "rate", "ie_ratio", "inspiratory_time", "tidal_volume", "muscle_pressure", "pause", "peep", "inspiratory_pressure"};
 
 // Overlays the driver keys present in `n` on `f`, refusing keys the mode does not take.
 void overlay_driver(const config::Node& n, const std::string& mode, DriverFields& f) {
   for (const std::string& key : kDriverKeys) {
     if (n.has(key) && !mode_takes(mode, key)) n.fail_at(key, "not a setting of " + mode + " mode");
   }
-  if (n.has("ie_ratio") && n.has("inspiratory_time")) n.fail_at("inspiratory_time", "give ie_ratio or inspiratory_time, not both");
-  if (n.has("tidal_volume") && n.has("muscle_pressure")) n.fail_at("muscle_pressure", "give tidal_volume or muscle_pressure, not both");
+  if (n.has("ie_ratio") && n.has("inspiratory_time"))
+    n.fail_at("inspiratory_time", "give ie_ratio or inspiratory_time, not both");
+  if (n.has("tidal_volume") && n.has("muscle_pressure"))
+    n.fail_at("muscle_pressure", "give tidal_volume or muscle_pressure, not both");
   if (auto v = n.optional_quantity("rate", kind::rate)) f.rate = v;
-  if (auto v = n.optional_ratio("ie_ratio")) { f.ie_ratio = v; f.inspiratory_time.reset(); }
-  if (auto v = n.optional_quantity("inspiratory_time", kind::duration)) { f.inspiratory_time = v; f.ie_ratio.reset(); }
-  if (auto v = n.optional_quantity("tidal_volume", kind::volume)) { f.tidal_volume = v; f.muscle_pressure.reset(); }
-  if (auto v = n.optional_quantity("muscle_pressure", kind::pressure)) { f.muscle_pressure = v; f.tidal_volume.reset(); }
+  if (auto v = n.optional_ratio("ie_ratio")) {
+    f.ie_ratio = v;
+    f.inspiratory_time.reset();
+  }
+  if (auto v = n.optional_quantity("inspiratory_time", kind::duration)) {
+    f.inspiratory_time = v;
+    f.ie_ratio.reset();
+  }
+  if (auto v = n.optional_quantity("tidal_volume", kind::volume)) {
+    f.tidal_volume = v;
+    f.muscle_pressure.reset();
+  }
+  if (auto v = n.optional_quantity("muscle_pressure", kind::pressure)) {
+    f.muscle_pressure = v;
+    f.tidal_volume.reset();
+  }
   if (auto v = n.optional_quantity("pause", kind::duration)) f.pause = v;
   if (auto v = n.optional_quantity("peep", kind::pressure)) f.peep = v;
   if (auto v = n.optional_quantity("inspiratory_pressure", kind::pressure)) f.inspiratory_pressure = v;
 }
 
-double require(const config::Node& n, const std::optional<double>& value, const std::string& key, const units::Kind& k) {
+double require(const config::Node& n, const std::optional<double>& value, const std::string& key,
+               const units::Kind& k) {
   if (!value) n.fail(std::string("missing key '") + key + "' (expected " + k.name + " such as '" + k.example + "')");
   return *value;
 }
@@ -155,7 +172,8 @@ void overlay_mechanics(const config::Node& n, const std::string& model, Mechanic
     if (initial && !had) n.fail("missing key 'compliance' (expected a compliance such as '0.1 L/cmH2O')");
   } else {
     for (const char* key : {"compliance", "pressure_volume_curve"}) {
-      if (n.has(key)) n.fail_at(key, "a two_compartment model sets this per compartment (compartments.upper, compartments.lower)");
+      if (n.has(key))
+        n.fail_at(key, "a two_compartment model sets this per compartment (compartments.upper, compartments.lower)");
     }
     auto compartments = n.optional_map("compartments");
     if (initial && !compartments) n.fail("missing key 'compartments' (with 'upper' and 'lower')");
@@ -192,8 +210,8 @@ config::Node with_preset(const config::Node& section, const std::filesystem::pat
     file = config_dir / "physiology" / (*preset + ".yaml");
   }
   if (!path_exists(file)) {
-    section.fail_at("preset", "no preset '" + *preset + "' (looked for " + file.string() +
-                                  "; shipped presets: " + join_names(file_stems(config_dir / "physiology", ".yaml")) + ")");
+    section.fail_at("preset", "no preset '" + *preset + "' (looked for " + file.string() + "; shipped presets: " +
+                                  join_names(file_stems(config_dir / "physiology", ".yaml")) + ")");
   }
   return section.with_fallback(config::Node::load_file(file));
 }
@@ -205,7 +223,8 @@ std::filesystem::path default_config_dir() {
   return PNEUMA_SOURCE_CONFIG_DIR;
 }
 
-PhysiologyConfig read_physiology(const config::Node& raw_section, double duration_s, const std::filesystem::path& config_dir) {
+PhysiologyConfig read_physiology(const config::Node& raw_section, double duration_s,
+                                 const std::filesystem::path& config_dir) {
   const config::Node section = with_preset(raw_section, config_dir);
   PhysiologyConfig out;
   out.options.duration_s = duration_s;
@@ -259,7 +278,8 @@ PhysiologyConfig read_physiology(const config::Node& raw_section, double duratio
     out.protocol.settings.push_back(next);
   }
 
-  out.options.output_rate_hz = section.has("output_rate") ? section.positive_quantity("output_rate", kind::rate) : 100.0;
+  out.options.output_rate_hz =
+      section.has("output_rate") ? section.positive_quantity("output_rate", kind::rate) : 100.0;
   if (auto solver = section.optional_map("solver")) {
     out.options.solver.relative_tolerance = solver->positive_quantity("relative_tolerance", kind::number);
     out.options.solver.absolute_tolerance_m3 = solver->positive_quantity("absolute_tolerance", kind::volume);

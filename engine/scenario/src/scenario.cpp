@@ -4,9 +4,9 @@
 
 #include <cctype>
 
+#include "pneuma/config/config.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
-#include "pneuma/config/config.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/scenario/tissue_config.h"
 
@@ -53,16 +53,19 @@ MeshSpec read_mesh_spec(const config::Node& n) {
       } catch (const units::UnitError&) {
         m.metres_per_unit = 0.0;
       }
-      if (!(m.metres_per_unit > 0.0)) n.fail_at("unit", "expected a length unit such as 'mm' or '0.5 mm', got '" + text + "'");
+      if (!(m.metres_per_unit > 0.0))
+        n.fail_at("unit", "expected a length unit such as 'mm' or '0.5 mm', got '" + text + "'");
     }
     m.export_original = n.has("export") && n.choice("export", {"original", "remeshed"}) == "original";
     m.repair = n.boolean("repair", true);
   } else {
-    if (n.has("phantom")) m.phantom = n.choice("phantom", {"left", "right"}) == "left" ? mesh::Lung::left : mesh::Lung::right;
+    if (n.has("phantom"))
+      m.phantom = n.choice("phantom", {"left", "right"}) == "left" ? mesh::Lung::left : mesh::Lung::right;
     m.edge_m = 4e-3;
   }
   if (n.has("edge")) m.edge_m = n.positive_quantity("edge", kind::length);
-  if (m.export_original && m.edge_m == 0.0) n.fail_at("export", "exporting the original mesh needs an 'edge' to remesh to");
+  if (m.export_original && m.edge_m == 0.0)
+    n.fail_at("export", "exporting the original mesh needs an 'edge' to remesh to");
   m.share = default_share(m.phantom);
   if (auto share = n.optional_quantity("share", kind::fraction)) {
     if (!(*share > 0.0 && *share <= 1.0)) n.fail_at("share", "expected a share in (0, 1], such as '0.55' or '55 %'");
@@ -88,9 +91,10 @@ FieldSpec read_field(const config::Node& n, const std::filesystem::path& config_
   if (n.has("tolerance")) o.tolerance = n.positive_quantity("tolerance", kind::number);
   o.clique_hops = static_cast<int>(n.integer("clique", o.clique_hops, 1, field::kMaxCliqueHops));
   if (!field::solver_takes_clique(o.solver, o.clique_hops)) {
-    n.fail_at("clique", fmt::format("the {} solver{} takes clique 1 only; add 'solver: shot' (or sweep, direct) "
-                                    "for a clique of {} hops",
-                                    field::solver_name(o.solver), n.has("solver") ? "" : " (the default)", o.clique_hops));
+    n.fail_at("clique",
+              fmt::format("the {} solver{} takes clique 1 only; add 'solver: shot' (or sweep, direct) "
+                          "for a clique of {} hops",
+                          field::solver_name(o.solver), n.has("solver") ? "" : " (the default)", o.clique_hops));
   }
   if (n.has("cache")) {
     const std::string cache = n.string("cache");
@@ -106,7 +110,8 @@ FieldSpec read_field(const config::Node& n, const std::filesystem::path& config_
 }
 
 // An output's section: `name: true|false` or `name: {options}`. Returns the options node when on.
-std::optional<config::Node> sink_section(const config::Node& outputs, const std::string& key, bool default_on, bool& on) {
+std::optional<config::Node> sink_section(const config::Node& outputs, const std::string& key, bool default_on,
+                                         bool& on) {
   on = default_on;
   if (!outputs.has(key)) return std::nullopt;
   if (!outputs.is_map(key)) {

@@ -45,8 +45,9 @@ std::vector<Token> read_tokens(const std::filesystem::path& file) {
 
 field::GradientStiffness read_gradient(const config::Node& s) {
   field::GradientStiffness g;
-  g.profile = s.choice("profile", {"linear", "exponential"}) == "linear" ? field::GradientStiffness::Profile::linear
-                                                                       : field::GradientStiffness::Profile::exponential;
+  g.profile = s.choice("profile", {"linear", "exponential"}) == "linear"
+                  ? field::GradientStiffness::Profile::linear
+                  : field::GradientStiffness::Profile::exponential;
   g.nondependent_pa = s.positive_quantity("nondependent", kind::shear_modulus);
   g.dependent_pa = s.positive_quantity("dependent", kind::shear_modulus);
   for (const config::Node& band : s.sequence("bands")) {
@@ -82,7 +83,8 @@ field::PerVertexStiffness read_per_vertex(const config::Node& s) {
       used = 0;
     }
     if (used != t.text.size() || !(v > 0.0) || !std::isfinite(v))
-      throw InputError(file.string() + ":" + std::to_string(t.line) + ": expected a positive number, got '" + t.text + "'");
+      throw InputError(file.string() + ":" + std::to_string(t.line) + ": expected a positive number, got '" + t.text +
+                       "'");
     p.shear_modulus_pa.push_back(v * factor);
   }
   return p;
@@ -91,7 +93,8 @@ field::PerVertexStiffness read_per_vertex(const config::Node& s) {
 field::RegionStiffness read_regions(const config::Node& s) {
   field::RegionStiffness r;
   const config::Node moduli = s.map("moduli");
-  for (const std::string& label : moduli.keys()) r.shear_modulus_pa[label] = moduli.positive_quantity(label, kind::shear_modulus);
+  for (const std::string& label : moduli.keys())
+    r.shear_modulus_pa[label] = moduli.positive_quantity(label, kind::shear_modulus);
   if (r.shear_modulus_pa.empty()) s.fail_at("moduli", "expected at least one label with its shear modulus");
   if (auto g = s.optional_map("gravity")) {
     r.gravity_nondependent = g->quantity("nondependent", kind::fraction);
@@ -131,7 +134,9 @@ field::Tissue read_tissue(const config::Node& root) {
   field::Tissue t;
   t.name = root.has("name") ? root.string("name") : std::filesystem::path(root.file()).stem().string();
   const std::string posture = root.choice("posture", {"upright", "supine", "prone"});
-  t.posture = posture == "upright" ? field::Posture::upright : posture == "supine" ? field::Posture::supine : field::Posture::prone;
+  t.posture = posture == "upright"  ? field::Posture::upright
+              : posture == "supine" ? field::Posture::supine
+                                    : field::Posture::prone;
   if (auto c = root.optional_map("coordinates")) {
     if (c->has("up")) t.up = axis_vector(c->choice("up", kAxes));
     if (c->has("anterior")) t.anterior = axis_vector(c->choice("anterior", kAxes));
@@ -180,7 +185,9 @@ field::Tissue read_tissue(const config::Node& root) {
     t.regional_load = load;
   }
   if (auto d = root.optional_map("displacement")) {
-    if (d->has("direction")) t.direction = field::parse_direction_kind(d->choice("direction", {"vertex_normal", "smoothed_normal", "anatomical"}));
+    if (d->has("direction"))
+      t.direction =
+          field::parse_direction_kind(d->choice("direction", {"vertex_normal", "smoothed_normal", "anatomical"}));
     if (d->has("smoothing")) t.direction_smoothing_m = d->positive_quantity("smoothing", kind::length);
     if (d->has("magnitude_smoothing")) {
       t.magnitude_smoothing_m = d->quantity("magnitude_smoothing", kind::length);

@@ -7,26 +7,26 @@
 #include <cmath>
 #include <numbers>
 
-#include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/core/error.h"
+#include "pneuma/mesh/anatomy/phantom.h"
 
 namespace pneuma::mesh {
 namespace {
 
 // One lung in its own frame: u lateral (away from the midline), a anterior, z up.
 struct LungShape {
-  double side;                 // x = side * u: -1 right, +1 left
-  double apex_z;               // height of the apex
-  double taper_z;              // the body narrows above this height
-  double centre_u0, centre_u1; // body axis, lateral, at taper_z and at the apex
-  double centre_a0, centre_a1; // body axis, anterior, at taper_z and at the apex
-  double semi_u;               // lateral half-width of the body
+  double side;                   // x = side * u: -1 right, +1 left
+  double apex_z;                 // height of the apex
+  double taper_z;                // the body narrows above this height
+  double centre_u0, centre_u1;   // body axis, lateral, at taper_z and at the apex
+  double centre_a0, centre_a1;   // body axis, anterior, at taper_z and at the apex
+  double semi_u;                 // lateral half-width of the body
   double semi_front, semi_back;  // anterior / posterior half-depth
   double p_front, p_back;        // superellipse exponents: < 2 sharpens the anterior border
-  double medial_u;             // mediastinal surface, distance from the midline
+  double medial_u;               // mediastinal surface, distance from the midline
   double dome_height, dome_u, dome_a, dome_width_u, dome_width_a;  // diaphragm (Gaussian dome)
-  double base_rise;            // how much higher the base is at the front than at the back
-  Eigen::Vector3d star_centre; // (u, a, z): every ray from here meets the surface once
+  double base_rise;             // how much higher the base is at the front than at the back
+  Eigen::Vector3d star_centre;  // (u, a, z): every ray from here meets the surface once
 };
 
 // The heart, in patient coordinates with a = anterior: an ellipsoid left of the midline.
@@ -35,18 +35,46 @@ struct Heart {
   Eigen::Vector3d semi_axes{0.062, 0.05, 0.06};
 };
 
-const LungShape kRight{.side = -1.0, .apex_z = 0.261, .taper_z = 0.04,
-                       .centre_u0 = 0.075, .centre_u1 = 0.042, .centre_a0 = 0.0, .centre_a1 = -0.012,
-                       .semi_u = 0.0455, .semi_front = 0.064, .semi_back = 0.078, .p_front = 1.7, .p_back = 2.4,
+const LungShape kRight{.side = -1.0,
+                       .apex_z = 0.261,
+                       .taper_z = 0.04,
+                       .centre_u0 = 0.075,
+                       .centre_u1 = 0.042,
+                       .centre_a0 = 0.0,
+                       .centre_a1 = -0.012,
+                       .semi_u = 0.0455,
+                       .semi_front = 0.064,
+                       .semi_back = 0.078,
+                       .p_front = 1.7,
+                       .p_back = 2.4,
                        .medial_u = 0.02,
-                       .dome_height = 0.05, .dome_u = 0.072, .dome_a = 0.008, .dome_width_u = 0.05, .dome_width_a = 0.065,
-                       .base_rise = 0.035, .star_centre = {0.075, -0.012, 0.125}};
-const LungShape kLeft{.side = +1.0, .apex_z = 0.266, .taper_z = 0.04,
-                      .centre_u0 = 0.075, .centre_u1 = 0.042, .centre_a0 = 0.0, .centre_a1 = -0.014,
-                      .semi_u = 0.043, .semi_front = 0.062, .semi_back = 0.078, .p_front = 1.7, .p_back = 2.4,
+                       .dome_height = 0.05,
+                       .dome_u = 0.072,
+                       .dome_a = 0.008,
+                       .dome_width_u = 0.05,
+                       .dome_width_a = 0.065,
+                       .base_rise = 0.035,
+                       .star_centre = {0.075, -0.012, 0.125}};
+const LungShape kLeft{.side = +1.0,
+                      .apex_z = 0.266,
+                      .taper_z = 0.04,
+                      .centre_u0 = 0.075,
+                      .centre_u1 = 0.042,
+                      .centre_a0 = 0.0,
+                      .centre_a1 = -0.014,
+                      .semi_u = 0.043,
+                      .semi_front = 0.062,
+                      .semi_back = 0.078,
+                      .p_front = 1.7,
+                      .p_back = 2.4,
                       .medial_u = 0.02,
-                      .dome_height = 0.038, .dome_u = 0.072, .dome_a = 0.006, .dome_width_u = 0.048, .dome_width_a = 0.065,
-                      .base_rise = 0.032, .star_centre = {0.072, -0.008, 0.12}};
+                      .dome_height = 0.038,
+                      .dome_u = 0.072,
+                      .dome_a = 0.006,
+                      .dome_width_u = 0.048,
+                      .dome_width_a = 0.065,
+                      .base_rise = 0.032,
+                      .star_centre = {0.072, -0.008, 0.12}};
 const Heart kHeart{};
 
 // The shapes above leave their lowest point this far above z = 0; the output is lowered by it
@@ -86,10 +114,12 @@ double lung_field(const LungShape& s, const Eigen::Vector3d& p) {
   f = smooth_max(f, s.medial_u - u, 0.015);
   // Diaphragmatic base: a dome under the lung, the base rising towards the front.
   const double du = (u - s.dome_u) / s.dome_width_u, da = (a - s.dome_a) / s.dome_width_a;
-  const double base = s.dome_height * std::exp(-(du * du + da * da)) + s.base_rise * (a + s.semi_back) / (s.semi_back + s.semi_front);
+  const double base =
+      s.dome_height * std::exp(-(du * du + da * da)) + s.base_rise * (a + s.semi_back) / (s.semi_back + s.semi_front);
   f = smooth_max(f, base - z, 0.015);
   // Heart: cardiac impression (both lungs), cardiac notch (left lung's anterior border).
-  const Eigen::Vector3d q((p.x() - kHeart.centre.x()) / kHeart.semi_axes.x(), (a - kHeart.centre.y()) / kHeart.semi_axes.y(),
+  const Eigen::Vector3d q((p.x() - kHeart.centre.x()) / kHeart.semi_axes.x(),
+                          (a - kHeart.centre.y()) / kHeart.semi_axes.y(),
                           (z - kHeart.centre.z()) / kHeart.semi_axes.z());
   f = smooth_max(f, (1.0 - q.norm()) * kHeart.semi_axes.minCoeff(), 0.03);
   return f;
@@ -177,7 +207,8 @@ TriangleMesh geodesic_sphere(int n) {
         else if (i + j == nn) v = edge_point(f[1], f[2], j);
         else {
           v = static_cast<std::uint32_t>(m.vertices.size());
-          m.vertices.push_back((A + (B - A) * static_cast<double>(i) / n + (C - A) * static_cast<double>(j) / n).normalized());
+          m.vertices.push_back(
+              (A + (B - A) * static_cast<double>(i) / n + (C - A) * static_cast<double>(j) / n).normalized());
         }
         at(i, j) = v;
       }
@@ -262,7 +293,8 @@ Eigen::Vector3d phantom_centre(Lung lung) {
 double predicted_phantom_triangles(std::optional<Lung> lung, double edge_length_m) {
   check_edge(edge_length_m);
   double total = 0.0;
-  for (const LungShape* s : shapes(lung)) total += 4.0 * reference_area(*s) / (std::sqrt(3.0) * edge_length_m * edge_length_m);
+  for (const LungShape* s : shapes(lung))
+    total += 4.0 * reference_area(*s) / (std::sqrt(3.0) * edge_length_m * edge_length_m);
   return total;
 }
 

@@ -31,7 +31,8 @@ struct VectorGrid {
   // The cell holding p and the fractional position in it (clamped to the grid).
   void locate(const Eigen::Vector3d& p, std::array<std::ptrdiff_t, 3>& cell, Eigen::Vector3d& frac) const {
     for (int a = 0; a < 3; ++a) {
-      const double x = std::clamp((p[a] - origin[a]) / h, 0.0, static_cast<double>(n[static_cast<std::size_t>(a)] - 1) - 1e-9);
+      const double x =
+          std::clamp((p[a] - origin[a]) / h, 0.0, static_cast<double>(n[static_cast<std::size_t>(a)] - 1) - 1e-9);
       const double f = std::floor(x);
       cell[static_cast<std::size_t>(a)] = static_cast<std::ptrdiff_t>(f);
       frac[a] = x - f;
@@ -113,7 +114,8 @@ VectorGrid grid_around(const std::vector<Eigen::Vector3d>& points, double sigma)
   VectorGrid grid;
   grid.origin = box[0].array() - pad;
   grid.h = h;
-  for (std::size_t a = 0; a < 3; ++a) grid.n[a] = static_cast<std::ptrdiff_t>(std::ceil(extent[static_cast<int>(a)] / h)) + 2;
+  for (std::size_t a = 0; a < 3; ++a)
+    grid.n[a] = static_cast<std::ptrdiff_t>(std::ceil(extent[static_cast<int>(a)] / h)) + 2;
   grid.value.assign(static_cast<std::size_t>(grid.n[0] * grid.n[1] * grid.n[2]), Eigen::Vector3d::Zero());
   return grid;
 }
@@ -275,8 +277,8 @@ SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& o) {
   r.label.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const double down = -normal[i].dot(up);
-    const double wd = ramp(down, o.diaphragm_cos, o.transition) *
-                      (1.0 - ramp(r.height[i], o.diaphragm_height, o.height_transition));
+    const double wd =
+        ramp(down, o.diaphragm_cos, o.transition) * (1.0 - ramp(r.height[i], o.diaphragm_height, o.height_transition));
     const double wa = (1.0 - wd) * ramp(r.height[i], o.apex_height, o.height_transition);
     const double wm = (1.0 - wd - wa) * ramp(normal[i].dot(r.medial), o.medial_cos, o.transition);
     const double wc = std::max(0.0, 1.0 - wd - wa - wm);
@@ -307,7 +309,8 @@ std::vector<bool> dome_top_vertices(const TriangleMesh& mesh, const SurfaceRegio
   if (regions.label.size() != n) throw ValueError("dome_top_vertices: one region label per vertex");
   const Eigen::Vector3d up = regions.axes.up;
   auto on_dome = [&](std::size_t i) {
-    return regions.label[i] == Region::diaphragmatic && (regions.normal.size() != n || -regions.normal[i].dot(up) >= kDomeCos);
+    return regions.label[i] == Region::diaphragmatic &&
+           (regions.normal.size() != n || -regions.normal[i].dot(up) >= kDomeCos);
   };
   double top = -std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < n; ++i) {
@@ -329,7 +332,8 @@ std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions
   constexpr auto kDiaphragm = static_cast<std::size_t>(Region::diaphragmatic);
   // The diaphragm's drive before the dome profile: its weight times how far its normal points down.
   std::vector<double> drive(n);
-  for (std::size_t i = 0; i < n; ++i) drive[i] = regions.weight[i][kDiaphragm] * std::max(0.0, -regions.normal[i].dot(up));
+  for (std::size_t i = 0; i < n; ++i)
+    drive[i] = regions.weight[i][kDiaphragm] * std::max(0.0, -regions.normal[i].dot(up));
   if (dome.radius_m > 0.0) {
     const std::vector<bool> on_top = dome_top_vertices(mesh, regions);
     const std::vector<double> area = vertex_areas(mesh);
@@ -347,7 +351,8 @@ std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions
       double before = 0.0, after = 0.0;
       for (std::size_t i = 0; i < n; ++i) {
         const Eigen::Vector3d r = mesh.vertices[i] - centre;
-        const double profile = dome.rim + (1.0 - dome.rim) * (1.0 - ramp((r - r.dot(up) * up).norm(), dome.radius_m, dome.falloff_m));
+        const double profile =
+            dome.rim + (1.0 - dome.rim) * (1.0 - ramp((r - r.dot(up) * up).norm(), dome.radius_m, dome.falloff_m));
         before += area[i] * drive[i];
         drive[i] *= profile;
         after += area[i] * drive[i];
@@ -375,10 +380,10 @@ std::vector<Eigen::Vector3d> anatomical_directions(const TriangleMesh& mesh, con
     Eigen::Vector3d horizontal = normal[i] - normal[i].dot(up) * up;
     const double len = horizontal.norm();
     horizontal = len > 1e-6 ? Eigen::Vector3d(horizontal / len) : normal[i];
-    Eigen::Vector3d v = (w[static_cast<std::size_t>(Region::apex)] + w[static_cast<std::size_t>(Region::mediastinal)]) *
-                            normal[i] +
-                        w[static_cast<std::size_t>(Region::costal)] * horizontal -
-                        w[static_cast<std::size_t>(Region::diaphragmatic)] * up;
+    Eigen::Vector3d v =
+        (w[static_cast<std::size_t>(Region::apex)] + w[static_cast<std::size_t>(Region::mediastinal)]) * normal[i] +
+        w[static_cast<std::size_t>(Region::costal)] * horizontal -
+        w[static_cast<std::size_t>(Region::diaphragmatic)] * up;
     const double vl = v.norm();
     d[i] = vl > 1e-9 ? Eigen::Vector3d(v / vl) : normal[i];
   }

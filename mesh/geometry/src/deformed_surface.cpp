@@ -100,8 +100,8 @@ DeformedSurface::DeformedSurface(const std::vector<Eigen::Vector3d>& rest, const
   for (std::size_t f = 0; f < triangles.size(); ++f) {
     const Triangle& t = triangles[f];
     if (t[0] >= n || t[1] >= n || t[2] >= n) {
-      throw InputError("deformed surface: triangle " + std::to_string(f) + " has a vertex index >= " +
-                       std::to_string(n));
+      throw InputError("deformed surface: triangle " + std::to_string(f) +
+                       " has a vertex index >= " + std::to_string(n));
     }
     ++count[std::min({t[0], t[1], t[2]}) / kBlock + 1];
   }
@@ -137,10 +137,10 @@ DeformedSurface::DeformedSurface(const std::vector<Eigen::Vector3d>& rest, const
     max_local = std::max(max_local, (v1 - v0) + local.size());
 
     const auto offset = [&](std::uint32_t v) -> std::uint32_t {
-      const std::size_t l = (v >= v0 && v < v1)
-                                ? v - v0
-                                : (v1 - v0) + static_cast<std::size_t>(
-                                                  std::lower_bound(local.begin(), local.end(), v) - local.begin());
+      const std::size_t l =
+          (v >= v0 && v < v1)
+              ? v - v0
+              : (v1 - v0) + static_cast<std::size_t>(std::lower_bound(local.begin(), local.end(), v) - local.begin());
       return static_cast<std::uint32_t>(3 * l);
     };
     const std::size_t count_k = first[k + 1] - first[k];
@@ -186,10 +186,11 @@ SurfaceMeasures DeformedSurface::Impl::run(double s, double* out) {
   if (chunk_count == 1) {
     chunk(0, scratch.local().data());
   } else if (chunk_count > 1) {
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunk_count), [&](const tbb::blocked_range<std::size_t>& range) {
-      double* scratch_data = scratch.local().data();
-      for (std::size_t k = range.begin(); k != range.end(); ++k) chunk(k, scratch_data);
-    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunk_count),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                        double* scratch_data = scratch.local().data();
+                        for (std::size_t k = range.begin(); k != range.end(); ++k) chunk(k, scratch_data);
+                      });
   }
 #ifdef __SSE2__
   if (out) _mm_sfence();  // the streamed positions are visible before anyone reads them

@@ -8,10 +8,10 @@ namespace pneuma::mesh::detail {
 // Everything a chunk needs, as raw arrays owned by DeformedSurface::Impl.
 struct KernelData {
   std::size_t vertex_count = 0;
-  std::size_t block = 0;             // vertices per chunk (the last chunk may have fewer)
-  const double* rest = nullptr;      // 3 per vertex
-  const double* u = nullptr;         // 3 per vertex
-  double origin[3] = {0.0, 0.0, 0.0};  // the volume is summed about this point
+  std::size_t block = 0;                        // vertices per chunk (the last chunk may have fewer)
+  const double* rest = nullptr;                 // 3 per vertex
+  const double* u = nullptr;                    // 3 per vertex
+  double origin[3] = {0.0, 0.0, 0.0};           // the volume is summed about this point
   const std::size_t* halo_begin = nullptr;      // chunk_count + 1 offsets into halo
   const std::uint32_t* halo = nullptr;          // global vertex indices, ascending per chunk
   const std::size_t* triangle_begin = nullptr;  // chunk_count + 1 offsets, in triangles (multiples of 4)

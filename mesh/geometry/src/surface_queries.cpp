@@ -13,8 +13,8 @@
 #include <array>
 #include <atomic>
 
-#include "pneuma/mesh/cgal/cgal_surface_mesh.h"
 #include "pneuma/core/error.h"
+#include "pneuma/mesh/cgal/cgal_surface_mesh.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -100,7 +100,8 @@ bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency) {
   return found.load();
 }
 
-std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source, const std::vector<Eigen::Vector3d>& field,
+std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source,
+                                                   const std::vector<Eigen::Vector3d>& field,
                                                    const std::vector<Eigen::Vector3d>& targets) {
   using Triangle3 = Kernel::Triangle_3;
   using Iterator = std::vector<Triangle3>::const_iterator;

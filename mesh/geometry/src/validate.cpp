@@ -33,8 +33,8 @@ class UnionFind {
 struct HalfEdge {
   std::uint32_t lo, hi;  // the undirected edge
   std::uint32_t face;
-  std::uint8_t corner;   // the edge runs from corner to corner+1 of the face
-  bool forward;          // true when it runs lo -> hi
+  std::uint8_t corner;  // the edge runs from corner to corner+1 of the face
+  bool forward;         // true when it runs lo -> hi
 };
 
 std::string plural(std::size_t n, const char* one, const char* many) {
@@ -78,8 +78,9 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
     const Triangle& t = tris[first_degenerate];
     const bool repeated = t[0] == t[1] || t[1] == t[2] || t[2] == t[0];
     r.problems.push_back(fmt::format("{} face {} ({}vertices {}, {}, {})",
-                                     r.degenerate_face_count == 1 ? std::string("degenerate")
-                                                                  : fmt::format("{} degenerate faces, first", r.degenerate_face_count),
+                                     r.degenerate_face_count == 1
+                                         ? std::string("degenerate")
+                                         : fmt::format("{} degenerate faces, first", r.degenerate_face_count),
                                      first_degenerate, repeated ? "" : "collinear ", t[0], t[1], t[2]));
   }
   {
@@ -103,8 +104,9 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
     }
     if (r.duplicated_face_count > 0) {
       r.problems.push_back(fmt::format("{} face {} (same vertices as face {})",
-                                       r.duplicated_face_count == 1 ? std::string("duplicated")
-                                                                    : fmt::format("{} duplicated faces, first", r.duplicated_face_count),
+                                       r.duplicated_face_count == 1
+                                           ? std::string("duplicated")
+                                           : fmt::format("{} duplicated faces, first", r.duplicated_face_count),
                                        first.first, first.second));
     }
   }
@@ -124,7 +126,10 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
   });
 
   UnionFind faces(nf), corners(3 * nf), border_vertices(mesh.vertex_count());
-  struct Link { std::uint32_t a, b; bool same_direction; };
+  struct Link {
+    std::uint32_t a, b;
+    bool same_direction;
+  };
   std::vector<Link> links;
   links.reserve(3 * nf / 2);
   std::vector<char> face_on_border(nf, 0);
@@ -168,8 +173,9 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
       shared += fmt::format("{}{}", k == 0 ? "" : ", ", first_non_manifold[k].face);
     }
     r.problems.push_back(fmt::format("{} {}-{} (shared by faces {})",
-                                     r.non_manifold_edge_count == 1 ? std::string("non-manifold edge")
-                                                                    : fmt::format("{} non-manifold edges, first", r.non_manifold_edge_count),
+                                     r.non_manifold_edge_count == 1
+                                         ? std::string("non-manifold edge")
+                                         : fmt::format("{} non-manifold edges, first", r.non_manifold_edge_count),
                                      first_non_manifold->lo, first_non_manifold->hi, shared));
   }
 
@@ -197,7 +203,8 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
     if (r.non_manifold_vertex_count > 0) {
       r.problems.push_back(fmt::format("{} {} (its faces meet only at the vertex)",
                                        r.non_manifold_vertex_count == 1 ? std::string("non-manifold vertex")
-                                                                        : fmt::format("{} non-manifold vertices, first", r.non_manifold_vertex_count),
+                                                                        : fmt::format("{} non-manifold vertices, first",
+                                                                                      r.non_manifold_vertex_count),
                                        first_vertex));
     }
   }
@@ -214,8 +221,8 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
     r.hole_count = static_cast<std::size_t>(std::unique(roots.begin(), roots.end()) - roots.begin());
     r.problems.push_back(fmt::format("open surface: {} ({}), first at edge {}-{} of face {}",
                                      plural(r.hole_count, "1 hole", "holes"),
-                                     plural(r.boundary_edge_count, "1 boundary edge", "boundary edges"), first_border->lo,
-                                     first_border->hi, first_border->face));
+                                     plural(r.boundary_edge_count, "1 boundary edge", "boundary edges"),
+                                     first_border->lo, first_border->hi, first_border->face));
   }
 
   // Orientation: propagate across manifold edges (breadth-first, in face order).
@@ -273,8 +280,8 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
     }
   }
   if (!r.orientable) {
-    r.problems.push_back(fmt::format("non-orientable surface: no consistent orientation exists around face {}",
-                                     first_non_orientable));
+    r.problems.push_back(
+        fmt::format("non-orientable surface: no consistent orientation exists around face {}", first_non_orientable));
   } else if (r.misoriented_face_count > 0) {
     r.problems.push_back(r.misoriented_face_count == 1
                              ? fmt::format("face {} is oriented against its neighbours", first_misoriented)
@@ -292,10 +299,10 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
     r.component_count = static_cast<std::size_t>(std::unique(roots.begin(), roots.end()) - roots.begin());
   }
   if (r.inside_out_component_count > 0) {
-    r.problems.push_back(fmt::format("inside out: {} encloses a negative volume ({:.4g} mL)",
-                                     r.component_count == 1 ? std::string("the surface")
-                                                            : fmt::format("the component of face {}", first_inside_out),
-                                     inside_out_volume * 1e6));
+    r.problems.push_back(fmt::format(
+        "inside out: {} encloses a negative volume ({:.4g} mL)",
+        r.component_count == 1 ? std::string("the surface") : fmt::format("the component of face {}", first_inside_out),
+        inside_out_volume * 1e6));
   }
 
   if (r.closed() && r.manifold() && r.orientable) {
@@ -323,10 +330,11 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
     const auto pairs = detail::self_intersecting_pairs(mesh, checked, 1000);
     r.self_intersection_count = pairs.size();
     if (!pairs.empty()) {
-      r.problems.push_back(pairs.size() == 1 ? fmt::format("self-intersection: faces {} and {} intersect", pairs[0].first, pairs[0].second)
-                                             : fmt::format("self-intersections: {}{} pairs of faces intersect, first faces {} and {}",
-                                                           pairs.size() >= 1000 ? "at least " : "", pairs.size(),
-                                                           pairs[0].first, pairs[0].second));
+      r.problems.push_back(
+          pairs.size() == 1
+              ? fmt::format("self-intersection: faces {} and {} intersect", pairs[0].first, pairs[0].second)
+              : fmt::format("self-intersections: {}{} pairs of faces intersect, first faces {} and {}",
+                            pairs.size() >= 1000 ? "at least " : "", pairs.size(), pairs[0].first, pairs[0].second));
     }
   }
   return r;

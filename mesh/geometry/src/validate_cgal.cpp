@@ -7,10 +7,10 @@
 #include <algorithm>
 #include <iterator>
 
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/cgal/cgal_internal.h"
 #include "pneuma/mesh/cgal/cgal_surface_mesh.h"
 #include "pneuma/mesh/geometry/validate.h"
-#include "pneuma/core/error.h"
 
 namespace PMP = CGAL::Polygon_mesh_processing;
 

@@ -26,8 +26,8 @@ enum class Type { i8, u8, i16, u16, i32, u32, f32, f64 };
 
 struct Property {
   std::string name;
-  Type type = Type::f32;        // of the value, or of each item of a list
-  Type count_type = Type::u8;   // lists only
+  Type type = Type::f32;       // of the value, or of each item of a list
+  Type count_type = Type::u8;  // lists only
   bool list = false;
 };
 
@@ -39,18 +39,22 @@ struct Element {
 
 const std::map<std::string, Type>& type_names() {
   static const std::map<std::string, Type> names = {
-      {"char", Type::i8},    {"int8", Type::i8},     {"uchar", Type::u8},   {"uint8", Type::u8},
-      {"short", Type::i16},  {"int16", Type::i16},   {"ushort", Type::u16}, {"uint16", Type::u16},
-      {"int", Type::i32},    {"int32", Type::i32},   {"uint", Type::u32},   {"uint32", Type::u32},
-      {"float", Type::f32},  {"float32", Type::f32}, {"double", Type::f64}, {"float64", Type::f64}};
+      {"char", Type::i8},   {"int8", Type::i8},     {"uchar", Type::u8},   {"uint8", Type::u8},
+      {"short", Type::i16}, {"int16", Type::i16},   {"ushort", Type::u16}, {"uint16", Type::u16},
+      {"int", Type::i32},   {"int32", Type::i32},   {"uint", Type::u32},   {"uint32", Type::u32},
+      {"float", Type::f32}, {"float32", Type::f32}, {"double", Type::f64}, {"float64", Type::f64}};
   return names;
 }
 
 std::size_t size_of(Type t) {
   switch (t) {
-    case Type::i8: case Type::u8: return 1;
-    case Type::i16: case Type::u16: return 2;
-    case Type::i32: case Type::u32: case Type::f32: return 4;
+    case Type::i8:
+    case Type::u8: return 1;
+    case Type::i16:
+    case Type::u16: return 2;
+    case Type::i32:
+    case Type::u32:
+    case Type::f32: return 4;
     case Type::f64: return 8;
   }
   return 8;
@@ -78,7 +82,8 @@ class Reader {
           if (pr.name == "y") y = static_cast<int>(p);
           if (pr.name == "z") z = static_cast<int>(p);
         }
-        if (e.name == "face" && pr.list && (pr.name == "vertex_indices" || pr.name == "vertex_index")) indices = static_cast<int>(p);
+        if (e.name == "face" && pr.list && (pr.name == "vertex_indices" || pr.name == "vertex_index"))
+          indices = static_cast<int>(p);
       }
       if (e.name == "vertex" && (x < 0 || y < 0 || z < 0)) fail("element vertex: expected properties x, y and z");
       if (e.name == "vertex") soup.points.reserve(e.count);
@@ -96,7 +101,8 @@ class Reader {
           }
           const double n = value(pr.count_type, e, i);
           if (!(n >= 0.0 && n <= static_cast<double>(d_.size() - pos_) && n == std::floor(n))) {
-            fail(e.name + " " + std::to_string(i) + ": a list of " + number_text(n) + " items, more than the file holds");
+            fail(e.name + " " + std::to_string(i) + ": a list of " + number_text(n) +
+                 " items, more than the file holds");
           }
           list.resize(static_cast<std::size_t>(n));
           for (double& item : list) item = value(pr.type, e, i);
@@ -158,7 +164,8 @@ class Reader {
         return;
       } else if (keyword == "comment" || keyword == "obj_info") {
       } else if (keyword == "element") {
-        if (w.size() != 3 || w[2].empty() || w[2].size() > 19 || w[2].find_first_not_of("0123456789") != std::string::npos) {
+        if (w.size() != 3 || w[2].empty() || w[2].size() > 19 ||
+            w[2].find_first_not_of("0123456789") != std::string::npos) {
           refuse("'element NAME COUNT'");
         }
         if (!element_names.insert(w[1]).second) refuse("each element once");
@@ -188,7 +195,8 @@ class Reader {
       const std::string token = d_.substr(start, pos_ - start);
       char* end = nullptr;
       const double v = std::strtod(token.c_str(), &end);
-      if (*end != '\0') fail(e.name + " " + std::to_string(i) + ": expected a number, got '" + token.substr(0, 20) + "'");
+      if (*end != '\0')
+        fail(e.name + " " + std::to_string(i) + ": expected a number, got '" + token.substr(0, 20) + "'");
       return v;
     }
     const std::size_t size = size_of(type);

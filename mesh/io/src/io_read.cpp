@@ -20,9 +20,9 @@
 #include "io_vtk.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
-#include "pneuma/mesh/io/readable_file.h"
 #include "pneuma/core/units.h"
 #include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/io/readable_file.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -174,8 +174,8 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
 
   Assimp::Importer importer;
   const std::string extension = lower(path.extension().string());
-  const double metres_per_unit = options.unit_from_file ? recorded_unit(path).value_or(options.metres_per_unit)
-                                                        : options.metres_per_unit;
+  const double metres_per_unit =
+      options.unit_from_file ? recorded_unit(path).value_or(options.metres_per_unit) : options.metres_per_unit;
   Soup soup;
   if (extension == ".vtk" || extension == ".vtp" || extension == ".ply") {
     std::string bytes = read_file_bytes(path);
@@ -189,8 +189,9 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
     soup.triangles = vtk.triangles;
   } else {
     if (extension.empty() || !importer.IsExtensionSupported(extension)) {
-      throw InputError(name + ": unknown mesh format '" + extension +
-                       "' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ..., or VTK .vtk, .vtp)");
+      throw InputError(
+          name + ": unknown mesh format '" + extension +
+          "' (expected a surface that assimp reads: .stl, .obj, .ply, .off, .gltf, .glb, ..., or VTK .vtk, .vtp)");
     }
     if (extension == ".stl") check_binary_stl(path, size);
 
@@ -218,7 +219,10 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
       for (float c : soup.vertices[v]) {
         if (!std::isfinite(c)) {
           throw InputError(name + ": face " + std::to_string(f) + " has a non-finite vertex coordinate (" +
-                           (std::isnan(c) ? "nan" : c > 0 ? "inf" : "-inf") + ")");
+                           (std::isnan(c) ? "nan"
+                            : c > 0       ? "inf"
+                                          : "-inf") +
+                           ")");
         }
       }
     }

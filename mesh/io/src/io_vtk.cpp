@@ -38,8 +38,8 @@ struct Builder {
   void polygon(const std::int64_t* v, std::size_t n, std::size_t cell, const std::string& where) {
     for (std::size_t k = 0; k < n; ++k) check(v[k], cell, where);
     for (std::size_t k = 2; k < n; ++k) {
-      soup.triangles.push_back({static_cast<std::uint32_t>(v[0]), static_cast<std::uint32_t>(v[k - 1]),
-                                static_cast<std::uint32_t>(v[k])});
+      soup.triangles.push_back(
+          {static_cast<std::uint32_t>(v[0]), static_cast<std::uint32_t>(v[k - 1]), static_cast<std::uint32_t>(v[k])});
     }
   }
   // A triangle strip: every other triangle is reversed to keep one orientation.
@@ -57,17 +57,23 @@ struct Builder {
 // VTK cell types (vtkCellType.h) an unstructured grid surface may hold.
 void add_cell(Builder& b, int type, const std::int64_t* v, std::size_t n, std::size_t cell, const std::string& where) {
   switch (type) {
-    case 1: case 2: case 3: case 4: return;  // vertex, poly-vertex, line, poly-line: not surface
-    case 5: case 7: case 9: b.polygon(v, n, cell, where); return;  // triangle, polygon, quad
-    case 6: b.strip(v, n, cell, where); return;                     // triangle strip
-    case 8:                                                          // pixel: 0 1 3 2
+    case 1:
+    case 2:
+    case 3:
+    case 4: return;  // vertex, poly-vertex, line, poly-line: not surface
+    case 5:
+    case 7:
+    case 9: b.polygon(v, n, cell, where); return;  // triangle, polygon, quad
+    case 6: b.strip(v, n, cell, where); return;    // triangle strip
+    case 8:                                        // pixel: 0 1 3 2
       if (n == 4) {
         const std::int64_t q[4] = {v[0], v[1], v[3], v[2]};
         b.polygon(q, 4, cell, where);
       }
       return;
     default:
-      throw InputError(b.name + ": " + where + "cell " + std::to_string(cell) + " is of VTK type " + std::to_string(type) +
+      throw InputError(b.name + ": " + where + "cell " + std::to_string(cell) + " is of VTK type " +
+                       std::to_string(type) +
                        " (a volume or higher-order cell): expected surface cells (triangles, quads, pixels, polygons, "
                        "strips)");
   }
@@ -87,7 +93,8 @@ class Legacy {
 
   VtkSoup read() {
     const std::string version = line();
-    if (version.rfind("# vtk DataFile Version", 0) != 0) fail(0, "expected '# vtk DataFile Version x.y' on the first line");
+    if (version.rfind("# vtk DataFile Version", 0) != 0)
+      fail(0, "expected '# vtk DataFile Version x.y' on the first line");
     line();  // title
     const std::string format = upper(trim(line()));
     if (format == "BINARY") binary_ = true;
@@ -116,7 +123,8 @@ class Legacy {
         }
         b.point_count = n;
         have_points = true;
-      } else if (key == "POLYGONS" || key == "TRIANGLE_STRIPS" || key == "VERTICES" || key == "LINES" || key == "CELLS") {
+      } else if (key == "POLYGONS" || key == "TRIANGLE_STRIPS" || key == "VERTICES" || key == "LINES" ||
+                 key == "CELLS") {
         if (!have_points) fail(at_line, key + " before POINTS: expected the points first");
         std::vector<std::int64_t> offsets, connectivity;
         cells(offsets, connectivity);
@@ -134,11 +142,13 @@ class Legacy {
         }
       } else if (key == "CELL_TYPES") {
         const std::size_t n = count();
-        if (n + 1 != cell_offsets.size()) fail(at_line, "CELL_TYPES " + std::to_string(n) + ": expected one type per cell");
+        if (n + 1 != cell_offsets.size())
+          fail(at_line, "CELL_TYPES " + std::to_string(n) + ": expected one type per cell");
         for (std::size_t c = 0; c < n; ++c) {
           const auto type = static_cast<int>(std::clamp<std::int64_t>(as_index(number("int")), -1, 1000));
           const std::int64_t* v = cell_connectivity.data() + cell_offsets[c];
-          add_cell(b, type, v, static_cast<std::size_t>(cell_offsets[c + 1] - cell_offsets[c]), c, fmt_line(at_line) + "CELL_TYPES: ");
+          add_cell(b, type, v, static_cast<std::size_t>(cell_offsets[c + 1] - cell_offsets[c]), c,
+                   fmt_line(at_line) + "CELL_TYPES: ");
         }
       } else if (key == "METADATA") {
         skip_metadata();
@@ -214,7 +224,8 @@ class Legacy {
   }
   template <typename T>
   double big_endian() {
-    if (pos_ + sizeof(T) > d_.size()) throw InputError(name_ + ": truncated binary data at byte " + std::to_string(pos_));
+    if (pos_ + sizeof(T) > d_.size())
+      throw InputError(name_ + ": truncated binary data at byte " + std::to_string(pos_));
     unsigned char bytes[sizeof(T)];
     std::memcpy(bytes, d_.data() + pos_, sizeof(T));
     pos_ += sizeof(T);
@@ -281,8 +292,10 @@ class Legacy {
     for (std::size_t c = 0; c < n; ++c) {
       const std::int64_t k = as_index(number("int"));
       if (k < 0 || used + 1 + static_cast<std::size_t>(k) > size) {
-        fail(line_, "cell " + std::to_string(c) + " has " + std::to_string(k) + " points: expected the list to fit the "
-                    "announced size " + std::to_string(size));
+        fail(line_, "cell " + std::to_string(c) + " has " + std::to_string(k) +
+                        " points: expected the list to fit the "
+                        "announced size " +
+                        std::to_string(size));
       }
       for (std::int64_t i = 0; i < k; ++i) connectivity.push_back(as_index(number("int")));
       used += 1 + static_cast<std::size_t>(k);
@@ -294,7 +307,8 @@ class Legacy {
   // "METADATA" is read: the rest of its line, then lines until an empty one.
   void skip_metadata() {
     line();
-    while (pos_ < d_.size() && !trim(line()).empty()) {}
+    while (pos_ < d_.size() && !trim(line()).empty()) {
+    }
   }
   // One array of a FIELD block: "name components tuples type", its values (or "NULL_ARRAY"),
   // then an optional METADATA block. Strings are one per line (VTK's legacy writer).
@@ -344,7 +358,8 @@ std::vector<unsigned char> base64_decode(std::string_view text, const std::strin
   int n = 0;
   for (char c : text) {
     if (std::isspace(static_cast<unsigned char>(c))) continue;
-    if (c != '=' && value(c) < 0) throw InputError(name + ": invalid base64 character '" + std::string(1, c) + "' in a DataArray");
+    if (c != '=' && value(c) < 0)
+      throw InputError(name + ": invalid base64 character '" + std::string(1, c) + "' in a DataArray");
     q[n++] = c;
     if (n < 4) continue;
     n = 0;
@@ -362,8 +377,8 @@ struct XmlContext {
   bool big_endian = false;
   bool uint64_header = false;
   bool zlib = false;
-  std::string appended_encoding;                   // "base64" or "raw"
-  std::string_view appended;                       // after the '_'
+  std::string appended_encoding;  // "base64" or "raw"
+  std::string_view appended;      // after the '_'
 };
 
 std::size_t type_size(const std::string& t) {
@@ -417,13 +432,15 @@ std::uint64_t read_header_word(Bytes& b, const XmlContext& x) {
 std::vector<unsigned char> payload(Bytes& b, const XmlContext& x) {
   if (!x.zlib) {
     const std::uint64_t n = read_header_word(b, x);
-    if (n > b.data.size() - b.pos) throw InputError(x.name + ": truncated binary DataArray: " + std::to_string(n) + " bytes announced");
+    if (n > b.data.size() - b.pos)
+      throw InputError(x.name + ": truncated binary DataArray: " + std::to_string(n) + " bytes announced");
     std::vector<unsigned char> out(b.data.begin() + static_cast<std::ptrdiff_t>(b.pos),
                                    b.data.begin() + static_cast<std::ptrdiff_t>(b.pos + n));
     b.pos += n;
     return out;
   }
-  const std::uint64_t blocks = read_header_word(b, x), block_size = read_header_word(b, x), last = read_header_word(b, x);
+  const std::uint64_t blocks = read_header_word(b, x), block_size = read_header_word(b, x),
+                      last = read_header_word(b, x);
   if (blocks > b.data.size() - b.pos) throw InputError(x.name + ": truncated compressed DataArray header");
   std::vector<std::uint64_t> sizes(blocks);
   for (auto& s : sizes) s = read_header_word(b, x);
@@ -432,7 +449,8 @@ std::vector<unsigned char> payload(Bytes& b, const XmlContext& x) {
     const std::uint64_t raw = (k + 1 == blocks && last != 0) ? last : block_size;
     if (sizes[k] > b.data.size() - b.pos) throw InputError(x.name + ": truncated compressed DataArray");
     // zlib expands at most ~1032:1: a block announcing more is damage, not data.
-    if (raw / 1032 > sizes[k] + 1) throw InputError(x.name + ": corrupt zlib block " + std::to_string(k) + " in a DataArray");
+    if (raw / 1032 > sizes[k] + 1)
+      throw InputError(x.name + ": corrupt zlib block " + std::to_string(k) + " in a DataArray");
     const std::size_t at = out.size();
     out.resize(at + raw);
     uLongf got = static_cast<uLongf>(raw);
@@ -448,7 +466,8 @@ std::vector<double> data_array(const pugi::xml_node& array, const XmlContext& x,
   const std::string type = array.attribute("type").as_string();
   const std::string format = array.attribute("format").as_string("ascii");
   const std::string what = std::string("DataArray '") + array.attribute("Name").as_string("") + "'";
-  if (type_size(type) == 0) throw InputError(x.name + ": " + what + " of type '" + type + "': expected Int8..UInt64, Float32 or Float64");
+  if (type_size(type) == 0)
+    throw InputError(x.name + ": " + what + " of type '" + type + "': expected Int8..UInt64, Float32 or Float64");
   std::vector<double> values;
   if (format == "ascii") {
     std::istringstream in(array.text().as_string());
@@ -503,7 +522,8 @@ VtkSoup read_vtk_xml(const std::string& name, std::string bytes) {
   pugi::xml_document doc;
   const pugi::xml_parse_result parsed = doc.load_buffer(bytes.data(), bytes.size());
   if (!parsed) {
-    throw InputError(name + ": not a VTK XML file: " + parsed.description() + " at byte " + std::to_string(parsed.offset));
+    throw InputError(name + ": not a VTK XML file: " + parsed.description() + " at byte " +
+                     std::to_string(parsed.offset));
   }
   const pugi::xml_node root = doc.child("VTKFile");
   if (!root || std::string(root.attribute("type").as_string()) != "PolyData") {
@@ -539,13 +559,15 @@ VtkSoup read_vtk_xml(const std::string& name, std::string bytes) {
         if (n == "connectivity") conn = a;
         if (n == "offsets") offs = a;
       }
-      if (!conn || !offs) throw InputError(name + ": <" + section + ">: expected DataArrays 'connectivity' and 'offsets'");
+      if (!conn || !offs)
+        throw InputError(name + ": <" + section + ">: expected DataArrays 'connectivity' and 'offsets'");
       const std::vector<double> c = data_array(conn, x, 0), o = data_array(offs, x, 0);
       std::vector<std::int64_t> v;
       std::size_t start = 0;
       for (std::size_t cell = 0; cell < o.size(); ++cell) {
         if (!(o[cell] >= static_cast<double>(start) && o[cell] <= static_cast<double>(c.size()))) {
-          throw InputError(name + ": <" + section + "> offset " + std::to_string(cell) + ": expected non-decreasing offsets "
+          throw InputError(name + ": <" + section + "> offset " + std::to_string(cell) +
+                           ": expected non-decreasing offsets "
                            "within the connectivity");
         }
         const auto end = static_cast<std::size_t>(o[cell]);

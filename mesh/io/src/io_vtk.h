@@ -8,7 +8,7 @@
 namespace pneuma::mesh::detail {
 
 struct VtkSoup {
-  std::vector<std::array<double, 3>> points;        // file units
+  std::vector<std::array<double, 3>> points;  // file units
   std::vector<std::array<std::uint32_t, 3>> triangles;
 };
 

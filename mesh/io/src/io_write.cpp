@@ -119,7 +119,8 @@ void write_obj(std::ostream& out, const TriangleMesh& mesh, double unit) {
 }
 
 std::array<float, 3> facet_normal(const TriangleMesh& mesh, const Triangle& t) {
-  const Eigen::Vector3d n = (mesh.vertices[t[1]] - mesh.vertices[t[0]]).cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]);
+  const Eigen::Vector3d n =
+      (mesh.vertices[t[1]] - mesh.vertices[t[0]]).cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]);
   const double len = n.norm();
   if (len == 0.0) return {0.0f, 0.0f, 0.0f};
   return {static_cast<float>(n.x() / len), static_cast<float>(n.y() / len), static_cast<float>(n.z() / len)};

@@ -12,8 +12,8 @@
 #include <stdexcept>
 
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/labels/labels.h"
 #include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/labels/labels.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -130,7 +130,8 @@ void edt_1d(const float* f, float* d, std::size_t n, double w, std::vector<std::
 }
 
 // Squared distance (metres^2) from each voxel centre to the nearest voxel where `target` is 1.
-std::vector<float> squared_distance_to(const Grid& g, const std::vector<std::uint8_t>& target, const Eigen::Vector3d& spacing) {
+std::vector<float> squared_distance_to(const Grid& g, const std::vector<std::uint8_t>& target,
+                                       const Eigen::Vector3d& spacing) {
   std::vector<float> d(g.count());
   for (std::size_t v = 0; v < g.count(); ++v) d[v] = target[v] ? 0.0f : std::numeric_limits<float>::infinity();
   std::vector<float> line_in, line_out;
@@ -258,7 +259,8 @@ std::size_t fill_slice_holes(const Grid& g, std::vector<std::uint8_t>& mask) {
 
 // Separable Gaussian blur (sigma in metres, truncated at 3 sigma, normalised weights; zero
 // outside the grid).
-std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, const Eigen::Vector3d& spacing, double sigma) {
+std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, const Eigen::Vector3d& spacing,
+                        double sigma) {
   std::vector<float> a(mask.begin(), mask.end());
   if (sigma <= 0.0) return a;
   std::vector<float> b(a.size());
@@ -283,8 +285,10 @@ std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, co
       for (std::size_t q = 0; q < n; ++q) line[q] = a[start + q * stride];
       for (std::ptrdiff_t q = 0; q < nn; ++q) {
         float acc = 0.0f;
-        const std::ptrdiff_t lo = std::max<std::ptrdiff_t>(0, q - radius), hi = std::min<std::ptrdiff_t>(nn - 1, q + radius);
-        for (std::ptrdiff_t t = lo; t <= hi; ++t) acc += kernel[static_cast<std::size_t>(t - q + radius)] * line[static_cast<std::size_t>(t)];
+        const std::ptrdiff_t lo = std::max<std::ptrdiff_t>(0, q - radius),
+                             hi = std::min<std::ptrdiff_t>(nn - 1, q + radius);
+        for (std::ptrdiff_t t = lo; t <= hi; ++t)
+          acc += kernel[static_cast<std::size_t>(t - q + radius)] * line[static_cast<std::size_t>(t)];
         b[start + static_cast<std::size_t>(q) * stride] = acc;
       }
     }
@@ -340,27 +344,29 @@ std::size_t keep_largest_surface(TriangleMesh& mesh) {
 std::vector<std::string> LabelSurfaceReport::steps() const {
   std::vector<std::string> s;
   s.push_back(fmt::format("labels {}: {} voxels of {:.3f} x {:.3f} x {:.3f} mm ({}), {} frame from the {}",
-                          join_labels(labels), label_voxels, spacing_m.x() * 1e3, spacing_m.y() * 1e3, spacing_m.z() * 1e3,
-                          mL(label_volume_m3()), "LPS", transform_source));
+                          join_labels(labels), label_voxels, spacing_m.x() * 1e3, spacing_m.y() * 1e3,
+                          spacing_m.z() * 1e3, mL(label_volume_m3()), "LPS", transform_source));
   s.push_back(dropped_islands == 0 ? std::string("islands: none (one connected component)")
                                    : fmt::format("islands: dropped {} ({} voxels, {}), kept the largest component",
                                                  dropped_islands, dropped_island_voxels,
                                                  mL(static_cast<double>(dropped_island_voxels) * voxel_volume_m3)));
-  s.push_back(closing_radius_m <= 0.0 ? std::string("closing: off")
-                                      : fmt::format("closing: ball of {:.2f} mm added {} voxels ({})", closing_radius_m * 1e3,
-                                                    closing_added_voxels,
-                                                    mL(static_cast<double>(closing_added_voxels) * voxel_volume_m3)));
+  s.push_back(closing_radius_m <= 0.0
+                  ? std::string("closing: off")
+                  : fmt::format("closing: ball of {:.2f} mm added {} voxels ({})", closing_radius_m * 1e3,
+                                closing_added_voxels, mL(static_cast<double>(closing_added_voxels) * voxel_volume_m3)));
   if (filled_slice_holes) {
     s.push_back(fmt::format("tunnels: filled holes in slices across x, y and z: {} voxels ({})", slice_hole_voxels,
                             mL(static_cast<double>(slice_hole_voxels) * voxel_volume_m3)));
   }
-  s.push_back(filled_cavities == 0 ? std::string("cavities: none")
-                                   : fmt::format("cavities: filled {} ({} voxels, {})", filled_cavities, filled_cavity_voxels,
-                                                 mL(static_cast<double>(filled_cavity_voxels) * voxel_volume_m3)));
-  s.push_back(fmt::format("surface: Gaussian smoothing sigma {:.2f} mm, CGAL Mesh_3 at {:.2f} mm facets (within {:.3f} mm of "
-                          "the level set){}",
-                          smoothing_m * 1e3, edge_length_m * 1e3, max_distance_m * 1e3,
-                          attempts > 1 ? fmt::format(", {} attempts (handles removed to reach genus 0)", attempts) : ""));
+  s.push_back(filled_cavities == 0
+                  ? std::string("cavities: none")
+                  : fmt::format("cavities: filled {} ({} voxels, {})", filled_cavities, filled_cavity_voxels,
+                                mL(static_cast<double>(filled_cavity_voxels) * voxel_volume_m3)));
+  s.push_back(
+      fmt::format("surface: Gaussian smoothing sigma {:.2f} mm, CGAL Mesh_3 at {:.2f} mm facets (within {:.3f} mm of "
+                  "the level set){}",
+                  smoothing_m * 1e3, edge_length_m * 1e3, max_distance_m * 1e3,
+                  attempts > 1 ? fmt::format(", {} attempts (handles removed to reach genus 0)", attempts) : ""));
   if (dropped_surface_components > 0) {
     s.push_back(fmt::format("surface components: dropped {} small ones", dropped_surface_components));
   }
@@ -395,13 +401,15 @@ LabelSurface surface_from_labels(const LabelMap& map, const std::string& name, c
                                  const LabelSurfaceOptions& options) {
   auto positive = [](double x) { return x > 0.0 && std::isfinite(x); };
   auto non_negative = [](double x) { return x >= 0.0 && std::isfinite(x); };
-  if (!positive(options.edge_length_m)) throw std::invalid_argument("surface_from_labels: the edge length must be positive");
+  if (!positive(options.edge_length_m))
+    throw std::invalid_argument("surface_from_labels: the edge length must be positive");
   if (!non_negative(options.smoothing_m) || !non_negative(options.closing_radius_m) ||
       !non_negative(options.max_distance_m) || !non_negative(options.max_closing_radius_m)) {
     throw std::invalid_argument("surface_from_labels: smoothing, closing and distance must be >= 0");
   }
   if (labels.empty()) throw std::invalid_argument("surface_from_labels: no labels given");
-  if (map.labels.size() != map.voxel_count()) throw std::invalid_argument("surface_from_labels: label map size mismatch");
+  if (map.labels.size() != map.voxel_count())
+    throw std::invalid_argument("surface_from_labels: label map size mismatch");
 
   LabelSurface result;
   LabelSurfaceReport& rep = result.report;
@@ -459,7 +467,7 @@ LabelSurface surface_from_labels(const LabelMap& map, const std::string& name, c
   for (std::size_t a = 0; a < 3; ++a) {
     const auto pad = static_cast<std::size_t>(std::ceil(reach / spacing[static_cast<Eigen::Index>(a)])) + 2;
     origin[a] = lo[a] >= pad ? lo[a] - pad : 0;  // voxels outside the file are background anyway
-    g.n[a] = hi[a] + pad + 1 - origin[a];         // may run past the file: read as background
+    g.n[a] = hi[a] + pad + 1 - origin[a];        // may run past the file: read as background
   }
   std::vector<std::uint8_t> base(g.count(), 0);
   for (std::size_t k = 0; k < g.n[2]; ++k) {
@@ -484,7 +492,8 @@ LabelSurface surface_from_labels(const LabelMap& map, const std::string& name, c
   detail::ScalarGrid field;
   field.size = g.n;
   Eigen::Matrix4d shift = Eigen::Matrix4d::Identity();
-  shift.block<3, 1>(0, 3) << static_cast<double>(origin[0]), static_cast<double>(origin[1]), static_cast<double>(origin[2]);
+  shift.block<3, 1>(0, 3) << static_cast<double>(origin[0]), static_cast<double>(origin[1]),
+      static_cast<double>(origin[2]);
   field.index_to_lps = map.ijk_to_lps * shift;
   field.lps_to_index = field.index_to_lps.inverse();
 
@@ -509,9 +518,10 @@ LabelSurface surface_from_labels(const LabelMap& map, const std::string& name, c
     TriangleMesh mesh = detail::mesh_level_set(field, rep.edge_length_m, rep.max_distance_m);
     field.values.clear();
     if (mesh.triangles.empty()) {
-      throw InputError(fmt::format("{}: labels {}: no surface found ({} voxels): expected a region at least a few voxels "
-                                   "thick",
-                                   name, join_labels(rep.labels), rep.label_voxels));
+      throw InputError(
+          fmt::format("{}: labels {}: no surface found ({} voxels): expected a region at least a few voxels "
+                      "thick",
+                      name, join_labels(rep.labels), rep.label_voxels));
     }
     rep.dropped_surface_components = keep_largest_surface(mesh);
     // 7. Genus.

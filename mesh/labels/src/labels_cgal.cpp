@@ -80,8 +80,8 @@ TriangleMesh mesh_level_set(const ScalarGrid& grid, double edge_length_m, double
   Criteria criteria(CGAL::parameters::facet_angle = 30.0, CGAL::parameters::facet_size = edge_length_m / kMm,
                     CGAL::parameters::facet_distance = max_distance_m / kMm,
                     CGAL::parameters::facet_topology = CGAL::FACET_VERTICES_ON_SURFACE);
-  const C3t3 c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_perturb(), CGAL::parameters::no_exude(),
-                                            CGAL::parameters::manifold());
+  const C3t3 c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_perturb(),
+                                            CGAL::parameters::no_exude(), CGAL::parameters::manifold());
   SurfaceMesh sm;
   CGAL::facets_in_complex_3_to_triangle_mesh(c3t3, sm);
   TriangleMesh mesh = from_surface_mesh(sm);

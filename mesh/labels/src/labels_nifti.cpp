@@ -65,7 +65,8 @@ void convert(const nifti_image& image, const std::string& name, std::vector<std:
 }  // namespace
 
 Eigen::Vector3d LabelMap::spacing_m() const {
-  return {ijk_to_lps.block<3, 1>(0, 0).norm(), ijk_to_lps.block<3, 1>(0, 1).norm(), ijk_to_lps.block<3, 1>(0, 2).norm()};
+  return {ijk_to_lps.block<3, 1>(0, 0).norm(), ijk_to_lps.block<3, 1>(0, 1).norm(),
+          ijk_to_lps.block<3, 1>(0, 2).norm()};
 }
 
 double LabelMap::voxel_volume_m3() const { return std::abs(ijk_to_lps.block<3, 3>(0, 0).determinant()); }
@@ -79,8 +80,9 @@ LabelMap read_label_map(const std::filesystem::path& path) {
   nifti_set_debug_level(0);
   NiftiPtr image(nifti_image_read(name.c_str(), 0));
   if (!image) {
-    throw InputError(name + ": not a NIfTI file: expected a NIfTI-1 or NIfTI-2 header (348 or 540 bytes, magic 'n+1' or "
-                            "'n+2'), gzip-compressed for .nii.gz");
+    throw InputError(name +
+                     ": not a NIfTI file: expected a NIfTI-1 or NIfTI-2 header (348 or 540 bytes, magic 'n+1' or "
+                     "'n+2'), gzip-compressed for .nii.gz");
   }
   if (image->nifti_type == NIFTI_FTYPE_ANALYZE) {
     throw InputError(name + ": an ANALYZE 7.5 file, not NIfTI: expected a NIfTI-1 or NIfTI-2 header (it carries the "
@@ -95,7 +97,8 @@ LabelMap read_label_map(const std::filesystem::path& path) {
   }
   if (image->nx < 1 || image->ny < 1 || image->nz < 1) throw InputError(name + ": expected a non-empty 3D volume");
   const char* type = nifti_datatype_string(image->datatype);
-  const std::uint64_t expected_bytes = static_cast<std::uint64_t>(image->nvox) * static_cast<std::uint64_t>(image->nbyper);
+  const std::uint64_t expected_bytes =
+      static_cast<std::uint64_t>(image->nvox) * static_cast<std::uint64_t>(image->nbyper);
   // The header's sizes are checked against the file before niftilib allocates them (a damaged
   // header claimed 37 GB, found by fuzz_nifti): gzip expands at most ~1032:1.
   const bool gzipped = lower(name).ends_with(".gz");
@@ -107,12 +110,12 @@ LabelMap read_label_map(const std::filesystem::path& path) {
   if (claims_too_much || nifti_image_load(image.get()) != 0 || image->data == nullptr) {
     throw InputError(name + ": truncated or corrupt: expected " + std::to_string(image->nx) + " x " +
                      std::to_string(image->ny) + " x " + std::to_string(image->nz) + " voxels of " + type + " (" +
-                     std::to_string(expected_bytes) + " bytes of data" +
-                     (gzipped ? " after decompression" : "") + ")");
+                     std::to_string(expected_bytes) + " bytes of data" + (gzipped ? " after decompression" : "") + ")");
   }
 
   LabelMap map;
-  map.size = {static_cast<std::size_t>(image->nx), static_cast<std::size_t>(image->ny), static_cast<std::size_t>(image->nz)};
+  map.size = {static_cast<std::size_t>(image->nx), static_cast<std::size_t>(image->ny),
+              static_cast<std::size_t>(image->nz)};
   map.labels.resize(map.voxel_count());
   switch (image->datatype) {
     case DT_UINT8: convert<std::uint8_t>(*image, name, map.labels); break;

@@ -6,9 +6,9 @@
 
 #include <cmath>
 
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/cgal/cgal_surface_mesh.h"
 #include "pneuma/mesh/repair/remesh.h"
-#include "pneuma/core/error.h"
 
 namespace PMP = CGAL::Polygon_mesh_processing;
 
@@ -44,10 +44,9 @@ RemeshResult remesh_isotropic(const TriangleMesh& mesh, const RemeshOptions& opt
   result.before = measure_quality(mesh);
   SurfaceMesh sm = *input;
   // Borders (there are none on a valid, closed input) would be kept in place.
-  PMP::isotropic_remeshing(faces(sm), options.target_edge_length_m, sm,
-                           PMP::parameters::number_of_iterations(options.iterations)
-                               .protect_constraints(false)
-                               .relax_constraints(false));
+  PMP::isotropic_remeshing(
+      faces(sm), options.target_edge_length_m, sm,
+      PMP::parameters::number_of_iterations(options.iterations).protect_constraints(false).relax_constraints(false));
   result.mesh = detail::from_surface_mesh(sm);
   result.after = measure_quality(result.mesh);
   if (options.measure_deviation) result.max_deviation_m = max_distance_to(*input, result.mesh);

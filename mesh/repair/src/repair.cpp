@@ -16,11 +16,11 @@
 #include <map>
 #include <set>
 
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/cgal/cgal_internal.h"
 #include "pneuma/mesh/cgal/cgal_surface_mesh.h"
-#include "pneuma/core/error.h"
-#include "pneuma/mesh/repair/repair.h"
 #include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/repair/repair.h"
 #include "voxel_rebuild.h"
 
 namespace PMP = CGAL::Polygon_mesh_processing;
@@ -67,19 +67,27 @@ std::string count_of(std::size_t n, const char* one, const char* many) {
 
 std::vector<std::string> RepairReport::actions() const {
   std::vector<std::string> a;
-  if (merged_vertices) a.push_back("merged " + count_of(merged_vertices, "vertex", "vertices") + " at identical positions");
-  if (removed_degenerate_faces) a.push_back("removed " + count_of(removed_degenerate_faces, "degenerate face", "degenerate faces"));
-  if (removed_duplicated_faces) a.push_back("removed " + count_of(removed_duplicated_faces, "duplicated face", "duplicated faces"));
+  if (merged_vertices)
+    a.push_back("merged " + count_of(merged_vertices, "vertex", "vertices") + " at identical positions");
+  if (removed_degenerate_faces)
+    a.push_back("removed " + count_of(removed_degenerate_faces, "degenerate face", "degenerate faces"));
+  if (removed_duplicated_faces)
+    a.push_back("removed " + count_of(removed_duplicated_faces, "duplicated face", "duplicated faces"));
   if (flipped_faces) a.push_back("flipped " + count_of(flipped_faces, "face", "faces") + " to match their neighbours");
-  if (stitched_edges) a.push_back("stitched " + count_of(stitched_edges, "pair of border edges", "pairs of border edges"));
-  if (filled_holes) a.push_back("filled " + count_of(filled_holes, "hole", "holes") + " with " + count_of(added_faces, "face", "faces"));
-  if (reversed_components) a.push_back("reversed " + count_of(reversed_components, "inside-out component", "inside-out components"));
+  if (stitched_edges)
+    a.push_back("stitched " + count_of(stitched_edges, "pair of border edges", "pairs of border edges"));
+  if (filled_holes)
+    a.push_back("filled " + count_of(filled_holes, "hole", "holes") + " with " +
+                count_of(added_faces, "face", "faces"));
+  if (reversed_components)
+    a.push_back("reversed " + count_of(reversed_components, "inside-out component", "inside-out components"));
   if (self_intersecting_pairs) {
-    a.push_back(fmt::format("removed {} around {} ({}), first faces {} and {}; the holes are refilled",
-                            count_of(removed_intersecting_faces, "face", "faces"),
-                            count_of(self_intersecting_pairs, "pair of intersecting faces", "pairs of intersecting faces"),
-                            rounds == 1 ? "1 round" : fmt::format("{} rounds", rounds), first_intersecting_faces[0],
-                            first_intersecting_faces[1]));
+    a.push_back(
+        fmt::format("removed {} around {} ({}), first faces {} and {}; the holes are refilled",
+                    count_of(removed_intersecting_faces, "face", "faces"),
+                    count_of(self_intersecting_pairs, "pair of intersecting faces", "pairs of intersecting faces"),
+                    rounds == 1 ? "1 round" : fmt::format("{} rounds", rounds), first_intersecting_faces[0],
+                    first_intersecting_faces[1]));
   }
   if (dropped_components) {
     a.push_back(fmt::format("dropped {} ({}, {:.4g} mm^2), each under {:g} % of the largest component's area",
@@ -88,22 +96,22 @@ std::vector<std::string> RepairReport::actions() const {
                             100.0 * min_component_fraction));
   }
   if (rebuilt_components) {
-    a.push_back(fmt::format("rebuilt {} from its inside ({}): a {:.3g} mm voxel grid, facets of {:.3g} mm, enclosed "
-                            "volume {:.4g} -> {:.4g} mL ({:+.2f} %)",
-                            count_of(rebuilt_components, "component", "components"), rebuilt_for, rebuilt_voxel_m * 1e3,
-                            rebuilt_edge_m * 1e3, rebuilt_volume_before_m3 * 1e6, rebuilt_volume_after_m3 * 1e6,
-                            rebuilt_volume_before_m3 > 0.0
-                                ? 100.0 * (rebuilt_volume_after_m3 / rebuilt_volume_before_m3 - 1.0)
-                                : 0.0));
+    a.push_back(fmt::format(
+        "rebuilt {} from its inside ({}): a {:.3g} mm voxel grid, facets of {:.3g} mm, enclosed "
+        "volume {:.4g} -> {:.4g} mL ({:+.2f} %)",
+        count_of(rebuilt_components, "component", "components"), rebuilt_for, rebuilt_voxel_m * 1e3,
+        rebuilt_edge_m * 1e3, rebuilt_volume_before_m3 * 1e6, rebuilt_volume_after_m3 * 1e6,
+        rebuilt_volume_before_m3 > 0.0 ? 100.0 * (rebuilt_volume_after_m3 / rebuilt_volume_before_m3 - 1.0) : 0.0));
   }
-  if (handles_removed) a.push_back("removed " + count_of(static_cast<std::size_t>(handles_removed), "handle", "handles"));
+  if (handles_removed)
+    a.push_back("removed " + count_of(static_cast<std::size_t>(handles_removed), "handle", "handles"));
   if (handles_kept) {
     a.push_back("kept " + count_of(static_cast<std::size_t>(handles_kept), "handle", "handles") + " (genus " +
                 std::to_string(handles_kept) + "): " + handles_kept_because);
   }
   if (remeshed_edge_m > 0.0) {
-    a.push_back(fmt::format("remeshed at {:.3g} mm before the verdict, which removed what repair left: {}", remeshed_edge_m * 1e3,
-                            left_for_remeshing));
+    a.push_back(fmt::format("remeshed at {:.3g} mm before the verdict, which removed what repair left: {}",
+                            remeshed_edge_m * 1e3, left_for_remeshing));
   }
   if (dropped_vertices) a.push_back("dropped " + count_of(dropped_vertices, "unused vertex", "unused vertices"));
   return a;
@@ -222,9 +230,10 @@ RepairResult repair_pass(const TriangleMesh& mesh, const std::string& name, cons
       lowest_vertex = std::min(lowest_vertex, static_cast<std::size_t>(sm.target(e)));
     }
     if (edges > options.max_hole_edges) {
-      throw InputError(fmt::format("{}: cannot repair: hole of {} boundary edges at vertex {} is larger than the {} edges "
-                                   "repair fills",
-                                   name, edges, lowest_vertex, options.max_hole_edges));
+      throw InputError(
+          fmt::format("{}: cannot repair: hole of {} boundary edges at vertex {} is larger than the {} edges "
+                      "repair fills",
+                      name, edges, lowest_vertex, options.max_hole_edges));
     }
   }
   for (const auto h : holes) {
@@ -265,13 +274,14 @@ RepairResult repair_pass(const TriangleMesh& mesh, const std::string& name, cons
 }
 
 // Faces in the intersecting pairs and their `rings` rings of neighbours (through vertices).
-std::vector<char> around_intersections(const TriangleMesh& mesh, const std::vector<std::pair<std::size_t, std::size_t>>& pairs,
-                                       int rings) {
+std::vector<char> around_intersections(const TriangleMesh& mesh,
+                                       const std::vector<std::pair<std::size_t, std::size_t>>& pairs, int rings) {
   std::vector<char> face(mesh.triangle_count(), 0), vertex(mesh.vertex_count(), 0);
   for (const auto& [a, b] : pairs) face[a] = face[b] = 1;
   for (int r = 0; r < rings; ++r) {
     for (std::size_t f = 0; f < face.size(); ++f) {
-      if (face[f]) for (std::uint32_t v : mesh.triangles[f]) vertex[v] = 1;
+      if (face[f])
+        for (std::uint32_t v : mesh.triangles[f]) vertex[v] = 1;
     }
     for (std::size_t f = 0; f < face.size(); ++f) {
       const Triangle& t = mesh.triangles[f];
@@ -351,8 +361,8 @@ RepairResult repair_unchecked(const TriangleMesh& mesh, const std::string& name,
     accumulate(next.report, rep);
     next.report.self_intersecting_pairs = rep.self_intersecting_pairs;
     next.report.first_intersecting_faces = rep.first_intersecting_faces;
-    next.report.removed_intersecting_faces = rep.removed_intersecting_faces +
-                                             static_cast<std::size_t>(std::count(wider.begin(), wider.end(), 1));
+    next.report.removed_intersecting_faces =
+        rep.removed_intersecting_faces + static_cast<std::size_t>(std::count(wider.begin(), wider.end(), 1));
     next.report.rounds = round;
     next.report.merged_vertices = rep.merged_vertices;
     next.report.dropped_vertices = rep.dropped_vertices;
@@ -364,7 +374,8 @@ RepairResult repair_unchecked(const TriangleMesh& mesh, const std::string& name,
     const int genus = *check.genus;
     if (options.rebuild_through_voxels) {
       auto rebuilt = detail::rebuild_components(result.mesh, name, detail::rebuild_edge_for(result.mesh), true);
-      const double change = rebuilt.volume_before_m3 > 0.0 ? rebuilt.volume_after_m3 / rebuilt.volume_before_m3 - 1.0 : 0.0;
+      const double change =
+          rebuilt.volume_before_m3 > 0.0 ? rebuilt.volume_after_m3 / rebuilt.volume_before_m3 - 1.0 : 0.0;
       if (rebuilt.open || rebuilt.genus_after >= rebuilt.genus_before) {
         rep.handles_kept_because = "wider than the closing that removes small ones";
       } else if (std::abs(change) > options.max_handle_volume_change) {
@@ -401,13 +412,14 @@ RepairResult repair(const TriangleMesh& mesh, const std::string& name, const Rep
   return result;
 }
 
-RepairRemeshResult repair_and_remesh(const TriangleMesh& mesh, const std::string& name, const RepairOptions& repair_options,
-                                     const RemeshOptions& remesh_options) {
+RepairRemeshResult repair_and_remesh(const TriangleMesh& mesh, const std::string& name,
+                                     const RepairOptions& repair_options, const RemeshOptions& remesh_options) {
   ValidationReport after;
   RepairResult repaired = repair_unchecked(mesh, name, repair_options, &after);
   if (repaired.mesh.triangles.empty()) throw InputError(name + ": cannot repair: no faces left");
   for (const std::string& p : after.problems) {
-    if (!starts_with(p, "self-intersection")) throw InputError(name + ": cannot repair: after repair, " + after.summary());
+    if (!starts_with(p, "self-intersection"))
+      throw InputError(name + ": cannot repair: after repair, " + after.summary());
   }
   RepairRemeshResult out;
   out.repair = repaired.report;

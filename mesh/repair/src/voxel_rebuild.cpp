@@ -117,7 +117,8 @@ VoxelRebuild rebuild_through_voxels(const TriangleMesh& mesh, const std::string&
     std::int32_t* row = map.labels.data() + n[0] * r;
     for (std::size_t m = 0; m + 1 < crossings.size(); m += 2) {
       // Voxel centres x_i = origin.x + i h strictly between an entry and its exit.
-      const double from = std::ceil((crossings[m] - origin.x()) / h), to = std::floor((crossings[m + 1] - origin.x()) / h);
+      const double from = std::ceil((crossings[m] - origin.x()) / h),
+                   to = std::floor((crossings[m + 1] - origin.x()) / h);
       for (double i = std::max(from, 0.0); i <= std::min(to, static_cast<double>(n[0] - 1)); i += 1.0)
         row[static_cast<std::size_t>(i)] = 1;
     }

@@ -8,18 +8,18 @@
 #include <cstddef>
 #include <string>
 
-#include "pneuma/mesh/labels/labels.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/mesh/labels/labels.h"
 
 namespace pneuma::mesh::detail {
 
 struct VoxelRebuild {
-  TriangleMesh mesh;           // empty when the inside could not be found (see odd_rows)
-  LabelSurfaceReport report;   // how the surface was made from the voxels
+  TriangleMesh mesh;          // empty when the inside could not be found (see odd_rows)
+  LabelSurfaceReport report;  // how the surface was made from the voxels
   double voxel_m = 0.0;
-  double edge_m = 0.0;         // facet size of the rebuilt surface
-  std::size_t rows = 0;        // grid rows along x that meet the surface
-  std::size_t odd_rows = 0;    // of those, rows crossing it an odd number of times (a hole)
+  double edge_m = 0.0;       // facet size of the rebuilt surface
+  std::size_t rows = 0;      // grid rows along x that meet the surface
+  std::size_t odd_rows = 0;  // of those, rows crossing it an odd number of times (a hole)
 };
 
 // The grid: `edge_m` / 2 voxels (coarsened to at most ~40 M voxels), rows offset by a small
@@ -32,12 +32,12 @@ VoxelRebuild rebuild_through_voxels(const TriangleMesh& mesh, const std::string&
 // one component, and a file may hold two lungs), all of them or only those with handles
 // (genus > 0 by the Euler characteristic); the others are kept as they are.
 struct ComponentsRebuild {
-  TriangleMesh mesh;                 // every component, rebuilt or kept, in input order
+  TriangleMesh mesh;  // every component, rebuilt or kept, in input order
   std::size_t components = 0, rebuilt = 0;
-  int genus_before = 0, genus_after = 0;  // summed over the rebuilt components
-  double voxel_m = 0.0, edge_m = 0.0;     // of the last rebuild
+  int genus_before = 0, genus_after = 0;                 // summed over the rebuilt components
+  double voxel_m = 0.0, edge_m = 0.0;                    // of the last rebuild
   double volume_before_m3 = 0.0, volume_after_m3 = 0.0;  // of the rebuilt components (|signed|)
-  bool open = false;                 // a component to rebuild is not closed: nothing was rebuilt
+  bool open = false;                                     // a component to rebuild is not closed: nothing was rebuilt
 };
 ComponentsRebuild rebuild_components(const TriangleMesh& mesh, const std::string& name, double edge_m,
                                      bool only_with_handles);

@@ -70,6 +70,5 @@ std::string location(const std::string& file, int line0, int column0);
 #ifdef NDEBUG
 #define PNEUMA_ASSERT(expr, message) ((void)0)
 #else
-#define PNEUMA_ASSERT(expr, message) \
-  ((expr) ? (void)0 : ::pneuma::assertion_failed(#expr, __FILE__, __LINE__, message))
+#define PNEUMA_ASSERT(expr, message) ((expr) ? (void)0 : ::pneuma::assertion_failed(#expr, __FILE__, __LINE__, message))
 #endif

@@ -60,7 +60,7 @@ double parse_ratio(std::string_view text);
 inline constexpr double pa_per_cmh2o = 98.0665;
 inline constexpr double m3_per_litre = 1e-3;
 inline constexpr double m3_per_ml = 1e-6;
-inline constexpr double m3_per_l_per_pa_per_cmh2o = m3_per_litre / pa_per_cmh2o;  // L/cmH2O -> m^3/Pa
+inline constexpr double m3_per_l_per_pa_per_cmh2o = m3_per_litre / pa_per_cmh2o;      // L/cmH2O -> m^3/Pa
 inline constexpr double pa_s_per_m3_per_cmh2o_s_per_l = pa_per_cmh2o / m3_per_litre;  // cmH2O*s/L -> Pa*s/m^3
 
 }  // namespace pneuma::units

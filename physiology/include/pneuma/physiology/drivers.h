@@ -15,9 +15,9 @@ namespace pneuma::physiology {
 // (a smooth version of the profile of Mecklenburgh & Mapleson, and of Albanese et al. 2016).
 struct Spontaneous {
   double rate_hz = 0.2;
-  double ie_ratio = 0.5;                 // Ti / Te
-  double amplitude_pa = 0.0;             // peak muscle pressure
-  double target_tidal_volume_m3 = 0.0;   // > 0: the simulator finds the amplitude that gives it
+  double ie_ratio = 0.5;                // Ti / Te
+  double amplitude_pa = 0.0;            // peak muscle pressure
+  double target_tidal_volume_m3 = 0.0;  // > 0: the simulator finds the amplitude that gives it
 };
 
 // Volume control: constant inspiratory flow delivering the set tidal volume, an optional
@@ -53,8 +53,8 @@ struct BreathPlan {
 
 // What the driver imposes at one instant.
 struct Drive {
-  bool flow_controlled = false;  // true: total flow is set, airway pressure follows
-  double flow_m3_per_s = 0.0;    // when flow_controlled
+  bool flow_controlled = false;     // true: total flow is set, airway pressure follows
+  double flow_m3_per_s = 0.0;       // when flow_controlled
   double airway_pressure_pa = 0.0;  // when pressure controlled
   double muscle_pressure_pa = 0.0;
   double peep_pa = 0.0;

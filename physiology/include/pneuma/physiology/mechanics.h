@@ -42,7 +42,7 @@ struct Compartment {
 
 struct Mechanics {
   double airway_resistance_pa_s_per_m3 = 0.0;  // shared by all compartments
-  std::vector<Compartment> compartments;        // one or more, in parallel
+  std::vector<Compartment> compartments;       // one or more, in parallel
   // For the pleural pressure estimate: Ppl = -Ptp_rest + f * Pel - Pmus, where f is the
   // chest wall's share of the respiratory system's elastic recoil (the rest is the lung's).
   double transpulmonary_pressure_at_rest_pa = 490.3325;  // 5 cmH2O

@@ -4,9 +4,9 @@
 #include <string>
 #include <vector>
 
+#include "pneuma/core/error.h"
 #include "pneuma/physiology/drivers.h"
 #include "pneuma/physiology/mechanics.h"
-#include "pneuma/core/error.h"
 
 namespace pneuma::physiology {
 
@@ -52,16 +52,16 @@ struct BreathMetrics {
   double start_s = 0.0;
   double duration_s = 0.0;
   const char* mode = "";
-  double tidal_volume_m3 = 0.0;                  // the swing: max minus min volume over the breath
-  double inspired_volume_m3 = 0.0;               // end of the inspiratory phase minus start volume
-  double set_tidal_volume_m3 = 0.0;              // the driver's setting (spontaneous target, volume control); 0: none
-  double minute_ventilation_m3_per_s = 0.0;      // tidal volume / breath duration
-  double peak_pressure_pa = 0.0;                 // highest airway pressure
-  double plateau_pressure_pa = 0.0;              // alveolar pressure at the end of inspiration
+  double tidal_volume_m3 = 0.0;              // the swing: max minus min volume over the breath
+  double inspired_volume_m3 = 0.0;           // end of the inspiratory phase minus start volume
+  double set_tidal_volume_m3 = 0.0;          // the driver's setting (spontaneous target, volume control); 0: none
+  double minute_ventilation_m3_per_s = 0.0;  // tidal volume / breath duration
+  double peak_pressure_pa = 0.0;             // highest airway pressure
+  double plateau_pressure_pa = 0.0;          // alveolar pressure at the end of inspiration
   double peep_pa = 0.0;
-  double dynamic_compliance_m3_per_pa = 0.0;     // VT / (max(Paw + Pmus) - PEEP)
+  double dynamic_compliance_m3_per_pa = 0.0;  // VT / (max(Paw + Pmus) - PEEP)
   double end_expiratory_volume_m3 = 0.0;
-  double muscle_amplitude_pa = 0.0;              // the spontaneous driver's amplitude in this breath
+  double muscle_amplitude_pa = 0.0;  // the spontaneous driver's amplitude in this breath
 };
 
 struct SolverStats {

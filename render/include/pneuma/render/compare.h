@@ -19,14 +19,16 @@ struct Tolerance {
 inline constexpr Tolerance default_tolerance{};
 
 struct Difference {
-  std::array<int, 4> max{};        // largest absolute difference per channel R, G, B, A (0..255)
-  std::array<double, 4> mean{};    // mean absolute difference per channel
-  std::size_t pixels_over = 0;     // pixels with a channel difference above the threshold
+  std::array<int, 4> max{};      // largest absolute difference per channel R, G, B, A (0..255)
+  std::array<double, 4> mean{};  // mean absolute difference per channel
+  std::size_t pixels_over = 0;   // pixels with a channel difference above the threshold
   std::size_t pixel_count = 0;
-  int pixel_threshold = 0;         // the threshold the count used
-  Image image;                     // for the eye: A in dim grey, differing pixels in red
+  int pixel_threshold = 0;  // the threshold the count used
+  Image image;              // for the eye: A in dim grey, differing pixels in red
 
-  double share_over() const { return pixel_count ? static_cast<double>(pixels_over) / static_cast<double>(pixel_count) : 0.0; }
+  double share_over() const {
+    return pixel_count ? static_cast<double>(pixels_over) / static_cast<double>(pixel_count) : 0.0;
+  }
   bool within(const Tolerance& t) const { return share_over() <= t.max_share_over; }
 };
 

@@ -43,12 +43,12 @@ struct Material {
   Eigen::Vector3d base_colour = {0.87, 0.56, 0.56};  // healthy lung: pink
   double specular = 0.22;                            // soft, wet-looking highlight
   double shininess = 24.0;
-  double wrap = 0.35;   // diffuse wrap-around (0 = Lambert): softens the terminator like tissue
-  double rim = 0.18;    // faint light at grazing angles (the pleura's sheen)
+  double wrap = 0.35;  // diffuse wrap-around (0 = Lambert): softens the terminator like tissue
+  double rim = 0.18;   // faint light at grazing angles (the pleura's sheen)
 };
 
 struct RenderOptions {
-  int width = 640;   // pixels
+  int width = 640;  // pixels
   int height = 480;
   CameraPreset camera = CameraPreset::anterior;
   double fov_y_deg = 30.0;
@@ -66,7 +66,7 @@ struct RenderOptions {
   // Overlay: colour by the displacement magnitude |s u| (viridis), with a colour bar legend.
   bool overlay_magnitude = false;
   double overlay_max_m = 0.0;  // top of the colour scale; 0: max |u| * max |s| of the range (fixed across frames)
-  bool legend = true;           // the colour bar (drawn only with the overlay)
+  bool legend = true;          // the colour bar (drawn only with the overlay)
   GlBackend gl = GlBackend::automatic;
 };
 inline const RenderOptions default_render_options{};
@@ -113,7 +113,7 @@ class Renderer {
   std::string gl_renderer() const;
   std::string gl_version() const;
   std::string gl_backend() const;  // "EGL (surfaceless platform)", "OSMesa", ...
-  int msaa_samples() const;  // after clamping
+  int msaa_samples() const;        // after clamping
   // The triangles handed to OpenGL for a frame at s: with back-face culling, those that face away
   // from the camera at every s of the range are left out (the image is the same).
   std::size_t drawn_triangles(double s) const;

@@ -17,11 +17,11 @@
 #include <string>
 #include <vector>
 
+#include "pneuma/core/error.h"
 #include "pneuma/field/field_graph.h"
 #include "pneuma/field/field_solver.h"
 #include "pneuma/mesh/anatomy/regions.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
-#include "pneuma/core/error.h"
 
 namespace pneuma::field {
 
@@ -47,8 +47,8 @@ struct FieldOptions {
   // displacement (mesh::blurred_in_space); 0: none, the paper's. Bounds the field's gradient in
   // space at any edge length, so a deep breath cannot crumple the surface (docs/realism.md).
   double magnitude_smoothing = 0.0;
-  mesh::BodyAxes axes;              // up and anterior, for the anatomical directions
-  std::vector<double> load;           // per vertex (>= 0, not all 0); empty: 1 everywhere (the paper)
+  mesh::BodyAxes axes;       // up and anterior, for the anatomical directions
+  std::vector<double> load;  // per vertex (>= 0, not all 0); empty: 1 everywhere (the paper)
   // The surface's regions in `frame`, when already found (with_tissue finds them once per
   // surface: seconds on a fine one); the anatomical direction finds them itself otherwise.
   std::shared_ptr<const mesh::SurfaceRegions> regions;
@@ -57,8 +57,8 @@ inline const FieldOptions default_field_options{};
 
 struct ElastostaticField {
   std::vector<Eigen::Vector3d> unit_displacement;  // u per vertex, mesh units per area unit
-  std::vector<double> force;                  // F per vertex for f = 1 (before normalisation; blurred
-                                              // in space when options.magnitude_smoothing > 0)
+  std::vector<double> force;                       // F per vertex for f = 1 (before normalisation; blurred
+                                                   // in space when options.magnitude_smoothing > 0)
   double normalisation = 0.0;  // c: unit_displacement_i = c * force_i * d_i (not the breathing scale s)
   std::uint32_t mass_nodes = 0, spring_nodes = 0;
   SolveReport report;
@@ -74,8 +74,7 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
 // The displacement for one area unit from a per-vertex force (the last step above, exposed
 // for the comparators and tests): returns {displacement, scale}.
 std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
-                                                                       std::span<const double> force,
-                                                                       double area_unit);
+                                                                       std::span<const double> force, double area_unit);
 // The same along given unit directions (one per vertex): u_i = c F_i d_i, dA/ds = one area unit.
 std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
                                                                        std::span<const double> force,

@@ -19,8 +19,8 @@
 #include <span>
 #include <vector>
 
-#include "pneuma/mesh/geometry/triangle_mesh.h"
 #include "pneuma/core/error.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::field {
 

@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "pneuma/field/field_graph.h"
 #include "pneuma/core/error.h"
+#include "pneuma/field/field_graph.h"
 
 namespace pneuma::field {
 

@@ -48,8 +48,8 @@ struct StiffnessBand {
 struct GradientStiffness {
   enum class Profile { linear, exponential };
   Profile profile = Profile::linear;
-  double nondependent_pa = 0.0;  // at position 0 (apex when upright)
-  double dependent_pa = 0.0;     // at position 1 (base when upright)
+  double nondependent_pa = 0.0;      // at position 0 (apex when upright)
+  double dependent_pa = 0.0;         // at position 1 (base when upright)
   std::vector<StiffnessBand> bands;  // applied in order, later bands win
 };
 
@@ -62,7 +62,7 @@ struct RegionStiffness {
   std::vector<std::string> labels;  // per vertex, read from the file; empty: anatomical regions
   std::map<std::string, double> shear_modulus_pa;
   std::string source;
-  bool anatomical = false;                           // the regions are found on the surface
+  bool anatomical = false;                                     // the regions are found on the surface
   double gravity_nondependent = 1.0, gravity_dependent = 1.0;  // factors on mu along the posture's axis
 };
 

@@ -30,7 +30,7 @@ struct Compiled {
   Model model;
   std::vector<double> scales;  // s_k for every sample k of the drive
   double min_scale = 0.0, max_scale = 0.0;
-  bool field_reused = false;   // the field came from the cache
+  bool field_reused = false;                              // the field came from the cache
   std::vector<std::pair<std::string, double>> timings_s;  // each step, in order
 };
 

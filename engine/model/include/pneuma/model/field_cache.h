@@ -94,7 +94,8 @@ CacheLookup load_or_compute(const std::filesystem::path& path, const std::string
 // load_or_compute() for a surface at hand: keyed by field_key() of `tissue` applied to `rest`
 // (its regions found once, and handed back in `regions` where the tissue needed them).
 CacheLookup load_or_compute(const std::filesystem::path& path, const mesh::TriangleMesh& rest,
-                            const field::Tissue& tissue, const field::FieldOptions& options = field::default_field_options);
+                            const field::Tissue& tissue,
+                            const field::FieldOptions& options = field::default_field_options);
 
 // A digest of the bytes of `files` and of `options_text` (whatever else shapes a surface made
 // from them: unit, repair, remeshing target). Throws IoError when a file cannot be read.

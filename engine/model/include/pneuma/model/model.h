@@ -12,10 +12,10 @@ namespace pneuma::model {
 
 struct Model {
   // ---- The surface at rest (metres, LPS) ------------------------------------------------------
-  mesh::TriangleMesh rest;                  // the exported surface
-  std::vector<Eigen::Vector3d> normals;     // area-weighted unit normals of `rest`, one per vertex
+  mesh::TriangleMesh rest;               // the exported surface
+  std::vector<Eigen::Vector3d> normals;  // area-weighted unit normals of `rest`, one per vertex
   double rest_area_m2 = 0.0;
-  mesh::SurfaceRegions regions;             // apex, costal, diaphragmatic, mediastinal (docs/realism.md)
+  mesh::SurfaceRegions regions;  // apex, costal, diaphragmatic, mediastinal (docs/realism.md)
 
   // ---- The field: a frame is rest + s * unit_displacement ----------------------------------------
   std::vector<Eigen::Vector3d> unit_displacement;  // u: metres per area unit of s, one per vertex

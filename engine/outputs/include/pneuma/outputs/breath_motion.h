@@ -12,7 +12,7 @@
 namespace pneuma::outputs {
 
 struct BreathMotion {
-  std::size_t breath = 0;   // index in physiology-breaths.csv
+  std::size_t breath = 0;  // index in physiology-breaths.csv
   double start_s = 0.0;
   double scale_from = 0.0;  // the breath's lowest and highest scale s: the motion is between them
   double scale_to = 0.0;

@@ -11,9 +11,9 @@ namespace pneuma::outputs {
 struct ManifestInput {
   std::filesystem::path scenario_file;
   std::string scenario_name;
-  std::vector<std::filesystem::path> files;                 // absolute or relative to output_dir
-  std::vector<std::pair<std::string, double>> timings_s;    // stage -> seconds, in run order
-  std::vector<std::pair<std::string, std::string>> facts;   // e.g. {"vertices", "12345"}
+  std::vector<std::filesystem::path> files;                // absolute or relative to output_dir
+  std::vector<std::pair<std::string, double>> timings_s;   // stage -> seconds, in run order
+  std::vector<std::pair<std::string, std::string>> facts;  // e.g. {"vertices", "12345"}
 };
 
 // Hex SHA-256 of a file's bytes. Throws IoError when it cannot be read.

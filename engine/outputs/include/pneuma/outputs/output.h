@@ -41,8 +41,8 @@ struct RunRecord {
   RunInfo info;
   const physiology::SimulationResult* drive = nullptr;       // at the frame rate: one sample per frame
   const physiology::SimulationResult* physiology = nullptr;  // at the scenario's output rate (needs.physiology)
-  std::span<const double> scales;                             // s of every frame
-  const std::vector<BreathMotion>* motion = nullptr;          // per breath and region (needs.breath_motion)
+  std::span<const double> scales;                            // s of every frame
+  const std::vector<BreathMotion>* motion = nullptr;         // per breath and region (needs.breath_motion)
   bool field_reused = false;
 };
 

@@ -26,14 +26,14 @@ std::size_t report_stride(std::size_t samples, std::size_t max_samples = kReport
 struct ReportInput {
   std::string scenario_name;
   std::string description;
-  double duration_s = 0.0;      // the animation's extent: the last frame's time
+  double duration_s = 0.0;  // the animation's extent: the last frame's time
   double frame_rate_hz = 0.0;
   std::size_t frame_count = 0;
   // The physiology series as physiology.csv has it (same samples, same columns, same units).
   const physiology::SimulationResult* physiology = nullptr;
-  std::vector<BreathMotion> motion;                           // the motion table: means over breaths
-  std::vector<std::pair<std::string, std::string>> facts;     // {label, value with unit}, in order
-  std::string glb;                                            // the run's breathing.glb bytes
+  std::vector<BreathMotion> motion;                        // the motion table: means over breaths
+  std::vector<std::pair<std::string, std::string>> facts;  // {label, value with unit}, in order
+  std::string glb;                                         // the run's breathing.glb bytes
 };
 
 // The whole page. Throws ValueError when `physiology` is null or empty.

@@ -22,17 +22,17 @@
 #include <string>
 #include <vector>
 
+#include "pneuma/core/error.h"
 #include "pneuma/field/field_graph.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
-#include "pneuma/core/error.h"
 
 namespace pneuma::paper {
 
 // ---- Test graphs -------------------------------------------------------------------------------
 
 struct LinkGraph {
-  std::vector<Eigen::Vector3d> positions;               // metres (any unit: only ratios matter)
-  std::vector<std::array<std::uint32_t, 2>> links;      // a < b, sorted, each once
+  std::vector<Eigen::Vector3d> positions;           // metres (any unit: only ratios matter)
+  std::vector<std::array<std::uint32_t, 2>> links;  // a < b, sorted, each once
   std::uint32_t vertex_count() const { return static_cast<std::uint32_t>(positions.size()); }
 };
 
@@ -67,9 +67,9 @@ struct ConvergenceTrace {
 };
 
 struct ComparatorOptions {
-  double tolerance = 1e-6;                 // stop when residual <= tolerance (relative to max load)
-  std::int64_t probe_vertex = -1;          // vertex whose displacement the trace follows (-1: none)
-  std::uint64_t step_limit = 50'000'000;   // Error(failure) beyond
+  double tolerance = 1e-6;                // stop when residual <= tolerance (relative to max load)
+  std::int64_t probe_vertex = -1;         // vertex whose displacement the trace follows (-1: none)
+  std::uint64_t step_limit = 50'000'000;  // Error(failure) beyond
 };
 inline const ComparatorOptions default_comparator_options{};
 
@@ -134,9 +134,9 @@ class CumulativeSweeps final : public DeformationComparator {
 struct SpringNetwork {
   std::uint32_t vertex_count = 0;
   std::vector<std::array<std::uint32_t, 2>> springs;
-  std::vector<double> stiffness;     // per spring, > 0
-  std::vector<double> anchor;        // per vertex, >= 0
-  std::vector<double> mass;          // per vertex, > 0
+  std::vector<double> stiffness;      // per spring, > 0
+  std::vector<double> anchor;         // per vertex, >= 0
+  std::vector<double> mass;           // per vertex, > 0
   std::vector<std::uint8_t> clamped;  // per vertex, 1: held at 0
   // The load applied to vertex i is load_scale[i] * load[i]; the reported displacement is
   // output_scale[i] * u[i]. Both 1 except for the network matched to the field (below).
@@ -152,9 +152,9 @@ SpringNetwork clamped_network(const LinkGraph& graph, std::span<const double> sh
 // The mass-spring with the proposed method's own fixed point: with y = R / Z the field's
 // equation R = f + P^T R is symmetric, (diag(Z/S) - G) y = f / S; eliminating the spring nodes
 // leaves, on the vertices, springs c_e = g_e^2 S_e / Z_e and anchors Z_i / S_i - 2 sum_{e at i} c_e
-// (what the row keeps beyond its springs). The load on vertex i is f_i / S_i. Its steady state times S_i is the proposed field F_i exactly, so the two
-// methods can be compared step for step on the same answer. Throws UnsupportedError if an
-// anchor would be negative (never for the graphs here).
+// (what the row keeps beyond its springs). The load on vertex i is f_i / S_i. Its steady state times S_i is the
+// proposed field F_i exactly, so the two methods can be compared step for step on the same answer. Throws
+// UnsupportedError if an anchor would be negative (never for the graphs here).
 SpringNetwork matched_network(const field::FieldGraph& graph);
 
 // How the explicit Euler step and the damping were chosen (all rates in 1/s, unit time scale).

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "pneuma/paper/svg_plot.h"
 #include "pneuma/core/error.h"
+#include "pneuma/paper/svg_plot.h"
 
 namespace pneuma::paper {
 
@@ -34,11 +34,11 @@ inline const ReproductionOptions default_reproduction_options{};
 ReproductionOptions quick_reproduction_options();
 
 struct FigureOutput {
-  std::string name;                      // "fig6", ...: the files are <name>.csv and <name>.svg
-  std::vector<std::string> columns;      // CSV header
+  std::string name;                  // "fig6", ...: the files are <name>.csv and <name>.svg
+  std::vector<std::string> columns;  // CSV header
   std::vector<std::vector<std::string>> rows;
   LinePlot plot;
-  std::vector<std::string> summary;      // one finding per line, with numbers
+  std::vector<std::string> summary;  // one finding per line, with numbers
 };
 
 FigureOutput figure2(const ReproductionOptions& options = default_reproduction_options);

@@ -29,13 +29,13 @@ struct MeshSpec {
   // A NIfTI label map (`labels: FILE, values: [3, 4, 5]`): the surface of the union of `values`.
   std::filesystem::path labels_file;
   std::vector<int> label_values;
-  double metres_per_unit = 1e-3;        // `unit`; without it, the unit the file records, else mm
-  bool unit_given = false;              // `unit` set: it wins over a unit recorded in the file
-  double edge_m = 0.0;                  // phantom resolution / remeshing target (0: keep the file's mesh)
-  bool repair = true;                   // repair what is safe before use
-  bool export_original = false;         // export the file's mesh with the field transferred to it
-  double share = 1.0;                   // share of the total volume change this mesh takes (0, 1]
-  double reference_volume_m3 = 0.0;     // physiological volume above FRC that the rest mesh shows
+  double metres_per_unit = 1e-3;     // `unit`; without it, the unit the file records, else mm
+  bool unit_given = false;           // `unit` set: it wins over a unit recorded in the file
+  double edge_m = 0.0;               // phantom resolution / remeshing target (0: keep the file's mesh)
+  bool repair = true;                // repair what is safe before use
+  bool export_original = false;      // export the file's mesh with the field transferred to it
+  double share = 1.0;                // share of the total volume change this mesh takes (0, 1]
+  double reference_volume_m3 = 0.0;  // physiological volume above FRC that the rest mesh shows
 };
 
 // Where the field is cached: `auto` (<output>/field.h5), `off`, or a file (relative to the scenario).
@@ -45,9 +45,9 @@ struct FieldSpec {
   std::string tissue_name = "healthy-upright";  // preset name in configs/tissue or a path
   std::filesystem::path tissue_file;            // resolved
   field::Tissue tissue;                         // the file, read when the scenario is loaded
-  field::FieldOptions options;                    // solver, tolerance, clique (checked together)
+  field::FieldOptions options;                  // solver, tolerance, clique (checked together)
   FieldCache cache = FieldCache::automatic;
-  std::filesystem::path cache_file;        // resolved, for FieldCache::file
+  std::filesystem::path cache_file;  // resolved, for FieldCache::file
 };
 
 // One key under `outputs:`, declared by the output that owns it (runner/output_registry.h).

@@ -13,9 +13,9 @@
 #include <span>
 #include <vector>
 
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/anatomy/regions.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
-#include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 

@@ -27,15 +27,15 @@
 // Deterministic: the same options give the same vertices and triangles, bit for bit.
 #include <cstddef>
 
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/anatomy/lung.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
-#include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 
 struct PhantomOptions {
   std::optional<Lung> lung = kBothLungs;  // one lung, or both: two closed components, right lung first
-  double edge_length_m = 4e-3;  // mean edge length aimed at
+  double edge_length_m = 4e-3;            // mean edge length aimed at
   int relaxation_passes = 4;
 };
 inline const PhantomOptions kDefaultPhantom{};

@@ -25,16 +25,16 @@
 #include <string_view>
 #include <vector>
 
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/anatomy/lung.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
-#include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 
 enum class Region : std::uint8_t { apex = 0, costal = 1, diaphragmatic = 2, mediastinal = 3 };
 inline constexpr std::size_t kRegionCount = 4;
 inline constexpr std::array<Region, kRegionCount> kRegions{Region::apex, Region::costal, Region::diaphragmatic,
-                                                            Region::mediastinal};
+                                                           Region::mediastinal};
 // "apex", "costal", "diaphragmatic", "mediastinal".
 std::string_view region_name(Region region);
 // The region of a name above, or nothing.
@@ -49,7 +49,7 @@ struct BodyAxes {
 
 struct RegionOptions {
   BodyAxes axes;
-  std::optional<Lung> side;           // nothing: found from the geometry
+  std::optional<Lung> side;               // nothing: found from the geometry
   double classification_length_m = 0.01;  // Gaussian smoothing of the normals (mesh units)
   double diaphragm_cos = 0.4;             // -n.up at the diaphragmatic border (about 24 deg below horizontal)
   double diaphragm_height = 0.55;         // the diaphragm lies below this height
@@ -64,10 +64,10 @@ struct SurfaceRegions {
   Lung side = Lung::right;
   Eigen::Vector3d medial = Eigen::Vector3d::UnitX();  // unit, toward the body midline
   BodyAxes axes;
-  std::vector<Region> label;                           // per vertex: the largest weight
+  std::vector<Region> label;                             // per vertex: the largest weight
   std::vector<std::array<double, kRegionCount>> weight;  // per vertex, indexed by Region, sum 1
-  std::vector<double> height;                          // per vertex: 0 at the lowest, 1 at the highest
-  std::vector<Eigen::Vector3d> normal;                 // per vertex: the smoothed normal classified
+  std::vector<double> height;                            // per vertex: 0 at the lowest, 1 at the highest
+  std::vector<Eigen::Vector3d> normal;                   // per vertex: the smoothed normal classified
   // The mean depth below the convex hull (m) of the faces toward +left and -left that decided the side.
   double left_face_depth = 0.0, right_face_depth = 0.0;
 };

@@ -29,8 +29,8 @@ inline std::optional<SurfaceMesh> to_surface_mesh(const TriangleMesh& mesh) {
              static_cast<SurfaceMesh::size_type>(mesh.triangle_count()));
   for (const auto& p : mesh.vertices) sm.add_vertex(to_point(p));
   for (const Triangle& t : mesh.triangles) {
-    const auto f = sm.add_face(SurfaceMesh::Vertex_index(t[0]), SurfaceMesh::Vertex_index(t[1]),
-                               SurfaceMesh::Vertex_index(t[2]));
+    const auto f =
+        sm.add_face(SurfaceMesh::Vertex_index(t[0]), SurfaceMesh::Vertex_index(t[1]), SurfaceMesh::Vertex_index(t[2]));
     if (f == SurfaceMesh::null_face()) return std::nullopt;
   }
   return sm;

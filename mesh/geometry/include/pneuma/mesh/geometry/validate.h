@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "pneuma/mesh/geometry/triangle_mesh.h"
 #include "pneuma/core/error.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::mesh {
 
@@ -24,17 +24,17 @@ struct ValidationReport {
   // Counts.
   std::size_t vertex_count = 0;
   std::size_t triangle_count = 0;
-  std::size_t edge_count = 0;              // distinct undirected edges
-  std::size_t component_count = 0;         // faces connected through shared edges
-  std::size_t isolated_vertex_count = 0;   // vertices no triangle uses
+  std::size_t edge_count = 0;             // distinct undirected edges
+  std::size_t component_count = 0;        // faces connected through shared edges
+  std::size_t isolated_vertex_count = 0;  // vertices no triangle uses
   // Problems (each 0 for a valid surface).
-  std::size_t degenerate_face_count = 0;   // a repeated vertex, or three collinear points (exact)
-  std::size_t duplicated_face_count = 0;   // same three vertices as an earlier face, any order
-  std::size_t boundary_edge_count = 0;     // edges with one face
-  std::size_t hole_count = 0;              // closed loops of boundary edges
-  std::size_t non_manifold_edge_count = 0; // edges with three or more faces
-  std::size_t non_manifold_vertex_count = 0;  // vertices whose faces form more than one fan
-  std::size_t misoriented_face_count = 0;  // faces oriented against the rest of their component
+  std::size_t degenerate_face_count = 0;       // a repeated vertex, or three collinear points (exact)
+  std::size_t duplicated_face_count = 0;       // same three vertices as an earlier face, any order
+  std::size_t boundary_edge_count = 0;         // edges with one face
+  std::size_t hole_count = 0;                  // closed loops of boundary edges
+  std::size_t non_manifold_edge_count = 0;     // edges with three or more faces
+  std::size_t non_manifold_vertex_count = 0;   // vertices whose faces form more than one fan
+  std::size_t misoriented_face_count = 0;      // faces oriented against the rest of their component
   std::size_t inside_out_component_count = 0;  // closed, consistent, negative enclosed volume
   bool orientable = true;
   std::optional<std::size_t> self_intersection_count;  // pairs of faces; unset: not checked
@@ -61,8 +61,8 @@ ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& optio
 struct MeshQuality {
   double min_edge_m = 0.0, mean_edge_m = 0.0, max_edge_m = 0.0;
   double min_angle_deg = 0.0, max_angle_deg = 0.0;
-  double mean_min_angle_deg = 0.0;       // mean over triangles of their smallest angle (60 is ideal)
-  double fraction_below_30_deg = 0.0;    // triangles with an angle under 30 degrees
+  double mean_min_angle_deg = 0.0;     // mean over triangles of their smallest angle (60 is ideal)
+  double fraction_below_30_deg = 0.0;  // triangles with an angle under 30 degrees
 };
 MeshQuality measure_quality(const TriangleMesh& mesh);
 

@@ -56,37 +56,37 @@ struct LabelMap {
 LabelMap read_label_map(const std::filesystem::path& path);
 
 struct LabelSurfaceOptions {
-  double edge_length_m = 2e-3;          // target facet size
-  double max_distance_m = 0.0;          // facet to level set; 0: edge_length_m / 8
-  double smoothing_m = 1.0e-3;          // Gaussian sigma of the mask; 0: none
-  double closing_radius_m = 1.5e-3;     // morphological closing; 0: none
-  double max_closing_radius_m = 6e-3;   // closing grows (doubling) up to this to reach genus 0
+  double edge_length_m = 2e-3;         // target facet size
+  double max_distance_m = 0.0;         // facet to level set; 0: edge_length_m / 8
+  double smoothing_m = 1.0e-3;         // Gaussian sigma of the mask; 0: none
+  double closing_radius_m = 1.5e-3;    // morphological closing; 0: none
+  double max_closing_radius_m = 6e-3;  // closing grows (doubling) up to this to reach genus 0
   bool keep_largest_component = true;
   bool fill_cavities = true;
-  bool remove_handles = true;           // step 7; false: report the genus and keep the surface
+  bool remove_handles = true;  // step 7; false: report the genus and keep the surface
 };
 
 // What was done, with the figures `pneuma mesh from-labels` prints and records.
 struct LabelSurfaceReport {
-  std::string source;                  // the file name
+  std::string source;  // the file name
   std::vector<int> labels;
-  std::string transform_source;        // "qform", ...
+  std::string transform_source;  // "qform", ...
   std::array<std::size_t, 3> size{0, 0, 0};
   Eigen::Vector3d spacing_m = Eigen::Vector3d::Zero();
-  std::size_t label_voxels = 0;        // voxels of the union of the labels
+  std::size_t label_voxels = 0;  // voxels of the union of the labels
   double voxel_volume_m3 = 0.0;
   std::size_t dropped_islands = 0, dropped_island_voxels = 0;
-  double closing_radius_m = 0.0;       // the radius finally used
+  double closing_radius_m = 0.0;  // the radius finally used
   std::size_t closing_added_voxels = 0;
-  bool filled_slice_holes = false;     // tunnels filled slice by slice (second attempt on)
+  bool filled_slice_holes = false;  // tunnels filled slice by slice (second attempt on)
   std::size_t slice_hole_voxels = 0;
   std::size_t filled_cavities = 0, filled_cavity_voxels = 0;
-  std::size_t mask_voxels = 0;         // after islands, closing and cavities
+  std::size_t mask_voxels = 0;  // after islands, closing and cavities
   double smoothing_m = 0.0, edge_length_m = 0.0, max_distance_m = 0.0;
   std::size_t dropped_surface_components = 0;
   int genus = 0;
-  int attempts = 1;                    // meshing runs (more when closing grew to reach genus 0)
-  double volume_m3 = 0.0;              // enclosed by the surface
+  int attempts = 1;        // meshing runs (more when closing grew to reach genus 0)
+  double volume_m3 = 0.0;  // enclosed by the surface
   double area_m2 = 0.0;
 
   double label_volume_m3() const { return static_cast<double>(label_voxels) * voxel_volume_m3; }
@@ -116,7 +116,7 @@ namespace detail {
 // A float field on the crop of a label map, and the map from LPS metres to its index space.
 struct ScalarGrid {
   std::array<std::size_t, 3> size{0, 0, 0};
-  std::vector<float> values;            // i fastest
+  std::vector<float> values;  // i fastest
   Eigen::Matrix4d lps_to_index = Eigen::Matrix4d::Identity();
   Eigen::Matrix4d index_to_lps = Eigen::Matrix4d::Identity();
 };

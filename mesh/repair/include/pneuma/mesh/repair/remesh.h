@@ -5,9 +5,9 @@
 // result within a small distance of the input).
 #include <cstddef>
 
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
 #include "pneuma/mesh/geometry/validate.h"
-#include "pneuma/core/error.h"
 
 namespace pneuma::mesh {
 

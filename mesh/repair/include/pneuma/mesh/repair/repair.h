@@ -27,9 +27,9 @@
 #include <string>
 #include <vector>
 
-#include "pneuma/mesh/repair/remesh.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
 #include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/repair/remesh.h"
 
 namespace pneuma::mesh {
 
@@ -52,7 +52,7 @@ struct RepairReport {
   std::size_t added_faces = 0;
   std::size_t reversed_components = 0;
   std::size_t dropped_vertices = 0;
-  std::size_t self_intersecting_pairs = 0;     // in the input
+  std::size_t self_intersecting_pairs = 0;  // in the input
   std::array<std::size_t, 2> first_intersecting_faces{0, 0};
   std::size_t removed_intersecting_faces = 0;  // the pairs and the rings around them, all rounds
   int rounds = 0;
@@ -65,8 +65,8 @@ struct RepairReport {
   double rebuilt_volume_before_m3 = 0.0, rebuilt_volume_after_m3 = 0.0;
   int handles_removed = 0, handles_kept = 0;  // genus removed by the rebuild; left (too wide)
   std::string handles_kept_because;           // why they were left
-  double remeshed_edge_m = 0.0;    // repair_and_remesh(): remeshing removed what repair left
-  std::string left_for_remeshing;  // what that was (the validator's words)
+  double remeshed_edge_m = 0.0;               // repair_and_remesh(): remeshing removed what repair left
+  std::string left_for_remeshing;             // what that was (the validator's words)
   // One line per action taken ("flipped 1 face to match its neighbours"); empty: nothing to do.
   std::vector<std::string> actions() const;
 };
@@ -92,11 +92,12 @@ struct RepairRemeshResult {
   RepairReport repair;  // remeshed_edge_m > 0 when the remeshing removed a remaining defect
   RemeshResult remesh;  // remesh.mesh: the valid result
 };
-RepairRemeshResult repair_and_remesh(const TriangleMesh& mesh, const std::string& name, const RepairOptions& repair_options,
-                                     const RemeshOptions& remesh_options);
+RepairRemeshResult repair_and_remesh(const TriangleMesh& mesh, const std::string& name,
+                                     const RepairOptions& repair_options, const RemeshOptions& remesh_options);
 
 // The repaired mesh alone (the runner's entry point); throws as repair() does.
-inline TriangleMesh repair_or_throw(const TriangleMesh& mesh, const std::string& name, const RepairOptions& options = {}) {
+inline TriangleMesh repair_or_throw(const TriangleMesh& mesh, const std::string& name,
+                                    const RepairOptions& options = {}) {
   return repair(mesh, name, options).mesh;
 }
 
