@@ -369,7 +369,7 @@ class Simulation {
 
     // Expiration, until the next trigger or the backup timer.
     const double backup = a.rate_hz > 0.0 ? breath.start_s + 1.0 / a.rate_hz : std::numeric_limits<double>::infinity();
-    const Stopped s = expiration(t, y, a, backup, peak_airway, peak_drive);
+    const Stopped s = expiration(t, y, a, backup, peak_airway, peak_drive, breath.start_s);
     if (s == Stopped::end_of_run) return false;
     if (s == Stopped::time) pending_ = Start{};
     breath.peak_pressure_pa = peak_airway;
@@ -379,9 +379,13 @@ class Simulation {
 
   // Expiration at PEEP from t until a patient trigger (pending_ set), `backup` (Stopped::time),
   // a new driver (Stopped::driver_change) or the run's end.
-  Stopped expiration(double& t, double* y, const Assisted& a, double backup, double& peak_airway, double& peak_drive) {
+  // In a breath (`breath_start` given), new assist settings take over the expiration at once
+  // (trigger, PEEP, backup rate counted from the breath's start); a mandatory or spontaneous
+  // driver ends the breath.
+  Stopped expiration(double& t, double* y, Assisted a, double backup, double& peak_airway, double& peak_drive,
+                     std::optional<double> breath_start = std::nullopt) {
     Instant last;
-    const bool by_flow = a.trigger == TriggerKind::flow;
+    bool by_flow = a.trigger == TriggerKind::flow;
     int phase_kind = kAssistExpiration;
     // Pressure trigger: a patient already pulling when expiration begins finds the circuit closed.
     if (!by_flow) {
@@ -397,6 +401,18 @@ class Simulation {
       else roots = {RootKind::trigger_pressure, RootKind::reopen};
       int root = -1;
       const Stopped s = phase(phase_kind, t, backup, y, roots, true, peak_airway, peak_drive, last, root);
+      if (s == Stopped::driver_change && breath_start) {
+        const Driver& next = protocol_.settings[setting_at(t)].driver;
+        if (const auto* assisted = std::get_if<Assisted>(&next)) {
+          current_driver_ = next;
+          a = *assisted;
+          by_flow = a.trigger == TriggerKind::flow;
+          if (by_flow) phase_kind = kAssistExpiration;
+          backup = a.rate_hz > 0.0 ? *breath_start + 1.0 / a.rate_hz : std::numeric_limits<double>::infinity();
+          if (backup <= t) return Stopped::time;
+          continue;
+        }
+      }
       if (s != Stopped::root) return s;
       const RootKind k = roots[static_cast<std::size_t>(root)];
       if (k == RootKind::occlude) {

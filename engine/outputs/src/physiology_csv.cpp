@@ -56,14 +56,14 @@ void write_breaths_csv(const std::filesystem::path& path, const physiology::Simu
                          b.plateau_pressure_pa * kCmH2O, b.peep_pa * kCmH2O,
                          b.dynamic_compliance_m3_per_pa * kMl / kCmH2O, b.end_expiratory_volume_m3 * kMl,
                          b.muscle_amplitude_pa * kCmH2O, b.inspired_volume_m3 * kMl, set);
-      // Ventilator columns, empty for spontaneous breaths (and the delay for machine triggers).
+      // Ventilator columns, empty for spontaneous breaths (and the delay for machine triggers);
+      // the trigger counts are 0 there.
       const bool ventilated = *b.trigger != '\0';
       const auto number = [&](double v) { return ventilated && v == v ? fmt::format("{:.9g}", v) : std::string(); };
       out << fmt::format(",{},{},{},{},{},{:.9g},{},{},{}\n", b.trigger, number(b.trigger_delay_s), b.cycle,
                          number(b.inspiratory_time_s), number(b.inspiratory_time_s / (b.duration_s - b.inspiratory_time_s)),
                          b.mean_airway_pressure_pa * kCmH2O, number(b.intrinsic_peep_pa * kCmH2O),
-                         ventilated ? std::to_string(b.missed_triggers) : "",
-                         ventilated ? (b.double_triggered ? "1" : "0") : "");
+                         b.missed_triggers, b.double_triggered ? 1 : 0);
     }
   });
 }
