@@ -25,6 +25,23 @@ TEST(SimulateCli, ShippedScenariosRunAndWriteCsv) {
   }
 }
 
+TEST(SimulateCli, ShippedVentilatorScenariosArePatientTriggered) {
+  for (const char* name : {"ventilator-vc-ac", "ventilator-pc-ac", "ventilator-cpap-psv"}) {
+    TempDir dir;
+    const auto scenario = pneuma::test::source_dir() / "scenarios" / (std::string(name) + ".yaml");
+    const auto r = run_pneuma({"simulate", scenario.string(), "-o", (dir / "phys.csv").string()});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(r.err.empty()) << r.err;
+    EXPECT_GT(count_lines(dir / "phys.csv"), 6000);
+    const std::string breaths = pneuma::test::read_text(dir / "phys-breaths.csv");
+    EXPECT_NE(breaths.find(",trigger,trigger_delay_s,cycle,inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,"
+                           "intrinsic_peep_cmH2O,missed_triggers,double_trigger\n"),
+              std::string::npos)
+        << name;
+    EXPECT_NE(breaths.find(",patient_flow,"), std::string::npos) << name;
+  }
+}
+
 TEST(SimulateCli, VersionAndHelp) {
   auto r = run_pneuma({"--version"});
   EXPECT_EQ(r.exit_code, 0);

@@ -260,3 +260,41 @@ TEST(Ventilator, WeakEffortsAreMissedStrongOnesTrigger) {
     }
   }
 }
+
+TEST(Ventilator, ModeSwitchesMidRunLeaveNoGapBetweenBreaths) {
+  // PC-AC, then CPAP + PS at 10 s (taking over the expiration in progress), then VC-CMV at 20 s
+  // (a mandatory mode ends the assisted breath at once): the breaths tile the time.
+  const Mechanics m = single_linear(0.05, 10);
+  const PatientEffort effort{18.0 / 60, 0.5, 5 * kCmH2O};
+  Assisted pc = pressure_mode(AssistMode::pressure, 12.0 / 60, 12 * kCmH2O, 1.0, 5 * kCmH2O);
+  Assisted ps = pressure_mode(AssistMode::pressure_support, 0.0, 8 * kCmH2O, 2.0, 5 * kCmH2O);
+  ps.cycle = CycleKind::flow;
+  Protocol p{{Setting{0.0, m, pc, effort}, Setting{10.0, m, ps, effort},
+              Setting{20.0, m, VolumeControl{0.25, 0.45e-3, 1.0, 0.0, 5 * kCmH2O}, PatientEffort{}}}};
+  const auto r = simulate(p, tight(30.0, 10.0));
+  ASSERT_GE(r.breaths.size(), 8u);
+  for (std::size_t i = 1; i < r.breaths.size(); ++i) {
+    EXPECT_NEAR(r.breaths[i].start_s, r.breaths[i - 1].start_s + r.breaths[i - 1].duration_s, 1e-12) << i;
+  }
+  bool psv = false, cmv = false;
+  for (const auto& b : r.breaths) {
+    const std::string mode = b.mode;
+    if (mode == "cpap_psv") {
+      psv = true;
+      EXPECT_GE(b.start_s, 10.0);
+      EXPECT_STREQ(b.trigger, "patient_flow");
+      EXPECT_STREQ(b.cycle, "flow");
+    }
+    if (mode == "volume_control") {
+      cmv = true;
+      EXPECT_GE(b.start_s, 20.0);
+      EXPECT_STREQ(b.trigger, "time");
+    }
+  }
+  EXPECT_TRUE(psv);
+  EXPECT_TRUE(cmv);
+  // The first mandatory breath starts at the switch (the assisted breath before it ends there).
+  bool at_switch = false;
+  for (const auto& b : r.breaths) at_switch = at_switch || (std::string(b.mode) == "volume_control" && b.start_s == 20.0);
+  EXPECT_TRUE(at_switch);
+}
