@@ -298,3 +298,23 @@ TEST(Ventilator, ModeSwitchesMidRunLeaveNoGapBetweenBreaths) {
   for (const auto& b : r.breaths) at_switch = at_switch || (std::string(b.mode) == "volume_control" && b.start_s == 20.0);
   EXPECT_TRUE(at_switch);
 }
+
+TEST(Ventilator, ALongStrongEffortOutlastingAShortBreathTriggersAgain) {
+  // A 3 s effort of 12 cmH2O against a 0.6 s machine breath: the patient still pulls when the
+  // machine cycles off, and triggers again (double triggering, a classic asynchrony).
+  Assisted a = vc_ac(8.0 / 60, 0.3e-3, 0.6, 0.0, 5 * kCmH2O);
+  const auto r = simulate(with_effort(single_linear(0.05, 10), a, PatientEffort{10.0 / 60, 1.0, 12 * kCmH2O}),
+                          tight(30.0, 10.0));
+  int doubles = 0;
+  for (std::size_t i = 1; i < r.breaths.size(); ++i) {
+    const auto& b = r.breaths[i];
+    const auto& before = r.breaths[i - 1];
+    const bool patient = std::string(b.trigger) != "time", patient_before = std::string(before.trigger) != "time";
+    // The effort's onset is the trigger time minus the delay: the same onset twice is a double trigger.
+    const bool same_effort = patient && patient_before &&
+                             std::abs((b.start_s - b.trigger_delay_s) - (before.start_s - before.trigger_delay_s)) < 1e-9;
+    EXPECT_EQ(b.double_triggered, same_effort) << i;
+    doubles += b.double_triggered ? 1 : 0;
+  }
+  EXPECT_GE(doubles, 5);
+}
