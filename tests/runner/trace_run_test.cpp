@@ -159,3 +159,60 @@ TEST(TraceRun, ScenarioKeysOfATraceAreCheckedWhereTheyAre) {
                        ":6:11: physiology.preset: not used with a trace driver (the trace gives the volume)\n");
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
 }
+
+TEST(TraceRun, SimulateWritesTheTraceAsPhysiologyCsv) {
+  TempDir dir;
+  std::string text = "Time(s),TotalLungVolume(mL)\n";  // a Pulse Physiology Engine run's columns
+  for (int k = 0; k <= 2500; ++k) text += fmt::format("{:.2f},{:.4f}\n", k / 100.0, (2.3e-3 + volume(k / 100.0)) * 1e6);
+  dir.write("pulse.csv", text);
+  const auto yaml = dir.write("p.yaml", R"(duration: 20 s
+physiology:
+  driver: {mode: trace, file: pulse.csv}
+  output_rate: 50 Hz
+)");
+  const auto r = run_pneuma({"simulate", yaml.string(), "-o", (dir / "phys.csv").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream csv(dir / "phys.csv");
+  std::string line;
+  std::getline(csv, line);
+  EXPECT_EQ(line.substr(0, 31), "time_s,volume_mL,flow_L_per_s,a");
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    std::istringstream fields(line);
+    std::string t, v;
+    std::getline(fields, t, ',');
+    std::getline(fields, v, ',');
+    EXPECT_NEAR(std::stod(v), volume(std::stod(t)) * 1e6, 0.5) << line;  // mL, absolute FRC 2.3 L removed
+    ++rows;
+  }
+  EXPECT_EQ(rows, 1001);
+}
+
+// The phases of the lumped model's own breathing: end-inspiration (bin 0) holds the largest volume.
+TEST(TraceRun, PhasesOfTheLumpedModel) {
+  TempDir dir;
+  const auto yaml = dir.write("lumped.yaml", R"(duration: 16 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 12 mm}
+physiology:
+  preset: healthy-adult
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}
+outputs: {phases: {bins: 8, surfaces: false}, report: false, gltf: false, hdf5: false}
+)");
+  const auto r = run_pneuma({"run", yaml.string(), "-o", (dir / "out").string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream csv(dir / "out/phases.csv");
+  std::string line;
+  std::getline(csv, line);
+  std::vector<double> means;
+  while (std::getline(csv, line)) {
+    std::istringstream fields(line);
+    std::string cell;
+    for (int c = 0; c < 4; ++c) std::getline(fields, cell, ',');
+    means.push_back(std::stod(cell));
+  }
+  ASSERT_EQ(means.size(), 8u);
+  EXPECT_EQ(std::max_element(means.begin(), means.end()) - means.begin(), 0);
+  EXPECT_GT(means[0], 400.0);  // mL: near the 500 mL peak
+  EXPECT_FALSE(std::filesystem::exists(dir / "out/phases"));
+}
