@@ -1,6 +1,7 @@
 #include "pneuma/outputs/report.h"
 
 #include <array>
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -111,6 +112,8 @@ void add_series(Json& data, const physiology::SimulationResult& result, std::siz
   }};
   std::vector<std::string> pressure_keys;
   for (const auto& [name, values] : pressures) {
+    // A measured trace knows no pressures but the airway's (NaN): no curve rather than a false one.
+    if (std::none_of(values->begin(), values->end(), [](double p) { return std::isfinite(p); })) continue;
     const std::string key = std::string(name) + "_pressure_cmH2O";
     columns[key] = column(*values, kCmH2O, 4);
     labels[key] = name;

@@ -1,5 +1,8 @@
 #include "pneuma/scenario/physiology_config.h"
 
+#include <fmt/format.h>
+
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <optional>
@@ -17,6 +20,9 @@ namespace kind = units::kind;
 
 const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
                                       "cpap_psv"};
+// Accepted as `driver.mode` beside kModes, at t = 0 only (read_trace_driver).
+const std::vector<std::string> kModesWithTrace{"spontaneous", "volume_control", "pressure_control", "vc_ac",
+                                               "pc_ac",       "cpap_psv",       "trace"};
 const std::vector<std::string> kModels{"single", "two_compartment"};
 
 // Every driver setting by name, so an action can patch any of them and a mode switch can
@@ -369,6 +375,73 @@ config::Node with_preset(const config::Node& section, const std::filesystem::pat
   return section.with_fallback(config::Node::load_file(file));
 }
 
+// The keys of the lumped model, which a trace replaces.
+const std::vector<std::string> kLumpedKeys{"preset", "model", "compliance", "pressure_volume_curve", "resistance",
+                                           "compartments", "transpulmonary_pressure_at_rest", "chest_wall_fraction",
+                                           "actions", "solver"};
+
+physiology::TraceSignal signal_from(const std::string& name) {
+  if (name == "flow") return physiology::TraceSignal::flow;
+  if (name == "amplitude") return physiology::TraceSignal::amplitude;
+  return physiology::TraceSignal::volume;
+}
+
+// `driver: {mode: trace, file: ..., ...}`: the file read and processed here, so that a bad trace
+// fails when the scenario is loaded. Errors in the file name the file and line; errors of the
+// keys name the scenario's key.
+physiology::Trace read_trace_driver(const config::Node& n, double duration_s) {
+  physiology::TraceOptions o;
+  const std::filesystem::path file = n.directory("file") / n.string("file");
+  if (!path_exists(file)) n.fail_at("file", "no such file: " + file.string());
+  std::string format = n.has("format") ? n.choice("format", {"auto", "csv", "rpm"}) : "auto";
+  if (format == "auto") {
+    std::string ext = file.extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    format = ext == ".vxp" ? "rpm" : "csv";
+  }
+  o.format = format == "rpm" ? physiology::TraceFormat::rpm : physiology::TraceFormat::csv;
+  if (n.has("signal")) {
+    o.signal = signal_from(n.choice("signal", {"volume", "flow", "amplitude"}));
+    if (o.format == physiology::TraceFormat::rpm && o.signal != physiology::TraceSignal::amplitude)
+      n.fail_at("signal", "an RPM file holds an amplitude");
+  }
+  if (n.has("column")) {
+    if (o.format == physiology::TraceFormat::rpm) n.fail_at("column", "an RPM file has one amplitude column; 'column' is for CSV");
+    o.column = n.string("column");
+  }
+  if (n.has("detrend")) o.detrend = n.boolean("detrend", true);
+  o.invert = n.boolean("invert", false);
+  if (auto start = n.optional_quantity("start", kind::duration)) {
+    if (!(*start >= 0.0)) n.fail_at("start", "expected a time >= 0 s");
+    o.start_s = *start;
+  }
+  std::optional<config::Node> calibration = n.optional_map("calibration");
+  if (calibration) {
+    if (calibration->has("tidal_volume") == calibration->has("volume_per_unit"))
+      calibration->fail("expected one of 'tidal_volume' (such as '500 mL') or 'volume_per_unit' (the volume of one amplitude unit, such as '400 mL')");
+    if (calibration->has("tidal_volume")) o.calibration.tidal_volume_m3 = calibration->positive_quantity("tidal_volume", kind::volume);
+    else o.calibration.volume_per_unit_m3 = calibration->positive_quantity("volume_per_unit", kind::volume);
+    calibration->finish();
+  }
+  n.finish();
+  const physiology::RawTrace raw = physiology::read_trace_file(file, o);
+  if (raw.signal == physiology::TraceSignal::amplitude && !calibration)
+    n.fail("an amplitude trace ('" + raw.column + "' of " + file.filename().string() +
+           ") needs 'calibration: {tidal_volume: 500 mL}' or 'calibration: {volume_per_unit: 400 mL}'");
+  if (raw.signal != physiology::TraceSignal::amplitude && calibration)
+    n.fail_at("calibration", std::string("only an amplitude trace is calibrated; this one holds a ") +
+                                 physiology::signal_name(raw.signal));
+  if (raw.signal != physiology::TraceSignal::amplitude && n.has("invert"))
+    n.fail_at("invert", "only an amplitude trace can be inverted");
+  physiology::Trace trace = physiology::process_trace(raw, o);
+  const double covered = trace.end_s() - trace.time_s.front() - o.start_s;
+  if (covered < duration_s - 1e-9) {
+    n.fail_at("file", fmt::format("the trace covers {:.6g} s{}, less than the scenario's duration of {:.6g} s",
+                                  std::max(covered, 0.0), o.start_s > 0.0 ? " after 'start'" : "", duration_s));
+  }
+  return trace;
+}
+
 }  // namespace
 
 std::filesystem::path default_config_dir() {
@@ -377,9 +450,20 @@ std::filesystem::path default_config_dir() {
 }
 
 PhysiologyConfig read_physiology(const config::Node& raw_section, double duration_s, const std::filesystem::path& config_dir) {
-  const config::Node section = with_preset(raw_section, config_dir);
   PhysiologyConfig out;
   out.options.duration_s = duration_s;
+  if (auto driver = raw_section.optional_map("driver"); driver && driver->optional_string("mode") == "trace") {
+    for (const std::string& key : kLumpedKeys) {
+      if (raw_section.has(key)) raw_section.fail_at(key, "not used with a trace driver (the trace gives the volume)");
+    }
+    driver->accept("mode");
+    out.trace = read_trace_driver(*driver, duration_s);
+    out.options.output_rate_hz =
+        raw_section.has("output_rate") ? raw_section.positive_quantity("output_rate", kind::rate) : 100.0;
+    raw_section.finish();
+    return out;
+  }
+  const config::Node section = with_preset(raw_section, config_dir);
 
   // Mechanics at t = 0.
   const std::string model = section.has("model") ? section.choice("model", kModels) : "single";
@@ -400,7 +484,8 @@ PhysiologyConfig read_physiology(const config::Node& raw_section, double duratio
 
   // Driver at t = 0.
   const config::Node driver_node = section.map("driver");
-  const std::string mode = driver_node.choice("mode", kModes);
+  const std::string mode = driver_node.choice("mode", kModesWithTrace);
+  if (mode == "trace") driver_node.fail_at("mode", "a trace driver takes no preset");
   DriverFields fields;
   overlay_driver(driver_node, mode, fields);
   const Driver driver = build_driver(driver_node, mode, fields);
