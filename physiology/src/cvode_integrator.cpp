@@ -1,5 +1,7 @@
 #include "cvode_integrator.h"
 
+#include <vector>
+
 #include "pneuma/core/error.h"
 
 namespace pneuma::physiology::detail {
@@ -58,11 +60,35 @@ void CvodeIntegrator::restart(double t0, const double* y0, double stop_time) {
   ++restarts_;
 }
 
-void CvodeIntegrator::advance(double t, double* y) {
+void CvodeIntegrator::set_roots(int count, CVRootFn g, const int* directions) {
+  if (count == 0 && root_count_ == 0) return;
+  check(CVodeRootInit(cvode_, count, count > 0 ? g : nullptr), "CVodeRootInit");
+  root_count_ = count;
+  if (count > 0) {
+    std::vector<int> d(directions, directions + count);
+    check(CVodeSetRootDirection(cvode_, d.data()), "CVodeSetRootDirection");
+    check(CVodeSetNoInactiveRootWarn(cvode_), "CVodeSetNoInactiveRootWarn");
+  }
+}
+
+double CvodeIntegrator::advance(double t, double* y, int* root) {
   double reached = 0.0;
-  check(CVode(cvode_, t, state_, &reached, CV_NORMAL), "CVode");
+  const int flag = CVode(cvode_, t, state_, &reached, CV_NORMAL);
+  check(flag, "CVode");
   const double* s = N_VGetArrayPointer(state_);
   for (int i = 0; i < size_; ++i) y[i] = s[i];
+  if (root) *root = -1;
+  if (flag == CV_ROOT_RETURN && root) {
+    std::vector<int> found(static_cast<std::size_t>(root_count_));
+    check(CVodeGetRootInfo(cvode_, found.data()), "CVodeGetRootInfo");
+    for (int i = 0; i < root_count_; ++i) {
+      if (found[static_cast<std::size_t>(i)] != 0) {
+        *root = i;
+        break;
+      }
+    }
+  }
+  return reached;
 }
 
 SolverStats CvodeIntegrator::stats() const {

@@ -22,8 +22,13 @@ class CvodeIntegrator {
 
   // Restarts at (t0, y0): the drive may have jumped, so no history is carried across.
   void restart(double t0, const double* y0, double stop_time);
-  // Advances to t (<= stop time) and writes the state there into y.
-  void advance(double t, double* y);
+  // Root functions g(t, y) for the integration that follows (CVODE's root finding, located to
+  // its root tolerance, ~1e-14 s here); `directions` +1 (rising through 0), -1 (falling) or 0.
+  // Kept until the next set_roots; count 0 turns root finding off.
+  void set_roots(int count, CVRootFn g, const int* directions);
+  // Advances to t (<= stop time) and writes the state there into y. Returns the time reached:
+  // t, or the first root's time (then *root is its index; -1 when no root stopped it).
+  double advance(double t, double* y, int* root = nullptr);
   SolverStats stats() const;
 
  private:
@@ -35,6 +40,7 @@ class CvodeIntegrator {
   SUNLinearSolver solver_ = nullptr;
   void* cvode_ = nullptr;
   long restarts_ = 0;
+  int root_count_ = 0;
   SolverStats totals_;
   std::string last_error_;
 };

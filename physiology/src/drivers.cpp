@@ -1,6 +1,7 @@
 #include "pneuma/physiology/drivers.h"
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <string>
 #include "pneuma/core/error.h"
@@ -26,6 +27,11 @@ struct PlanOf {
   }
   BreathPlan operator()(const PressureControl& p) const {
     return BreathPlan{{Phase{p.inspiratory_time_s, true}, Phase{1.0 / p.rate_hz, false}, Phase{}}, 2};
+  }
+  // The mandatory breath as set (no trigger, no cycle event): for information only.
+  BreathPlan operator()(const Assisted& a) const {
+    const double period = a.rate_hz > 0.0 ? 1.0 / a.rate_hz : std::numeric_limits<double>::infinity();
+    return BreathPlan{{Phase{a.inspiratory_time_s, true}, Phase{period, false}, Phase{}}, 2};
   }
 };
 
@@ -62,6 +68,43 @@ struct DriveOf {
     d.airway_pressure_pa = phase == 0 ? p.peep_pa + p.inspiratory_pressure_pa : p.peep_pa;
     return d;
   }
+  Drive operator()(const Assisted& a) const {
+    Drive d;
+    d.peep_pa = a.peep_pa;
+    switch (phase) {
+      case kAssistFlow: {
+        const double flow_time = a.inspiratory_time_s - a.pause_time_s;
+        d.flow_controlled = true;
+        d.flow_m3_per_s = a.waveform == FlowWaveform::square
+                              ? a.tidal_volume_m3 / flow_time
+                              : 2.0 * a.tidal_volume_m3 / flow_time * (1.0 - t / flow_time);
+        break;
+      }
+      case kAssistPause:
+      case kAssistOccluded:
+        d.flow_controlled = true;  // valves closed: no flow at the airway opening
+        break;
+      case kAssistPressure:
+        if (a.rise_time_s > 0.0) {
+          const double k = 3.0 / a.rise_time_s;
+          d.airway_pressure_pa = a.peep_pa + a.inspiratory_pressure_pa * (1.0 - std::exp(-k * t));
+          d.airway_pressure_rate_pa_per_s = a.inspiratory_pressure_pa * k * std::exp(-k * t);
+        } else {
+          d.airway_pressure_pa = a.peep_pa + a.inspiratory_pressure_pa;
+        }
+        break;
+      default: d.airway_pressure_pa = a.peep_pa;
+    }
+    return d;
+  }
+};
+
+// The effort's profile within one period: the spontaneous driver's, at the effort's rate.
+struct EffortShape {
+  double period, ti, relax;
+  explicit EffortShape(const PatientEffort& e)
+      : period(1.0 / e.rate_hz), ti(period * e.ie_ratio / (1.0 + e.ie_ratio)), relax(ti + 0.5 * (period - ti)) {}
+  double within(double t) const { return t - period * std::floor(t / period); }
 };
 
 void require(bool ok, const std::string& what) {
@@ -69,6 +112,38 @@ void require(bool ok, const std::string& what) {
 }
 
 }  // namespace
+
+double effort_pressure(const PatientEffort& e, double t) {
+  if (!e.active() || t < 0.0) return 0.0;
+  const EffortShape s(e);
+  const double u = s.within(t);
+  if (u < s.ti) return e.amplitude_pa * 0.5 * (1.0 - std::cos(std::numbers::pi * u / s.ti));
+  if (u < s.relax) return e.amplitude_pa * 0.5 * (1.0 + std::cos(std::numbers::pi * (u - s.ti) / (s.relax - s.ti)));
+  return 0.0;
+}
+
+double effort_pressure_rate(const PatientEffort& e, double t) {
+  if (!e.active() || t < 0.0) return 0.0;
+  const EffortShape s(e);
+  const double u = s.within(t);
+  if (u < s.ti) return e.amplitude_pa * 0.5 * std::numbers::pi / s.ti * std::sin(std::numbers::pi * u / s.ti);
+  if (u < s.relax) {
+    const double w = std::numbers::pi / (s.relax - s.ti);
+    return -e.amplitude_pa * 0.5 * w * std::sin(w * (u - s.ti));
+  }
+  return 0.0;
+}
+
+double next_effort_boundary(const PatientEffort& e, double t) {
+  if (!e.active()) return std::numeric_limits<double>::infinity();
+  const EffortShape s(e);
+  if (t < 0.0) return 0.0;
+  const double start = t - s.within(t);  // the current period's onset
+  for (double b : {s.ti, s.relax, s.period}) {
+    if (start + b > t) return start + b;
+  }
+  return start + s.period + s.ti;
+}
 
 BreathPlan plan_breath(const Driver& driver) { return std::visit(PlanOf{}, driver); }
 
@@ -86,29 +161,72 @@ double peep_of(const Driver& driver) {
 bool is_ventilator(const Driver& driver) { return !std::holds_alternative<Spontaneous>(driver); }
 
 const char* mode_name(const Driver& driver) {
+  if (const auto* a = std::get_if<Assisted>(&driver)) {
+    static constexpr const char* kAssisted[] = {"vc_ac", "pc_ac", "cpap_psv"};
+    return kAssisted[static_cast<int>(a->mode)];
+  }
   static constexpr const char* kNames[] = {"spontaneous", "volume_control", "pressure_control"};
   return kNames[driver.index()];
 }
 
+void validate(const PatientEffort& e) {
+  if (!e.active()) {
+    require(e.amplitude_pa == 0.0, "the effort's muscle pressure must not be negative");
+    return;
+  }
+  require(e.rate_hz > 0.0 && std::isfinite(e.rate_hz), "the effort's rate must be positive");
+  require(e.ie_ratio > 0.0 && std::isfinite(e.ie_ratio), "the effort's I:E ratio must be positive");
+}
+
 void validate(const Driver& driver) {
+  if (const auto* a = std::get_if<Assisted>(&driver)) {
+    const bool support = a->mode == AssistMode::pressure_support;
+    if (support) require(a->rate_hz == 0.0, "pressure support has no backup rate");
+    else require(a->rate_hz > 0.0 && std::isfinite(a->rate_hz), "the rate must be positive");
+    require(a->peep_pa >= 0.0, "PEEP must not be negative");
+    require(a->inspiratory_time_s > 0.0 && (support || a->inspiratory_time_s < 1.0 / a->rate_hz),
+            "the inspiratory time must be positive and shorter than one breath (60 / rate)");
+    require(a->trigger_threshold > 0.0 && std::isfinite(a->trigger_threshold),
+            "the trigger threshold must be positive");
+    if (a->mode == AssistMode::volume) {
+      require(a->tidal_volume_m3 > 0.0, "the tidal volume must be positive");
+      require(a->pause_time_s >= 0.0 && a->pause_time_s < a->inspiratory_time_s,
+              "the pause must be shorter than the inspiratory time");
+      require(a->cycle == CycleKind::time, "a volume mode cycles on time");
+      require(a->pressure_limit_pa == 0.0 || a->pressure_limit_pa > a->peep_pa,
+              "the pressure limit must be above PEEP");
+    } else {
+      require(a->inspiratory_pressure_pa >= 0.0, "the inspiratory pressure must not be negative");
+      require(a->rise_time_s >= 0.0, "the rise time must not be negative");
+      require(a->rise_time_s < a->inspiratory_time_s, "the rise time must be shorter than the inspiratory time");
+      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0),
+              "the flow cycle fraction must lie between 0 and 1");
+      require(a->cycle != CycleKind::volume || a->cycle_volume_m3 > 0.0, "the cycle volume must be positive");
+      require(a->volume_limit_m3 >= 0.0, "the volume limit must not be negative");
+    }
+    return;
+  }
   std::visit(
       [](const auto& d) {
-        require(d.rate_hz > 0.0 && std::isfinite(d.rate_hz), "the rate must be positive");
         using T = std::decay_t<decltype(d)>;
-        if constexpr (std::is_same_v<T, Spontaneous>) {
-          require(d.ie_ratio > 0.0, "the I:E ratio must be positive");
-          require(d.amplitude_pa >= 0.0 && d.target_tidal_volume_m3 >= 0.0,
-                  "the muscle pressure amplitude and tidal volume must not be negative");
-        } else {
-          require(d.peep_pa >= 0.0, "PEEP must not be negative");
-          require(d.inspiratory_time_s > 0.0 && d.inspiratory_time_s < 1.0 / d.rate_hz,
-                  "the inspiratory time must be positive and shorter than one breath (60 / rate)");
-          if constexpr (std::is_same_v<T, VolumeControl>) {
-            require(d.tidal_volume_m3 > 0.0, "the tidal volume must be positive");
-            require(d.pause_time_s >= 0.0 && d.pause_time_s < d.inspiratory_time_s,
-                    "the pause must be shorter than the inspiratory time");
+        if constexpr (std::is_same_v<T, Assisted>) return;
+        else {
+          require(d.rate_hz > 0.0 && std::isfinite(d.rate_hz), "the rate must be positive");
+          if constexpr (std::is_same_v<T, Spontaneous>) {
+            require(d.ie_ratio > 0.0, "the I:E ratio must be positive");
+            require(d.amplitude_pa >= 0.0 && d.target_tidal_volume_m3 >= 0.0,
+                    "the muscle pressure amplitude and tidal volume must not be negative");
           } else {
-            require(d.inspiratory_pressure_pa >= 0.0, "the inspiratory pressure must not be negative");
+            require(d.peep_pa >= 0.0, "PEEP must not be negative");
+            require(d.inspiratory_time_s > 0.0 && d.inspiratory_time_s < 1.0 / d.rate_hz,
+                    "the inspiratory time must be positive and shorter than one breath (60 / rate)");
+            if constexpr (std::is_same_v<T, VolumeControl>) {
+              require(d.tidal_volume_m3 > 0.0, "the tidal volume must be positive");
+              require(d.pause_time_s >= 0.0 && d.pause_time_s < d.inspiratory_time_s,
+                      "the pause must be shorter than the inspiratory time");
+            } else {
+              require(d.inspiratory_pressure_pa >= 0.0, "the inspiratory pressure must not be negative");
+            }
           }
         }
       },

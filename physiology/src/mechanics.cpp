@@ -108,6 +108,23 @@ double compartment_flows(const Mechanics& m, double pd, const double* v, double*
   return total;
 }
 
+double flow_rate_of_change(const Mechanics& m, double dpd_dt, const double* v, const double* q) {
+  // Q = sum g_i (Pd - Pel_i) / (1 + Raw G)  =>  dQ/dt = sum g_i (dPd/dt - Pel_i'(V_i) Q_i) / (1 + Raw G);
+  // one compartment: Q = (Pd - Pel) / (Raw + R_1).
+  const std::size_t n = m.compartments.size();
+  if (n == 1) {
+    const double r = m.airway_resistance_pa_s_per_m3 + m.compartments[0].resistance_pa_s_per_m3;
+    return (dpd_dt - q[0] / compliance_at(m.compartments[0].elasticity, v[0])) / r;
+  }
+  double g = 0.0, weighted = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double gi = 1.0 / m.compartments[i].resistance_pa_s_per_m3;
+    g += gi;
+    weighted += gi * (dpd_dt - q[i] / compliance_at(m.compartments[i].elasticity, v[i]));
+  }
+  return weighted / (1.0 + m.airway_resistance_pa_s_per_m3 * g);
+}
+
 double driving_pressure_for_flow(const Mechanics& m, double total_flow, const double* v) {
   const std::size_t n = m.compartments.size();
   if (n == 1) {

@@ -5,7 +5,9 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "cvode_integrator.h"
 #include "pneuma/core/error.h"
@@ -16,11 +18,33 @@ namespace {
 constexpr int kMaxCompartments = 8;
 
 // What the right-hand side needs: the mechanics and the drive of the current segment.
+// The events an assisted breath watches for, each a root of a smooth function of (t, V).
+enum class RootKind {
+  trigger_flow,      // flow into the patient - threshold (rising)
+  occlude,           // flow at the airway (rising through 0: the patient pulls, the circuit closes)
+  trigger_pressure,  // (PEEP - Paw) - threshold in the occluded circuit (rising)
+  reopen,            // Paw - PEEP in the occluded circuit (rising: the expiratory valve opens)
+  flow_peak,         // dQ/dt (falling through 0: a local maximum of the inspiratory flow)
+  flow_cycle,        // Q - fraction * peak flow so far (falling)
+  volume_cycle,      // delivered volume - cycle volume (rising)
+  volume_limit,      // delivered volume - volume limit (rising)
+  pressure_limit,    // Paw - pressure limit (rising)
+};
+constexpr int kMaxRoots = 4;
+
+// What the right-hand side needs: the mechanics and the drive of the current segment.
 struct SegmentContext {
   const Mechanics* mechanics = nullptr;
   const Driver* driver = nullptr;
   int phase = 0;
   double breath_start_s = 0.0;
+  const PatientEffort* effort = nullptr;  // null: no effort (always, for the mandatory modes without one)
+  double effort_anchor_s = 0.0;
+  // Root finding (assisted breaths only).
+  std::array<RootKind, kMaxRoots> roots{};
+  int root_count = 0;
+  double flow_peak = 0.0;     // highest inspiratory flow of the breath so far
+  double start_volume = 0.0;  // total volume at the start of inspiration
 };
 
 struct Instant {
@@ -28,14 +52,20 @@ struct Instant {
   double airway_pressure = 0.0;
   double muscle_pressure = 0.0;
   double peep = 0.0;
+  double driving_pressure_rate = 0.0;  // d(Paw + Pmus)/dt where the airway pressure is set
 };
 
 // Flows into every compartment at (t, volumes); returns the pressures at that instant.
 Instant evaluate(const SegmentContext& c, double t, const double* volumes, double* flows) {
-  const Drive d = drive_at(*c.driver, c.phase, t - c.breath_start_s);
+  Drive d = drive_at(*c.driver, c.phase, t - c.breath_start_s);
+  if (c.effort) {
+    d.muscle_pressure_pa += effort_pressure(*c.effort, t - c.effort_anchor_s);
+    d.airway_pressure_rate_pa_per_s += effort_pressure_rate(*c.effort, t - c.effort_anchor_s);
+  }
   Instant out;
   out.muscle_pressure = d.muscle_pressure_pa;
   out.peep = d.peep_pa;
+  out.driving_pressure_rate = d.airway_pressure_rate_pa_per_s;
   if (d.flow_controlled) {
     const double pd = driving_pressure_for_flow(*c.mechanics, d.flow_m3_per_s, volumes);
     out.flow = compartment_flows(*c.mechanics, pd, volumes, flows);
@@ -60,6 +90,36 @@ int right_hand_side(double t, N_Vector y, N_Vector ydot, void* user_data) {
   return 0;
 }
 
+double total(const double* v, std::size_t n);
+
+// CVODE's root functions for the assisted breaths' events (see RootKind). Each is smooth within
+// a segment, so CVODE locates its zero to its root tolerance (~100 ulp of t): trigger and cycle
+// instants are found exactly, not at the next output sample.
+int root_function(double t, N_Vector y, double* g, void* user_data) {
+  const auto& c = *static_cast<const SegmentContext*>(user_data);
+  const double* v = N_VGetArrayPointer(y);
+  std::array<double, 8> q{};
+  const Instant now = evaluate(c, t, v, q.data());
+  const auto& a = std::get<Assisted>(*c.driver);
+  const double delivered = total(v, c.mechanics->compartments.size()) - c.start_volume;
+  for (int i = 0; i < c.root_count; ++i) {
+    switch (c.roots[static_cast<std::size_t>(i)]) {
+      case RootKind::trigger_flow: g[i] = now.flow - a.trigger_threshold; break;
+      case RootKind::occlude: g[i] = now.flow; break;
+      case RootKind::trigger_pressure: g[i] = a.peep_pa - now.airway_pressure - a.trigger_threshold; break;
+      case RootKind::reopen: g[i] = now.airway_pressure - a.peep_pa; break;
+      case RootKind::flow_peak: g[i] = flow_rate_of_change(*c.mechanics, now.driving_pressure_rate, v, q.data()); break;
+      case RootKind::flow_cycle: g[i] = now.flow - a.cycle_fraction * c.flow_peak; break;
+      case RootKind::volume_cycle: g[i] = delivered - a.cycle_volume_m3; break;
+      case RootKind::volume_limit: g[i] = delivered - a.volume_limit_m3; break;
+      case RootKind::pressure_limit: g[i] = now.airway_pressure - a.pressure_limit_pa; break;
+    }
+  }
+  return 0;
+}
+
+int root_direction(RootKind k) { return k == RootKind::flow_peak || k == RootKind::flow_cycle ? -1 : 1; }
+
 std::string fmt_seconds(double t) {
   char buffer[32];
   std::snprintf(buffer, sizeof buffer, "%g", t);
@@ -78,7 +138,13 @@ class Simulation {
       : protocol_(protocol),
         options_(options),
         n_(protocol.settings.front().mechanics.compartments.size()),
-        integrator_(static_cast<int>(n_), right_hand_side, &context_, options.solver) {}
+        integrator_(static_cast<int>(n_), right_hand_side, &context_, options.solver) {
+    // An effort repeats from the time it was last changed.
+    for (std::size_t i = 0; i < protocol_.settings.size(); ++i) {
+      const bool same = i > 0 && protocol_.settings[i].effort == protocol_.settings[i - 1].effort;
+      effort_anchor_.push_back(same ? effort_anchor_.back() : protocol_.settings[i].start_time_s);
+    }
+  }
 
   SimulationResult run() {
     SimulationResult result;
@@ -98,15 +164,24 @@ class Simulation {
     while (t < end) {
       const std::size_t setting = setting_at(t);
       current_driver_ = resolved_driver(setting);
+      if (std::holds_alternative<Assisted>(current_driver_)) {
+        if (!assisted_breath(t, y.data(), result)) break;
+        continue;
+      }
+      pending_.reset();
       const Driver& driver = current_driver_;
       const BreathPlan plan = plan_breath(driver);
       BreathMetrics breath;
       breath.start_s = t;
       breath.mode = mode_name(driver);
       breath.peep_pa = peep_of(driver);
+      if (is_ventilator(driver)) {
+        breath.trigger = "time";
+        breath.cycle = "time";
+      }
       if (const auto* s = std::get_if<Spontaneous>(&driver)) breath.muscle_amplitude_pa = s->amplitude_pa;
       const double start_volume = total(y.data(), n_);
-      min_volume_ = max_volume_ = start_volume;
+      begin_breath(start_volume);
       if (const auto* sp = std::get_if<Spontaneous>(&protocol_.settings[setting].driver))
         breath.set_tidal_volume_m3 = sp->target_tidal_volume_m3;
       else if (const auto* vc = std::get_if<VolumeControl>(&driver)) breath.set_tidal_volume_m3 = vc->tidal_volume_m3;
@@ -117,13 +192,14 @@ class Simulation {
 
       context_.driver = &driver;
       context_.breath_start_s = t;
+      context_.root_count = 0;
       for (int p = 0; p < plan.count && complete; ++p) {
         context_.phase = p;
         const double phase_end = breath.start_s + plan.phases[static_cast<std::size_t>(p)].end_s;
         Instant last;
         while (t < phase_end) {
-          const double segment_end = std::min({phase_end, next_change_after(t), end});
-          context_.mechanics = &protocol_.settings[setting_at(t)].mechanics;
+          const double segment_end = std::min({phase_end, next_change_after(t), end, next_effort_break(t)});
+          use_setting_at(t);
           integrate_segment(t, segment_end, y.data(), peak_airway, peak_drive, last);
           t = segment_end;
           if (t >= end && t < phase_end) {
@@ -136,27 +212,30 @@ class Simulation {
             (p + 1 == plan.count || !plan.phases[static_cast<std::size_t>(p + 1)].inspiratory)) {
           end_inspiration_volume = total(y.data(), n_);
           breath.plateau_pressure_pa = alveolar_pressure(*context_.mechanics, last.airway_pressure, last.flow);
+          if (is_ventilator(driver)) breath.inspiratory_time_s = plan.phases[static_cast<std::size_t>(p)].end_s;
         }
       }
       if (!complete) break;
-      breath.duration_s = t - breath.start_s;
       breath.inspired_volume_m3 = end_inspiration_volume - start_volume;
-      breath.tidal_volume_m3 = max_volume_ - min_volume_;
-      breath.minute_ventilation_m3_per_s = breath.tidal_volume_m3 / breath.duration_s;
       breath.peak_pressure_pa = peak_airway;
-      breath.dynamic_compliance_m3_per_pa = peak_drive - breath.peep_pa > 0.0
-                                                ? breath.tidal_volume_m3 / (peak_drive - breath.peep_pa)
-                                                : std::numeric_limits<double>::quiet_NaN();
-      breath.end_expiratory_volume_m3 = total(y.data(), n_);
-      result.breaths.push_back(breath);
+      finish_breath(breath, t, peak_drive, y.data(), result);
     }
     // A sample exactly at the end time belongs to no segment: record it from the final state.
     if (series_ && next_output_ < output_count_) record(end, y.data());
+    count_triggers(result);
     result.stats = integrator_.stats();
     return result;
   }
 
  private:
+  // What started a breath that an assisted expiration has ended.
+  struct Start {
+    const char* trigger = "time";
+    double delay_s = std::numeric_limits<double>::quiet_NaN();
+  };
+  // What stopped an assisted phase.
+  enum class Stopped { time, root, end_of_run, driver_change };
+
   std::size_t setting_at(double t) const {
     std::size_t s = 0;
     for (std::size_t i = 1; i < protocol_.settings.size(); ++i) {
@@ -170,6 +249,245 @@ class Simulation {
       if (s.start_time_s > t) return s.start_time_s;
     }
     return std::numeric_limits<double>::infinity();
+  }
+
+  // The next boundary of the patient's effort profile (its Pmus is smooth between them).
+  double next_effort_break(double t) const {
+    const std::size_t s = setting_at(t);
+    const PatientEffort& e = protocol_.settings[s].effort;
+    if (!e.active()) return std::numeric_limits<double>::infinity();
+    return effort_anchor_[s] + next_effort_boundary(e, t - effort_anchor_[s]);
+  }
+
+  // The mechanics and the patient's effort in force at t.
+  void use_setting_at(double t) {
+    const std::size_t s = setting_at(t);
+    context_.mechanics = &protocol_.settings[s].mechanics;
+    context_.effort = protocol_.settings[s].effort.active() ? &protocol_.settings[s].effort : nullptr;
+    context_.effort_anchor_s = effort_anchor_[s];
+  }
+
+  void begin_breath(double start_volume) {
+    min_volume_ = max_volume_ = start_volume;
+    paw_integral_ = 0.0;
+  }
+
+  // The metrics every breath has, at its end t with state y.
+  void finish_breath(BreathMetrics& breath, double t, double peak_drive, const double* y, SimulationResult& result) {
+    breath.duration_s = t - breath.start_s;
+    breath.tidal_volume_m3 = max_volume_ - min_volume_;
+    breath.minute_ventilation_m3_per_s = breath.tidal_volume_m3 / breath.duration_s;
+    breath.dynamic_compliance_m3_per_pa = peak_drive - breath.peep_pa > 0.0
+                                              ? breath.tidal_volume_m3 / (peak_drive - breath.peep_pa)
+                                              : std::numeric_limits<double>::quiet_NaN();
+    breath.end_expiratory_volume_m3 = total(y, n_);
+    breath.mean_airway_pressure_pa = paw_integral_ / breath.duration_s;
+    // An end-expiratory hold: the airway occluded (no flow), the pressure the recoil holds.
+    if (is_ventilator(current_driver_))
+      breath.intrinsic_peep_pa = driving_pressure_for_flow(*context_.mechanics, 0.0, y) - breath.peep_pa;
+    result.breaths.push_back(breath);
+  }
+
+  // One assisted breath from t (its trigger in pending_, or none: the first of its mode). Returns
+  // false when the run ends before the breath does (the incomplete breath is not reported).
+  bool assisted_breath(double& t, double* y, SimulationResult& result) {
+    const Assisted a = std::get<Assisted>(current_driver_);
+    context_.driver = &current_driver_;
+    if (!pending_) {
+      if (a.mode == AssistMode::pressure_support) {
+        // No backup: wait at CPAP for the patient's first trigger (not a breath).
+        context_.breath_start_s = t;
+        double unused_peak = -std::numeric_limits<double>::infinity(), unused_drive = unused_peak;
+        min_volume_ = max_volume_ = total(y, n_);
+        const Stopped s = expiration(t, y, a, std::numeric_limits<double>::infinity(), unused_peak, unused_drive);
+        if (s == Stopped::end_of_run) return false;
+        if (s == Stopped::driver_change) return true;
+      } else {
+        pending_ = Start{};
+      }
+    }
+    BreathMetrics breath;
+    breath.start_s = t;
+    breath.mode = mode_name(current_driver_);
+    breath.peep_pa = a.peep_pa;
+    breath.trigger = pending_->trigger;
+    breath.trigger_delay_s = pending_->delay_s;
+    if (a.mode == AssistMode::volume) breath.set_tidal_volume_m3 = a.tidal_volume_m3;
+    pending_.reset();
+    const double start_volume = total(y, n_);
+    begin_breath(start_volume);
+    context_.breath_start_s = t;
+    context_.start_volume = start_volume;
+    double peak_airway = -std::numeric_limits<double>::infinity();
+    double peak_drive = -std::numeric_limits<double>::infinity();
+    Instant last;
+
+    // Inspiration.
+    breath.cycle = "time";
+    if (a.mode == AssistMode::volume) {
+      const double flow_end = breath.start_s + a.inspiratory_time_s - a.pause_time_s;
+      std::vector<RootKind> roots;
+      if (a.pressure_limit_pa > 0.0) roots.push_back(RootKind::pressure_limit);
+      int root = -1;
+      const Stopped s = phase(kAssistFlow, t, flow_end, y, roots, false, peak_airway, peak_drive, last, root);
+      if (s == Stopped::end_of_run) return false;
+      if (s == Stopped::root) {
+        breath.cycle = "pressure_limit";
+      } else if (a.pause_time_s > 0.0) {
+        const Stopped p = phase(kAssistPause, t, breath.start_s + a.inspiratory_time_s, y, {}, false, peak_airway,
+                                peak_drive, last, root);
+        if (p == Stopped::end_of_run) return false;
+      }
+    } else {
+      std::vector<RootKind> roots;
+      if (a.cycle == CycleKind::flow) roots = {RootKind::flow_peak, RootKind::flow_cycle};
+      if (a.cycle == CycleKind::volume) roots.push_back(RootKind::volume_cycle);
+      if (a.volume_limit_m3 > 0.0) roots.push_back(RootKind::volume_limit);
+      std::array<double, kMaxCompartments> q{};
+      context_.phase = kAssistPressure;
+      use_setting_at(t);
+      context_.flow_peak = evaluate(context_, t, y, q.data()).flow;  // the flow just after the step
+      const double time_cycle = breath.start_s + a.inspiratory_time_s;
+      for (;;) {
+        int root = -1;
+        const Stopped s = phase(kAssistPressure, t, time_cycle, y, roots, false, peak_airway, peak_drive, last, root);
+        if (s == Stopped::end_of_run) return false;
+        if (s == Stopped::time) break;
+        const RootKind k = roots[static_cast<std::size_t>(root)];
+        if (k == RootKind::flow_peak) {
+          context_.flow_peak = std::max(context_.flow_peak, last.flow);
+          continue;
+        }
+        breath.cycle = k == RootKind::flow_cycle ? "flow" : k == RootKind::volume_cycle ? "volume" : "volume_limit";
+        break;
+      }
+    }
+    breath.inspiratory_time_s = t - breath.start_s;
+    breath.inspired_volume_m3 = total(y, n_) - start_volume;
+    breath.plateau_pressure_pa = alveolar_pressure(*context_.mechanics, last.airway_pressure, last.flow);
+
+    // Expiration, until the next trigger or the backup timer.
+    const double backup = a.rate_hz > 0.0 ? breath.start_s + 1.0 / a.rate_hz : std::numeric_limits<double>::infinity();
+    const Stopped s = expiration(t, y, a, backup, peak_airway, peak_drive, breath.start_s);
+    if (s == Stopped::end_of_run) return false;
+    if (s == Stopped::time) pending_ = Start{};
+    breath.peak_pressure_pa = peak_airway;
+    finish_breath(breath, t, peak_drive, y, result);
+    return true;
+  }
+
+  // Expiration at PEEP from t until a patient trigger (pending_ set), `backup` (Stopped::time),
+  // a new driver (Stopped::driver_change) or the run's end.
+  // In a breath (`breath_start` given), new assist settings take over the expiration at once
+  // (trigger, PEEP, backup rate counted from the breath's start); a mandatory or spontaneous
+  // driver ends the breath.
+  Stopped expiration(double& t, double* y, Assisted a, double backup, double& peak_airway, double& peak_drive,
+                     std::optional<double> breath_start = std::nullopt) {
+    Instant last;
+    bool by_flow = a.trigger == TriggerKind::flow;
+    int phase_kind = kAssistExpiration;
+    // Pressure trigger: a patient already pulling when expiration begins finds the circuit closed.
+    if (!by_flow) {
+      std::array<double, kMaxCompartments> q{};
+      context_.phase = kAssistExpiration;
+      use_setting_at(t);
+      if (evaluate(context_, t, y, q.data()).flow >= 0.0) phase_kind = kAssistOccluded;
+    }
+    for (;;) {
+      std::vector<RootKind> roots;
+      if (by_flow) roots = {RootKind::trigger_flow};
+      else if (phase_kind == kAssistExpiration) roots = {RootKind::occlude};
+      else roots = {RootKind::trigger_pressure, RootKind::reopen};
+      int root = -1;
+      const Stopped s = phase(phase_kind, t, backup, y, roots, true, peak_airway, peak_drive, last, root);
+      if (s == Stopped::driver_change && breath_start) {
+        const Driver& next = protocol_.settings[setting_at(t)].driver;
+        if (const auto* assisted = std::get_if<Assisted>(&next)) {
+          current_driver_ = next;
+          a = *assisted;
+          by_flow = a.trigger == TriggerKind::flow;
+          if (by_flow) phase_kind = kAssistExpiration;
+          backup = a.rate_hz > 0.0 ? *breath_start + 1.0 / a.rate_hz : std::numeric_limits<double>::infinity();
+          if (backup <= t) return Stopped::time;
+          continue;
+        }
+      }
+      if (s != Stopped::root) return s;
+      const RootKind k = roots[static_cast<std::size_t>(root)];
+      if (k == RootKind::occlude) {
+        phase_kind = kAssistOccluded;
+      } else if (k == RootKind::reopen) {
+        phase_kind = kAssistExpiration;
+      } else {
+        Start start;
+        start.trigger = by_flow ? "patient_flow" : "patient_pressure";
+        const std::size_t setting = setting_at(t);
+        const PatientEffort& e = protocol_.settings[setting].effort;
+        if (e.active()) {
+          const double since = t - effort_anchor_[setting], period = 1.0 / e.rate_hz;
+          start.delay_s = since - period * std::floor(since / period);
+        }
+        pending_ = start;
+        patient_triggers_.push_back(t);
+        return Stopped::root;
+      }
+    }
+  }
+
+  // Integrates one assisted phase from t to `until` (or an event among `roots`), split at
+  // setting changes and effort boundaries; the integrator restarts at each (the drive is smooth
+  // only between them). With `driver_change`, a new driver taking effect ends the phase.
+  Stopped phase(int kind, double& t, double until, double* y, const std::vector<RootKind>& roots, bool driver_change,
+                double& peak_airway, double& peak_drive, Instant& last, int& root) {
+    const double end = options_.duration_s;
+    context_.phase = kind;
+    context_.root_count = static_cast<int>(roots.size());
+    std::copy(roots.begin(), roots.end(), context_.roots.begin());
+    while (t < until) {
+      if (t >= end) return Stopped::end_of_run;
+      const double b = std::min({until, next_change_after(t), end, next_effort_break(t)});
+      use_setting_at(t);
+      const std::size_t before = setting_at(t);
+      t = integrate_segment(t, b, y, peak_airway, peak_drive, last, &root);
+      if (root >= 0) return Stopped::root;
+      if (t >= until) break;
+      if (t >= end) return Stopped::end_of_run;
+      const std::size_t after = setting_at(t);
+      if (driver_change && after != before && !(protocol_.settings[after].driver == protocol_.settings[before].driver))
+        return Stopped::driver_change;
+    }
+    return Stopped::time;
+  }
+
+  // Missed triggers (efforts that started in a breath and triggered nothing) and double
+  // triggers (two breaths from one effort), from the efforts' onsets and the trigger times.
+  void count_triggers(SimulationResult& result) const {
+    const double end = options_.duration_s;
+    for (std::size_t s = 0; s < protocol_.settings.size(); ++s) {
+      const PatientEffort& e = protocol_.settings[s].effort;
+      if (!e.active()) continue;
+      const double from = protocol_.settings[s].start_time_s;
+      const double to = s + 1 < protocol_.settings.size() ? protocol_.settings[s + 1].start_time_s : end;
+      const double period = 1.0 / e.rate_hz, anchor = effort_anchor_[s];
+      for (double k = std::ceil((from - anchor) / period - 1e-12);; k += 1.0) {
+        const double onset = anchor + k * period;
+        if (onset >= to) break;
+        const double effort_end = std::min(onset + period, to);
+        std::size_t triggers = 0;
+        for (double tr : patient_triggers_) triggers += (tr >= onset && tr < effort_end) ? 1 : 0;
+        for (auto& b : result.breaths) {
+          const bool contains_onset = onset >= b.start_s && onset < b.start_s + b.duration_s;
+          if (triggers == 0 && contains_onset) ++b.missed_triggers;
+          // Every breath after the first one this effort triggered is a double trigger.
+          if (b.trigger_delay_s == b.trigger_delay_s && b.start_s > onset && b.start_s < effort_end &&
+              std::string(b.trigger) != "time") {
+            bool earlier = false;
+            for (double tr : patient_triggers_) earlier = earlier || (tr >= onset && tr < b.start_s);
+            b.double_triggered = b.double_triggered || earlier;
+          }
+        }
+      }
+    }
   }
 
   void reserve(TimeSeries& s) {
@@ -202,22 +520,42 @@ class Simulation {
     ++next_output_;
   }
 
+  // The airway pressure's integral over the breath (trapezoids between the visited points,
+  // 1 ms apart at most; a segment's start opens a new run, the pressure may jump there).
+  void accumulate_paw(double t, double paw, bool segment_start) {
+    if (!segment_start) paw_integral_ += 0.5 * (paw + last_paw_) * (t - last_paw_t_);
+    last_paw_t_ = t;
+    last_paw_ = paw;
+  }
+
   // Integrates [a, b) with one smooth drive, recording the output samples that fall in it.
-  void integrate_segment(double a, double b, double* y, double& peak_airway, double& peak_drive, Instant& last) {
+  // With root functions in the context (and `root` given), stops at the first event instead:
+  // returns the time reached (b, or the event's) and sets *root to the event's index or -1.
+  double integrate_segment(double a, double b, double* y, double& peak_airway, double& peak_drive, Instant& last,
+                           int* root = nullptr) {
+    if (root) *root = -1;
     std::array<double, kMaxCompartments> q{};
     Instant first = evaluate(context_, a, y, q.data());
     peak_airway = std::max(peak_airway, first.airway_pressure);
     peak_drive = std::max(peak_drive, first.airway_pressure + first.muscle_pressure);
+    accumulate_paw(a, first.airway_pressure, true);
     if (b - a <= 1e-12 * std::max(1.0, b)) {
       last = first;
-      return;
+      return b;
     }
     integrator_.restart(a, y, b);
+    std::array<int, kMaxRoots> directions{};
+    const int roots = root ? context_.root_count : 0;
+    for (int i = 0; i < roots; ++i)
+      directions[static_cast<std::size_t>(i)] = root_direction(context_.roots[static_cast<std::size_t>(i)]);
+    integrator_.set_roots(roots, root_function, directions.data());
     std::array<double, kMaxCompartments> sample{};
     track_volume(total(y, n_));
     // Output samples, and probes every kProbeInterval (interpolated by CVODE, cheap) so that the
     // breath's volume extremes are found whatever the output rate (even with no output at all).
     std::size_t probes = 1;
+    int found = -1;
+    double reached = b;
     for (;;) {
       const bool output = series_ && next_output_ < output_count_ && output_time(next_output_) < b;
       const double probe = a + static_cast<double>(probes) * kProbeInterval;
@@ -229,25 +567,42 @@ class Simulation {
           record(t, y);
           continue;
         }
-        integrator_.advance(t, sample.data());
+        const double at = integrator_.advance(t, sample.data(), &found);
+        if (found >= 0) {
+          reached = at;
+          break;
+        }
         record(t, sample.data());
         track_volume(total(sample.data(), n_));
         const Instant now = evaluate(context_, t, sample.data(), q.data());
         peak_airway = std::max(peak_airway, now.airway_pressure);
         peak_drive = std::max(peak_drive, now.airway_pressure + now.muscle_pressure);
+        accumulate_paw(t, now.airway_pressure, false);
       } else if (probe < b) {
-        integrator_.advance(probe, sample.data());
+        const double at = integrator_.advance(probe, sample.data(), &found);
+        if (found >= 0) {
+          reached = at;
+          break;
+        }
         track_volume(total(sample.data(), n_));
+        accumulate_paw(probe, evaluate(context_, probe, sample.data(), q.data()).airway_pressure, false);
         ++probes;
       } else {
         break;
       }
     }
-    integrator_.advance(b, y);
+    if (found >= 0) {
+      for (std::size_t i = 0; i < n_; ++i) y[i] = sample[i];
+      if (root) *root = found;
+    } else {
+      integrator_.advance(b, y);
+    }
     track_volume(total(y, n_));
-    last = evaluate(context_, b, y, q.data());  // the left limit at b, still in this phase
+    last = evaluate(context_, reached, y, q.data());  // the left limit at the end, still in this phase
     peak_airway = std::max(peak_airway, last.airway_pressure);
     peak_drive = std::max(peak_drive, last.airway_pressure + last.muscle_pressure);
+    accumulate_paw(reached, last.airway_pressure, false);
+    return reached;
   }
 
   // The driver of `setting`, with a spontaneous target tidal volume turned into an amplitude.
@@ -266,9 +621,13 @@ class Simulation {
   }
   static constexpr double kProbeInterval = 1e-3;  // s: the volume extremes to ~1e-6 of the swing
   double min_volume_ = 0.0, max_volume_ = 0.0;    // over the current breath
+  double paw_integral_ = 0.0, last_paw_t_ = 0.0, last_paw_ = 0.0;
   std::size_t next_output_ = 0;
   std::size_t output_count_ = 0;
   std::map<std::size_t, Driver> calibrated_;
+  std::vector<double> effort_anchor_;     // per setting: when its effort's breaths began
+  std::optional<Start> pending_;          // the next assisted breath's start, when found
+  std::vector<double> patient_triggers_;  // times of every patient trigger
 };
 
 // Periodic steady-state tidal volume of a spontaneous driver with a given amplitude.

@@ -137,6 +137,30 @@ Simulation to_python(const physiology::SimulationResult& r) {
   out.breaths["inspired_volume_mL"] = field([](const auto& x) { return x.inspired_volume_m3; }, kMl);
   out.breaths["set_tidal_volume_mL"] =
       field([](const auto& x) { return x.set_tidal_volume_m3 > 0.0 ? x.set_tidal_volume_m3 : std::nan(""); }, kMl);
+  // Ventilator columns: empty strings and NaN for spontaneous breaths, as in the CSV.
+  const auto ventilated = [](const auto& x) { return *x.trigger != '\0'; };
+  py::list triggers, cycles;
+  for (const auto& breath : b) {
+    triggers.append(py::str(breath.trigger));
+    cycles.append(py::str(breath.cycle));
+  }
+  const auto numpy = py::module_::import("numpy");
+  const auto nan = std::nan("");
+  out.breaths["trigger"] = numpy.attr("array")(triggers, "str");
+  out.breaths["trigger_delay_s"] = field([&](const auto& x) { return ventilated(x) ? x.trigger_delay_s : nan; }, 1.0);
+  out.breaths["cycle"] = numpy.attr("array")(cycles, "str");
+  out.breaths["inspiratory_time_s"] =
+      field([&](const auto& x) { return ventilated(x) ? x.inspiratory_time_s : nan; }, 1.0);
+  out.breaths["ie_ratio"] = field(
+      [&](const auto& x) { return ventilated(x) ? x.inspiratory_time_s / (x.duration_s - x.inspiratory_time_s) : nan; },
+      1.0);
+  out.breaths["mean_airway_pressure_cmH2O"] = field([](const auto& x) { return x.mean_airway_pressure_pa; }, kCmH2O);
+  out.breaths["intrinsic_peep_cmH2O"] =
+      field([&](const auto& x) { return ventilated(x) ? x.intrinsic_peep_pa : nan; }, kCmH2O);
+  out.breaths["missed_triggers"] =
+      field([](const auto& x) { return static_cast<double>(x.missed_triggers); }, 1.0).attr("astype")("int64");
+  out.breaths["double_trigger"] =
+      field([](const auto& x) { return x.double_triggered ? 1.0 : 0.0; }, 1.0).attr("astype")("int64");
   return out;
 }
 

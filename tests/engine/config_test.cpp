@@ -81,3 +81,52 @@ TEST(PhysiologyConfig, ActionsPatchTheDriverAndRefuseKeysOfAnotherMode) {
   EXPECT_EQ(error_of([&] { pneuma::scenario::read_physiology(bad, 60.0, "/nonexistent"); }),
             "p.yaml:6:38: actions[0].inspiratory_pressure: not a setting of volume_control mode");
 }
+
+TEST(PhysiologyConfig, AssistModesTheirDefaultsAndAModeSwitchMidRun) {
+  using namespace pneuma::physiology;
+  const Node n = Node::load_string(
+      "model: single\ncompliance: 0.05 L/cmH2O\nresistance: 10 cmH2O*s/L\n"
+      "driver: {mode: vc_ac, rate: 12 /min, tidal_volume: 450 mL, inspiratory_time: 1 s, peep: 5 cmH2O,\n"
+      "         trigger: {pressure: 1.5 cmH2O}, waveform: decelerating, pressure_limit: 35 cmH2O}\n"
+      "effort: {rate: 16 /min, muscle_pressure: 4 cmH2O}\n"
+      "actions:\n"
+      "  - {at: 10 s, effort: {muscle_pressure: 2 cmH2O}}\n"
+      "  - {at: 20 s, mode: cpap_psv, pressure_support: 8 cmH2O, cycle: {flow: 30 %}, rise_time: 0.1 s}\n",
+      "p.yaml");
+  const auto cfg = pneuma::scenario::read_physiology(n, 60.0, "/nonexistent");
+  ASSERT_EQ(cfg.protocol.settings.size(), 3u);
+  const auto& vc = std::get<Assisted>(cfg.protocol.settings[0].driver);
+  EXPECT_EQ(vc.mode, AssistMode::volume);
+  EXPECT_EQ(vc.trigger, TriggerKind::pressure);
+  EXPECT_DOUBLE_EQ(vc.trigger_threshold, 1.5 * 98.0665);
+  EXPECT_EQ(vc.waveform, FlowWaveform::decelerating);
+  EXPECT_DOUBLE_EQ(vc.pressure_limit_pa, 35 * 98.0665);
+  EXPECT_DOUBLE_EQ(cfg.protocol.settings[0].effort.rate_hz, 16.0 / 60);
+  EXPECT_DOUBLE_EQ(cfg.protocol.settings[0].effort.ie_ratio, 0.5);  // default 1:2
+  // The effort patched key by key; the driver unchanged.
+  EXPECT_DOUBLE_EQ(cfg.protocol.settings[1].effort.amplitude_pa, 2 * 98.0665);
+  EXPECT_DOUBLE_EQ(cfg.protocol.settings[1].effort.rate_hz, 16.0 / 60);
+  EXPECT_TRUE(cfg.protocol.settings[1].driver == cfg.protocol.settings[0].driver);
+  // The switch keeps PEEP, the trigger and the (longest) inspiratory time; no backup rate.
+  const auto& ps = std::get<Assisted>(cfg.protocol.settings[2].driver);
+  EXPECT_EQ(ps.mode, AssistMode::pressure_support);
+  EXPECT_EQ(ps.rate_hz, 0.0);
+  EXPECT_DOUBLE_EQ(ps.peep_pa, 5 * 98.0665);
+  EXPECT_EQ(ps.trigger, TriggerKind::pressure);
+  EXPECT_DOUBLE_EQ(ps.inspiratory_pressure_pa, 8 * 98.0665);
+  EXPECT_EQ(ps.cycle, CycleKind::flow);
+  EXPECT_DOUBLE_EQ(ps.cycle_fraction, 0.3);
+  EXPECT_DOUBLE_EQ(ps.rise_time_s, 0.1);
+  EXPECT_DOUBLE_EQ(ps.inspiratory_time_s, 1.0);
+  // Defaults: a flow trigger at 2 L/min; pressure support cycles at 25 % within 3 s.
+  const Node d = Node::load_string("model: single\ncompliance: 0.05 L/cmH2O\nresistance: 10 cmH2O*s/L\n"
+                                   "driver: {mode: cpap_psv, pressure_support: 8 cmH2O}\n",
+                                   "d.yaml");
+  const auto& dp =
+      std::get<Assisted>(pneuma::scenario::read_physiology(d, 60.0, "/nonexistent").protocol.settings[0].driver);
+  EXPECT_EQ(dp.trigger, TriggerKind::flow);
+  EXPECT_DOUBLE_EQ(dp.trigger_threshold, 2e-3 / 60);
+  EXPECT_EQ(dp.cycle, CycleKind::flow);
+  EXPECT_DOUBLE_EQ(dp.cycle_fraction, 0.25);
+  EXPECT_DOUBLE_EQ(dp.inspiratory_time_s, 3.0);
+}

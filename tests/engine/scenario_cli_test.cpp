@@ -24,6 +24,23 @@ TEST(SimulateCli, ShippedScenariosRunAndWriteCsv) {
   }
 }
 
+TEST(SimulateCli, ShippedVentilatorScenariosArePatientTriggered) {
+  for (const char* name : {"ventilator-vc-ac", "ventilator-pc-ac", "ventilator-cpap-psv"}) {
+    TempDir dir;
+    const auto scenario = pneuma::test::source_dir() / "scenarios" / (std::string(name) + ".yaml");
+    const auto r = run_pneuma({"simulate", scenario.string(), "-o", (dir / "phys.csv").string()});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(r.err.empty()) << r.err;
+    EXPECT_GT(count_lines(dir / "phys.csv"), 6000);
+    const std::string breaths = pneuma::test::read_text(dir / "phys-breaths.csv");
+    EXPECT_NE(breaths.find(",trigger,trigger_delay_s,cycle,inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,"
+                           "intrinsic_peep_cmH2O,missed_triggers,double_trigger\n"),
+              std::string::npos)
+        << name;
+    EXPECT_NE(breaths.find(",patient_flow,"), std::string::npos) << name;
+  }
+}
+
 TEST(SimulateCli, VersionAndHelp) {
   auto r = run_pneuma({"--version"});
   EXPECT_EQ(r.exit_code, 0);
@@ -124,7 +141,7 @@ INSTANTIATE_TEST_SUITE_P(
                     "1:11: duration: expected a positive duration, got '-5 s'"},
         BadScenario{"unknown_key", "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  complience: 0.1 L/cmH2O\n",
                     "4:3: physiology.complience: unknown key; expected one of: actions, chest_wall_fraction, "
-                    "compartments, compliance, driver, model, output_rate, preset, pressure_volume_curve, "
+                    "compartments, compliance, driver, effort, model, output_rate, preset, pressure_volume_curve, "
                     "resistance, solver, transpulmonary_pressure_at_rest"},
         BadScenario{
             "unknown_preset", "duration: 20 s\nphysiology:\n  preset: healthy-martian\n",
@@ -149,6 +166,40 @@ INSTANTIATE_TEST_SUITE_P(
         BadScenario{"report_unknown_option",
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  report: {open: true}\n",
                     "5:12: outputs.report.open: unknown key; expected one of: enabled"},
+        BadScenario{
+            "trigger_threshold_zero",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+            "  driver: {mode: vc_ac, rate: 12 /min, tidal_volume: 450 mL, inspiratory_time: 1 s, trigger: {flow: 0 L/min}}\n",
+            "5:101: physiology.driver.trigger.flow: expected a positive flow, got '0 L/min'"},
+        BadScenario{
+            "trigger_wrong_unit",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+            "  driver: {mode: vc_ac, rate: 12 /min, tidal_volume: 450 mL, inspiratory_time: 1 s, trigger: {pressure: 2 L/min}}\n",
+            "5:105: physiology.driver.trigger.pressure: expected a pressure such as '5 cmH2O', got '2 L/min'"},
+        BadScenario{
+            "cycle_fraction_above_one",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+            "  driver: {mode: cpap_psv, pressure_support: 8 cmH2O, cycle: {flow: 120 %}}\n",
+            "5:69: physiology.driver.cycle.flow: expected a share of the peak flow above 0 and below 100 %, got '120 %'"},
+        BadScenario{
+            "pressure_limit_below_peep",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+            "  driver: {mode: vc_ac, rate: 12 /min, tidal_volume: 450 mL, inspiratory_time: 1 s, peep: 8 cmH2O, pressure_limit: 6 cmH2O}\n",
+            "5:116: physiology.driver.pressure_limit: expected a pressure limit above PEEP (8 cmH2O), got 6 cmH2O"},
+        BadScenario{
+            "pressure_limit_below_new_peep",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+            "  driver: {mode: vc_ac, rate: 12 /min, tidal_volume: 450 mL, inspiratory_time: 1 s}\n  actions:\n    - {at: 10 s, peep: 12 cmH2O, pressure_limit: 10 cmH2O}\n",
+            "7:50: physiology.actions[0].pressure_limit: expected a pressure limit above PEEP (12 cmH2O), got 10 cmH2O"},
+        BadScenario{"psv_has_no_backup_rate",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+                    "  driver: {mode: cpap_psv, pressure_support: 8 cmH2O, rate: 10 /min}\n",
+                    "5:61: physiology.driver.rate: not a setting of cpap_psv mode"},
+        BadScenario{
+            "effort_on_spontaneous",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+            "  driver: {mode: spontaneous, rate: 12 /min, ie_ratio: 1:2, muscle_pressure: 5 cmH2O}\n  effort: {rate: 15 /min, muscle_pressure: 4 cmH2O}\n",
+            "6:11: physiology.effort: a patient effort acts on a ventilated patient; spontaneous mode is the patient's own breathing"},
         BadScenario{"not_yaml", "duration: [20 s\n", "2:1: not valid YAML: end of sequence flow not found"}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 

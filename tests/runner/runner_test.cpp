@@ -130,7 +130,8 @@ TEST(Runner, GltfKeyframeEqualsTheExportedMeshAtTheSameTime) {
 }
 
 TEST(Runner, ShippedScenariosRunAtASmallResolution) {
-  for (const char* name : {"quiet-breathing", "ventilated-patient"}) {
+  for (const char* name :
+       {"quiet-breathing", "ventilated-patient", "ventilator-vc-ac", "ventilator-pc-ac", "ventilator-cpap-psv"}) {
     TempDir dir;
     const auto scenario = pneuma::test::source_dir() / "scenarios" / (std::string(name) + ".yaml");
     const auto r = run_pneuma({"run", scenario.string(), "-o", dir.path().string(), "--edge", "15mm", "--quiet"});

@@ -44,16 +44,27 @@ void write_breaths_csv(const std::filesystem::path& path, const physiology::Simu
   write_stream_atomically(path, false, [&](std::ostream& out) {
     out << "breath,start_s,duration_s,mode,tidal_volume_mL,minute_ventilation_L_per_min,peak_pressure_cmH2O,"
            "plateau_pressure_cmH2O,peep_cmH2O,dynamic_compliance_mL_per_cmH2O,end_expiratory_volume_mL,"
-           "muscle_amplitude_cmH2O,inspired_volume_mL,set_tidal_volume_mL\n";
+           "muscle_amplitude_cmH2O,inspired_volume_mL,set_tidal_volume_mL,trigger,trigger_delay_s,cycle,"
+           "inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,intrinsic_peep_cmH2O,missed_triggers,"
+           "double_trigger\n";
     for (std::size_t i = 0; i < result.breaths.size(); ++i) {
       const auto& b = result.breaths[i];
       const std::string set = b.set_tidal_volume_m3 > 0.0 ? fmt::format("{:.9g}", b.set_tidal_volume_m3 * kMl) : "";
-      out << fmt::format("{},{:.6f},{:.6f},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n",
-                         i + 1, b.start_s, b.duration_s, b.mode, b.tidal_volume_m3 * kMl,
+      out << fmt::format("{},{:.6f},{:.6f},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}", i + 1,
+                         b.start_s, b.duration_s, b.mode, b.tidal_volume_m3 * kMl,
                          b.minute_ventilation_m3_per_s * kLitre * 60.0, b.peak_pressure_pa * kCmH2O,
                          b.plateau_pressure_pa * kCmH2O, b.peep_pa * kCmH2O,
                          b.dynamic_compliance_m3_per_pa * kMl / kCmH2O, b.end_expiratory_volume_m3 * kMl,
                          b.muscle_amplitude_pa * kCmH2O, b.inspired_volume_m3 * kMl, set);
+      // Ventilator columns, empty for spontaneous breaths (and the delay for machine triggers);
+      // the trigger counts are 0 there.
+      const bool ventilated = *b.trigger != '\0';
+      const auto number = [&](double v) { return ventilated && v == v ? fmt::format("{:.9g}", v) : std::string(); };
+      out << fmt::format(",{},{},{},{},{},{:.9g},{},{},{}\n", b.trigger, number(b.trigger_delay_s), b.cycle,
+                         number(b.inspiratory_time_s),
+                         number(b.inspiratory_time_s / (b.duration_s - b.inspiratory_time_s)),
+                         b.mean_airway_pressure_pa * kCmH2O, number(b.intrinsic_peep_pa * kCmH2O), b.missed_triggers,
+                         b.double_triggered ? 1 : 0);
     }
   });
 }

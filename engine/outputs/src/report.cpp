@@ -1,5 +1,6 @@
 #include "pneuma/outputs/report.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
@@ -110,6 +111,8 @@ void add_series(Json& data, const physiology::SimulationResult& result, std::siz
   }};
   std::vector<std::string> pressure_keys;
   for (const auto& [name, values] : pressures) {
+    // A measured trace knows no pressures but the airway's (NaN): no curve rather than a false one.
+    if (std::none_of(values->begin(), values->end(), [](double p) { return std::isfinite(p); })) continue;
     const std::string key = std::string(name) + "_pressure_cmH2O";
     columns[key] = column(*values, kCmH2O, 4);
     labels[key] = name;

@@ -36,6 +36,19 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
                    (model.volume_map.volume(run.info.max_scale) - rest_volume) * 1e6)},
       {"field", run.field_reused ? "reused from cache" : "computed"},
   };
+  if (s.physiology.trace) {
+    // What the measured trace was and what was done to it (physiology/trace.h).
+    const physiology::Trace& trace = *s.physiology.trace;
+    const physiology::TraceReport& t = trace.report;
+    r.facts.emplace_back("breathing trace",
+                         fmt::format("{} ({} '{}'), {} samples, {} invalid, {} gap{}", trace.file.filename().string(),
+                                     physiology::signal_name(trace.signal), trace.column, t.samples, t.invalid_samples,
+                                     t.gaps, t.gaps == 1 ? "" : "s"));
+    if (trace.signal == physiology::TraceSignal::amplitude)
+      r.facts.emplace_back("trace calibration", fmt::format("{:.1f} mL per amplitude unit", t.scale_m3_per_unit * 1e6));
+    if (t.drift_m3_per_s != 0.0)
+      r.facts.emplace_back("trace drift removed", fmt::format("{:.1f} mL/min", t.drift_m3_per_s * 1e6 * 60.0));
+  }
   const physiology::SimulationResult& physiology = *run.physiology;
   if (!physiology.breaths.empty()) {
     double tidal = 0.0, minute = 0.0;

@@ -2,6 +2,7 @@
 
 #include "pneuma/outputs/frame_outputs.h"
 #include "pneuma/outputs/motion_csv.h"
+#include "pneuma/outputs/phases.h"
 #include "pneuma/outputs/physiology_csv.h"
 #include "pneuma/outputs/report.h"
 #include "pneuma/render/png_sink.h"
@@ -16,6 +17,7 @@ const std::vector<outputs::OutputPlugin>& output_registry() {
       render::png_output(),              // png/frame_NNNNN.png
       outputs::physiology_csv_output(),  // physiology.csv + physiology-breaths.csv
       outputs::motion_csv_output(),      // motion.csv
+      outputs::phases_output(),          // phases.csv + phases/bin_NN.ply (4D-CT bins; off by default)
       outputs::report_output(),          // report.html
   };
   return registry;

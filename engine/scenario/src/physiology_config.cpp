@@ -1,5 +1,9 @@
 #include "pneuma/scenario/physiology_config.h"
 
+#include <fmt/format.h>
+
+#include <cctype>
+#include <cstdio>
 #include <cstdlib>
 #include <optional>
 
@@ -14,7 +18,11 @@ using physiology::Driver;
 using physiology::Mechanics;
 namespace kind = units::kind;
 
-const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control"};
+const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control",
+                                      "vc_ac",       "pc_ac",          "cpap_psv"};
+// Accepted as `driver.mode` beside kModes, at t = 0 only (read_trace_driver).
+const std::vector<std::string> kModesWithTrace{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
+                                               "cpap_psv",    "trace"};
 const std::vector<std::string> kModels{"single", "two_compartment"};
 
 // Every driver setting by name, so an action can patch any of them and a mode switch can
@@ -22,15 +30,43 @@ const std::vector<std::string> kModels{"single", "two_compartment"};
 struct DriverFields {
   std::optional<double> rate, ie_ratio, inspiratory_time, tidal_volume, muscle_pressure, pause, peep,
       inspiratory_pressure;
+  // Assist modes.
+  std::optional<physiology::FlowWaveform> waveform;
+  std::optional<double> rise_time, pressure_limit, volume_limit, pressure_support;
+  std::optional<physiology::TriggerKind> trigger;
+  std::optional<double> trigger_threshold;
+  std::optional<physiology::CycleKind> cycle;
+  std::optional<double> cycle_fraction, cycle_volume;
 };
+
+bool is_assist(const std::string& mode) { return mode == "vc_ac" || mode == "pc_ac" || mode == "cpap_psv"; }
 
 DriverFields fields_of(const Driver& driver) {
   DriverFields f;
   std::visit(
       [&](const auto& d) {
         using T = std::decay_t<decltype(d)>;
-        f.rate = d.rate_hz;
-        if constexpr (std::is_same_v<T, physiology::Spontaneous>) {
+        if (d.rate_hz > 0.0) f.rate = d.rate_hz;
+        if constexpr (std::is_same_v<T, physiology::Assisted>) {
+          f.inspiratory_time = d.inspiratory_time_s;
+          f.peep = d.peep_pa;
+          f.trigger = d.trigger;
+          f.trigger_threshold = d.trigger_threshold;
+          if (d.mode == physiology::AssistMode::volume) {
+            f.tidal_volume = d.tidal_volume_m3;
+            f.pause = d.pause_time_s;
+            f.waveform = d.waveform;
+            if (d.pressure_limit_pa > 0.0) f.pressure_limit = d.pressure_limit_pa;
+          } else {
+            if (d.mode == physiology::AssistMode::pressure) f.inspiratory_pressure = d.inspiratory_pressure_pa;
+            else f.pressure_support = d.inspiratory_pressure_pa;
+            f.rise_time = d.rise_time_s;
+            f.cycle = d.cycle;
+            f.cycle_fraction = d.cycle_fraction;
+            if (d.cycle_volume_m3 > 0.0) f.cycle_volume = d.cycle_volume_m3;
+            if (d.volume_limit_m3 > 0.0) f.volume_limit = d.volume_limit_m3;
+          }
+        } else if constexpr (std::is_same_v<T, physiology::Spontaneous>) {
           f.ie_ratio = d.ie_ratio;
           if (d.target_tidal_volume_m3 > 0) f.tidal_volume = d.target_tidal_volume_m3;
           else f.muscle_pressure = d.amplitude_pa;
@@ -51,15 +87,63 @@ DriverFields fields_of(const Driver& driver) {
 
 // Which keys each mode takes ("ie_ratio" and "inspiratory_time" are alternatives).
 bool mode_takes(const std::string& mode, const std::string& key) {
-  if (key == "rate") return true;
+  if (key == "rate") return mode != "cpap_psv";
   if (mode == "spontaneous") return key == "ie_ratio" || key == "tidal_volume" || key == "muscle_pressure";
-  if (key == "ie_ratio" || key == "inspiratory_time" || key == "peep") return true;
+  if (key == "inspiratory_time" || key == "peep") return true;
+  if (key == "ie_ratio") return mode != "cpap_psv";
+  if (is_assist(mode) && key == "trigger") return true;
   if (mode == "volume_control") return key == "tidal_volume" || key == "pause";
-  return key == "inspiratory_pressure";
+  if (mode == "vc_ac") return key == "tidal_volume" || key == "pause" || key == "waveform" || key == "pressure_limit";
+  if (mode == "pressure_control") return key == "inspiratory_pressure";
+  const bool pressure_mode_key = key == "rise_time" || key == "cycle" || key == "volume_limit";
+  if (mode == "pc_ac") return key == "inspiratory_pressure" || pressure_mode_key;
+  return key == "pressure_support" || pressure_mode_key;  // cpap_psv
 }
 
 const std::vector<std::string> kDriverKeys{
-    "rate", "ie_ratio", "inspiratory_time", "tidal_volume", "muscle_pressure", "pause", "peep", "inspiratory_pressure"};
+    "rate",           "ie_ratio",     "inspiratory_time",     "tidal_volume", "muscle_pressure",
+    "pause",          "peep",         "inspiratory_pressure", "waveform",     "rise_time",
+    "pressure_limit", "volume_limit", "pressure_support",     "trigger",      "cycle"};
+
+// trigger: {flow: 2 L/min} or {pressure: 2 cmH2O}, a positive threshold.
+void read_trigger(const config::Node& n, DriverFields& f) {
+  const config::Node t = n.map("trigger");
+  const auto keys = t.keys();
+  if (keys.size() != 1) t.fail("expected one of flow (e.g. '2 L/min') or pressure (e.g. '2 cmH2O')");
+  if (keys[0] == "flow") {
+    f.trigger = physiology::TriggerKind::flow;
+    f.trigger_threshold = t.positive_quantity("flow", kind::flow);
+  } else if (keys[0] == "pressure") {
+    f.trigger = physiology::TriggerKind::pressure;
+    f.trigger_threshold = t.positive_quantity("pressure", kind::pressure);
+  } else {
+    t.fail_at(keys[0], "unknown trigger; expected flow (e.g. '2 L/min') or pressure (e.g. '2 cmH2O')");
+  }
+}
+
+// cycle: time, or {flow: 25 %} (a share of the peak inspiratory flow), or {volume: 500 mL}.
+void read_cycle(const config::Node& n, DriverFields& f) {
+  if (!n.is_map("cycle")) {
+    n.choice("cycle", {"time"});
+    f.cycle = physiology::CycleKind::time;
+    return;
+  }
+  const config::Node c = n.map("cycle");
+  const auto keys = c.keys();
+  if (keys.size() != 1) c.fail("expected time, or one of flow (e.g. '25 %') or volume (e.g. '500 mL')");
+  if (keys[0] == "flow") {
+    const double fraction = c.quantity("flow", kind::fraction);
+    if (!(fraction > 0.0 && fraction < 1.0))
+      c.fail_at("flow", "expected a share of the peak flow above 0 and below 100 %, got '" + c.string("flow") + "'");
+    f.cycle = physiology::CycleKind::flow;
+    f.cycle_fraction = fraction;
+  } else if (keys[0] == "volume") {
+    f.cycle = physiology::CycleKind::volume;
+    f.cycle_volume = c.positive_quantity("volume", kind::volume);
+  } else {
+    c.fail_at(keys[0], "unknown cycle; expected time, flow (e.g. '25 %') or volume (e.g. '500 mL')");
+  }
+}
 
 // Overlays the driver keys present in `n` on `f`, refusing keys the mode does not take.
 void overlay_driver(const config::Node& n, const std::string& mode, DriverFields& f) {
@@ -90,6 +174,29 @@ void overlay_driver(const config::Node& n, const std::string& mode, DriverFields
   if (auto v = n.optional_quantity("pause", kind::duration)) f.pause = v;
   if (auto v = n.optional_quantity("peep", kind::pressure)) f.peep = v;
   if (auto v = n.optional_quantity("inspiratory_pressure", kind::pressure)) f.inspiratory_pressure = v;
+  if (n.has("waveform")) {
+    f.waveform = n.choice("waveform", {"square", "decelerating"}) == "square" ? physiology::FlowWaveform::square
+                                                                              : physiology::FlowWaveform::decelerating;
+  }
+  if (auto v = n.optional_quantity("rise_time", kind::duration)) {
+    if (!(*v >= 0.0)) n.fail_at("rise_time", "expected a duration >= 0, got '" + n.string("rise_time") + "'");
+    f.rise_time = v;
+  }
+  if (n.has("pressure_limit")) f.pressure_limit = n.positive_quantity("pressure_limit", kind::pressure);
+  if (n.has("volume_limit")) f.volume_limit = n.positive_quantity("volume_limit", kind::volume);
+  if (auto v = n.optional_quantity("pressure_support", kind::pressure)) {
+    if (!(*v >= 0.0))
+      n.fail_at("pressure_support", "expected a pressure >= 0, got '" + n.string("pressure_support") + "'");
+    f.pressure_support = v;
+  }
+  if (n.has("trigger")) read_trigger(n, f);
+  if (n.has("cycle")) read_cycle(n, f);
+}
+
+std::string fmt_cmh2o(double pa) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%g", pa / units::pa_per_cmh2o);
+  return buffer;
 }
 
 double require(const config::Node& n, const std::optional<double>& value, const std::string& key,
@@ -98,9 +205,59 @@ double require(const config::Node& n, const std::optional<double>& value, const 
   return *value;
 }
 
+// An assist mode's driver from its fields; defaults: a flow trigger at 2 L/min, a square flow,
+// no rise time; pc_ac cycles on time, cpap_psv on flow at 25 % of the peak, with inspiration
+// at most 3 s.
+physiology::Assisted build_assisted(const config::Node& n, const std::string& mode, const DriverFields& f) {
+  physiology::Assisted a;
+  a.mode = mode == "vc_ac"   ? physiology::AssistMode::volume
+           : mode == "pc_ac" ? physiology::AssistMode::pressure
+                             : physiology::AssistMode::pressure_support;
+  const bool support = a.mode == physiology::AssistMode::pressure_support;
+  a.rate_hz = support ? 0.0 : require(n, f.rate, "rate", kind::rate);
+  a.peep_pa = f.peep.value_or(0.0);
+  if (f.inspiratory_time) a.inspiratory_time_s = *f.inspiratory_time;
+  else if (f.ie_ratio && !support) a.inspiratory_time_s = (1.0 / a.rate_hz) * *f.ie_ratio / (1.0 + *f.ie_ratio);
+  else if (support) a.inspiratory_time_s = 3.0;
+  else n.fail("missing key 'inspiratory_time' or 'ie_ratio' (expected a duration such as '1 s')");
+  a.trigger = f.trigger.value_or(physiology::TriggerKind::flow);
+  a.trigger_threshold = f.trigger_threshold.value_or(2.0 * units::m3_per_litre / 60.0);
+  if (a.mode == physiology::AssistMode::volume) {
+    a.tidal_volume_m3 = require(n, f.tidal_volume, "tidal_volume", kind::volume);
+    a.pause_time_s = f.pause.value_or(0.0);
+    a.waveform = f.waveform.value_or(physiology::FlowWaveform::square);
+    a.pressure_limit_pa = f.pressure_limit.value_or(0.0);
+    if (a.pressure_limit_pa > 0.0 && !(a.pressure_limit_pa > a.peep_pa)) {
+      const std::string what = "expected a pressure limit above PEEP (" + fmt_cmh2o(a.peep_pa) + " cmH2O), got " +
+                               fmt_cmh2o(a.pressure_limit_pa) + " cmH2O";
+      if (n.has("pressure_limit")) n.fail_at("pressure_limit", what);
+      if (n.has("peep")) n.fail_at("peep", what);
+      n.fail(what);
+    }
+  } else {
+    a.inspiratory_pressure_pa = support ? require(n, f.pressure_support, "pressure_support", kind::pressure)
+                                        : require(n, f.inspiratory_pressure, "inspiratory_pressure", kind::pressure);
+    a.rise_time_s = f.rise_time.value_or(0.0);
+    a.cycle = f.cycle.value_or(support ? physiology::CycleKind::flow : physiology::CycleKind::time);
+    a.cycle_fraction = f.cycle_fraction.value_or(0.25);
+    if (a.cycle == physiology::CycleKind::volume) a.cycle_volume_m3 = require(n, f.cycle_volume, "cycle", kind::volume);
+    a.volume_limit_m3 = f.volume_limit.value_or(0.0);
+  }
+  return a;
+}
+
 Driver build_driver(const config::Node& n, const std::string& mode, const DriverFields& f) {
-  const double rate = require(n, f.rate, "rate", kind::rate);
   Driver driver;
+  if (is_assist(mode)) {
+    driver = build_assisted(n, mode, f);
+    try {
+      physiology::validate(driver);
+    } catch (const ValueError& e) {
+      n.fail(e.what());
+    }
+    return driver;
+  }
+  const double rate = require(n, f.rate, "rate", kind::rate);
   if (mode == "spontaneous") {
     physiology::Spontaneous s;
     s.rate_hz = rate;
@@ -200,6 +357,30 @@ void overlay_mechanics(const config::Node& n, const std::string& model, Mechanic
   }
 }
 
+// effort: {rate, ie_ratio, muscle_pressure}: the patient's own effort on a ventilated patient,
+// patched key by key over `effort`.
+physiology::PatientEffort overlay_effort(const config::Node& n, physiology::PatientEffort effort,
+                                         const physiology::Driver& driver) {
+  auto e = n.optional_map("effort");
+  if (!e) return effort;
+  if (e->has("rate")) effort.rate_hz = e->positive_quantity("rate", kind::rate);
+  if (auto r = e->optional_ratio("ie_ratio")) {
+    if (!(*r > 0.0)) e->fail_at("ie_ratio", "expected a positive ratio such as '1:2'");
+    effort.ie_ratio = *r;
+  }
+  if (auto p = e->optional_quantity("muscle_pressure", kind::pressure)) {
+    if (!(*p >= 0.0))
+      e->fail_at("muscle_pressure", "expected a pressure >= 0, got '" + e->string("muscle_pressure") + "'");
+    effort.amplitude_pa = *p;
+  }
+  e->finish();
+  if (effort.active() && !(effort.rate_hz > 0.0)) e->fail("missing key 'rate' (expected a rate such as '15 /min')");
+  if (effort.active() && !physiology::is_ventilator(driver))
+    n.fail_at("effort",
+              "a patient effort acts on a ventilated patient; spontaneous mode is the patient's own breathing");
+  return effort;
+}
+
 config::Node with_preset(const config::Node& section, const std::filesystem::path& config_dir) {
   auto preset = section.optional_string("preset");
   if (!preset) return section;
@@ -216,6 +397,83 @@ config::Node with_preset(const config::Node& section, const std::filesystem::pat
   return section.with_fallback(config::Node::load_file(file));
 }
 
+// The keys of the lumped model, which a trace replaces.
+const std::vector<std::string> kLumpedKeys{"preset",
+                                           "model",
+                                           "compliance",
+                                           "pressure_volume_curve",
+                                           "resistance",
+                                           "compartments",
+                                           "transpulmonary_pressure_at_rest",
+                                           "chest_wall_fraction",
+                                           "actions",
+                                           "solver"};
+
+physiology::TraceSignal signal_from(const std::string& name) {
+  if (name == "flow") return physiology::TraceSignal::flow;
+  if (name == "amplitude") return physiology::TraceSignal::amplitude;
+  return physiology::TraceSignal::volume;
+}
+
+// `driver: {mode: trace, file: ..., ...}`: the file read and processed here, so that a bad trace
+// fails when the scenario is loaded. Errors in the file name the file and line; errors of the
+// keys name the scenario's key.
+physiology::Trace read_trace_driver(const config::Node& n, double duration_s) {
+  physiology::TraceOptions o;
+  const std::filesystem::path file = n.directory("file") / n.string("file");
+  if (!path_exists(file)) n.fail_at("file", "no such file: " + file.string());
+  std::string format = n.has("format") ? n.choice("format", {"auto", "csv", "rpm"}) : "auto";
+  if (format == "auto") {
+    std::string ext = file.extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    format = ext == ".vxp" ? "rpm" : "csv";
+  }
+  o.format = format == "rpm" ? physiology::TraceFormat::rpm : physiology::TraceFormat::csv;
+  if (n.has("signal")) {
+    o.signal = signal_from(n.choice("signal", {"volume", "flow", "amplitude"}));
+    if (o.format == physiology::TraceFormat::rpm && o.signal != physiology::TraceSignal::amplitude)
+      n.fail_at("signal", "an RPM file holds an amplitude");
+  }
+  if (n.has("column")) {
+    if (o.format == physiology::TraceFormat::rpm)
+      n.fail_at("column", "an RPM file has one amplitude column; 'column' is for CSV");
+    o.column = n.string("column");
+  }
+  if (n.has("detrend")) o.detrend = n.boolean("detrend", true);
+  o.invert = n.boolean("invert", false);
+  if (auto start = n.optional_quantity("start", kind::duration)) {
+    if (!(*start >= 0.0)) n.fail_at("start", "expected a time >= 0 s");
+    o.start_s = *start;
+  }
+  std::optional<config::Node> calibration = n.optional_map("calibration");
+  if (calibration) {
+    if (calibration->has("tidal_volume") == calibration->has("volume_per_unit"))
+      calibration->fail(
+          "expected one of 'tidal_volume' (such as '500 mL') or 'volume_per_unit' (the volume of one amplitude unit, such as '400 mL')");
+    if (calibration->has("tidal_volume"))
+      o.calibration.tidal_volume_m3 = calibration->positive_quantity("tidal_volume", kind::volume);
+    else o.calibration.volume_per_unit_m3 = calibration->positive_quantity("volume_per_unit", kind::volume);
+    calibration->finish();
+  }
+  n.finish();
+  const physiology::RawTrace raw = physiology::read_trace_file(file, o);
+  if (raw.signal == physiology::TraceSignal::amplitude && !calibration)
+    n.fail("an amplitude trace ('" + raw.column + "' of " + file.filename().string() +
+           ") needs 'calibration: {tidal_volume: 500 mL}' or 'calibration: {volume_per_unit: 400 mL}'");
+  if (raw.signal != physiology::TraceSignal::amplitude && calibration)
+    n.fail_at("calibration", std::string("only an amplitude trace is calibrated; this one holds a ") +
+                                 physiology::signal_name(raw.signal));
+  if (raw.signal != physiology::TraceSignal::amplitude && n.has("invert"))
+    n.fail_at("invert", "only an amplitude trace can be inverted");
+  physiology::Trace trace = physiology::process_trace(raw, o);
+  const double covered = trace.end_s() - trace.time_s.front() - o.start_s;
+  if (covered < duration_s - 1e-9) {
+    n.fail_at("file", fmt::format("the trace covers {:.6g} s{}, less than the scenario's duration of {:.6g} s",
+                                  std::max(covered, 0.0), o.start_s > 0.0 ? " after 'start'" : "", duration_s));
+  }
+  return trace;
+}
+
 }  // namespace
 
 std::filesystem::path default_config_dir() {
@@ -225,9 +483,20 @@ std::filesystem::path default_config_dir() {
 
 PhysiologyConfig read_physiology(const config::Node& raw_section, double duration_s,
                                  const std::filesystem::path& config_dir) {
-  const config::Node section = with_preset(raw_section, config_dir);
   PhysiologyConfig out;
   out.options.duration_s = duration_s;
+  if (auto driver = raw_section.optional_map("driver"); driver && driver->optional_string("mode") == "trace") {
+    for (const std::string& key : kLumpedKeys) {
+      if (raw_section.has(key)) raw_section.fail_at(key, "not used with a trace driver (the trace gives the volume)");
+    }
+    driver->accept("mode");
+    out.trace = read_trace_driver(*driver, duration_s);
+    out.options.output_rate_hz =
+        raw_section.has("output_rate") ? raw_section.positive_quantity("output_rate", kind::rate) : 100.0;
+    raw_section.finish();
+    return out;
+  }
+  const config::Node section = with_preset(raw_section, config_dir);
 
   // Mechanics at t = 0.
   const std::string model = section.has("model") ? section.choice("model", kModels) : "single";
@@ -248,12 +517,14 @@ PhysiologyConfig read_physiology(const config::Node& raw_section, double duratio
 
   // Driver at t = 0.
   const config::Node driver_node = section.map("driver");
-  const std::string mode = driver_node.choice("mode", kModes);
+  const std::string mode = driver_node.choice("mode", kModesWithTrace);
+  if (mode == "trace") driver_node.fail_at("mode", "a trace driver takes no preset");
   DriverFields fields;
   overlay_driver(driver_node, mode, fields);
   const Driver driver = build_driver(driver_node, mode, fields);
   driver_node.finish();
-  out.protocol.settings.push_back(physiology::Setting{0.0, mechanics, driver});
+  const physiology::PatientEffort effort = overlay_effort(section, {}, driver);
+  out.protocol.settings.push_back(physiology::Setting{0.0, mechanics, driver, effort});
 
   // Timed actions, each a patch over the setting before it.
   double previous_time = 0.0;
@@ -274,6 +545,10 @@ PhysiologyConfig read_physiology(const config::Node& raw_section, double duratio
       next.driver = build_driver(action, next_mode, f);
     }
     overlay_mechanics(action, model, next.mechanics, false);
+    if (action.has("effort") || driver_changed) next.effort = overlay_effort(action, next.effort, next.driver);
+    if (next.effort.active() && !physiology::is_ventilator(next.driver))
+      action.fail_at(action.has("mode") ? "mode" : "at",
+                     "a patient effort acts on a ventilated patient; set effort: {muscle_pressure: 0 cmH2O} first");
     action.finish();
     out.protocol.settings.push_back(next);
   }

@@ -191,6 +191,8 @@ physiology::SimulationResult simulate_physiology(const Scenario& s, std::optiona
   physiology::SimulationOptions options = s.physiology.options;
   if (output_rate_hz) options.output_rate_hz = *output_rate_hz;
   try {
+    if (s.physiology.trace)
+      return physiology::trace_result(*s.physiology.trace, options.duration_s, options.output_rate_hz);
     return physiology::simulate(s.physiology.protocol, options);
   } catch (const ValueError& e) {
     throw InputError(s.file.string() + ": physiology: " + e.what());

@@ -18,6 +18,7 @@ struct Spontaneous {
   double ie_ratio = 0.5;                // Ti / Te
   double amplitude_pa = 0.0;            // peak muscle pressure
   double target_tidal_volume_m3 = 0.0;  // > 0: the simulator finds the amplitude that gives it
+  bool operator==(const Spontaneous&) const = default;
 };
 
 // Volume control: constant inspiratory flow delivering the set tidal volume, an optional
@@ -28,6 +29,7 @@ struct VolumeControl {
   double inspiratory_time_s = 1.0;  // flow time + pause time
   double pause_time_s = 0.0;
   double peep_pa = 0.0;
+  bool operator==(const VolumeControl&) const = default;
 };
 
 // Pressure control: airway pressure PEEP + set pressure during inspiration (a square wave).
@@ -36,9 +38,68 @@ struct PressureControl {
   double inspiratory_pressure_pa = 0.0;  // above PEEP
   double inspiratory_time_s = 1.0;
   double peep_pa = 0.0;
+  bool operator==(const PressureControl&) const = default;
 };
 
-using Driver = std::variant<Spontaneous, VolumeControl, PressureControl>;
+// Assisted ventilation: every breath starts on a patient trigger, or on the backup timer when
+// none comes within 60 / rate of the last breath's start (VC-AC, PC-AC); CPAP with pressure
+// support has no backup: each breath is the patient's. During expiration the ventilator holds
+// PEEP and watches the patient:
+// - flow trigger: a bias flow keeps the airway at PEEP; the breath starts when the flow into
+//   the patient rises through the threshold;
+// - pressure trigger: the circuit is closed to inspiration (the expiratory valve only lets gas
+//   out), so once the patient pulls, the airway is occluded (no flow, Paw = recoil - Pmus);
+//   the breath starts when Paw falls the threshold below PEEP; Paw back above PEEP reopens
+//   the expiratory valve.
+// A trigger is armed by a crossing: a flow already above the threshold when expiration begins
+// does not trigger until it has fallen below it and risen again.
+enum class AssistMode { volume, pressure, pressure_support };  // VC-AC, PC-AC, CPAP + PSV
+enum class TriggerKind { flow, pressure };
+enum class CycleKind { time, flow, volume };
+enum class FlowWaveform { square, decelerating };  // decelerating: linear ramp from peak to 0
+
+struct Assisted {
+  AssistMode mode = AssistMode::volume;
+  double rate_hz = 0.2;             // backup rate; 0 for pressure support (no backup)
+  double peep_pa = 0.0;             // PEEP, or the CPAP level
+  double inspiratory_time_s = 1.0;  // time cycle; the longest inspiration when cycled on flow or volume
+  // Volume mode.
+  double tidal_volume_m3 = 0.0;
+  double pause_time_s = 0.0;  // end-inspiratory pause within inspiratory_time_s
+  FlowWaveform waveform = FlowWaveform::square;
+  double pressure_limit_pa = 0.0;  // absolute airway pressure that ends inspiration; 0: none
+  // Pressure modes.
+  double inspiratory_pressure_pa = 0.0;  // above PEEP (the support pressure in pressure support)
+  double rise_time_s = 0.0;              // Paw = PEEP + P (1 - exp(-3 t / rise)): 95 % of P at the rise time; 0: a step
+  CycleKind cycle = CycleKind::time;
+  double cycle_fraction = 0.25;  // flow cycle: end inspiration when flow falls to this share of its peak
+  double cycle_volume_m3 = 0.0;  // volume cycle: end inspiration when this volume is delivered
+  double volume_limit_m3 = 0.0;  // delivered volume that ends inspiration; 0: none
+  // Trigger.
+  TriggerKind trigger = TriggerKind::flow;
+  double trigger_threshold = 0.0;  // m^3/s into the patient (flow) or Pa below PEEP (pressure)
+  bool operator==(const Assisted&) const = default;
+};
+
+// The patient's own breathing effort on a ventilated patient: the spontaneous driver's muscle
+// pressure profile (half-cosine rise over Ti, relaxation over half of Te, rest), repeating at
+// its own rate from `anchor` (the time it was set), whatever the ventilator does.
+struct PatientEffort {
+  double rate_hz = 0.0;
+  double ie_ratio = 0.5;
+  double amplitude_pa = 0.0;  // 0: a passive patient
+  bool active() const { return amplitude_pa > 0.0; }
+  bool operator==(const PatientEffort&) const = default;
+};
+
+// Muscle pressure of an effort `t_s` seconds after its anchor, and its time derivative.
+double effort_pressure(const PatientEffort& effort, double t_s);
+double effort_pressure_rate(const PatientEffort& effort, double t_s);
+// The first boundary of the effort's profile (onset, end of rise, end of relaxation) strictly
+// after `t_s` (both relative to the anchor); infinity for a passive patient.
+double next_effort_boundary(const PatientEffort& effort, double t_s);
+
+using Driver = std::variant<Spontaneous, VolumeControl, PressureControl, Assisted>;
 
 struct Phase {
   double end_s = 0.0;  // offset from the breath's start
@@ -53,12 +114,17 @@ struct BreathPlan {
 
 // What the driver imposes at one instant.
 struct Drive {
-  bool flow_controlled = false;     // true: total flow is set, airway pressure follows
-  double flow_m3_per_s = 0.0;       // when flow_controlled
-  double airway_pressure_pa = 0.0;  // when pressure controlled
+  bool flow_controlled = false;                // true: total flow is set, airway pressure follows
+  double flow_m3_per_s = 0.0;                  // when flow_controlled
+  double airway_pressure_pa = 0.0;             // when pressure controlled
+  double airway_pressure_rate_pa_per_s = 0.0;  // its time derivative (pressure controlled)
   double muscle_pressure_pa = 0.0;
   double peep_pa = 0.0;
 };
+
+// The phases of an assisted breath (the `phase` of drive_at for an Assisted driver). Their ends
+// are events found during the integration (trigger, cycle, limit), not a fixed plan.
+enum AssistPhase : int { kAssistFlow = 0, kAssistPause, kAssistPressure, kAssistExpiration, kAssistOccluded };
 
 BreathPlan plan_breath(const Driver& driver);
 // The drive in `phase` at `t_in_breath` seconds after the breath's start.
@@ -69,5 +135,6 @@ const char* mode_name(const Driver& driver);
 
 // Throws ValueError naming the first setting that cannot work.
 void validate(const Driver& driver);
+void validate(const PatientEffort& effort);
 
 }  // namespace pneuma::physiology

@@ -66,6 +66,11 @@ void validate(const Mechanics& mechanics);
 double compartment_flows(const Mechanics& mechanics, double driving_pressure_pa, const double* volumes_m3,
                          double* flows_m3_per_s);
 
+// d(total flow)/dt when the driving pressure changes at `driving_pressure_rate` (Pa/s), at the
+// given volumes and compartment flows (those of compartment_flows).
+double flow_rate_of_change(const Mechanics& mechanics, double driving_pressure_rate_pa_per_s, const double* volumes_m3,
+                           const double* flows_m3_per_s);
+
 // The driving pressure that produces a prescribed total flow (volume control).
 double driving_pressure_for_flow(const Mechanics& mechanics, double total_flow_m3_per_s, const double* volumes_m3);
 

@@ -1,6 +1,7 @@
 #pragma once
 // Integrates the lung model over time with SUNDIALS CVODE (BDF) and reports volumes, flows,
 // pressures and per-breath metrics.
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -12,10 +13,13 @@ namespace pneuma::physiology {
 
 // Mechanics take effect at start_time_s; the driver from the first breath that starts at or
 // after it (a ventilator applies new settings at the next breath, not mid-breath).
+// The patient's effort, like the mechanics, acts from start_time_s (it is the patient's, not a
+// ventilator setting); its breaths repeat from the time it was last changed.
 struct Setting {
   double start_time_s = 0.0;
   Mechanics mechanics;
   Driver driver;
+  PatientEffort effort{};  // only with a ventilator driver
 };
 
 // The whole timeline: settings[0] starts at 0, the rest in increasing start time.
@@ -62,6 +66,15 @@ struct BreathMetrics {
   double dynamic_compliance_m3_per_pa = 0.0;  // VT / (max(Paw + Pmus) - PEEP)
   double end_expiratory_volume_m3 = 0.0;
   double muscle_amplitude_pa = 0.0;  // the spontaneous driver's amplitude in this breath
+  // Ventilator breaths (empty or NaN for spontaneous ones).
+  const char* trigger = "";  // what started the breath: "time", "patient_flow", "patient_pressure"
+  double trigger_delay_s = std::numeric_limits<double>::quiet_NaN();  // effort onset to trigger (patient triggers)
+  const char* cycle = "";  // what ended inspiration: "time", "flow", "volume", "pressure_limit", "volume_limit"
+  double inspiratory_time_s = 0.0;       // inspiratory phases, pause included
+  double mean_airway_pressure_pa = 0.0;  // airway pressure averaged over the breath
+  double intrinsic_peep_pa = 0.0;  // end-expiratory hold pressure minus set PEEP: recoil of the end-expiratory volume
+  int missed_triggers = 0;         // patient efforts starting in this breath that triggered nothing
+  bool double_triggered = false;   // triggered by the same effort as the breath before
 };
 
 struct SolverStats {

@@ -14,17 +14,35 @@
 //     output_rate: 100 Hz
 //     solver: {relative_tolerance: 1e-8, absolute_tolerance: 1e-9 L, max_step: 0.05 s}
 //
+// or a measured trace instead of the lumped model (physiology/trace.h; no preset, mechanics or
+// actions then: the trace gives the volume):
+//   physiology:
+//     driver:
+//       mode: trace
+//       file: patient.vxp            # .vxp: Varian RPM; else CSV with a header (Pulse's too)
+//       format: auto                 # auto (by extension) | csv | rpm
+//       signal: amplitude            # volume | flow | amplitude (CSV: default, the column found)
+//       column: TotalLungVolume(mL)  # CSV: the column to use (default: found by its name)
+//       calibration: {tidal_volume: 500 mL}   # amplitude: or {volume_per_unit: 400 mL}
+//       detrend: true                # default: false for volume, true for flow and amplitude
+//       invert: false                # amplitude: the marker moves down on inspiration
+//       start: 0 s                   # the trace's time that becomes the run's 0 s
+//     output_rate: 100 Hz
+//
 // Every error is one line naming the file, line:column and key path.
 #include <filesystem>
+#include <optional>
 
 #include "pneuma/config/config.h"
 #include "pneuma/physiology/simulate.h"
+#include "pneuma/physiology/trace.h"
 
 namespace pneuma::scenario {
 
 struct PhysiologyConfig {
-  physiology::Protocol protocol;
-  physiology::SimulationOptions options;  // duration comes from the scenario
+  physiology::Protocol protocol;           // empty when `trace` is set
+  std::optional<physiology::Trace> trace;  // a measured trace, read and processed at load time
+  physiology::SimulationOptions options;   // duration comes from the scenario
 };
 
 // `section` is the scenario's physiology mapping; `config_dir` is where named presets live.
