@@ -12,7 +12,9 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/interrupt.h"
 
-int main(int argc, char** argv) {
+namespace {
+
+int run(int argc, char** argv) {
   // Ctrl-C and SIGTERM remove half-written files and stages, then exit 130 / 143.
   pneuma::install_interrupt_handlers();
 
@@ -63,4 +65,19 @@ int main(int argc, char** argv) {
     return static_cast<int>(pneuma::ExitCode::failure);
   }
   return 0;
+}
+
+}  // namespace
+
+// Whatever escapes run() (setting up the command line, not running a command) is still one line
+// and an exit code, never std::terminate.
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "pneuma: internal error: %s\n", e.what());
+  } catch (...) {
+    std::fprintf(stderr, "pneuma: internal error: unknown exception\n");
+  }
+  return static_cast<int>(pneuma::ExitCode::failure);
 }

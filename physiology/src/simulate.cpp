@@ -209,7 +209,7 @@ class Simulation {
         }
         if (!complete) break;
         if (plan.phases[static_cast<std::size_t>(p)].inspiratory &&
-            (p + 1 == plan.count || !plan.phases[static_cast<std::size_t>(p + 1)].inspiratory)) {
+            (p + 1 == plan.count || !plan.phases[static_cast<std::size_t>(p) + 1].inspiratory)) {
           end_inspiration_volume = total(y.data(), n_);
           breath.plateau_pressure_pa = alveolar_pressure(*context_.mechanics, last.airway_pressure, last.flow);
           if (is_ventilator(driver)) breath.inspiratory_time_s = plan.phases[static_cast<std::size_t>(p)].end_s;

@@ -59,7 +59,8 @@ void register_errors(py::module_& m) {
   py::tuple value_bases = py::make_tuple(py::handle(error_types.error), py::handle(PyExc_ValueError));
   error_types.value = new_error_type(
       m, "ValueError", "A value a function cannot take (exit code 3); also a builtin ValueError.", value_bases.ptr());
-  py::register_exception_translator([](std::exception_ptr p) {
+  // pybind11 takes a plain function pointer with exactly this signature (exception_ptr by value).
+  py::register_exception_translator([](std::exception_ptr p) {  // NOLINT(performance-unnecessary-value-param)
     if (!p) return;
     try {
       std::rethrow_exception(p);

@@ -47,7 +47,7 @@ YAML::Node to_yaml(const py::handle& value, const std::string& path) {
                                      path.empty() ? "scenario" : path, py::repr(key).cast<std::string>()));
       }
       const std::string name = key.cast<std::string>();
-      map[name] = to_yaml(item, path.empty() ? name : path + "." + name);
+      map[name] = to_yaml(item, path.empty() ? name : fmt::format("{}.{}", path, name));
     }
     return map;
   }
@@ -381,7 +381,7 @@ void register_scenario(py::module_& m) {
   py::class_<Animation>(m, "Animation",
                         "A scenario's frames in memory, as `pneuma run` makes them (physiology at the frame rate, "
                         "the field, the volume-to-scale map), without writing outputs.")
-      .def(py::init([](const py::handle& scenario, std::optional<std::filesystem::path> output_dir,
+      .def(py::init([](const py::handle& scenario, const std::optional<std::filesystem::path>& output_dir,
                        std::optional<double> edge_m) {
              if (edge_m && !(*edge_m > 0.0)) {
                throw ValueError(fmt::format("edge_m: expected a positive length, got {}", *edge_m));

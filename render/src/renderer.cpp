@@ -292,7 +292,8 @@ bool faces_away_throughout(const std::array<Eigen::Vector3d, 3>& p, const std::a
   }
   const Eigen::Vector3d e1 = p[1] - p[0], e2 = p[2] - p[0], f1 = u[1] - u[0], f2 = u[2] - u[0];
   const Eigen::Vector3d n0 = e1.cross(e2), n1 = e1.cross(f2) + f1.cross(e2), n2 = f1.cross(f2);
-  const Eigen::Vector3d a0 = p[0] - eye, a1 = u[0];
+  const Eigen::Vector3d a0 = p[0] - eye;
+  const Eigen::Vector3d& a1 = u[0];
   const double c0 = a0.dot(n0), c1 = a0.dot(n1) + a1.dot(n0), c2 = a0.dot(n2) + a1.dot(n1), c3 = a1.dot(n2);
   auto g = [&](double x) { return c0 + x * (c1 + x * (c2 + x * c3)); };
   double lowest = std::min(g(s.min), g(s.max));
@@ -435,9 +436,10 @@ struct Renderer::Impl {
                     GL_STATIC_DRAW);
     for (GLuint attribute = 0; attribute < 5; ++attribute) {
       gl().EnableVertexAttribArray(attribute);
-      gl().VertexAttribPointer(
-          attribute, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex),
-          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(attribute * 3 * sizeof(float))));
+      // GL takes the attribute's offset in the bound buffer as a pointer.
+      const std::uintptr_t offset = std::uintptr_t{attribute} * 3 * sizeof(float);
+      gl().VertexAttribPointer(attribute, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex),
+                               reinterpret_cast<const void*>(offset));  // NOLINT(performance-no-int-to-ptr): GL's API
     }
     gl().GenBuffers(1, &index_buffer);
     gl().BindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);

@@ -12,7 +12,7 @@ namespace pneuma::test {
 
 // The 8 symmetries of a side x side lattice (dihedral group D4), as vertex maps.
 inline std::vector<std::vector<std::uint32_t>> lattice_symmetries(std::uint32_t side) {
-  std::vector<std::vector<std::uint32_t>> maps(8, std::vector<std::uint32_t>(side * side));
+  std::vector<std::vector<std::uint32_t>> maps(8, std::vector<std::uint32_t>(std::size_t{side} * side));
   const std::uint32_t e = side - 1;
   for (std::uint32_t r = 0; r < side; ++r) {
     for (std::uint32_t c = 0; c < side; ++c) {

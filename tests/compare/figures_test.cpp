@@ -64,7 +64,7 @@ TEST(Table1, CountedOperationsGrowLinearlyInN) {
 TEST(Figure6, MatchedMassSpringAgreesAndTheFieldIsNormalisedAtThePush) {
   const ReproductionOptions o = quick_reproduction_options();
   const FigureOutput f = figure6(o);
-  ASSERT_EQ(f.rows.size(), std::size_t{o.grid_side * o.grid_side});
+  ASSERT_EQ(f.rows.size(), std::size_t{o.grid_side} * o.grid_side);
   const std::size_t centre = (o.grid_side / 2) * o.grid_side + o.grid_side / 2;
   EXPECT_EQ(cell(f, centre, "proposed"), 1.0);
   EXPECT_EQ(cell(f, centre, "mass_spring_clamped"), 1.0);

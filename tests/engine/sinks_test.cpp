@@ -6,7 +6,9 @@
 #include <hdf5.h>
 #include <tiny_gltf.h>
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <fmt/format.h>

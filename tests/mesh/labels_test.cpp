@@ -7,10 +7,10 @@
 #include <numbers>
 
 #include "nifti_fixture.h"
-#include "pneuma/mesh/geometry/validate.h"
-#include "pneuma/mesh/io/mesh_io.h"
-#include "pneuma/mesh/labels/labels.h"
-#include "pneuma/mesh/repair/remesh.h"
+#include "pneuma/mesh/io.h"
+#include "pneuma/mesh/labels.h"
+#include "pneuma/mesh/remesh.h"
+#include "pneuma/mesh/validate.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;
@@ -25,7 +25,10 @@ constexpr double kPi = std::numbers::pi;
 struct Volume {
   std::array<int, 3> size;
   std::vector<std::int16_t> labels;
-  std::int16_t& at(int i, int j, int k) { return labels[static_cast<std::size_t>(i + size[0] * (j + size[1] * k))]; }
+  std::int16_t& at(int i, int j, int k) {
+    const auto z = [](int v) { return static_cast<std::size_t>(v); };
+    return labels[z(i) + z(size[0]) * (z(j) + z(size[1]) * z(k))];
+  }
 };
 
 Volume empty_volume(std::array<int, 3> size) {

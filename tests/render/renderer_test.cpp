@@ -281,8 +281,8 @@ std::string file_bytes(const std::filesystem::path& path) {
 TEST(PngFrameSink, ThreadedEncodingGivesTheSameBytesAtAnyThreadCount) {
   const auto lung = make_lung_stand_in(3);
   test::TempDir dir;
-  std::vector<double> scales;
-  for (int k = 0; k < 12; ++k) scales.push_back(k / 11.0);
+  std::vector<double> scales(12);
+  for (std::size_t k = 0; k < scales.size(); ++k) scales[k] = static_cast<double>(k) / 11.0;
   const auto one = write_sequence(lung, dir / "one", scales, 1);
   const auto four = write_sequence(lung, dir / "four", scales, 4);
   ASSERT_EQ(one.size(), scales.size());

@@ -36,7 +36,7 @@ TempDir::~TempDir() {
 }
 
 std::filesystem::path TempDir::write(const std::string& name, const std::string& text) const {
-  const auto p = path_ / name;
+  auto p = path_ / name;
   std::filesystem::create_directories(p.parent_path());
   std::ofstream(p, std::ios::binary) << text;
   return p;
@@ -72,6 +72,7 @@ pid_t spawn(const std::string& program, const std::vector<std::string>& args, co
   std::vector<std::string> storage{program};
   storage.insert(storage.end(), args.begin(), args.end());
   std::vector<char*> argv;
+  argv.reserve(storage.size() + 1);
   for (auto& s : storage) argv.push_back(s.data());
   argv.push_back(nullptr);
   pid_t pid = 0;
@@ -115,7 +116,7 @@ std::filesystem::path find_program(const std::vector<std::string>& names) {
   std::stringstream dirs(path ? path : "/usr/bin:/bin");
   for (std::string dir; std::getline(dirs, dir, ':');) {
     for (const auto& name : names) {
-      const auto candidate = std::filesystem::path(dir.empty() ? "." : dir) / name;
+      auto candidate = std::filesystem::path(dir.empty() ? "." : dir) / name;
       if (access(candidate.c_str(), X_OK) == 0) return candidate;
     }
   }

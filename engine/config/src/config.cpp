@@ -190,7 +190,7 @@ std::optional<std::string> Node::optional_string(const std::string& key) const {
 }
 
 std::string Node::choice(const std::string& key, const std::vector<std::string>& choices) const {
-  const std::string value = scalar(key, ("expected one of: " + join(choices)).c_str());
+  std::string value = scalar(key, ("expected one of: " + join(choices)).c_str());
   for (const auto& c : choices) {
     if (c == value) return value;
   }
@@ -279,8 +279,11 @@ void Node::finish() const {
 }
 
 Node Node::with_fallback(const Node& fallback) const {
-  std::vector<Layer> layers = layers_;
-  layers.insert(layers.end(), fallback.layers_.begin(), fallback.layers_.end());
+  std::vector<Layer> layers;
+  layers.reserve(layers_.size() + fallback.layers_.size());
+  for (const auto* from : {&layers_, &fallback.layers_}) {
+    for (const Layer& layer : *from) layers.push_back(layer);
+  }
   return Node(std::move(layers), path_);
 }
 

@@ -74,7 +74,7 @@ std::filesystem::path write_manifest(const std::filesystem::path& output_dir, co
   nlohmann::ordered_json timings = nlohmann::ordered_json::object();
   for (const auto& [stage, seconds] : input.timings_s) timings[stage] = seconds;
   j["timings_s"] = timings;
-  const auto path = output_dir / "manifest.json";
+  auto path = output_dir / "manifest.json";
   write_stream_atomically(path, false, [&](std::ostream& out) { out << j.dump(2) << '\n'; });
   return path;
 }

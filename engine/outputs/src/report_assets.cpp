@@ -8,6 +8,7 @@
 #include "report_assets.h"
 
 // Defines <name> and <name>_end around the bytes of `file` in .rodata, plus a NUL after them.
+// NOLINTBEGIN(bugprone-macro-parentheses): `name` is an identifier (a symbol, a declarator), never an expression
 #define PNEUMA_EMBED(name, file)                \
   asm(".pushsection .rodata\n"                  \
       ".balign 16\n"                            \
@@ -20,6 +21,7 @@
       ".popsection\n");                         \
   extern "C" const char name[];                 \
   extern "C" const char name##_end[];
+// NOLINTEND(bugprone-macro-parentheses)
 
 PNEUMA_EMBED(pneuma_report_page, PNEUMA_REPORT_PAGE)
 PNEUMA_EMBED(pneuma_report_script, PNEUMA_REPORT_SCRIPT)
@@ -27,7 +29,7 @@ PNEUMA_EMBED(pneuma_report_three, PNEUMA_THREE_JS)
 PNEUMA_EMBED(pneuma_report_gltf_loader, PNEUMA_THREE_GLTF_LOADER_JS)
 PNEUMA_EMBED(pneuma_report_orbit_controls, PNEUMA_THREE_ORBIT_CONTROLS_JS)
 
-namespace pneuma::outputs::detail {
+namespace pneuma::engine::detail {
 namespace {
 
 std::string_view span(const char* begin, const char* end) { return {begin, static_cast<std::size_t>(end - begin)}; }
@@ -45,4 +47,4 @@ const ReportAssets& report_assets() {
   return assets;
 }
 
-}  // namespace pneuma::outputs::detail
+}  // namespace pneuma::engine::detail

@@ -235,7 +235,7 @@ class Legacy {
     return static_cast<double>(v);
   }
   double number(const std::string& type_name) {
-    const std::string t = type_name;
+    const std::string& t = type_name;
     if (binary_) {
       if (!binary_started_) to_binary_block();
       if (t == "float") return big_endian<float>();

@@ -131,10 +131,10 @@ void write_stl(std::ostream& out, const TriangleMesh& mesh, double unit, bool as
   if (ascii) {
     b.text("solid pneuma unit " + unit_label(unit) + "\n");
   } else {
-    char header[80] = {};
-    const std::string text = "binary STL written by pneuma, unit " + unit_label(unit);
-    std::memcpy(header, text.data(), std::min(text.size(), sizeof header));
-    b.text(std::string_view(header, sizeof header));
+    // The 80-byte header: the text, cut or padded with NULs (not a C string).
+    std::string header = "binary STL written by pneuma, unit " + unit_label(unit);
+    header.resize(80, '\0');
+    b.text(header);
     b.binary(static_cast<std::uint32_t>(mesh.triangles.size()));
   }
   for (const Triangle& t : mesh.triangles) {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace pneuma::mesh::detail {
 namespace {
@@ -50,7 +51,8 @@ VoxelRebuild rebuild_through_voxels(const TriangleMesh& mesh, const std::string&
   std::vector<std::size_t> first(row_count + 1, 0);
   std::vector<std::array<std::size_t, 4>> spans(mesh.triangle_count());  // j0, j1, k0, k1 (inclusive, or empty)
   for (std::size_t f = 0; f < mesh.triangle_count(); ++f) {
-    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    double lo[2] = {inf, inf}, hi[2] = {-inf, -inf};
     for (std::uint32_t v : mesh.triangles[f]) {
       for (int a = 0; a < 2; ++a) {
         const double r = row_of(mesh.vertices[v][a + 1], a == 0 ? kRowOffsetY : kRowOffsetZ, a + 1);

@@ -12,6 +12,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pneuma/core/units.h"
@@ -81,6 +82,17 @@ class Node {
 
  private:
   struct Layer {
+    Layer(const YAML::Node& node_, std::shared_ptr<const std::string> file_,
+          std::shared_ptr<std::set<std::string>> read_keys_)
+        : node(node_), file(std::move(file_)), read_keys(std::move(read_keys_)) {}
+    Layer(const Layer&) = default;
+    Layer(Layer&&) = default;
+    // Not assignable: YAML::Node's operator= does not rebind a handle, it makes the node the
+    // handle points to (shared with every other handle on it) refer to another node, and may
+    // throw. So a Node, a list of layers, is copied but never assigned.
+    Layer& operator=(const Layer&) = delete;
+    Layer& operator=(Layer&&) = delete;
+
     YAML::Node node;
     std::shared_ptr<const std::string> file;
     std::shared_ptr<std::set<std::string>> read_keys;
