@@ -11,8 +11,8 @@ Model make_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_disp
   mesh::RegionOptions region_options;
   region_options.axes = axes;
   mesh::SurfaceRegions regions = known_regions ? *known_regions : mesh::find_regions(rest, region_options);
-  return Model{std::move(rest), std::move(normals), area, std::move(regions), std::move(unit_displacement),
-               area_unit_m2,    std::move(map)};
+  return Model{
+      std::move(rest), std::move(normals), area, std::move(regions), std::move(unit_displacement), area_unit_m2, map};
 }
 
 }  // namespace pneuma::model
