@@ -7,10 +7,10 @@
 #include <numbers>
 
 #include "nifti_fixture.h"
-#include "pneuma/mesh/io.h"
-#include "pneuma/mesh/labels.h"
-#include "pneuma/mesh/remesh.h"
-#include "pneuma/mesh/validate.h"
+#include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/mesh/repair/remesh.h"
 #include "test_support.h"
 
 using namespace pneuma::mesh;

@@ -29,7 +29,7 @@ PNEUMA_EMBED(pneuma_report_three, PNEUMA_THREE_JS)
 PNEUMA_EMBED(pneuma_report_gltf_loader, PNEUMA_THREE_GLTF_LOADER_JS)
 PNEUMA_EMBED(pneuma_report_orbit_controls, PNEUMA_THREE_ORBIT_CONTROLS_JS)
 
-namespace pneuma::engine::detail {
+namespace pneuma::outputs::detail {
 namespace {
 
 std::string_view span(const char* begin, const char* end) { return {begin, static_cast<std::size_t>(end - begin)}; }
@@ -47,4 +47,4 @@ const ReportAssets& report_assets() {
   return assets;
 }
 
-}  // namespace pneuma::engine::detail
+}  // namespace pneuma::outputs::detail
