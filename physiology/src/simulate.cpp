@@ -460,8 +460,17 @@ class Simulation {
   }
 
   // Missed triggers (efforts that started in a breath and triggered nothing) and double
-  // triggers (two breaths from one effort), from the efforts' onsets and the trigger times.
+  // triggers (two breaths from one effort), from the efforts' onsets and the trigger times
+  // (both in increasing order: binary searches, so an hour of breaths costs milliseconds).
   void count_triggers(SimulationResult& result) const {
+    const auto& triggers = patient_triggers_;
+    auto& breaths = result.breaths;
+    // A patient-triggered breath whose effort (onset = start - delay) triggered a breath before it.
+    for (BreathMetrics& b : breaths) {
+      if (!(b.trigger_delay_s == b.trigger_delay_s)) continue;  // no effort behind this breath
+      const auto first = std::lower_bound(triggers.begin(), triggers.end(), b.start_s - b.trigger_delay_s);
+      b.double_triggered = first != triggers.end() && *first < b.start_s;
+    }
     const double end = options_.duration_s;
     for (std::size_t s = 0; s < protocol_.settings.size(); ++s) {
       const PatientEffort& e = protocol_.settings[s].effort;
@@ -473,19 +482,14 @@ class Simulation {
         const double onset = anchor + k * period;
         if (onset >= to) break;
         const double effort_end = std::min(onset + period, to);
-        std::size_t triggers = 0;
-        for (double tr : patient_triggers_) triggers += (tr >= onset && tr < effort_end) ? 1 : 0;
-        for (auto& b : result.breaths) {
-          const bool contains_onset = onset >= b.start_s && onset < b.start_s + b.duration_s;
-          if (triggers == 0 && contains_onset) ++b.missed_triggers;
-          // Every breath after the first one this effort triggered is a double trigger.
-          if (b.trigger_delay_s == b.trigger_delay_s && b.start_s > onset && b.start_s < effort_end &&
-              std::string(b.trigger) != "time") {
-            bool earlier = false;
-            for (double tr : patient_triggers_) earlier = earlier || (tr >= onset && tr < b.start_s);
-            b.double_triggered = b.double_triggered || earlier;
-          }
-        }
+        const auto first = std::lower_bound(triggers.begin(), triggers.end(), onset);
+        if (first != triggers.end() && *first < effort_end) continue;  // it triggered
+        // The breath that holds the onset, if any (breaths tile time from the first one).
+        const auto after = std::upper_bound(breaths.begin(), breaths.end(), onset,
+                                            [](double t, const BreathMetrics& b) { return t < b.start_s; });
+        if (after == breaths.begin()) continue;
+        BreathMetrics& holder = *std::prev(after);
+        if (onset < holder.start_s + holder.duration_s) ++holder.missed_triggers;
       }
     }
   }

@@ -342,3 +342,65 @@ TEST(Report, RendersInHeadlessChromiumAtTwoTimes) {
     }
   }
 }
+
+// A ventilated run carries the breaths' bounds for the pressure-volume and flow-volume loops
+// (a spontaneous one does not), and the page draws them without an error.
+TEST(Report, VentilatedRunsDrawTheLoopsOfTheBreathUnderTheCursor) {
+  TempDir dir;
+  const auto out = dir / "out";
+  const auto scenario = dir.write("v.yaml", R"(duration: 8 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 12 mm, share: 55 %}
+field: {tissue: healthy-upright}
+physiology:
+  compliance: 0.05 L/cmH2O
+  resistance: 10 cmH2O*s/L
+  driver: {mode: vc_ac, rate: 15 /min, tidal_volume: 450 mL, inspiratory_time: 1 s, pause: 0.2 s, peep: 5 cmH2O}
+  effort: {rate: 20 /min, muscle_pressure: 5 cmH2O}
+outputs: {hdf5: false}
+)");
+  ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", out.string(), "--quiet"}).exit_code, 0);
+  const Page page = read_page(out / "report.html");
+  ASSERT_TRUE(page.data.contains("loops"));
+  std::stringstream csv(read_text(out / "physiology-breaths.csv"));
+  std::string line;
+  std::getline(csv, line);
+  std::vector<double> starts, ends;
+  while (std::getline(csv, line)) {
+    std::stringstream cells(line);
+    std::string breath, start, duration;
+    std::getline(cells, breath, ',');
+    std::getline(cells, start, ',');
+    std::getline(cells, duration, ',');
+    starts.push_back(std::stod(start));
+    ends.push_back(std::stod(start) + std::stod(duration));
+  }
+  const auto& bounds = page.data["loops"]["breath_starts"];
+  ASSERT_EQ(bounds.size(), starts.size() + 1);
+  for (std::size_t i = 0; i < starts.size(); ++i) EXPECT_NEAR(bounds[i].get<double>(), starts[i], 1e-6) << i;
+  EXPECT_NEAR(bounds.back().get<double>(), ends.back(), 2e-6);
+
+  const auto quiet = dir / "quiet";
+  ASSERT_EQ(run_pneuma(
+                {"run", dir.write("s.yaml", small_scenario("{hdf5: false}")).string(), "-o", quiet.string(), "--quiet"})
+                .exit_code,
+            0);
+  EXPECT_FALSE(read_page(quiet / "report.html").data.contains("loops"));
+
+  const auto chromium = pneuma::test::find_program({"chromium", "chromium-browser"});
+  if (chromium.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
+  const auto url = "file://" + std::filesystem::absolute(out / "report.html").string() + "#selftest=1.5,6";
+  const auto r = pneuma::test::run_program(
+      "/usr/bin/timeout",
+      {"120", chromium.string(), "--headless=new", "--no-sandbox", "--no-first-run", "--disable-gpu",
+       "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--user-data-dir=" + (dir / "profile").string(),
+       "--window-size=1280,900", "--virtual-time-budget=15000", "--enable-logging=stderr", "--v=0", "--dump-dom", url});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string text = between(r.out, R"(<pre id="selftest">)", "</pre>");
+  ASSERT_FALSE(text.empty()) << r.out.substr(0, 2000);
+  ASSERT_NE(text, "pending") << "the page never finished loading\n" << r.err;
+  EXPECT_EQ(nlohmann::json::parse(text)["errors"], 0) << text;
+  EXPECT_NE(r.out.find("Pressure-volume loop"), std::string::npos);
+  std::stringstream log(r.err);
+  for (std::string l; std::getline(log, l);) EXPECT_EQ(l.find("Uncaught"), std::string::npos) << l;
+}

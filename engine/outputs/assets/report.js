@@ -233,6 +233,81 @@
     plotsRoot.appendChild(p.root);
     return p;
   });
+  // ---- loops (ventilated runs): pressure-volume and flow-volume of the breath under the cursor ----
+  function Loop(title, xKey, xUnit, yKey, yUnit, starts) {
+    var self = this;
+    this.xs = series.columns[xKey]; this.ys = series.columns[yKey]; this.starts = starts;
+    this.root = el('div', { 'class': 'loop' });
+    this.root.appendChild(el('div', { 'class': 'head' }, title));
+    this.canvas = el('canvas', { 'aria-label': title });
+    this.root.appendChild(this.canvas);
+    function range(v) {
+      var lo = Infinity, hi = -Infinity;
+      for (var i = 0; i < v.length; ++i) { lo = Math.min(lo, v[i]); hi = Math.max(hi, v[i]); }
+      if (!(hi > lo)) { lo -= 1; hi += 1; }
+      var pad = 0.06 * (hi - lo);
+      return [lo - pad, hi + pad];
+    }
+    this.xr = range(this.xs); this.yr = range(this.ys);
+    this.xUnit = xUnit; this.yUnit = yUnit;
+  }
+  Loop.prototype.layout = function () {
+    var dpr = window.devicePixelRatio || 1;
+    this.canvas.width = Math.max(1, Math.round(this.canvas.clientWidth * dpr));
+    this.canvas.height = Math.max(1, Math.round(this.canvas.clientHeight * dpr));
+    this.dpr = dpr;
+    this.left = 46 * dpr; this.right = this.canvas.width - 8 * dpr; this.top = 6 * dpr; this.bottom = this.canvas.height - 18 * dpr;
+  };
+  Loop.prototype.px = function (v) { return this.left + (this.right - this.left) * (v - this.xr[0]) / (this.xr[1] - this.xr[0]); };
+  Loop.prototype.py = function (v) { return this.bottom - (this.bottom - this.top) * (v - this.yr[0]) / (this.yr[1] - this.yr[0]); };
+  Loop.prototype.draw = function (t) {
+    var g = this.canvas.getContext('2d'), dpr = this.dpr, self = this;
+    g.clearRect(0, 0, this.canvas.width, this.canvas.height);
+    g.font = (11 * dpr) + 'px system-ui, sans-serif';
+    g.strokeStyle = '#e3e6ea'; g.fillStyle = '#5d6773'; g.lineWidth = 1;
+    var ys = niceStep(this.yr[1] - this.yr[0], 3), xs = niceStep(this.xr[1] - this.xr[0], 4), v, p;
+    g.textAlign = 'right'; g.textBaseline = 'middle';
+    for (v = Math.ceil(this.yr[0] / ys) * ys; v <= this.yr[1]; v += ys) {
+      p = Math.round(this.py(v)) + 0.5;
+      g.beginPath(); g.moveTo(this.left, p); g.lineTo(this.right, p); g.stroke();
+      g.fillText(Math.abs(v) < ys * 1e-6 ? '0' : String(+v.toPrecision(6)), this.left - 4 * dpr, p);
+    }
+    g.textAlign = 'center'; g.textBaseline = 'top';
+    for (v = Math.ceil(this.xr[0] / xs) * xs; v <= this.xr[1]; v += xs) {
+      p = Math.round(this.px(v)) + 0.5;
+      g.beginPath(); g.moveTo(p, this.top); g.lineTo(p, this.bottom); g.stroke();
+      g.fillText((Math.abs(v) < xs * 1e-6 ? '0' : String(+v.toPrecision(6))) + ' ' + this.xUnit, p, this.bottom + 3 * dpr);
+    }
+    // The breath holding t: [starts[b], starts[b + 1]); none before the first or after the last.
+    var b = -1;
+    for (var i = 0; i + 1 < this.starts.length; ++i) if (this.starts[i] <= t && t < this.starts[i + 1]) b = i;
+    if (b < 0) return;
+    var t0 = this.starts[b], t1 = this.starts[b + 1];
+    function path(until, color, width) {
+      g.strokeStyle = color; g.lineWidth = width * dpr; g.lineJoin = 'round';
+      g.beginPath();
+      var first = true;
+      for (var k = 0; k < times.length; ++k) {
+        if (times[k] < t0 || times[k] > until) continue;
+        var x = self.px(self.xs[k]), y = self.py(self.ys[k]);
+        if (first) { g.moveTo(x, y); first = false; } else g.lineTo(x, y);
+      }
+      g.stroke();
+    }
+    path(t1, '#c9ced6', 1.2);      // the whole breath
+    path(t, PALETTE[1], 1.8);      // so far
+    g.fillStyle = '#1d232b';
+    g.beginPath(); g.arc(this.px(valueAt(times, this.xs, t)), this.py(valueAt(times, this.ys, t)), 3 * dpr, 0, 2 * Math.PI); g.fill();
+  };
+  if (data.loops) {
+    var loopsRoot = el('div', { 'class': 'loops' });
+    plotsRoot.appendChild(loopsRoot);
+    var starts = data.loops.breath_starts;
+    var loops = [new Loop('Pressure-volume loop: volume (mL) against airway pressure', 'airway_pressure_cmH2O', 'cmH2O', 'volume_mL', 'mL', starts),
+                 new Loop('Flow-volume loop: flow (L/s) against volume', 'volume_mL', 'mL', 'flow_L_per_s', 'L/s', starts)];
+    loops.forEach(function (l) { loopsRoot.appendChild(l.root); plots.push({
+      layout: function () { l.layout(); }, drawCursor: function (t) { l.draw(t); } }); });
+  }
   function layoutPlots() { plots.forEach(function (p) { p.layout(); p.drawCursor(state.t); }); }
   listeners.push(function (t) { plots.forEach(function (p) { p.drawCursor(t); }); });
 

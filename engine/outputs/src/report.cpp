@@ -125,6 +125,16 @@ void add_series(Json& data, const physiology::SimulationResult& result, std::siz
       Json{{"title", "Flow"}, {"unit", "L/s"}, {"columns", {"flow_L_per_s"}}},
       Json{{"title", "Pressures"}, {"unit", "cmH2O"}, {"columns", pressure_keys}},
   });
+  // Ventilated runs: the pressure-volume and flow-volume loops of the breath under the cursor.
+  const bool ventilated = std::any_of(result.breaths.begin(), result.breaths.end(),
+                                      [](const physiology::BreathMetrics& b) { return *b.trigger != '\0'; });
+  if (ventilated) {
+    Json starts = Json::array();
+    for (const auto& b : result.breaths) starts.push_back(rounded(b.start_s, 6));
+    const auto& last = result.breaths.back();
+    starts.push_back(rounded(last.start_s + last.duration_s, 6));  // the end of the last complete breath
+    data["loops"] = Json{{"breath_starts", starts}};
+  }
 }
 
 // The motion table: each region's motion, averaged over the completed breaths.
