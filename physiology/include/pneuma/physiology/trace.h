@@ -12,12 +12,12 @@
 // Drift: the least-squares line through the end-expiratory troughs (one per breath) is
 // subtracted: for flow it is the integral of a constant flow offset (sensor offset, the
 // inspired/expired gas mismatch), for a surrogate the slow baseline drift of the marker.
-// Invalid samples (RPM validflag < 0) are dropped; a gap (no valid sample for more than 1 s,
-// or for more than 3 nominal sample intervals of an RPM file) is bridged by the straight line
+// Invalid samples (RPM validflag < 0) are dropped; a gap (no valid sample for more than 3 sample
+// intervals: the RPM header's nominal one, else the median) is bridged by the straight line
 // between its ends and counted. All of it is in TraceReport.
 //
-// Breaths are found on the processed volume by hysteresis around its median (a trough-to-trough
-// cycle that swings through +-25 % of the median half swing); see find_breaths.
+// Breaths are found by hysteresis around the signal's median (find_turning_points): for flow and
+// amplitude on the signal with its least-squares line removed, for volume on the signal itself.
 #include <cstddef>
 #include <filesystem>
 #include <optional>
@@ -44,7 +44,7 @@ struct TraceOptions {
   TraceCalibration calibration;       // amplitude only
   std::optional<bool> detrend;        // default: false for volume, true for flow and amplitude
   bool invert = false;                // amplitude: a marker that moves down on inspiration
-  double start_s = 0.0;               // the trace's time that becomes the run's 0 s (from its first sample)
+  double start_s = 0.0;               // the trace's time that becomes the run's 0 s (from its first valid sample)
 };
 
 // The samples as read: times from the file's first sample, values in SI (m^3, m^3/s) or in the
