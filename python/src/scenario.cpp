@@ -285,7 +285,10 @@ void register_scenario(py::module_& m) {
                     "dict of per-breath arrays by physiology-breaths.csv column name (completed breaths only): breath, "
                     "start_s, duration_s, mode, tidal_volume_mL, minute_ventilation_L_per_min, peak_pressure_cmH2O, "
                     "plateau_pressure_cmH2O, peep_cmH2O, dynamic_compliance_mL_per_cmH2O, end_expiratory_volume_mL, "
-                    "muscle_amplitude_cmH2O, inspired_volume_mL, set_tidal_volume_mL (NaN: none set).")
+                    "muscle_amplitude_cmH2O, inspired_volume_mL, set_tidal_volume_mL (NaN: none set), trigger, "
+                    "trigger_delay_s, cycle, inspiratory_time_s, ie_ratio, mean_airway_pressure_cmH2O, "
+                    "intrinsic_peep_cmH2O, missed_triggers, double_trigger (ventilator columns: '' or NaN for "
+                    "spontaneous breaths).")
       .def_readonly("compartments", &Simulation::compartments, "Compartment names.")
       .def_property_readonly(
           "solver_stats",
