@@ -23,8 +23,10 @@
 #include "pneuma/runner/output_registry.h"
 #include "pneuma/runner/runner.h"
 #include "pneuma/scenario/scenario.h"
+#include "runner_fixture.h"
 #include "test_support.h"
 
+using pneuma::test::file_volume;
 using pneuma::test::run_pneuma;
 using pneuma::test::TempDir;
 
@@ -49,16 +51,6 @@ constexpr const char* kPaperUpright = R"(name: paper-upright
 posture: upright
 stiffness: {model: gradient, profile: linear, nondependent: 2.4 kPa, dependent: 0.6 kPa}
 )";
-
-// Signed-tetrahedron volume of a mesh file, read back with the mesh reader (file in metres).
-double file_volume(const std::filesystem::path& p) {
-  pneuma::mesh::ReadOptions o;
-  o.metres_per_unit = 1.0;
-  const auto m = pneuma::mesh::read_mesh(p, o);
-  double six = 0.0;
-  for (const auto& t : m.triangles) six += m.vertices[t[0]].dot(m.vertices[t[1]].cross(m.vertices[t[2]]));
-  return six / 6.0;
-}
 
 std::filesystem::path frame_file(const std::filesystem::path& dir, std::size_t k) {
   char name[32];

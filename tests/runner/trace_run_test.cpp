@@ -12,8 +12,10 @@
 #include <nlohmann/json.hpp>
 
 #include "pneuma/mesh/io/mesh_io.h"
+#include "runner_fixture.h"
 #include "test_support.h"
 
+using pneuma::test::file_volume;
 using pneuma::test::run_pneuma;
 using pneuma::test::TempDir;
 
@@ -25,15 +27,6 @@ constexpr double kTidal = 0.5e-3;  // m^3
 constexpr double kShare = 0.55;
 
 double volume(double t) { return 0.5 * kTidal * (1.0 - std::cos(2.0 * kPi * t / kPeriod)); }
-
-double file_volume(const std::filesystem::path& p) {
-  pneuma::mesh::ReadOptions o;
-  o.metres_per_unit = 1.0;
-  const auto m = pneuma::mesh::read_mesh(p, o);
-  double six = 0.0;
-  for (const auto& t : m.triangles) six += m.vertices[t[0]].dot(m.vertices[t[1]].cross(m.vertices[t[2]]));
-  return six / 6.0;
-}
 
 // A surrogate amplitude: 1.5 cm per breath, a baseline drifting by 0.02 cm/s, noise of 0.1 %.
 std::string amplitude_csv() {
