@@ -59,6 +59,7 @@ PhaseBinning bin_phases(const std::vector<double>& time_s, const std::vector<dou
   }
   out.cycles = cycles.size();
   std::vector<double> amplitudes;
+  amplitudes.reserve(cycles.size());
   for (const Cycle& c : cycles) amplitudes.push_back(c.amplitude_m3);
   std::sort(amplitudes.begin(), amplitudes.end());
   const double median = amplitudes.empty() ? 0.0

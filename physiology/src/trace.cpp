@@ -184,6 +184,7 @@ Trace process_trace(const RawTrace& raw, const TraceOptions& options) {
 
   // FRC at 0: the median end-expiratory level.
   std::vector<double> ends;
+  ends.reserve(troughs.size());
   for (std::size_t i : troughs) ends.push_back(v[i]);
   const double reference = median(ends);
   for (double& x : v) x -= reference;
@@ -195,6 +196,7 @@ Trace process_trace(const RawTrace& raw, const TraceOptions& options) {
     double scale = options.calibration.volume_per_unit_m3;
     if (options.calibration.tidal_volume_m3 > 0.0) {
       std::vector<double> swings;
+      swings.reserve(breaths.size());
       for (const BreathCycle& b : breaths) swings.push_back(v[b.peak] - v[b.start]);
       const double swing = median(swings);
       if (!(swing > 0.0))

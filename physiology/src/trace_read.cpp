@@ -151,6 +151,7 @@ std::optional<TraceSignal> signal_of_name(const std::string& name) {
 
 std::vector<std::string> header_texts(const std::vector<Header>& headers) {
   std::vector<std::string> out;
+  out.reserve(headers.size());
   for (const Header& h : headers) out.push_back("'" + h.text + "'");
   return out;
 }

@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
 
 namespace pneuma::field {
 namespace {
@@ -73,13 +74,16 @@ double deterministic_sum(std::size_t n, const Value& value) {
   constexpr std::size_t block = 16384;
   const std::size_t blocks = (n + block - 1) / block;
   std::vector<double> partial(blocks, 0.0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t b = r.begin(); b != r.end(); ++b) {
-      double sum = 0.0;
-      for (std::size_t i = b * block; i < std::min(n, (b + 1) * block); ++i) sum += value(i);
-      partial[b] = sum;
-    }
-  });
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t b = r.begin(); b != r.end(); ++b) {
+                        double sum = 0.0;
+                        for (std::size_t i = b * block; i < std::min(n, (b + 1) * block); ++i) sum += value(i);
+                        partial[b] = sum;
+                      }
+                    }));
+  region.join();
   double total = 0.0;
   for (double p : partial) total += p;
   return total;
@@ -87,9 +91,11 @@ double deterministic_sum(std::size_t n, const Value& value) {
 
 template <typename Index, typename Body>
 void parallel_for_each(Index n, const Body& body) {
-  tbb::parallel_for(tbb::blocked_range<Index>(0, n, 8192), [&](const tbb::blocked_range<Index>& r) {
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<Index>(0, n, 8192), region.wrap([&](const tbb::blocked_range<Index>& r) {
     for (Index i = r.begin(); i != r.end(); ++i) body(i);
-  });
+  }));
+  region.join();
 }
 
 }  // namespace

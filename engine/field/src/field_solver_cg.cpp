@@ -20,6 +20,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/stopwatch.h"
 #include "pneuma/field/field_solver.h"
+#include "pneuma/core/tsan.h"
 
 namespace pneuma::field {
 namespace {
@@ -31,9 +32,14 @@ constexpr std::size_t kBlock = 4096;
 template <typename Body>
 void for_blocks(std::size_t n, const Body& body) {
   const std::size_t blocks = (n + kBlock - 1) / kBlock;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t b = range.begin(); b != range.end(); ++b) body(b, b * kBlock, std::min(n, (b + 1) * kBlock));
-  });
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t b = range.begin(); b != range.end(); ++b) {
+                        body(b, b * kBlock, std::min(n, (b + 1) * kBlock));
+                      }
+                    }));
+  region.join();
 }
 
 }  // namespace
@@ -75,22 +81,29 @@ ConjugateGradient_Schur::ConjugateGradient_Schur(std::shared_ptr<const FieldGrap
   const auto& s = g.weight();
   const auto& factor = g.distance_factor();
   m.edge_weight.resize(ne);
-  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, ne, 8192), [&](const tbb::blocked_range<std::uint32_t>& r) {
-    for (std::uint32_t e = r.begin(); e != r.end(); ++e)
-      m.edge_weight[e] = factor[e] * factor[e] * s[nv + e] / z[nv + e];
-  });
+  const tsan::Region edges;
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, ne, 8192),
+                    edges.wrap([&](const tbb::blocked_range<std::uint32_t>& r) {
+                      for (std::uint32_t e = r.begin(); e != r.end(); ++e) {
+                        m.edge_weight[e] = factor[e] * factor[e] * s[nv + e] / z[nv + e];
+                      }
+                    }));
+  edges.join();
   const auto& offset = g.incident_offset();
   const auto& edge = g.incident_edges();
   m.diagonal.resize(nv);
   m.inverse_diagonal.resize(nv);
-  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, nv, 8192), [&](const tbb::blocked_range<std::uint32_t>& r) {
-    for (std::uint32_t i = r.begin(); i != r.end(); ++i) {
-      double diag = z[i] / s[i];
-      for (std::uint32_t j = offset[i]; j < offset[i + 1]; ++j) diag -= m.edge_weight[edge[j]];
-      m.diagonal[i] = diag;
-      m.inverse_diagonal[i] = 1.0 / diag;
-    }
-  });
+  const tsan::Region vertices;
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, nv, 8192),
+                    vertices.wrap([&](const tbb::blocked_range<std::uint32_t>& r) {
+                      for (std::uint32_t i = r.begin(); i != r.end(); ++i) {
+                        double diag = z[i] / s[i];
+                        for (std::uint32_t j = offset[i]; j < offset[i + 1]; ++j) diag -= m.edge_weight[edge[j]];
+                        m.diagonal[i] = diag;
+                        m.inverse_diagonal[i] = 1.0 / diag;
+                      }
+                    }));
+  vertices.join();
 }
 
 ConjugateGradient_Schur::~ConjugateGradient_Schur() = default;

@@ -44,7 +44,7 @@ std::any read_spec(const config::Node* options) {
 
 class Phases final : public Output {
  public:
-  Phases(std::filesystem::path dir, PhasesSpec spec) : dir_(std::move(dir)), spec_(std::move(spec)) {}
+  Phases(std::filesystem::path dir, PhasesSpec spec) : dir_(std::move(dir)), spec_(spec) {}
   std::string name() const override { return "phases"; }
 
   std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {

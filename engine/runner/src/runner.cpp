@@ -79,6 +79,7 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   // The loop: every frame advanced once and handed to every output.
   const outputs::RunInfo info{compiled.scales.size(), s.frame_rate_hz, compiled.min_scale, compiled.max_scale, out};
   std::vector<RunningOutput> running;
+  running.reserve(plugins.size());
   for (const outputs::OutputPlugin* plugin : plugins) {
     running.push_back({plugin->make(s.output(plugin->key.key)->settings, out), 0.0});
   }

@@ -26,6 +26,7 @@
 
 #include "deformed_surface_internal.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
 
 namespace pneuma::mesh {
 namespace detail::baseline {
@@ -186,11 +187,13 @@ SurfaceMeasures DeformedSurface::Impl::run(double s, double* out) {
   if (chunk_count == 1) {
     chunk(0, scratch.local().data());
   } else if (chunk_count > 1) {
+    const tsan::Region region;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunk_count),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
+                      region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
                         double* scratch_data = scratch.local().data();
                         for (std::size_t k = range.begin(); k != range.end(); ++k) chunk(k, scratch_data);
-                      });
+                      }));
+    region.join();
   }
 #ifdef __SSE2__
   if (out) _mm_sfence();  // the streamed positions are visible before anyone reads them

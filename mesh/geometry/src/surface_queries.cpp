@@ -15,6 +15,7 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/cgal/cgal_surface_mesh.h"
+#include "pneuma/core/tsan.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -93,10 +94,12 @@ bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency) {
     for (std::size_t k = slab(low[f]), last = slab(high[f]); k <= last; ++k) faces[k].push_back(face);
   }
   std::atomic<bool> found{false};
-  tbb::parallel_for(std::size_t{0}, kSlabs, [&](std::size_t k) {
+  const tsan::Region region;
+  tbb::parallel_for(std::size_t{0}, kSlabs, region.wrap([&](std::size_t k) {
     if (found.load(std::memory_order_relaxed)) return;
     if (PMP::does_self_intersect<CGAL::Sequential_tag>(faces[k], surface)) found.store(true);
-  });
+  }));
+  region.join();
   return found.load();
 }
 

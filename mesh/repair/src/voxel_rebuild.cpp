@@ -8,6 +8,8 @@
 #include <cmath>
 #include <limits>
 
+#include "pneuma/core/tsan.h"
+
 namespace pneuma::mesh::detail {
 namespace {
 
@@ -92,7 +94,8 @@ VoxelRebuild rebuild_through_voxels(const TriangleMesh& mesh, const std::string&
   map.labels.assign(map.voxel_count(), 0);
   std::vector<char> row_meets(row_count, 0), row_odd(row_count, 0);
   // Rows are independent and each writes its own voxels: the same bits at any thread count.
-  tbb::parallel_for(std::size_t{0}, row_count, [&](std::size_t r) {
+  const tsan::Region region;
+  tbb::parallel_for(std::size_t{0}, row_count, region.wrap([&](std::size_t r) {
     const std::size_t j = r % n[1], k = r / n[1];
     const double y = origin.y() + (static_cast<double>(j) + kRowOffsetY) * h;
     const double z = origin.z() + (static_cast<double>(k) + kRowOffsetZ) * h;
@@ -124,7 +127,8 @@ VoxelRebuild rebuild_through_voxels(const TriangleMesh& mesh, const std::string&
       for (double i = std::max(from, 0.0); i <= std::min(to, static_cast<double>(n[0] - 1)); i += 1.0)
         row[static_cast<std::size_t>(i)] = 1;
     }
-  });
+  }));
+  region.join();
   out.rows = static_cast<std::size_t>(std::count(row_meets.begin(), row_meets.end(), 1));
   out.odd_rows = static_cast<std::size_t>(std::count(row_odd.begin(), row_odd.end(), 1));
   if (out.rows == 0 || static_cast<double>(out.odd_rows) > 0.01 * static_cast<double>(out.rows)) return out;
