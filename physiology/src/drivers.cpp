@@ -1,5 +1,6 @@
 #include "pneuma/physiology/drivers.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -160,9 +161,28 @@ double peep_of(const Driver& driver) {
 
 bool is_ventilator(const Driver& driver) { return !std::holds_alternative<Spontaneous>(driver); }
 
+bool is_simv(const Assisted& a) { return a.mode == AssistMode::simv_volume || a.mode == AssistMode::simv_pressure; }
+
+double default_trigger_window_s(double rate_hz) { return std::min(0.6 / rate_hz, 10.0); }
+
+Assisted simv_breath(const Assisted& a, bool mandatory) {
+  if (!is_simv(a)) return a;
+  Assisted b = a;
+  if (mandatory) {
+    b.mode = a.mode == AssistMode::simv_volume ? AssistMode::volume : AssistMode::pressure;
+    b.cycle = CycleKind::time;
+  } else {
+    b.mode = AssistMode::pressure_support;
+    b.rate_hz = 0.0;  // no backup of its own: the SIMV clock is the driver's
+    b.inspiratory_pressure_pa = a.support_pa;
+    b.inspiratory_time_s = kLongestSupportedInspiration_s;
+  }
+  return b;
+}
+
 const char* mode_name(const Driver& driver) {
   if (const auto* a = std::get_if<Assisted>(&driver)) {
-    static constexpr const char* kAssisted[] = {"vc_ac", "pc_ac", "cpap_psv"};
+    static constexpr const char* kAssisted[] = {"vc_ac", "pc_ac", "cpap_psv", "vc_simv", "pc_simv"};
     return kAssisted[static_cast<int>(a->mode)];
   }
   static constexpr const char* kNames[] = {"spontaneous", "volume_control", "pressure_control"};
@@ -181,6 +201,7 @@ void validate(const PatientEffort& e) {
 void validate(const Driver& driver) {
   if (const auto* a = std::get_if<Assisted>(&driver)) {
     const bool support = a->mode == AssistMode::pressure_support;
+    const bool simv = is_simv(*a);
     if (support) require(a->rate_hz == 0.0, "pressure support has no backup rate");
     else require(a->rate_hz > 0.0 && std::isfinite(a->rate_hz), "the rate must be positive");
     require(a->peep_pa >= 0.0, "PEEP must not be negative");
@@ -188,6 +209,18 @@ void validate(const Driver& driver) {
             "the inspiratory time must be positive and shorter than one breath (60 / rate)");
     require(a->trigger_threshold > 0.0 && std::isfinite(a->trigger_threshold),
             "the trigger threshold must be positive");
+    if (simv) {
+      require(a->trigger_window_s > 0.0 && a->trigger_window_s <= 1.0 / a->rate_hz,
+              "the trigger window must be positive and at most one cycle (60 / rate)");
+      require(a->support_pa >= 0.0, "the pressure support must not be negative");
+      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0),
+              "the flow cycle fraction must lie between 0 and 1");
+      require(a->cycle != CycleKind::volume || a->cycle_volume_m3 > 0.0, "the cycle volume must be positive");
+      require(a->rise_time_s < kLongestSupportedInspiration_s,
+              "the rise time must be shorter than the longest supported inspiration (3 s)");
+      for (bool mandatory : {true, false}) validate(Driver{simv_breath(*a, mandatory)});
+      return;
+    }
     if (a->mode == AssistMode::volume) {
       require(a->tidal_volume_m3 > 0.0, "the tidal volume must be positive");
       require(a->pause_time_s >= 0.0 && a->pause_time_s < a->inspiratory_time_s,

@@ -45,6 +45,7 @@ struct SegmentContext {
   int root_count = 0;
   double flow_peak = 0.0;     // highest inspiratory flow of the breath so far
   double start_volume = 0.0;  // total volume at the start of inspiration
+  bool occluded = false;      // an expiratory hold: both valves closed, whatever the driver
 };
 
 struct Instant {
@@ -61,6 +62,10 @@ Instant evaluate(const SegmentContext& c, double t, const double* volumes, doubl
   if (c.effort) {
     d.muscle_pressure_pa += effort_pressure(*c.effort, t - c.effort_anchor_s);
     d.airway_pressure_rate_pa_per_s += effort_pressure_rate(*c.effort, t - c.effort_anchor_s);
+  }
+  if (c.occluded) {
+    d.flow_controlled = true;
+    d.flow_m3_per_s = 0.0;
   }
   Instant out;
   out.muscle_pressure = d.muscle_pressure_pa;
@@ -169,6 +174,7 @@ class Simulation {
         continue;
       }
       pending_.reset();
+      simv_due_ = std::numeric_limits<double>::quiet_NaN();
       const Driver& driver = current_driver_;
       const BreathPlan plan = plan_breath(driver);
       BreathMetrics breath;
@@ -178,6 +184,7 @@ class Simulation {
       if (is_ventilator(driver)) {
         breath.trigger = "time";
         breath.cycle = "time";
+        breath.breath_type = "mandatory";
       }
       if (const auto* s = std::get_if<Spontaneous>(&driver)) breath.muscle_amplitude_pa = s->amplitude_pa;
       const double start_volume = total(y.data(), n_);
@@ -216,6 +223,7 @@ class Simulation {
         }
       }
       if (!complete) break;
+      if (is_ventilator(driver) && !expiratory_hold(t, y.data(), breath, peak_airway, peak_drive)) break;
       breath.inspired_volume_m3 = end_inspiration_volume - start_volume;
       breath.peak_pressure_pa = peak_airway;
       finish_breath(breath, t, peak_drive, y.data(), result);
@@ -232,6 +240,7 @@ class Simulation {
   struct Start {
     const char* trigger = "time";
     double delay_s = std::numeric_limits<double>::quiet_NaN();
+    bool patient = false;
   };
   // What stopped an assisted phase.
   enum class Stopped { time, root, end_of_run, driver_change };
@@ -256,7 +265,15 @@ class Simulation {
     const std::size_t s = setting_at(t);
     const PatientEffort& e = protocol_.settings[s].effort;
     if (!e.active()) return std::numeric_limits<double>::infinity();
-    return effort_anchor_[s] + next_effort_boundary(e, t - effort_anchor_[s]);
+    // Strictly after t also once the anchor is added back: anchor + (t - anchor) can round to
+    // below t, and a boundary at t would stop the integration there for ever.
+    const double anchor = effort_anchor_[s];
+    double relative = t - anchor, boundary = t;
+    while (boundary <= t) {
+      relative = next_effort_boundary(e, relative);
+      boundary = anchor + relative;
+    }
+    return boundary;
   }
 
   // The mechanics and the patient's effort in force at t.
@@ -282,10 +299,62 @@ class Simulation {
                                               : std::numeric_limits<double>::quiet_NaN();
     breath.end_expiratory_volume_m3 = total(y, n_);
     breath.mean_airway_pressure_pa = paw_integral_ / breath.duration_s;
-    // An end-expiratory hold: the airway occluded (no flow), the pressure the recoil holds.
-    if (is_ventilator(current_driver_))
+    // An end-expiratory hold: the pressure measured at its end when one was made (expiratory_hold),
+    // else the pressure the recoil holds with the airway occluded at once (no redistribution).
+    if (!std::isnan(breath.total_peep_pa)) breath.intrinsic_peep_pa = breath.total_peep_pa - breath.peep_pa;
+    else if (is_ventilator(current_driver_))
       breath.intrinsic_peep_pa = driving_pressure_for_flow(*context_.mechanics, 0.0, y) - breath.peep_pa;
     result.breaths.push_back(breath);
+  }
+
+  // When an assisted expiration that began a breath at `breath_start` ends on the clock: the
+  // backup timer (VC-AC, PC-AC), the next scheduled mandatory breath (SIMV), never (CPAP).
+  double deadline(const Assisted& a, double breath_start) {
+    if (is_simv(a)) {
+      if (std::isnan(simv_due_)) simv_due_ = breath_start + 1.0 / a.rate_hz;  // a switch into SIMV
+      return simv_due_;
+    }
+    return a.rate_hz > 0.0 ? breath_start + 1.0 / a.rate_hz : std::numeric_limits<double>::infinity();
+  }
+
+  // SIMV: whether the breath starting at t is the cycle's mandatory one, advancing the schedule.
+  // The first breath of the mode, a machine start (the scheduled time reached) and the first
+  // patient trigger within the window before the scheduled time are mandatory.
+  bool simv_mandatory(const Assisted& a, double t, const Start& start) {
+    const double period = 1.0 / a.rate_hz;
+    if (std::isnan(simv_due_)) {
+      simv_due_ = t + period;
+      return true;
+    }
+    if (start.patient && t < simv_due_ - a.trigger_window_s) return false;
+    simv_due_ += period;
+    while (simv_due_ <= t) simv_due_ += period;
+    return true;
+  }
+
+  // An expiratory hold due at the end of this breath (the first action at or before t not yet
+  // made): both valves closed for its duration, the patient's effort going on; the airway
+  // pressure at its end is the total PEEP. The next breath waits for it. Returns false when the
+  // run ends during the hold.
+  bool expiratory_hold(double& t, double* y, BreathMetrics& breath, double& peak_airway, double& peak_drive) {
+    if (next_hold_ >= protocol_.holds.size() || protocol_.holds[next_hold_].at_s > t) return true;
+    const double duration = protocol_.holds[next_hold_++].duration_s;
+    const double until = t + duration, end = options_.duration_s;
+    context_.occluded = true;
+    context_.root_count = 0;
+    Instant last;
+    while (t < until) {
+      if (t >= end) break;
+      const double b = std::min({until, next_change_after(t), end, next_effort_break(t)});
+      use_setting_at(t);
+      integrate_segment(t, b, y, peak_airway, peak_drive, last);
+      t = b;
+    }
+    context_.occluded = false;
+    if (t < until) return false;
+    breath.expiratory_hold_s = duration;
+    breath.total_peep_pa = last.airway_pressure;
+    return true;
   }
 
   // One assisted breath from t (its trigger in pending_, or none: the first of its mode). Returns
@@ -293,6 +362,7 @@ class Simulation {
   bool assisted_breath(double& t, double* y, SimulationResult& result) {
     const Assisted a = std::get<Assisted>(current_driver_);
     context_.driver = &current_driver_;
+    if (!is_simv(a)) simv_due_ = std::numeric_limits<double>::quiet_NaN();
     if (!pending_) {
       if (a.mode == AssistMode::pressure_support) {
         // No backup: wait at CPAP for the patient's first trigger (not a breath).
@@ -306,13 +376,18 @@ class Simulation {
         pending_ = Start{};
       }
     }
+    // The breath it gives: SIMV's mandatory or spontaneous one, or the mode's own.
+    const bool mandatory = is_simv(a) ? simv_mandatory(a, t, *pending_) : a.mode != AssistMode::pressure_support;
+    const Assisted shape = simv_breath(a, mandatory);
+    current_driver_ = shape;
     BreathMetrics breath;
     breath.start_s = t;
-    breath.mode = mode_name(current_driver_);
+    breath.mode = mode_name(Driver{a});
+    breath.breath_type = mandatory ? "mandatory" : "spontaneous";
     breath.peep_pa = a.peep_pa;
     breath.trigger = pending_->trigger;
     breath.trigger_delay_s = pending_->delay_s;
-    if (a.mode == AssistMode::volume) breath.set_tidal_volume_m3 = a.tidal_volume_m3;
+    if (shape.mode == AssistMode::volume) breath.set_tidal_volume_m3 = shape.tidal_volume_m3;
     pending_.reset();
     const double start_volume = total(y, n_);
     begin_breath(start_volume);
@@ -324,30 +399,30 @@ class Simulation {
 
     // Inspiration.
     breath.cycle = "time";
-    if (a.mode == AssistMode::volume) {
-      const double flow_end = breath.start_s + a.inspiratory_time_s - a.pause_time_s;
+    if (shape.mode == AssistMode::volume) {
+      const double flow_end = breath.start_s + shape.inspiratory_time_s - shape.pause_time_s;
       std::vector<RootKind> roots;
-      if (a.pressure_limit_pa > 0.0) roots.push_back(RootKind::pressure_limit);
+      if (shape.pressure_limit_pa > 0.0) roots.push_back(RootKind::pressure_limit);
       int root = -1;
       const Stopped s = phase(kAssistFlow, t, flow_end, y, roots, false, peak_airway, peak_drive, last, root);
       if (s == Stopped::end_of_run) return false;
       if (s == Stopped::root) {
         breath.cycle = "pressure_limit";
-      } else if (a.pause_time_s > 0.0) {
-        const Stopped p = phase(kAssistPause, t, breath.start_s + a.inspiratory_time_s, y, {}, false, peak_airway,
+      } else if (shape.pause_time_s > 0.0) {
+        const Stopped p = phase(kAssistPause, t, breath.start_s + shape.inspiratory_time_s, y, {}, false, peak_airway,
                                 peak_drive, last, root);
         if (p == Stopped::end_of_run) return false;
       }
     } else {
       std::vector<RootKind> roots;
-      if (a.cycle == CycleKind::flow) roots = {RootKind::flow_peak, RootKind::flow_cycle};
-      if (a.cycle == CycleKind::volume) roots.push_back(RootKind::volume_cycle);
-      if (a.volume_limit_m3 > 0.0) roots.push_back(RootKind::volume_limit);
+      if (shape.cycle == CycleKind::flow) roots = {RootKind::flow_peak, RootKind::flow_cycle};
+      if (shape.cycle == CycleKind::volume) roots.push_back(RootKind::volume_cycle);
+      if (shape.volume_limit_m3 > 0.0) roots.push_back(RootKind::volume_limit);
       std::array<double, kMaxCompartments> q{};
       context_.phase = kAssistPressure;
       use_setting_at(t);
       context_.flow_peak = evaluate(context_, t, y, q.data()).flow;  // the flow just after the step
-      const double time_cycle = breath.start_s + a.inspiratory_time_s;
+      const double time_cycle = breath.start_s + shape.inspiratory_time_s;
       for (;;) {
         int root = -1;
         const Stopped s = phase(kAssistPressure, t, time_cycle, y, roots, false, peak_airway, peak_drive, last, root);
@@ -366,11 +441,19 @@ class Simulation {
     breath.inspired_volume_m3 = total(y, n_) - start_volume;
     breath.plateau_pressure_pa = alveolar_pressure(*context_.mechanics, last.airway_pressure, last.flow);
 
-    // Expiration, until the next trigger or the backup timer.
-    const double backup = a.rate_hz > 0.0 ? breath.start_s + 1.0 / a.rate_hz : std::numeric_limits<double>::infinity();
-    const Stopped s = expiration(t, y, a, backup, peak_airway, peak_drive, breath.start_s);
+    // Expiration, until the next trigger, the backup timer or SIMV's next mandatory breath.
+    current_driver_ = a;
+    const Stopped s = expiration(t, y, a, deadline(a, breath.start_s), peak_airway, peak_drive, breath.start_s);
     if (s == Stopped::end_of_run) return false;
     if (s == Stopped::time) pending_ = Start{};
+    if (next_hold_ < protocol_.holds.size() && protocol_.holds[next_hold_].at_s <= t) {
+      if (!expiratory_hold(t, y, breath, peak_airway, peak_drive)) return false;
+      // After the hold the machine starts over: a mandatory breath at once (CPAP: the patient's).
+      // A trigger that the hold preempted started nothing: its effort counts as missed.
+      if (s == Stopped::root) patient_triggers_.pop_back();
+      pending_.reset();
+      simv_due_ = std::numeric_limits<double>::quiet_NaN();
+    }
     breath.peak_pressure_pa = peak_airway;
     finish_breath(breath, t, peak_drive, y, result);
     return true;
@@ -407,7 +490,7 @@ class Simulation {
           a = *assisted;
           by_flow = a.trigger == TriggerKind::flow;
           if (by_flow) phase_kind = kAssistExpiration;
-          backup = a.rate_hz > 0.0 ? *breath_start + 1.0 / a.rate_hz : std::numeric_limits<double>::infinity();
+          backup = deadline(a, *breath_start);
           if (backup <= t) return Stopped::time;
           continue;
         }
@@ -421,6 +504,7 @@ class Simulation {
       } else {
         Start start;
         start.trigger = by_flow ? "patient_flow" : "patient_pressure";
+        start.patient = true;
         const std::size_t setting = setting_at(t);
         const PatientEffort& e = protocol_.settings[setting].effort;
         if (e.active()) {
@@ -629,9 +713,11 @@ class Simulation {
   std::size_t next_output_ = 0;
   std::size_t output_count_ = 0;
   std::map<std::size_t, Driver> calibrated_;
-  std::vector<double> effort_anchor_;     // per setting: when its effort's breaths began
-  std::optional<Start> pending_;          // the next assisted breath's start, when found
-  std::vector<double> patient_triggers_;  // times of every patient trigger
+  std::vector<double> effort_anchor_;                           // per setting: when its effort's breaths began
+  std::optional<Start> pending_;                                // the next assisted breath's start, when found
+  double simv_due_ = std::numeric_limits<double>::quiet_NaN();  // SIMV: the next scheduled mandatory breath
+  std::size_t next_hold_ = 0;                                   // the first expiratory hold not yet made
+  std::vector<double> patient_triggers_;                        // times of every patient trigger
 };
 
 // Periodic steady-state tidal volume of a spontaneous driver with a given amplitude.
@@ -701,6 +787,14 @@ void validate(const Protocol& protocol, const SimulationOptions& options) {
       throw ValueError("every setting must keep the same number of compartments");
     validate(s.mechanics);
     validate(s.driver);
+  }
+  double previous_hold = -1.0;
+  for (const ExpiratoryHold& h : protocol.holds) {
+    if (!(h.at_s > previous_hold) || !std::isfinite(h.at_s))
+      throw ValueError("expiratory holds must come at increasing times from 0 s");
+    previous_hold = h.at_s;
+    if (!(h.duration_s > 0.0) || !std::isfinite(h.duration_s))
+      throw ValueError("an expiratory hold must last a positive time");
   }
   if (!(options.duration_s > 0.0) || !std::isfinite(options.duration_s))
     throw ValueError("the duration must be positive");

@@ -161,6 +161,13 @@ Simulation to_python(const physiology::SimulationResult& r) {
       field([](const auto& x) { return static_cast<double>(x.missed_triggers); }, 1.0).attr("astype")("int64");
   out.breaths["double_trigger"] =
       field([](const auto& x) { return x.double_triggered ? 1.0 : 0.0; }, 1.0).attr("astype")("int64");
+  py::list types;
+  for (const auto& breath : b) types.append(py::str(breath.breath_type));
+  out.breaths["breath_type"] = numpy.attr("array")(types, "str");
+  out.breaths["expiratory_hold_s"] =
+      field([&](const auto& x) { return x.expiratory_hold_s > 0.0 ? x.expiratory_hold_s : nan; }, 1.0);
+  out.breaths["total_peep_cmH2O"] =
+      field([&](const auto& x) { return x.expiratory_hold_s > 0.0 ? x.total_peep_pa : nan; }, kCmH2O);
   return out;
 }
 
@@ -287,8 +294,9 @@ void register_scenario(py::module_& m) {
                     "plateau_pressure_cmH2O, peep_cmH2O, dynamic_compliance_mL_per_cmH2O, end_expiratory_volume_mL, "
                     "muscle_amplitude_cmH2O, inspired_volume_mL, set_tidal_volume_mL (NaN: none set), trigger, "
                     "trigger_delay_s, cycle, inspiratory_time_s, ie_ratio, mean_airway_pressure_cmH2O, "
-                    "intrinsic_peep_cmH2O, missed_triggers, double_trigger (ventilator columns: '' or NaN for "
-                    "spontaneous breaths).")
+                    "intrinsic_peep_cmH2O, missed_triggers, double_trigger, breath_type, expiratory_hold_s, "
+                    "total_peep_cmH2O (ventilator columns: '' or NaN for spontaneous breaths; the hold's NaN "
+                    "without one).")
       .def_readonly("compartments", &Simulation::compartments, "Compartment names.")
       .def_property_readonly(
           "solver_stats",

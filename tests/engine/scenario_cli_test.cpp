@@ -25,7 +25,7 @@ TEST(SimulateCli, ShippedScenariosRunAndWriteCsv) {
 }
 
 TEST(SimulateCli, ShippedVentilatorScenariosArePatientTriggered) {
-  for (const char* name : {"ventilator-vc-ac", "ventilator-pc-ac", "ventilator-cpap-psv"}) {
+  for (const char* name : {"ventilator-vc-ac", "ventilator-pc-ac", "ventilator-cpap-psv", "ventilator-simv"}) {
     TempDir dir;
     const auto scenario = pneuma::test::source_dir() / "scenarios" / (std::string(name) + ".yaml");
     const auto r = run_pneuma({"simulate", scenario.string(), "-o", (dir / "phys.csv").string()});
@@ -34,11 +34,37 @@ TEST(SimulateCli, ShippedVentilatorScenariosArePatientTriggered) {
     EXPECT_GT(count_lines(dir / "phys.csv"), 6000);
     const std::string breaths = pneuma::test::read_text(dir / "phys-breaths.csv");
     EXPECT_NE(breaths.find(",trigger,trigger_delay_s,cycle,inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,"
-                           "intrinsic_peep_cmH2O,missed_triggers,double_trigger\n"),
+                           "intrinsic_peep_cmH2O,missed_triggers,double_trigger,breath_type,expiratory_hold_s,"
+                           "total_peep_cmH2O\n"),
               std::string::npos)
         << name;
     EXPECT_NE(breaths.find(",patient_flow,"), std::string::npos) << name;
   }
+}
+
+TEST(SimulateCli, ShippedSimvScenarioMixesMandatoryAndSupportedBreathsAndHoldsOnce) {
+  TempDir dir;
+  const auto scenario = pneuma::test::source_dir() / "scenarios" / "ventilator-simv.yaml";
+  const auto r = run_pneuma({"simulate", scenario.string(), "-o", (dir / "phys.csv").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::istringstream rows(pneuma::test::read_text(dir / "phys-breaths.csv"));
+  std::string row;
+  std::getline(rows, row);
+  int mandatory = 0, spontaneous = 0, synchronised = 0, holds = 0, pc_simv = 0;
+  while (std::getline(rows, row)) {
+    mandatory += row.find(",mandatory,") != std::string::npos;
+    spontaneous += row.find(",spontaneous,") != std::string::npos;
+    synchronised += row.find(",patient_flow,") != std::string::npos && row.find(",mandatory,") != std::string::npos;
+    holds += row.find(",mandatory,2,") != std::string::npos || row.find(",spontaneous,2,") != std::string::npos;
+    pc_simv += row.find(",pc_simv,") != std::string::npos;
+  }
+  // 60 s at 10 /min then 6 /min: about 8 mandatory breaths, the patient's 16 /min fill the rest.
+  EXPECT_GE(mandatory, 6);
+  EXPECT_LE(mandatory, 10);
+  EXPECT_GE(spontaneous, 5);
+  EXPECT_GE(synchronised, 1);
+  EXPECT_EQ(holds, 1);
+  EXPECT_GE(pc_simv, 3);
 }
 
 TEST(SimulateCli, VersionAndHelp) {
@@ -200,6 +226,35 @@ INSTANTIATE_TEST_SUITE_P(
             "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
             "  driver: {mode: spontaneous, rate: 12 /min, ie_ratio: 1:2, muscle_pressure: 5 cmH2O}\n  effort: {rate: 15 /min, muscle_pressure: 4 cmH2O}\n",
             "6:11: physiology.effort: a patient effort acts on a ventilated patient; spontaneous mode is the patient's own breathing"},
+        BadScenario{"simv_rate_missing",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+                    "  driver: {mode: vc_simv, tidal_volume: 450 mL, inspiratory_time: 1 s}\n",
+                    "5:11: physiology.driver: missing key 'rate' (expected rate such as '12 /min')"},
+        BadScenario{
+            "simv_window_longer_than_a_cycle",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+            "  driver: {mode: pc_simv, rate: 12 /min, inspiratory_pressure: 15 cmH2O, inspiratory_time: 1 s, trigger_window: 6 s}\n",
+            "5:113: physiology.driver.trigger_window: expected a trigger window of at most one cycle (60 / rate = 5 s), got 6 s"},
+        BadScenario{"simv_negative_support",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+                    "  driver: {mode: pc_simv, rate: 12 /min, inspiratory_pressure: 15 cmH2O, inspiratory_time: 1 s, "
+                    "pressure_support: -2 cmH2O}\n",
+                    "5:115: physiology.driver.pressure_support: expected a pressure >= 0, got '-2 cmH2O'"},
+        BadScenario{
+            "trigger_window_outside_simv",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+            "  driver: {mode: vc_ac, rate: 12 /min, tidal_volume: 450 mL, inspiratory_time: 1 s, trigger_window: 2 s}\n",
+            "5:101: physiology.driver.trigger_window: not a setting of vc_ac mode"},
+        BadScenario{
+            "hold_without_ventilator",
+            "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  actions:\n    - {at: 10 s, expiratory_hold: 2 s}\n",
+            "5:35: physiology.actions[0].expiratory_hold: an expiratory hold needs a ventilator; the patient "
+            "breathes spontaneously"},
+        BadScenario{"hold_of_zero_seconds",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+                    "  driver: {mode: vc_ac, rate: 12 /min, tidal_volume: 450 mL, inspiratory_time: 1 s}\n"
+                    "  actions:\n    - {at: 10 s, expiratory_hold: 0 s}\n",
+                    "7:35: physiology.actions[0].expiratory_hold: expected a positive duration, got '0 s'"},
         BadScenario{"not_yaml", "duration: [20 s\n", "2:1: not valid YAML: end of sequence flow not found"}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 

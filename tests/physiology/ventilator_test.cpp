@@ -321,3 +321,195 @@ TEST(Ventilator, ALongStrongEffortOutlastingAShortBreathTriggersAgain) {
   }
   EXPECT_GE(doubles, 5);
 }
+
+namespace {
+
+Assisted simv(AssistMode mode, double rate_hz, double window_s, double peep_pa) {
+  Assisted a;
+  a.mode = mode;
+  a.rate_hz = rate_hz;
+  a.trigger_window_s = window_s;
+  a.peep_pa = peep_pa;
+  a.inspiratory_time_s = 1.0;
+  a.cycle = CycleKind::flow;
+  a.trigger_threshold = 2 * kLitre / 60;
+  return a;
+}
+
+}  // namespace
+
+TEST(Ventilator, PassiveSimvGivesMandatoryBreathsAtTheSetRate) {
+  // No effort: SIMV is VC-CMV, every breath the machine's at k * 60 / rate. Each expiration
+  // (4 s, tau = 0.5 s) keeps k = e^(-8) of the volume: breath i starts x_i = VT k (1 - k^i) / (1 - k)
+  // above the PEEP volume and its plateau is PEEP + (x_i + VT) / C.
+  const double C = 0.05 * kLPerCmH2O, peep = 5 * kCmH2O, vt = 0.5 * kLitre, keep = std::exp(-8.0);
+  Assisted a = simv(AssistMode::simv_volume, 0.2, 2.0, peep);
+  a.tidal_volume_m3 = vt;
+  a.pause_time_s = 0.2;
+  a.support_pa = 8 * kCmH2O;
+  const auto r = simulate(just(single_linear(0.05, 10), a), tight(30.0));
+  ASSERT_EQ(r.breaths.size(), 6u);
+  for (std::size_t i = 0; i < r.breaths.size(); ++i) {
+    const auto& b = r.breaths[i];
+    EXPECT_STREQ(b.mode, "vc_simv");
+    EXPECT_STREQ(b.breath_type, "mandatory");
+    EXPECT_STREQ(b.trigger, "time");
+    EXPECT_DOUBLE_EQ(b.start_s, 5.0 * static_cast<double>(i));
+    const double x = vt * keep * (1 - std::pow(keep, static_cast<double>(i))) / (1 - keep);
+    EXPECT_LT(relative_error(b.plateau_pressure_pa, peep + (x + vt) / C), 1e-9) << i;
+  }
+}
+
+TEST(Ventilator, SimvSynchronisesTheMandatoryBreathWithinItsWindowAndSupportsTheRest) {
+  // SIMV-VC at 10 /min (a mandatory breath due every 6 s from t = 0), trigger window 2 s before
+  // each due time; the patient's effort (15 /min) starts at 2.5 s. From the rule:
+  // - 0 s: the mode's first breath, the machine's;
+  // - 2.5 s + delay: the first effort triggers outside the window [4, 6): a supported breath, at
+  //   the instant the flow reaches 2 L/min; in closed form, the expiration of the first breath
+  //   (VT e^(-(t - 1)/tau), from x = VT at the end of its 1 s square flow) plus the effort's
+  //   response from rest;
+  // - 6 s: no trigger in [4, 6) (the next effort starts at 6.5 s): the machine's;
+  // - 10.5 s + delay, in [10, 12): the mandatory breath, synchronised;
+  // - 14.5 s + delay, before [16, 18): supported; 18 s: the machine's; and so on every 12 s.
+  const double C = 0.05 * kLPerCmH2O, R = 10 * kCmH2OsPerL, tau = R * C, peep = 5 * kCmH2O, vt = 0.5 * kLitre;
+  const double A = 6 * kCmH2O, ti_effort = 4.0 / 3.0, w = std::numbers::pi / ti_effort, onset = 2.5;
+  const double threshold = 2 * kLitre / 60;
+  Assisted a = simv(AssistMode::simv_volume, 10.0 / 60, 2.0, peep);
+  a.tidal_volume_m3 = vt;
+  a.support_pa = 5 * kCmH2O;
+  const Mechanics m = single_linear(0.05, 10);
+  const Protocol p{{Setting{0.0, m, a}, Setting{onset, m, a, PatientEffort{0.25, 0.5, A}}}};
+  const auto r = simulate(p, tight(36.0, 10.0));
+  const auto effort_flow = [&](double t) {
+    const double e = std::exp(-t / tau);
+    return A * C / 2 * e / tau -
+           A * C / 2 / (1 + w * w * tau * tau) * (-w * std::sin(w * t) + w * w * tau * std::cos(w * t) + e / tau);
+  };
+  const auto flow = [&](double t) { return -vt / tau * std::exp(-(t - 1.0) / tau) + effort_flow(t - onset); };
+  const double first_trigger = bisect([&](double t) { return flow(t) - threshold; }, onset + 1e-6, onset + 1.0);
+  struct Expected {
+    const char* type;
+    const char* trigger;
+  };
+  const Expected pattern[] = {{"spontaneous", "patient_flow"}, {"mandatory", "time"}, {"mandatory", "patient_flow"}};
+  ASSERT_EQ(r.breaths.size(), 9u);  // the last, at 34.5 s + delay, ends after 36 s
+  EXPECT_STREQ(r.breaths[0].breath_type, "mandatory");
+  EXPECT_EQ(r.breaths[0].start_s, 0.0);
+  EXPECT_NEAR(r.breaths[1].start_s, first_trigger, 1e-9);
+  int mandatory = 0;
+  for (std::size_t i = 1; i < r.breaths.size(); ++i) {
+    const auto& b = r.breaths[i];
+    const Expected& e = pattern[(i - 1) % 3];
+    const double cycle_start = 12.0 * static_cast<double>((i - 1) / 3);  // the pattern repeats every 12 s
+    EXPECT_STREQ(b.breath_type, e.type) << i;
+    EXPECT_STREQ(b.trigger, e.trigger) << i;
+    if ((i - 1) % 3 == 0) {  // supported, flow cycled at 25 % of its peak flow
+      EXPECT_NEAR(b.start_s - b.trigger_delay_s, cycle_start + onset, 1e-9) << i;
+      EXPECT_STREQ(b.cycle, "flow") << i;
+      EXPECT_EQ(b.set_tidal_volume_m3, 0.0) << i;
+    } else if ((i - 1) % 3 == 1) {  // the machine's, on the clock
+      EXPECT_DOUBLE_EQ(b.start_s, cycle_start + 6.0) << i;
+      EXPECT_EQ(b.set_tidal_volume_m3, vt) << i;
+    } else {  // synchronised within [10, 12) + 12 k
+      EXPECT_NEAR(b.start_s - b.trigger_delay_s, cycle_start + 10.5, 1e-9) << i;
+      EXPECT_GE(b.start_s, cycle_start + 10.0) << i;
+      EXPECT_LT(b.start_s, cycle_start + 12.0) << i;
+      EXPECT_LT(relative_error(b.inspired_volume_m3, vt), 1e-9) << i;
+    }
+    mandatory += std::string(b.breath_type) == "mandatory" ? 1 : 0;
+  }
+  // Exactly one mandatory breath per cycle: in the window [6 k - 2, 6 k] of each due time 6 k.
+  for (int k = 1; 6.0 * k <= r.breaths.back().start_s; ++k) {
+    int in_window = 0;
+    for (const auto& b : r.breaths)
+      in_window += std::string(b.breath_type) == "mandatory" && b.start_s >= 6.0 * k - 2.0 && b.start_s <= 6.0 * k;
+    EXPECT_EQ(in_window, 1) << k;
+  }
+  // ... and none outside the windows.
+  for (const auto& b : r.breaths) {
+    if (std::string(b.breath_type) != "mandatory") continue;
+    const double k = std::ceil(b.start_s / 6.0);
+    EXPECT_GE(b.start_s, 6.0 * k - 2.0) << b.start_s;
+  }
+  EXPECT_EQ(mandatory, 5);  // 6, 10.5 + d, 18, 22.5 + d, 30 s
+}
+
+TEST(Ventilator, ExpiratoryHoldReadsTheClosedFormTotalPeepOfAShortExpiration) {
+  // VC-CMV on an RC lung (tau = 1 s) with only 2 s to expire: from rest, each breath adds VT and
+  // each expiration keeps r = e^(-Te/tau) of the volume, so after n breaths the lung holds
+  // x_n = VT r (1 - r^n) / (1 - r) above the PEEP volume. An occluded single compartment holds
+  // its alveolar pressure: the hold reads PEEP + x_n / C, and intrinsic PEEP x_n / C.
+  const double C = 0.05 * kLPerCmH2O, tau = 1.0, peep = 5 * kCmH2O, vt = 0.5 * kLitre, te = 2.0, hold = 1.5;
+  const double r = std::exp(-te / tau);
+  const auto x = [&](int n) { return vt * r * (1 - std::pow(r, n)) / (1 - r); };
+  for (bool assisted : {false, true}) {
+    Driver d = VolumeControl{1.0 / 3, vt, 1.0, 0.0, peep};
+    if (assisted) d = vc_ac(1.0 / 3, vt, 1.0, 0.0, peep);
+    Protocol p = just(single_linear(0.05, 20), d);
+    p.holds = {{8.2, hold}};  // during the third breath: held at its end, t = 9 s
+    const auto res = simulate(p, tight(18.0));
+    ASSERT_GE(res.breaths.size(), 5u) << assisted;
+    const auto& b = res.breaths[2];
+    EXPECT_DOUBLE_EQ(b.expiratory_hold_s, hold) << assisted;
+    EXPECT_NEAR(b.duration_s, 3.0 + hold, 1e-12) << assisted;
+    EXPECT_LT(relative_error(b.total_peep_pa, peep + x(3) / C), 1e-9) << assisted;
+    EXPECT_LT(relative_error(b.intrinsic_peep_pa, x(3) / C), 1e-8) << assisted;
+    // The breaths without a hold keep the instantaneous reading, the same closed form.
+    EXPECT_TRUE(std::isnan(res.breaths[1].total_peep_pa));
+    EXPECT_LT(relative_error(res.breaths[1].intrinsic_peep_pa, x(2) / C), 1e-8) << assisted;
+    // No flow during the hold; the next breath is the machine's, right after it.
+    for (std::size_t k = 0; k < res.series.size(); ++k) {
+      if (res.series.time_s[k] > 9.0 && res.series.time_s[k] < 9.0 + hold) {
+        EXPECT_EQ(res.series.flow_m3_per_s[k], 0.0) << res.series.time_s[k];
+      }
+    }
+    EXPECT_NEAR(res.breaths[3].start_s, 9.0 + hold, 1e-12) << assisted;
+    EXPECT_STREQ(res.breaths[3].trigger, "time");
+    EXPECT_EQ(res.breaths[3].expiratory_hold_s, 0.0);
+  }
+}
+
+TEST(Ventilator, ExpiratoryHoldLetsTwoCompartmentsShareTheirPressure) {
+  // Two compartments behind a shared airway, occluded at end expiration: the total volume stays,
+  // the pressures equalise through the branches (pendelluft). With Pi = Vi / Ci and
+  // D = P1 - P2, D' = -D / tau_p, tau_p = (R1 + R2) C1 C2 / (C1 + C2), and the airway (branch
+  // point) pressure is Peq + D (C2 R2 - C1 R1) / ((C1 + C2)(R1 + R2)), Peq = (V1 + V2) / (C1 + C2).
+  const double C1 = 0.02 * kLPerCmH2O, C2 = 0.04 * kLPerCmH2O, R1 = 2 * kCmH2OsPerL, R2 = 30 * kCmH2OsPerL;
+  Mechanics m;
+  m.airway_resistance_pa_s_per_m3 = 5 * kCmH2OsPerL;
+  m.compartments = {{"upper", LinearCompliance{C1}, R1}, {"lower", LinearCompliance{C2}, R2}};
+  const double peep = 5 * kCmH2O, hold = 1.0;
+  Protocol p = just(m, VolumeControl{0.4, 0.5 * kLitre, 0.8, 0.0, peep});
+  p.holds = {{4.0, hold}};  // the end of the second breath, t = 5 s: an output sample
+  const auto res = simulate(p, tight(10.0));
+  ASSERT_GE(res.breaths.size(), 2u);
+  const auto& s = res.series;
+  std::size_t k0 = 0;
+  while (s.time_s[k0] < 5.0 - 1e-9) ++k0;
+  ASSERT_NEAR(s.time_s[k0], 5.0, 1e-12);
+  const double v1 = s.compartment_volume_m3[0][k0], v2 = s.compartment_volume_m3[1][k0];
+  const double peq = (v1 + v2) / (C1 + C2), d0 = v1 / C1 - v2 / C2;
+  const double tau_p = (R1 + R2) * C1 * C2 / (C1 + C2);
+  const double expected = peq + d0 * std::exp(-hold / tau_p) * (C2 * R2 - C1 * R1) / ((C1 + C2) * (R1 + R2));
+  const auto& b = res.breaths[1];
+  EXPECT_LT(relative_error(b.total_peep_pa, expected), 1e-8);
+  EXPECT_GT(std::abs(d0), 0.1 * kCmH2O);  // the compartments did differ at the occlusion
+  // The total volume does not change during the hold.
+  for (std::size_t k = k0; s.time_s[k] <= 5.0 + hold; ++k) EXPECT_NEAR(s.volume_m3[k], v1 + v2, 1e-15);
+}
+
+TEST(Ventilator, SwitchingToSimvMidRunTakesOverTheExpiration) {
+  // VC-AC at 12 /min, then at 7 s SIMV-VC at 10 /min: the breath in progress (started at 5 s)
+  // counts as the first mandatory one, the next is due at 11 s; no effort, so it comes then.
+  const Mechanics m = single_linear(0.05, 10);
+  Assisted ac = vc_ac(0.2, 0.45e-3, 1.0, 0.0, 5 * kCmH2O);
+  Assisted s = simv(AssistMode::simv_volume, 10.0 / 60, 2.0, 5 * kCmH2O);
+  s.tidal_volume_m3 = 0.45e-3;
+  const auto r = simulate(Protocol{{Setting{0.0, m, ac}, Setting{7.0, m, s}}}, tight(24.0, 10.0));
+  ASSERT_EQ(r.breaths.size(), 4u);
+  EXPECT_STREQ(r.breaths[1].mode, "vc_ac");
+  EXPECT_DOUBLE_EQ(r.breaths[1].duration_s, 6.0);
+  EXPECT_STREQ(r.breaths[2].mode, "vc_simv");
+  EXPECT_DOUBLE_EQ(r.breaths[2].start_s, 11.0);
+  EXPECT_DOUBLE_EQ(r.breaths[3].start_s, 17.0);
+}

@@ -489,3 +489,68 @@ TEST_P(CtLobeRuns, BothLungsBreathe) {
 
 INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtLobeRuns,
                          ::testing::Values("case004", "case005", "case006", "case007", "case008", "case009"));
+
+// The ventilator's facts in manifest.json on a passive VC-AC run with a pause and an expiratory
+// hold, against the closed forms of the RC lung (C = 0.05 L/cmH2O, R = 10 cmH2O*s/L, tau = 0.5 s):
+// with r = e^(-Te/tau) kept of each breath's volume, breath n starts x_(n-1) = VT r (1 - r^(n-1)) /
+// (1 - r) above the PEEP volume, its plateau is PEEP + (x_(n-1) + VT) / C and its peak adds R q.
+TEST(Runner, ManifestSummarisesTheVentilatorAgainstTheClosedForms) {
+  TempDir dir;
+  const auto scenario = dir.write("vent.yaml", R"(name: vent
+duration: 14 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 12 mm, share: 55 %}
+field: {tissue: healthy-upright}
+physiology:
+  compliance: 0.05 L/cmH2O
+  resistance: 10 cmH2O*s/L
+  driver: {mode: vc_ac, rate: 15 /min, tidal_volume: 500 mL, inspiratory_time: 1.2 s, pause: 0.3 s, peep: 5 cmH2O}
+  actions:
+    - {at: 5 s, expiratory_hold: 1 s}
+outputs: {gltf: false, hdf5: false}
+)");
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto manifest = nlohmann::json::parse(pneuma::test::read_text(dir / "out/manifest.json"));
+  const auto& facts = manifest.at("facts");
+  const auto text = [&](const char* key) { return facts.at(key).get<std::string>(); };
+  const auto value = [&](const char* key) { return std::stod(text(key)); };
+  EXPECT_EQ(text("ventilator.settings[0].mode"), "vc_ac");
+  EXPECT_EQ(text("ventilator.settings[0].rate_per_min"), "15");
+  EXPECT_EQ(text("ventilator.settings[0].tidal_volume_mL"), "500");
+  EXPECT_EQ(text("ventilator.settings[0].trigger"), "flow 2 L/min");
+  EXPECT_EQ(text("ventilator.expiratory_holds"), "at 5 s for 1 s");
+  // Breaths [0, 4], [4, 9] (held at 8 s for 1 s), [9, 13]: all on the backup timer.
+  EXPECT_EQ(text("ventilator.breaths"), "3");
+  EXPECT_EQ(text("ventilator.breaths.mandatory"), "3");
+  EXPECT_EQ(text("ventilator.triggers.time"), "3");
+  EXPECT_EQ(text("ventilator.triggers.patient_flow"), "0");
+  EXPECT_EQ(text("ventilator.missed_triggers"), "0");
+  const double cmh2o = 1.0, C = 0.05, R = 10.0, vt = 0.5, q = vt / 0.9, peep = 5 * cmh2o;
+  const double ratio = std::exp(-2.8 / 0.5);
+  const auto x = [&](int n) { return vt * ratio * (1 - std::pow(ratio, n)) / (1 - ratio); };  // litres
+  double plateau_sum = 0.0;
+  for (int n = 1; n <= 3; ++n) plateau_sum += peep + (x(n - 1) + vt) / C;
+  const auto near = [](double actual, double expected) { return std::abs(actual - expected) <= 1e-5 * expected; };
+  EXPECT_PRED2(near, value("ventilator.plateau_pressure_cmH2O.mean"), plateau_sum / 3);
+  EXPECT_PRED2(near, value("ventilator.plateau_pressure_cmH2O.min"), peep + vt / C);
+  EXPECT_PRED2(near, value("ventilator.plateau_pressure_cmH2O.max"), peep + (x(2) + vt) / C);
+  EXPECT_PRED2(near, value("ventilator.peak_pressure_cmH2O.max"), peep + R * q + (x(2) + vt) / C);
+  EXPECT_PRED2(near, value("ventilator.delivered_tidal_volume_mL.mean"), 500.0);
+  EXPECT_PRED2(near, value("ventilator.intrinsic_peep_cmH2O.max"), x(3) / C);
+  // The held breath: total PEEP = PEEP + x_2 / C, the only one.
+  EXPECT_PRED2(near, value("ventilator.total_peep_cmH2O.mean"), peep + x(2) / C);
+  EXPECT_EQ(text("ventilator.total_peep_cmH2O.min"), text("ventilator.total_peep_cmH2O.max"));
+  // The CSV row of that breath carries the hold.
+  const std::string breaths = pneuma::test::read_text(dir / "out/physiology-breaths.csv");
+  EXPECT_NE(breaths.find(",mandatory,1,"), std::string::npos) << breaths;
+}
+
+TEST(Runner, ManifestHasNoVentilatorFactsForSpontaneousBreathing) {
+  TempDir dir;
+  const auto scenario = dir.write("small.yaml", kSmall);
+  ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"}).exit_code, 0);
+  const auto manifest = nlohmann::json::parse(pneuma::test::read_text(dir / "out/manifest.json"));
+  for (const auto& [key, value] : manifest.at("facts").items())
+    EXPECT_EQ(key.rfind("ventilator.", 0), std::string::npos) << key;
+}

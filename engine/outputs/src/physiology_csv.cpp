@@ -5,6 +5,7 @@
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/units.h"
+#include "pneuma/outputs/ventilator_facts.h"
 
 namespace pneuma::outputs {
 namespace {
@@ -46,7 +47,7 @@ void write_breaths_csv(const std::filesystem::path& path, const physiology::Simu
            "plateau_pressure_cmH2O,peep_cmH2O,dynamic_compliance_mL_per_cmH2O,end_expiratory_volume_mL,"
            "muscle_amplitude_cmH2O,inspired_volume_mL,set_tidal_volume_mL,trigger,trigger_delay_s,cycle,"
            "inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,intrinsic_peep_cmH2O,missed_triggers,"
-           "double_trigger\n";
+           "double_trigger,breath_type,expiratory_hold_s,total_peep_cmH2O\n";
     for (std::size_t i = 0; i < result.breaths.size(); ++i) {
       const auto& b = result.breaths[i];
       const std::string set = b.set_tidal_volume_m3 > 0.0 ? fmt::format("{:.9g}", b.set_tidal_volume_m3 * kMl) : "";
@@ -60,11 +61,15 @@ void write_breaths_csv(const std::filesystem::path& path, const physiology::Simu
       // the trigger counts are 0 there.
       const bool ventilated = *b.trigger != '\0';
       const auto number = [&](double v) { return ventilated && v == v ? fmt::format("{:.9g}", v) : std::string(); };
-      out << fmt::format(",{},{},{},{},{},{:.9g},{},{},{}\n", b.trigger, number(b.trigger_delay_s), b.cycle,
+      out << fmt::format(",{},{},{},{},{},{:.9g},{},{},{}", b.trigger, number(b.trigger_delay_s), b.cycle,
                          number(b.inspiratory_time_s),
                          number(b.inspiratory_time_s / (b.duration_s - b.inspiratory_time_s)),
                          b.mean_airway_pressure_pa * kCmH2O, number(b.intrinsic_peep_pa * kCmH2O), b.missed_triggers,
                          b.double_triggered ? 1 : 0);
+      // The expiratory hold's columns, empty for breaths without one.
+      const bool held = b.expiratory_hold_s > 0.0;
+      out << fmt::format(",{},{},{}\n", b.breath_type, held ? fmt::format("{:.9g}", b.expiratory_hold_s) : "",
+                         held ? fmt::format("{:.9g}", b.total_peep_pa * kCmH2O) : "");
     }
   });
 }
@@ -78,11 +83,15 @@ class PhysiologyCsv final : public Output {
   std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord& run) override {
     write_time_series_csv(dir_ / "physiology.csv", *run.physiology);
     write_breaths_csv(dir_ / "physiology-breaths.csv", *run.physiology);
+    // The ventilator's settings and a summary of the breaths the CSV lists, for the manifest.
+    if (run.scenario) facts_ = ventilator_facts(run.scenario->physiology.protocol, *run.physiology);
     return {dir_ / "physiology.csv", dir_ / "physiology-breaths.csv"};
   }
+  std::vector<std::pair<std::string, std::string>> facts() const override { return facts_; }
 
  private:
   std::filesystem::path dir_;
+  std::vector<std::pair<std::string, std::string>> facts_;
 };
 
 }  // namespace

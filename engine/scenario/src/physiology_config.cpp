@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <cstdlib>
@@ -18,11 +19,11 @@ using physiology::Driver;
 using physiology::Mechanics;
 namespace kind = units::kind;
 
-const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control",
-                                      "vc_ac",       "pc_ac",          "cpap_psv"};
+const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control", "vc_ac",
+                                      "pc_ac",       "cpap_psv",       "vc_simv",          "pc_simv"};
 // Accepted as `driver.mode` beside kModes, at t = 0 only (read_trace_driver).
 const std::vector<std::string> kModesWithTrace{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
-                                               "cpap_psv",    "trace"};
+                                               "cpap_psv",    "vc_simv",        "pc_simv",          "trace"};
 const std::vector<std::string> kModels{"single", "two_compartment"};
 
 // Every driver setting by name, so an action can patch any of them and a mode switch can
@@ -37,9 +38,13 @@ struct DriverFields {
   std::optional<double> trigger_threshold;
   std::optional<physiology::CycleKind> cycle;
   std::optional<double> cycle_fraction, cycle_volume;
+  std::optional<double> trigger_window;  // SIMV
 };
 
-bool is_assist(const std::string& mode) { return mode == "vc_ac" || mode == "pc_ac" || mode == "cpap_psv"; }
+bool is_simv(const std::string& mode) { return mode == "vc_simv" || mode == "pc_simv"; }
+bool is_assist(const std::string& mode) {
+  return mode == "vc_ac" || mode == "pc_ac" || mode == "cpap_psv" || is_simv(mode);
+}
 
 DriverFields fields_of(const Driver& driver) {
   DriverFields f;
@@ -52,14 +57,22 @@ DriverFields fields_of(const Driver& driver) {
           f.peep = d.peep_pa;
           f.trigger = d.trigger;
           f.trigger_threshold = d.trigger_threshold;
-          if (d.mode == physiology::AssistMode::volume) {
+          if (physiology::is_simv(d)) {
+            f.pressure_support = d.support_pa;
+            // A default window follows the rate; only a window that was set is carried.
+            if (d.trigger_window_s != physiology::default_trigger_window_s(d.rate_hz))
+              f.trigger_window = d.trigger_window_s;
+          }
+          if (d.mode == physiology::AssistMode::volume || d.mode == physiology::AssistMode::simv_volume) {
             f.tidal_volume = d.tidal_volume_m3;
             f.pause = d.pause_time_s;
             f.waveform = d.waveform;
             if (d.pressure_limit_pa > 0.0) f.pressure_limit = d.pressure_limit_pa;
-          } else {
-            if (d.mode == physiology::AssistMode::pressure) f.inspiratory_pressure = d.inspiratory_pressure_pa;
-            else f.pressure_support = d.inspiratory_pressure_pa;
+          }
+          if (d.mode != physiology::AssistMode::volume) {
+            if (d.mode == physiology::AssistMode::pressure || d.mode == physiology::AssistMode::simv_pressure)
+              f.inspiratory_pressure = d.inspiratory_pressure_pa;
+            else if (d.mode == physiology::AssistMode::pressure_support) f.pressure_support = d.inspiratory_pressure_pa;
             f.rise_time = d.rise_time_s;
             f.cycle = d.cycle;
             f.cycle_fraction = d.cycle_fraction;
@@ -85,17 +98,22 @@ DriverFields fields_of(const Driver& driver) {
   return f;
 }
 
-// Which keys each mode takes ("ie_ratio" and "inspiratory_time" are alternatives).
+// Which keys each mode takes ("ie_ratio" and "inspiratory_time" are alternatives). In SIMV the
+// pressure-mode keys (rise time, cycle, volume limit) shape the supported breaths.
 bool mode_takes(const std::string& mode, const std::string& key) {
   if (key == "rate") return mode != "cpap_psv";
   if (mode == "spontaneous") return key == "ie_ratio" || key == "tidal_volume" || key == "muscle_pressure";
   if (key == "inspiratory_time" || key == "peep") return true;
   if (key == "ie_ratio") return mode != "cpap_psv";
   if (is_assist(mode) && key == "trigger") return true;
-  if (mode == "volume_control") return key == "tidal_volume" || key == "pause";
-  if (mode == "vc_ac") return key == "tidal_volume" || key == "pause" || key == "waveform" || key == "pressure_limit";
-  if (mode == "pressure_control") return key == "inspiratory_pressure";
+  const bool volume_key = key == "tidal_volume" || key == "pause" || key == "waveform" || key == "pressure_limit";
   const bool pressure_mode_key = key == "rise_time" || key == "cycle" || key == "volume_limit";
+  const bool simv_key = key == "pressure_support" || key == "trigger_window" || pressure_mode_key;
+  if (mode == "volume_control") return key == "tidal_volume" || key == "pause";
+  if (mode == "vc_ac") return volume_key;
+  if (mode == "vc_simv") return volume_key || simv_key;
+  if (mode == "pc_simv") return key == "inspiratory_pressure" || simv_key;
+  if (mode == "pressure_control") return key == "inspiratory_pressure";
   if (mode == "pc_ac") return key == "inspiratory_pressure" || pressure_mode_key;
   return key == "pressure_support" || pressure_mode_key;  // cpap_psv
 }
@@ -103,7 +121,8 @@ bool mode_takes(const std::string& mode, const std::string& key) {
 const std::vector<std::string> kDriverKeys{
     "rate",           "ie_ratio",     "inspiratory_time",     "tidal_volume", "muscle_pressure",
     "pause",          "peep",         "inspiratory_pressure", "waveform",     "rise_time",
-    "pressure_limit", "volume_limit", "pressure_support",     "trigger",      "cycle"};
+    "pressure_limit", "volume_limit", "pressure_support",     "trigger",      "cycle",
+    "trigger_window"};
 
 // trigger: {flow: 2 L/min} or {pressure: 2 cmH2O}, a positive threshold.
 void read_trigger(const config::Node& n, DriverFields& f) {
@@ -191,6 +210,7 @@ void overlay_driver(const config::Node& n, const std::string& mode, DriverFields
   }
   if (n.has("trigger")) read_trigger(n, f);
   if (n.has("cycle")) read_cycle(n, f);
+  if (n.has("trigger_window")) f.trigger_window = n.positive_quantity("trigger_window", kind::duration);
 }
 
 std::string fmt_cmh2o(double pa) {
@@ -210,10 +230,13 @@ double require(const config::Node& n, const std::optional<double>& value, const 
 // at most 3 s.
 physiology::Assisted build_assisted(const config::Node& n, const std::string& mode, const DriverFields& f) {
   physiology::Assisted a;
-  a.mode = mode == "vc_ac"   ? physiology::AssistMode::volume
-           : mode == "pc_ac" ? physiology::AssistMode::pressure
-                             : physiology::AssistMode::pressure_support;
+  a.mode = mode == "vc_ac"     ? physiology::AssistMode::volume
+           : mode == "pc_ac"   ? physiology::AssistMode::pressure
+           : mode == "vc_simv" ? physiology::AssistMode::simv_volume
+           : mode == "pc_simv" ? physiology::AssistMode::simv_pressure
+                               : physiology::AssistMode::pressure_support;
   const bool support = a.mode == physiology::AssistMode::pressure_support;
+  const bool simv = physiology::is_simv(a);
   a.rate_hz = support ? 0.0 : require(n, f.rate, "rate", kind::rate);
   a.peep_pa = f.peep.value_or(0.0);
   if (f.inspiratory_time) a.inspiratory_time_s = *f.inspiratory_time;
@@ -222,7 +245,19 @@ physiology::Assisted build_assisted(const config::Node& n, const std::string& mo
   else n.fail("missing key 'inspiratory_time' or 'ie_ratio' (expected a duration such as '1 s')");
   a.trigger = f.trigger.value_or(physiology::TriggerKind::flow);
   a.trigger_threshold = f.trigger_threshold.value_or(2.0 * units::m3_per_litre / 60.0);
-  if (a.mode == physiology::AssistMode::volume) {
+  if (simv) {
+    a.support_pa = f.pressure_support.value_or(0.0);
+    a.trigger_window_s = f.trigger_window.value_or(physiology::default_trigger_window_s(a.rate_hz));
+    if (!(a.trigger_window_s <= 1.0 / a.rate_hz)) {
+      const std::string what =
+          fmt::format("expected a trigger window of at most one cycle (60 / rate = {:g} s), got {:g} s",
+                      1.0 / a.rate_hz, a.trigger_window_s);
+      if (n.has("trigger_window")) n.fail_at("trigger_window", what);
+      if (n.has("rate")) n.fail_at("rate", what);
+      n.fail(what);
+    }
+  }
+  if (a.mode == physiology::AssistMode::volume || a.mode == physiology::AssistMode::simv_volume) {
     a.tidal_volume_m3 = require(n, f.tidal_volume, "tidal_volume", kind::volume);
     a.pause_time_s = f.pause.value_or(0.0);
     a.waveform = f.waveform.value_or(physiology::FlowWaveform::square);
@@ -234,11 +269,13 @@ physiology::Assisted build_assisted(const config::Node& n, const std::string& mo
       if (n.has("peep")) n.fail_at("peep", what);
       n.fail(what);
     }
-  } else {
-    a.inspiratory_pressure_pa = support ? require(n, f.pressure_support, "pressure_support", kind::pressure)
-                                        : require(n, f.inspiratory_pressure, "inspiratory_pressure", kind::pressure);
+  }
+  if (a.mode != physiology::AssistMode::volume) {
+    if (a.mode != physiology::AssistMode::simv_volume)
+      a.inspiratory_pressure_pa = support ? require(n, f.pressure_support, "pressure_support", kind::pressure)
+                                          : require(n, f.inspiratory_pressure, "inspiratory_pressure", kind::pressure);
     a.rise_time_s = f.rise_time.value_or(0.0);
-    a.cycle = f.cycle.value_or(support ? physiology::CycleKind::flow : physiology::CycleKind::time);
+    a.cycle = f.cycle.value_or(support || simv ? physiology::CycleKind::flow : physiology::CycleKind::time);
     a.cycle_fraction = f.cycle_fraction.value_or(0.25);
     if (a.cycle == physiology::CycleKind::volume) a.cycle_volume_m3 = require(n, f.cycle_volume, "cycle", kind::volume);
     a.volume_limit_m3 = f.volume_limit.value_or(0.0);
@@ -533,6 +570,19 @@ PhysiologyConfig read_physiology(const config::Node& raw_section, double duratio
     if (!(at > previous_time)) action.fail_at("at", "expected a time after the previous action's and after 0 s");
     if (at >= duration_s) action.fail_at("at", "expected a time within the scenario's duration");
     previous_time = at;
+    // An expiratory hold is a manoeuvre at the next end of expiration, not a setting.
+    if (action.has("expiratory_hold")) {
+      const double hold = action.positive_quantity("expiratory_hold", kind::duration);
+      if (!physiology::is_ventilator(out.protocol.settings.back().driver) && !action.has("mode"))
+        action.fail_at("expiratory_hold", "an expiratory hold needs a ventilator; the patient breathes spontaneously");
+      out.protocol.holds.push_back({at, hold});
+      const auto keys = action.keys();
+      if (std::all_of(keys.begin(), keys.end(),
+                      [](const std::string& k) { return k == "at" || k == "expiratory_hold"; })) {
+        action.finish();
+        continue;
+      }
+    }
     physiology::Setting next = out.protocol.settings.back();
     next.start_time_s = at;
     std::string next_mode = physiology::mode_name(next.driver);
@@ -549,6 +599,8 @@ PhysiologyConfig read_physiology(const config::Node& raw_section, double duratio
     if (next.effort.active() && !physiology::is_ventilator(next.driver))
       action.fail_at(action.has("mode") ? "mode" : "at",
                      "a patient effort acts on a ventilated patient; set effort: {muscle_pressure: 0 cmH2O} first");
+    if (action.has("expiratory_hold") && !physiology::is_ventilator(next.driver))
+      action.fail_at("expiratory_hold", "an expiratory hold needs a ventilator; the patient breathes spontaneously");
     action.finish();
     out.protocol.settings.push_back(next);
   }

@@ -53,7 +53,16 @@ struct PressureControl {
 //   the expiratory valve.
 // A trigger is armed by a crossing: a flow already above the threshold when expiration begins
 // does not trigger until it has fallen below it and risen again.
-enum class AssistMode { volume, pressure, pressure_support };  // VC-AC, PC-AC, CPAP + PSV
+//
+// SIMV (synchronised intermittent mandatory ventilation) mixes both kinds of breath: mandatory
+// breaths (volume or pressure controlled, time cycled) at the set rate, and the patient's own
+// breaths in between, pressure supported by `support_pa` (0: at PEEP, unsupported). The clock
+// schedules a mandatory breath every 60 / rate from the mode's start (the first at once); a
+// trigger window of `trigger_window_s` ends at each scheduled time, and the first patient trigger
+// inside it gets the mandatory breath early (synchronised), after which the next one is due a
+// period after the scheduled time. No trigger in the window: the machine starts the breath at
+// the scheduled time. Every other trigger starts a spontaneous, supported breath.
+enum class AssistMode { volume, pressure, pressure_support, simv_volume, simv_pressure };
 enum class TriggerKind { flow, pressure };
 enum class CycleKind { time, flow, volume };
 enum class FlowWaveform { square, decelerating };  // decelerating: linear ramp from peak to 0
@@ -78,8 +87,23 @@ struct Assisted {
   // Trigger.
   TriggerKind trigger = TriggerKind::flow;
   double trigger_threshold = 0.0;  // m^3/s into the patient (flow) or Pa below PEEP (pressure)
+  // SIMV: the spontaneous breaths are cycled by `cycle` (flow at 25 % by default), at most
+  // kLongestSupportedInspiration_s; the mandatory ones on time.
+  double support_pa = 0.0;        // pressure support of the spontaneous breaths, above PEEP
+  double trigger_window_s = 0.0;  // the window before each scheduled mandatory breath, (0, 60 / rate]
   bool operator==(const Assisted&) const = default;
 };
+
+// The longest inspiration of a pressure-supported breath in SIMV (cpap_psv sets its own).
+constexpr double kLongestSupportedInspiration_s = 3.0;
+
+bool is_simv(const Assisted& a);
+// SIMV's default trigger window: 60 % of the cycle, at most 10 s.
+double default_trigger_window_s(double rate_hz);
+// The breath an assisted driver gives: for AC modes and CPAP, the driver itself; for SIMV, the
+// mandatory breath (a VC-AC or PC-AC breath cycled on time) or the spontaneous one (a
+// pressure-support breath with the driver's support, cycle and rise time).
+Assisted simv_breath(const Assisted& a, bool mandatory);
 
 // The patient's own breathing effort on a ventilated patient: the spontaneous driver's muscle
 // pressure profile (half-cosine rise over Ti, relaxation over half of Te, rest), repeating at

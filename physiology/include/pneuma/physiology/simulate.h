@@ -22,9 +22,21 @@ struct Setting {
   PatientEffort effort{};  // only with a ventilator driver
 };
 
-// The whole timeline: settings[0] starts at 0, the rest in increasing start time.
+// An expiratory hold (a manoeuvre, not a setting): at the first end of expiration at or after
+// at_s (when the next breath would start), the ventilator closes both valves for duration_s and
+// reads the airway pressure at the end: the total PEEP (set PEEP + intrinsic PEEP, once the
+// compartments have shared their pressures). The breath's expiration lasts the hold longer and
+// the next breath is a machine breath right after it (cpap_psv: the patient's next trigger).
+struct ExpiratoryHold {
+  double at_s = 0.0;
+  double duration_s = 0.0;
+};
+
+// The whole timeline: settings[0] starts at 0, the rest in increasing start time; the holds in
+// increasing time.
 struct Protocol {
   std::vector<Setting> settings;
+  std::vector<ExpiratoryHold> holds{};
 };
 
 struct SolverOptions {
@@ -75,6 +87,9 @@ struct BreathMetrics {
   double intrinsic_peep_pa = 0.0;  // end-expiratory hold pressure minus set PEEP: recoil of the end-expiratory volume
   int missed_triggers = 0;         // patient efforts starting in this breath that triggered nothing
   bool double_triggered = false;   // triggered by the same effort as the breath before
+  const char* breath_type = "";    // "mandatory" (machine cycled) or "spontaneous" (pressure support); "" unventilated
+  double expiratory_hold_s = 0.0;  // the hold made at the end of this breath's expiration; 0: none
+  double total_peep_pa = std::numeric_limits<double>::quiet_NaN();  // airway pressure at the hold's end
 };
 
 struct SolverStats {

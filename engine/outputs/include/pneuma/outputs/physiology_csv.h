@@ -17,7 +17,8 @@ void write_time_series_csv(const std::filesystem::path& path, const physiology::
 void write_breaths_csv(const std::filesystem::path& path, const physiology::SimulationResult& result);
 
 // `outputs: {physiology_csv: true}` (on by default): physiology.csv and physiology-breaths.csv,
-// sampled at the scenario's physiology output rate.
+// sampled at the scenario's physiology output rate; its manifest facts are the ventilator's
+// (ventilator_facts.h).
 OutputPlugin physiology_csv_output();
 
 }  // namespace pneuma::outputs

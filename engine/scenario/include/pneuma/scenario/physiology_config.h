@@ -11,6 +11,7 @@
 //       - {at: 30 s, rate: 16 /min}                 # patch the current driver
 //       - {at: 60 s, mode: volume_control, tidal_volume: 450 mL, peep: 5 cmH2O}
 //       - {at: 90 s, compliance: 0.04 L/cmH2O}       # patch the mechanics
+//       - {at: 120 s, expiratory_hold: 3 s}          # occlude at the next end of expiration
 //     output_rate: 100 Hz
 //     solver: {relative_tolerance: 1e-8, absolute_tolerance: 1e-9 L, max_step: 0.05 s}
 //
