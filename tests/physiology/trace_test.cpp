@@ -27,7 +27,7 @@ constexpr double kTidal = 0.5e-3;  // m^3
 double volume(double t) { return 0.5 * kTidal * (1.0 - std::cos(2.0 * kPi * t / kPeriod)); }
 double flow(double t) { return 0.5 * kTidal * (2.0 * kPi / kPeriod) * std::sin(2.0 * kPi * t / kPeriod); }
 
-Trace load(const std::filesystem::path& file, TraceOptions options = {}) {
+Trace load(const std::filesystem::path& file, const TraceOptions& options = {}) {
   return process_trace(read_trace_file(file, options), options);
 }
 
@@ -39,7 +39,7 @@ double worst_error(const SimulationResult& r, double offset_s = 0.0) {
   return worst / kTidal;
 }
 
-std::string message_of(const std::filesystem::path& file, TraceOptions options = {}) {
+std::string message_of(const std::filesystem::path& file, const TraceOptions& options = {}) {
   try {
     load(file, options);
   } catch (const InputError& e) {

@@ -400,7 +400,8 @@ TEST(Ventilator, SimvSynchronisesTheMandatoryBreathWithinItsWindowAndSupportsThe
   for (std::size_t i = 1; i < r.breaths.size(); ++i) {
     const auto& b = r.breaths[i];
     const Expected& e = pattern[(i - 1) % 3];
-    const double cycle_start = 12.0 * static_cast<double>((i - 1) / 3);  // the pattern repeats every 12 s
+    const std::size_t cycle = (i - 1) / 3;  // the pattern repeats every 12 s
+    const double cycle_start = 12.0 * static_cast<double>(cycle);
     EXPECT_STREQ(b.breath_type, e.type) << i;
     EXPECT_STREQ(b.trigger, e.trigger) << i;
     if ((i - 1) % 3 == 0) {  // supported, flow cycled at 25 % of its peak flow
