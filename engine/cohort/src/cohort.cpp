@@ -107,7 +107,8 @@ const Subject& find_subject(const Cohort& c, const std::string& id) {
 // the solver options (as the field cache's key, model/field_cache.h).
 std::string field_variant_key(const scenario::Scenario& s) {
   const auto& o = s.field.options;
-  return fmt::format("{}|{}|{}|{:.17g}|{}|{}|{:.17g}", s.field.tissue_file.string(), s.field.tissue.name,
+  return fmt::format("{}|{}|{}|{:.17g}|{}|{}|{:.17g}",
+                     std::filesystem::absolute(s.field.tissue_file).lexically_normal().string(), s.field.tissue.name,
                      field::solver_name(o.solver), o.tolerance, o.clique_hops, static_cast<int>(o.path_rule),
                      o.area_unit);
 }
@@ -168,7 +169,7 @@ Cohort load_cohort(const std::filesystem::path& file) {
     check_id(scenarios, id, "scenario");
     const std::filesystem::path path = (scenarios.directory(id) / scenarios.string(id)).lexically_normal();
     if (!path_exists(path)) scenarios.fail_at(id, "no such scenario file: " + path.string());
-    c.scenarios.push_back({id, std::filesystem::absolute(path)});
+    c.scenarios.push_back({id, path});
   }
   if (c.scenarios.empty()) root.fail_at("scenarios", "expected at least one scenario: 'id: path/to/scenario.yaml'");
   root.finish();
@@ -184,8 +185,9 @@ scenario::Scenario job_scenario(const Cohort& c, const std::string& subject_id, 
   const YAML::Node subject = cohort["subjects"][subject_id];
 
   // The scenario file without its surface keys (the subject's replace them).
-  const std::filesystem::path scenario_file = std::filesystem::relative(entry.file).lexically_normal();
-  const std::string scenario_name = scenario_file.empty() ? entry.file.string() : scenario_file.string();
+  // As the cohort names it, relative to the cohort file's folder: in messages and the run's
+  // manifest (the jobs read the cohort by its absolute path, so theirs is absolute).
+  const std::string scenario_name = entry.file.string();
   YAML::Node scenario = parse(read_file_bytes(entry.file), scenario_name);
   if (scenario.IsMap() && scenario["mesh"] && scenario["mesh"].IsMap()) {
     YAML::Node mesh = scenario["mesh"];
@@ -238,7 +240,8 @@ Plan plan(const Cohort& c) {
       run.scenario = entry.id;
       run.field = p.fields[it->second].id;
       run.inputs = {entry.file};
-      run.digest = digest(subject_text + "|" + shared + "|" + entry.file.string());
+      run.digest =
+          digest(subject_text + "|" + shared + "|" + std::filesystem::absolute(entry.file).lexically_normal().string());
       p.runs.push_back(std::move(run));
     }
   }

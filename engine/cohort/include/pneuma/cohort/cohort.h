@@ -33,8 +33,8 @@ struct Subject {
 };
 
 struct ScenarioEntry {
-  std::string id;              // [A-Za-z0-9._-]+, unique; default: the file's stem
-  std::filesystem::path file;  // absolute
+  std::string id;              // [A-Za-z0-9._-]+, unique (the key under `scenarios:`)
+  std::filesystem::path file;  // the cohort file's folder / the path given, normalised
 };
 
 // Per-job resources (for Slurm; threads also locally).
