@@ -14,6 +14,7 @@ void register_compare(CLI::App& app);
 void register_mesh(CLI::App& app);
 void register_phantom(CLI::App& app);
 void register_render(CLI::App& app);
+void register_cohort(CLI::App& app);
 
 // Shared option helpers.
 // Adds `--name VALUE` that parses a quantity with its unit (e.g. "3mm") into SI.

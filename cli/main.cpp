@@ -51,6 +51,7 @@ int run(int argc, char** argv) {
   pneuma::cli::register_mesh(app);
   pneuma::cli::register_phantom(app);
   pneuma::cli::register_render(app);
+  pneuma::cli::register_cohort(app);
 
   try {
     app.parse(argc, argv);

@@ -83,6 +83,8 @@ function(pneuma_check_layers)
                 WHY "the scenario is read before anything is computed")
   pneuma_forbid(TARGETS pneuma_model pneuma_frame pneuma_outputs USES pneuma_runner
                 WHY "the runner is the top of the engine")
+  pneuma_forbid(TARGETS ${below_render} pneuma_render pneuma_runner USES pneuma_cohort
+                WHY "a cohort is made of runs: only the CLI uses it")
   pneuma_forbid(TARGETS pneuma_mesh_geometry USES pneuma_mesh_io pneuma_mesh_labels pneuma_mesh_repair
                 pneuma_mesh_anatomy WHY "geometry is the bottom of mesh/")
 endfunction()
