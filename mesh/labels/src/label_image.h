@@ -45,7 +45,8 @@ struct StoredData {
 // refuses sizes the file cannot hold before anything is allocated ("<file>: truncated or
 // corrupt: expected 48 x 40 x 32 voxels of INT16 (122880 bytes of data)"), then reads the voxels
 // and converts them to int32 ("<file>: voxel 7 holds 0.5: expected integer labels ..."). Every
-// ITK exception becomes one InputError line; nothing of ITK's text is passed on.
+// ITK exception becomes one InputError line; nothing of ITK's text is passed on. Calls from
+// several threads are safe (they take turns).
 ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
                         const std::function<StoredData(const ItkImage&)>& stored);
 

@@ -4,6 +4,9 @@
 // int32 here, and no image template is instantiated (compile time). ITK's messages (exception
 // text with source locations, MetaIO's lines on std::cerr, warnings) never reach the user:
 // each failure becomes one pneuma line.
+// clang-format off
+#include "itk_clang.h"  // first: Debian's ITK headers under clang
+// clang-format on
 #include <itkMetaDataObject.h>
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
@@ -12,6 +15,7 @@
 #include <cmath>
 #include <iostream>
 #include <limits>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <streambuf>
@@ -175,6 +179,9 @@ ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat 
 ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
                         const std::function<StoredData(const ItkImage&)>& stored) {
   const std::string name = path.string();
+  // One read at a time: std::cerr's buffer and ITK's warning switch are process-wide.
+  static std::mutex itk_mutex;
+  const std::lock_guard<std::mutex> lock(itk_mutex);
   itk::Object::SetGlobalWarningDisplay(false);
   const SilenceStdErr silence;
   itk::ImageIOBase::Pointer io = make_io(format);
