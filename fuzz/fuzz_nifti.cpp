@@ -1,4 +1,4 @@
-// NIfTI label maps (.nii; niftilib underneath): mesh::read_label_map.
+// NIfTI label maps (.nii; the header read by pneuma, the voxels by ITK): mesh::read_label_map.
 #include "fuzz_input.h"
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/labels/labels.h"

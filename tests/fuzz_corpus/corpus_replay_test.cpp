@@ -41,6 +41,8 @@ const std::vector<Target>& targets() {
       {"tissue", ".yaml", [](const fs::path& f) { (void)pneuma::scenario::load_tissue(f); }},
       {"field_cache", ".h5", [](const fs::path& f) { (void)pneuma::model::load_field(f); }},
       {"nifti", ".nii", [](const fs::path& f) { (void)pneuma::mesh::read_label_map(f); }},
+      {"labels_nrrd", ".nrrd", [](const fs::path& f) { (void)pneuma::mesh::read_label_map(f); }},
+      {"labels_mha", ".mha", [](const fs::path& f) { (void)pneuma::mesh::read_label_map(f); }},
       {"mesh_stl", ".stl", read_and_validate},
       {"mesh_ply", ".ply", read_and_validate},
       {"mesh_obj", ".obj", read_and_validate},

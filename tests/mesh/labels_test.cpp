@@ -190,7 +190,9 @@ TEST(LabelsCli, BadInputIsOneLineAndExitThree) {
   expect_error(text, "1", 3,
                "not a NIfTI file: expected a NIfTI-1 or NIfTI-2 header (348 or 540 bytes, magic 'n+1' or 'n+2'), "
                "gzip-compressed for .nii.gz");
-  expect_error(dir.write("labels.txt", "x").string(), "1", 3, "expected a NIfTI label map (.nii or .nii.gz)");
+  expect_error(dir.write("labels.txt", "x").string(), "1", 3,
+               "expected a label map: .nii, .nii.gz, .nrrd, .nhdr, .seg.nrrd, .mha, .mhd, or a folder of "
+               "TotalSegmentator masks");
   expect_error((dir / "missing.nii.gz").string(), "1", 4, "cannot read: no such file");
 
   write_nifti(dir / "ball.nii.gz", {48, 40, 32}, ball({48, 40, 32}, q.spacing, {24, 20, 16}, 12.0).labels, q);

@@ -41,9 +41,16 @@ inline Eigen::Matrix4d qform_ijk_to_lps(const Qform& q) {
   return m;
 }
 
+// What a NIfTI-1 file may carry besides the qform.
+struct NiftiExtras {
+  bool has_sform = false;
+  std::array<std::array<float, 4>, 3> srow{};  // sform rows, mm RAS (sform_code 1 when has_sform)
+  std::string extension{};                     // one header extension of code 0 (TotalSegmentator's label table)
+};
+
 // A single-file NIfTI-1 (.nii, or gzip-compressed when the name ends in .gz) of int16 labels.
 inline void write_nifti(const std::filesystem::path& path, const std::array<int, 3>& size,
-                        const std::vector<std::int16_t>& labels, const Qform& q) {
+                        const std::vector<std::int16_t>& labels, const Qform& q, const NiftiExtras& extras = {}) {
   std::string bytes(352, '\0');
   auto put = [&](std::size_t at, auto value) { std::memcpy(bytes.data() + at, &value, sizeof value); };
   put(0, std::int32_t{348});
@@ -78,10 +85,25 @@ inline void write_nifti(const std::filesystem::path& path, const std::array<int,
   put(268, static_cast<float>(q.offset.x()));
   put(272, static_cast<float>(q.offset.y()));
   put(276, static_cast<float>(q.offset.z()));
+  if (extras.has_sform) {
+    put(254, std::int16_t{1});
+    for (std::size_t r = 0; r < 3; ++r)
+      for (std::size_t c = 0; c < 4; ++c) put(280 + 16 * r + 4 * c, extras.srow[r][c]);
+  }
   std::memcpy(bytes.data() + 344, "n+1\0", 4);
+  if (!extras.extension.empty()) {
+    const std::size_t esize = (extras.extension.size() + 8 + 15) / 16 * 16;
+    bytes[348] = 1;  // extender: extensions follow
+    std::string ext(esize, '\0');
+    const auto size32 = static_cast<std::int32_t>(esize);
+    std::memcpy(ext.data(), &size32, 4);  // esize; ecode 0 follows
+    std::memcpy(ext.data() + 8, extras.extension.data(), extras.extension.size());
+    bytes += ext;
+    put(108, static_cast<float>(bytes.size()));  // vox_offset
+  }
   bytes.append(reinterpret_cast<const char*>(labels.data()), labels.size() * sizeof(std::int16_t));
   if (path.extension() == ".gz") {
-    gzFile f = gzopen(path.c_str(), "wb");
+    gzFile f = gzopen(path.c_str(), "wb1");  // fastest: the tests write large crops
     if (f == nullptr) throw std::runtime_error("cannot write " + path.string());
     gzwrite(f, bytes.data(), static_cast<unsigned>(bytes.size()));
     gzclose(f);
