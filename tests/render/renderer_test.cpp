@@ -200,17 +200,17 @@ TEST(Renderer, FramesTheWholeRangeOfScales) {
 
 TEST(PngFrameSink, WritesEveryNthFrameAndNothingElse) {
   const auto lung = make_lung_stand_in(3);
-  const model::Model model = model::make_model(lung.rest, lung.field, 1e-4);
+  const model::Model model(model::make_model(lung.rest, lung.field, 1e-4));
   test::TempDir dir;
   render::PngSinkOptions options;
   options.render = small_options();
   options.every = 2;
   render::PngFrameSink sink(dir / "frames", options);
-  sink.begin(model, outputs::RunInfo{5, 30.0, -0.5, 1.0, dir.path()});
+  sink.begin(model, outputs::RunInfo{5, 30.0, {-0.5}, {1.0}, dir.path()});
   const double scales[] = {-0.5, 0.25, 1.0, 0.1, 0.25};
   frame::Frame frame(model);
   for (std::size_t k = 0; k < 5; ++k) {
-    frame::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
+    frame::advance(model, {k, 0.0, 0.0, {scales[k]}}, frame);
     sink.frame(model, frame);
   }
   const auto written = sink.finish(model, {});
@@ -256,14 +256,14 @@ namespace {
 std::vector<std::filesystem::path> write_sequence(const test::LungStandIn& lung, const std::filesystem::path& folder,
                                                   const std::vector<double>& scales, std::size_t threads) {
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-  const model::Model model = model::make_model(lung.rest, lung.field, 1e-4);
+  const model::Model model(model::make_model(lung.rest, lung.field, 1e-4));
   render::PngSinkOptions options;
   options.render = small_options(render::CameraPreset::oblique);
   render::PngFrameSink sink(folder, options);
-  sink.begin(model, outputs::RunInfo{scales.size(), 30.0, 0.0, 1.0, folder});
+  sink.begin(model, outputs::RunInfo{scales.size(), 30.0, {0.0}, {1.0}, folder});
   frame::Frame frame(model);
   for (std::size_t k = 0; k < scales.size(); ++k) {
-    frame::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
+    frame::advance(model, {k, 0.0, 0.0, {scales[k]}}, frame);
     sink.frame(model, frame);
   }
   return sink.finish(model, {});
