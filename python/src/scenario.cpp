@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <optional>
+#include <type_traits>
 
 #include "bindings.h"
 #include "pneuma/core/atomic_file.h"
@@ -179,10 +180,17 @@ struct Animation {
   // f(lung index) for the one lung, or {side: f(i)} for two.
   template <class F>
   py::object by_lung(F f) const {
-    if (!model->two_lungs()) return py::cast(f(std::size_t{0}));
+    if (!model->two_lungs()) {
+      auto value = f(std::size_t{0});
+      if constexpr (std::is_base_of_v<py::handle, decltype(value)>) {
+        return py::object(std::move(value));
+      } else {
+        return py::cast(value);
+      }
+    }
     py::dict out;
     for (std::size_t i = 0; i < model->lungs.size(); ++i) out[scenario::lung_name(model->lungs[i].side)] = f(i);
-    return std::move(out);
+    return out;
   }
 
   py::object frame(std::size_t index) const {

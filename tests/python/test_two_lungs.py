@@ -56,3 +56,15 @@ def test_xdmf_shows_both_lungs_at_every_step(tmp_path):
                 item = grid.find("Geometry").find("DataItem").text
                 path = item.split(":", 1)[1]
                 assert h5[path].shape == (int(grid.find("Geometry").find("DataItem").get("Dimensions").split()[0]), 3)
+    # Each lung alone, for meshio (it reads no nested collections): every step that lung's frame.
+    meshio = pytest.importorskip("meshio")
+    with h5py.File(tmp_path / "out" / "series.h5", "r") as h5:
+        for lung in ("right", "left"):
+            with meshio.xdmf.TimeSeriesReader(tmp_path / "out" / f"series-{lung}.xdmf") as reader:
+                points, cells = reader.read_points_cells()
+                np.testing.assert_array_equal(cells[0].data, h5[f"/{lung}/rest/triangles"][...])
+                assert reader.num_steps == 11
+                for k in (0, 10):
+                    t, point_data, _ = reader.read_data(k)
+                    assert t == pytest.approx(0.1 * k)
+                    np.testing.assert_array_equal(point_data["position"], h5[f"/{lung}/frames/positions/{k:06d}"][...])

@@ -329,3 +329,24 @@ outputs: {mesh_sequence: {format: ply}, gltf: false, report: false, hdf5: false}
                                  "two_compartment physiology model only\n",
                                  single.string(), line.find("upper") + 1));
 }
+
+// Two lungs that cut into each other (here the same surface twice) are refused before any
+// output, with the lungs and scales named; exit 5.
+TEST(TwoLungs, LungsThatIntersectEachOtherAreRefused) {
+  TempDir dir;
+  const auto r = run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", (dir / "right.ply").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto scenario = dir.write("same.yaml", R"(name: same
+duration: 2 s
+frames: {rate: 10 Hz}
+mesh: {lungs: {right: {file: right.ply}, left: {file: right.ply}}, unit: mm, edge: 12 mm}
+physiology: {preset: healthy-adult}
+)");
+  const auto run = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(run.exit_code, 5);
+  EXPECT_EQ(
+      run.err.rfind(scenario.string() + ": the right and left lungs intersect each other at their lowest scales", 0),
+      0u)
+      << run.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "out/manifest.json"));
+}

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <span>
@@ -74,6 +75,47 @@ mesh::TriangleMesh source_surface(const MeshSpec& spec, double edge_m) {
   return mesh::repair_and_remesh(read_file_mesh(spec), spec.file.string(), {}, remesh_options(edge_m)).remesh.mesh;
 }
 
+// Two lungs from one label map: where they touch (26-neighbour voxels), both lose those voxels,
+// so that their surfaces, each extracted and remeshed alone, keep a gap of about two voxels and
+// do not cut into each other at rest (they did on case007 at 4 mm). Only the contact band goes:
+// a few mL at most, against litres.
+mesh::LabelMap separated_lungs(mesh::LabelMap map, const std::vector<int>& one, const std::vector<int>& other) {
+  auto in = [](const std::vector<int>& values, std::int32_t label) {
+    return std::find(values.begin(), values.end(), label) != values.end();
+  };
+  const auto [nx, ny, nz] = map.size;
+  std::vector<std::uint8_t> side(map.labels.size(), 0);  // 1: `one`, 2: `other`
+  for (std::size_t v = 0; v < side.size(); ++v)
+    side[v] = in(one, map.labels[v]) ? 1 : (in(other, map.labels[v]) ? 2 : 0);
+  std::vector<std::size_t> contact;
+  for (std::size_t k = 0; k < nz; ++k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      for (std::size_t i = 0; i < nx; ++i) {
+        const std::size_t v = i + nx * (j + ny * k);
+        if (side[v] == 0) continue;
+        bool touches = false;
+        for (int dk = -1; dk <= 1 && !touches; ++dk) {
+          for (int dj = -1; dj <= 1 && !touches; ++dj) {
+            for (int di = -1; di <= 1 && !touches; ++di) {
+              const auto ii = static_cast<std::ptrdiff_t>(i) + di, jj = static_cast<std::ptrdiff_t>(j) + dj,
+                         kk = static_cast<std::ptrdiff_t>(k) + dk;
+              if (ii < 0 || jj < 0 || kk < 0 || ii >= static_cast<std::ptrdiff_t>(nx) ||
+                  jj >= static_cast<std::ptrdiff_t>(ny) || kk >= static_cast<std::ptrdiff_t>(nz))
+                continue;
+              const std::uint8_t s = side[static_cast<std::size_t>(ii) +
+                                          nx * (static_cast<std::size_t>(jj) + ny * static_cast<std::size_t>(kk))];
+              touches = s != 0 && s != side[v];
+            }
+          }
+        }
+        if (touches) contact.push_back(v);
+      }
+    }
+  }
+  for (const std::size_t v : contact) map.labels[v] = 0;
+  return map;
+}
+
 // One lung's surface source as a one-surface MeshSpec (the functions above read those fields).
 MeshSpec lung_mesh_spec(const MeshSpec& mesh, const scenario::LungSpec& lung) {
   if (mesh.lungs.empty()) return mesh;
@@ -90,24 +132,36 @@ MeshSpec lung_mesh_spec(const MeshSpec& mesh, const scenario::LungSpec& lung) {
 // The field of one surface (`mesh`: one lung), from the cache file `cache` where it holds one
 // for these inputs. A file mesh is looked up by its bytes and the options that shape it before
 // it is repaired and remeshed, so a cache hit pays for neither.
-CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m, const std::filesystem::path& cache) {
+CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m, const std::filesystem::path& cache,
+                          const std::vector<int>& other_lung_labels) {
   const field::Tissue& tissue = s.field.tissue;
   const field::FieldOptions& given = s.field.options;
   const bool from_source = !mesh.phantom;
+  // A lung of two from one label map is extracted from the map with the contact band removed.
+  auto source = [&] {
+    if (other_lung_labels.empty()) return source_surface(mesh, edge_m);
+    mesh::LabelSurfaceOptions extract;
+    if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
+    const mesh::LabelMap map =
+        separated_lungs(mesh::read_label_map(mesh.labels_file), mesh.label_values, other_lung_labels);
+    return remeshed(
+        mesh::surface_from_labels(map, mesh.labels_file.filename().string(), mesh.label_values, extract).mesh, edge_m);
+  };
   if (s.field.cache == scenario::FieldCache::off) {
-    const mesh::TriangleMesh surface = from_source ? source_surface(mesh, edge_m) : phantom_surface(mesh, edge_m);
+    const mesh::TriangleMesh surface = from_source ? source() : phantom_surface(mesh, edge_m);
     const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
     return {compute_field_record(surface, inputs), false, {}, inputs.options.regions};
   }
   if (!from_source) return load_or_compute(cache, phantom_surface(mesh, edge_m), tissue, given);
   const bool labels = !mesh.labels_file.empty();
-  const std::string source =
-      source_key({labels ? mesh.labels_file : mesh.file, s.field.tissue_file},
-                 fmt::format("{} unit {:.17g} m, repair {}, edge {:.17g} m, labels {}", labels ? "labels" : "file",
-                             mesh.metres_per_unit, mesh.repair, edge_m, fmt::join(mesh.label_values, ",")));
+  std::string options_text =
+      fmt::format("{} unit {:.17g} m, repair {}, edge {:.17g} m, labels {}", labels ? "labels" : "file",
+                  mesh.metres_per_unit, mesh.repair, edge_m, fmt::join(mesh.label_values, ","));
+  if (!other_lung_labels.empty()) options_text += fmt::format(", apart from {}", fmt::join(other_lung_labels, ","));
+  const std::string key = source_key({labels ? mesh.labels_file : mesh.file, s.field.tissue_file}, options_text);
   std::shared_ptr<const mesh::SurfaceRegions> regions;
-  CacheLookup lookup = load_or_compute(cache, source_field_key(source, tissue.name, given), [&] {
-    const mesh::TriangleMesh surface = source_surface(mesh, edge_m);
+  CacheLookup lookup = load_or_compute(cache, source_field_key(key, tissue.name, given), [&] {
+    const mesh::TriangleMesh surface = source();
     const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
     regions = inputs.options.regions;
     return compute_field_record(surface, inputs);
@@ -118,15 +172,16 @@ CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m
 
 // One lung of the scenario: its surface and field (cached), moved onto the original file's
 // vertices where the scenario exports those.
-LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, bool two_lungs, const CompileOptions& options,
-                     bool& field_reused, std::vector<std::pair<std::string, double>>& timings_s) {
+LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const std::vector<int>& other_lung_labels,
+                     bool two_lungs, const CompileOptions& options, bool& field_reused,
+                     std::vector<std::pair<std::string, double>>& timings_s) {
   auto start = Clock::now();
   const MeshSpec mesh = lung_mesh_spec(s.mesh, spec);
   const double edge = options.edge_override_m.value_or(mesh.edge_m);
   const std::filesystem::path cache = lung_cache_path(
       s.field.cache == scenario::FieldCache::file ? s.field.cache_file : options.output_dir / "field.h5", spec.side,
       two_lungs);
-  CacheLookup computed = surface_field(s, mesh, edge, cache);
+  CacheLookup computed = surface_field(s, mesh, edge, cache, other_lung_labels);
   field_reused = computed.reused;
   if (!computed.discarded.empty()) {
     // The cache is derived data: a damaged one is replaced, never used, and the user told.
@@ -250,14 +305,22 @@ Compiled compile(const Scenario& s, const physiology::SimulationResult& drive, c
   Compiled compiled;
   compiled.field_reused = true;
   const std::vector<scenario::LungSpec> specs = scenario::lung_specs(s.mesh);
-  for (const scenario::LungSpec& spec : specs) {
+  for (std::size_t i = 0; i < specs.size(); ++i) {
     bool reused = false;
-    compiled.model.lungs.push_back(lung_model(s, spec, specs.size() == 2, options, reused, compiled.timings_s));
+    // Two lungs of one label map: each extracted apart from the other's labels.
+    const std::vector<int> other = specs.size() == 2 ? specs[1 - i].label_values : std::vector<int>{};
+    compiled.model.lungs.push_back(
+        lung_model(s, specs[i], other, specs.size() == 2, options, reused, compiled.timings_s));
     compiled.field_reused = compiled.field_reused && reused;
   }
   for (const LungModel& lung : compiled.model.lungs) {
     LungScales l;
-    l.scales = frame_scales(lung, drive.series.time_s, lung_volumes(lung, drive));
+    try {
+      l.scales = frame_scales(lung, drive.series.time_s, lung_volumes(lung, drive));
+    } catch (const UnsupportedError& e) {
+      if (!compiled.model.two_lungs()) throw;
+      throw UnsupportedError(fmt::format("the {} lung: {}", scenario::lung_name(lung.side), e.what()));
+    }
     if (!l.scales.empty()) {
       const auto [lo, hi] = std::minmax_element(l.scales.begin(), l.scales.end());
       l.min_scale = *lo;

@@ -101,8 +101,22 @@ class Hdf5Sink final : public Output {
     }
     close();
     pending_->commit();
-    write_stream_atomically(xdmf_path_, false, [&](std::ostream& out) { write_xdmf(out); });
-    return {h5_path_, xdmf_path_};
+    std::vector<const Lung*> all;
+    for (const Lung& lung : lungs_) all.push_back(&lung);
+    write_stream_atomically(xdmf_path_, false, [&](std::ostream& out) { write_xdmf(out, all); });
+    std::vector<std::filesystem::path> files{h5_path_, xdmf_path_};
+    if (lungs_.size() == 2) {
+      // Each lung alone as well (series-right.xdmf, series-left.xdmf): plain temporal collections,
+      // for readers that do not open nested collections (meshio's TimeSeriesReader).
+      for (const Lung& lung : lungs_) {
+        std::filesystem::path alone = xdmf_path_;
+        alone.replace_filename(xdmf_path_.stem().string() + "-" + lung.prefix.substr(1) +
+                               xdmf_path_.extension().string());
+        write_stream_atomically(alone, false, [&](std::ostream& out) { write_xdmf(out, {&lung}); });
+        files.push_back(alone);
+      }
+    }
+    return files;
   }
 
   ~Hdf5Sink() override { close(); }
@@ -167,14 +181,14 @@ class Hdf5Sink final : public Output {
   // Per-frame attribute `position` (the same dataset) is what meshio's TimeSeriesReader
   // returns per step (it reads the geometry once); `field_u` is the unit displacement. Two
   // lungs: each frame a spatial collection of two uniform grids (`right`, `left`), which
-  // ParaView shows as one multiblock dataset.
-  void write_xdmf(std::ostream& out) const {
+  // ParaView shows as one multiblock dataset; `lungs` one of them: that lung alone.
+  void write_xdmf(std::ostream& out, const std::vector<const Lung*>& lungs) const {
     const std::string h5 = h5_path_.filename().string();
     out << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n"
         << "  <Grid Name=\"breathing\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
     std::ostringstream number;
     number.precision(17);
-    const bool two = lungs_.size() == 2;
+    const bool two = lungs.size() == 2;
     for (std::size_t k = 0; k < time_.size(); ++k) {
       number.str("");
       number << time_[k];
@@ -182,13 +196,16 @@ class Hdf5Sink final : public Output {
         out << "   <Grid Name=\"frame_" << k << "\" GridType=\"Collection\" CollectionType=\"Spatial\">\n"
             << "    <Time Value=\"" << number.str() << "\"/>\n";
       }
-      for (const Lung& lung : lungs_) {
+      for (const Lung* one : lungs) {
+        const Lung& lung = *one;
         const std::string n = std::to_string(lung.vertex_count), m = std::to_string(lung.triangle_count);
         const std::string vectors = "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">";
         const std::string frame_vectors = "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"" +
                                           (double_ ? "8" : "4") + "\" Format=\"HDF\">";
         const std::string positions = h5 + ":" + lung.prefix + "/frames/positions/" + frame_name(k);
-        const std::string name = two ? lung.prefix.substr(1) : "frame_" + std::to_string(k);
+        const std::string name =
+            two ? lung.prefix.substr(1)
+                : (lung.prefix.empty() ? "" : lung.prefix.substr(1) + "_") + "frame_" + std::to_string(k);
         const std::string pad = two ? " " : "";
         out << pad << "   <Grid Name=\"" << name << "\" GridType=\"Uniform\">\n";
         if (!two) out << "    <Time Value=\"" << number.str() << "\"/>\n";
