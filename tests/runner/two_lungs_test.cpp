@@ -350,3 +350,31 @@ physiology: {preset: healthy-adult}
       << run.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "out/manifest.json"));
 }
+
+// `phantom: both` runs the demo (quiet-breathing.yaml, every output it asks for, PNG frames
+// included) at a coarse edge, and the shipped two-lung scenario runs on its CT case.
+TEST(TwoLungs, TheDemoAndTheShippedScenarioRunWithBothLungs) {
+  TempDir dir;
+  std::string demo = pneuma::test::read_text(pneuma::test::source_dir() / "scenarios/quiet-breathing.yaml");
+  const std::string one =
+      "  phantom: right\n  edge: 4 mm\n  share: 55 %               # the right lung takes about 55 % of each breath\n";
+  ASSERT_NE(demo.find(one), std::string::npos);
+  demo.replace(demo.find(one), one.size(), "  phantom: both\n  edge: 4 mm\n");
+  const auto scenario = dir.write("demo.yaml", demo);
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "demo").string(), "--edge", "15mm", "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* file :
+       {"breathing.glb", "series.h5", "series.xdmf", "series-right.xdmf", "series-left.xdmf", "physiology.csv",
+        "motion.csv", "report.html", "png/frame_00000.png", "png/frame_01800.png", "field-right.h5", "field-left.h5"})
+    EXPECT_TRUE(std::filesystem::exists(dir / "demo" / file)) << file;
+
+  const auto shipped = pneuma::test::source_dir() / "scenarios/both-lungs-from-labels.yaml";
+  const auto data =
+      shipped.parent_path() / "../../shared/data/ct-lobes/case004_lobes.nii.gz";  // as the scenario names it
+  if (!std::filesystem::exists(data)) GTEST_SKIP() << "no " << data << " for " << shipped.filename();
+  const auto ct = run_pneuma({"run", shipped.string(), "-o", (dir / "ct").string(), "--edge", "12mm", "--quiet"});
+  ASSERT_EQ(ct.exit_code, 0) << ct.err;
+  const auto manifest = nlohmann::json::parse(pneuma::test::read_text(dir / "ct/manifest.json"));
+  EXPECT_EQ(fact(manifest, "lungs.right.share"), 0.55);
+  EXPECT_EQ(fact(manifest, "lungs.left.share"), 0.45);
+}
