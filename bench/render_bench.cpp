@@ -215,7 +215,7 @@ void BM_PngSequence(benchmark::State& state) {
   const Model& m = model(static_cast<int>(state.range(0)));
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                                   static_cast<std::size_t>(state.range(1)));
-  const model::Model breathing = model::make_model(m.rest, m.field, 1e-4);
+  const model::Model breathing(model::make_model(m.rest, m.field, 1e-4));
   render::PngSinkOptions sink_options;
   sink_options.render = options(state, 2);
   name_antialiasing(state, 2);
@@ -226,10 +226,10 @@ void BM_PngSequence(benchmark::State& state) {
   for (auto _ : state) {
     state.PauseTiming();
     render::PngFrameSink sink(folder, sink_options);
-    sink.begin(breathing, outputs::RunInfo{kFrames, 30.0, 0.0, 1.0, folder});
+    sink.begin(breathing, outputs::RunInfo{kFrames, 30.0, {0.0}, {1.0}, folder});
     state.ResumeTiming();
     for (std::size_t k = 0; k < kFrames; ++k) {
-      frame::advance(breathing, {k, 0.0, 0.0, static_cast<double>(k) / kFrames}, frame);
+      frame::advance(breathing, {k, 0.0, 0.0, {static_cast<double>(k) / kFrames}}, frame);
       sink.frame(breathing, frame);
     }
     benchmark::DoNotOptimize(sink.finish(breathing, {}).size());

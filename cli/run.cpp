@@ -31,7 +31,13 @@ void run_command(const RunCommandOptions& o) {
   fmt::print("{}: {} frames at {} Hz over {} s, mesh of {} vertices, field {}\n", scenario.name, r.frame_count,
              scenario.frame_rate_hz, scenario.duration_s, r.vertex_count,
              r.field_reused ? "reused from cache" : "computed");
-  fmt::print("scale s from {:.4g} to {:.4g} area units\n", r.min_scale, r.max_scale);
+  if (r.lungs.size() == 2) {
+    for (const auto& lung : r.lungs)
+      fmt::print("{} lung: {} vertices, scale s from {:.4g} to {:.4g} area units\n", lung.name, lung.vertex_count,
+                 lung.min_scale, lung.max_scale);
+  } else {
+    fmt::print("scale s from {:.4g} to {:.4g} area units\n", r.min_scale, r.max_scale);
+  }
   for (const auto& [stage, seconds] : r.timings_s) fmt::print("  {:<26} {:8.3f} s\n", stage, seconds);
   // Files at the top level one by one; a folder (png/, frames/) as one line with its count.
   std::vector<std::pair<std::string, std::size_t>> folders;  // in the order they first appear

@@ -45,13 +45,13 @@ struct Field {
     frame::Frame frame(*model);
     {
       py::gil_scoped_release release;
-      frame::advance(*model, {0, 0.0, 0.0, scale}, frame);
+      frame::advance(*model, {0, 0.0, 0.0, {scale}}, frame);
     }
-    return points_to_array(frame.positions);
+    return points_to_array(frame.lungs[0].positions);
   }
   double scale_for(double volume_mL) const {
-    const double target = model->volume_map.volume(0.0) + volume_mL / kMlPerM3;
-    return model->volume_map.scale_for(target);
+    const double target = model->lungs[0].volume_map.volume(0.0) + volume_mL / kMlPerM3;
+    return model->lungs[0].volume_map.scale_for(target);
   }
 };
 
@@ -222,21 +222,24 @@ void register_geometry(py::module_& m) {
           "dict: key, pneuma_version, tissue, solver, tolerance, clique_hops, path_rule, "
           "area_unit_m2, shots, iterations, residual.")
       .def_property_readonly(
-          "rest_volume_m3", [](const Field& f) { return f.model->volume_map.volume(0.0); },
+          "rest_volume_m3", [](const Field& f) { return f.model->lungs[0].volume_map.volume(0.0); },
           "Enclosed volume of the rest mesh (m^3).")
       .def_property_readonly(
-          "rest_area_m2", [](const Field& f) { return f.model->rest_area_m2; }, "Surface area of the rest mesh (m^2).")
+          "rest_area_m2", [](const Field& f) { return f.model->lungs[0].rest_area_m2; },
+          "Surface area of the rest mesh (m^2).")
       .def_property_readonly(
-          "volume_coefficients", [](const Field& f) { return f.model->volume_map.coefficients(); },
+          "volume_coefficients", [](const Field& f) { return f.model->lungs[0].volume_map.coefficients(); },
           "(c0, c1, c2, c3): the enclosed volume V(s) = c0 + c1 s + c2 s^2 + c3 s^3 in m^3.")
       .def_property_readonly(
           "scale_range",
-          [](const Field& f) { return std::pair(f.model->volume_map.min_scale(), f.model->volume_map.max_scale()); },
+          [](const Field& f) {
+            return std::pair(f.model->lungs[0].volume_map.min_scale(), f.model->lungs[0].volume_map.max_scale());
+          },
           "(min, max): the scales around 0 on which V(s) increases (infinite where it always does).")
       .def(
           "volume_mL",
           [](const Field& f, double scale) {
-            return (f.model->volume_map.volume(scale) - f.model->volume_map.volume(0.0)) * kMlPerM3;
+            return (f.model->lungs[0].volume_map.volume(scale) - f.model->lungs[0].volume_map.volume(0.0)) * kMlPerM3;
           },
           py::arg("scale"), "volume_mL(scale) -> float: enclosed volume of rest + scale * u minus the rest volume, mL.")
       .def("scale_for", &Field::scale_for, py::arg("volume_mL"),

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <optional>
+#include <type_traits>
 
 #include "bindings.h"
 #include "pneuma/core/atomic_file.h"
@@ -172,23 +173,45 @@ Simulation to_python(const physiology::SimulationResult& r) {
 }
 
 // A scenario's frames in memory: its model (mesh, field, volume map) and the scale of every
-// frame, as `pneuma run` computes them, without writing outputs.
+// frame, as `pneuma run` computes them, without writing outputs. Two lungs: every per-surface
+// value is a dict by side ('right', 'left'); one lung: the value itself, as always.
 struct Animation {
   scenario::Scenario scenario;
   std::shared_ptr<const model::Model> model;
-  std::vector<double> time_s, lung_volume_m3, scales;
+  std::vector<double> time_s, lung_volume_m3;
+  std::vector<std::vector<double>> scales;  // [lung][frame]
   bool field_reused = false;
 
-  py::array_t<double> frame(std::size_t index) const {
-    if (index >= scales.size()) {
-      throw ValueError(fmt::format("index: expected a frame index from 0 to {}, got {}", scales.size() - 1, index));
+  std::size_t frame_count() const { return time_s.size(); }
+
+  // f(lung index) for the one lung, or {side: f(i)} for two.
+  template <class F>
+  py::object by_lung(F f) const {
+    if (!model->two_lungs()) {
+      auto value = f(std::size_t{0});
+      if constexpr (std::is_base_of_v<py::handle, decltype(value)>) {
+        return py::object(std::move(value));
+      } else {
+        return py::cast(value);
+      }
+    }
+    py::dict out;
+    for (std::size_t i = 0; i < model->lungs.size(); ++i) out[scenario::lung_name(model->lungs[i].side)] = f(i);
+    return out;
+  }
+
+  py::object frame(std::size_t index) const {
+    if (index >= frame_count()) {
+      throw ValueError(fmt::format("index: expected a frame index from 0 to {}, got {}", frame_count() - 1, index));
     }
     frame::Frame frame(*model);
     {
       py::gil_scoped_release release;
-      frame::advance(*model, {index, time_s[index], lung_volume_m3[index], scales[index]}, frame);
+      frame::FrameInput input{index, time_s[index], lung_volume_m3[index], {}};
+      for (std::size_t i = 0; i < scales.size(); ++i) input.scale[i] = scales[i][index];
+      frame::advance(*model, input, frame);
     }
-    return points_to_array(frame.positions);
+    return by_lung([&](std::size_t i) { return points_to_array(frame.lungs[i].positions); });
   }
   // The frame whose time is nearest to t (frames are 1 / frame_rate apart).
   std::size_t index_at(double t) const {
@@ -220,7 +243,7 @@ Animation make_animation(const scenario::Scenario& given, const std::optional<st
   a.field_reused = compiled.field_reused;
   a.time_s = drive.series.time_s;
   a.lung_volume_m3 = drive.series.volume_m3;
-  a.scales = std::move(compiled.scales);
+  for (model::LungScales& lung : compiled.lungs) a.scales.push_back(std::move(lung.scales));
   return a;
 }
 
@@ -410,39 +433,65 @@ void register_scenario(py::module_& m) {
           "volume_mL", [](const Animation& a) { return column(a.lung_volume_m3, kMl); },
           "(N,) lung volume above FRC at each frame (physiology), mL.")
       .def_property_readonly(
-          "scales", [](const Animation& a) { return column(a.scales); }, "(N,) the scale s of each frame.")
+          "lungs",
+          [](const Animation& a) {
+            std::vector<std::string> names;
+            for (const model::LungModel& lung : a.model->lungs) names.emplace_back(scenario::lung_name(lung.side));
+            return names;
+          },
+          "The lungs: ['right', 'left'] for two (then every per-surface value below is a dict by side), else "
+          "one name ('right', 'left' for a phantom, 'lung' for a file or label map).")
       .def_property_readonly(
-          "frame_count", [](const Animation& a) { return a.scales.size(); }, "N.")
+          "scales", [](const Animation& a) { return a.by_lung([&](std::size_t i) { return column(a.scales[i]); }); },
+          "(N,) the scale s of each frame.")
       .def_property_readonly(
-          "vertices", [](const Animation& a) { return points_to_array(a.model->rest.vertices); },
+          "frame_count", [](const Animation& a) { return a.frame_count(); }, "N.")
+      .def_property_readonly(
+          "vertices",
+          [](const Animation& a) {
+            return a.by_lung([&](std::size_t i) { return points_to_array(a.model->lungs[i].rest.vertices); });
+          },
           "Rest vertices (V, 3), metres.")
       .def_property_readonly(
-          "triangles", [](const Animation& a) { return triangles_to_array(a.model->rest.triangles); },
+          "triangles",
+          [](const Animation& a) {
+            return a.by_lung([&](std::size_t i) { return triangles_to_array(a.model->lungs[i].rest.triangles); });
+          },
           "Triangles (F, 3) uint32.")
       .def_property_readonly(
-          "unit_displacement", [](const Animation& a) { return points_to_array(a.model->unit_displacement); },
+          "unit_displacement",
+          [](const Animation& a) {
+            return a.by_lung([&](std::size_t i) { return points_to_array(a.model->lungs[i].unit_displacement); });
+          },
           "u (V, 3), metres per unit scale.")
       .def_property_readonly(
-          "rest_volume_m3", [](const Animation& a) { return a.model->volume_map.volume(0.0); },
+          "rest_volume_m3",
+          [](const Animation& a) {
+            return a.by_lung([&](std::size_t i) { return a.model->lungs[i].volume_map.volume(0.0); });
+          },
           "Enclosed volume of the rest mesh, m^3.")
       .def_property_readonly(
-          "share", [](const Animation& a) { return a.scenario.mesh.share; },
-          "The mesh's share of the lung volume change (mesh.share).")
+          "share",
+          [](const Animation& a) {
+            if (!a.model->two_lungs()) return py::cast(a.scenario.mesh.share);
+            return a.by_lung([&](std::size_t i) { return a.model->lungs[i].share; });
+          },
+          "The mesh's share of the lung volume change (mesh.share; two lungs: each lung's).")
       .def_property_readonly(
           "reference_volume_mL", [](const Animation& a) { return a.scenario.mesh.reference_volume_m3 * kMl; },
           "The lung volume the rest mesh shows (mesh.reference_volume), mL.")
       .def_readonly("field_reused", &Animation::field_reused, "True when the field came from the cache.")
       .def("frame", &Animation::frame, py::arg("index"),
            "frame(index) -> (V, 3) float64: the positions of frame `index` (0 to N - 1), metres; its enclosed "
-           "volume is rest_volume + share * (volume_mL[index] - reference_volume_mL).")
+           "volume is rest_volume + share * (volume_mL[index] - reference_volume_mL). Two lungs: a dict by side.")
       .def(
           "frame_at_time", [](const Animation& a, double t) { return a.frame(a.index_at(t)); }, py::arg("time_s"),
           "frame_at_time(time_s) -> (V, 3) float64: the frame nearest to time_s (frames are 1 / frame_rate apart).")
       .def("index_at_time", &Animation::index_at, py::arg("time_s"), "The index of the frame nearest to time_s.")
-      .def("__len__", [](const Animation& a) { return a.scales.size(); })
+      .def("__len__", [](const Animation& a) { return a.frame_count(); })
       .def("__repr__", [](const Animation& a) {
-        return fmt::format("<pneuma.Animation '{}' {} frames, {} vertices>", a.scenario.name, a.scales.size(),
-                           a.model->rest.vertex_count());
+        return fmt::format("<pneuma.Animation '{}' {} frames, {} vertices{}>", a.scenario.name, a.frame_count(),
+                           a.model->vertex_count(), a.model->two_lungs() ? " in two lungs" : "");
       });
 }
 

@@ -81,8 +81,15 @@ PngFrameSink::~PngFrameSink() = default;
 
 void PngFrameSink::begin(const model::Model& model, const outputs::RunInfo& run) {
   // The rest pose (s = 0) is always in frame, even when every frame of the run inflates.
-  const ScaleRange scales{std::min(run.min_scale, 0.0), std::max(run.max_scale, 0.0)};
-  renderer_ = std::make_unique<Renderer>(model.rest, model.unit_displacement, scales, options_.render);
+  // Two lungs: one image of both, each lung at its own scale.
+  std::vector<RenderPart> parts;
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    const model::LungModel& lung = model.lungs[i];
+    parts.push_back({&lung.rest, &lung.unit_displacement,
+                     ScaleRange{std::min(run.min_scale[i], 0.0), std::max(run.max_scale[i], 0.0)}});
+  }
+  renderer_ = std::make_unique<Renderer>(std::span<const RenderPart>(parts), options_.render);
+  scales_.assign(model.lungs.size(), 0.0);
   encoder_ = std::make_unique<Encoder>(options_.png);
   written_.clear();
 }
@@ -95,7 +102,8 @@ void PngFrameSink::frame(const model::Model&, const frame::Frame& frame) {
   if (!renderer_) throw Error(ExitCode::failure, "render: PngFrameSink::frame() called before begin()");
   if (frame.index % options_.every != 0) return;
   Image image = encoder_->take_buffer();
-  renderer_->render(frame.scale, image);
+  for (std::size_t i = 0; i < scales_.size(); ++i) scales_[i] = frame.lungs[i].scale;
+  renderer_->render(std::span<const double>(scales_), image);
   const auto path = path_of(frame.index);
   encoder_->submit(std::move(image), path);
   written_.push_back(path);

@@ -2,10 +2,12 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <span>
 #include <string>
 
 #include "gl_context.h"
@@ -334,8 +336,15 @@ struct Renderer::Impl {
   // triangles that may face the camera somewhere in that range (visible_buffer).
   std::vector<mesh::Triangle> draw_triangles;
   std::vector<Eigen::Vector3f> draw_rest, draw_field;
-  ScaleRange scales;
   GLsizei visible_index_count = 0;
+  // The surfaces drawn (two lungs: two), each its own range of the index buffer (and of the
+  // visible buffer), moved by its own s over its own range of scales.
+  struct Part {
+    ScaleRange scales;
+    GLsizei index_begin = 0, index_count = 0;
+    GLsizei visible_begin = 0, visible_count = 0;
+  };
+  std::vector<Part> parts;
   bool precull = false;
 
   GLuint program = 0, vao = 0, vertex_buffer = 0, index_buffer = 0, visible_buffer = 0;
@@ -416,17 +425,32 @@ struct Renderer::Impl {
     if (overlay) gl().Uniform1f(gl().GetUniformLocation(program, "overlay_max"), static_cast<float>(overlay_max));
   }
 
-  void upload(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field) {
-    const NormalTerms normals = normal_terms(rest, field);
-    const DrawOrder order = draw_order(rest);
-    std::vector<Vertex> vertices(order.source_vertex.size());
-    for (std::size_t k = 0; k < vertices.size(); ++k) {
-      const std::uint32_t i = order.source_vertex[k];
-      put(vertices[k].rest, rest.vertices[i] - origin);
-      put(vertices[k].field, field[i]);
-      put(vertices[k].normal0, normals.n0[i]);
-      put(vertices[k].normal1, normals.n1[i]);
-      put(vertices[k].normal2, normals.n2[i]);
+  // Every part's vertices and triangles, one after the other, each part in its own draw order.
+  void upload(std::span<const RenderPart> surfaces) {
+    std::vector<Vertex> vertices;
+    DrawOrder order;
+    for (std::size_t p = 0; p < surfaces.size(); ++p) {
+      const mesh::TriangleMesh& rest = *surfaces[p].rest;
+      const std::vector<Eigen::Vector3d>& field = *surfaces[p].field;
+      const NormalTerms normals = normal_terms(rest, field);
+      const DrawOrder part = draw_order(rest);
+      const std::size_t first = vertices.size();
+      vertices.resize(first + part.source_vertex.size());
+      for (std::size_t k = 0; k < part.source_vertex.size(); ++k) {
+        const std::uint32_t i = part.source_vertex[k];
+        Vertex& v = vertices[first + k];
+        put(v.rest, rest.vertices[i] - origin);
+        put(v.field, field[i]);
+        put(v.normal0, normals.n0[i]);
+        put(v.normal1, normals.n1[i]);
+        put(v.normal2, normals.n2[i]);
+      }
+      parts[p].index_begin = static_cast<GLsizei>(order.triangles.size() * 3);
+      parts[p].index_count = static_cast<GLsizei>(part.triangles.size() * 3);
+      for (mesh::Triangle t : part.triangles) {
+        for (std::uint32_t& v : t) v += static_cast<std::uint32_t>(first);
+        order.triangles.push_back(t);
+      }
     }
     gl().GenVertexArrays(1, &vao);
     gl().BindVertexArray(vao);
@@ -558,12 +582,19 @@ struct Renderer::Impl {
     const Eigen::Vector3d eye = camera.eye - origin, forward = (camera.target - camera.eye).normalized();
     std::vector<mesh::Triangle> visible;
     visible.reserve(draw_triangles.size());
-    for (const mesh::Triangle& t : draw_triangles) {
-      const std::array<Eigen::Vector3d, 3> p{draw_rest[t[0]].cast<double>(), draw_rest[t[1]].cast<double>(),
-                                             draw_rest[t[2]].cast<double>()};
-      const std::array<Eigen::Vector3d, 3> u{draw_field[t[0]].cast<double>(), draw_field[t[1]].cast<double>(),
-                                             draw_field[t[2]].cast<double>()};
-      if (!faces_away_throughout(p, u, eye, forward, camera.near_m, scales)) visible.push_back(t);
+    for (Part& part : parts) {
+      part.visible_begin = static_cast<GLsizei>(visible.size() * 3);
+      const auto begin = static_cast<std::size_t>(part.index_begin / 3);
+      const auto end = begin + static_cast<std::size_t>(part.index_count / 3);
+      for (std::size_t k = begin; k < end; ++k) {
+        const mesh::Triangle& t = draw_triangles[k];
+        const std::array<Eigen::Vector3d, 3> p{draw_rest[t[0]].cast<double>(), draw_rest[t[1]].cast<double>(),
+                                               draw_rest[t[2]].cast<double>()};
+        const std::array<Eigen::Vector3d, 3> u{draw_field[t[0]].cast<double>(), draw_field[t[1]].cast<double>(),
+                                               draw_field[t[2]].cast<double>()};
+        if (!faces_away_throughout(p, u, eye, forward, camera.near_m, part.scales)) visible.push_back(t);
+      }
+      part.visible_count = static_cast<GLsizei>(visible.size() * 3) - part.visible_begin;
     }
     // Filled through the array-buffer binding (global state, unlike the element binding, which
     // belongs to the vertex array); the draw binds it as the element buffer.
@@ -574,8 +605,10 @@ struct Renderer::Impl {
     visible_index_count = static_cast<GLsizei>(visible.size() * 3);
   }
 
-  // Whether a frame at s draws the pre-culled triangles (they hold for the scales of the range only).
-  bool draws_visible_only(double s) const { return precull && s >= scales.min && s <= scales.max; }
+  // Whether a frame draws a part's pre-culled triangles at s (they hold for its range only).
+  bool draws_visible_only(const Part& part, double s) const {
+    return precull && s >= part.scales.min && s <= part.scales.max;
+  }
 
   void check_gl(const char* where) {
     const GLenum error = gl().GetError();
@@ -601,51 +634,69 @@ struct Renderer::Impl {
 };
 
 Renderer::Renderer(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& field, ScaleRange scales,
-                   const RenderOptions& options) {
+                   const RenderOptions& options)
+    : Renderer(std::span<const RenderPart>(std::array<RenderPart, 1>{RenderPart{&rest, &field, scales}}), options) {}
+
+Renderer::Renderer(std::span<const RenderPart> surfaces, const RenderOptions& options) {
   if (options.width < 1 || options.height < 1) {
     throw UsageError("render: image size " + std::to_string(options.width) + "x" + std::to_string(options.height) +
                      ": width and height must be at least 1 pixel");
   }
-  if (field.size() != rest.vertex_count()) {
-    throw InputError("render: the field has " + std::to_string(field.size()) + " vectors but the mesh has " +
-                     std::to_string(rest.vertex_count()) + " vertices");
-  }
-  for (std::size_t t = 0; t < rest.triangles.size(); ++t) {
-    for (std::uint32_t v : rest.triangles[t]) {
-      if (v >= rest.vertex_count()) {
-        throw InputError("render: triangle " + std::to_string(t) + " refers to vertex " + std::to_string(v) + " of " +
-                         std::to_string(rest.vertex_count()));
+  if (surfaces.empty()) throw ValueError("render: no surface to draw");
+  for (const RenderPart& part : surfaces) {
+    const mesh::TriangleMesh& rest = *part.rest;
+    const std::vector<Eigen::Vector3d>& field = *part.field;
+    const ScaleRange& scales = part.scales;
+    if (field.size() != rest.vertex_count()) {
+      throw InputError("render: the field has " + std::to_string(field.size()) + " vectors but the mesh has " +
+                       std::to_string(rest.vertex_count()) + " vertices");
+    }
+    for (std::size_t t = 0; t < rest.triangles.size(); ++t) {
+      for (std::uint32_t v : rest.triangles[t]) {
+        if (v >= rest.vertex_count()) {
+          throw InputError("render: triangle " + std::to_string(t) + " refers to vertex " + std::to_string(v) + " of " +
+                           std::to_string(rest.vertex_count()));
+        }
       }
     }
-  }
-  if (!std::isfinite(scales.min) || !std::isfinite(scales.max) || scales.min > scales.max) {
-    throw InputError("render: the range of scales [" + std::to_string(scales.min) + ", " + std::to_string(scales.max) +
-                     "] is not an interval of finite numbers");
+    if (!std::isfinite(scales.min) || !std::isfinite(scales.max) || scales.min > scales.max) {
+      throw InputError("render: the range of scales [" + std::to_string(scales.min) + ", " +
+                       std::to_string(scales.max) + "] is not an interval of finite numbers");
+    }
   }
 
   impl_ = std::make_unique<Impl>(options.gl);
   Impl& r = *impl_;
   r.options = options;
-  r.bounds = bounds_over_range(rest, field, scales);
-  if (rest.vertex_count() > 0) r.origin = 0.5 * (r.bounds[0] + r.bounds[1]);
+  std::size_t vertex_count = 0;
+  double max_field = 0.0, overlay_reach = 0.0;
+  for (std::size_t p = 0; p < surfaces.size(); ++p) {
+    const RenderPart& part = surfaces[p];
+    const auto box = bounds_over_range(*part.rest, *part.field, part.scales);
+    r.bounds =
+        p == 0 ? box : std::array<Eigen::Vector3d, 2>{r.bounds[0].cwiseMin(box[0]), r.bounds[1].cwiseMax(box[1])};
+    vertex_count += part.rest->vertex_count();
+    double part_max = 0.0;
+    for (const auto& u : *part.field) part_max = std::max(part_max, u.norm());
+    max_field = std::max(max_field, part_max);
+    overlay_reach = std::max(overlay_reach, part_max * std::max(std::abs(part.scales.min), std::abs(part.scales.max)));
+    r.parts.push_back({part.scales});
+  }
+  if (vertex_count > 0) r.origin = 0.5 * (r.bounds[0] + r.bounds[1]);
   r.camera = frame_camera(options.camera, r.bounds, static_cast<double>(options.width) / options.height,
                           options.fov_y_deg, options.margin);
-  double max_field = 0.0;
-  for (const auto& u : field) max_field = std::max(max_field, u.norm());
-  r.overlay_max = options.overlay_max_m > 0.0 ? options.overlay_max_m
-                                              : max_field * std::max(std::abs(scales.min), std::abs(scales.max));
+  r.overlay_max = options.overlay_max_m > 0.0 ? options.overlay_max_m : overlay_reach;
   if (!(r.overlay_max > 0.0)) r.overlay_max = 1e-3;  // a field of zeros: any positive scale shows 0
   r.row.resize(static_cast<std::size_t>(options.width) * 4);
 
   const auto& gl = r.gl();
-  r.scales = scales;
   // PNEUMA_DRAW_ALL_TRIANGLES=1 turns the pre-cull off (to compare; the image is the same).
   const char* draw_all = std::getenv("PNEUMA_DRAW_ALL_TRIANGLES");
   r.precull = options.cull_back_faces && !(draw_all && std::string(draw_all) == "1");
   r.create_framebuffers();
   if (options.fxaa) r.build_fxaa();
   r.build_program();
-  r.upload(rest, field);
+  r.upload(surfaces);
   r.apply_camera();
   gl.Enable(GL_DEPTH_TEST);
   gl.DepthFunc(GL_LESS);
@@ -667,6 +718,19 @@ Image Renderer::render(double s) {
 }
 
 void Renderer::render(double s, Image& out) {
+  const std::array<double, 1> one{s};
+  render(std::span<const double>(one), out);
+}
+
+Image Renderer::render(std::span<const double> s) {
+  Image image;
+  render(s, image);
+  return image;
+}
+
+void Renderer::render(std::span<const double> s, Image& out) {
+  if (s.size() != impl_->parts.size())
+    throw ValueError("render: " + std::to_string(impl_->parts.size()) + " scales expected, one per surface");
   Impl& r = *impl_;
   const auto& gl = r.gl();
   const int w = r.options.width, h = r.options.height;
@@ -680,11 +744,18 @@ void Renderer::render(double s, Image& out) {
   gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
   if (r.index_count > 0) {
     gl.UseProgram(r.program);
-    gl.Uniform1f(r.s_location, static_cast<float>(s));
-    gl.BindVertexArray(r.vao);
-    const bool culled = r.draws_visible_only(s);
-    gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, culled ? r.visible_buffer : r.index_buffer);
-    gl.DrawElements(GL_TRIANGLES, culled ? r.visible_index_count : r.index_count, GL_UNSIGNED_INT, nullptr);
+    for (std::size_t p = 0; p < r.parts.size(); ++p) {
+      const Impl::Part& part = r.parts[p];
+      gl.Uniform1f(r.s_location, static_cast<float>(s[p]));
+      if (p == 0) gl.BindVertexArray(r.vao);
+      const bool culled = r.draws_visible_only(part, s[p]);
+      gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, culled ? r.visible_buffer : r.index_buffer);
+      const GLsizei first = culled ? part.visible_begin : part.index_begin;
+      // GL takes the offset in the bound element buffer as a pointer.
+      const std::uintptr_t offset = static_cast<std::uintptr_t>(first) * sizeof(std::uint32_t);
+      gl.DrawElements(GL_TRIANGLES, culled ? part.visible_count : part.index_count, GL_UNSIGNED_INT,
+                      reinterpret_cast<const void*>(offset));  // NOLINT(performance-no-int-to-ptr): GL's API
+    }
     gl.BindVertexArray(0);
   }
   if (r.samples > 0) {
@@ -749,7 +820,10 @@ bool parse_gl_backend(const std::string& text, GlBackend& out) {
 int Renderer::msaa_samples() const { return impl_->samples; }
 std::size_t Renderer::drawn_triangles(double s) const {
   const Impl& r = *impl_;
-  return static_cast<std::size_t>(r.draws_visible_only(s) ? r.visible_index_count : r.index_count) / 3;
+  std::size_t count = 0;
+  for (const Impl::Part& part : r.parts)
+    count += static_cast<std::size_t>(r.draws_visible_only(part, s) ? part.visible_count : part.index_count) / 3;
+  return count;
 }
 
 }  // namespace pneuma::render

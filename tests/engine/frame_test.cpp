@@ -15,7 +15,7 @@ TEST(Model, RegionsAreThoseOfTheRestSurfaceWhetherFoundOrGiven) {
   supine.axes.anterior = {0.0, 0.0, -1.0};
   const mesh::SurfaceRegions direct = mesh::find_regions(rest, supine);
   for (const mesh::SurfaceRegions* given : {static_cast<const mesh::SurfaceRegions*>(nullptr), &direct}) {
-    const model::Model model = model::make_model(rest, u, 1e-4, supine.axes, given);
+    const model::LungModel model = model::make_model(rest, u, 1e-4, supine.axes, given);
     EXPECT_EQ(model.regions.label, direct.label);
     EXPECT_EQ(model.regions.weight, direct.weight);
   }

@@ -32,7 +32,7 @@ model::Model sphere_model() {
   std::vector<Eigen::Vector3d> u(rest.vertex_count());
   const auto n = pneuma::mesh::vertex_normals(rest);
   for (std::size_t i = 0; i < u.size(); ++i) u[i] = (1.0 + rest.vertices[i].z() * 5.0) * 1e-4 * n[i];
-  return model::make_model(rest, u, 1e-4);
+  return model::Model(model::make_model(rest, u, 1e-4));
 }
 
 // Drives a sink over a sinusoidal breath, as the runner does.
@@ -41,14 +41,14 @@ std::vector<double> drive(outputs::Output& sink, const model::Model& model, std:
   for (std::size_t k = 0; k < frames; ++k) scales[k] = 20.0 * std::sin(static_cast<double>(k) * 0.3) + 5.0;
   outputs::RunInfo run{frames,
                        rate,
-                       *std::min_element(scales.begin(), scales.end()),
-                       *std::max_element(scales.begin(), scales.end()),
+                       {*std::min_element(scales.begin(), scales.end())},
+                       {*std::max_element(scales.begin(), scales.end())},
                        {}};
   sink.begin(model, run);
   Frame f(model);
   for (std::size_t k = 0; k < frames; ++k) {
-    const double lung_volume = model.volume_map.volume(scales[k]) - model.volume_map.volume(0.0);
-    advance(model, {k, static_cast<double>(k) / rate, lung_volume, scales[k]}, f);
+    const double lung_volume = model.lungs[0].volume_map.volume(scales[k]) - model.lungs[0].volume_map.volume(0.0);
+    advance(model, {k, static_cast<double>(k) / rate, lung_volume, {scales[k]}}, f);
     sink.frame(model, f);
   }
   sink.finish(model, {});
@@ -95,10 +95,10 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   const auto& primitive = m.meshes[0].primitives[0];
   ASSERT_EQ(primitive.targets.size(), 1u);
   const int position = primitive.attributes.at("POSITION"), target = primitive.targets[0].at("POSITION");
-  const std::size_t n = model.rest.vertex_count();
+  const std::size_t n = model.lungs[0].rest.vertex_count();
   EXPECT_EQ(m.accessors[static_cast<std::size_t>(position)].count, n);
   EXPECT_EQ(m.accessors[static_cast<std::size_t>(target)].count, n);
-  EXPECT_EQ(m.accessors[static_cast<std::size_t>(primitive.indices)].count, model.rest.triangle_count() * 3);
+  EXPECT_EQ(m.accessors[static_cast<std::size_t>(primitive.indices)].count, model.lungs[0].rest.triangle_count() * 3);
   // Every view lies inside the buffer; accessors fit in their views.
   for (const auto& a : m.accessors) {
     const auto& v = m.bufferViews[static_cast<std::size_t>(a.bufferView)];
@@ -110,7 +110,7 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   const float* label = accessor_floats(m, primitive.attributes.at("_REGION"));
   const float* weight = accessor_floats(m, primitive.attributes.at("_REGION_WEIGHTS"));
   for (std::size_t i = 0; i < n; ++i) {
-    ASSERT_EQ(label[i], static_cast<float>(model.regions.label[i])) << i;
+    ASSERT_EQ(label[i], static_cast<float>(model.lungs[0].regions.label[i])) << i;
     EXPECT_NEAR(weight[4 * i] + weight[4 * i + 1] + weight[4 * i + 2] + weight[4 * i + 3], 1.0, 1e-6) << i;
   }
   ASSERT_EQ(m.animations.size(), 1u);
@@ -138,7 +138,7 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
     EXPECT_FLOAT_EQ(times[k], static_cast<float>(static_cast<double>(k) / 10.0));
     for (std::size_t i = 0; i < n; i += 13) {
       for (int c = 0; c < 3; ++c) {
-        const double expected = model.rest.vertices[i][c] + scales[k] * model.unit_displacement[i][c];
+        const double expected = model.lungs[0].rest.vertices[i][c] + scales[k] * model.lungs[0].unit_displacement[i][c];
         EXPECT_NEAR(rest[3 * i + static_cast<std::size_t>(c)] + weights[k] * delta[3 * i + static_cast<std::size_t>(c)],
                     expected, 1e-6);
       }
@@ -246,7 +246,7 @@ TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
     // The stored scales are the frames' scales.
     EXPECT_EQ(h5_doubles(file, "/frames/scale"), scales);
     // Frame k's geometry (as the XDMF names it) is rest + s_k u rounded to the stored type, exactly.
-    const std::size_t n = model.rest.vertex_count();
+    const std::size_t n = model.lungs[0].rest.vertex_count();
     for (std::size_t k = 0; k < scales.size(); ++k) {
       const auto item = grids[k].node().select_node("Geometry/DataItem").node();
       EXPECT_STREQ(item.attribute("Precision").value(), is_double ? "8" : "4");
@@ -254,7 +254,7 @@ TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
       const auto positions = h5_doubles(file, ref.substr(ref.find(':') + 1));
       ASSERT_EQ(positions.size(), 3 * n) << ref;
       for (std::size_t i = 0; i < n; ++i) {
-        const Eigen::Vector3d exact = model.rest.vertices[i] + scales[k] * model.unit_displacement[i];
+        const Eigen::Vector3d exact = model.lungs[0].rest.vertices[i] + scales[k] * model.lungs[0].unit_displacement[i];
         for (int c = 0; c < 3; ++c) {
           const double expected = is_double ? exact[c] : static_cast<double>(static_cast<float>(exact[c]));
           ASSERT_EQ(positions[3 * i + static_cast<std::size_t>(c)], expected) << "frame " << k << " vertex " << i;
@@ -296,11 +296,11 @@ TEST(Hdf5Sink, DescribesItselfWithRootAttributesAndUnits) {
   // The regions are the model's, vertex by vertex (read back as doubles).
   const std::vector<double> region = h5_doubles(file, "/rest/region");
   const std::vector<double> weights = h5_doubles(file, "/rest/region_weights");
-  ASSERT_EQ(region.size(), model.rest.vertex_count());
-  ASSERT_EQ(weights.size(), 4 * model.rest.vertex_count());
+  ASSERT_EQ(region.size(), model.lungs[0].rest.vertex_count());
+  ASSERT_EQ(weights.size(), 4 * model.lungs[0].rest.vertex_count());
   for (std::size_t i = 0; i < region.size(); ++i) {
-    EXPECT_EQ(region[i], static_cast<double>(model.regions.label[i])) << i;
-    for (std::size_t k = 0; k < 4; ++k) EXPECT_EQ(weights[4 * i + k], model.regions.weight[i][k]) << i;
+    EXPECT_EQ(region[i], static_cast<double>(model.lungs[0].regions.label[i])) << i;
+    for (std::size_t k = 0; k < 4; ++k) EXPECT_EQ(weights[4 * i + k], model.lungs[0].regions.weight[i][k]) << i;
   }
   const hid_t rest = H5Gopen2(file, "/rest", H5P_DEFAULT);
   EXPECT_EQ(h5_string_attribute(rest, "region_names"), "apex,costal,diaphragmatic,mediastinal");
@@ -353,7 +353,7 @@ print("steps", r.num_steps, "points", len(points), "worst", worst)
   const std::string text = pneuma::test::read_text(out);
   ASSERT_EQ(status, 0) << text;
   const std::string expected = "steps " + std::to_string(scales.size()) + " points " +
-                               std::to_string(model.rest.vertex_count()) + " worst 0.0\n";
+                               std::to_string(model.lungs[0].rest.vertex_count()) + " worst 0.0\n";
   EXPECT_EQ(text, expected);
 }
 
@@ -386,7 +386,7 @@ print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoi
   ASSERT_EQ(status, 0) << text;
   std::string expected;
   for (const char* reader : {"Xdmf3ReaderS", "Xdmf3ReaderS", "XDMFReader"})
-    expected += fmt::format("{} {} {}\n", reader, scales.size(), model.rest.vertex_count());
+    expected += fmt::format("{} {} {}\n", reader, scales.size(), model.lungs[0].rest.vertex_count());
   EXPECT_EQ(text, expected);
 }
 
@@ -409,9 +409,9 @@ TEST(MeshSequenceSink, RecordsTheUnitAndReadMeshUsesIt) {
     EXPECT_EQ(pneuma::mesh::recorded_unit(file), 1.0);
     const auto frame = pneuma::mesh::read_mesh(file);  // default: 1 unit = 1 mm, unless recorded
     // The frame in metres, numbered as read_mesh() numbers OBJ and STL (by first use).
-    pneuma::mesh::TriangleMesh expected = model.rest;
+    pneuma::mesh::TriangleMesh expected = model.lungs[0].rest;
     for (std::size_t i = 0; i < expected.vertices.size(); ++i)
-      expected.vertices[i] += scales[2] * model.unit_displacement[i];
+      expected.vertices[i] += scales[2] * model.lungs[0].unit_displacement[i];
     if (std::string(format) != "ply") pneuma::mesh::renumber_vertices_by_first_use(expected);
     ASSERT_EQ(frame.vertex_count(), expected.vertex_count());
     double worst = 0.0;
@@ -428,18 +428,20 @@ TEST(MeshSequenceSink, RecordsTheUnitAndReadMeshUsesIt) {
 TEST(Advance, FillsTheFrameFromTheModelAlone) {
   const model::Model model = sphere_model();
   Frame frame(model);
-  const double* before = frame.positions.data()->data();
+  const double* before = frame.lungs[0].positions.data()->data();
   for (double s : {0.0, 3.5, -2.0}) {
-    advance(model, {7, 1.25, 2e-4, s}, frame);
+    advance(model, {7, 1.25, 2e-4, {s}}, frame);
     EXPECT_EQ(frame.index, 7u);
     EXPECT_EQ(frame.time_s, 1.25);
     EXPECT_EQ(frame.lung_volume_m3, 2e-4);
-    EXPECT_EQ(frame.scale, s);
-    pneuma::mesh::TriangleMesh moved = model.rest;
-    for (std::size_t i = 0; i < moved.vertices.size(); ++i) moved.vertices[i] += s * model.unit_displacement[i];
-    EXPECT_EQ(frame.positions, moved.vertices);
-    EXPECT_NEAR(frame.mesh_volume_m3, pneuma::mesh::enclosed_volume(moved), 1e-12 * std::abs(frame.mesh_volume_m3));
-    EXPECT_NEAR(frame.area_m2, pneuma::mesh::surface_area(moved), 1e-12 * frame.area_m2);
+    EXPECT_EQ(frame.lungs[0].scale, s);
+    pneuma::mesh::TriangleMesh moved = model.lungs[0].rest;
+    for (std::size_t i = 0; i < moved.vertices.size(); ++i)
+      moved.vertices[i] += s * model.lungs[0].unit_displacement[i];
+    EXPECT_EQ(frame.lungs[0].positions, moved.vertices);
+    EXPECT_NEAR(frame.lungs[0].mesh_volume_m3, pneuma::mesh::enclosed_volume(moved),
+                1e-12 * std::abs(frame.lungs[0].mesh_volume_m3));
+    EXPECT_NEAR(frame.lungs[0].area_m2, pneuma::mesh::surface_area(moved), 1e-12 * frame.lungs[0].area_m2);
   }
-  EXPECT_EQ(frame.positions.data()->data(), before) << "advance() must not reallocate the positions";
+  EXPECT_EQ(frame.lungs[0].positions.data()->data(), before) << "advance() must not reallocate the positions";
 }

@@ -5,10 +5,12 @@
 #include <tbb/global_control.h>
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <span>
 
 #include "pneuma/core/error.h"
 #include "pneuma/render/compare.h"
@@ -72,6 +74,40 @@ TEST(Renderer, ShaderDisplacementEqualsCpuDisplacement) {
       EXPECT_FALSE(render::compare(shader.render(0.0), gpu).within(render::default_tolerance)) << "s = " << s;
     }
   }
+}
+
+// Two surfaces (two lungs) in one image, each at its own s: the image of the union displaced on
+// the CPU, rendered still; a wrong number of scales is refused.
+TEST(Renderer, TwoSurfacesEachMoveWithTheirOwnScale) {
+  test::LungStandIn left = make_lung_stand_in(3);
+  for (Eigen::Vector3d& p : left.rest.vertices) p.x() += 0.07;  // left of the midline (LPS: +x)
+  test::LungStandIn right = left;                               // its mirror image across the midline
+  for (Eigen::Vector3d& p : right.rest.vertices) p.x() = -p.x();
+  for (Eigen::Vector3d& u : right.field) u.x() = -u.x();
+  for (mesh::Triangle& t : right.rest.triangles) std::swap(t[1], t[2]);  // mirrored: keep it outward
+  const std::array<render::RenderPart, 2> parts{render::RenderPart{&right.rest, &right.field, {0.0, 1.5}},
+                                                render::RenderPart{&left.rest, &left.field, {0.0, 1.5}}};
+  render::Renderer shader(parts, small_options(render::CameraPreset::anterior));
+  const std::array<double, 2> s{1.5, 0.2};
+  const render::Image gpu = shader.render(std::span<const double>(s));
+  mesh::TriangleMesh both{displaced(right, s[0]), right.rest.triangles};
+  const auto offset = static_cast<std::uint32_t>(both.vertices.size());
+  for (const Eigen::Vector3d& p : displaced(left, s[1])) both.vertices.push_back(p);
+  for (mesh::Triangle t : left.rest.triangles) {
+    for (auto& v : t) v += offset;
+    both.triangles.push_back(t);
+  }
+  const std::vector<Eigen::Vector3d> zero(both.vertex_count(), Eigen::Vector3d::Zero());
+  render::Renderer cpu(both, zero, 0.0, small_options(render::CameraPreset::anterior));
+  cpu.set_camera(shader.camera());
+  const render::Difference d = render::compare(gpu, cpu.render(0.0));
+  EXPECT_TRUE(d.within(render::default_tolerance)) << d.pixels_over << " pixels differ";
+  // Each surface has its own s: both at 1.5 is another image.
+  const std::array<double, 2> same{1.5, 1.5};
+  EXPECT_FALSE(render::compare(shader.render(std::span<const double>(same)), gpu).within(render::default_tolerance));
+  EXPECT_LE(shader.drawn_triangles(0.0), right.rest.triangle_count() + left.rest.triangle_count());
+  const std::array<double, 1> one{1.0};
+  EXPECT_THROW(shader.render(std::span<const double>(one)), ValueError);
 }
 
 TEST(Renderer, SilhouetteGrowsWithScale) {
@@ -200,17 +236,17 @@ TEST(Renderer, FramesTheWholeRangeOfScales) {
 
 TEST(PngFrameSink, WritesEveryNthFrameAndNothingElse) {
   const auto lung = make_lung_stand_in(3);
-  const model::Model model = model::make_model(lung.rest, lung.field, 1e-4);
+  const model::Model model(model::make_model(lung.rest, lung.field, 1e-4));
   test::TempDir dir;
   render::PngSinkOptions options;
   options.render = small_options();
   options.every = 2;
   render::PngFrameSink sink(dir / "frames", options);
-  sink.begin(model, outputs::RunInfo{5, 30.0, -0.5, 1.0, dir.path()});
+  sink.begin(model, outputs::RunInfo{5, 30.0, {-0.5}, {1.0}, dir.path()});
   const double scales[] = {-0.5, 0.25, 1.0, 0.1, 0.25};
   frame::Frame frame(model);
   for (std::size_t k = 0; k < 5; ++k) {
-    frame::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
+    frame::advance(model, {k, 0.0, 0.0, {scales[k]}}, frame);
     sink.frame(model, frame);
   }
   const auto written = sink.finish(model, {});
@@ -256,14 +292,14 @@ namespace {
 std::vector<std::filesystem::path> write_sequence(const test::LungStandIn& lung, const std::filesystem::path& folder,
                                                   const std::vector<double>& scales, std::size_t threads) {
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-  const model::Model model = model::make_model(lung.rest, lung.field, 1e-4);
+  const model::Model model(model::make_model(lung.rest, lung.field, 1e-4));
   render::PngSinkOptions options;
   options.render = small_options(render::CameraPreset::oblique);
   render::PngFrameSink sink(folder, options);
-  sink.begin(model, outputs::RunInfo{scales.size(), 30.0, 0.0, 1.0, folder});
+  sink.begin(model, outputs::RunInfo{scales.size(), 30.0, {0.0}, {1.0}, folder});
   frame::Frame frame(model);
   for (std::size_t k = 0; k < scales.size(); ++k) {
-    frame::advance(model, {k, 0.0, 0.0, scales[k]}, frame);
+    frame::advance(model, {k, 0.0, 0.0, {scales[k]}}, frame);
     sink.frame(model, frame);
   }
   return sink.finish(model, {});

@@ -394,7 +394,7 @@ TEST(Runner, TheModelsRegionsAreThoseOfItsRestSurfaceOnEveryPath) {
       SCOPED_TRACE(name + ", " + pass + " run");
       const auto drive = pneuma::scenario::simulate_physiology(s, s.frame_rate_hz);
       const auto compiled = pneuma::model::compile(s, drive, {out, std::nullopt});
-      const auto& model = compiled.model;
+      const auto& model = compiled.model.lungs.front();
       EXPECT_EQ(compiled.field_reused, std::string(pass) == "second" && name != "phantom, no cache");
       const auto direct = pneuma::mesh::find_regions(model.rest, axes);
       EXPECT_EQ(model.regions.label, direct.label);

@@ -2,17 +2,24 @@
 
 namespace pneuma::frame {
 
-Frame::Frame(const model::Model& model)
-    : positions(model.rest.vertex_count()),
-      surface(model.rest.vertices, model.unit_displacement, model.rest.triangles) {}
+LungFrame::LungFrame(const model::LungModel& lung)
+    : positions(lung.rest.vertex_count()), surface(lung.rest.vertices, lung.unit_displacement, lung.rest.triangles) {}
+
+Frame::Frame(const model::Model& model) {
+  lungs.reserve(model.lungs.size());
+  for (const model::LungModel& lung : model.lungs) lungs.emplace_back(lung);
+}
 
 void advance(const model::Model& model, const FrameInput& input, Frame& frame) {
   frame.index = input.index;
   frame.time_s = input.time_s;
   frame.lung_volume_m3 = input.lung_volume_m3;
-  frame.scale = input.scale;
-  frame.area_m2 = frame.surface.update(frame.scale, frame.positions).area_m2;
-  frame.mesh_volume_m3 = model.volume_map.volume(frame.scale);
+  for (std::size_t i = 0; i < frame.lungs.size(); ++i) {
+    LungFrame& lung = frame.lungs[i];
+    lung.scale = input.scale[i];
+    lung.area_m2 = lung.surface.update(lung.scale, lung.positions).area_m2;
+    lung.mesh_volume_m3 = model.lungs[i].volume_map.volume(lung.scale);
+  }
 }
 
 }  // namespace pneuma::frame

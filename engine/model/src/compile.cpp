@@ -4,7 +4,11 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <array>
+#include <cstddef>
+#include <cstdint>
 #include <cstdio>
+#include <span>
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/stopwatch.h"
@@ -71,29 +75,93 @@ mesh::TriangleMesh source_surface(const MeshSpec& spec, double edge_m) {
   return mesh::repair_and_remesh(read_file_mesh(spec), spec.file.string(), {}, remesh_options(edge_m)).remesh.mesh;
 }
 
-// The field of the scenario's surface, from the cache where it holds one for these inputs.
-// A file mesh is looked up by its bytes and the options that shape it before it is repaired and
-// remeshed, so a cache hit pays for neither.
-CacheLookup scenario_field(const Scenario& s, double edge_m, const std::filesystem::path& output_dir) {
+// Two lungs from one label map: where they touch (26-neighbour voxels), both lose those voxels,
+// so that their surfaces, each extracted and remeshed alone, keep a gap of about two voxels and
+// do not cut into each other at rest (they did on case007 at 4 mm). Only the contact band goes:
+// a few mL at most, against litres.
+mesh::LabelMap separated_lungs(mesh::LabelMap map, const std::vector<int>& one, const std::vector<int>& other) {
+  auto in = [](const std::vector<int>& values, std::int32_t label) {
+    return std::find(values.begin(), values.end(), label) != values.end();
+  };
+  const auto [nx, ny, nz] = map.size;
+  std::vector<std::uint8_t> side(map.labels.size(), 0);  // 1: `one`, 2: `other`
+  for (std::size_t v = 0; v < side.size(); ++v)
+    side[v] = in(one, map.labels[v]) ? 1 : (in(other, map.labels[v]) ? 2 : 0);
+  std::vector<std::size_t> contact;
+  for (std::size_t k = 0; k < nz; ++k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      for (std::size_t i = 0; i < nx; ++i) {
+        const std::size_t v = i + nx * (j + ny * k);
+        if (side[v] == 0) continue;
+        bool touches = false;
+        for (int dk = -1; dk <= 1 && !touches; ++dk) {
+          for (int dj = -1; dj <= 1 && !touches; ++dj) {
+            for (int di = -1; di <= 1 && !touches; ++di) {
+              const auto ii = static_cast<std::ptrdiff_t>(i) + di, jj = static_cast<std::ptrdiff_t>(j) + dj,
+                         kk = static_cast<std::ptrdiff_t>(k) + dk;
+              if (ii < 0 || jj < 0 || kk < 0 || ii >= static_cast<std::ptrdiff_t>(nx) ||
+                  jj >= static_cast<std::ptrdiff_t>(ny) || kk >= static_cast<std::ptrdiff_t>(nz))
+                continue;
+              const std::uint8_t s = side[static_cast<std::size_t>(ii) +
+                                          nx * (static_cast<std::size_t>(jj) + ny * static_cast<std::size_t>(kk))];
+              touches = s != 0 && s != side[v];
+            }
+          }
+        }
+        if (touches) contact.push_back(v);
+      }
+    }
+  }
+  for (const std::size_t v : contact) map.labels[v] = 0;
+  return map;
+}
+
+// One lung's surface source as a one-surface MeshSpec (the functions above read those fields).
+MeshSpec lung_mesh_spec(const MeshSpec& mesh, const scenario::LungSpec& lung) {
+  if (mesh.lungs.empty()) return mesh;
+  MeshSpec one = mesh;
+  one.lungs.clear();
+  one.phantom.reset();
+  if (lung.phantom) one.phantom = lung.side;
+  one.file = lung.file;
+  one.label_values = lung.label_values;
+  one.share = lung.share;
+  return one;
+}
+
+// The field of one surface (`mesh`: one lung), from the cache file `cache` where it holds one
+// for these inputs. A file mesh is looked up by its bytes and the options that shape it before
+// it is repaired and remeshed, so a cache hit pays for neither.
+CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m, const std::filesystem::path& cache,
+                          const std::vector<int>& other_lung_labels) {
   const field::Tissue& tissue = s.field.tissue;
   const field::FieldOptions& given = s.field.options;
-  const bool from_source = !s.mesh.phantom;
+  const bool from_source = !mesh.phantom;
+  // A lung of two from one label map is extracted from the map with the contact band removed.
+  auto source = [&] {
+    if (other_lung_labels.empty()) return source_surface(mesh, edge_m);
+    mesh::LabelSurfaceOptions extract;
+    if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
+    const mesh::LabelMap map =
+        separated_lungs(mesh::read_label_map(mesh.labels_file), mesh.label_values, other_lung_labels);
+    return remeshed(
+        mesh::surface_from_labels(map, mesh.labels_file.filename().string(), mesh.label_values, extract).mesh, edge_m);
+  };
   if (s.field.cache == scenario::FieldCache::off) {
-    const mesh::TriangleMesh surface = from_source ? source_surface(s.mesh, edge_m) : phantom_surface(s.mesh, edge_m);
+    const mesh::TriangleMesh surface = from_source ? source() : phantom_surface(mesh, edge_m);
     const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
     return {compute_field_record(surface, inputs), false, {}, inputs.options.regions};
   }
-  const std::filesystem::path cache =
-      s.field.cache == scenario::FieldCache::file ? s.field.cache_file : output_dir / "field.h5";
-  if (!from_source) return load_or_compute(cache, phantom_surface(s.mesh, edge_m), tissue, given);
-  const bool labels = !s.mesh.labels_file.empty();
-  const std::string source =
-      source_key({labels ? s.mesh.labels_file : s.mesh.file, s.field.tissue_file},
-                 fmt::format("{} unit {:.17g} m, repair {}, edge {:.17g} m, labels {}", labels ? "labels" : "file",
-                             s.mesh.metres_per_unit, s.mesh.repair, edge_m, fmt::join(s.mesh.label_values, ",")));
+  if (!from_source) return load_or_compute(cache, phantom_surface(mesh, edge_m), tissue, given);
+  const bool labels = !mesh.labels_file.empty();
+  std::string options_text =
+      fmt::format("{} unit {:.17g} m, repair {}, edge {:.17g} m, labels {}", labels ? "labels" : "file",
+                  mesh.metres_per_unit, mesh.repair, edge_m, fmt::join(mesh.label_values, ","));
+  if (!other_lung_labels.empty()) options_text += fmt::format(", apart from {}", fmt::join(other_lung_labels, ","));
+  const std::string key = source_key({labels ? mesh.labels_file : mesh.file, s.field.tissue_file}, options_text);
   std::shared_ptr<const mesh::SurfaceRegions> regions;
-  CacheLookup lookup = load_or_compute(cache, source_field_key(source, tissue.name, given), [&] {
-    const mesh::TriangleMesh surface = source_surface(s.mesh, edge_m);
+  CacheLookup lookup = load_or_compute(cache, source_field_key(key, tissue.name, given), [&] {
+    const mesh::TriangleMesh surface = source();
     const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
     regions = inputs.options.regions;
     return compute_field_record(surface, inputs);
@@ -102,63 +170,129 @@ CacheLookup scenario_field(const Scenario& s, double edge_m, const std::filesyst
   return lookup;
 }
 
-// The model of the scenario: its surface and field (cached), moved onto the original file's
+// One lung of the scenario: its surface and field (cached), moved onto the original file's
 // vertices where the scenario exports those.
-Model scenario_model(const Scenario& s, const CompileOptions& options, bool& field_reused,
+LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const std::vector<int>& other_lung_labels,
+                     bool two_lungs, const CompileOptions& options, bool& field_reused,
                      std::vector<std::pair<std::string, double>>& timings_s) {
   auto start = Clock::now();
-  const double edge = options.edge_override_m.value_or(s.mesh.edge_m);
-  CacheLookup computed = scenario_field(s, edge, options.output_dir);
+  const MeshSpec mesh = lung_mesh_spec(s.mesh, spec);
+  const double edge = options.edge_override_m.value_or(mesh.edge_m);
+  const std::filesystem::path cache = lung_cache_path(
+      s.field.cache == scenario::FieldCache::file ? s.field.cache_file : options.output_dir / "field.h5", spec.side,
+      two_lungs);
+  CacheLookup computed = surface_field(s, mesh, edge, cache, other_lung_labels);
   field_reused = computed.reused;
   if (!computed.discarded.empty()) {
     // The cache is derived data: a damaged one is replaced, never used, and the user told.
     std::fprintf(stderr, "pneuma: warning: %s; computed the field again and replaced the file\n",
                  computed.discarded.c_str());
   }
-  timings_s.emplace_back(field_reused ? "mesh and field (cached)" : "mesh and field", seconds_since(start));
+  const std::string what = two_lungs ? fmt::format(" ({} lung)", scenario::lung_name(spec.side)) : "";
+  timings_s.emplace_back((field_reused ? "mesh and field (cached)" : "mesh and field") + what, seconds_since(start));
 
   mesh::TriangleMesh rest = std::move(computed.record.rest);
   std::vector<Eigen::Vector3d> u = std::move(computed.record.unit_displacement);
-  if (s.mesh.export_original) {
+  if (mesh.export_original) {
     // The field lives on the remeshed surface; carry it to the original vertices through their
     // closest points on it (barycentric interpolation).
     start = Clock::now();
-    mesh::TriangleMesh original = file_surface(s.mesh);
+    mesh::TriangleMesh original = file_surface(mesh);
     u = mesh::transfer_vertex_field(rest, u, original.vertices);
     rest = std::move(original);
     timings_s.emplace_back("field transfer", seconds_since(start));
   }
-  // The field's regions are the rest surface's unless the run exports the original mesh.
-  const mesh::SurfaceRegions* regions = s.mesh.export_original ? nullptr : computed.regions.get();
-  return make_model(std::move(rest), std::move(u), s.field.options.area_unit, field::body_axes(s.field.tissue),
-                    regions);
+  // The field's regions are the rest surface's unless the run exports the original mesh. A lung
+  // of two has its side (one surface: the side found from its geometry, as before).
+  const mesh::SurfaceRegions* regions = mesh.export_original ? nullptr : computed.regions.get();
+  LungModel lung =
+      make_model(std::move(rest), std::move(u), s.field.options.area_unit, field::body_axes(s.field.tissue), regions,
+                 two_lungs ? spec.side : std::optional<mesh::Lung>{});
+  lung.side = spec.side;
+  lung.share = spec.share;
+  lung.reference_volume_m3 = s.mesh.reference_volume_m3;
+  lung.compartment = spec.compartment;
+  return lung;
 }
 
-// One CGAL check of the most deformed frames: a self-intersecting surface is refused.
-void check_no_fold(const Model& model, const Scenario& s, double min_scale, double max_scale) {
-  mesh::DeformedSurface kernel(model.rest.vertices, model.unit_displacement, model.rest.triangles);
-  mesh::TriangleMesh deformed{std::vector<Eigen::Vector3d>(model.rest.vertex_count()), model.rest.triangles};
-  for (double extreme : {min_scale, max_scale}) {
-    kernel.update(extreme, deformed.vertices);
-    if (mesh::self_intersects(deformed)) {
-      throw UnsupportedError(fmt::format("{}: the surface self-intersects at scale {:.4g} (mesh volume {:.4g} L); "
-                                         "lower the tidal volume or the mesh share",
-                                         s.file.string(), extreme, model.volume_map.volume(extreme) * 1e3));
+// The surface of every lung at scale s_i (one per lung), as one mesh (two lungs: both, the
+// left's vertices after the right's).
+mesh::TriangleMesh deformed_union(const Model& model, std::span<const double> scales) {
+  mesh::TriangleMesh out;
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    const LungModel& lung = model.lungs[i];
+    mesh::DeformedSurface kernel(lung.rest.vertices, lung.unit_displacement, lung.rest.triangles);
+    std::vector<Eigen::Vector3d> positions(lung.rest.vertex_count());
+    kernel.update(scales[i], positions);
+    const auto offset = static_cast<std::uint32_t>(out.vertices.size());
+    out.vertices.insert(out.vertices.end(), positions.begin(), positions.end());
+    for (mesh::Triangle t : lung.rest.triangles) {
+      for (auto& v : t) v += offset;
+      out.triangles.push_back(t);
+    }
+  }
+  return out;
+}
+
+// One CGAL check of the most deformed frames: a self-intersecting surface is refused, and so are
+// two lungs that cut into each other (both at their lowest scales, then both at their highest:
+// end-expiration and end-inspiration).
+void check_no_fold(const Model& model, const Scenario& s, const std::vector<LungScales>& scales) {
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    const LungModel& lung = model.lungs[i];
+    mesh::DeformedSurface kernel(lung.rest.vertices, lung.unit_displacement, lung.rest.triangles);
+    mesh::TriangleMesh deformed{std::vector<Eigen::Vector3d>(lung.rest.vertex_count()), lung.rest.triangles};
+    for (double extreme : {scales[i].min_scale, scales[i].max_scale}) {
+      kernel.update(extreme, deformed.vertices);
+      if (mesh::self_intersects(deformed)) {
+        const std::string which =
+            model.two_lungs() ? fmt::format("the {} lung", scenario::lung_name(lung.side)) : std::string("the surface");
+        throw UnsupportedError(fmt::format("{}: {} self-intersects at scale {:.4g} (mesh volume {:.4g} L); "
+                                           "lower the tidal volume or the mesh share",
+                                           s.file.string(), which, extreme, lung.volume_map.volume(extreme) * 1e3));
+      }
+    }
+  }
+  if (!model.two_lungs()) return;
+  for (const bool highest : {false, true}) {
+    const std::array<double, 2> at{highest ? scales[0].max_scale : scales[0].min_scale,
+                                   highest ? scales[1].max_scale : scales[1].min_scale};
+    // Each lung alone is free of self-intersections (above): an intersection is between them.
+    if (mesh::self_intersects(deformed_union(model, at))) {
+      throw UnsupportedError(fmt::format("{}: the right and left lungs intersect each other at their {} scales "
+                                         "({:.4g}, {:.4g}); lower the tidal volume or the lungs' shares",
+                                         s.file.string(), highest ? "highest" : "lowest", at[0], at[1]));
     }
   }
 }
 
 }  // namespace
 
-std::vector<double> frame_scales(const Model& model, const MeshSpec& mesh, const std::vector<double>& time_s,
+std::filesystem::path lung_cache_path(const std::filesystem::path& path, const std::optional<mesh::Lung>& side,
+                                      bool two_lungs) {
+  if (!two_lungs) return path;
+  std::filesystem::path out = path;
+  out.replace_filename(path.stem().string() + "-" + scenario::lung_name(side) + path.extension().string());
+  return out;
+}
+
+const std::vector<double>& lung_volumes(const LungModel& lung, const physiology::SimulationResult& drive) {
+  if (lung.compartment < 0) return drive.series.volume_m3;
+  const auto c = static_cast<std::size_t>(lung.compartment);
+  if (c >= drive.series.compartment_volume_m3.size())
+    throw ValueError(fmt::format("lung_volumes: the drive has no compartment {}", c));
+  return drive.series.compartment_volume_m3[c];
+}
+
+std::vector<double> frame_scales(const LungModel& lung, const std::vector<double>& time_s,
                                  const std::vector<double>& lung_volume_m3) {
   std::vector<double> scales(time_s.size());
-  const double rest_volume = model.volume_map.volume(0.0);
+  const double rest_volume = lung.volume_map.volume(0.0);
   double guess = 0.0;
   for (std::size_t k = 0; k < time_s.size(); ++k) {
-    const double target = rest_volume + mesh.share * (lung_volume_m3[k] - mesh.reference_volume_m3);
+    const double target = rest_volume + lung.share * (lung_volume_m3[k] - lung.reference_volume_m3);
     try {
-      scales[k] = guess = model.volume_map.scale_for(target, guess);
+      scales[k] = guess = lung.volume_map.scale_for(target, guess);
     } catch (const UnsupportedError& e) {
       throw UnsupportedError(
           fmt::format("frame {} (t = {:.3f} s): {}; lower the tidal volume or the mesh share", k, time_s[k], e.what()));
@@ -168,20 +302,36 @@ std::vector<double> frame_scales(const Model& model, const MeshSpec& mesh, const
 }
 
 Compiled compile(const Scenario& s, const physiology::SimulationResult& drive, const CompileOptions& options) {
-  bool field_reused = false;
-  std::vector<std::pair<std::string, double>> timings_s;
-  Model model = scenario_model(s, options, field_reused, timings_s);
-  std::vector<double> scales = frame_scales(model, s.mesh, drive.series.time_s, drive.series.volume_m3);
-  double min_scale = 0.0, max_scale = 0.0;
-  if (!scales.empty()) {
-    const auto [lo, hi] = std::minmax_element(scales.begin(), scales.end());
-    min_scale = *lo;
-    max_scale = *hi;
+  Compiled compiled;
+  compiled.field_reused = true;
+  const std::vector<scenario::LungSpec> specs = scenario::lung_specs(s.mesh);
+  for (std::size_t i = 0; i < specs.size(); ++i) {
+    bool reused = false;
+    // Two lungs of one label map: each extracted apart from the other's labels.
+    const std::vector<int> other = specs.size() == 2 ? specs[1 - i].label_values : std::vector<int>{};
+    compiled.model.lungs.push_back(
+        lung_model(s, specs[i], other, specs.size() == 2, options, reused, compiled.timings_s));
+    compiled.field_reused = compiled.field_reused && reused;
+  }
+  for (const LungModel& lung : compiled.model.lungs) {
+    LungScales l;
+    try {
+      l.scales = frame_scales(lung, drive.series.time_s, lung_volumes(lung, drive));
+    } catch (const UnsupportedError& e) {
+      if (!compiled.model.two_lungs()) throw;
+      throw UnsupportedError(fmt::format("the {} lung: {}", scenario::lung_name(lung.side), e.what()));
+    }
+    if (!l.scales.empty()) {
+      const auto [lo, hi] = std::minmax_element(l.scales.begin(), l.scales.end());
+      l.min_scale = *lo;
+      l.max_scale = *hi;
+    }
+    compiled.lungs.push_back(std::move(l));
   }
   const auto start = Clock::now();
-  check_no_fold(model, s, min_scale, max_scale);
-  timings_s.emplace_back("self-intersection check", seconds_since(start));
-  return Compiled{std::move(model), std::move(scales), min_scale, max_scale, field_reused, std::move(timings_s)};
+  check_no_fold(compiled.model, s, compiled.lungs);
+  compiled.timings_s.emplace_back("self-intersection check", seconds_since(start));
+  return compiled;
 }
 
 }  // namespace pneuma::model

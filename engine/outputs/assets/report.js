@@ -103,12 +103,15 @@
       ['anterior_mean_mm', 'anterior mean (mm)', 2], ['lateral_mean_mm', 'lateral mean (mm)', 2],
       ['magnitude_mean_mm', '|d| mean (mm)', 2], ['magnitude_max_mm', '|d| peak (mm)', 2],
       ['volume_share_pct', 'share of \u0394V (%)', 1]];
+    var byLung = m.regions.some(function (r) { return r.lung; });  // two lungs: a row per lung and region
     var head = el('tr');
+    if (byLung) head.appendChild(el('th', null, 'lung'));
     head.appendChild(el('th', null, 'region'));
     columns.forEach(function (c) { head.appendChild(el('th', null, c[1])); });
     table.appendChild(head);
     m.regions.forEach(function (r) {
       var tr = el('tr');
+      if (byLung) tr.appendChild(el('td', null, r.lung));
       var name = el('td');
       var swatch = el('span', { 'class': 'swatch' });
       swatch.style.background = REGION_COLORS[r.name] || '#999';
@@ -118,10 +121,14 @@
       columns.forEach(function (c) { tr.appendChild(el('td', null, fmt(r[c[0]], c[2]))); });
       table.appendChild(tr);
     });
+    var dome = byLung
+        ? Object.keys(m.dome_top_caudal_mm_by_lung).map(function (k) {
+            return k + ' ' + fmt(m.dome_top_caudal_mm_by_lung[k], 2) + ' mm';
+          }).join(', ') + ' caudal. '
+        : fmt(m.dome_top_caudal_mm, 2) + ' mm caudal. ';
     note.textContent = 'Mean over ' + m.breaths + ' complete breath' + (m.breaths === 1 ? '' : 's') +
         ': the displacement from each breath\'s lowest to its highest volume, in body axes (caudal: downward; ' +
-        'lateral: away from the midline). Dome top: ' + fmt(m.dome_top_caudal_mm, 2) + ' mm caudal. ' +
-        'Per breath: motion.csv.';
+        'lateral: away from the midline). Dome top: ' + dome + 'Per breath: motion.csv.';
   })();
 
   // ---- plots: each a <canvas>, its static part drawn once per size, the cursor per frame ----
@@ -359,7 +366,7 @@
   controls.enableDamping = false;
   controls.enableKeys = false;  // the arrow keys step through time (below), not pan
   controls.addEventListener('change', function () { needsRender = true; });
-  var mixer = null, action = null, lung = null, needsRender = true;
+  var mixer = null, action = null, lung = null, lungs = [], needsRender = true;
 
   function resize() {
     var w = Math.max(1, view.clientWidth), h = Math.max(1, view.clientHeight);
@@ -413,7 +420,7 @@
     var bytes = base64ToBytes(document.getElementById('pneuma-glb').textContent);
     new THREE.GLTFLoader().parse(bytes.buffer, '', function (gltf) {
       scene.add(gltf.scene);
-      gltf.scene.traverse(function (o) { if (o.isMesh && !lung) lung = o; });
+      gltf.scene.traverse(function (o) { if (o.isMesh) { if (!lung) lung = o; lungs.push(o); } });
       if (gltf.animations.length > 0) {
         mixer = new THREE.AnimationMixer(gltf.scene);
         action = mixer.clipAction(gltf.animations[0]);
@@ -428,7 +435,9 @@
       camera.updateProjectionMatrix();
       controls.target.copy(centre);
       controls.update();
-      document.getElementById('regions').addEventListener('change', function (e) { if (lung) regionColours(lung, e.target.checked); });
+      document.getElementById('regions').addEventListener('change', function (e) {
+        lungs.forEach(function (o) { regionColours(o, e.target.checked); });  // one mesh per lung
+      });
       resolve();
     }, function (e) { reject(e); });
   });

@@ -4,7 +4,7 @@
 
 namespace pneuma::outputs {
 
-std::vector<BreathMotion> breath_motion(const model::Model& model, const physiology::SimulationResult& drive,
+std::vector<BreathMotion> breath_motion(const model::LungModel& model, const physiology::SimulationResult& drive,
                                         std::span<const double> scales) {
   std::vector<BreathMotion> out;
   const auto& t = drive.series.time_s;
@@ -20,8 +20,20 @@ std::vector<BreathMotion> breath_motion(const model::Model& model, const physiol
     }
     if (lo == scales.size()) continue;
     kernel.update(scales[lo], from.vertices);
-    out.push_back({b, breath.start_s, scales[lo], scales[hi],
+    out.push_back({0, b, breath.start_s, scales[lo], scales[hi],
                    mesh::summarize_motion(from, model.unit_displacement, scales[hi] - scales[lo], model.regions)});
+  }
+  return out;
+}
+
+std::vector<BreathMotion> breath_motion(const model::Model& model, const physiology::SimulationResult& drive,
+                                        const std::vector<std::span<const double>>& scales) {
+  std::vector<BreathMotion> out;
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    for (BreathMotion& b : breath_motion(model.lungs[i], drive, scales[i])) {
+      b.lung = i;
+      out.push_back(std::move(b));
+    }
   }
   return out;
 }

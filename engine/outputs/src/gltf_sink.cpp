@@ -63,30 +63,25 @@ int add_vec3(tinygltf::Model& m, const std::vector<Eigen::Vector3d>& v, double f
   return add_accessor(m, view, TINYGLTF_COMPONENT_TYPE_FLOAT, v.size(), TINYGLTF_TYPE_VEC3, lo, hi);
 }
 
-// The whole glb, built in memory: the sink writes it, the report embeds it.
-std::string glb_bytes(const model::Model& model, double reference_scale, double frame_rate_hz,
-                      const std::vector<float>& times, const std::vector<float>& morph_weights) {
-  tinygltf::Model m;
-  m.asset.version = "2.0";
-  m.asset.generator = "pneuma " PNEUMA_VERSION;
-  m.buffers.resize(1);
-
+// One lung's mesh in the glb: its buffers (indices, rest positions, normals, the morph target
+// u * s_ref, the regions) and its glTF mesh, appended to `m`; returns the mesh's index.
+int add_lung_mesh(tinygltf::Model& m, const model::LungModel& lung, double reference_scale, const std::string& name) {
   std::vector<std::uint32_t> indices;
-  indices.reserve(model.rest.triangles.size() * 3);
-  for (const auto& t : model.rest.triangles) indices.insert(indices.end(), t.begin(), t.end());
+  indices.reserve(lung.rest.triangles.size() * 3);
+  for (const auto& t : lung.rest.triangles) indices.insert(indices.end(), t.begin(), t.end());
   const int index_view =
       add_view(m, indices.data(), indices.size() * sizeof(std::uint32_t), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
   const int index_accessor =
       add_accessor(m, index_view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, indices.size(), TINYGLTF_TYPE_SCALAR);
-  const int positions = add_vec3(m, model.rest.vertices, 1.0, true);
-  const int normals = add_vec3(m, model.normals, 1.0, false);
-  const int morph = add_vec3(m, model.unit_displacement, reference_scale, true);
+  const int positions = add_vec3(m, lung.rest.vertices, 1.0, true);
+  const int normals = add_vec3(m, lung.normals, 1.0, false);
+  const int morph = add_vec3(m, lung.unit_displacement, reference_scale, true);
   // The anatomical regions (docs/realism.md) as application-specific vertex attributes: the
   // label (0 apex, 1 costal, 2 diaphragmatic, 3 mediastinal) and the blend weights. Floats:
   // glTF wants vertex attributes aligned to 4 bytes.
   std::vector<float> labels, weights;
-  for (const mesh::Region r : model.regions.label) labels.push_back(static_cast<float>(r));
-  for (const auto& w : model.regions.weight) {
+  for (const mesh::Region r : lung.regions.label) labels.push_back(static_cast<float>(r));
+  for (const auto& w : lung.regions.weight) {
     for (double x : w) weights.push_back(static_cast<float>(x));
   }
   const int region_label =
@@ -100,23 +95,6 @@ std::string glb_bytes(const model::Model& model, double reference_scale, double 
           : add_accessor(m, add_view(m, weights.data(), weights.size() * sizeof(float), TINYGLTF_TARGET_ARRAY_BUFFER),
                          TINYGLTF_COMPONENT_TYPE_FLOAT, weights.size() / 4, TINYGLTF_TYPE_VEC4);
 
-  const auto [t_min, t_max] = std::minmax_element(times.begin(), times.end());
-  const int time_view = add_view(m, times.data(), times.size() * sizeof(float), 0);
-  const int time_accessor =
-      add_accessor(m, time_view, TINYGLTF_COMPONENT_TYPE_FLOAT, times.size(), TINYGLTF_TYPE_SCALAR, {*t_min}, {*t_max});
-  const int weight_view = add_view(m, morph_weights.data(), morph_weights.size() * sizeof(float), 0);
-  const int weight_accessor =
-      add_accessor(m, weight_view, TINYGLTF_COMPONENT_TYPE_FLOAT, morph_weights.size(), TINYGLTF_TYPE_SCALAR);
-  m.buffers[0].data.resize((m.buffers[0].data.size() + 3) / 4 * 4, 0);
-
-  tinygltf::Material lung;
-  lung.name = "lung";
-  lung.pbrMetallicRoughness.baseColorFactor = {0.86, 0.52, 0.50, 1.0};
-  lung.pbrMetallicRoughness.metallicFactor = 0.0;
-  lung.pbrMetallicRoughness.roughnessFactor = 0.55;
-  lung.doubleSided = false;
-  m.materials.push_back(lung);
-
   tinygltf::Primitive primitive;
   primitive.attributes["POSITION"] = positions;
   primitive.attributes["NORMAL"] = normals;
@@ -127,7 +105,7 @@ std::string glb_bytes(const model::Model& model, double reference_scale, double 
   primitive.mode = TINYGLTF_MODE_TRIANGLES;
   primitive.targets.push_back({{"POSITION", morph}});
   tinygltf::Mesh mesh;
-  mesh.name = "lung";
+  mesh.name = name;
   mesh.primitives.push_back(primitive);
   mesh.weights = {0.0};
   // Names of the morph targets, read by Blender and three.js.
@@ -137,14 +115,53 @@ std::string glb_bytes(const model::Model& model, double reference_scale, double 
       {"targetNames", tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(std::string("breath"))})},
       {"regionNames", tinygltf::Value(std::move(region_names))}});
   m.meshes.push_back(mesh);
+  return static_cast<int>(m.meshes.size() - 1);
+}
 
-  tinygltf::Node node;
-  node.name = "lung";
-  node.mesh = 0;
-  node.rotation = {-std::sqrt(0.5), 0.0, 0.0, std::sqrt(0.5)};  // z-up (pneuma) to y-up (glTF)
-  m.nodes.push_back(node);
+// The whole glb, built in memory: the sink writes it, the report embeds it. One mesh and node per
+// lung ("lung"; two lungs: "right lung", "left lung"), each with its own morph weight track
+// (`morph_weights[i]`, s_i / s_ref,i) in the one animation, all at the same `times`.
+std::string glb_bytes(const model::Model& model, const std::vector<double>& reference_scales, double frame_rate_hz,
+                      const std::vector<float>& times, const std::vector<std::vector<float>>& morph_weights) {
+  tinygltf::Model m;
+  m.asset.version = "2.0";
+  m.asset.generator = "pneuma " PNEUMA_VERSION;
+  m.buffers.resize(1);
+
+  std::vector<std::string> names;
+  for (const model::LungModel& lung : model.lungs)
+    names.push_back(model.two_lungs() ? std::string(scenario::lung_name(lung.side)) + " lung" : std::string("lung"));
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) add_lung_mesh(m, model.lungs[i], reference_scales[i], names[i]);
+
+  const auto [t_min, t_max] = std::minmax_element(times.begin(), times.end());
+  const int time_view = add_view(m, times.data(), times.size() * sizeof(float), 0);
+  const int time_accessor =
+      add_accessor(m, time_view, TINYGLTF_COMPONENT_TYPE_FLOAT, times.size(), TINYGLTF_TYPE_SCALAR, {*t_min}, {*t_max});
+  std::vector<int> weight_accessors;
+  for (const std::vector<float>& weights : morph_weights) {
+    const int weight_view = add_view(m, weights.data(), weights.size() * sizeof(float), 0);
+    weight_accessors.push_back(
+        add_accessor(m, weight_view, TINYGLTF_COMPONENT_TYPE_FLOAT, weights.size(), TINYGLTF_TYPE_SCALAR));
+  }
+  m.buffers[0].data.resize((m.buffers[0].data.size() + 3) / 4 * 4, 0);
+
+  tinygltf::Material lung;
+  lung.name = "lung";
+  lung.pbrMetallicRoughness.baseColorFactor = {0.86, 0.52, 0.50, 1.0};
+  lung.pbrMetallicRoughness.metallicFactor = 0.0;
+  lung.pbrMetallicRoughness.roughnessFactor = 0.55;
+  lung.doubleSided = false;
+  m.materials.push_back(lung);
+
   tinygltf::Scene scene;
-  scene.nodes = {0};
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    tinygltf::Node node;
+    node.name = names[i];
+    node.mesh = static_cast<int>(i);
+    node.rotation = {-std::sqrt(0.5), 0.0, 0.0, std::sqrt(0.5)};  // z-up (pneuma) to y-up (glTF)
+    m.nodes.push_back(node);
+    scene.nodes.push_back(static_cast<int>(i));
+  }
   // glTF has no frame range: the animation's extent, for players that keep their own
   // (Blender's scene end); importers keep extras as custom properties (docs/formats.md).
   const double duration_s = times.empty() ? 0.0 : static_cast<double>(times.back());
@@ -157,16 +174,18 @@ std::string glb_bytes(const model::Model& model, double reference_scale, double 
 
   tinygltf::Animation animation;
   animation.name = "breathing";
-  tinygltf::AnimationSampler sampler;
-  sampler.input = time_accessor;
-  sampler.output = weight_accessor;
-  sampler.interpolation = "LINEAR";
-  animation.samplers.push_back(sampler);
-  tinygltf::AnimationChannel channel;
-  channel.sampler = 0;
-  channel.target_node = 0;
-  channel.target_path = "weights";
-  animation.channels.push_back(channel);
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    tinygltf::AnimationSampler sampler;
+    sampler.input = time_accessor;
+    sampler.output = weight_accessors[i];
+    sampler.interpolation = "LINEAR";
+    animation.samplers.push_back(sampler);
+    tinygltf::AnimationChannel channel;
+    channel.sampler = static_cast<int>(i);
+    channel.target_node = static_cast<int>(i);
+    channel.target_path = "weights";
+    animation.channels.push_back(channel);
+  }
   m.animations.push_back(animation);
 
   std::ostringstream out(std::ios::binary);
@@ -175,10 +194,14 @@ std::string glb_bytes(const model::Model& model, double reference_scale, double 
   return std::move(out).str();
 }
 
-// The largest |s| of the run: the morph target is u * s_ref, the weights s / s_ref.
-double reference_scale_of(const RunInfo& run) {
-  const double s = std::max(std::abs(run.min_scale), std::abs(run.max_scale));
-  return s == 0.0 ? 1.0 : s;
+// The largest |s| of each lung's run: its morph target is u * s_ref, its weights s / s_ref.
+std::vector<double> reference_scales_of(const RunInfo& run) {
+  std::vector<double> out;
+  for (std::size_t i = 0; i < run.min_scale.size(); ++i) {
+    const double s = std::max(std::abs(run.min_scale[i]), std::abs(run.max_scale[i]));
+    out.push_back(s == 0.0 ? 1.0 : s);
+  }
+  return out;
 }
 
 class GltfSink final : public Output {
@@ -188,19 +211,21 @@ class GltfSink final : public Output {
 
   void begin(const model::Model& model, const RunInfo& run) override {
     model_ = &model;  // the glb is written in one go at end(), when every weight is known
-    reference_scale_ = reference_scale_of(run);
+    reference_scales_ = reference_scales_of(run);
     frame_rate_hz_ = run.frame_rate_hz;
     times_.reserve(run.frame_count);
-    weights_.reserve(run.frame_count);
+    weights_.assign(model.lungs.size(), {});
+    for (auto& w : weights_) w.reserve(run.frame_count);
   }
 
   void frame(const model::Model&, const frame::Frame& f) override {
     times_.push_back(static_cast<float>(f.time_s));
-    weights_.push_back(static_cast<float>(f.scale / reference_scale_));
+    for (std::size_t i = 0; i < weights_.size(); ++i)
+      weights_[i].push_back(static_cast<float>(f.lungs[i].scale / reference_scales_[i]));
   }
 
   std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord&) override {
-    const std::string bytes = glb_bytes(*model_, reference_scale_, frame_rate_hz_, times_, weights_);
+    const std::string bytes = glb_bytes(*model_, reference_scales_, frame_rate_hz_, times_, weights_);
     write_stream_atomically(
         file_, true, [&](std::ostream& out) { out.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
     return {file_};
@@ -209,10 +234,10 @@ class GltfSink final : public Output {
  private:
   std::filesystem::path file_;
   const model::Model* model_ = nullptr;
-  double reference_scale_ = 1.0;
+  std::vector<double> reference_scales_;
   double frame_rate_hz_ = 0.0;
   std::vector<float> times_;
-  std::vector<float> weights_;
+  std::vector<std::vector<float>> weights_;  // per lung
 };
 
 }  // namespace
@@ -226,17 +251,20 @@ OutputPlugin gltf_output() {
 }
 
 std::string make_glb(const model::Model& model, const RunInfo& run, std::span<const double> time_s,
-                     std::span<const double> scale) {
-  if (time_s.size() != scale.size()) throw ValueError("make_glb: as many times as scales expected");
-  const double reference_scale = reference_scale_of(run);
-  std::vector<float> times, weights;
+                     const std::vector<std::span<const double>>& scales) {
+  if (scales.size() != model.lungs.size() || run.min_scale.size() != model.lungs.size())
+    throw ValueError("make_glb: one scale series and range per lung expected");
+  const std::vector<double> reference_scales = reference_scales_of(run);
+  std::vector<float> times;
   times.reserve(time_s.size());
-  weights.reserve(scale.size());
-  for (std::size_t k = 0; k < time_s.size(); ++k) {
-    times.push_back(static_cast<float>(time_s[k]));
-    weights.push_back(static_cast<float>(scale[k] / reference_scale));
+  for (const double t : time_s) times.push_back(static_cast<float>(t));
+  std::vector<std::vector<float>> weights(scales.size());
+  for (std::size_t i = 0; i < scales.size(); ++i) {
+    if (time_s.size() != scales[i].size()) throw ValueError("make_glb: as many times as scales expected");
+    weights[i].reserve(scales[i].size());
+    for (const double s : scales[i]) weights[i].push_back(static_cast<float>(s / reference_scales[i]));
   }
-  return glb_bytes(model, reference_scale, run.frame_rate_hz, times, weights);
+  return glb_bytes(model, reference_scales, run.frame_rate_hz, times, weights);
 }
 
 }  // namespace pneuma::outputs

@@ -12,6 +12,8 @@
 //   /frames/area_m2   (F) float64
 //   /frames/positions/NNNNNN (N, 3) float32 (or float64: outputs.hdf5.positions), m: frame k's
 //     positions, rest + s_k u rounded to the stored type; shuffle + deflate
+// Two lungs: the root attribute lungs = "right,left", and each lung's rest/, field/ and frames/
+// as above under /right and /left (each with its own scale, mesh volume and area columns).
 #include <hdf5.h>
 
 #include <fmt/format.h>
@@ -44,8 +46,6 @@ class Hdf5Sink final : public Output {
 
   void begin(const model::Model& model, const RunInfo& run) override {
     hdf5::silence_hdf5_errors();
-    vertex_count_ = model.rest.vertices.size();
-    triangle_count_ = model.rest.triangles.size();
     frame_count_ = run.frame_count;
     pending_ = std::make_unique<PendingFile>(h5_path_);
     hdf5::Hdf5Handle file_properties(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
@@ -58,11 +58,86 @@ class Hdf5Sink final : public Output {
     w_.string_attribute(file_, "generator", std::string("pneuma ") + PNEUMA_VERSION);
     w_.string_attribute(file_, "coordinate_frame", "LPS");
     w_.string_attribute(file_, "length_unit", "m");
+    digits_ = std::max<std::size_t>(6, std::to_string(frame_count_ > 0 ? frame_count_ - 1 : 0).size());
+    if (model.two_lungs()) w_.string_attribute(file_, "lungs", "right,left");
+    lungs_.clear();
+    lungs_.resize(model.lungs.size());
+    for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+      Lung& lung = lungs_[i];
+      // One lung: at the root, as always. Two: the same layout under /right and /left.
+      if (model.two_lungs()) {
+        lung.prefix = std::string("/") + scenario::lung_name(model.lungs[i].side);
+        lung.group = w_.group(file_, lung.prefix.c_str() + 1).release();
+      }
+      begin_lung(model.lungs[i], lung.group >= 0 ? lung.group : file_, lung);
+    }
+  }
 
-    const hdf5::Hdf5Handle rest = w_.group(file_, "rest");
+  void frame(const model::Model&, const frame::Frame& f) override {
+    time_.push_back(f.time_s);
+    lung_volume_.push_back(f.lung_volume_m3);
+    for (std::size_t i = 0; i < lungs_.size(); ++i) {
+      Lung& lung = lungs_[i];
+      const frame::LungFrame& lf = f.lungs[i];
+      lung.scale.push_back(lf.scale);
+      lung.mesh_volume.push_back(lf.mesh_volume_m3);
+      lung.area.push_back(lf.area_m2);
+      const std::string name = frame_name(f.index);
+      w_.dataset(lung.positions_group, name.c_str(), double_ ? H5T_IEEE_F64LE : H5T_IEEE_F32LE, H5T_NATIVE_DOUBLE,
+                 lf.positions.data(), lung.vertex_count, 3, "m", true);
+    }
+  }
+
+  std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord&) override {
+    const hsize_t n = time_.size();
+    for (Lung& lung : lungs_) {
+      w_.dataset(lung.frames_group, "time_s", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, time_.data(), n, 0, "s");
+      w_.dataset(lung.frames_group, "scale", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, lung.scale.data(), n, 0, "1");
+      w_.dataset(lung.frames_group, "lung_volume_m3", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, lung_volume_.data(), n, 0,
+                 "m3");
+      w_.dataset(lung.frames_group, "mesh_volume_m3", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, lung.mesh_volume.data(), n, 0,
+                 "m3");
+      w_.dataset(lung.frames_group, "area_m2", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, lung.area.data(), n, 0, "m2");
+    }
+    close();
+    pending_->commit();
+    std::vector<const Lung*> all;
+    for (const Lung& lung : lungs_) all.push_back(&lung);
+    write_stream_atomically(xdmf_path_, false, [&](std::ostream& out) { write_xdmf(out, all); });
+    std::vector<std::filesystem::path> files{h5_path_, xdmf_path_};
+    if (lungs_.size() == 2) {
+      // Each lung alone as well (series-right.xdmf, series-left.xdmf): plain temporal collections,
+      // for readers that do not open nested collections (meshio's TimeSeriesReader).
+      for (const Lung& lung : lungs_) {
+        std::filesystem::path alone = xdmf_path_;
+        alone.replace_filename(xdmf_path_.stem().string() + "-" + lung.prefix.substr(1) +
+                               xdmf_path_.extension().string());
+        write_stream_atomically(alone, false, [&](std::ostream& out) { write_xdmf(out, {&lung}); });
+        files.push_back(alone);
+      }
+    }
+    return files;
+  }
+
+  ~Hdf5Sink() override { close(); }
+
+ private:
+  // One lung's part of the file: its group (the root for one lung), its frames and columns.
+  struct Lung {
+    std::string prefix;  // "" (one lung) or "/right", "/left"
+    hid_t group = -1, frames_group = -1, positions_group = -1;
+    hsize_t vertex_count = 0, triangle_count = 0;
+    std::vector<double> scale, mesh_volume, area;
+  };
+
+  void begin_lung(const model::LungModel& model, hid_t base, Lung& lung) {
+    lung.vertex_count = model.rest.vertices.size();
+    lung.triangle_count = model.rest.triangles.size();
+    const hsize_t vertex_count_ = lung.vertex_count;
+    const hdf5::Hdf5Handle rest = w_.group(base, "rest");
     w_.dataset(rest, "positions", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, model.rest.vertices.data(), vertex_count_, 3, "m",
                true);
-    w_.dataset(rest, "triangles", H5T_STD_U32LE, H5T_NATIVE_UINT32, model.rest.triangles.data(), triangle_count_, 3,
+    w_.dataset(rest, "triangles", H5T_STD_U32LE, H5T_NATIVE_UINT32, model.rest.triangles.data(), lung.triangle_count, 3,
                "1", true);
     if (model.regions.label.size() == vertex_count_ && model.regions.weight.size() == vertex_count_) {
       std::vector<std::uint8_t> region(vertex_count_);
@@ -77,49 +152,26 @@ class Hdf5Sink final : public Output {
       }
       w_.string_attribute(rest, "region_names", names);
     }
-    const hdf5::Hdf5Handle field = w_.group(file_, "field");
+    const hdf5::Hdf5Handle field = w_.group(base, "field");
     w_.dataset(field, "unit_displacement", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, model.unit_displacement.data(),
                vertex_count_, 3, "m", true);
     w_.number_attribute(field, "area_unit_m2", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, model.area_unit_m2);
 
-    frames_group_ = w_.group(file_, "frames").release();  // closed in close()
-    positions_group_ = w_.group(frames_group_, "positions").release();
-    digits_ = std::max<std::size_t>(6, std::to_string(frame_count_ > 0 ? frame_count_ - 1 : 0).size());
-    for (auto* column : {&time_, &scale_, &lung_volume_, &mesh_volume_, &area_}) column->reserve(frame_count_);
+    lung.frames_group = w_.group(base, "frames").release();  // closed in close()
+    lung.positions_group = w_.group(lung.frames_group, "positions").release();
+    for (auto* column : {&time_, &lung_volume_}) column->reserve(frame_count_);
+    for (auto* column : {&lung.scale, &lung.mesh_volume, &lung.area}) column->reserve(frame_count_);
   }
 
-  void frame(const model::Model&, const frame::Frame& f) override {
-    time_.push_back(f.time_s);
-    scale_.push_back(f.scale);
-    lung_volume_.push_back(f.lung_volume_m3);
-    mesh_volume_.push_back(f.mesh_volume_m3);
-    area_.push_back(f.area_m2);
-    const std::string name = frame_name(f.index);
-    w_.dataset(positions_group_, name.c_str(), double_ ? H5T_IEEE_F64LE : H5T_IEEE_F32LE, H5T_NATIVE_DOUBLE,
-               f.positions.data(), vertex_count_, 3, "m", true);
-  }
-
-  std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord&) override {
-    const hsize_t n = time_.size();
-    w_.dataset(frames_group_, "time_s", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, time_.data(), n, 0, "s");
-    w_.dataset(frames_group_, "scale", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, scale_.data(), n, 0, "1");
-    w_.dataset(frames_group_, "lung_volume_m3", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, lung_volume_.data(), n, 0, "m3");
-    w_.dataset(frames_group_, "mesh_volume_m3", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, mesh_volume_.data(), n, 0, "m3");
-    w_.dataset(frames_group_, "area_m2", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, area_.data(), n, 0, "m2");
-    close();
-    pending_->commit();
-    write_stream_atomically(xdmf_path_, false, [&](std::ostream& out) { write_xdmf(out); });
-    return {h5_path_, xdmf_path_};
-  }
-
-  ~Hdf5Sink() override { close(); }
-
- private:
   void close() {
-    if (positions_group_ >= 0) H5Gclose(positions_group_);
-    if (frames_group_ >= 0) H5Gclose(frames_group_);
+    for (Lung& lung : lungs_) {
+      if (lung.positions_group >= 0) H5Gclose(lung.positions_group);
+      if (lung.frames_group >= 0) H5Gclose(lung.frames_group);
+      if (lung.group >= 0) H5Gclose(lung.group);
+      lung.positions_group = lung.frames_group = lung.group = -1;
+    }
     if (file_ >= 0) H5Fclose(file_);
-    positions_group_ = frames_group_ = file_ = -1;
+    file_ = -1;
   }
 
   std::string frame_name(std::size_t k) const { return fmt::format("{:0{}}", k, digits_); }
@@ -127,32 +179,53 @@ class Hdf5Sink final : public Output {
   // One uniform grid per frame in a temporal collection, its geometry a plain dataset (no
   // Function or HyperSlab items: ParaView's Xdmf3 readers and meshio do not evaluate those).
   // Per-frame attribute `position` (the same dataset) is what meshio's TimeSeriesReader
-  // returns per step (it reads the geometry once); `field_u` is the unit displacement.
-  void write_xdmf(std::ostream& out) const {
+  // returns per step (it reads the geometry once); `field_u` is the unit displacement. Two
+  // lungs: each frame a spatial collection of two uniform grids (`right`, `left`), which
+  // ParaView shows as one multiblock dataset; `lungs` one of them: that lung alone.
+  void write_xdmf(std::ostream& out, const std::vector<const Lung*>& lungs) const {
     const std::string h5 = h5_path_.filename().string();
-    const std::string n = std::to_string(vertex_count_), m = std::to_string(triangle_count_);
     out << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n"
         << "  <Grid Name=\"breathing\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
     std::ostringstream number;
     number.precision(17);
-    const std::string vectors = "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">";
-    const std::string frame_vectors =
-        "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"" + (double_ ? "8" : "4") + "\" Format=\"HDF\">";
+    const bool two = lungs.size() == 2;
     for (std::size_t k = 0; k < time_.size(); ++k) {
       number.str("");
       number << time_[k];
-      const std::string positions = h5 + ":/frames/positions/" + frame_name(k);
-      out << "   <Grid Name=\"frame_" << k << "\" GridType=\"Uniform\">\n"
-          << "    <Time Value=\"" << number.str() << "\"/>\n"
-          << "    <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << m << "\">\n"
-          << "     <DataItem Dimensions=\"" << m << " 3\" NumberType=\"UInt\" Precision=\"4\" Format=\"HDF\">" << h5
-          << ":/rest/triangles</DataItem>\n    </Topology>\n    <Geometry GeometryType=\"XYZ\">\n"
-          << "     <DataItem " << frame_vectors << positions << "</DataItem>\n    </Geometry>\n"
-          << "    <Attribute Name=\"position\" AttributeType=\"Vector\" Center=\"Node\">\n"
-          << "     <DataItem " << frame_vectors << positions << "</DataItem>\n    </Attribute>\n"
-          << "    <Attribute Name=\"field_u\" AttributeType=\"Vector\" Center=\"Node\">\n"
-          << "     <DataItem " << vectors << h5 << ":/field/unit_displacement</DataItem>\n    </Attribute>\n"
-          << "   </Grid>\n";
+      if (two) {
+        out << "   <Grid Name=\"frame_" << k << "\" GridType=\"Collection\" CollectionType=\"Spatial\">\n"
+            << "    <Time Value=\"" << number.str() << "\"/>\n";
+      }
+      for (const Lung* one : lungs) {
+        const Lung& lung = *one;
+        const std::string n = std::to_string(lung.vertex_count), m = std::to_string(lung.triangle_count);
+        const std::string vectors = "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">";
+        const std::string frame_vectors = "Dimensions=\"" + n + " 3\" NumberType=\"Float\" Precision=\"" +
+                                          (double_ ? "8" : "4") + "\" Format=\"HDF\">";
+        const std::string positions = h5 + ":" + lung.prefix + "/frames/positions/" + frame_name(k);
+        const std::string name =
+            two ? lung.prefix.substr(1)
+                : (lung.prefix.empty() ? "" : lung.prefix.substr(1) + "_") + "frame_" + std::to_string(k);
+        const std::string pad = two ? " " : "";
+        out << pad << "   <Grid Name=\"" << name << "\" GridType=\"Uniform\">\n";
+        if (!two) out << "    <Time Value=\"" << number.str() << "\"/>\n";
+        out << pad << "    <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << m << "\">\n"
+            << pad << "     <DataItem Dimensions=\"" << m << " 3\" NumberType=\"UInt\" Precision=\"4\" Format=\"HDF\">"
+            << h5 << ":" << lung.prefix << "/rest/triangles</DataItem>\n"
+            << pad << "    </Topology>\n"
+            << pad << "    <Geometry GeometryType=\"XYZ\">\n"
+            << pad << "     <DataItem " << frame_vectors << positions << "</DataItem>\n"
+            << pad << "    </Geometry>\n"
+            << pad << "    <Attribute Name=\"position\" AttributeType=\"Vector\" Center=\"Node\">\n"
+            << pad << "     <DataItem " << frame_vectors << positions << "</DataItem>\n"
+            << pad << "    </Attribute>\n"
+            << pad << "    <Attribute Name=\"field_u\" AttributeType=\"Vector\" Center=\"Node\">\n"
+            << pad << "     <DataItem " << vectors << h5 << ":" << lung.prefix
+            << "/field/unit_displacement</DataItem>\n"
+            << pad << "    </Attribute>\n"
+            << pad << "   </Grid>\n";
+      }
+      if (two) out << "   </Grid>\n";
     }
     out << "  </Grid>\n </Domain>\n</Xdmf>\n";
   }
@@ -161,10 +234,11 @@ class Hdf5Sink final : public Output {
   bool double_;  // per-frame positions stored as float64 (else float32)
   hdf5::Hdf5Writer w_;
   std::unique_ptr<PendingFile> pending_;
-  hid_t file_ = -1, frames_group_ = -1, positions_group_ = -1;
+  hid_t file_ = -1;
   std::size_t digits_ = 6;
-  hsize_t vertex_count_ = 0, triangle_count_ = 0, frame_count_ = 0;
-  std::vector<double> time_, scale_, lung_volume_, mesh_volume_, area_;
+  hsize_t frame_count_ = 0;
+  std::vector<Lung> lungs_;
+  std::vector<double> time_, lung_volume_;
 };
 
 }  // namespace

@@ -1,5 +1,6 @@
 // One mesh file per frame (PLY, OBJ or STL), named frame_00000.ply, ... so that any viewer
-// that plays numbered sequences (ParaView, Blender's importers, MeshLab) can load them.
+// that plays numbered sequences (ParaView, Blender's importers, MeshLab) can load them. Two
+// lungs: one file per lung per frame, right_00000.ply and left_00000.ply (two sequences).
 #include <fmt/format.h>
 
 #include "pneuma/mesh/io/mesh_io.h"
@@ -15,18 +16,25 @@ class MeshSequenceSink final : public Output {
 
   void begin(const model::Model& model, const RunInfo& run) override {
     digits_ = std::max<std::size_t>(5, std::to_string(run.frame_count).size());  // every index, at least 5 digits
-    frame_mesh_ = model.rest;  // triangles once; vertices overwritten per frame, same size
+    frame_meshes_.clear();
+    prefixes_.clear();
+    for (const model::LungModel& lung : model.lungs) {
+      frame_meshes_.push_back(lung.rest);  // triangles once; vertices overwritten per frame, same size
+      prefixes_.push_back(model.two_lungs() ? scenario::lung_name(lung.side) : "frame");
+    }
   }
 
   void frame(const model::Model&, const frame::Frame& f) override {
     if (f.index % spec_.every != 0) return;
-    frame_mesh_.vertices = f.positions;  // same size: no reallocation
-    const auto path = dir_ / fmt::format("frame_{:0{}}.{}", f.index, digits_, spec_.format);
-    mesh::WriteOptions options;
-    options.metres_per_unit = 1.0;  // frames in metres, as everything pneuma writes
-    options.ascii = spec_.ascii;
-    mesh::write_mesh(path, frame_mesh_, options);
-    files_.push_back(path);
+    for (std::size_t i = 0; i < frame_meshes_.size(); ++i) {
+      frame_meshes_[i].vertices = f.lungs[i].positions;  // same size: no reallocation
+      const auto path = dir_ / fmt::format("{}_{:0{}}.{}", prefixes_[i], f.index, digits_, spec_.format);
+      mesh::WriteOptions options;
+      options.metres_per_unit = 1.0;  // frames in metres, as everything pneuma writes
+      options.ascii = spec_.ascii;
+      mesh::write_mesh(path, frame_meshes_[i], options);
+      files_.push_back(path);
+    }
   }
 
   std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord&) override { return files_; }
@@ -35,7 +43,8 @@ class MeshSequenceSink final : public Output {
   std::filesystem::path dir_;
   MeshSequenceSpec spec_;
   std::size_t digits_ = 5;
-  mesh::TriangleMesh frame_mesh_;
+  std::vector<mesh::TriangleMesh> frame_meshes_;  // one per lung
+  std::vector<std::string> prefixes_;             // "frame" (one lung), else the lung's side
   std::vector<std::filesystem::path> files_;
 };
 

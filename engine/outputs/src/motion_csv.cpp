@@ -6,14 +6,25 @@
 
 namespace pneuma::outputs {
 
-void write_motion_csv(const std::filesystem::path& path, const std::vector<BreathMotion>& breaths) {
+std::vector<std::string> motion_lung_names(const model::Model& model) {
+  std::vector<std::string> names;
+  if (model.two_lungs()) {
+    for (const model::LungModel& lung : model.lungs) names.emplace_back(scenario::lung_name(lung.side));
+  }
+  return names;
+}
+
+void write_motion_csv(const std::filesystem::path& path, const std::vector<BreathMotion>& breaths,
+                      const std::vector<std::string>& lung_names) {
   write_stream_atomically(path, false, [&](std::ostream& out) {
+    if (!lung_names.empty()) out << "lung,";
     out << "breath,start_s,region,area_cm2,caudal_mean_mm,caudal_max_mm,anterior_mean_mm,anterior_max_mm,"
            "lateral_mean_mm,lateral_max_mm,magnitude_mean_mm,magnitude_max_mm,volume_share_pct,"
            "breath_volume_change_mL,dome_top_caudal_mm\n";
     for (const BreathMotion& b : breaths) {
       for (mesh::Region region : mesh::kRegions) {
         const mesh::RegionMotion& r = b.summary.region[static_cast<std::size_t>(region)];
+        if (!lung_names.empty()) out << lung_names.at(b.lung) << ',';
         out << fmt::format(
             "{},{:.3f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.3f},{:.4f},{:.4f}\n",
             b.breath, b.start_s, mesh::region_name(region), r.area_m2 * 1e4, r.caudal_mean_m * 1e3,
@@ -25,7 +36,21 @@ void write_motion_csv(const std::filesystem::path& path, const std::vector<Breat
   });
 }
 
-std::vector<std::pair<std::string, std::string>> motion_facts(const std::vector<BreathMotion>& breaths) {
+std::vector<std::pair<std::string, std::string>> motion_facts(const std::vector<BreathMotion>& all,
+                                                              const std::vector<std::string>& lung_names) {
+  if (!lung_names.empty()) {
+    std::vector<std::pair<std::string, std::string>> facts;
+    for (std::size_t i = 0; i < lung_names.size(); ++i) {
+      std::vector<BreathMotion> lung;
+      for (const BreathMotion& b : all) {
+        if (b.lung == i) lung.push_back(b);
+      }
+      for (auto& [key, value] : motion_facts(lung))
+        facts.emplace_back("motion." + lung_names[i] + key.substr(6), value);
+    }
+    return facts;
+  }
+  const std::vector<BreathMotion>& breaths = all;
   std::vector<std::pair<std::string, std::string>> facts;
   if (breaths.empty()) return facts;
   const double n = static_cast<double>(breaths.size());
@@ -63,9 +88,10 @@ class MotionCsv final : public Output {
  public:
   explicit MotionCsv(std::filesystem::path file) : file_(std::move(file)) {}
   std::string name() const override { return "motion_csv"; }
-  std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord& run) override {
-    write_motion_csv(file_, *run.motion);
-    facts_ = motion_facts(*run.motion);
+  std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {
+    const std::vector<std::string> lungs = motion_lung_names(model);
+    write_motion_csv(file_, *run.motion, lungs);
+    facts_ = motion_facts(*run.motion, lungs);
     return {file_};
   }
   std::vector<std::pair<std::string, std::string>> facts() const override { return facts_; }

@@ -62,19 +62,38 @@ class Phases final : public Output {
     }
     if (spec_.surfaces) {
       // Each bin's surface at its mean volume, through the same volume -> scale map as the frames.
+      // Two lungs: one surface per lung per bin (bin_00_right.ply, bin_00_left.ply), each lung at
+      // the bin's mean of the volume it follows (the total, or its compartment's).
       std::filesystem::create_directories(dir_ / "phases");
       frame::Frame frame(model);
-      mesh::TriangleMesh surface = model.rest;
+      std::vector<mesh::TriangleMesh> surfaces;
+      for (const model::LungModel& lung : model.lungs) surfaces.push_back(lung.rest);
       mesh::WriteOptions options;
       options.metres_per_unit = 1.0;
       for (std::size_t b = 0; b < binning.bins.size(); ++b) {
         const physiology::PhaseBin& bin = binning.bins[b];
         if (bin.samples.empty()) continue;
-        const double scale = model::frame_scales(model, run.scenario->mesh, {0.0}, {bin.mean_volume_m3}).front();
-        frame::advance(model, {b, 0.0, bin.mean_volume_m3, scale}, frame);
-        surface.vertices = frame.positions;
-        files.push_back(dir_ / "phases" / fmt::format("bin_{:02}.ply", b));
-        mesh::write_mesh(files.back(), surface, options);
+        frame::FrameInput input{b, 0.0, bin.mean_volume_m3, {}};
+        for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+          const model::LungModel& lung = model.lungs[i];
+          double volume = bin.mean_volume_m3;
+          if (lung.compartment >= 0) {
+            const std::vector<double>& v = model::lung_volumes(lung, *run.drive);
+            volume = 0.0;
+            for (std::size_t k : bin.samples) volume += v[k];
+            volume /= static_cast<double>(bin.samples.size());
+          }
+          input.scale[i] = model::frame_scales(lung, {0.0}, {volume}).front();
+        }
+        frame::advance(model, input, frame);
+        for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+          surfaces[i].vertices = frame.lungs[i].positions;
+          const std::string name = model.two_lungs()
+                                       ? fmt::format("bin_{:02}_{}.ply", b, scenario::lung_name(model.lungs[i].side))
+                                       : fmt::format("bin_{:02}.ply", b);
+          files.push_back(dir_ / "phases" / name);
+          mesh::write_mesh(files.back(), surfaces[i], options);
+        }
       }
     }
     return files;

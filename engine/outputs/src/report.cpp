@@ -219,7 +219,28 @@ std::string report_html(const ReportInput& input) {
   for (const auto& [label, value] : input.facts) facts.push_back(Json::array({label, value}));
   data["facts"] = facts;
   add_series(data, *input.physiology, stride);
-  data["motion"] = motion_json(input.motion);
+  if (input.lung_names.empty()) {
+    data["motion"] = motion_json(input.motion);
+  } else {
+    // Two lungs: one table, each row a lung's region (report.js adds a `lung` column).
+    Json regions = Json::array();
+    Json dome = Json::object();
+    std::size_t breaths = 0;
+    for (std::size_t i = 0; i < input.lung_names.size(); ++i) {
+      std::vector<BreathMotion> lung;
+      for (const BreathMotion& b : input.motion) {
+        if (b.lung == i) lung.push_back(b);
+      }
+      Json one = motion_json(lung);
+      breaths = std::max(breaths, lung.size());
+      dome[input.lung_names[i]] = one["dome_top_caudal_mm"];
+      for (Json& r : one["regions"]) {
+        r["lung"] = input.lung_names[i];
+        regions.push_back(std::move(r));
+      }
+    }
+    data["motion"] = Json{{"breaths", breaths}, {"dome_top_caudal_mm_by_lung", dome}, {"regions", regions}};
+  }
 
   const std::string json = script_json(data);
   const std::string glb = base64(input.glb);

@@ -2,6 +2,7 @@
 #include <fmt/format.h>
 
 #include "pneuma/outputs/frame_outputs.h"
+#include "pneuma/outputs/motion_csv.h"
 #include "pneuma/outputs/report.h"
 
 namespace pneuma::outputs {
@@ -17,25 +18,59 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
   r.description = s.description;
   r.duration_s = time_s.empty() ? 0.0 : time_s.back();
   r.frame_rate_hz = s.frame_rate_hz;
-  r.frame_count = run.scales.size();
+  r.frame_count = time_s.size();
   r.physiology = run.physiology;
-  const double rest_volume = model.volume_map.volume(0.0);
   std::string mesh = s.mesh.file.filename().string();
   if (!s.mesh.labels_file.empty()) mesh = s.mesh.labels_file.filename().string();
   if (s.mesh.phantom) mesh = *s.mesh.phantom == mesh::Lung::left ? "left lung phantom" : "right lung phantom";
+  if (model.two_lungs()) {
+    if (s.mesh.lungs[0].phantom) mesh = "lung phantoms";
+    if (!s.mesh.lungs[0].file.empty())
+      mesh = s.mesh.lungs[0].file.filename().string() + ", " + s.mesh.lungs[1].file.filename().string();
+    mesh = "both lungs: " + mesh;
+  }
   r.facts = {
       {"scenario", s.file.filename().string()},
-      {"mesh",
-       fmt::format("{}, {} vertices, {} triangles", mesh, model.rest.vertex_count(), model.rest.triangle_count())},
-      {"rest volume, area", fmt::format("{:.1f} mL, {:.1f} cm\u00b2", rest_volume * 1e6, model.rest_area_m2 * 1e4)},
-      {"tissue", s.field.tissue_name},
-      {"frames", fmt::format("{} at {:g} Hz, 0 to {:g} s", run.scales.size(), s.frame_rate_hz, r.duration_s)},
-      {"mesh share of each breath", fmt::format("{:g} %", s.mesh.share * 100.0)},
-      {"mesh volume change",
-       fmt::format("{:.1f} to {:.1f} mL", (model.volume_map.volume(run.info.min_scale) - rest_volume) * 1e6,
-                   (model.volume_map.volume(run.info.max_scale) - rest_volume) * 1e6)},
-      {"field", run.field_reused ? "reused from cache" : "computed"},
+      {"mesh", fmt::format("{}, {} vertices, {} triangles", mesh, model.vertex_count(), model.triangle_count())},
   };
+  // Each lung's own facts: one lung's rows as they always were; two lungs' prefixed by side.
+  auto lung_facts = [&](std::size_t i) {
+    const model::LungModel& lung = model.lungs[i];
+    const std::string side = model.two_lungs() ? std::string(scenario::lung_name(lung.side)) + " lung " : "";
+    const double rest_volume = lung.volume_map.volume(0.0);
+    std::vector<std::pair<std::string, std::string>> facts;
+    if (model.two_lungs()) {
+      facts.emplace_back(side + "mesh", fmt::format("{} vertices, {} triangles", lung.rest.vertex_count(),
+                                                    lung.rest.triangle_count()));
+    }
+    facts.emplace_back(side + "rest volume, area",
+                       fmt::format("{:.1f} mL, {:.1f} cm\u00b2", rest_volume * 1e6, lung.rest_area_m2 * 1e4));
+    return facts;
+  };
+  auto lung_motion_facts = [&](std::size_t i) {
+    const model::LungModel& lung = model.lungs[i];
+    const std::string side = model.two_lungs() ? std::string(scenario::lung_name(lung.side)) + " lung " : "";
+    const double rest_volume = lung.volume_map.volume(0.0);
+    std::vector<std::pair<std::string, std::string>> facts;
+    std::string share = fmt::format("{:g} %", (model.two_lungs() ? lung.share : s.mesh.share) * 100.0);
+    if (lung.compartment >= 0) share += " of compartment " + s.mesh.lungs[i].compartment_name;
+    facts.emplace_back(model.two_lungs() ? side + "share of each breath" : "mesh share of each breath", share);
+    facts.emplace_back(
+        side.empty() ? "mesh volume change" : side + "volume change",
+        fmt::format("{:.1f} to {:.1f} mL", (lung.volume_map.volume(run.info.min_scale[i]) - rest_volume) * 1e6,
+                    (lung.volume_map.volume(run.info.max_scale[i]) - rest_volume) * 1e6));
+    return facts;
+  };
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    for (auto& f : lung_facts(i)) r.facts.push_back(std::move(f));
+  }
+  r.facts.emplace_back("tissue", s.field.tissue_name);
+  r.facts.emplace_back("frames",
+                       fmt::format("{} at {:g} Hz, 0 to {:g} s", r.frame_count, s.frame_rate_hz, r.duration_s));
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    for (auto& f : lung_motion_facts(i)) r.facts.push_back(std::move(f));
+  }
+  r.facts.emplace_back("field", run.field_reused ? "reused from cache" : "computed");
   if (s.physiology.trace) {
     // What the measured trace was and what was done to it (physiology/trace.h).
     const physiology::Trace& trace = *s.physiology.trace;
@@ -62,6 +97,7 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
     r.facts.emplace_back("minute ventilation (mean)", fmt::format("{:.2f} L/min", minute / n * 1e3 * 60.0));
   }
   r.motion = *run.motion;
+  r.lung_names = motion_lung_names(model);
   r.glb = make_glb(model, run.info, time_s, run.scales);
   return r;
 }

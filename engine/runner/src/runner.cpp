@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <span>
 
 #include "pneuma/core/interrupt.h"
 #include "pneuma/core/staged_output.h"
@@ -40,6 +41,37 @@ void commit_run(StagedOutput& staged, const std::filesystem::path& folder, RunRe
   result.files.push_back(std::filesystem::relative(outputs::write_manifest(folder, manifest), folder));
 }
 
+// The manifest's facts of the model. One lung: as they always were. Two: the totals, then each
+// lung's under "lungs.<side>." (vertices, triangles, rest volume and area, scale range, share).
+std::vector<std::pair<std::string, std::string>> run_facts(const scenario::Scenario& s, const model::Model& model,
+                                                           const model::Compiled& compiled, const RunResult& result) {
+  std::vector<std::pair<std::string, std::string>> facts{
+      {"frames", std::to_string(result.frame_count)},
+      {"frame_rate_hz", fmt::format("{}", s.frame_rate_hz)},
+      {"vertices", std::to_string(model.vertex_count())},
+      {"triangles", std::to_string(model.triangle_count())},
+  };
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    const model::LungModel& lung = model.lungs[i];
+    const model::LungScales& scales = compiled.lungs[i];
+    const std::string prefix =
+        model.two_lungs() ? fmt::format("lungs.{}.", scenario::lung_name(lung.side)) : std::string();
+    if (model.two_lungs()) {
+      facts.emplace_back(prefix + "vertices", std::to_string(lung.rest.vertex_count()));
+      facts.emplace_back(prefix + "triangles", std::to_string(lung.rest.triangle_count()));
+    }
+    facts.emplace_back(prefix + "rest_volume_m3", fmt::format("{:.9g}", lung.volume_map.volume(0.0)));
+    facts.emplace_back(prefix + "rest_area_m2", fmt::format("{:.9g}", lung.rest_area_m2));
+    facts.emplace_back(prefix + "scale_range", fmt::format("{:.9g} .. {:.9g}", scales.min_scale, scales.max_scale));
+    if (model.two_lungs()) {
+      facts.emplace_back(prefix + "share", fmt::format("{:.9g}", lung.share));
+      if (lung.compartment >= 0) facts.emplace_back(prefix + "compartment", s.mesh.lungs[i].compartment_name);
+    }
+  }
+  facts.emplace_back("field", result.field_reused ? "reused from cache" : "computed");
+  return facts;
+}
+
 }  // namespace
 
 RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
@@ -69,15 +101,26 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   const model::Model& model = compiled.model;
   result.timings_s.insert(result.timings_s.end(), compiled.timings_s.begin(), compiled.timings_s.end());
   result.field_reused = compiled.field_reused;
-  result.vertex_count = model.rest.vertex_count();
-  result.min_scale = compiled.min_scale;
-  result.max_scale = compiled.max_scale;
-  result.frame_count = compiled.scales.size();
-  if (s.field.cache == scenario::FieldCache::automatic)
-    result.files.emplace_back("field.h5");  // lives with the outputs
+  result.vertex_count = model.vertex_count();
+  result.frame_count = drive.series.time_s.size();
+  outputs::RunInfo info{result.frame_count, s.frame_rate_hz, {}, {}, out};
+  std::vector<std::span<const double>> scales;
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    const model::LungScales& lung = compiled.lungs[i];
+    info.min_scale.push_back(lung.min_scale);
+    info.max_scale.push_back(lung.max_scale);
+    scales.emplace_back(lung.scales);
+    result.lungs.push_back(
+        {scenario::lung_name(model.lungs[i].side), model.lungs[i].rest.vertex_count(), lung.min_scale, lung.max_scale});
+  }
+  result.min_scale = compiled.lungs.front().min_scale;
+  result.max_scale = compiled.lungs.front().max_scale;
+  if (s.field.cache == scenario::FieldCache::automatic) {
+    for (const model::LungModel& lung : model.lungs)  // lives with the outputs
+      result.files.push_back(model::lung_cache_path("field.h5", lung.side, model.two_lungs()));
+  }
 
   // The loop: every frame advanced once and handed to every output.
-  const outputs::RunInfo info{compiled.scales.size(), s.frame_rate_hz, compiled.min_scale, compiled.max_scale, out};
   std::vector<RunningOutput> running;
   running.reserve(plugins.size());
   for (const outputs::OutputPlugin* plugin : plugins) {
@@ -90,11 +133,13 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   }
   const auto& t = drive.series.time_s;
   frame::Frame frame(model);
-  Progress progress("frames", compiled.scales.size(), options.quiet);
+  Progress progress("frames", result.frame_count, options.quiet);
   double update_seconds = 0.0;
-  for (std::size_t k = 0; k < compiled.scales.size(); ++k) {
+  for (std::size_t k = 0; k < result.frame_count; ++k) {
     const auto update = Clock::now();
-    frame::advance(model, {k, t[k], drive.series.volume_m3[k], compiled.scales[k]}, frame);
+    frame::FrameInput input{k, t[k], drive.series.volume_m3[k], {}};
+    for (std::size_t i = 0; i < model.lungs.size(); ++i) input.scale[i] = compiled.lungs[i].scales[k];
+    frame::advance(model, input, frame);
     update_seconds += seconds_since(update);
     for (RunningOutput& o : running) {
       const auto begin = Clock::now();
@@ -108,20 +153,9 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
 
   // The end of the run: what needs all of it, then the manifest.
   std::vector<outputs::BreathMotion> motion;
-  if (needs_motion) motion = outputs::breath_motion(model, drive, compiled.scales);
-  const outputs::RunRecord record{&s, info, &drive, &physiology, compiled.scales, &motion, compiled.field_reused};
-  outputs::ManifestInput manifest{s.file,
-                                  s.name,
-                                  {},
-                                  {},
-                                  {{"frames", std::to_string(result.frame_count)},
-                                   {"frame_rate_hz", fmt::format("{}", s.frame_rate_hz)},
-                                   {"vertices", std::to_string(model.rest.vertex_count())},
-                                   {"triangles", std::to_string(model.rest.triangle_count())},
-                                   {"rest_volume_m3", fmt::format("{:.9g}", model.volume_map.volume(0.0))},
-                                   {"rest_area_m2", fmt::format("{:.9g}", model.rest_area_m2)},
-                                   {"scale_range", fmt::format("{:.9g} .. {:.9g}", result.min_scale, result.max_scale)},
-                                   {"field", result.field_reused ? "reused from cache" : "computed"}}};
+  if (needs_motion) motion = outputs::breath_motion(model, drive, scales);
+  const outputs::RunRecord record{&s, info, &drive, &physiology, scales, &motion, compiled.field_reused};
+  outputs::ManifestInput manifest{s.file, s.name, {}, {}, run_facts(s, model, compiled, result)};
   for (RunningOutput& o : running) {
     const auto begin = Clock::now();
     for (auto& file : o.output->finish(model, record)) result.files.push_back(std::filesystem::relative(file, out));

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cctype>
 
 #include "pneuma/config/config.h"
@@ -24,19 +25,100 @@ double default_share(const std::optional<mesh::Lung>& lung) {
   return 1.0;
 }
 
+// `unit`: a unit name ("mm") or a length ("0.5 mm"): the length of one file unit.
+double read_unit(const config::Node& n) {
+  const std::string text = n.string("unit");
+  const bool bare = !text.empty() && std::isalpha(static_cast<unsigned char>(text.front()));
+  double metres = 0.0;
+  try {
+    metres = units::parse(bare ? "1 " + text : text, kind::length);
+  } catch (const units::UnitError&) {
+    metres = 0.0;
+  }
+  if (!(metres > 0.0)) n.fail_at("unit", "expected a length unit such as 'mm' or '0.5 mm', got '" + text + "'");
+  return metres;
+}
+
+std::vector<int> read_label_values(const config::Node& n, const std::string& key) {
+  std::vector<int> values;
+  for (const config::Node& item : n.sequence(key)) values.push_back(static_cast<int>(item.as_integer(1, 1'000'000)));
+  if (values.empty()) n.fail_at(key, "expected a list of label values such as [3, 4, 5]");
+  return values;
+}
+
+// `lungs: {right: ..., left: ...}`: with `labels`, each side's label values (`[3, 4, 5]`, or a
+// map with `values`); without, each side's `file`. Either form may give `share` and `compartment`.
+std::vector<LungSpec> read_lungs(const config::Node& n, bool labels) {
+  const config::Node lungs = n.map("lungs");
+  const std::vector<std::string> sides = lungs.keys();
+  for (const std::string& side : sides) {
+    if (side != "right" && side != "left") lungs.fail_at(side, "expected the lungs 'right' and 'left'");
+  }
+  std::vector<LungSpec> specs;
+  for (const mesh::Lung side : {mesh::Lung::right, mesh::Lung::left}) {
+    const std::string name = lung_name(side);
+    if (!lungs.has(name)) lungs.fail("missing key '" + name + "' (two lungs: give both 'right' and 'left')");
+    LungSpec spec;
+    spec.side = side;
+    spec.share = default_share(side);
+    if (labels && !lungs.is_map(name)) {
+      spec.label_values = read_label_values(lungs, name);
+      specs.push_back(std::move(spec));
+      continue;
+    }
+    const config::Node lung = lungs.map(name);
+    if (labels) {
+      spec.label_values = read_label_values(lung, "values");
+    } else {
+      if (lung.has("values")) lung.fail_at("values", "label values need a label map: add 'labels: FILE' to mesh");
+      spec.file = lung.directory("file") / lung.string("file");
+      if (!path_exists(spec.file)) lung.fail_at("file", "no such file: " + spec.file.string());
+    }
+    if (auto share = lung.optional_quantity("share", kind::fraction)) {
+      if (!(*share > 0.0 && *share <= 1.0))
+        lung.fail_at("share", "expected a share in (0, 1], such as '0.55' or '55 %'");
+      spec.share = *share;
+    }
+    if (auto compartment = lung.optional_string("compartment")) {
+      spec.compartment_name = *compartment;
+      if (!lung.has("share")) spec.share = 1.0;  // the whole of its compartment's volume change
+    }
+    lung.finish();
+    specs.push_back(std::move(spec));
+  }
+  if (specs[0].compartment_name.empty() && specs[1].compartment_name.empty() &&
+      specs[0].share + specs[1].share > 1.0 + 1e-12) {
+    lungs.fail(fmt::format("the lungs' shares add up to {:g} %, more than the whole breath",
+                           (specs[0].share + specs[1].share) * 100.0));
+  }
+  // A label in both lungs would give two overlapping surfaces.
+  for (const int value : specs[0].label_values) {
+    if (std::find(specs[1].label_values.begin(), specs[1].label_values.end(), value) != specs[1].label_values.end())
+      lungs.fail_at("left", fmt::format("label {} is in both lungs", value));
+  }
+  lungs.finish();
+  return specs;
+}
+
 MeshSpec read_mesh_spec(const config::Node& n) {
   MeshSpec m;
   if (int(n.has("phantom")) + int(n.has("file")) + int(n.has("labels")) > 1) {
     n.fail_at(n.has("labels") ? "labels" : "file", "give one of phantom, file or labels");
   }
+  if (n.has("lungs")) {
+    if (n.has("phantom")) n.fail_at("lungs", "give either phantom or lungs ('phantom: both' is both phantoms)");
+    if (n.has("file")) n.fail_at("lungs", "give either file or lungs (each lung's file under lungs.<side>.file)");
+    if (n.has("values")) n.fail_at("lungs", "give either values or lungs (each lung's values under lungs.<side>)");
+  }
   if (n.has("labels")) {
     m.phantom.reset();
     m.labels_file = n.directory("labels") / n.string("labels");
     if (!path_exists(m.labels_file)) n.fail_at("labels", "no such file: " + m.labels_file.string());
-    for (const config::Node& item : n.sequence("values")) {
-      m.label_values.push_back(static_cast<int>(item.as_integer(1, 1'000'000)));
+    if (n.has("lungs")) {
+      m.lungs = read_lungs(n, true);
+    } else {
+      m.label_values = read_label_values(n, "values");
     }
-    if (m.label_values.empty()) n.fail_at("values", "expected a list of label values such as [3, 4, 5]");
     m.edge_m = 4e-3;
     m.repair = n.boolean("repair", true);
   } else if (n.has("file")) {
@@ -45,28 +127,36 @@ MeshSpec read_mesh_spec(const config::Node& n) {
     if (!path_exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
     if (n.has("unit")) {
       m.unit_given = true;
-      // A unit name ("mm") or a length ("0.5 mm"): the length of one file unit.
-      const std::string text = n.string("unit");
-      const bool bare = !text.empty() && std::isalpha(static_cast<unsigned char>(text.front()));
-      try {
-        m.metres_per_unit = units::parse(bare ? "1 " + text : text, kind::length);
-      } catch (const units::UnitError&) {
-        m.metres_per_unit = 0.0;
-      }
-      if (!(m.metres_per_unit > 0.0))
-        n.fail_at("unit", "expected a length unit such as 'mm' or '0.5 mm', got '" + text + "'");
+      m.metres_per_unit = read_unit(n);
     }
     m.export_original = n.has("export") && n.choice("export", {"original", "remeshed"}) == "original";
     m.repair = n.boolean("repair", true);
+  } else if (n.has("lungs")) {
+    m.phantom.reset();
+    m.lungs = read_lungs(n, false);
+    m.unit_given = n.has("unit");
+    if (m.unit_given) m.metres_per_unit = read_unit(n);
+    m.repair = n.boolean("repair", true);
   } else {
-    if (n.has("phantom"))
-      m.phantom = n.choice("phantom", {"left", "right"}) == "left" ? mesh::Lung::left : mesh::Lung::right;
+    const std::string phantom = n.has("phantom") ? n.choice("phantom", {"left", "right", "both"}) : "right";
+    m.phantom = phantom == "left" ? mesh::Lung::left : mesh::Lung::right;
+    if (phantom == "both") {
+      m.phantom.reset();
+      for (const mesh::Lung side : {mesh::Lung::right, mesh::Lung::left})
+        m.lungs.push_back({side, true, {}, {}, default_share(side), -1, {}});
+    }
     m.edge_m = 4e-3;
   }
   if (n.has("edge")) m.edge_m = n.positive_quantity("edge", kind::length);
   if (m.export_original && m.edge_m == 0.0)
     n.fail_at("export", "exporting the original mesh needs an 'edge' to remesh to");
   m.share = default_share(m.phantom);
+  if (!m.lungs.empty()) {
+    if (n.has("share"))
+      n.fail_at("share", "two lungs: give each lung's share under lungs.<side>.share (default 55 %, 45 %)");
+    if (m.export_original) n.fail_at("export", "two lungs export their remeshed surfaces only");
+    m.share = m.lungs[0].share + m.lungs[1].share;
+  }
   if (auto share = n.optional_quantity("share", kind::fraction)) {
     if (!(*share > 0.0 && *share <= 1.0)) n.fail_at("share", "expected a share in (0, 1], such as '0.55' or '55 %'");
     m.share = *share;
@@ -143,7 +233,46 @@ std::vector<OutputRequest> read_outputs(const std::optional<Node>& n, std::span<
   return requests;
 }
 
+// A lung that follows a compartment (`lungs.<side>.compartment`) names one of the physiology
+// model's compartments (two_compartment: upper, lower).
+void resolve_compartments(const config::Node& root, Scenario& s) {
+  for (LungSpec& lung : s.mesh.lungs) {
+    if (lung.compartment_name.empty()) continue;
+    std::vector<std::string> names;
+    if (!s.physiology.trace && !s.physiology.protocol.settings.empty()) {
+      for (const auto& c : s.physiology.protocol.settings.front().mechanics.compartments) names.push_back(c.name);
+    }
+    const auto found = std::find(names.begin(), names.end(), lung.compartment_name);
+    if (names.size() < 2 || found == names.end()) {
+      root.map("mesh")
+          .map("lungs")
+          .map(lung_name(lung.side))
+          .fail_at("compartment", names.size() < 2
+                                      ? "a lung follows a compartment of a two_compartment physiology model only"
+                                      : "expected a compartment of the physiology model (" + join_names(names) +
+                                            "), got '" + lung.compartment_name + "'");
+    }
+    lung.compartment = static_cast<int>(found - names.begin());
+  }
+}
+
 }  // namespace
+
+const char* lung_name(const std::optional<mesh::Lung>& side) {
+  if (!side) return "lung";
+  return *side == mesh::Lung::right ? "right" : "left";
+}
+
+std::vector<LungSpec> lung_specs(const MeshSpec& mesh) {
+  if (!mesh.lungs.empty()) return mesh.lungs;
+  LungSpec one;
+  one.side = mesh.phantom;
+  one.phantom = mesh.phantom.has_value();
+  one.file = mesh.file;
+  one.label_values = mesh.label_values;
+  one.share = mesh.share;
+  return {one};
+}
 
 const OutputRequest* Scenario::output(std::string_view key) const {
   for (const OutputRequest& request : outputs) {
@@ -182,6 +311,7 @@ Scenario read_scenario(const config::Node& root, const std::filesystem::path& fi
     s.field.tissue = load_tissue(s.field.tissue_file);
   }
   s.physiology = read_physiology(root.map("physiology"), s.duration_s, config_dir);
+  resolve_compartments(root, s);
   s.outputs = read_outputs(root.optional_map("outputs"), outputs);
   root.finish();
   return s;

@@ -42,6 +42,7 @@ class PngFrameSink final : public outputs::Output {
   std::filesystem::path directory_;
   PngSinkOptions options_;
   std::unique_ptr<Renderer> renderer_;
+  std::vector<double> scales_;  // each lung's s for the frame being drawn
   class Encoder;
   std::unique_ptr<Encoder> encoder_;
   std::vector<std::filesystem::path> written_;

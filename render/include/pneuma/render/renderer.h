@@ -21,6 +21,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -78,8 +79,19 @@ struct ScaleRange {
   double max = 1.0;
 };
 
+// One surface of a scene (two lungs: two), moved by its own s over its own range of scales.
+struct RenderPart {
+  const mesh::TriangleMesh* rest = nullptr;
+  const std::vector<Eigen::Vector3d>* field = nullptr;  // one vector per vertex of *rest
+  ScaleRange scales;
+};
+
 class Renderer {
  public:
+  // Several surfaces in one image (the arguments are copied to the GPU; they may go afterwards):
+  // the camera frames all of them over their ranges; each frame gives each surface its own s.
+  // Throws as the one-surface constructor, and ValueError for no surface.
+  Renderer(std::span<const RenderPart> surfaces, const RenderOptions& options = default_render_options);
   // `field` has one vector per vertex of `rest` (metres per unit of s). The camera frames the
   // bounds of rest + s u over s in `scales` (and rest itself), so it does not move between
   // frames. Throws UnsupportedError when no OpenGL context can be created (the message says
@@ -99,6 +111,9 @@ class Renderer {
   Image render(double s);
   // Same, into `out` (resized once, then reused: the per-frame path allocates nothing).
   void render(double s, Image& out);
+  // The frame with surface i at scale s[i] (one per surface). Throws ValueError for a wrong count.
+  Image render(std::span<const double> s);
+  void render(std::span<const double> s, Image& out);
 
   // Per-frame view changes (no re-upload).
   void set_camera(CameraPreset preset);  // framed on the same bounds as at construction
@@ -114,7 +129,7 @@ class Renderer {
   std::string gl_version() const;
   std::string gl_backend() const;  // "EGL (surfaceless platform)", "OSMesa", ...
   int msaa_samples() const;        // after clamping
-  // The triangles handed to OpenGL for a frame at s: with back-face culling, those that face away
+  // The triangles handed to OpenGL for a frame at s (every surface at s): with back-face culling, those that face away
   // from the camera at every s of the range are left out (the image is the same).
   std::size_t drawn_triangles(double s) const;
 

@@ -1,6 +1,7 @@
 #pragma once
 // The per-frame state of a run (cf. MuJoCo's mjData) and the one step that updates it.
 #include <Eigen/Core>
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -9,6 +10,17 @@
 
 namespace pneuma::frame {
 
+// One lung's part of a frame (model::LungModel's).
+struct LungFrame {
+  explicit LungFrame(const model::LungModel& lung);
+
+  double mesh_volume_m3 = 0.0;  // enclosed volume of the lung's surface
+  double scale = 0.0;           // s of this lung
+  double area_m2 = 0.0;         // A(s)
+  std::vector<Eigen::Vector3d> positions;
+  mesh::DeformedSurface surface;  // the rest + s u kernel, bound to the lung's mesh
+};
+
 // The only thing that changes during a run. Built once for a model; advance() updates it in
 // place and allocates nothing.
 struct Frame {
@@ -16,12 +28,8 @@ struct Frame {
 
   std::size_t index = 0;
   double time_s = 0.0;
-  double lung_volume_m3 = 0.0;  // physiology: volume above the relaxed volume
-  double mesh_volume_m3 = 0.0;  // enclosed volume of the frame's surface
-  double scale = 0.0;           // s
-  double area_m2 = 0.0;         // A(s)
-  std::vector<Eigen::Vector3d> positions;
-  mesh::DeformedSurface surface;  // the rest + s u kernel, bound to the model's mesh
+  double lung_volume_m3 = 0.0;   // physiology: volume above the relaxed volume (both lungs)
+  std::vector<LungFrame> lungs;  // one per model lung, in its order
 };
 
 // What the run loop knows of frame k before the model is applied.
@@ -29,12 +37,12 @@ struct FrameInput {
   std::size_t index = 0;
   double time_s = 0.0;
   double lung_volume_m3 = 0.0;
-  double scale = 0.0;
+  std::array<double, model::kMaxLungs> scale{};  // s of each model lung
 };
 
-// One step (cf. mj_step): positions = rest + s u and the area A(s) in one fused, threaded pass
-// (mesh::DeformedSurface, the one rest + s u kernel: the same bits at any thread count), the
-// volume from the exact cubic.
+// One step (cf. mj_step): for each lung, positions = rest + s u and the area A(s) in one fused,
+// threaded pass (mesh::DeformedSurface, the one rest + s u kernel: the same bits at any thread
+// count), the volume from the exact cubic.
 void advance(const model::Model& model, const FrameInput& input, Frame& frame);
 
 }  // namespace pneuma::frame

@@ -8,7 +8,10 @@
 //   field     field::compute_field with the scenario's tissue, through the HDF5 cache (field_cache.h)
 //   model     make_model: normals, rest area, regions, the volume cubic
 //   scales    s_k for every V_k of the drive: mesh volume = rest + share * (V_k - reference)
-//   check     the most deformed frames (lowest and highest s) must not self-intersect
+//   check     the most deformed frames (lowest and highest s) must not self-intersect, and two
+//             lungs must not intersect each other there
+// Two lungs (scenario::MeshSpec::lungs) are compiled one after the other, each with its own
+// surface, regions, field (its own cache file: lung_cache_path) and scales.
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -26,11 +29,16 @@ struct CompileOptions {
   std::optional<double> edge_override_m;  // a coarser or finer mesh than the scenario's
 };
 
-struct Compiled {
-  Model model;
+// The scales of one lung over the run.
+struct LungScales {
   std::vector<double> scales;  // s_k for every sample k of the drive
   double min_scale = 0.0, max_scale = 0.0;
-  bool field_reused = false;                              // the field came from the cache
+};
+
+struct Compiled {
+  Model model;
+  std::vector<LungScales> lungs;                          // one per model lung, in its order
+  bool field_reused = false;                              // every lung's field came from the cache
   std::vector<std::pair<std::string, double>> timings_s;  // each step, in order
 };
 
@@ -41,10 +49,18 @@ struct Compiled {
 Compiled compile(const scenario::Scenario& scenario, const physiology::SimulationResult& drive,
                  const CompileOptions& options);
 
-// The scale of every frame for the lung volumes `lung_volume_m3` (physiology, above FRC):
-// mesh volume = rest volume + share * (V - reference). Throws UnsupportedError naming the
-// first frame whose volume the field cannot reach.
-std::vector<double> frame_scales(const Model& model, const scenario::MeshSpec& mesh, const std::vector<double>& time_s,
+// The scale of every frame for the lung volumes `lung_volume_m3` (physiology, above FRC; the
+// lung's compartment's volume where it follows one): mesh volume = rest volume + share * (V -
+// reference). Throws UnsupportedError naming the first frame whose volume the field cannot reach.
+std::vector<double> frame_scales(const LungModel& lung, const std::vector<double>& time_s,
                                  const std::vector<double>& lung_volume_m3);
+
+// The volumes `lung` follows in `drive`: the total, or its compartment's.
+const std::vector<double>& lung_volumes(const LungModel& lung, const physiology::SimulationResult& drive);
+
+// Where `lung`'s field is cached for a cache file `path` (field.h5): the file itself for a
+// one-lung model, else field-right.h5 / field-left.h5 beside it (the stem + "-" + side).
+std::filesystem::path lung_cache_path(const std::filesystem::path& path, const std::optional<mesh::Lung>& side,
+                                      bool two_lungs);
 
 }  // namespace pneuma::model

@@ -1,16 +1,25 @@
 #pragma once
 // The model: everything a run computes once and never changes while it runs (cf. MuJoCo's
 // mjModel). compile() (compile.h) makes it from a scenario; frame::advance() reads it by const&.
+// A model holds one lung (a phantom, a file or a label map) or two (right, then left), each its
+// own surface, regions, field, volume cubic and share of every breath.
 #include <Eigen/Core>
+#include <cstddef>
+#include <optional>
 #include <vector>
 
+#include "pneuma/mesh/anatomy/lung.h"
 #include "pneuma/mesh/anatomy/regions.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
 #include "pneuma/model/volume_scale.h"
 
 namespace pneuma::model {
 
-struct Model {
+// Most lungs in a model: the right and the left.
+inline constexpr std::size_t kMaxLungs = 2;
+
+// One lung of the model: what one breathing surface needs.
+struct LungModel {
   // ---- The surface at rest (metres, LPS) ------------------------------------------------------
   mesh::TriangleMesh rest;               // the exported surface
   std::vector<Eigen::Vector3d> normals;  // area-weighted unit normals of `rest`, one per vertex
@@ -23,13 +32,34 @@ struct Model {
 
   // ---- Volume to scale --------------------------------------------------------------------------
   VolumeScaleMap volume_map;  // V(s) of rest + s u, an exact cubic
+
+  // ---- Which lung, and its part of each breath (set by compile(); scenario::LungSpec) -------------
+  std::optional<mesh::Lung> side;  // nullopt: a one-surface run of a file or label map
+  double share = 1.0;              // mesh volume = rest + share * (V - reference)
+  double reference_volume_m3 = 0.0;
+  int compartment = -1;  // V is this physiology compartment's volume; -1: the total
+};
+
+struct Model {
+  std::vector<LungModel> lungs;  // one, or two: right then left
+
+  Model() = default;
+  explicit Model(LungModel lung) { lungs.push_back(std::move(lung)); }
+  explicit Model(std::vector<LungModel> both) : lungs(std::move(both)) {}
+
+  std::size_t lung_count() const { return lungs.size(); }
+  bool two_lungs() const { return lungs.size() == 2; }
+  std::size_t vertex_count() const;    // over the lungs
+  std::size_t triangle_count() const;  // over the lungs
 };
 
 // The model of `rest` moved by `unit_displacement`: normals, the volume cubic, the rest area and
-// the anatomical regions (in the body `axes`) are computed here, once; `regions`, when given,
-// are rest's regions already found in `axes` (the field's), and are used instead.
+// the anatomical regions (in the body `axes`, of the lung `side` where given) are computed here,
+// once; `regions`, when given, are rest's regions already found in `axes` (the field's), and are
+// used instead where they are of `side`.
 // Throws ValueError when `regions` are not of `rest` in `axes` (mesh::require_regions_of).
-Model make_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_displacement, double area_unit_m2,
-                 const mesh::BodyAxes& axes = {}, const mesh::SurfaceRegions* regions = nullptr);
+LungModel make_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_displacement, double area_unit_m2,
+                     const mesh::BodyAxes& axes = {}, const mesh::SurfaceRegions* regions = nullptr,
+                     std::optional<mesh::Lung> side = std::nullopt);
 
 }  // namespace pneuma::model

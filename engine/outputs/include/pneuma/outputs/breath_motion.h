@@ -12,6 +12,7 @@
 namespace pneuma::outputs {
 
 struct BreathMotion {
+  std::size_t lung = 0;    // index in model::Model::lungs
   std::size_t breath = 0;  // index in physiology-breaths.csv
   double start_s = 0.0;
   double scale_from = 0.0;  // the breath's lowest and highest scale s: the motion is between them
@@ -22,7 +23,11 @@ struct BreathMotion {
 // Each breath of `drive` (the physiology at the frame rate, one sample per frame, whose scales are
 // `scales`), from its lowest to its highest scale among the frames inside it, measured on the
 // surface at the lowest. Breaths with no frame inside are left out.
-std::vector<BreathMotion> breath_motion(const model::Model& model, const physiology::SimulationResult& drive,
+std::vector<BreathMotion> breath_motion(const model::LungModel& lung, const physiology::SimulationResult& drive,
                                         std::span<const double> scales);
+// The same for every lung of `model` (`scales` one span per lung): lung by lung, each lung's
+// breaths in order.
+std::vector<BreathMotion> breath_motion(const model::Model& model, const physiology::SimulationResult& drive,
+                                        const std::vector<std::span<const double>>& scales);
 
 }  // namespace pneuma::outputs

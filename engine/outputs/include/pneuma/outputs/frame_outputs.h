@@ -6,6 +6,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "pneuma/outputs/output.h"
 
@@ -14,15 +15,17 @@ namespace pneuma::outputs {
 // ---- breathing.glb (`outputs: {gltf: true}`) ------------------------------------------------------
 // glTF 2.0 binary: the rest mesh, the field as one morph target (u * s_ref with s_ref = max |s| of
 // the run) and s(t) / s_ref as the animated morph weight, sampled at the frame times with LINEAR
-// interpolation. The node is rotated so pneuma's z-up becomes glTF's y-up.
+// interpolation. The node is rotated so pneuma's z-up becomes glTF's y-up. Two lungs: two meshes
+// and nodes ("right lung", "left lung"), each its own morph target and weight track (its own s
+// and s_ref), animated together by one animation.
 OutputPlugin gltf_output();
 std::unique_ptr<Output> make_gltf_output(const std::filesystem::path& file);
 
-// The bytes that output writes for a run whose frames are at `time_s` with scales `scale` (the
-// report embeds them, also when no breathing.glb is written). Throws ValueError when the sizes
-// differ.
+// The bytes that output writes for a run whose frames are at `time_s` with scales `scales` (one
+// span per lung; the report embeds them, also when no breathing.glb is written). Throws
+// ValueError when the sizes differ.
 std::string make_glb(const model::Model& model, const RunInfo& run, std::span<const double> time_s,
-                     std::span<const double> scale);
+                     const std::vector<std::span<const double>>& scales);
 
 // ---- series.h5 + series.xdmf (`outputs: {hdf5: {positions: float32}}`) ---------------------------
 // The stored type of series.h5's per-frame positions (the exact rest + s u is always there in
@@ -43,7 +46,8 @@ struct MeshSequenceSpec {
   std::size_t every = 1;  // every n-th frame
 };
 
-// One mesh file per frame (every `spec.every`-th), frame_00000.<format>, in metres. Off by default.
+// One mesh file per frame (every `spec.every`-th), frame_00000.<format>, in metres; two lungs:
+// right_00000.<format> and left_00000.<format>. Off by default.
 OutputPlugin mesh_sequence_output();
 std::unique_ptr<Output> make_mesh_sequence_output(const std::filesystem::path& dir, const MeshSequenceSpec& spec);
 

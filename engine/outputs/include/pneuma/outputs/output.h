@@ -29,8 +29,8 @@ namespace pneuma::outputs {
 struct RunInfo {
   std::size_t frame_count = 0;
   double frame_rate_hz = 0.0;
-  double min_scale = 0.0;  // over all frames
-  double max_scale = 0.0;
+  std::vector<double> min_scale;  // per model lung (model::Model::lungs), over all frames
+  std::vector<double> max_scale;
   std::filesystem::path output_dir;
 };
 
@@ -41,7 +41,7 @@ struct RunRecord {
   RunInfo info;
   const physiology::SimulationResult* drive = nullptr;       // at the frame rate: one sample per frame
   const physiology::SimulationResult* physiology = nullptr;  // at the scenario's output rate (needs.physiology)
-  std::span<const double> scales;                            // s of every frame
+  std::vector<std::span<const double>> scales;               // per model lung: s of every frame
   const std::vector<BreathMotion>* motion = nullptr;         // per breath and region (needs.breath_motion)
   bool field_reused = false;
 };

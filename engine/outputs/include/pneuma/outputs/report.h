@@ -32,6 +32,7 @@ struct ReportInput {
   // The physiology series as physiology.csv has it (same samples, same columns, same units).
   const physiology::SimulationResult* physiology = nullptr;
   std::vector<BreathMotion> motion;                        // the motion table: means over breaths
+  std::vector<std::string> lung_names;                     // two lungs: by BreathMotion::lung; one: empty
   std::vector<std::pair<std::string, std::string>> facts;  // {label, value with unit}, in order
   std::string glb;                                         // the run's breathing.glb bytes
 };

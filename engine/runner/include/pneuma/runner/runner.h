@@ -25,7 +25,13 @@ struct RunResult {
   std::size_t frame_count = 0;
   std::size_t vertex_count = 0;
   bool field_reused = false;
-  double min_scale = 0.0, max_scale = 0.0;
+  double min_scale = 0.0, max_scale = 0.0;  // of the first lung (the only one of a one-lung run)
+  struct Lung {
+    std::string name;  // "right", "left", or "lung" for one surface of no known side
+    std::size_t vertex_count = 0;
+    double min_scale = 0.0, max_scale = 0.0;
+  };
+  std::vector<Lung> lungs;  // one or two, in the model's order
 };
 
 // Runs the whole scenario (loaded with output_keys(): see output_registry.h). Throws

@@ -22,9 +22,23 @@
 
 namespace pneuma::scenario {
 
+// One lung of a two-lung scenario (`phantom: both`, or `lungs: {right: ..., left: ...}`): where its
+// surface comes from and how much of each breath it takes.
+struct LungSpec {
+  std::optional<mesh::Lung> side;  // nullopt only for a one-surface scenario's file or label map
+  bool phantom = false;            // the built-in phantom of `side`
+  std::filesystem::path file;      // `lungs.<side>.file`: a surface file (read with the mesh's unit)
+  std::vector<int> label_values;   // `lungs.<side>: [3, 4, 5]` (or `.values`) of the mesh's label map
+  double share = 1.0;              // share of each breath's volume change (of its compartment's, if set)
+  // `lungs.<side>.compartment: NAME`: the lung follows this physiology compartment's volume
+  // (two_compartment: upper | lower) instead of the total; index into the compartments; -1: total.
+  int compartment = -1;
+  std::string compartment_name;
+};
+
 struct MeshSpec {
   // The built-in phantom (`phantom: left|right`) or a file read with its unit.
-  std::optional<mesh::Lung> phantom = mesh::Lung::right;  // nullopt when `file` or `labels` is set
+  std::optional<mesh::Lung> phantom = mesh::Lung::right;  // nullopt when `file`, `labels` or two lungs are set
   std::filesystem::path file;
   // A NIfTI label map (`labels: FILE, values: [3, 4, 5]`): the surface of the union of `values`.
   std::filesystem::path labels_file;
@@ -36,7 +50,17 @@ struct MeshSpec {
   bool export_original = false;      // export the file's mesh with the field transferred to it
   double share = 1.0;                // share of the total volume change this mesh takes (0, 1]
   double reference_volume_m3 = 0.0;  // physiological volume above FRC that the rest mesh shows
+  // Two lungs (`phantom: both` or `lungs:`), right then left; empty for one surface (the fields
+  // above). With two lungs `share` is their sum and the label map, unit, edge and repair are shared.
+  std::vector<LungSpec> lungs;
 };
+
+// The lungs of `mesh`: its two LungSpecs, or the one surface its fields describe (side, phantom,
+// file, label values and share taken from them).
+std::vector<LungSpec> lung_specs(const MeshSpec& mesh);
+
+// "right", "left", or "lung" for a surface of no known side (file names, HDF5 groups, columns).
+const char* lung_name(const std::optional<mesh::Lung>& side);
 
 // Where the field is cached: `auto` (<output>/field.h5), `off`, or a file (relative to the scenario).
 enum class FieldCache { automatic, off, file };
