@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <variant>
 
 #include "pneuma/core/units.h"
@@ -81,7 +82,7 @@ void driver_facts(const std::string& prefix, const physiology::Driver& driver, F
 // Mean, min and max of `value` over the breaths it is defined for (finite), as three facts.
 void summary(const std::string& name, const std::vector<const physiology::BreathMetrics*>& breaths,
              const std::function<double(const physiology::BreathMetrics&)>& value, Facts& out) {
-  double sum = 0.0, low = INFINITY, high = -INFINITY;
+  double sum = 0.0, low = std::numeric_limits<double>::infinity(), high = -std::numeric_limits<double>::infinity();
   std::size_t n = 0;
   for (const auto* b : breaths) {  // in breath order: the same sum, bit for bit, at any thread count
     const double v = value(*b);
