@@ -76,7 +76,7 @@ TEST(CohortInput, EveryProblemIsOneLineBeforeAnyWork) {
       {"subjects: {a: {mesh: {phantom: right}}}\nscenarios: {quiet: scenarios/none.yaml}\n",
        "<file>:2:20: scenarios.quiet: no such scenario file: <dir>/scenarios/none.yaml"},
       {"subjects: {a: {mesh: {phantom: middle}}}\n" + scenarios,
-       "<file>:1:32: mesh.phantom: expected one of: left, right; got 'middle'"},
+       "<file>:1:32: mesh.phantom: expected one of: left, right, both; got 'middle'"},
       {"subjects: {a: {mesh: {phantom: right}}}\noutputs: {png: {width: 10 mm}}\n" + scenarios,
        ""},  // any one line naming the cohort file: the png output's own check
   };
