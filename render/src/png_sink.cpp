@@ -8,8 +8,8 @@
 #include <mutex>
 
 #include "pneuma/core/error.h"
-#include "pneuma/render/camera.h"
 #include "pneuma/core/tsan.h"
+#include "pneuma/render/camera.h"
 
 namespace pneuma::render {
 

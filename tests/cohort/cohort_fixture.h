@@ -3,6 +3,7 @@
 // short scenarios), running `pneuma cohort`, and reading back what it wrote, independently of
 // the summary code (manifests with nlohmann::json, CSVs by hand).
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -41,7 +42,7 @@ inline fs::path write_cohort(
     const TempDir& dir, const std::string& name, const std::vector<std::pair<std::string, std::string>>& subjects,
     const std::string& scenarios = "{quiet: scenarios/quiet.yaml, deep: scenarios/deep.yaml}") {
   std::string text = "name: " + name + "\nedge: 8 mm\nsubjects:\n";
-  for (const auto& [id, yaml] : subjects) text += "  " + id + ": " + yaml + "\n";
+  for (const auto& [id, yaml] : subjects) text += fmt::format("  {}: {}\n", id, yaml);
   text += "scenarios: " + scenarios + "\n";
   return dir.write(name + ".yaml", text);
 }
@@ -139,6 +140,7 @@ class BackgroundCohort {
     std::vector<std::string> storage{PNEUMA_EXE};
     storage.insert(storage.end(), args.begin(), args.end());
     std::vector<char*> argv;
+    argv.reserve(storage.size() + 1);
     for (auto& s : storage) argv.push_back(s.data());
     argv.push_back(nullptr);
     if (posix_spawn(&pid_, PNEUMA_EXE, &actions, &attributes, argv.data(), environ) != 0) pid_ = -1;

@@ -5,6 +5,7 @@
 // rewrites (their times) against the jobs Snakemake says it ran, the bytes of a killed and resumed
 // cohort against an uninterrupted one, and a bad label map's one-line error against the one
 // `pneuma mesh from-labels` gives for the same file.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -240,7 +241,7 @@ TEST(CohortLocal, PhantomAndTwoCtCasesRunOnceResumeAndRerunOnlyWhatIsMissing) {
       EXPECT_NEAR(number(row.at("run_compute_s")), compute, 1e-6 * std::max(1.0, compute));
       EXPECT_GT(number(row.at("run_wall_s")), 0.0);
       EXPECT_GT(number(row.at("field_wall_s")), 0.0);
-      EXPECT_EQ(row.at("report"), "runs/" + subject + "/" + scenario + "/report.html");
+      EXPECT_EQ(row.at("report"), fmt::format("runs/{}/{}/report.html", subject, scenario));
       EXPECT_TRUE(fs::exists(out / row.at("report")));
     }
   }

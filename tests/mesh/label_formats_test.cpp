@@ -2,6 +2,7 @@
 // TotalSegmentator's mask folder and multilabel file), written here byte by byte, with the
 // one-line errors for damaged files. Oracles: voxel counts and boxes computed here, the
 // transform the test wrote, and the surface of the NIfTI CT case (../shared/data/ct-lobes).
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <map>
@@ -123,8 +124,7 @@ std::string lobe_segments() {
   std::string lines;
   for (int s = 0; s < 5; ++s) {
     const std::string key = "Segment" + std::to_string(s) + "_";
-    lines += key + "ID:=Segment_" + std::to_string(s + 1) + "\n" + key + "Name:=" + names[s] + "\n" + key +
-             "LabelValue:=" + std::to_string(s + 1) + "\n" + key + "Layer:=0\n";
+    lines += fmt::format("{0}ID:=Segment_{1}\n{0}Name:={2}\n{0}LabelValue:={1}\n{0}Layer:=0\n", key, s + 1, names[s]);
   }
   return lines;
 }
@@ -281,10 +281,11 @@ namespace {
 
 // Two boxes in a 12 x 10 x 8 grid: label 1 at i < 4, label 2 at i >= 8 (j, k all).
 std::vector<std::int16_t> two_boxes() {
-  std::vector<std::int16_t> v(12 * 10 * 8, 0);
+  std::vector<std::int16_t> v(std::size_t{12} * 10 * 8, 0);
   for (std::size_t k = 0; k < 8; ++k)
     for (std::size_t j = 0; j < 10; ++j)
-      for (std::size_t i = 0; i < 12; ++i) v[i + 12 * (j + 10 * k)] = i < 4 ? 1 : i >= 8 ? 2 : 0;
+      for (std::size_t i = 0; i < 12; ++i)
+        v[i + 12 * (j + 10 * k)] = static_cast<std::int16_t>(i < 4 ? 1 : i >= 8 ? 2 : 0);
   return v;
 }
 
@@ -329,8 +330,8 @@ TEST(LabelFormats, SegNrrdLayersAreFlattenedOrRefused) {
   EXPECT_EQ(map.labels[11], right[0]);  // voxel (11, 0, 0) in the right one
   EXPECT_EQ(map.transform_source, "space directions");
 
-  layered[2 * 5 + 1] = 1;  // voxel (5, 0, 0) of layer 1 ...
-  layered[2 * 5] = 1;      // ... and of layer 0: one voxel in both
+  layered[11] = 1;  // voxel (5, 0, 0) of layer 1 (layer fastest: 2 * 5 + 1) ...
+  layered[10] = 1;  // ... and of layer 0: one voxel in both
   write_nrrd(dir / "overlap.seg.nrrd", kBoxes, layered, box_transform(), {.layers = 2, .extra_lines = segments});
   const std::string f = (dir / "overlap.seg.nrrd").string();
   EXPECT_EQ(error_of<pneuma::InputError>([&] { read_label_map(f); }),
@@ -457,7 +458,8 @@ TEST(LabelFormats, DamagedFilesAreOneLineErrors) {
                "lung_lower_lobe_left.nii.gz is on another grid than lung_upper_lobe_left.nii.gz (12 x 10 x 8 voxels "
                "against 12 x 10 x 8, voxel-to-LPS transform differs by 5.000000 mm): expected every mask on the grid "
                "of the CT");
-  write_nifti(masks / "lung_upper_lobe_left.nii.gz", {12, 10, 9}, std::vector<std::int16_t>(12 * 10 * 9, 0), moved);
+  write_nifti(masks / "lung_upper_lobe_left.nii.gz", {12, 10, 9},
+              std::vector<std::int16_t>(std::size_t{12} * 10 * 9, 0), moved);
   expect_error("masks",
                "lung_lower_lobe_left.nii.gz is on another grid than lung_upper_lobe_left.nii.gz (12 x 10 x 8 voxels "
                "against 12 x 10 x 9): expected every mask on the grid of the CT");

@@ -230,8 +230,7 @@ Plan plan(const Cohort& c) {
         job.scenario = entry.id;
         job.inputs = subject.inputs;
         job.inputs.push_back(std::filesystem::absolute(s.field.tissue_file));
-        job.digest = digest(subject_text + "|" + dump(cohort["field"]) + "|" + key + "|" +
-                            fmt::format("{}", c.edge_m.value_or(0)));
+        job.digest = digest(fmt::format("{}|{}|{}|{}", subject_text, dump(cohort["field"]), key, c.edge_m.value_or(0)));
         it = variants.emplace(key, p.fields.size()).first;
         p.fields.push_back(std::move(job));
       }
@@ -240,8 +239,8 @@ Plan plan(const Cohort& c) {
       run.scenario = entry.id;
       run.field = p.fields[it->second].id;
       run.inputs = {entry.file};
-      run.digest =
-          digest(subject_text + "|" + shared + "|" + std::filesystem::absolute(entry.file).lexically_normal().string());
+      run.digest = digest(fmt::format("{}|{}|{}", subject_text, shared,
+                                      std::filesystem::absolute(entry.file).lexically_normal().string()));
       p.runs.push_back(std::move(run));
     }
   }

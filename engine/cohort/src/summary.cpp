@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -161,7 +162,8 @@ void read_run(const fs::path& dir, const fs::path& relative_run_dir, Row& row) {
   set("dome_top_caudal_mm", fact(facts, "motion.dome_top_caudal_mm"));
   for (mesh::Region region : mesh::kRegions) {
     const std::string name(mesh::region_name(region));
-    for (const auto& value : kRegionValues) set(name + "_" + value, fact(facts, "motion." + name + "." + value));
+    for (const auto& value : kRegionValues)
+      set(fmt::format("{}_{}", name, value), fact(facts, fmt::format("motion.{}.{}", name, value)));
   }
   set("tidal_volume_mL", csv_mean(run_dir / "physiology-breaths.csv", "tidal_volume_mL"));
   // motion.csv repeats each breath's volume change on each of its region rows: one per breath.
@@ -222,7 +224,7 @@ struct PlotMetric {
 std::string strip_plot(const std::vector<Row>& rows, const std::vector<std::string>& scenarios,
                        const PlotMetric& metric) {
   const std::size_t index = column_index(metric.column);
-  double lo = INFINITY, hi = -INFINITY;
+  double lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity();
   for (const Row& r : rows) {
     if (auto v = r.values[index]) {
       lo = std::min(lo, *v);

@@ -208,6 +208,7 @@ int run_workflow(const Cohort& cohort, const Plan& plan, const WorkflowOptions& 
   }
   const std::vector<std::string> args = snakemake_command(o);
   std::vector<char*> argv;
+  argv.reserve(args.size() + 1);
   for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
 

@@ -243,6 +243,14 @@ long Node::as_integer(long min_value, long max_value) const {
   return *parsed;
 }
 
+std::string Node::as_scalar(const std::string& expected) const {
+  const YAML::Node& value = layers_.front().node;
+  if (!value.IsScalar() || value.Scalar().empty()) {
+    fail(expected + ", got " + (value.IsMap() ? "a mapping" : value.IsSequence() ? "a list" : "nothing"));
+  }
+  return value.Scalar();
+}
+
 std::vector<std::string> Node::keys() const {
   std::vector<std::string> out;
   std::set<std::string> seen;

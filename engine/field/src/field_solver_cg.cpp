@@ -19,8 +19,8 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/stopwatch.h"
-#include "pneuma/field/field_solver.h"
 #include "pneuma/core/tsan.h"
+#include "pneuma/field/field_solver.h"
 
 namespace pneuma::field {
 namespace {

@@ -118,13 +118,19 @@ mesh::LabelMap separated_lungs(mesh::LabelMap map, const std::vector<int>& one, 
 
 // One lung's surface source as a one-surface MeshSpec (the functions above read those fields).
 MeshSpec lung_mesh_spec(const MeshSpec& mesh, const scenario::LungSpec& lung) {
-  if (mesh.lungs.empty()) return mesh;
+  if (mesh.lungs.empty()) {
+    MeshSpec one = mesh;  // with its segment names resolved (resolve_segment_names)
+    one.label_values = lung.label_values;
+    one.label_names.clear();
+    return one;
+  }
   MeshSpec one = mesh;
   one.lungs.clear();
   one.phantom.reset();
   if (lung.phantom) one.phantom = lung.side;
   one.file = lung.file;
   one.label_values = lung.label_values;
+  one.label_names.clear();
   one.share = lung.share;
   return one;
 }
@@ -301,10 +307,42 @@ std::vector<double> frame_scales(const LungModel& lung, const std::vector<double
   return scales;
 }
 
+// Segment names given for a lung (`values: [lung_upper_lobe_left, ...]`) become the label map's
+// values for them, added to the numbers given; a name the map does not hold, or one lung's
+// label reached by name from the other, is an InputError naming the scenario and the key.
+void resolve_segment_names(const Scenario& s, std::vector<scenario::LungSpec>& specs) {
+  const bool named = std::any_of(specs.begin(), specs.end(), [](const auto& l) { return !l.label_names.empty(); });
+  if (!named) return;
+  const mesh::LabelMap map = mesh::read_label_map(s.mesh.labels_file);
+  for (scenario::LungSpec& lung : specs) {
+    if (lung.label_names.empty()) continue;
+    const std::string key =
+        specs.size() == 2 ? fmt::format("mesh.lungs.{}", scenario::lung_name(*lung.side)) : "mesh.values";
+    std::vector<int> values;
+    try {
+      values = mesh::resolve_labels(map, s.mesh.labels_file.filename().string(), lung.label_names);
+    } catch (const ValueError& e) {
+      throw InputError(fmt::format("{}: {}: {}", s.file.string(), key, e.what()));
+    }
+    for (const int value : values) {
+      if (std::find(lung.label_values.begin(), lung.label_values.end(), value) == lung.label_values.end())
+        lung.label_values.push_back(value);
+    }
+    lung.label_names.clear();
+  }
+  if (specs.size() == 2) {
+    for (const int value : specs[0].label_values) {
+      if (std::find(specs[1].label_values.begin(), specs[1].label_values.end(), value) != specs[1].label_values.end())
+        throw InputError(fmt::format("{}: mesh.lungs: label {} is in both lungs", s.file.string(), value));
+    }
+  }
+}
+
 Compiled compile(const Scenario& s, const physiology::SimulationResult& drive, const CompileOptions& options) {
   Compiled compiled;
   compiled.field_reused = true;
-  const std::vector<scenario::LungSpec> specs = scenario::lung_specs(s.mesh);
+  std::vector<scenario::LungSpec> specs = scenario::lung_specs(s.mesh);
+  resolve_segment_names(s, specs);
   for (std::size_t i = 0; i < specs.size(); ++i) {
     bool reused = false;
     // Two lungs of one label map: each extracted apart from the other's labels.

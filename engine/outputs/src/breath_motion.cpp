@@ -32,7 +32,7 @@ std::vector<BreathMotion> breath_motion(const model::Model& model, const physiol
   for (std::size_t i = 0; i < model.lungs.size(); ++i) {
     for (BreathMotion& b : breath_motion(model.lungs[i], drive, scales[i])) {
       b.lung = i;
-      out.push_back(std::move(b));
+      out.push_back(b);
     }
   }
   return out;

@@ -39,11 +39,27 @@ double read_unit(const config::Node& n) {
   return metres;
 }
 
-std::vector<int> read_label_values(const config::Node& n, const std::string& key) {
+// A label selection: label values (`[3, 4, 5]`) or segment names of the label map
+// (`[lung_upper_lobe_left, lung_lower_lobe_left]`, resolved when the scenario is compiled).
+struct LabelSelection {
   std::vector<int> values;
-  for (const config::Node& item : n.sequence(key)) values.push_back(static_cast<int>(item.as_integer(1, 1'000'000)));
-  if (values.empty()) n.fail_at(key, "expected a list of label values such as [3, 4, 5]");
-  return values;
+  std::vector<std::string> names;
+};
+
+LabelSelection read_label_values(const config::Node& n, const std::string& key) {
+  LabelSelection selection;
+  for (const config::Node& item : n.sequence(key)) {
+    const std::string text = item.as_scalar("expected a label value such as 3 or a segment name");
+    const bool number = text.find_first_not_of("0123456789+-") == std::string::npos;
+    if (number) {
+      selection.values.push_back(static_cast<int>(item.as_integer(1, 1'000'000)));
+    } else {
+      selection.names.push_back(text);
+    }
+  }
+  if (selection.values.empty() && selection.names.empty())
+    n.fail_at(key, "expected a list of label values such as [3, 4, 5] or segment names");
+  return selection;
 }
 
 // `lungs: {right: ..., left: ...}`: with `labels`, each side's label values (`[3, 4, 5]`, or a
@@ -62,13 +78,17 @@ std::vector<LungSpec> read_lungs(const config::Node& n, bool labels) {
     spec.side = side;
     spec.share = default_share(side);
     if (labels && !lungs.is_map(name)) {
-      spec.label_values = read_label_values(lungs, name);
+      LabelSelection selection = read_label_values(lungs, name);
+      spec.label_values = std::move(selection.values);
+      spec.label_names = std::move(selection.names);
       specs.push_back(std::move(spec));
       continue;
     }
     const config::Node lung = lungs.map(name);
     if (labels) {
-      spec.label_values = read_label_values(lung, "values");
+      LabelSelection selection = read_label_values(lung, "values");
+      spec.label_values = std::move(selection.values);
+      spec.label_names = std::move(selection.names);
     } else {
       if (lung.has("values")) lung.fail_at("values", "label values need a label map: add 'labels: FILE' to mesh");
       spec.file = lung.directory("file") / lung.string("file");
@@ -96,6 +116,10 @@ std::vector<LungSpec> read_lungs(const config::Node& n, bool labels) {
     if (std::find(specs[1].label_values.begin(), specs[1].label_values.end(), value) != specs[1].label_values.end())
       lungs.fail_at("left", fmt::format("label {} is in both lungs", value));
   }
+  for (const std::string& name : specs[0].label_names) {
+    if (std::find(specs[1].label_names.begin(), specs[1].label_names.end(), name) != specs[1].label_names.end())
+      lungs.fail_at("left", fmt::format("segment '{}' is in both lungs", name));
+  }
   lungs.finish();
   return specs;
 }
@@ -117,7 +141,9 @@ MeshSpec read_mesh_spec(const config::Node& n) {
     if (n.has("lungs")) {
       m.lungs = read_lungs(n, true);
     } else {
-      m.label_values = read_label_values(n, "values");
+      LabelSelection selection = read_label_values(n, "values");
+      m.label_values = std::move(selection.values);
+      m.label_names = std::move(selection.names);
     }
     m.edge_m = 4e-3;
     m.repair = n.boolean("repair", true);
@@ -143,7 +169,7 @@ MeshSpec read_mesh_spec(const config::Node& n) {
     if (phantom == "both") {
       m.phantom.reset();
       for (const mesh::Lung side : {mesh::Lung::right, mesh::Lung::left})
-        m.lungs.push_back({side, true, {}, {}, default_share(side), -1, {}});
+        m.lungs.push_back({side, true, {}, {}, {}, default_share(side), -1, {}});
     }
     m.edge_m = 4e-3;
   }
@@ -270,6 +296,7 @@ std::vector<LungSpec> lung_specs(const MeshSpec& mesh) {
   one.phantom = mesh.phantom.has_value();
   one.file = mesh.file;
   one.label_values = mesh.label_values;
+  one.label_names = mesh.label_names;
   one.share = mesh.share;
   return {one};
 }

@@ -14,8 +14,8 @@
 #include <atomic>
 
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/cgal/cgal_surface_mesh.h"
 #include "pneuma/core/tsan.h"
+#include "pneuma/mesh/cgal/cgal_surface_mesh.h"
 
 namespace pneuma::mesh {
 namespace {

@@ -7,6 +7,7 @@
 #pragma clang diagnostic push
 #pragma clang diagnostic ignored "-Wbuiltin-macro-redefined"
 #pragma push_macro("__clang__")
+// NOLINTBEGIN(bugprone-reserved-identifier): the compiler macros ITK checks, set for its header only
 #pragma push_macro("__GNUC__")
 #pragma push_macro("__GNUC_MINOR__")
 #undef __clang__
@@ -18,5 +19,6 @@
 #pragma pop_macro("__GNUC_MINOR__")
 #pragma pop_macro("__GNUC__")
 #pragma pop_macro("__clang__")
+// NOLINTEND(bugprone-reserved-identifier)
 #pragma clang diagnostic pop
 #endif

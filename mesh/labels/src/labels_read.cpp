@@ -2,6 +2,7 @@
 // ITK 5.2: a NIfTI or MetaImage file cut short reads "successfully", the missing voxels left as
 // they were), the NIfTI transform by pneuma's rule from the header's own bytes, .seg.nrrd
 // segments and layers, and TotalSegmentator's mask folders. ITK itself is in labels_itk.cpp.
+#include <fmt/format.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -444,11 +445,13 @@ std::vector<SegNrrdSegment> seg_nrrd_segments(const detail::ItkImage& image, con
     const std::optional<long long> l = label == image.metadata.end() ? 1LL : parse_integer(label->second);
     const std::optional<long long> y = layer == image.metadata.end() ? 0LL : parse_integer(layer->second);
     if (!l || *l < 1 || *l > 2147483647LL) {
-      throw InputError(name + ": " + prefix + "LabelValue is '" + label->second + "': expected a positive integer");
+      throw InputError(
+          fmt::format("{}: {}LabelValue is '{}': expected a positive integer", name, prefix, label->second));
     }
     if (!y || *y < 0 || static_cast<std::size_t>(*y) >= image.components) {
-      throw InputError(name + ": " + prefix + "Layer is '" + (layer == image.metadata.end() ? "" : layer->second) +
-                       "': expected a layer from 0 to " + std::to_string(image.components - 1));
+      throw InputError(fmt::format("{}: {}Layer is '{}': expected a layer from 0 to {}", name, prefix,
+                                   layer == image.metadata.end() ? std::string() : layer->second,
+                                   image.components - 1));
     }
     s.label = *l;
     s.layer = static_cast<std::size_t>(*y);
@@ -541,7 +544,7 @@ void check_meta_dimensions(const fs::path& path, const std::string& name) {
     if (eq == std::string::npos || trim(line.substr(0, eq)) != "NDims") continue;
     const std::string value = trim(line.substr(eq + 1));
     if (value != "2" && value != "3" && value != "4") {
-      throw InputError(name + ": NDims is '" + value + "': expected a 3D label volume (NDims = 3)");
+      throw InputError(fmt::format("{}: NDims is '{}': expected a 3D label volume (NDims = 3)", name, value));
     }
     return;
   }
@@ -591,14 +594,13 @@ LabelMap read_mask_folder(const fs::path& dir, const std::string& name, const La
     } else {
       const double offset_m = (mask.ijk_to_lps - map.ijk_to_lps).cwiseAbs().maxCoeff();
       if (mask.size != map.size || !(offset_m <= 1e-3 * map.spacing_m().minCoeff())) {
-        throw InputError(name + ": " + file.filename().string() + " is on another grid than " + first_file + " (" +
-                         std::to_string(mask.size[0]) + " x " + std::to_string(mask.size[1]) + " x " +
-                         std::to_string(mask.size[2]) + " voxels against " + std::to_string(map.size[0]) + " x " +
-                         std::to_string(map.size[1]) + " x " + std::to_string(map.size[2]) +
-                         (mask.size == map.size
-                              ? ", voxel-to-LPS transform differs by " + std::to_string(offset_m * 1e3) + " mm"
-                              : std::string()) +
-                         "): expected every mask on the grid of the CT");
+        const std::string transform =
+            mask.size == map.size ? ", voxel-to-LPS transform differs by " + std::to_string(offset_m * 1e3) + " mm"
+                                  : std::string();
+        throw InputError(fmt::format("{}: {} is on another grid than {} ({} x {} x {} voxels against {} x {} x {}{}): "
+                                     "expected every mask on the grid of the CT",
+                                     name, file.filename().string(), first_file, mask.size[0], mask.size[1],
+                                     mask.size[2], map.size[0], map.size[1], map.size[2], transform));
       }
     }
     std::size_t overlap = 0;

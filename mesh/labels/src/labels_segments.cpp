@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <charconv>
+#include <fmt/format.h>
 #include <map>
 #include <optional>
 #include <set>
@@ -310,17 +311,17 @@ std::vector<int> resolve_labels(const LabelMap& map, const std::string& name,
         std::find_if(map.segments.begin(), map.segments.end(), [&](const Segment& s) { return s.name == entry; });
     if (found == map.segments.end()) {
       if (map.segments.empty()) {
-        throw ValueError("\"" + entry + "\" is not a segment of " + name +
-                         ": it names no segments (a .seg.nrrd, a TotalSegmentator file or mask folder does); give "
-                         "label numbers (labels present: " +
-                         list_present(present) + ")");
+        throw ValueError(fmt::format("\"{}\" is not a segment of {}: it names no segments (a .seg.nrrd, a "
+                                     "TotalSegmentator file or mask folder does); give label numbers (labels present: "
+                                     "{})",
+                                     entry, name, list_present(present)));
       }
-      throw ValueError("\"" + entry + "\" is not a segment of " + name + " (segments: " + list_segments(map.segments) +
-                       ")");
+      throw ValueError(
+          fmt::format("\"{}\" is not a segment of {} (segments: {})", entry, name, list_segments(map.segments)));
     }
     if (!present.count(found->label)) {
-      throw ValueError("segment \"" + entry + "\" (label " + std::to_string(found->label) + ") has no voxels in " +
-                       name + " (labels present: " + list_present(present) + ")");
+      throw ValueError(fmt::format("segment \"{}\" (label {}) has no voxels in {} (labels present: {})", entry,
+                                   found->label, name, list_present(present)));
     }
     add(found->label);
   }

@@ -62,6 +62,8 @@ class Node {
   long integer(const std::string& key, long fallback, long min_value, long max_value) const;
   // This node itself as a whole number (an item of a list such as `values: [3, 4, 5]`).
   long as_integer(long min_value, long max_value) const;
+  // This node itself as text (a scalar item of a list); `expected` says what, when it is not one.
+  std::string as_scalar(const std::string& expected) const;
 
   // Throws for the first key of this mapping that was never read.
   void finish() const;

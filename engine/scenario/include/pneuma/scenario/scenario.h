@@ -29,7 +29,10 @@ struct LungSpec {
   bool phantom = false;            // the built-in phantom of `side`
   std::filesystem::path file;      // `lungs.<side>.file`: a surface file (read with the mesh's unit)
   std::vector<int> label_values;   // `lungs.<side>: [3, 4, 5]` (or `.values`) of the mesh's label map
-  double share = 1.0;              // share of each breath's volume change (of its compartment's, if set)
+  // Segment names in that list (`[lung_upper_lobe_left, lung_lower_lobe_left]`): the compile stage
+  // resolves them against the label map (mesh::resolve_labels) and adds their values.
+  std::vector<std::string> label_names;
+  double share = 1.0;  // share of each breath's volume change (of its compartment's, if set)
   // `lungs.<side>.compartment: NAME`: the lung follows this physiology compartment's volume
   // (two_compartment: upper | lower) instead of the total; index into the compartments; -1: total.
   int compartment = -1;
@@ -43,13 +46,14 @@ struct MeshSpec {
   // A NIfTI label map (`labels: FILE, values: [3, 4, 5]`): the surface of the union of `values`.
   std::filesystem::path labels_file;
   std::vector<int> label_values;
-  double metres_per_unit = 1e-3;     // `unit`; without it, the unit the file records, else mm
-  bool unit_given = false;           // `unit` set: it wins over a unit recorded in the file
-  double edge_m = 0.0;               // phantom resolution / remeshing target (0: keep the file's mesh)
-  bool repair = true;                // repair what is safe before use
-  bool export_original = false;      // export the file's mesh with the field transferred to it
-  double share = 1.0;                // share of the total volume change this mesh takes (0, 1]
-  double reference_volume_m3 = 0.0;  // physiological volume above FRC that the rest mesh shows
+  std::vector<std::string> label_names;  // segment names given instead of numbers (see LungSpec)
+  double metres_per_unit = 1e-3;         // `unit`; without it, the unit the file records, else mm
+  bool unit_given = false;               // `unit` set: it wins over a unit recorded in the file
+  double edge_m = 0.0;                   // phantom resolution / remeshing target (0: keep the file's mesh)
+  bool repair = true;                    // repair what is safe before use
+  bool export_original = false;          // export the file's mesh with the field transferred to it
+  double share = 1.0;                    // share of the total volume change this mesh takes (0, 1]
+  double reference_volume_m3 = 0.0;      // physiological volume above FRC that the rest mesh shows
   // Two lungs (`phantom: both` or `lungs:`), right then left; empty for one surface (the fields
   // above). With two lungs `share` is their sum and the label map, unit, edge and repair are shared.
   std::vector<LungSpec> lungs;
