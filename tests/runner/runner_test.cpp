@@ -213,9 +213,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadRun{"missing_label_map",
                "duration: 4 s\nmesh: {labels: lungs.nii.gz, values: [3]}\nphysiology: {preset: healthy-adult}\n",
                "2:16: mesh.labels: no such file: {dir}/lungs.nii.gz", 3},
-        BadRun{"label_value_not_a_number",
-               "duration: 4 s\nmesh: {labels: s.yaml, values: [3, x]}\nphysiology: {preset: healthy-adult}\n",
-               "2:36: mesh.values[1]: expected a whole number from 1 to 1000000, got 'x'", 3},
+        BadRun{"label_value_out_of_range",  // (a word is a segment name: tests/runner/segment_names_test.cpp)
+               "duration: 4 s\nmesh: {labels: s.yaml, values: [3, 0]}\nphysiology: {preset: healthy-adult}\n",
+               "2:36: mesh.values[1]: expected a whole number from 1 to 1000000, got '0'", 3},
         BadRun{
             "two_mesh_sources",
             "duration: 4 s\nmesh: {phantom: right, labels: s.yaml, values: [3]}\nphysiology: {preset: healthy-adult}\n",

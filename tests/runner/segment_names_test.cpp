@@ -68,11 +68,16 @@ TEST(SegmentNames, PickTheSameLungsAsTheirLabelValues) {
   TempDir dir;
   write_two_blobs(dir);
   const auto by_value = rest_volumes(
-      dir.write("values.yaml", scenario_with("{labels: blobs.seg.nrrd, lungs: {right: [4], left: [9]}, edge: 6 mm}")),
+      dir.write(
+          "values.yaml",
+          scenario_with(
+              "{labels: blobs.seg.nrrd, lungs: {right: {values: [4], share: 2 %}, left: {values: [9], share: 2 %}}, edge: 6 mm}")),
       dir / "out-values");
   const auto by_name = rest_volumes(
-      dir.write("names.yaml",
-                scenario_with("{labels: blobs.seg.nrrd, lungs: {right: [lung_right], left: [lung_left]}, edge: 6 mm}")),
+      dir.write(
+          "names.yaml",
+          scenario_with(
+              "{labels: blobs.seg.nrrd, lungs: {right: {values: [lung_right], share: 2 %}, left: {values: [lung_left], share: 2 %}}, edge: 6 mm}")),
       dir / "out-names");
   ASSERT_EQ(by_value.size(), 2u);
   ASSERT_EQ(by_name.size(), 2u);
@@ -81,9 +86,9 @@ TEST(SegmentNames, PickTheSameLungsAsTheirLabelValues) {
   const double ellipsoid = 4.0 / 3.0 * 3.14159265358979 * 0.021 * 0.027 * 0.033;
   for (double v : by_name) EXPECT_NEAR(v, ellipsoid, 0.08 * ellipsoid);
 
-  const auto one =
-      rest_volumes(dir.write("one.yaml", scenario_with("{labels: blobs.seg.nrrd, values: [lung_left], edge: 6 mm}")),
-                   dir / "out-one");
+  const auto one = rest_volumes(
+      dir.write("one.yaml", scenario_with("{labels: blobs.seg.nrrd, values: [lung_left], share: 2 %, edge: 6 mm}")),
+      dir / "out-one");
   ASSERT_EQ(one.size(), 1u);
   EXPECT_EQ(one[0], by_value[1]);
 }
