@@ -126,4 +126,19 @@ TEST(SegmentNames, ANameInBothLungsIsRefusedAtItsLine) {
   }
 }
 
+// A name that resolves to a value the other lung gives by number: refused once resolved.
+TEST(SegmentNames, ANameResolvingToTheOtherLungsLabelIsRefused) {
+  TempDir dir;
+  write_two_blobs(dir);
+  const auto scenario = dir.write(
+      "clash.yaml", scenario_with("{labels: blobs.seg.nrrd, lungs: {right: {values: [lung_right], share: 2 %}, "
+                                  "left: {values: [4], share: 2 %}}, edge: 6 mm}"));
+  try {
+    rest_volumes(scenario, dir / "out");
+    FAIL() << "a label reached by name from both lungs was accepted";
+  } catch (const pneuma::InputError& e) {
+    EXPECT_EQ(std::string(e.what()), scenario.string() + ": mesh.lungs: label 4 is in both lungs");
+  }
+}
+
 }  // namespace

@@ -331,10 +331,8 @@ void resolve_segment_names(const Scenario& s, std::vector<scenario::LungSpec>& s
     lung.label_names.clear();
   }
   if (specs.size() == 2) {
-    for (const int value : specs[0].label_values) {
-      if (std::find(specs[1].label_values.begin(), specs[1].label_values.end(), value) != specs[1].label_values.end())
-        throw InputError(fmt::format("{}: mesh.lungs: label {} is in both lungs", s.file.string(), value));
-    }
+    if (const auto value = scenario::label_in_both_lungs(specs[0], specs[1]))
+      throw InputError(fmt::format("{}: mesh.lungs: label {} is in both lungs", s.file.string(), *value));
   }
 }
 

@@ -112,10 +112,8 @@ std::vector<LungSpec> read_lungs(const config::Node& n, bool labels) {
                            (specs[0].share + specs[1].share) * 100.0));
   }
   // A label in both lungs would give two overlapping surfaces.
-  for (const int value : specs[0].label_values) {
-    if (std::find(specs[1].label_values.begin(), specs[1].label_values.end(), value) != specs[1].label_values.end())
-      lungs.fail_at("left", fmt::format("label {} is in both lungs", value));
-  }
+  if (const auto value = label_in_both_lungs(specs[0], specs[1]))
+    lungs.fail_at("left", fmt::format("label {} is in both lungs", *value));
   for (const std::string& name : specs[0].label_names) {
     if (std::find(specs[1].label_names.begin(), specs[1].label_names.end(), name) != specs[1].label_names.end())
       lungs.fail_at("left", fmt::format("segment '{}' is in both lungs", name));
@@ -287,6 +285,13 @@ void resolve_compartments(const config::Node& root, Scenario& s) {
 const char* lung_name(const std::optional<mesh::Lung>& side) {
   if (!side) return "lung";
   return *side == mesh::Lung::right ? "right" : "left";
+}
+
+std::optional<int> label_in_both_lungs(const LungSpec& right, const LungSpec& left) {
+  for (const int value : right.label_values) {
+    if (std::find(left.label_values.begin(), left.label_values.end(), value) != left.label_values.end()) return value;
+  }
+  return std::nullopt;
 }
 
 std::vector<LungSpec> lung_specs(const MeshSpec& mesh) {

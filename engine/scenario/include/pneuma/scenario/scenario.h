@@ -62,6 +62,8 @@ struct MeshSpec {
 // The lungs of `mesh`: its two LungSpecs, or the one surface its fields describe (side, phantom,
 // file, label values and share taken from them).
 std::vector<LungSpec> lung_specs(const MeshSpec& mesh);
+// The first label value of the right lung that the left lung has too (two lungs would overlap).
+std::optional<int> label_in_both_lungs(const LungSpec& right, const LungSpec& left);
 
 // "right", "left", or "lung" for a surface of no known side (file names, HDF5 groups, columns).
 const char* lung_name(const std::optional<mesh::Lung>& side);
