@@ -69,7 +69,8 @@ function(pneuma_forbid)
 endfunction()
 
 function(pneuma_check_layers)
-  set(mesh_targets pneuma_mesh_geometry pneuma_mesh_io pneuma_mesh_labels pneuma_mesh_repair pneuma_mesh_anatomy)
+  set(mesh_targets pneuma_mesh_geometry pneuma_mesh_io pneuma_mesh_labels pneuma_mesh_repair pneuma_mesh_anatomy
+      pneuma_mesh_volume)
   set(below_render pneuma_core pneuma_physiology ${mesh_targets} pneuma_config pneuma_field pneuma_paper
                    pneuma_scenario pneuma_model pneuma_frame pneuma_outputs)
   pneuma_forbid(TARGETS ${below_render} USES pneuma_render
@@ -86,5 +87,5 @@ function(pneuma_check_layers)
   pneuma_forbid(TARGETS ${below_render} pneuma_render pneuma_runner USES pneuma_cohort
                 WHY "a cohort is made of runs: only the CLI uses it")
   pneuma_forbid(TARGETS pneuma_mesh_geometry USES pneuma_mesh_io pneuma_mesh_labels pneuma_mesh_repair
-                pneuma_mesh_anatomy WHY "geometry is the bottom of mesh/")
+                pneuma_mesh_anatomy pneuma_mesh_volume WHY "geometry is the bottom of mesh/")
 endfunction()

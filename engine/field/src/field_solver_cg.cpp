@@ -10,37 +10,20 @@
 //     K_aa = D_a - sum_{e at a} g_e^2 / D_e,   K_ab = -g_e^2 / D_e,   K y_m = f_m / S_m,
 // with F_i = Shot_i = S_i y_i. The original residual on a mass node is S_i times K's residual
 // (spring rows are satisfied exactly), which is what the stopping test measures.
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 
+#include "fixed_blocks.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/stopwatch.h"
-#include "pneuma/core/tsan.h"
 #include "pneuma/field/field_solver.h"
 
 namespace pneuma::field {
 namespace {
 
-// Fixed-size blocks: reductions add one partial per block, in block order, so the result does
-// not depend on how TBB spreads the blocks over threads.
-constexpr std::size_t kBlock = 4096;
-
-template <typename Body>
-void for_blocks(std::size_t n, const Body& body) {
-  const std::size_t blocks = (n + kBlock - 1) / kBlock;
-  const tsan::Region region;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks),
-                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t b = range.begin(); b != range.end(); ++b) {
-                        body(b, b * kBlock, std::min(n, (b + 1) * kBlock));
-                      }
-                    }));
-  region.join();
-}
+using detail::for_blocks;
+using detail::kBlock;
 
 }  // namespace
 
