@@ -364,6 +364,15 @@ Compiled compile(const Scenario& s, const physiology::SimulationResult& drive, c
     }
     compiled.lungs.push_back(std::move(l));
   }
+  if (options.interior) {
+    for (LungModel& lung : compiled.model.lungs) {
+      const auto begin = Clock::now();
+      lung.interior = compute_interior(lung, s.field.interior_edge_m, s.field.interior);
+      compiled.timings_s.emplace_back(
+          compiled.model.two_lungs() ? fmt::format("interior ({} lung)", scenario::lung_name(lung.side)) : "interior",
+          seconds_since(begin));
+    }
+  }
   const auto start = Clock::now();
   check_no_fold(compiled.model, s, compiled.lungs);
   compiled.timings_s.emplace_back("self-intersection check", seconds_since(start));

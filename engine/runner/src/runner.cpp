@@ -87,6 +87,7 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   const bool needs_physiology =
       std::any_of(plugins.begin(), plugins.end(), [](auto* p) { return p->needs.physiology; });
   const bool needs_motion = std::any_of(plugins.begin(), plugins.end(), [](auto* p) { return p->needs.breath_motion; });
+  const bool needs_interior = std::any_of(plugins.begin(), plugins.end(), [](auto* p) { return p->needs.interior; });
 
   // Drive: the physiology at the frame rate, and at its own output rate for the outputs that
   // show it (two cheap runs, no resampling).
@@ -97,7 +98,8 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   result.timings_s.emplace_back("physiology", seconds_since(start));
 
   // Compile: the model and the scale of every frame, checked.
-  const model::Compiled compiled = model::compile(s, drive, {options.output_dir, options.edge_override_m});
+  const model::Compiled compiled = model::compile(
+      s, drive, {.output_dir = options.output_dir, .edge_override_m = options.edge_override_m, .interior = needs_interior});
   const model::Model& model = compiled.model;
   result.timings_s.insert(result.timings_s.end(), compiled.timings_s.begin(), compiled.timings_s.end());
   result.field_reused = compiled.field_reused;

@@ -219,6 +219,26 @@ FieldSpec read_field(const config::Node& n, const std::filesystem::path& config_
       f.cache_file = n.directory("cache") / cache;
     }
   }
+  if (auto interior = n.optional_map("interior")) {
+    const config::Node& i = *interior;
+    if (i.has("edge")) {
+      f.interior_edge_m = i.positive_quantity("edge", kind::length);
+      if (f.interior_edge_m < 0.5e-3 || f.interior_edge_m > 50e-3) {
+        i.fail_at("edge", "expected a tetrahedron size between 0.5 mm and 50 mm, such as '3 mm'");
+      }
+    }
+    if (i.has("model")) {
+      f.interior.model = i.choice("model", {"elastic", "harmonic"}) == "elastic" ? field::InteriorModel::elastic
+                                                                                  : field::InteriorModel::harmonic;
+    }
+    if (i.has("poisson_ratio")) {
+      f.interior.poisson_ratio = i.quantity("poisson_ratio", kind::number);
+      if (!(f.interior.poisson_ratio >= 0.0 && f.interior.poisson_ratio <= 0.49)) {
+        i.fail_at("poisson_ratio", "expected a Poisson ratio between 0 and 0.49, such as '0.4'");
+      }
+    }
+    i.finish();
+  }
   n.finish();
   return f;
 }

@@ -8,6 +8,7 @@
 //   field     field::compute_field with the scenario's tissue, through the HDF5 cache (field_cache.h)
 //   model     make_model: normals, rest area, regions, the volume cubic
 //   scales    s_k for every V_k of the drive: mesh volume = rest + share * (V_k - reference)
+//   interior  where asked: each lung's inside as tetrahedra and its interior field (LungInterior)
 //   check     the most deformed frames (lowest and highest s) must not self-intersect, and two
 //             lungs must not intersect each other there
 // Two lungs (scenario::MeshSpec::lungs) are compiled one after the other, each with its own
@@ -26,7 +27,8 @@ namespace pneuma::model {
 
 struct CompileOptions {
   std::filesystem::path output_dir;       // where `field: {cache: auto}` keeps field.h5
-  std::optional<double> edge_override_m;  // a coarser or finer mesh than the scenario's
+  std::optional<double> edge_override_m = std::nullopt;  // a coarser or finer mesh than the scenario's
+  bool interior = false;                  // compute each lung's inside (an output needs it)
 };
 
 // The scales of one lung over the run.

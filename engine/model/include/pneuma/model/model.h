@@ -5,8 +5,14 @@
 // own surface, regions, field, volume cubic and share of every breath.
 #include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
+#include <memory>
 #include <optional>
+#include <string>
 #include <vector>
+
+#include "pneuma/field/interior.h"
+#include "pneuma/mesh/geometry/tet_mesh.h"
 
 #include "pneuma/mesh/anatomy/lung.h"
 #include "pneuma/mesh/anatomy/regions.h"
@@ -17,6 +23,18 @@ namespace pneuma::model {
 
 // Most lungs in a model: the right and the left.
 inline constexpr std::size_t kMaxLungs = 2;
+
+// A lung's inside (field/interior.h), where an output needs it: tetrahedra filling the rest
+// surface and their unit displacement, so the inside at scale s is nodes + s * unit_displacement,
+// like the surface. Boundary nodes take the surface field (carried to them barycentrically).
+struct LungInterior {
+  mesh::TetMesh mesh;                              // metres, LPS
+  std::vector<std::uint32_t> boundary_nodes;       // ascending
+  std::vector<Eigen::Vector3d> unit_displacement;  // per node, metres per unit of s
+  double edge_m = 0.0;                             // the tetrahedra's target size
+  field::InteriorOptions options;
+  field::InteriorReport report;
+};
 
 // One lung of the model: what one breathing surface needs.
 struct LungModel {
@@ -38,6 +56,9 @@ struct LungModel {
   double share = 1.0;              // mesh volume = rest + share * (V - reference)
   double reference_volume_m3 = 0.0;
   int compartment = -1;  // V is this physiology compartment's volume; -1: the total
+
+  // ---- The inside (compile with CompileOptions::interior; else null) -------------------------------
+  std::shared_ptr<const LungInterior> interior = nullptr;
 };
 
 struct Model {
@@ -61,5 +82,11 @@ struct Model {
 LungModel make_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_displacement, double area_unit_m2,
                      const mesh::BodyAxes& axes = {}, const mesh::SurfaceRegions* regions = nullptr,
                      std::optional<mesh::Lung> side = std::nullopt);
+
+// The inside of `lung`'s rest surface as tetrahedra of about `edge_m` (mesh::tetrahedralize) and
+// its interior field for `options`, the surface's unit displacement on the boundary. Throws
+// ValueError when the surface bounds no volume.
+std::shared_ptr<const LungInterior> compute_interior(const LungModel& lung, double edge_m,
+                                                     const field::InteriorOptions& options);
 
 }  // namespace pneuma::model

@@ -62,6 +62,7 @@ class Output {
 struct OutputNeeds {
   bool physiology = false;     // the physiology at the scenario's output rate (RunRecord::physiology)
   bool breath_motion = false;  // the motion of each region in each breath (RunRecord::motion)
+  bool interior = false;       // each lung's inside (model::LungModel::interior; field.interior in the scenario)
 };
 
 struct OutputPlugin {

@@ -16,6 +16,7 @@
 
 #include "pneuma/config/config.h"
 #include "pneuma/field/field.h"
+#include "pneuma/field/interior.h"
 #include "pneuma/field/tissue.h"
 #include "pneuma/mesh/anatomy/lung.h"
 #include "pneuma/scenario/physiology_config.h"
@@ -78,6 +79,10 @@ struct FieldSpec {
   field::FieldOptions options;                  // solver, tolerance, clique (checked together)
   FieldCache cache = FieldCache::automatic;
   std::filesystem::path cache_file;  // resolved, for FieldCache::file
+  // The lung's inside (`field.interior`), computed only when an output needs it (voxel outputs):
+  // a tetrahedral mesh of `edge` and the interior field of `model` (field/interior.h).
+  double interior_edge_m = 3e-3;
+  field::InteriorOptions interior;
 };
 
 // One key under `outputs:`, declared by the output that owns it (runner/output_registry.h).

@@ -1,0 +1,31 @@
+// A lung's inside: Mesh_3 tetrahedra of the rest surface, the surface field carried to their
+// boundary nodes, the interior field solved for the rest.
+#include <fmt/format.h>
+
+#include "pneuma/core/error.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
+#include "pneuma/mesh/volume/tetrahedralize.h"
+#include "pneuma/model/model.h"
+
+namespace pneuma::model {
+
+std::shared_ptr<const LungInterior> compute_interior(const LungModel& lung, double edge_m,
+                                                     const field::InteriorOptions& options) {
+  auto out = std::make_shared<LungInterior>();
+  mesh::VolumeMesh volume = mesh::tetrahedralize(lung.rest, {.edge_length_m = edge_m});
+  std::vector<Eigen::Vector3d> boundary_points;
+  boundary_points.reserve(volume.boundary_nodes.size());
+  for (const std::uint32_t b : volume.boundary_nodes) boundary_points.push_back(volume.mesh.nodes[b]);
+  const std::vector<Eigen::Vector3d> boundary = mesh::transfer_vertex_field(lung.rest, lung.unit_displacement,
+                                                                             boundary_points);
+  field::InteriorSolution solution = field::solve_interior(volume.mesh, volume.boundary_nodes, boundary, options);
+  out->mesh = std::move(volume.mesh);
+  out->boundary_nodes = std::move(volume.boundary_nodes);
+  out->unit_displacement = std::move(solution.displacement);
+  out->edge_m = edge_m;
+  out->options = options;
+  out->report = solution.report;
+  return out;
+}
+
+}  // namespace pneuma::model

@@ -1,0 +1,80 @@
+// A lung's inside as compile() makes it (model::LungInterior) on the right-lung phantom. Oracles:
+// the divergence theorem (the tetrahedra's volume change at scale s against the deformed
+// surface's enclosed volume), the surface field at the boundary nodes, positive Jacobians.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <iostream>
+
+#include "pneuma/field/interior.h"
+#include "pneuma/mesh/geometry/deformed_surface.h"
+#include "pneuma/model/compile.h"
+#include "pneuma/runner/output_registry.h"
+#include "test_support.h"
+
+namespace pneuma {
+namespace {
+
+double tets_volume(const mesh::TetMesh& m, const std::vector<Eigen::Vector3d>& u, double s) {
+  double six = 0.0;
+  auto at = [&](std::uint32_t n) -> Eigen::Vector3d { return m.nodes[n] + s * u[n]; };
+  for (const auto& t : m.tets) six += mesh::tet_volume6(at(t[0]), at(t[1]), at(t[2]), at(t[3]));
+  return six / 6.0;
+}
+
+double surface_volume(const model::LungModel& lung, double s) {
+  std::vector<Eigen::Vector3d> moved(lung.rest.vertices.size());
+  for (std::size_t i = 0; i < moved.size(); ++i) moved[i] = lung.rest.vertices[i] + s * lung.unit_displacement[i];
+  return mesh::enclosed_volume(moved, lung.rest.triangles);
+}
+
+TEST(LungInterior, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithPositiveJacobians) {
+  test::TempDir dir;
+  const auto file = dir.write("s.yaml", R"(name: inside
+duration: 4 s
+frames: {rate: 5 Hz}
+mesh: {phantom: right, edge: 8 mm}
+field: {tissue: healthy-upright, interior: {edge: 8 mm}}
+physiology:
+  preset: healthy-adult
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 1 L}
+outputs: {gltf: false, report: false, hdf5: false}
+)");
+  const scenario::Scenario s = runner::load_scenario(file);
+  const auto drive = scenario::simulate_physiology(s, s.frame_rate_hz);
+  const model::Compiled c = model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
+  ASSERT_EQ(c.model.lungs.size(), 1u);
+  const model::LungModel& lung = c.model.lungs[0];
+  ASSERT_NE(lung.interior, nullptr);
+  const model::LungInterior& inside = *lung.interior;
+  EXPECT_GT(inside.report.free_nodes, 200u);
+  EXPECT_EQ(inside.options.model, field::InteriorModel::elastic);
+
+  // The tetrahedra fill the surface (to Mesh_3's facet distance, edge / 10).
+  const double rest = surface_volume(lung, 0.0);
+  EXPECT_NEAR(tets_volume(inside.mesh, inside.unit_displacement, 0.0) / rest, 1.0, 0.02);
+  // At the run's largest scale (1 L above rest) the inside grows by what the surface encloses:
+  // the boundary moves with the surface, so the volume change agrees to the facet approximation.
+  const double s_max = c.lungs[0].max_scale;
+  ASSERT_GT(s_max, 0.0);
+  const double surface_change = surface_volume(lung, s_max) - rest;
+  const double tets_change = tets_volume(inside.mesh, inside.unit_displacement, s_max) -
+                             tets_volume(inside.mesh, inside.unit_displacement, 0.0);
+  EXPECT_GT(surface_change, 0.5e-3);
+  EXPECT_NEAR(tets_change / surface_change, 1.0, 0.03);
+  std::cout << inside.mesh.tet_count() << " tets, " << inside.report.iterations << " CG iterations; volume change "
+            << tets_change * 1e3 << " L inside against " << surface_change * 1e3 << " L of the surface\n";
+  // The map rest -> frame stays invertible inside at both ends of the run.
+  for (const double scale : {c.lungs[0].min_scale, s_max}) {
+    double worst = 1e9;
+    for (std::size_t t = 0; t < inside.mesh.tet_count(); ++t) {
+      const Eigen::Matrix3d g = field::tet_displacement_gradient(inside.mesh, t, inside.unit_displacement);
+      worst = std::min(worst, (Eigen::Matrix3d::Identity() + scale * g).determinant());
+    }
+    EXPECT_GT(worst, 0.0) << "scale " << scale;
+    std::cout << "scale " << scale << ": min Jacobian " << worst << "\n";
+  }
+}
+
+}  // namespace
+}  // namespace pneuma
