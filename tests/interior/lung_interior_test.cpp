@@ -78,3 +78,68 @@ outputs: {gltf: false, report: false, hdf5: false}
 
 }  // namespace
 }  // namespace pneuma
+
+namespace pneuma {
+namespace {
+
+// The body below the diaphragm (model/body_motion.h): just under the lung's lowest point it
+// descends as the surface there does; it fades as exp(-depth / L) along the body; and its
+// Jacobian (finite differences) stays positive everywhere on a box around the lung.
+TEST(BodyMotion, TheAbdomenFollowsTheDiaphragmAndFadesWithDepthWithoutFolding) {
+  test::TempDir dir;
+  const auto file = dir.write("s.yaml", R"(name: body
+duration: 4 s
+frames: {rate: 5 Hz}
+mesh: {phantom: right, edge: 8 mm}
+field: {tissue: healthy-upright, interior: {edge: 10 mm}}
+physiology:
+  preset: healthy-adult
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 1.5 L}
+outputs: {gltf: false, report: false, hdf5: false}
+)");
+  const scenario::Scenario s = runner::load_scenario(file);
+  const auto drive = scenario::simulate_physiology(s, s.frame_rate_hz);
+  const model::Compiled c = model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
+  ASSERT_NE(c.model.body, nullptr);
+  const model::LungModel& lung = c.model.lungs[0];
+  const model::BodyMotion& body = *c.model.body;
+  const double scale = c.lungs[0].max_scale;
+  const std::vector<double> scales{scale};
+  // The lowest vertex: the diaphragm's deepest point.
+  std::size_t lowest = 0;
+  for (std::size_t i = 0; i < lung.rest.vertices.size(); ++i) {
+    if (lung.rest.vertices[i].z() < lung.rest.vertices[lowest].z()) lowest = i;
+  }
+  const Eigen::Vector3d below = lung.rest.vertices[lowest] - Eigen::Vector3d(0, 0, 1e-4);
+  const double surface_descent = scale * lung.unit_displacement[lowest].z();
+  ASSERT_LT(surface_descent, -5e-3);  // the dome descends several mm at 1.5 L
+  EXPECT_NEAR(body.displacement(below, scales).z(), surface_descent, 0.05 * std::abs(surface_descent));
+  const double L = body.options().decay_length_m;
+  const Eigen::Vector3d deep = below - Eigen::Vector3d(0, 0, L);
+  EXPECT_NEAR(body.displacement(deep, scales).z() / body.displacement(below, scales).z(), std::exp(-1.0), 0.02);
+  // Only along up, so det(I + grad u) = 1 + du_z/dz; sampled on a 5 mm box around the lung.
+  const auto box = mesh::bounding_box(lung.rest.vertices);
+  double worst = 1.0, largest = 0.0;
+  const double h = 5e-3, dz = 1e-4;
+  for (double x = box[0].x() - 0.05; x <= box[1].x() + 0.05; x += h) {
+    for (double y = box[0].y() - 0.05; y <= box[1].y() + 0.05; y += h) {
+      for (double z = box[0].z() - 0.15; z <= box[1].z(); z += h) {
+        const Eigen::Vector3d p(x, y, z);
+        const double dudz = (body.displacement(p + Eigen::Vector3d(0, 0, dz), scales).z() -
+                             body.displacement(p - Eigen::Vector3d(0, 0, dz), scales).z()) /
+                            (2 * dz);
+        worst = std::min(worst, 1.0 + dudz);
+        largest = std::max(largest, std::abs(body.displacement(p, scales).z()));
+        ASSERT_EQ(body.displacement(p, scales).head<2>().norm(), 0.0);
+      }
+    }
+  }
+  // The documented bound 1 - max|u| / L (to the finite differences), and no fold.
+  EXPECT_GE(worst, 1.0 - largest / L - 1e-3);
+  EXPECT_GT(worst, 0.0);
+  std::cout << "diaphragm descent " << -surface_descent * 1e3 << " mm, largest body motion " << largest * 1e3
+            << " mm, min Jacobian " << worst << "\n";
+}
+
+}  // namespace
+}  // namespace pneuma

@@ -372,6 +372,7 @@ Compiled compile(const Scenario& s, const physiology::SimulationResult& drive, c
           compiled.model.two_lungs() ? fmt::format("interior ({} lung)", scenario::lung_name(lung.side)) : "interior",
           seconds_since(begin));
     }
+    compiled.model.body = std::make_shared<const BodyMotion>(compiled.model);
   }
   const auto start = Clock::now();
   check_no_fold(compiled.model, s, compiled.lungs);

@@ -16,8 +16,8 @@ std::shared_ptr<const LungInterior> compute_interior(const LungModel& lung, doub
   std::vector<Eigen::Vector3d> boundary_points;
   boundary_points.reserve(volume.boundary_nodes.size());
   for (const std::uint32_t b : volume.boundary_nodes) boundary_points.push_back(volume.mesh.nodes[b]);
-  const std::vector<Eigen::Vector3d> boundary = mesh::transfer_vertex_field(lung.rest, lung.unit_displacement,
-                                                                             boundary_points);
+  const std::vector<Eigen::Vector3d> boundary =
+      mesh::transfer_vertex_field(lung.rest, lung.unit_displacement, boundary_points);
   field::InteriorSolution solution = field::solve_interior(volume.mesh, volume.boundary_nodes, boundary, options);
   out->mesh = std::move(volume.mesh);
   out->boundary_nodes = std::move(volume.boundary_nodes);

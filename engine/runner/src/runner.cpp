@@ -99,7 +99,8 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
 
   // Compile: the model and the scale of every frame, checked.
   const model::Compiled compiled = model::compile(
-      s, drive, {.output_dir = options.output_dir, .edge_override_m = options.edge_override_m, .interior = needs_interior});
+      s, drive,
+      {.output_dir = options.output_dir, .edge_override_m = options.edge_override_m, .interior = needs_interior});
   const model::Model& model = compiled.model;
   result.timings_s.insert(result.timings_s.end(), compiled.timings_s.begin(), compiled.timings_s.end());
   result.field_reused = compiled.field_reused;

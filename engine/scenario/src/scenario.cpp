@@ -229,7 +229,7 @@ FieldSpec read_field(const config::Node& n, const std::filesystem::path& config_
     }
     if (i.has("model")) {
       f.interior.model = i.choice("model", {"elastic", "harmonic"}) == "elastic" ? field::InteriorModel::elastic
-                                                                                  : field::InteriorModel::harmonic;
+                                                                                 : field::InteriorModel::harmonic;
     }
     if (i.has("poisson_ratio")) {
       f.interior.poisson_ratio = i.quantity("poisson_ratio", kind::number);

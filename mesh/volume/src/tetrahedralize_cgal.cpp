@@ -8,8 +8,12 @@
 #include <CGAL/make_mesh_3.h>
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <limits>
 #include <map>
+#include <numbers>
 
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/cgal/cgal_surface_mesh.h"
@@ -27,6 +31,29 @@ using Criteria = CGAL::Mesh_criteria_3<Tr>;
 
 // Mesh_3 works in millimetres (criteria and error bounds of order 1).
 constexpr double kMm = 1e-3;
+
+// The smallest of the six dihedral angles (degrees): between the two faces at each edge.
+double min_dihedral_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                        const Eigen::Vector3d& d) {
+  const std::array<Eigen::Vector3d, 4> p{a, b, c, d};
+  // Outward face normals (face i opposite vertex i); the dihedral at the edge shared by faces i
+  // and j is pi minus the angle between their outward normals.
+  std::array<Eigen::Vector3d, 4> normal;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const Eigen::Vector3d& q0 = p[(i + 1) % 4];
+    Eigen::Vector3d n = (p[(i + 2) % 4] - q0).cross(p[(i + 3) % 4] - q0);
+    if (n.dot(p[i] - q0) > 0.0) n = -n;
+    normal[i] = n.normalized();
+  }
+  double smallest = 180.0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    for (std::size_t j = i + 1; j < 4; ++j) {
+      const double cosine = std::clamp(-normal[i].dot(normal[j]), -1.0, 1.0);
+      smallest = std::min(smallest, std::acos(cosine) * 180.0 / std::numbers::pi);
+    }
+  }
+  return smallest;
+}
 
 }  // namespace
 
@@ -50,10 +77,10 @@ VolumeMesh tetrahedralize(const TriangleMesh& closed_surface, const Tetrahedrali
                           CGAL::parameters::facet_distance = distance_mm,
                           CGAL::parameters::cell_radius_edge_ratio = 3.0, CGAL::parameters::cell_size = edge_mm);
   const C3t3 c3t3 =
-      options.exude_slivers
-          ? CGAL::make_mesh_3<C3t3>(
-                domain, criteria, CGAL::parameters::no_perturb(),
-                CGAL::parameters::exude(CGAL::parameters::time_limit = 0, CGAL::parameters::sliver_bound = 0))
+      options.sliver_bound_deg > 0.0
+          ? CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_perturb(),
+                                    CGAL::parameters::exude(CGAL::parameters::time_limit = 0,
+                                                            CGAL::parameters::sliver_bound = options.sliver_bound_deg))
           : CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_perturb(), CGAL::parameters::no_exude());
 
   VolumeMesh out;
@@ -70,6 +97,7 @@ VolumeMesh tetrahedralize(const TriangleMesh& closed_surface, const Tetrahedrali
   };
   out.mesh.tets.reserve(static_cast<std::size_t>(c3t3.number_of_cells_in_complex()));
   out.min_volume_m3 = std::numeric_limits<double>::infinity();
+  out.min_dihedral_deg = 180.0;
   for (auto c = c3t3.cells_in_complex_begin(); c != c3t3.cells_in_complex_end(); ++c) {
     Tetrahedron t{node(c->vertex(0)), node(c->vertex(1)), node(c->vertex(2)), node(c->vertex(3))};
     const auto& n = out.mesh.nodes;
@@ -81,6 +109,7 @@ VolumeMesh tetrahedralize(const TriangleMesh& closed_surface, const Tetrahedrali
     out.mesh.tets.push_back(t);
     out.volume_m3 += v6 / 6.0;
     out.min_volume_m3 = std::min(out.min_volume_m3, v6 / 6.0);
+    out.min_dihedral_deg = std::min(out.min_dihedral_deg, min_dihedral_deg(n[t[0]], n[t[1]], n[t[2]], n[t[3]]));
   }
   if (out.mesh.tets.empty()) throw ValueError("tetrahedralize: Mesh_3 found no cell inside the surface");
 

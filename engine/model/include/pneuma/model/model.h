@@ -13,6 +13,7 @@
 
 #include "pneuma/field/interior.h"
 #include "pneuma/mesh/geometry/tet_mesh.h"
+#include "pneuma/model/body_motion.h"
 
 #include "pneuma/mesh/anatomy/lung.h"
 #include "pneuma/mesh/anatomy/regions.h"
@@ -63,6 +64,8 @@ struct LungModel {
 
 struct Model {
   std::vector<LungModel> lungs;  // one, or two: right then left
+  // How the body outside the lungs moves (body_motion.h); with the interiors, else null.
+  std::shared_ptr<const BodyMotion> body = nullptr;
 
   Model() = default;
   explicit Model(LungModel lung) { lungs.push_back(std::move(lung)); }
