@@ -76,6 +76,45 @@ outputs: {gltf: false, report: false, hdf5: false}
   }
 }
 
+bool has_timing(const model::Compiled& c, const std::string& name) {
+  return std::any_of(c.timings_s.begin(), c.timings_s.end(), [&](const auto& t) { return t.first == name; });
+}
+
+TEST(LungInterior, IsKeptInTheFieldCacheAndReusedOnlyForTheSameSettings) {
+  test::TempDir dir;
+  const std::string base = R"(name: cached
+duration: 2 s
+frames: {rate: 5 Hz}
+mesh: {phantom: right, edge: 10 mm}
+physiology:
+  preset: healthy-adult
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 500 mL}
+outputs: {gltf: false, report: false, hdf5: false}
+)";
+  auto compile_with = [&](const std::string& field) {
+    const auto file = dir.write("s.yaml", base + field);
+    const scenario::Scenario s = runner::load_scenario(file);
+    const auto drive = scenario::simulate_physiology(s, s.frame_rate_hz);
+    return model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
+  };
+  const model::Compiled first = compile_with("field: {interior: {edge: 12 mm}}\n");
+  EXPECT_TRUE(has_timing(first, "interior"));
+  const model::Compiled again = compile_with("field: {interior: {edge: 12 mm}}\n");
+  EXPECT_TRUE(has_timing(again, "interior (cached)"));
+  EXPECT_TRUE(again.field_reused);
+  const model::LungInterior& a = *first.model.lungs[0].interior;
+  const model::LungInterior& b = *again.model.lungs[0].interior;
+  EXPECT_EQ(a.mesh.tets, b.mesh.tets);
+  EXPECT_EQ(a.mesh.nodes, b.mesh.nodes);
+  EXPECT_EQ(a.unit_displacement, b.unit_displacement);
+  EXPECT_EQ(a.boundary_nodes, b.boundary_nodes);
+  // Another model of the inside: the field is reused, the inside made again.
+  const model::Compiled harmonic = compile_with("field: {interior: {edge: 12 mm, model: harmonic}}\n");
+  EXPECT_TRUE(harmonic.field_reused);
+  EXPECT_TRUE(has_timing(harmonic, "interior"));
+  EXPECT_EQ(harmonic.model.lungs[0].interior->options.model, field::InteriorModel::harmonic);
+}
+
 }  // namespace
 }  // namespace pneuma
 

@@ -197,6 +197,26 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
   const std::string what = two_lungs ? fmt::format(" ({} lung)", scenario::lung_name(spec.side)) : "";
   timings_s.emplace_back((field_reused ? "mesh and field (cached)" : "mesh and field") + what, seconds_since(start));
 
+  // The inside, where an output needs it: kept in the field's cache file beside the field it
+  // extends (on the cached surface, also where the run exports the original mesh).
+  std::shared_ptr<const LungInterior> interior;
+  if (options.interior) {
+    start = Clock::now();
+    const std::string key = interior_key(computed.record.metadata.key, s.field.interior_edge_m, s.field.interior);
+    const bool cached = computed.record.interior && computed.record.interior->key == key;
+    if (cached) {
+      interior = computed.record.interior;
+    } else {
+      std::shared_ptr<LungInterior> fresh = compute_interior(computed.record.rest, computed.record.unit_displacement,
+                                                             s.field.interior_edge_m, s.field.interior);
+      fresh->key = key;
+      interior = fresh;
+      computed.record.interior = fresh;
+      if (s.field.cache != scenario::FieldCache::off) save_field(cache, computed.record);
+    }
+    timings_s.emplace_back((cached ? "interior (cached)" : "interior") + what, seconds_since(start));
+  }
+
   mesh::TriangleMesh rest = std::move(computed.record.rest);
   std::vector<Eigen::Vector3d> u = std::move(computed.record.unit_displacement);
   if (mesh.export_original) {
@@ -218,6 +238,7 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
   lung.share = spec.share;
   lung.reference_volume_m3 = s.mesh.reference_volume_m3;
   lung.compartment = spec.compartment;
+  lung.interior = std::move(interior);
   return lung;
 }
 
@@ -365,13 +386,6 @@ Compiled compile(const Scenario& s, const physiology::SimulationResult& drive, c
     compiled.lungs.push_back(std::move(l));
   }
   if (options.interior) {
-    for (LungModel& lung : compiled.model.lungs) {
-      const auto begin = Clock::now();
-      lung.interior = compute_interior(lung, s.field.interior_edge_m, s.field.interior);
-      compiled.timings_s.emplace_back(
-          compiled.model.two_lungs() ? fmt::format("interior ({} lung)", scenario::lung_name(lung.side)) : "interior",
-          seconds_since(begin));
-    }
     compiled.model.body = std::make_shared<const BodyMotion>(compiled.model);
   }
   const auto start = Clock::now();

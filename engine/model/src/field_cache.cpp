@@ -91,6 +91,21 @@ std::string checksum(const FieldRecord& m) {
   h.value(d.shots);
   h.value(d.iterations);
   h.value(d.residual);
+  if (m.interior) {  // absent: the checksum of a file written before the interior existed
+    const LungInterior& i = *m.interior;
+    h.text("interior");
+    h.text(i.key);
+    h.text(field::interior_model_name(i.options.model));
+    h.value(i.edge_m);
+    h.value(i.options.poisson_ratio);
+    h.value(i.options.tolerance);
+    h.value(static_cast<std::uint64_t>(i.report.iterations));
+    h.value(i.report.relative_residual);
+    h.bytes(i.mesh.nodes.data(), i.mesh.nodes.size() * sizeof(Eigen::Vector3d));
+    h.bytes(i.mesh.tets.data(), i.mesh.tets.size() * sizeof(mesh::Tetrahedron));
+    h.bytes(i.boundary_nodes.data(), i.boundary_nodes.size() * sizeof(std::uint32_t));
+    h.bytes(i.unit_displacement.data(), i.unit_displacement.size() * sizeof(Eigen::Vector3d));
+  }
   return h.hex();
 }
 
@@ -178,6 +193,25 @@ void write_file(const std::filesystem::path& tmp, const std::string& shown, cons
     w.dataset(field.get(), "shear_modulus_pa", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, m.shear_modulus_pa.data(), nv, 0,
               "Pa");
   }
+  if (m.interior) {
+    const LungInterior& i = *m.interior;
+    const hdf5::Hdf5Handle group = w.group(root, "interior");
+    const hid_t g = group.get();
+    w.string_attribute(g, "key", i.key);
+    w.string_attribute(g, "model", field::interior_model_name(i.options.model));
+    w.number_attribute(g, "edge_m", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.edge_m);
+    w.number_attribute(g, "poisson_ratio", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.options.poisson_ratio);
+    w.number_attribute(g, "tolerance", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.options.tolerance);
+    const auto iterations = static_cast<std::uint64_t>(i.report.iterations);
+    w.number_attribute(g, "iterations", H5T_STD_U64LE, H5T_NATIVE_UINT64, iterations);
+    w.number_attribute(g, "residual", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.report.relative_residual);
+    const hsize_t nn = i.mesh.nodes.size();
+    w.dataset(g, "nodes", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.mesh.nodes.data(), nn, 3, "m");
+    w.dataset(g, "tets", H5T_STD_U32LE, H5T_NATIVE_UINT32, i.mesh.tets.data(), i.mesh.tets.size(), 4, "1");
+    w.dataset(g, "boundary_nodes", H5T_STD_U32LE, H5T_NATIVE_UINT32, i.boundary_nodes.data(), i.boundary_nodes.size(),
+              0, "1");
+    w.dataset(g, "unit_displacement", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.unit_displacement.data(), nn, 3, "m");
+  }
   if (H5Fflush(root, H5F_SCOPE_GLOBAL) < 0) w.fail("the file");
 }
 
@@ -249,6 +283,41 @@ struct Reader {
   }
 };
 
+// /interior: its attributes and arrays, shapes and node indices checked.
+std::shared_ptr<const LungInterior> read_interior(const Reader& r) {
+  hdf5::Hdf5Handle group(H5Gopen2(r.root, "interior", H5P_DEFAULT), H5Gclose);
+  if (!group.ok()) r.refuse("cannot open group /interior");
+  const Reader g{r.file, group.get(), r.max_value_bytes};
+  auto out = std::make_shared<LungInterior>();
+  LungInterior& i = *out;
+  i.key = g.string_attribute("key");
+  const std::string model = g.string_attribute("model");
+  if (model != "elastic" && model != "harmonic") r.refuse("interior model '" + model + "' is not elastic or harmonic");
+  i.options.model = model == "elastic" ? field::InteriorModel::elastic : field::InteriorModel::harmonic;
+  i.edge_m = g.number_attribute<double>("edge_m", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  i.options.poisson_ratio = g.number_attribute<double>("poisson_ratio", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  i.options.tolerance = g.number_attribute<double>("tolerance", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  i.report.iterations = g.number_attribute<std::uint64_t>("iterations", H5T_NATIVE_UINT64, H5T_INTEGER);
+  i.report.relative_residual = g.number_attribute<double>("residual", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  const std::size_t nn = g.dataset("nodes", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, i.mesh.nodes, 3);
+  g.dataset("tets", H5T_NATIVE_UINT32, H5T_INTEGER, 4, i.mesh.tets, 4);
+  g.dataset("boundary_nodes", H5T_NATIVE_UINT32, H5T_INTEGER, 0, i.boundary_nodes, 1);
+  if (g.dataset("unit_displacement", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, i.unit_displacement, 3) != nn) {
+    r.refuse("dataset /interior/unit_displacement has another number of rows than /interior/nodes");
+  }
+  for (std::size_t t = 0; t < i.mesh.tets.size(); ++t) {
+    for (const std::uint32_t v : i.mesh.tets[t]) {
+      if (v >= nn) r.refuse(fmt::format("interior tetrahedron {} names node {} of {}", t, v, nn));
+    }
+  }
+  for (const std::uint32_t v : i.boundary_nodes) {
+    if (v >= nn) r.refuse(fmt::format("interior boundary node {} of {}", v, nn));
+  }
+  i.report.boundary_nodes = i.boundary_nodes.size();
+  i.report.free_nodes = nn - std::min(nn, i.boundary_nodes.size());
+  return out;
+}
+
 FieldRecord read_file(const std::filesystem::path& path) {
   const std::string shown = path.string();
   Reader r{shown};
@@ -308,6 +377,7 @@ FieldRecord read_file(const std::filesystem::path& path) {
         r.refuse("triangle " + std::to_string(t) + " names vertex " + std::to_string(v) + " of " + std::to_string(nv));
     }
   }
+  if (H5Lexists(r.root, "interior", H5P_DEFAULT) > 0) m.interior = read_interior(r);
   if (checksum(m) != stored_checksum) r.refuse("checksum mismatch (the file was edited or damaged)");
   return m;
 }
@@ -404,6 +474,19 @@ std::string source_field_key(const std::string& source, const std::string& tissu
   h.text(source);
   h.text(tissue_name);
   hash_options(h, o);
+  return h.hex();
+}
+
+std::string interior_key(const std::string& field_key, double edge_m, const field::InteriorOptions& options) {
+  Hasher h;
+  h.text("pneuma-interior-key/1");
+  h.text(PNEUMA_VERSION);
+  h.text(field_key);
+  h.value(edge_m);
+  h.text(field::interior_model_name(options.model));
+  h.value(options.poisson_ratio);
+  h.value(options.tolerance);
+  h.value(static_cast<std::uint64_t>(options.max_iterations));
   return h.hex();
 }
 

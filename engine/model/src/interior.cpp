@@ -9,15 +9,15 @@
 
 namespace pneuma::model {
 
-std::shared_ptr<const LungInterior> compute_interior(const LungModel& lung, double edge_m,
-                                                     const field::InteriorOptions& options) {
+std::shared_ptr<LungInterior> compute_interior(const mesh::TriangleMesh& rest,
+                                               const std::vector<Eigen::Vector3d>& unit_displacement, double edge_m,
+                                               const field::InteriorOptions& options) {
   auto out = std::make_shared<LungInterior>();
-  mesh::VolumeMesh volume = mesh::tetrahedralize(lung.rest, {.edge_length_m = edge_m});
+  mesh::VolumeMesh volume = mesh::tetrahedralize(rest, {.edge_length_m = edge_m});
   std::vector<Eigen::Vector3d> boundary_points;
   boundary_points.reserve(volume.boundary_nodes.size());
   for (const std::uint32_t b : volume.boundary_nodes) boundary_points.push_back(volume.mesh.nodes[b]);
-  const std::vector<Eigen::Vector3d> boundary =
-      mesh::transfer_vertex_field(lung.rest, lung.unit_displacement, boundary_points);
+  const std::vector<Eigen::Vector3d> boundary = mesh::transfer_vertex_field(rest, unit_displacement, boundary_points);
   field::InteriorSolution solution = field::solve_interior(volume.mesh, volume.boundary_nodes, boundary, options);
   out->mesh = std::move(volume.mesh);
   out->boundary_nodes = std::move(volume.boundary_nodes);

@@ -13,19 +13,29 @@
 //   /field/unit_displacement   V x 3 float64 (m per unit scale: one area unit of area increase)
 //   /field/force               V float64 (F for a unit load)
 //   /field/shear_modulus_pa    V float64 (Pa)
+//   /interior                  (where a run needed the lung's inside; model.h, LungInterior)
+//                              attributes key, model, edge_m, poisson_ratio, tolerance, iterations,
+//                              residual
+//   /interior/nodes            N x 3 float64 (m)
+//   /interior/tets             T x 4 uint32 (positively oriented)
+//   /interior/boundary_nodes   B uint32
+//   /interior/unit_displacement N x 3 float64 (m per unit scale)
 // Every dataset has a `units` attribute; nothing is compressed (the file is small).
 // `checksum` covers every dataset and attribute, so an edited file is refused.
 #include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "pneuma/field/field.h"
+#include "pneuma/field/interior.h"
 #include "pneuma/field/tissue.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/model/model.h"
 
 namespace pneuma::model {
 
@@ -43,14 +53,19 @@ struct FieldMetadata {
 };
 
 // What the cache file holds: the rest mesh, the field and its metadata (a cache record, not the
-// model: compile() makes the model from it).
+// model: compile() makes the model from it), and the inside where a run needed it.
 struct FieldRecord {
   mesh::TriangleMesh rest;
   std::vector<Eigen::Vector3d> unit_displacement;  // per vertex, for one area unit
   std::vector<double> force;
   std::vector<double> shear_modulus_pa;
   FieldMetadata metadata;
+  std::shared_ptr<const LungInterior> interior;  // with its key (LungInterior::key); may be null
 };
+
+// The key of the inside of a field's surface (`field_key`: the record's key) for `edge_m` and
+// `options`.
+std::string interior_key(const std::string& field_key, double edge_m, const field::InteriorOptions& options);
 
 // A 128-bit hex digest of the inputs that determine the field.
 std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> shear_modulus_pa,

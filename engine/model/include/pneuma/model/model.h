@@ -35,6 +35,7 @@ struct LungInterior {
   double edge_m = 0.0;                             // the tetrahedra's target size
   field::InteriorOptions options;
   field::InteriorReport report;
+  std::string key;  // what it was made from (field_cache.h: interior_key), for the cache
 };
 
 // One lung of the model: what one breathing surface needs.
@@ -86,10 +87,11 @@ LungModel make_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_
                      const mesh::BodyAxes& axes = {}, const mesh::SurfaceRegions* regions = nullptr,
                      std::optional<mesh::Lung> side = std::nullopt);
 
-// The inside of `lung`'s rest surface as tetrahedra of about `edge_m` (mesh::tetrahedralize) and
-// its interior field for `options`, the surface's unit displacement on the boundary. Throws
-// ValueError when the surface bounds no volume.
-std::shared_ptr<const LungInterior> compute_interior(const LungModel& lung, double edge_m,
-                                                     const field::InteriorOptions& options);
+// The inside of the surface `rest` as tetrahedra of about `edge_m` (mesh::tetrahedralize) and its
+// interior field for `options`, with `unit_displacement` (per vertex of `rest`) on the boundary.
+// Throws ValueError when the surface bounds no volume.
+std::shared_ptr<LungInterior> compute_interior(const mesh::TriangleMesh& rest,
+                                               const std::vector<Eigen::Vector3d>& unit_displacement, double edge_m,
+                                               const field::InteriorOptions& options);
 
 }  // namespace pneuma::model

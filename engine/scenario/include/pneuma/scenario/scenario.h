@@ -81,7 +81,7 @@ struct FieldSpec {
   std::filesystem::path cache_file;  // resolved, for FieldCache::file
   // The lung's inside (`field.interior`), computed only when an output needs it (voxel outputs):
   // a tetrahedral mesh of `edge` and the interior field of `model` (field/interior.h).
-  double interior_edge_m = 3e-3;
+  double interior_edge_m = 4e-3;
   field::InteriorOptions interior;
 };
 
