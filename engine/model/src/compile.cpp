@@ -238,6 +238,7 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
   lung.share = spec.share;
   lung.reference_volume_m3 = s.mesh.reference_volume_m3;
   lung.compartment = spec.compartment;
+  lung.label_values = spec.label_values;
   lung.interior = std::move(interior);
   return lung;
 }

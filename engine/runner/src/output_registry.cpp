@@ -5,6 +5,7 @@
 #include "pneuma/outputs/phases.h"
 #include "pneuma/outputs/physiology_csv.h"
 #include "pneuma/outputs/report.h"
+#include "pneuma/outputs/voxels_output.h"
 #include "pneuma/render/png_sink.h"
 
 namespace pneuma::runner {
@@ -18,6 +19,7 @@ const std::vector<outputs::OutputPlugin>& output_registry() {
       outputs::physiology_csv_output(),  // physiology.csv + physiology-breaths.csv
       outputs::motion_csv_output(),      // motion.csv
       outputs::phases_output(),          // phases.csv + phases/bin_NN.ply (4D-CT bins; off by default)
+      outputs::voxels_output(),          // voxels/: DVFs, warped label map and CT (off by default)
       outputs::report_output(),          // report.html
   };
   return registry;

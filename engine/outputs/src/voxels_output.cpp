@@ -1,0 +1,264 @@
+// The voxel outputs (voxels_output.h): a plugin over engine/voxels at the run's end.
+#include "pneuma/outputs/voxels_output.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "pneuma/core/atomic_file.h"
+#include "pneuma/core/error.h"
+#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/model/body_motion.h"
+#include "pneuma/model/compile.h"
+#include "pneuma/voxels/grid.h"
+#include "pneuma/voxels/time_point.h"
+#include "pneuma/voxels/voxel_io.h"
+
+namespace pneuma::outputs {
+namespace {
+
+namespace kind = units::kind;
+
+constexpr const char* kAtExpected = "expected end_expiration, end_inspiration or a time >= 0 with its unit, such as '2.4 s'";
+
+std::any read_spec(const config::Node* options) {
+  VoxelsSpec spec;
+  if (!options) return spec;
+  if (options->has("at")) {
+    spec.at.clear();
+    for (const config::Node& item : options->sequence("at")) {
+      const std::string text = item.as_scalar(kAtExpected);
+      if (text == "end_expiration") {
+        spec.at.emplace_back(VoxelMoment::end_expiration);
+      } else if (text == "end_inspiration") {
+        spec.at.emplace_back(VoxelMoment::end_inspiration);
+      } else {
+        double t = -1.0;
+        try {
+          t = units::parse(text, kind::time);
+        } catch (const Error&) {
+          item.fail(kAtExpected);
+        }
+        if (!(t >= 0.0) || !std::isfinite(t)) item.fail(kAtExpected);
+        spec.at.emplace_back(t);
+      }
+    }
+    if (spec.at.empty()) options->fail_at("at", "expected at least one time point, such as '[end_inspiration]'");
+  }
+  if (options->has("spacing")) {
+    spec.spacing_m = options->positive_quantity("spacing", kind::length);
+    if (spec.spacing_m < 0.25e-3 || spec.spacing_m > 20e-3) {
+      options->fail_at("spacing", "expected a voxel size between 0.25 mm and 20 mm, such as '2 mm'");
+    }
+  }
+  if (options->has("format")) spec.extension = "." + options->choice("format", {"nii.gz", "nii", "mha"});
+  if (options->has("image")) {
+    spec.image_file = options->directory("image") / options->string("image");
+    try {
+      spec.image = std::make_shared<const voxels::Image>(voxels::read_image(spec.image_file));
+    } catch (const Error& e) {
+      options->fail_at("image", e.what());
+    }
+  }
+  options->finish();
+  return spec;
+}
+
+// The grid of the run: the label map's (or a coarser one over its extent), else a box around
+// the lungs and the body below them.
+voxels::Grid run_grid(const model::Model& model, const mesh::LabelMap* labels, double spacing_m) {
+  if (labels) {
+    const voxels::Grid grid = voxels::grid_of(*labels);
+    return spacing_m > 0.0 ? voxels::grid_with_spacing(grid, spacing_m) : grid;
+  }
+  const double h = spacing_m > 0.0 ? spacing_m : 2e-3;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const model::LungModel& lung : model.lungs) {
+    for (const auto& v : lung.rest.vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+  }
+  lo -= Eigen::Vector3d(0.03, 0.03, 0.08);  // room below the diaphragm for the abdomen's motion
+  hi += Eigen::Vector3d::Constant(0.03);
+  voxels::Grid grid;
+  for (int a = 0; a < 3; ++a) grid.size[static_cast<std::size_t>(a)] = static_cast<std::size_t>(std::ceil((hi[a] - lo[a]) / h)) + 1;
+  grid.ijk_to_lps = Eigen::Matrix4d::Identity();
+  grid.ijk_to_lps.block<3, 3>(0, 0) *= h;
+  grid.ijk_to_lps.block<3, 1>(0, 3) = lo;
+  return grid;
+}
+
+class VoxelsOutput final : public Output {
+ public:
+  VoxelsOutput(std::filesystem::path dir, VoxelsSpec spec) : dir_(std::move(dir)), spec_(std::move(spec)) {}
+  std::string name() const override { return "voxels"; }
+
+  std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {
+    const scenario::Scenario& s = *run.scenario;
+    const auto& series = run.drive->series;
+    for (const model::LungModel& lung : model.lungs) {
+      if (!lung.interior) throw Error(ExitCode::failure, "voxels: the model was compiled without the lungs' inside");
+    }
+    // The label map the lungs came from, read again (compile does not keep it), else one of the
+    // rest tetrahedra: 1 for the right lung (or the only one), 2 for the left.
+    std::optional<mesh::LabelMap> labels;
+    std::vector<int> lung_labels;
+    if (!s.mesh.labels_file.empty()) {
+      labels = mesh::read_label_map(s.mesh.labels_file);
+      for (const model::LungModel& lung : model.lungs) {
+        lung_labels.insert(lung_labels.end(), lung.label_values.begin(), lung.label_values.end());
+      }
+    }
+    const voxels::Grid grid = run_grid(model, labels ? &*labels : nullptr, spec_.spacing_m);
+    if (!labels) {
+      labels = rest_label_map(model, grid);
+      for (std::size_t i = 0; i < model.lungs.size(); ++i) lung_labels.push_back(static_cast<int>(i) + 1);
+    }
+    const double rest_lung_m3 = lung_volume(*labels, lung_labels);
+
+    std::filesystem::create_directories(dir_ / "voxels");
+    std::vector<std::filesystem::path> files;
+    std::vector<std::string> rows;
+    voxels::TimePoint point;
+    double worst_volume_error = 0.0, min_jacobian = std::numeric_limits<double>::infinity(), folded = 0.0;
+    for (const std::size_t k : frames_of(series.time_s, series.volume_m3)) {
+      std::vector<double> scales;
+      std::vector<voxels::LungMotion> lungs;
+      for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+        scales.push_back(run.scales[i][k]);
+        const model::LungInterior& inside = *model.lungs[i].interior;
+        lungs.push_back({inside.mesh, inside.unit_displacement, scales.back()});
+      }
+      const model::BodyMotion* body = model.body.get();
+      voxels::TimePointInputs inputs;
+      inputs.labels = &*labels;
+      inputs.ct = spec_.image.get();
+      if (body) {
+        inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
+        // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L).
+        inputs.pullback_outside = [body, scales](const Eigen::Vector3d& x) {
+          Eigen::Vector3d v = -body->displacement(x, scales);
+          for (int it = 0; it < 50; ++it) {
+            const Eigen::Vector3d next = -body->displacement(x + v, scales);
+            const double change = (next - v).norm();
+            v = next;
+            if (change < 1e-9) break;
+          }
+          return v;
+        };
+      }
+      voxels::compute_time_point(grid, lungs, inputs, point);
+      const std::string tag = fmt::format("{:.3f}s", series.time_s[k]);
+      const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", tag, point, spec_.extension);
+      for (const auto& f : {written.forward, written.pullback, written.labels, written.ct}) {
+        if (!f.empty()) files.push_back(f);
+      }
+      // The warped lungs' volume against the rest label map's plus each lung's share of the
+      // physiology's change (the volume the surface frames follow).
+      double expected = rest_lung_m3;
+      for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+        const model::LungModel& lung = model.lungs[i];
+        expected += lung.share * (model::lung_volumes(lung, *run.drive)[k] - lung.reference_volume_m3) -
+                    lung.share * (model::lung_volumes(lung, *run.drive)[rest_frame_] - lung.reference_volume_m3);
+      }
+      const double warped = lung_volume(*point.labels, lung_labels);
+      const double error = (warped - expected) / expected;
+      worst_volume_error = std::max(worst_volume_error, std::abs(error));
+      min_jacobian = std::min(min_jacobian, point.jacobian.min);
+      folded = std::max(folded, point.jacobian.folded_volume_fraction);
+      std::string scale_text;
+      for (const double sc : scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
+      rows.push_back(fmt::format("{},{},{:.6f},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}\n", tag, k,
+                                 series.time_s[k], scale_text, series.volume_m3[k] * 1e6, expected * 1e6,
+                                 warped * 1e6, error * 100.0, point.jacobian.min, point.jacobian.max));
+    }
+    const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
+    write_stream_atomically(csv, false, [&](std::ostream& out) {
+      out << "time_point,frame,time_s,scales,physiology_volume_mL,expected_lung_volume_mL,warped_lung_volume_mL,"
+             "volume_error_percent,min_jacobian,max_jacobian\n";
+      for (const std::string& row : rows) out << row;
+    });
+    files.push_back(csv);
+    facts_ = {{"voxels.time_points", std::to_string(rows.size())},
+              {"voxels.grid", fmt::format("{} x {} x {}", grid.size[0], grid.size[1], grid.size[2])},
+              {"voxels.spacing_mm", fmt::format("{:.6g}", grid.spacing_m().x() * 1e3)},
+              {"voxels.min_jacobian", fmt::format("{:.6g}", min_jacobian)},
+              {"voxels.folded_volume_fraction", fmt::format("{:.6g}", folded)},
+              {"voxels.max_lung_volume_error_percent", fmt::format("{:.6g}", worst_volume_error * 100.0)},
+              {"voxels.interior_model", field::interior_model_name(model.lungs.front().interior->options.model)},
+              {"voxels.interior_tets", std::to_string(tet_count(model))}};
+    return files;
+  }
+  std::vector<std::pair<std::string, std::string>> facts() const override { return facts_; }
+
+ private:
+  // The rest tetrahedra on the grid as labels: lung i + 1 where its rest tets hold the voxel.
+  static mesh::LabelMap rest_label_map(const model::Model& model, const voxels::Grid& grid) {
+    std::vector<voxels::LungMotion> lungs;
+    for (const model::LungModel& lung : model.lungs) lungs.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
+    const voxels::DisplacementField rest = voxels::forward_dvf(grid, lungs);
+    mesh::LabelMap map;
+    map.size = grid.size;
+    map.ijk_to_lps = grid.ijk_to_lps;
+    map.labels.assign(rest.lung.begin(), rest.lung.end());
+    map.transform_source = "pneuma";
+    for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+      map.segments.push_back({std::string(scenario::lung_name(model.lungs[i].side)), static_cast<std::int32_t>(i) + 1});
+    }
+    return map;
+  }
+  // The volume of the voxels holding any of `values` (m^3).
+  static double lung_volume(const mesh::LabelMap& map, const std::vector<int>& values) {
+    std::size_t count = 0;
+    for (const std::int32_t v : map.labels) count += std::find(values.begin(), values.end(), v) != values.end();
+    return static_cast<double>(count) * map.voxel_volume_m3();
+  }
+  static std::size_t tet_count(const model::Model& model) {
+    std::size_t n = 0;
+    for (const model::LungModel& lung : model.lungs) n += lung.interior->mesh.tet_count();
+    return n;
+  }
+
+  // The frames of the time points, in the order asked (repeats dropped); the rest frame (the
+  // run's lowest volume) is remembered as the volume reference of the rest label map.
+  std::vector<std::size_t> frames_of(const std::vector<double>& time_s, const std::vector<double>& volume_m3) {
+    const auto low = static_cast<std::size_t>(std::min_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
+    const auto high =
+        static_cast<std::size_t>(std::max_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
+    rest_frame_ = low;
+    std::vector<std::size_t> frames;
+    for (const VoxelTime& at : spec_.at) {
+      std::size_t k = 0;
+      if (const auto* moment = std::get_if<VoxelMoment>(&at)) {
+        k = *moment == VoxelMoment::end_expiration ? low : high;
+      } else {
+        const double t = std::get<double>(at);
+        k = static_cast<std::size_t>(std::min_element(time_s.begin(), time_s.end(),
+                                                      [t](double a, double b) { return std::abs(a - t) < std::abs(b - t); }) -
+                                     time_s.begin());
+      }
+      if (std::find(frames.begin(), frames.end(), k) == frames.end()) frames.push_back(k);
+    }
+    return frames;
+  }
+
+  std::filesystem::path dir_;
+  VoxelsSpec spec_;
+  std::size_t rest_frame_ = 0;
+  std::vector<std::pair<std::string, std::string>> facts_;
+};
+
+}  // namespace
+
+OutputPlugin voxels_output() {
+  OutputNeeds needs;
+  needs.interior = true;
+  return {{"voxels", false, read_spec}, needs, [](const std::any& settings, const std::filesystem::path& out) {
+            return std::make_unique<VoxelsOutput>(out, std::any_cast<VoxelsSpec>(settings));
+          }};
+}
+
+}  // namespace pneuma::outputs
