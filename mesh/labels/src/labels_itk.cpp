@@ -12,13 +12,13 @@
 #include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
 
+#include "itk_quiet.h"
+
 #include <cmath>
-#include <iostream>
 #include <limits>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
-#include <streambuf>
 
 #include "label_image.h"
 #include "pneuma/core/error.h"
@@ -27,21 +27,6 @@ namespace pneuma::mesh::detail {
 namespace {
 
 using Component = itk::IOComponentEnum;
-
-// MetaIO writes its complaints to std::cerr; they are replaced by pneuma's one line.
-class SilenceStdErr {
- public:
-  SilenceStdErr() : saved_(std::cerr.rdbuf(&null_)) {}
-  ~SilenceStdErr() { std::cerr.rdbuf(saved_); }
-  SilenceStdErr(const SilenceStdErr&) = delete;
-  SilenceStdErr& operator=(const SilenceStdErr&) = delete;
-
- private:
-  struct NullBuffer : std::streambuf {
-    int overflow(int c) override { return c; }
-  } null_;
-  std::streambuf* saved_;
-};
 
 itk::ImageIOBase::Pointer make_io(ImageFormat format) {
   switch (format) {
@@ -179,11 +164,10 @@ ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat 
 ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
                         const std::function<StoredData(const ItkImage&)>& stored) {
   const std::string name = path.string();
-  // One read at a time: std::cerr's buffer and ITK's warning switch are process-wide.
-  static std::mutex itk_mutex;
-  const std::lock_guard<std::mutex> lock(itk_mutex);
+  // One ITK call at a time: std::cerr's buffer and ITK's warning switch are process-wide.
+  const std::lock_guard<std::mutex> lock(itk_quiet::mutex());
   itk::Object::SetGlobalWarningDisplay(false);
-  const SilenceStdErr silence;
+  const itk_quiet::SilenceStdErr silence;
   itk::ImageIOBase::Pointer io = make_io(format);
   io->SetFileName(name);
   ItkImage image;
