@@ -1,0 +1,39 @@
+#include "pneuma/voxels/time_point.h"
+
+#include "pneuma/core/error.h"
+#include "pneuma/voxels/voxel_io.h"
+
+namespace pneuma::voxels {
+
+TimePoint compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs) {
+  TimePoint point;
+  point.forward = forward_dvf(grid, lungs, inputs.forward_outside);
+  point.pullback = pullback_dvf(grid, lungs, inputs.pullback_outside);
+  point.jacobian = jacobian_stats(lungs);
+  if (inputs.labels != nullptr) point.labels = warp_labels(*inputs.labels, point.pullback);
+  if (inputs.ct != nullptr) point.ct = warp_image(*inputs.ct, point.pullback);
+  return point;
+}
+
+TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
+                                const std::string& extension) {
+  if (extension != ".nii.gz" && extension != ".nii" && extension != ".mha") {
+    throw ValueError("voxel file extension '" + extension + "': expected .nii.gz, .nii or .mha");
+  }
+  TimePointFiles files;
+  files.forward = folder / ("dvf-forward-" + tag + extension);
+  files.pullback = folder / ("dvf-pullback-" + tag + extension);
+  write_dvf(files.forward, point.forward);
+  write_dvf(files.pullback, point.pullback);
+  if (point.labels) {
+    files.labels = folder / ("labels-" + tag + extension);
+    write_label_map(files.labels, *point.labels);
+  }
+  if (point.ct) {
+    files.ct = folder / ("ct-" + tag + extension);
+    write_image(files.ct, *point.ct);
+  }
+  return files;
+}
+
+}  // namespace pneuma::voxels
