@@ -2,15 +2,11 @@
 // outside every lung from the OutsideField.
 #include "pneuma/voxels/dvf.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <numeric>
 #include <string>
 
 #include "pneuma/core/error.h"
-#include "pneuma/core/tsan.h"
 #include "rasterize.h"
 
 namespace pneuma::voxels {
@@ -21,20 +17,10 @@ void check_lungs(std::span<const LungMotion> lungs) {
   for (const LungMotion& lung : lungs) check_lung_motion(lung);
 }
 
-// Fills the voxels no tet holds from `outside` (parallel over k; each voxel on its own).
-void fill_outside(DisplacementField& field, const OutsideField& outside) {
-  if (!outside) return;
-  const Grid& grid = field.grid;
-  const tsan::Region region;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, grid.size[2]), region.wrap([&](const auto& r) {
-    for (std::size_t k = r.begin(); k != r.end(); ++k)
-      for (std::size_t j = 0; j < grid.size[1]; ++j)
-        for (std::size_t i = 0; i < grid.size[0]; ++i) {
-          const std::size_t v = grid.index(i, j, k);
-          if (field.lung[v] == 0) field.displacement_m[v] = outside(grid.centre_m(i, j, k));
-        }
-  }));
-  region.join();
+// The value of a voxel that no tet holds: outside(x), or 0.
+void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i, std::size_t j,
+                 std::size_t k) {
+  field.displacement_m[v] = outside ? outside(field.grid.centre_m(i, j, k)) : Eigen::Vector3d::Zero();
 }
 
 }  // namespace
@@ -44,28 +30,40 @@ std::size_t DisplacementField::inside_count() const {
 }
 
 DisplacementField forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, const OutsideField& outside) {
-  check_lungs(lungs);
-  std::vector<detail::TetSet> sets;
-  sets.reserve(lungs.size());
-  for (const LungMotion& lung : lungs) sets.push_back({lung.mesh.tets, lung.mesh.nodes});
   DisplacementField field;
-  field.grid = grid;
-  field.displacement_m.assign(grid.voxel_count(), Eigen::Vector3d::Zero());
-  field.lung = detail::rasterize(grid, std::span<const detail::TetSet>(sets),
-                                 [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t,
-                                     std::size_t, std::size_t) {
-                                   const LungMotion& lung = lungs[s];
-                                   const mesh::Tetrahedron& tet = lung.mesh.tets[t];
-                                   Eigen::Vector3d u = Eigen::Vector3d::Zero();
-                                   for (std::size_t c = 0; c < 4; ++c)
-                                     u += l[static_cast<Eigen::Index>(c)] * lung.unit_displacement_m[tet[c]];
-                                   field.displacement_m[v] = lung.scale * u;
-                                 });
-  fill_outside(field, outside);
+  forward_dvf(grid, lungs, field, outside);
   return field;
 }
 
 DisplacementField pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, const OutsideField& outside) {
+  DisplacementField field;
+  pullback_dvf(grid, lungs, field, outside);
+  return field;
+}
+
+void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                 const OutsideField& outside) {
+  check_lungs(lungs);
+  std::vector<detail::TetSet> sets;
+  sets.reserve(lungs.size());
+  for (const LungMotion& lung : lungs) sets.push_back({lung.mesh.tets, lung.mesh.nodes});
+  field.grid = grid;
+  field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  detail::rasterize(
+      grid, std::span<const detail::TetSet>(sets), field.lung,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
+          std::size_t) {
+        const LungMotion& lung = lungs[s];
+        const mesh::Tetrahedron& tet = lung.mesh.tets[t];
+        Eigen::Vector3d u = Eigen::Vector3d::Zero();
+        for (std::size_t c = 0; c < 4; ++c) u += l[static_cast<Eigen::Index>(c)] * lung.unit_displacement_m[tet[c]];
+        field.displacement_m[v] = lung.scale * u;
+      },
+      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
+}
+
+void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                  const OutsideField& outside) {
   check_lungs(lungs);
   std::vector<std::vector<Eigen::Vector3d>> deformed(lungs.size());
   std::vector<detail::TetSet> sets;
@@ -78,21 +76,19 @@ DisplacementField pullback_dvf(const Grid& grid, std::span<const LungMotion> lun
     }
     sets.push_back({lung.mesh.tets, deformed[s]});
   }
-  DisplacementField field;
   field.grid = grid;
-  field.displacement_m.assign(grid.voxel_count(), Eigen::Vector3d::Zero());
-  field.lung = detail::rasterize(grid, std::span<const detail::TetSet>(sets),
-                                 [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l,
-                                     std::size_t i, std::size_t j, std::size_t k) {
-                                   const mesh::TetMesh& mesh = lungs[s].mesh;
-                                   const mesh::Tetrahedron& tet = mesh.tets[t];
-                                   Eigen::Vector3d rest = Eigen::Vector3d::Zero();
-                                   for (std::size_t c = 0; c < 4; ++c)
-                                     rest += l[static_cast<Eigen::Index>(c)] * mesh.nodes[tet[c]];
-                                   field.displacement_m[v] = rest - grid.centre_m(i, j, k);
-                                 });
-  fill_outside(field, outside);
-  return field;
+  field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  detail::rasterize(
+      grid, std::span<const detail::TetSet>(sets), field.lung,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t i, std::size_t j,
+          std::size_t k) {
+        const mesh::TetMesh& mesh = lungs[s].mesh;
+        const mesh::Tetrahedron& tet = mesh.tets[t];
+        Eigen::Vector3d rest = Eigen::Vector3d::Zero();
+        for (std::size_t c = 0; c < 4; ++c) rest += l[static_cast<Eigen::Index>(c)] * mesh.nodes[tet[c]];
+        field.displacement_m[v] = rest - grid.centre_m(i, j, k);
+      },
+      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
 }
 
 }  // namespace pneuma::voxels

@@ -29,15 +29,18 @@ inline constexpr std::size_t kSlabVoxels = 4;  // k-slices per parallel task
 
 // Calls visit(voxel, set, tet, l, i, j, k) once for every voxel whose centre lies in the closed
 // simplex of some tet (barycentric coordinates l >= -kBarycentricTolerance), for the first set
-// and in it the lowest tet holding it. Returns per voxel 0 (no tet) or 1 + the set's index.
+// and in it the lowest tet holding it, and empty(voxel, i, j, k) once for every other voxel (from
+// the same task, after its slab's tets: the outputs are first touched in parallel). Sets `owner`
+// per voxel to 0 (no tet) or 1 + the set's index (its storage reused).
 // Parallel over slabs of k, each slab's tets in increasing order: the same result at any thread
 // count. Degenerate tets (|6V| below 1e-12 of their bounding box's volume, in index space) hold
 // no voxel.
-template <typename Visit>
-std::vector<std::uint8_t> rasterize(const Grid& grid, std::span<const TetSet> sets, const Visit& visit) {
+template <typename Visit, typename Empty>
+void rasterize(const Grid& grid, std::span<const TetSet> sets, std::vector<std::uint8_t>& owner, const Visit& visit,
+               const Empty& empty) {
   const std::size_t nx = grid.size[0], ny = grid.size[1], nz = grid.size[2];
-  std::vector<std::uint8_t> owner(grid.voxel_count(), 0);
-  if (owner.empty()) return owner;
+  owner.assign(grid.voxel_count(), 0);
+  if (owner.empty()) return;
   const Eigen::Matrix4d to_ijk = grid.lps_to_ijk();
   const Eigen::Matrix3d linear = to_ijk.block<3, 3>(0, 0);
   const Eigen::Vector3d offset = to_ijk.block<3, 1>(0, 3);
@@ -140,10 +143,15 @@ std::vector<std::uint8_t> rasterize(const Grid& grid, std::span<const TetSet> se
           }
         }
       }
+      for (auto k = static_cast<std::size_t>(slab_k0); k <= static_cast<std::size_t>(slab_k1); ++k)
+        for (std::size_t j = 0; j < ny; ++j)
+          for (std::size_t i = 0; i < nx; ++i) {
+            const std::size_t v = i + nx * (j + ny * k);
+            if (owner[v] == 0) empty(v, i, j, k);
+          }
     }
   }));
   region.join();
-  return owner;
 }
 
 }  // namespace pneuma::voxels::detail

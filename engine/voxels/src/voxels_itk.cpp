@@ -19,6 +19,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <mutex>
 #include <string>
@@ -44,8 +45,7 @@ std::string lower(std::string s) {
 std::string written_extension(const fs::path& path) {
   const std::string n = lower(path.filename().string());
   for (const char* e : {".nii.gz", ".nii", ".mha"}) {
-    const std::string ext = e;
-    if (n.size() > ext.size() && n.compare(n.size() - ext.size(), ext.size(), ext) == 0) return ext;
+    if (n.size() > std::strlen(e) && n.ends_with(e)) return e;
   }
   return {};
 }

@@ -37,11 +37,16 @@ void for_each_sample(const DisplacementField& field, const Grid& source, const F
 
 mesh::LabelMap warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback) {
   mesh::LabelMap out;
+  warp_labels(labels, pullback, out);
+  return out;
+}
+
+void warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback, mesh::LabelMap& out) {
   out.size = pullback.grid.size;
   out.ijk_to_lps = pullback.grid.ijk_to_lps;
   out.transform_source = labels.transform_source;
   out.segments = labels.segments;
-  out.labels.assign(pullback.grid.voxel_count(), 0);
+  out.labels.resize(pullback.grid.voxel_count());
   const Grid source = grid_of(labels);
   const std::array<double, 3> n{static_cast<double>(labels.size[0]), static_cast<double>(labels.size[1]),
                                 static_cast<double>(labels.size[2])};
@@ -49,12 +54,14 @@ mesh::LabelMap warp_labels(const mesh::LabelMap& labels, const DisplacementField
     std::array<std::size_t, 3> at{};
     for (std::size_t a = 0; a < 3; ++a) {
       const double r = std::floor(q[static_cast<Eigen::Index>(a)] + 0.5);
-      if (!(r >= 0.0 && r < n[a])) return;  // outside the label map (or not finite): 0
+      if (!(r >= 0.0 && r < n[a])) {  // outside the label map (or not finite)
+        out.labels[v] = 0;
+        return;
+      }
       at[a] = static_cast<std::size_t>(r);
     }
     out.labels[v] = labels.labels[at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2])];
   });
-  return out;
 }
 
 Image warp_image(const Image& image, const DisplacementField& pullback, float outside) {

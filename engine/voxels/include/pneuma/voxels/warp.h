@@ -23,6 +23,8 @@ inline constexpr float kOutsideHu = -1024.0f;
 // coordinates rounded half up); 0 where that voxel is outside the label map. The result is on
 // the DVF's grid, with the input's segments.
 mesh::LabelMap warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback);
+// The same into `out` (its storage reused).
+void warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback, mesh::LabelMap& out);
 
 // Trilinear interpolation of the voxel values at x + v(x); `outside` where that point is more
 // than half a voxel outside the image (between the outer voxel centres and the image's edge the
