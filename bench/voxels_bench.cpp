@@ -8,9 +8,13 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
 
 #include "pneuma/voxels/dvf.h"
 #include "pneuma/voxels/jacobian.h"
+#include "pneuma/voxels/voxel_io.h"
 #include "pneuma/voxels/warp.h"
 
 using namespace pneuma;
@@ -133,6 +137,35 @@ void BM_JacobianStats(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(jacobian_stats(s.lungs()).min);
 }
 
+// Writing the pull-back DVF as .nii.gz (ITK's NIfTI writer, zlib at its default level).
+void BM_WritePullbackNiftiGz(benchmark::State& state) {
+  const Scene& s = scene();
+  const DisplacementField pull = pullback_dvf(s.grid, s.lungs());
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "pneuma-voxels-bench";
+  for (auto _ : state) write_dvf(dir / "dvf-pullback.nii.gz", pull);
+  std::filesystem::remove_all(dir);
+}
+
+// The external baseline: `plastimatch warp --interpolation nn` of the same label map through the
+// same field, files read and written (.nii, uncompressed) included; skipped without plastimatch.
+void BM_PlastimatchWarpLabels(benchmark::State& state) {
+  if (!std::filesystem::exists("/usr/bin/plastimatch")) {
+    state.SkipWithError("plastimatch is not installed");
+    return;
+  }
+  const Scene& s = scene();
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "pneuma-voxels-bench";
+  write_dvf(dir / "pull.nii", pullback_dvf(s.grid, s.lungs()));
+  write_label_map(dir / "labels.nii", s.labels);
+  const std::string command = "/usr/bin/plastimatch warp --input " + (dir / "labels.nii").string() + " --output-img " +
+                              (dir / "out.nii").string() + " --xf " + (dir / "pull.nii").string() +
+                              " --interpolation nn > /dev/null 2>&1";
+  for (auto _ : state) {
+    if (std::system(command.c_str()) != 0) state.SkipWithError("plastimatch failed");
+  }
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 
 BENCHMARK(BM_ForwardDvf)->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -141,5 +174,7 @@ BENCHMARK(BM_ForwardDvfReused)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_PullbackDvfAndWarpedLabelsReused)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_PullbackDvf)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_JacobianStats)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_WritePullbackNiftiGz)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+BENCHMARK(BM_PlastimatchWarpLabels)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
 
 BENCHMARK_MAIN();

@@ -144,6 +144,44 @@ TEST(VoxelFiles, NotAnImageIsOneLineNamingTheFile) {
   EXPECT_THROW(write_dvf(dir / "dvf.vtk", DisplacementField{}), ValueError);
 }
 
+// docs/formats.md's nibabel/scipy example, word for word: it must warp a CT as pneuma does.
+const char* const kDocsScipyExample = R"(import nibabel as nib, numpy as np, scipy.ndimage as ndi
+from nibabel.affines import apply_affine
+ct, v = nib.load("ct.nii.gz"), nib.load("dvf-pullback-1.500s.nii.gz")
+y = apply_affine(v.affine, np.moveaxis(np.indices(v.shape[:3]), 0, -1)) + v.get_fdata().reshape(v.shape[:3] + (3,)) * [-1, -1, 1]
+ijk = np.moveaxis(apply_affine(np.linalg.inv(ct.affine), y), -1, 0)
+nib.save(nib.Nifti1Image(ndi.map_coordinates(ct.get_fdata(), ijk, order=1, cval=-1024).astype("float32"), v.affine), "ct-1.500s.nii.gz")
+)";
+
+TEST(VoxelFiles, TheDocsScipyExampleWarpsTheCtAsPneumaDoes) {
+  if (!have_nibabel() || run_program(kPython, {"-c", "import scipy.ndimage"}).exit_code != 0) {
+    GTEST_SKIP()
+        << "nibabel or scipy is not importable by /usr/bin/python3 (install-deps: python3-nibabel python3-scipy)";
+  }
+  const Moved m;
+  Image ct;
+  ct.grid = m.ball.grid;
+  ct.values.resize(ct.grid.voxel_count());
+  for (std::size_t v = 0; v < ct.values.size(); ++v) {
+    const Eigen::Vector3d x = ct.grid.centre_m(v % 64, (v / 64) % 64, v / 4096) - m.ball.centre_m;
+    ct.values[v] = static_cast<float>(40.0 + 2e4 * x.x() - 1e4 * x.y() + 3e4 * x.z() + 1e6 * x.squaredNorm());
+  }
+  const DisplacementField pull = pullback_dvf(m.ball.grid, m.lungs());
+  const Image ours = warp_image(ct, pull);
+  const TempDir dir;
+  write_image(dir / "ct.nii.gz", ct);
+  write_dvf(dir / "dvf-pullback-1.500s.nii.gz", pull);
+  const CommandResult r = run_program(kPython, {"-c", kDocsScipyExample}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Image theirs = read_image(dir / "ct-1.500s.nii.gz");
+  ASSERT_EQ(theirs.values.size(), ours.values.size());
+  double worst_hu = 0.0;
+  for (std::size_t v = 0; v < ours.values.size(); ++v) {
+    worst_hu = std::max(worst_hu, static_cast<double>(std::abs(ours.values[v] - theirs.values[v])));
+  }
+  EXPECT_LE(worst_hu, 0.05);  // float32 displacements (in the file) against pneuma's doubles
+}
+
 double dice(const mesh::LabelMap& a, const mesh::LabelMap& b, std::int32_t label) {
   std::size_t na = 0, nb = 0, both = 0;
   for (std::size_t v = 0; v < a.labels.size(); ++v) {

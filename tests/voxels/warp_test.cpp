@@ -58,8 +58,8 @@ TEST(WarpLabels, DilatedBallGrowsByTheCubeOfItsScale) {
   // The warped label volume: (1 + s c)^3 times the rest label volume, less the shell where the
   // rest labels reach beyond the mesh (nearest-label sampling near the surface, up to half a
   // voxel: the voxels just outside the deformed surface have v = 0 and keep their own label, so
-  // nothing comes back in). Measured: -5.1 % for this 19 mm ball with 1 mm voxels (about
-  // 1.5 * voxel / radius: about 1 % for an adult lung at 1 mm).
+  // nothing comes back in). Measured: -5.1 % for this 20 mm ball with 1 mm voxels (it scales as
+  // voxel size over radius: about 1 % for an adult lung at 1 mm).
   const double rest_m3 = static_cast<double>(count_label(ball.labels, 1) + count_label(ball.labels, 2)) * voxel_m3;
   const double warped_m3 = static_cast<double>(count_label(warped, 1) + count_label(warped, 2)) * voxel_m3;
   EXPECT_NEAR(rest_m3, j.rest_volume_m3, 0.02 * j.rest_volume_m3);
