@@ -127,11 +127,6 @@ void BM_ForwardDvfReused(benchmark::State& state) {
   }
 }
 
-void BM_PullbackDvf(benchmark::State& state) {
-  const Scene& s = scene();
-  for (auto _ : state) benchmark::DoNotOptimize(pullback_dvf(s.grid, s.lungs()).displacement_m.data());
-}
-
 void BM_JacobianStats(benchmark::State& state) {
   const Scene& s = scene();
   for (auto _ : state) benchmark::DoNotOptimize(jacobian_stats(s.lungs()).min);
@@ -172,7 +167,6 @@ BENCHMARK(BM_ForwardDvf)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_PullbackDvfAndWarpedLabels)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_ForwardDvfReused)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_PullbackDvfAndWarpedLabelsReused)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_PullbackDvf)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_JacobianStats)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_WritePullbackNiftiGz)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
 BENCHMARK(BM_PlastimatchWarpLabels)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);

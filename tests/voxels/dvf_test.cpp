@@ -158,7 +158,7 @@ TEST(Dvf, FirstLungWinsAndOutsideComesFromTheCallback) {
   const std::vector<LungMotion> lungs{LungMotion{cube.mesh, zero, 1.0}, LungMotion{cube.mesh, cube.u, 1.0}};
   const Eigen::Vector3d body(1e-3, 2e-3, 3e-3);
   const DisplacementField f =
-      forward_dvf(cube.grid, lungs, [&](const Eigen::Vector3d&) -> Eigen::Vector3d { return body; });
+      forward_dvf(cube.grid, lungs, [&](const Eigen::Vector3d&) { return Eigen::Vector3d(body); });
   for (std::size_t v = 0; v < f.lung.size(); ++v) {
     EXPECT_NE(f.lung[v], 2);
     EXPECT_EQ(f.displacement_m[v], f.lung[v] == 1 ? Eigen::Vector3d::Zero() : body);

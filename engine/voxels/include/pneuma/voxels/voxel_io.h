@@ -24,6 +24,9 @@ void write_image(const std::filesystem::path& path, const Image& image);
 // A scalar image (a CT) of any numeric voxel type, as float: .nii, .nii.gz, .nrrd, .nhdr, .mha,
 // .mhd, geometry as ITK reads it (LPS). Throws IoError when the file cannot be opened and
 // InputError "<file>: <what was expected>" when it is not a 3D scalar image of a known format.
+// Not yet what read_label_map() does beyond ITK: a NIfTI file whose sform and qform disagree
+// gets ITK's choice, not pneuma's rule (sform first), and a file cut short is not detected
+// (ITK 5.2 reads it, the missing voxels undefined).
 Image read_image(const std::filesystem::path& path);
 
 }  // namespace pneuma::voxels
