@@ -126,6 +126,13 @@ TEST(VoxelFiles, LabelMapAndCtReadBackOnTheSameGeometry) {
     EXPECT_LE((back.grid.ijk_to_lps - point.ct->grid.ijk_to_lps).cwiseAbs().maxCoeff(), 1e-9);
   }
   EXPECT_EQ(dir.files().size(), 8u);
+  // Into the buffers of another time point: the same values.
+  TimePoint reused = compute_time_point(m.ball.grid, std::vector<LungMotion>{LungMotion{m.ball.mesh, m.u, 0.3}});
+  compute_time_point(m.ball.grid, m.lungs(), inputs, reused);
+  EXPECT_EQ(reused.pullback.displacement_m, point.pullback.displacement_m);
+  EXPECT_EQ(reused.forward.lung, point.forward.lung);
+  EXPECT_EQ(reused.labels->labels, point.labels->labels);
+  EXPECT_EQ(reused.ct->values, point.ct->values);
 }
 
 TEST(VoxelFiles, NotAnImageIsOneLineNamingTheFile) {

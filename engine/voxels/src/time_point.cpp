@@ -7,12 +7,26 @@ namespace pneuma::voxels {
 
 TimePoint compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs) {
   TimePoint point;
-  point.forward = forward_dvf(grid, lungs, inputs.forward_outside);
-  point.pullback = pullback_dvf(grid, lungs, inputs.pullback_outside);
-  point.jacobian = jacobian_stats(lungs);
-  if (inputs.labels != nullptr) point.labels = warp_labels(*inputs.labels, point.pullback);
-  if (inputs.ct != nullptr) point.ct = warp_image(*inputs.ct, point.pullback);
+  compute_time_point(grid, lungs, inputs, point);
   return point;
+}
+
+void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs,
+                        TimePoint& point) {
+  forward_dvf(grid, lungs, point.forward, inputs.forward_outside);
+  pullback_dvf(grid, lungs, point.pullback, inputs.pullback_outside);
+  point.jacobian = jacobian_stats(lungs);
+  if (inputs.labels != nullptr) {
+    if (!point.labels) point.labels.emplace();
+    warp_labels(*inputs.labels, point.pullback, *point.labels);
+  } else {
+    point.labels.reset();
+  }
+  if (inputs.ct != nullptr) {
+    point.ct = warp_image(*inputs.ct, point.pullback);
+  } else {
+    point.ct.reset();
+  }
 }
 
 TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,

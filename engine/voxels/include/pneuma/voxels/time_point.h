@@ -29,6 +29,10 @@ struct TimePoint {
 };
 
 TimePoint compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs = {});
+// The same into `point`, its buffers reused (a run's later time points: no fresh pages, which
+// cost more than the computation itself; BENCHMARKS.md, "Voxel outputs").
+void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs,
+                        TimePoint& point);
 
 struct TimePointFiles {
   std::filesystem::path forward, pullback, labels, ct;  // empty when not written
