@@ -147,6 +147,21 @@ TEST(VoxelFiles, NotAnImageIsOneLineNamingTheFile) {
     EXPECT_EQ(what.find('\n'), std::string::npos) << what;
   }
   EXPECT_THROW(read_image(dir.write("ct.txt", "x")), InputError);
+  // A CT cut short: refused before ITK reads it (ITK 5.2 would fill the rest with anything).
+  Image ct;
+  ct.grid.size = {40, 30, 20};
+  ct.values.assign(ct.grid.voxel_count(), 1.5f);
+  write_image(dir / "whole.nii", ct);
+  const std::string bytes = pneuma::test::read_text(dir / "whole.nii");
+  const fs::path cut = dir.write("cut.nii", bytes.substr(0, bytes.size() / 2));
+  try {
+    read_image(cut);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              cut.string() + ": truncated or corrupt: expected 40 x 30 x 20 voxels of FLOAT32 (96000 bytes of data)");
+  }
+  EXPECT_EQ(read_image(dir / "whole.nii").values, ct.values);
   EXPECT_THROW(read_image(dir / "missing.nii.gz"), IoError);
   EXPECT_THROW(write_dvf(dir / "dvf.vtk", DisplacementField{}), ValueError);
 }

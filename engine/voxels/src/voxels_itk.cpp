@@ -1,5 +1,6 @@
-// The module's one translation unit that includes ITK (5.2: ITKIONIFTI, ITKIONRRD, ITKIOMeta over
-// ITKIOImageBase), as mesh/labels/src/labels_itk.cpp does: ImageIO classes used directly (no
+// The module's one translation unit that includes ITK (5.2: ITKIONIFTI, ITKIOMeta over
+// ITKIOImageBase), the writers (images are read by mesh/labels' reader), as
+// mesh/labels/src/labels_itk.cpp does: ImageIO classes used directly (no
 // itk::Image, no IO factories), each call alone and silent (itk_quiet.h), ITK's exceptions turned
 // into pneuma's one line.
 //
@@ -13,7 +14,6 @@
 // clang-format on
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
-#include <itkNrrdImageIO.h>
 
 #include "itk_quiet.h"
 
@@ -27,7 +27,6 @@
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
-#include "pneuma/mesh/io/readable_file.h"
 #include "pneuma/voxels/voxel_io.h"
 
 namespace pneuma::voxels {
@@ -108,24 +107,6 @@ void write_itk(const fs::path& path, const Grid& grid, itk::IOPixelEnum pixel, C
   });
 }
 
-template <typename T>
-std::vector<float> read_as_float(itk::ImageIOBase& io, std::size_t count) {
-  std::vector<T> buffer(count);
-  io.Read(buffer.data());
-  std::vector<float> out(count);
-  for (std::size_t v = 0; v < count; ++v) out[v] = static_cast<float>(buffer[v]);
-  return out;
-}
-
-const char* format_expectation(const std::string& format) {
-  if (format == "nifti") {
-    return "not a NIfTI image: expected a NIfTI-1 or NIfTI-2 header (magic 'n+1' or 'n+2'), gzip-compressed for "
-           ".nii.gz";
-  }
-  if (format == "nrrd") return "not a NRRD image: expected the magic line 'NRRD0001'..'NRRD0005' and its header";
-  return "not a MetaImage: expected 'Key = Value' header lines with NDims, DimSize, ElementType and ElementDataFile";
-}
-
 }  // namespace
 
 void write_dvf(const fs::path& path, const DisplacementField& field) {
@@ -153,92 +134,6 @@ void write_label_map(const fs::path& path, const mesh::LabelMap& map) {
 
 void write_image(const fs::path& path, const Image& image) {
   write_itk(path, image.grid, itk::IOPixelEnum::SCALAR, Component::FLOAT, 1, image.values.data());
-}
-
-Image read_image(const fs::path& path) {
-  const std::string name = path.string();
-  mesh::detail::require_readable_file(path);
-  const std::string n = lower(path.filename().string());
-  const auto ends = [&](const std::string& e) { return n.size() > e.size() && n.ends_with(e); };
-  std::string format;
-  if (ends(".nii") || ends(".nii.gz")) format = "nifti";
-  if (ends(".nrrd") || ends(".nhdr")) format = "nrrd";
-  if (ends(".mha") || ends(".mhd")) format = "meta";
-  if (format.empty()) throw InputError(name + ": expected an image: .nii, .nii.gz, .nrrd, .nhdr, .mha or .mhd");
-
-  const std::lock_guard<std::mutex> lock(itk_quiet::mutex());
-  itk::Object::SetGlobalWarningDisplay(false);
-  const itk_quiet::SilenceStdErr silence;
-  itk::ImageIOBase::Pointer io;
-  if (format == "nifti") io = itk::NiftiImageIO::New().GetPointer();
-  if (format == "nrrd") io = itk::NrrdImageIO::New().GetPointer();
-  if (format == "meta") io = itk::MetaImageIO::New().GetPointer();
-  io->SetFileName(name);
-  Image image;
-  std::size_t count = 0;
-  try {
-    if (!io->CanReadFile(name.c_str())) throw InputError(name + ": " + format_expectation(format));
-    io->ReadImageInformation();
-    const unsigned dims = io->GetNumberOfDimensions();
-    if (dims < 2 || dims > 4 || (dims == 4 && io->GetDimensions(3) > 1)) {
-      throw InputError(name + ": " + std::to_string(dims) + "-dimensional data: expected one 3D image");
-    }
-    if (io->GetNumberOfComponents() != 1) {
-      throw InputError(name + ": " + std::to_string(io->GetNumberOfComponents()) +
-                       " values per voxel: expected a scalar image (a CT)");
-    }
-    Eigen::Matrix3d direction = Eigen::Matrix3d::Identity();
-    Eigen::Vector3d spacing_mm = Eigen::Vector3d::Ones(), origin_mm = Eigen::Vector3d::Zero();
-    double voxels = 1.0;
-    for (unsigned d = 0; d < 3; ++d) {
-      const auto di = static_cast<Eigen::Index>(d);
-      image.grid.size[d] = d < dims ? io->GetDimensions(d) : 1;
-      voxels *= static_cast<double>(image.grid.size[d]);
-      if (d >= dims) continue;
-      spacing_mm[di] = io->GetSpacing(d);
-      origin_mm[di] = io->GetOrigin(d);
-      const std::vector<double> column = io->GetDirection(d);
-      for (unsigned r = 0; r < 3 && r < column.size(); ++r) direction(static_cast<Eigen::Index>(r), di) = column[r];
-    }
-    if (!(voxels >= 1.0 && voxels <= 2147483648.0)) {
-      throw InputError(name + ": " + std::to_string(voxels) + " voxels: expected a non-empty 3D image of at most 2^31");
-    }
-    image.grid.ijk_to_lps.block<3, 3>(0, 0) = direction * spacing_mm.asDiagonal() * 1e-3;
-    image.grid.ijk_to_lps.block<3, 1>(0, 3) = origin_mm * 1e-3;
-    if (!image.grid.ijk_to_lps.allFinite() || !(image.grid.voxel_volume_m3() > 0.0)) {
-      throw InputError(name + ": a singular or non-finite voxel-to-world transform: expected voxel axes of positive "
-                              "length");
-    }
-    count = image.grid.voxel_count();
-    itk::ImageIORegion region(dims);
-    for (unsigned d = 0; d < dims; ++d) {
-      region.SetIndex(d, 0);
-      region.SetSize(d, io->GetDimensions(d));
-    }
-    io->SetIORegion(region);
-    switch (io->GetComponentType()) {
-      case Component::UCHAR: image.values = read_as_float<unsigned char>(*io, count); break;
-      case Component::CHAR: image.values = read_as_float<signed char>(*io, count); break;
-      case Component::USHORT: image.values = read_as_float<unsigned short>(*io, count); break;
-      case Component::SHORT: image.values = read_as_float<short>(*io, count); break;
-      case Component::UINT: image.values = read_as_float<unsigned int>(*io, count); break;
-      case Component::INT: image.values = read_as_float<int>(*io, count); break;
-      case Component::ULONG: image.values = read_as_float<unsigned long>(*io, count); break;
-      case Component::LONG: image.values = read_as_float<long>(*io, count); break;
-      case Component::ULONGLONG: image.values = read_as_float<unsigned long long>(*io, count); break;
-      case Component::LONGLONG: image.values = read_as_float<long long>(*io, count); break;
-      case Component::FLOAT: image.values = read_as_float<float>(*io, count); break;
-      case Component::DOUBLE: image.values = read_as_float<double>(*io, count); break;
-      default: throw InputError(name + ": voxels of an unknown type: expected numbers (int16, float32, ...)");
-    }
-  } catch (const itk::ExceptionObject&) {
-    throw InputError(name + ": " + format_expectation(format));
-  } catch (const std::bad_alloc&) {
-    throw InputError(name + ": " + format_expectation(format));
-  } catch (const std::length_error&) {
-    throw InputError(name + ": " + format_expectation(format));
-  }
-  return image;
 }
 
 }  // namespace pneuma::voxels

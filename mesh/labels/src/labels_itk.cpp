@@ -73,10 +73,15 @@ const char* type_name(Component c) {
 }
 
 template <typename T>
-void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& image) {
+void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& image, VoxelKind kind) {
   const std::size_t count = image.voxel_count() * image.components;
   std::vector<T> buffer(count);
   io.Read(buffer.data());
+  if (kind == VoxelKind::reals) {
+    image.reals.resize(count);
+    for (std::size_t v = 0; v < count; ++v) image.reals[v] = static_cast<float>(buffer[v]);
+    return;
+  }
   image.values.resize(count);
   for (std::size_t v = 0; v < count; ++v) {
     const double value = static_cast<double>(buffer[v]);
@@ -107,7 +112,9 @@ std::string truncated_message(const std::string& name, const std::array<std::siz
 namespace {
 
 // The header as ITK reads it; ITK's exceptions pass (the caller turns them into one line).
-ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat format) {
+ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat format, VoxelKind kind) {
+  const std::string expected = kind == VoxelKind::labels ? "expected integer labels (uint8, int16, int32, ...)"
+                                                         : "expected numbers (int16, float32, ...)";
   if (!io.CanReadFile(name.c_str())) throw InputError(name + ": " + format_expectation(format));
   io.ReadImageInformation();
   ItkImage image;
@@ -142,12 +149,12 @@ ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat 
   const itk::IOPixelEnum pixel = io.GetPixelType();
   const bool integral_or_real = component != Component::UNKNOWNCOMPONENTTYPE && component != Component::LDOUBLE;
   if (!integral_or_real) {
-    throw InputError(name + ": voxels of an unknown type: expected integer labels (uint8, int16, int32, ...)");
+    throw InputError(name + ": voxels of an unknown type: " + expected);
   }
   if (pixel == itk::IOPixelEnum::COMPLEX || pixel == itk::IOPixelEnum::RGB || pixel == itk::IOPixelEnum::RGBA ||
       image.components == 0) {
     throw InputError(name + ": voxels of type " + itk::ImageIOBase::GetPixelTypeAsString(pixel) + " " +
-                     image.type_name + ": expected integer labels (uint8, int16, int32, ...)");
+                     image.type_name + ": " + expected);
   }
   image.component_bytes = io.GetComponentSize();
 
@@ -162,7 +169,7 @@ ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat 
 }  // namespace
 
 ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
-                        const std::function<StoredData(const ItkImage&)>& stored) {
+                        const std::function<StoredData(const ItkImage&)>& stored, VoxelKind kind) {
   const std::string name = path.string();
   // One ITK call at a time: std::cerr's buffer and ITK's warning switch are process-wide.
   const std::lock_guard<std::mutex> lock(itk_quiet::mutex());
@@ -172,7 +179,7 @@ ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
   io->SetFileName(name);
   ItkImage image;
   try {
-    image = read_header(*io, name, format);
+    image = read_header(*io, name, format, kind);
   } catch (const itk::ExceptionObject&) {
     throw InputError(name + ": " + format_expectation(format));
   } catch (const std::bad_alloc&) {
@@ -197,18 +204,18 @@ ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
     }
     io->SetIORegion(region);
     switch (io->GetComponentType()) {
-      case Component::UCHAR: read_and_convert<unsigned char>(*io, name, image); break;
-      case Component::CHAR: read_and_convert<signed char>(*io, name, image); break;
-      case Component::USHORT: read_and_convert<unsigned short>(*io, name, image); break;
-      case Component::SHORT: read_and_convert<short>(*io, name, image); break;
-      case Component::UINT: read_and_convert<unsigned int>(*io, name, image); break;
-      case Component::INT: read_and_convert<int>(*io, name, image); break;
-      case Component::ULONG: read_and_convert<unsigned long>(*io, name, image); break;
-      case Component::LONG: read_and_convert<long>(*io, name, image); break;
-      case Component::ULONGLONG: read_and_convert<unsigned long long>(*io, name, image); break;
-      case Component::LONGLONG: read_and_convert<long long>(*io, name, image); break;
-      case Component::FLOAT: read_and_convert<float>(*io, name, image); break;
-      case Component::DOUBLE: read_and_convert<double>(*io, name, image); break;
+      case Component::UCHAR: read_and_convert<unsigned char>(*io, name, image, kind); break;
+      case Component::CHAR: read_and_convert<signed char>(*io, name, image, kind); break;
+      case Component::USHORT: read_and_convert<unsigned short>(*io, name, image, kind); break;
+      case Component::SHORT: read_and_convert<short>(*io, name, image, kind); break;
+      case Component::UINT: read_and_convert<unsigned int>(*io, name, image, kind); break;
+      case Component::INT: read_and_convert<int>(*io, name, image, kind); break;
+      case Component::ULONG: read_and_convert<unsigned long>(*io, name, image, kind); break;
+      case Component::LONG: read_and_convert<long>(*io, name, image, kind); break;
+      case Component::ULONGLONG: read_and_convert<unsigned long long>(*io, name, image, kind); break;
+      case Component::LONGLONG: read_and_convert<long long>(*io, name, image, kind); break;
+      case Component::FLOAT: read_and_convert<float>(*io, name, image, kind); break;
+      case Component::DOUBLE: read_and_convert<double>(*io, name, image, kind); break;
       default: throw InputError(truncated);  // excluded with the header
     }
   } catch (const itk::ExceptionObject&) {

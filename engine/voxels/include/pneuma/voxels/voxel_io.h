@@ -1,5 +1,5 @@
 #pragma once
-// Voxel files through ITK 5.2 (voxels_itk.cpp, the module's one ITK translation unit), by the
+// Voxel files written through ITK 5.2 (voxels_itk.cpp, the module's one ITK translation unit), by the
 // name's ending: .nii / .nii.gz (NIfTI-1) or .mha (MetaImage, one file). Every file is written
 // atomically (a temporary name in the same folder, then a rename): a failure leaves nothing.
 //
@@ -21,12 +21,10 @@ void write_dvf(const std::filesystem::path& path, const DisplacementField& field
 void write_label_map(const std::filesystem::path& path, const mesh::LabelMap& map);
 void write_image(const std::filesystem::path& path, const Image& image);
 
-// A scalar image (a CT) of any numeric voxel type, as float: .nii, .nii.gz, .nrrd, .nhdr, .mha,
-// .mhd, geometry as ITK reads it (LPS). Throws IoError when the file cannot be opened and
-// InputError "<file>: <what was expected>" when it is not a 3D scalar image of a known format.
-// Not yet what read_label_map() does beyond ITK: a NIfTI file whose sform and qform disagree
-// gets ITK's choice, not pneuma's rule (sform first), and a file cut short is not detected
-// (ITK 5.2 reads it, the missing voxels undefined).
+// A scalar image (a CT) of any numeric voxel type, as float, by mesh::read_scalar_image()
+// (pneuma/mesh/labels/image.h: read_label_map()'s formats, transform rule and checks). Throws
+// IoError when the file cannot be opened and InputError "<file>: <what was expected>" when it is
+// not a 3D scalar image of a known format or is truncated.
 Image read_image(const std::filesystem::path& path);
 
 }  // namespace pneuma::voxels
