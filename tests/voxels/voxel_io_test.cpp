@@ -79,6 +79,8 @@ TEST(VoxelFiles, NibabelReadsTheDvfAsAVectorImageInLpsMillimetres) {
   const TempDir dir;
   write_dvf(dir / "pull.nii.gz", pull);
   EXPECT_EQ(dir.files(), std::vector<std::string>{"pull.nii.gz"});  // no temporary left
+  write_dvf(dir / "again.nii.gz", pullback_dvf(m.ball.grid, m.lungs()));
+  EXPECT_EQ(pneuma::test::read_text(dir / "again.nii.gz"), pneuma::test::read_text(dir / "pull.nii.gz"));  // same bytes
   const CommandResult r = nibabel_dump(dir / "pull.nii.gz", dir / "raw");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::printf("nibabel: %s", r.out.c_str());  // shape; intent, qform and sform codes; affine
