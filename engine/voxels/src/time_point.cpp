@@ -23,7 +23,8 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
     point.labels.reset();
   }
   if (inputs.ct != nullptr) {
-    point.ct = warp_image(*inputs.ct, point.pullback);
+    if (!point.ct) point.ct.emplace();
+    warp_image(*inputs.ct, point.pullback, *point.ct);
   } else {
     point.ct.reset();
   }

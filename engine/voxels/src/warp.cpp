@@ -66,8 +66,13 @@ void warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback
 
 Image warp_image(const Image& image, const DisplacementField& pullback, float outside) {
   Image out;
+  warp_image(image, pullback, out, outside);
+  return out;
+}
+
+void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside) {
   out.grid = pullback.grid;
-  out.values.assign(pullback.grid.voxel_count(), outside);
+  out.values.resize(pullback.grid.voxel_count());
   const std::array<std::size_t, 3> size = image.grid.size;
   for_each_sample(pullback, image.grid, [&](std::size_t v, const Eigen::Vector3d& q) {
     std::array<std::size_t, 3> lo{}, hi{};
@@ -75,7 +80,10 @@ Image warp_image(const Image& image, const DisplacementField& pullback, float ou
     for (std::size_t a = 0; a < 3; ++a) {
       const double top = static_cast<double>(size[a] - 1);
       const double c = q[static_cast<Eigen::Index>(a)];
-      if (!(c >= -0.5 && c <= top + 0.5)) return;  // outside the image (or not finite)
+      if (!(c >= -0.5 && c <= top + 0.5)) {  // outside the image (or not finite)
+        out.values[v] = outside;
+        return;
+      }
       const double clamped = std::clamp(c, 0.0, top);
       const double base = std::min(std::floor(clamped), std::max(top - 1.0, 0.0));
       lo[a] = static_cast<std::size_t>(base);
@@ -94,7 +102,6 @@ Image warp_image(const Image& image, const DisplacementField& pullback, float ou
     }
     out.values[v] = static_cast<float>(value);
   });
-  return out;
 }
 
 }  // namespace pneuma::voxels

@@ -30,5 +30,7 @@ void warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback
 // than half a voxel outside the image (between the outer voxel centres and the image's edge the
 // edge value is kept).
 Image warp_image(const Image& image, const DisplacementField& pullback, float outside = kOutsideHu);
+// The same into `out` (its storage reused).
+void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside = kOutsideHu);
 
 }  // namespace pneuma::voxels
