@@ -18,6 +18,10 @@ namespace pneuma::mesh::detail {
 
 enum class ImageFormat { nifti, nrrd, meta };
 
+// What the voxels must be: integer labels (converted to int32, anything else refused) or any
+// numbers (an image such as a CT, converted to float).
+enum class VoxelKind { labels, reals };
+
 struct ItkImage {
   std::array<std::size_t, 3> size{0, 0, 0};
   std::size_t components = 1;  // values per voxel (the layers of a .seg.nrrd)
@@ -25,7 +29,8 @@ struct ItkImage {
   std::string type_name;  // NIfTI's spelling: "UINT8", "INT16", "FLOAT32", ...
   // ITK's origin, spacing and direction (LPS millimetres) as one matrix in LPS metres.
   Eigen::Matrix4d ijk_to_lps = Eigen::Matrix4d::Identity();
-  std::vector<std::int32_t> values;             // component fastest, then i, j, k
+  std::vector<std::int32_t> values;             // VoxelKind::labels: component fastest, then i, j, k
+  std::vector<float> reals;                     // VoxelKind::reals: the same order
   std::map<std::string, std::string> metadata;  // the text entries of ITK's dictionary
 
   std::size_t voxel_count() const { return size[0] * size[1] * size[2]; }
@@ -44,11 +49,11 @@ struct StoredData {
 // Reads the header, asks `stored` where the data is (with the header filled in, values empty),
 // refuses sizes the file cannot hold before anything is allocated ("<file>: truncated or
 // corrupt: expected 48 x 40 x 32 voxels of INT16 (122880 bytes of data)"), then reads the voxels
-// and converts them to int32 ("<file>: voxel 7 holds 0.5: expected integer labels ..."). Every
-// ITK exception becomes one InputError line; nothing of ITK's text is passed on. Calls from
-// several threads are safe (they take turns).
+// and converts them to int32 ("<file>: voxel 7 holds 0.5: expected integer labels ...") or, for
+// VoxelKind::reals, to float. Every ITK exception becomes one InputError line; nothing of ITK's
+// text is passed on. Calls from several threads are safe (they take turns).
 ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
-                        const std::function<StoredData(const ItkImage&)>& stored);
+                        const std::function<StoredData(const ItkImage&)>& stored, VoxelKind kind = VoxelKind::labels);
 
 // "truncated or corrupt: expected 48 x 40 x 32 voxels of INT16 (122880 bytes of data after
 // decompression)", shared by the checks on either side of ITK.

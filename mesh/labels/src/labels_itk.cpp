@@ -12,13 +12,13 @@
 #include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
 
+#include "itk_quiet.h"
+
 #include <cmath>
-#include <iostream>
 #include <limits>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
-#include <streambuf>
 
 #include "label_image.h"
 #include "pneuma/core/error.h"
@@ -27,21 +27,6 @@ namespace pneuma::mesh::detail {
 namespace {
 
 using Component = itk::IOComponentEnum;
-
-// MetaIO writes its complaints to std::cerr; they are replaced by pneuma's one line.
-class SilenceStdErr {
- public:
-  SilenceStdErr() : saved_(std::cerr.rdbuf(&null_)) {}
-  ~SilenceStdErr() { std::cerr.rdbuf(saved_); }
-  SilenceStdErr(const SilenceStdErr&) = delete;
-  SilenceStdErr& operator=(const SilenceStdErr&) = delete;
-
- private:
-  struct NullBuffer : std::streambuf {
-    int overflow(int c) override { return c; }
-  } null_;
-  std::streambuf* saved_;
-};
 
 itk::ImageIOBase::Pointer make_io(ImageFormat format) {
   switch (format) {
@@ -88,10 +73,15 @@ const char* type_name(Component c) {
 }
 
 template <typename T>
-void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& image) {
+void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& image, VoxelKind kind) {
   const std::size_t count = image.voxel_count() * image.components;
   std::vector<T> buffer(count);
   io.Read(buffer.data());
+  if (kind == VoxelKind::reals) {
+    image.reals.resize(count);
+    for (std::size_t v = 0; v < count; ++v) image.reals[v] = static_cast<float>(buffer[v]);
+    return;
+  }
   image.values.resize(count);
   for (std::size_t v = 0; v < count; ++v) {
     const double value = static_cast<double>(buffer[v]);
@@ -122,7 +112,9 @@ std::string truncated_message(const std::string& name, const std::array<std::siz
 namespace {
 
 // The header as ITK reads it; ITK's exceptions pass (the caller turns them into one line).
-ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat format) {
+ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat format, VoxelKind kind) {
+  const std::string expected = kind == VoxelKind::labels ? "expected integer labels (uint8, int16, int32, ...)"
+                                                         : "expected numbers (int16, float32, ...)";
   if (!io.CanReadFile(name.c_str())) throw InputError(name + ": " + format_expectation(format));
   io.ReadImageInformation();
   ItkImage image;
@@ -157,12 +149,12 @@ ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat 
   const itk::IOPixelEnum pixel = io.GetPixelType();
   const bool integral_or_real = component != Component::UNKNOWNCOMPONENTTYPE && component != Component::LDOUBLE;
   if (!integral_or_real) {
-    throw InputError(name + ": voxels of an unknown type: expected integer labels (uint8, int16, int32, ...)");
+    throw InputError(name + ": voxels of an unknown type: " + expected);
   }
   if (pixel == itk::IOPixelEnum::COMPLEX || pixel == itk::IOPixelEnum::RGB || pixel == itk::IOPixelEnum::RGBA ||
       image.components == 0) {
     throw InputError(name + ": voxels of type " + itk::ImageIOBase::GetPixelTypeAsString(pixel) + " " +
-                     image.type_name + ": expected integer labels (uint8, int16, int32, ...)");
+                     image.type_name + ": " + expected);
   }
   image.component_bytes = io.GetComponentSize();
 
@@ -177,18 +169,17 @@ ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat 
 }  // namespace
 
 ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
-                        const std::function<StoredData(const ItkImage&)>& stored) {
+                        const std::function<StoredData(const ItkImage&)>& stored, VoxelKind kind) {
   const std::string name = path.string();
-  // One read at a time: std::cerr's buffer and ITK's warning switch are process-wide.
-  static std::mutex itk_mutex;
-  const std::lock_guard<std::mutex> lock(itk_mutex);
+  // One ITK call at a time: std::cerr's buffer and ITK's warning switch are process-wide.
+  const std::lock_guard<std::mutex> lock(itk_quiet::mutex());
   itk::Object::SetGlobalWarningDisplay(false);
-  const SilenceStdErr silence;
+  const itk_quiet::SilenceStdErr silence;
   itk::ImageIOBase::Pointer io = make_io(format);
   io->SetFileName(name);
   ItkImage image;
   try {
-    image = read_header(*io, name, format);
+    image = read_header(*io, name, format, kind);
   } catch (const itk::ExceptionObject&) {
     throw InputError(name + ": " + format_expectation(format));
   } catch (const std::bad_alloc&) {
@@ -213,18 +204,18 @@ ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
     }
     io->SetIORegion(region);
     switch (io->GetComponentType()) {
-      case Component::UCHAR: read_and_convert<unsigned char>(*io, name, image); break;
-      case Component::CHAR: read_and_convert<signed char>(*io, name, image); break;
-      case Component::USHORT: read_and_convert<unsigned short>(*io, name, image); break;
-      case Component::SHORT: read_and_convert<short>(*io, name, image); break;
-      case Component::UINT: read_and_convert<unsigned int>(*io, name, image); break;
-      case Component::INT: read_and_convert<int>(*io, name, image); break;
-      case Component::ULONG: read_and_convert<unsigned long>(*io, name, image); break;
-      case Component::LONG: read_and_convert<long>(*io, name, image); break;
-      case Component::ULONGLONG: read_and_convert<unsigned long long>(*io, name, image); break;
-      case Component::LONGLONG: read_and_convert<long long>(*io, name, image); break;
-      case Component::FLOAT: read_and_convert<float>(*io, name, image); break;
-      case Component::DOUBLE: read_and_convert<double>(*io, name, image); break;
+      case Component::UCHAR: read_and_convert<unsigned char>(*io, name, image, kind); break;
+      case Component::CHAR: read_and_convert<signed char>(*io, name, image, kind); break;
+      case Component::USHORT: read_and_convert<unsigned short>(*io, name, image, kind); break;
+      case Component::SHORT: read_and_convert<short>(*io, name, image, kind); break;
+      case Component::UINT: read_and_convert<unsigned int>(*io, name, image, kind); break;
+      case Component::INT: read_and_convert<int>(*io, name, image, kind); break;
+      case Component::ULONG: read_and_convert<unsigned long>(*io, name, image, kind); break;
+      case Component::LONG: read_and_convert<long>(*io, name, image, kind); break;
+      case Component::ULONGLONG: read_and_convert<unsigned long long>(*io, name, image, kind); break;
+      case Component::LONGLONG: read_and_convert<long long>(*io, name, image, kind); break;
+      case Component::FLOAT: read_and_convert<float>(*io, name, image, kind); break;
+      case Component::DOUBLE: read_and_convert<double>(*io, name, image, kind); break;
       default: throw InputError(truncated);  // excluded with the header
     }
   } catch (const itk::ExceptionObject&) {

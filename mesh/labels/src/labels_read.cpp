@@ -18,6 +18,7 @@
 #include "label_image.h"
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/io/readable_file.h"
+#include "pneuma/mesh/labels/image.h"
 #include "pneuma/mesh/labels/labels.h"
 
 namespace pneuma::mesh {
@@ -292,7 +293,13 @@ Eigen::Matrix4d nifti_ijk_to_lps(const NiftiHeader& n, std::string& source) {
   return m;
 }
 
-LabelMap read_nifti(const fs::path& path, const std::string& name, const LabelMapOptions& options) {
+struct NiftiVoxels {
+  NiftiHeader header;
+  detail::ItkImage image;
+};
+
+// The header by pneuma's reading, its data checked against the file, then the voxels through ITK.
+NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, detail::VoxelKind kind) {
   const NiftiHeader n = read_nifti_header(path, name);
   const std::int64_t rank = n.dim[0];
   if (rank < 1 || rank > 7) throw InputError(name + ": dim[0] is " + std::to_string(rank) + ": expected 1 to 7");
@@ -313,7 +320,9 @@ LabelMap read_nifti(const fs::path& path, const std::string& name, const LabelMa
   const char* type = nifti_type_name(n.datatype);
   const int type_bytes = nifti_type_bytes(n.datatype);
   if (type_bytes == 0) {
-    throw InputError(name + ": voxels of type " + type + ": expected integer labels (uint8, int16, int32, ...)");
+    throw InputError(name + ": voxels of type " + type + ": " +
+                     (kind == detail::VoxelKind::labels ? "expected integer labels (uint8, int16, int32, ...)"
+                                                        : "expected numbers (int16, float32, ...)"));
   }
   // The data the header promises, against the file (a damaged header claimed 37 GB, found by
   // fuzz_nifti): counted through the gzip stream without keeping it, before ITK allocates.
@@ -327,20 +336,29 @@ LabelMap read_nifti(const fs::path& path, const std::string& name, const LabelMa
   if (!complete) throw InputError(detail::truncated_message(name, size, 1, type, data_bytes, gzipped));
 
   // Checked above: what ITK finds in the header is there.
-  detail::ItkImage image =
-      detail::read_itk_image(path, detail::ImageFormat::nifti, [&](const detail::ItkImage& header) {
-        return detail::StoredData{.compressed = gzipped, .exact = true, .bytes = header.data_bytes()};
-      });
+  NiftiVoxels read{n, detail::read_itk_image(
+                          path, detail::ImageFormat::nifti,
+                          [&](const detail::ItkImage& header) {
+                            return detail::StoredData{
+                                .compressed = gzipped, .exact = true, .bytes = header.data_bytes()};
+                          },
+                          kind)};
+  const detail::ItkImage& image = read.image;
   if (image.size != size || image.components != 1) {
     throw InputError(name + ": the voxels do not match the header (" + std::to_string(image.size[0]) + " x " +
                      std::to_string(image.size[1]) + " x " + std::to_string(image.size[2]) + " read)");
   }
+  return read;
+}
+
+LabelMap read_nifti(const fs::path& path, const std::string& name, const LabelMapOptions& options) {
+  NiftiVoxels read = read_nifti_voxels(path, name, detail::VoxelKind::labels);
   LabelMap map;
-  map.size = size;
-  map.labels = std::move(image.values);
-  map.ijk_to_lps = nifti_ijk_to_lps(n, map.transform_source);
+  map.size = read.image.size;
+  map.labels = std::move(read.image.values);
+  map.ijk_to_lps = nifti_ijk_to_lps(read.header, map.transform_source);
   if (options.names == SegmentNames::from_file) {
-    map.segments = detail::caret_label_table(n.extensions);
+    map.segments = detail::caret_label_table(read.header.extensions);
   }
   return map;
 }
@@ -550,11 +568,21 @@ void check_meta_dimensions(const fs::path& path, const std::string& name) {
   }
 }
 
-LabelMap read_itk_map(const fs::path& path, const std::string& name, detail::ImageFormat format) {
+// A NRRD or MetaImage file through ITK, its data checked against the file first.
+detail::ItkImage read_itk_voxels(const fs::path& path, const std::string& name, detail::ImageFormat format,
+                                 detail::VoxelKind kind) {
   if (format == detail::ImageFormat::meta) check_meta_dimensions(path, name);
-  detail::ItkImage image = detail::read_itk_image(path, format, [&](const detail::ItkImage& header) {
-    return format == detail::ImageFormat::meta ? meta_stored_data(path, name, header) : nrrd_stored_data(path, name);
-  });
+  return detail::read_itk_image(
+      path, format,
+      [&](const detail::ItkImage& header) {
+        return format == detail::ImageFormat::meta ? meta_stored_data(path, name, header)
+                                                   : nrrd_stored_data(path, name);
+      },
+      kind);
+}
+
+LabelMap read_itk_map(const fs::path& path, const std::string& name, detail::ImageFormat format) {
+  detail::ItkImage image = read_itk_voxels(path, name, format, detail::VoxelKind::labels);
   if (format == detail::ImageFormat::nrrd) return flatten_layers(image, seg_nrrd_segments(image, name), name);
   if (image.components != 1) {
     throw InputError(name + ": " + std::to_string(image.components) +
@@ -666,6 +694,38 @@ LabelMap read_label_map(const fs::path& path, const LabelMapOptions& options) {
     map.segments = detail::segments_of_present_labels(totalsegmentator_classes(version), map.labels);
   }
   return map;
+}
+
+ScalarImage read_scalar_image(const fs::path& path) {
+  const std::string name = path.string();
+  detail::require_readable_file(path);
+  const std::string n = lower(name);
+  ScalarImage out;
+  if (ends_with(n, ".nii") || ends_with(n, ".nii.gz")) {
+    NiftiVoxels read = read_nifti_voxels(path, name, detail::VoxelKind::reals);
+    out.size = read.image.size;
+    out.values = std::move(read.image.reals);
+    out.ijk_to_lps = nifti_ijk_to_lps(read.header, out.transform_source);
+  } else if (ends_with(n, ".nrrd") || ends_with(n, ".nhdr") || ends_with(n, ".mha") || ends_with(n, ".mhd")) {
+    const bool nrrd = ends_with(n, ".nrrd") || ends_with(n, ".nhdr");
+    detail::ItkImage image = read_itk_voxels(path, name, nrrd ? detail::ImageFormat::nrrd : detail::ImageFormat::meta,
+                                             detail::VoxelKind::reals);
+    if (image.components != 1) {
+      throw InputError(name + ": " + std::to_string(image.components) +
+                       " values per voxel: expected a scalar image (one number per voxel)");
+    }
+    out.size = image.size;
+    out.values = std::move(image.reals);
+    out.ijk_to_lps = image.ijk_to_lps;
+    out.transform_source = nrrd ? "space directions" : "TransformMatrix";
+  } else {
+    throw InputError(name + ": expected an image: .nii, .nii.gz, .nrrd, .nhdr, .mha or .mhd");
+  }
+  if (!out.ijk_to_lps.allFinite() || !(std::abs(out.ijk_to_lps.block<3, 3>(0, 0).determinant()) > 0.0)) {
+    throw InputError(name + ": the " + out.transform_source +
+                     " is singular or not finite: expected voxel axes of positive length");
+  }
+  return out;
 }
 
 }  // namespace pneuma::mesh

@@ -3,6 +3,7 @@
 // Eigen code: meshing (CGAL Mesh_3) lives in mesh/volume, the interior field in engine/field,
 // sampling on voxel grids in engine/voxels.
 #include <Eigen/Core>
+#include <Eigen/Geometry>  // cross(), in tet_volume6
 #include <array>
 #include <cstdint>
 #include <vector>

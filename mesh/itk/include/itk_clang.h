@@ -2,7 +2,8 @@
 // Debian's ITK 5.2 headers were generated for GCC alone: under clang (the fuzz preset, clang-tidy)
 // itk_compiler_detection.h stops with "Unsupported compiler". Clang speaks GCC's dialect, so
 // the detection is run once, first, as for GCC 12 (whose C++ features clang 14 has), and the
-// compiler's own macros are put back. Included before any ITK header (labels_itk.cpp).
+// compiler's own macros are put back. Included before any ITK header (labels_itk.cpp,
+// voxels_itk.cpp: the targets that link pneuma_itk).
 #if defined(__clang__)
 #pragma clang diagnostic push
 #pragma clang diagnostic ignored "-Wbuiltin-macro-redefined"

@@ -1,0 +1,56 @@
+#pragma once
+// Dense displacement vector fields (DVFs) on a voxel grid, from lungs in motion. Two directions,
+// never to be confused (docs/formats.md, "Voxel outputs"):
+//
+//   forward   u(x): where the tissue at rest point x goes, x -> x + u(x). For landmarks and
+//             dose accumulation. Inside a lung's rest tet: the P1 interpolation of s * U.
+//   pull-back v(x): out(x) = in(x + v(x)), the convention of ITK, plastimatch and elastix for
+//             warping an image. Inside a deformed tet T (nodes moved by s * U) the point x has
+//             barycentric coordinates l, and the rest point it came from is p = sum l_i rest_i:
+//             v(x) = p - x, the exact inverse of the piecewise-linear forward map.
+//
+// Both in metres, LPS. A voxel belongs to the tet whose (rest or deformed) closed simplex holds
+// its centre, within an inclusive barycentric tolerance (kBarycentricTolerance, so that no
+// voxel centre on a shared face falls between two tets); when several do, the first lung in
+// the list and in it the lowest tet index wins. Tets are rasterised over their bounding boxes in
+// index space, in parallel over slabs of k; the result does not depend on the thread count.
+// Voxels outside every lung get `outside(x)` (an empty function: 0), the door for a body field.
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <vector>
+
+#include "pneuma/voxels/grid.h"
+#include "pneuma/voxels/lung_motion.h"
+
+namespace pneuma::voxels {
+
+// Barycentric coordinates down to -kBarycentricTolerance count as inside.
+inline constexpr double kBarycentricTolerance = 1e-10;
+
+// The value at a voxel centre x (LPS metres) outside every lung, in the field's own direction.
+// Called from several threads at once.
+using OutsideField = std::function<Eigen::Vector3d(const Eigen::Vector3d& x_lps_m)>;
+
+struct DisplacementField {
+  Grid grid;
+  std::vector<Eigen::Vector3d> displacement_m;  // one per voxel, metres, LPS
+  // Per voxel: 0 outside every lung, else 1 + the index of the lung (in the list given) whose
+  // tet holds it (rest tets for the forward field, deformed tets for the pull-back).
+  std::vector<std::uint8_t> lung;
+
+  std::size_t inside_count() const;
+};
+
+// Throws ValueError for a lung that check_lung_motion() refuses or more than 255 lungs.
+DisplacementField forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, const OutsideField& outside = {});
+DisplacementField pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, const OutsideField& outside = {});
+// The same into `field`, whose buffers are reused when they have the grid's size (no allocation
+// and no first touch of fresh pages per time point; the same values as the two above).
+void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                 const OutsideField& outside = {});
+void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                  const OutsideField& outside = {});
+
+}  // namespace pneuma::voxels

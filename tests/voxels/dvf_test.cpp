@@ -1,0 +1,191 @@
+// Forward and pull-back DVFs and Jacobians of an affine motion of a tetrahedralised cube, against
+// the motion's closed forms.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <cstring>
+
+#include "pneuma/core/error.h"
+#include "pneuma/voxels/dvf.h"
+#include "pneuma/voxels/jacobian.h"
+#include "tet_fixtures.h"
+
+namespace pneuma::voxels {
+namespace {
+
+struct AffineCube {
+  Eigen::Vector3d origin_m{0.010, -0.020, 0.030};
+  double h_m = 5e-3;
+  int cells = 4;
+  double length_m() const { return h_m * cells; }
+  mesh::TetMesh mesh = test::cube_cells(origin_m, h_m, cells);
+  Eigen::Matrix3d a = (Eigen::Matrix3d() << 0.05, 0.02, -0.01, 0.01, -0.04, 0.03, 0.02, 0.01, 0.06).finished();
+  Eigen::Vector3d b{1e-3, -2e-3, 0.5e-3};
+  double s = 0.7;
+  std::vector<Eigen::Vector3d> u = test::affine_field(mesh, a, b);
+  // Axes turned about (1, 2, 3), anisotropic voxels, centred on the cube.
+  Grid grid =
+      test::oblique_grid({56, 56, 56}, Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(),
+                         Eigen::Vector3d(1.1e-3, 1.3e-3, 0.9e-3),
+                         origin_m + Eigen::Vector3d::Constant(length_m() / 2) -
+                             Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix() *
+                                 Eigen::Vector3d(1.1e-3, 1.3e-3, 0.9e-3).cwiseProduct(Eigen::Vector3d::Constant(27.5)));
+
+  std::vector<LungMotion> lungs() const { return {LungMotion{mesh, u, s}}; }
+  // +1 inside the rest cube, -1 outside, 0 within 1e-9 of its faces.
+  int side(const Eigen::Vector3d& p) const {
+    const Eigen::Vector3d local = (p - origin_m) / length_m();
+    if (local.minCoeff() > 1e-9 && local.maxCoeff() < 1 - 1e-9) return 1;
+    if (local.minCoeff() < -1e-9 || local.maxCoeff() > 1 + 1e-9) return -1;
+    return 0;
+  }
+  // The rest point that x + s (A x + b) carries to y.
+  Eigen::Vector3d inverse(const Eigen::Vector3d& y) const {
+    return (Eigen::Matrix3d::Identity() + s * a).lu().solve(y - s * b);
+  }
+};
+
+TEST(ForwardDvf, AffineMotionIsReproducedAtEveryVoxelInside) {
+  const AffineCube cube;
+  const DisplacementField f = forward_dvf(cube.grid, cube.lungs());
+  double largest_m = 0.0;
+  for (const Eigen::Vector3d& x : cube.mesh.nodes)
+    largest_m = std::max(largest_m, (cube.s * (cube.a * x + cube.b)).norm());
+  std::size_t inside = 0;
+  for (std::size_t k = 0; k < cube.grid.size[2]; ++k)
+    for (std::size_t j = 0; j < cube.grid.size[1]; ++j)
+      for (std::size_t i = 0; i < cube.grid.size[0]; ++i) {
+        const std::size_t v = cube.grid.index(i, j, k);
+        const Eigen::Vector3d x = cube.grid.centre_m(i, j, k);
+        const int side = cube.side(x);
+        if (side == 1) {
+          EXPECT_EQ(f.lung[v], 1) << i << " " << j << " " << k;
+        }
+        if (side == -1) {
+          EXPECT_EQ(f.lung[v], 0) << i << " " << j << " " << k;
+        }
+        if (f.lung[v] == 0) {
+          EXPECT_EQ(f.displacement_m[v], Eigen::Vector3d::Zero());
+          continue;
+        }
+        ++inside;
+        EXPECT_LE((f.displacement_m[v] - cube.s * (cube.a * x + cube.b)).norm(), 1e-12 * largest_m);
+      }
+  // About the cube's volume in voxels.
+  const double expected = std::pow(cube.length_m(), 3) / cube.grid.voxel_volume_m3();
+  EXPECT_NEAR(static_cast<double>(inside), expected, 0.05 * expected);
+  EXPECT_EQ(f.inside_count(), inside);
+}
+
+TEST(PullbackDvf, IsTheAnalyticInverseOfTheAffineMotion) {
+  const AffineCube cube;
+  const DisplacementField v = pullback_dvf(cube.grid, cube.lungs());
+  double largest_m = 0.0;
+  for (const Eigen::Vector3d& x : cube.mesh.nodes)
+    largest_m = std::max(largest_m, (cube.s * (cube.a * x + cube.b)).norm());
+  std::size_t inside = 0;
+  for (std::size_t k = 0; k < cube.grid.size[2]; ++k)
+    for (std::size_t j = 0; j < cube.grid.size[1]; ++j)
+      for (std::size_t i = 0; i < cube.grid.size[0]; ++i) {
+        const std::size_t n = cube.grid.index(i, j, k);
+        const Eigen::Vector3d x = cube.grid.centre_m(i, j, k);
+        const Eigen::Vector3d rest = cube.inverse(x);
+        const int side = cube.side(rest);
+        if (side == 1) {
+          EXPECT_EQ(v.lung[n], 1) << i << " " << j << " " << k;
+        }
+        if (side == -1) {
+          EXPECT_EQ(v.lung[n], 0) << i << " " << j << " " << k;
+        }
+        if (v.lung[n] == 0) continue;
+        ++inside;
+        EXPECT_LE((v.displacement_m[n] - (rest - x)).norm(), 1e-12 * largest_m);
+      }
+  const double expected = std::pow(cube.length_m(), 3) * (Eigen::Matrix3d::Identity() + cube.s * cube.a).determinant() /
+                          cube.grid.voxel_volume_m3();
+  EXPECT_NEAR(static_cast<double>(inside), expected, 0.05 * expected);
+}
+
+TEST(Jacobian, IsDetOfIPlusSAInEveryTet) {
+  const AffineCube cube;
+  const double expected = (Eigen::Matrix3d::Identity() + cube.s * cube.a).determinant();
+  const std::vector<double> j = tet_jacobians(cube.lungs()[0]);
+  ASSERT_EQ(j.size(), 6u * 64u);
+  for (const double d : j) EXPECT_NEAR(d, expected, 1e-12 * expected);
+  const JacobianStats stats = jacobian_stats(cube.lungs());
+  EXPECT_EQ(stats.tets, j.size());
+  EXPECT_NEAR(stats.min, expected, 1e-12);
+  EXPECT_NEAR(stats.max, expected, 1e-12);
+  EXPECT_EQ(stats.folded_tets, 0u);
+  EXPECT_EQ(stats.folded_volume_fraction, 0.0);
+  EXPECT_NEAR(stats.rest_volume_m3, std::pow(cube.length_m(), 3), 1e-12 * std::pow(cube.length_m(), 3));
+  EXPECT_NEAR(stats.deformed_volume_m3, expected * std::pow(cube.length_m(), 3), 1e-12 * std::pow(cube.length_m(), 3));
+}
+
+TEST(Jacobian, CountsFoldedTets) {
+  const AffineCube cube;
+  // det(I + 30 A) = -2.318: every tet turned inside out.
+  const LungMotion folded{cube.mesh, cube.u, 30.0};
+  const JacobianStats stats = jacobian_stats(std::vector<LungMotion>{folded});
+  EXPECT_LT(stats.min, 0.0);
+  EXPECT_EQ(stats.folded_tets, stats.tets);
+  EXPECT_EQ(stats.folded_count_fraction, 1.0);
+  EXPECT_DOUBLE_EQ(stats.folded_volume_fraction, 1.0);
+}
+
+TEST(Dvf, SameBytesAtAnyThreadCount) {
+  const AffineCube cube;
+  DisplacementField f1, p1;
+  {
+    const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    f1 = forward_dvf(cube.grid, cube.lungs());
+    p1 = pullback_dvf(cube.grid, cube.lungs());
+  }
+  const DisplacementField f = forward_dvf(cube.grid, cube.lungs());
+  const DisplacementField p = pullback_dvf(cube.grid, cube.lungs());
+  ASSERT_EQ(f.displacement_m.size(), f1.displacement_m.size());
+  EXPECT_EQ(std::memcmp(f.displacement_m.data(), f1.displacement_m.data(), f.displacement_m.size() * 24), 0);
+  EXPECT_EQ(std::memcmp(p.displacement_m.data(), p1.displacement_m.data(), p.displacement_m.size() * 24), 0);
+  EXPECT_EQ(f.lung, f1.lung);
+  EXPECT_EQ(p.lung, p1.lung);
+}
+
+TEST(Dvf, FirstLungWinsAndOutsideComesFromTheCallback) {
+  const AffineCube cube;
+  const std::vector<Eigen::Vector3d> zero(cube.mesh.node_count(), Eigen::Vector3d::Zero());
+  const std::vector<LungMotion> lungs{LungMotion{cube.mesh, zero, 1.0}, LungMotion{cube.mesh, cube.u, 1.0}};
+  const Eigen::Vector3d body(1e-3, 2e-3, 3e-3);
+  const DisplacementField f =
+      forward_dvf(cube.grid, lungs, [&](const Eigen::Vector3d&) { return Eigen::Vector3d(body); });
+  for (std::size_t v = 0; v < f.lung.size(); ++v) {
+    EXPECT_NE(f.lung[v], 2);
+    EXPECT_EQ(f.displacement_m[v], f.lung[v] == 1 ? Eigen::Vector3d::Zero() : body);
+  }
+}
+
+TEST(Dvf, RefusesADisplacementCountThatIsNotTheNodeCount) {
+  const AffineCube cube;
+  const std::vector<Eigen::Vector3d> short_field(3, Eigen::Vector3d::Zero());
+  const std::vector<LungMotion> lungs{LungMotion{cube.mesh, short_field, 1.0}};
+  EXPECT_THROW(forward_dvf(cube.grid, lungs), ValueError);
+}
+
+TEST(Grid, CoarserGridCoversTheSameExtent) {
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(0.4, Eigen::Vector3d(0, 0, 1)).toRotationMatrix();
+  const Grid fine =
+      test::oblique_grid({100, 80, 60}, r, Eigen::Vector3d(0.7e-3, 0.7e-3, 0.7e-3), Eigen::Vector3d(0.01, 0.02, -0.03));
+  const Grid coarse = grid_with_spacing(fine, 2e-3);
+  EXPECT_EQ(coarse.size, (std::array<std::size_t, 3>{35, 28, 21}));
+  EXPECT_TRUE(coarse.spacing_m().isApprox(Eigen::Vector3d::Constant(2e-3), 1e-12));
+  const auto corner = [](const Grid& g) -> Eigen::Vector3d {
+    return g.centre_m(0, 0, 0) - g.ijk_to_lps.block<3, 3>(0, 0) * Eigen::Vector3d::Constant(0.5);
+  };
+  EXPECT_LE((corner(coarse) - corner(fine)).norm(), 1e-15);
+  EXPECT_TRUE((coarse.ijk_to_lps.block<3, 3>(0, 0) / 2e-3).isApprox(r, 1e-12));
+  EXPECT_THROW(grid_with_spacing(fine, 0.0), ValueError);
+}
+
+}  // namespace
+}  // namespace pneuma::voxels
