@@ -72,7 +72,7 @@ function(pneuma_check_layers)
   set(mesh_targets pneuma_mesh_geometry pneuma_mesh_io pneuma_mesh_labels pneuma_mesh_repair pneuma_mesh_anatomy
       pneuma_mesh_volume)
   set(below_render pneuma_core pneuma_physiology ${mesh_targets} pneuma_config pneuma_field pneuma_paper
-                   pneuma_scenario pneuma_model pneuma_frame pneuma_outputs)
+                   pneuma_scenario pneuma_model pneuma_frame pneuma_voxels pneuma_outputs)
   pneuma_forbid(TARGETS ${below_render} USES pneuma_render
                 WHY "nothing below render links OpenGL or the renderer")
   pneuma_forbid(TARGETS pneuma_field pneuma_paper ${mesh_targets} pneuma_physiology USES pneuma_config yaml-cpp
@@ -80,6 +80,8 @@ function(pneuma_check_layers)
   pneuma_forbid(TARGETS pneuma_physiology USES ${mesh_targets} WHY "physiology knows nothing of meshes")
   pneuma_forbid(TARGETS ${mesh_targets} USES pneuma_physiology pneuma_field pneuma_scenario pneuma_model
                 WHY "mesh is below the engine")
+  pneuma_forbid(TARGETS pneuma_voxels USES pneuma_field pneuma_scenario pneuma_model pneuma_frame pneuma_outputs
+                WHY "voxels knows tetrahedra and grids, not the run (its plugin is in outputs)")
   pneuma_forbid(TARGETS pneuma_scenario USES pneuma_model pneuma_frame pneuma_outputs pneuma_runner
                 WHY "the scenario is read before anything is computed")
   pneuma_forbid(TARGETS pneuma_model pneuma_frame pneuma_outputs USES pneuma_runner

@@ -37,7 +37,7 @@ std::any read_spec(const config::Node* options) {
       } else {
         double t = -1.0;
         try {
-          t = units::parse(text, kind::time);
+          t = units::parse(text, kind::duration);
         } catch (const Error&) {
           item.fail(kAtExpected);
         }
@@ -53,7 +53,7 @@ std::any read_spec(const config::Node* options) {
       options->fail_at("spacing", "expected a voxel size between 0.25 mm and 20 mm, such as '2 mm'");
     }
   }
-  if (options->has("format")) spec.extension = "." + options->choice("format", {"nii.gz", "nii", "mha"});
+  if (options->has("format")) spec.extension = fmt::format(".{}", options->choice("format", {"nii.gz", "nii", "mha"}));
   if (options->has("image")) {
     spec.image_file = options->directory("image") / options->string("image");
     try {
@@ -118,12 +118,18 @@ class VoxelsOutput final : public Output {
       for (std::size_t i = 0; i < model.lungs.size(); ++i) lung_labels.push_back(static_cast<int>(i) + 1);
     }
     const double rest_lung_m3 = lung_volume(*labels, lung_labels);
+    std::vector<std::vector<int>> own_labels;
+    for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+      own_labels.push_back(model.lungs[i].label_values.empty() ? std::vector<int>{static_cast<int>(i) + 1}
+                                                               : model.lungs[i].label_values);
+    }
 
     std::filesystem::create_directories(dir_ / "voxels");
     std::vector<std::filesystem::path> files;
     std::vector<std::string> rows;
     voxels::TimePoint point;
     double worst_volume_error = 0.0, min_jacobian = std::numeric_limits<double>::infinity(), folded = 0.0;
+    std::size_t folded_tets = 0;
     for (const std::size_t k : frames_of(series.time_s, series.volume_m3)) {
       std::vector<double> scales;
       std::vector<voxels::LungMotion> lungs;
@@ -135,6 +141,7 @@ class VoxelsOutput final : public Output {
       const model::BodyMotion* body = model.body.get();
       voxels::TimePointInputs inputs;
       inputs.labels = &*labels;
+      inputs.lung_labels = own_labels;
       inputs.ct = spec_.image.get();
       if (body) {
         inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
@@ -171,14 +178,16 @@ class VoxelsOutput final : public Output {
       folded = std::max(folded, point.jacobian.folded_volume_fraction);
       std::string scale_text;
       for (const double sc : scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
-      rows.push_back(fmt::format("{},{},{:.6f},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}\n", tag, k,
+      rows.push_back(fmt::format("{},{},{:.6f},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", tag, k,
                                  series.time_s[k], scale_text, series.volume_m3[k] * 1e6, expected * 1e6,
-                                 warped * 1e6, error * 100.0, point.jacobian.min, point.jacobian.max));
+                                 warped * 1e6, error * 100.0, point.jacobian.min, point.jacobian.max,
+                                 point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
+      folded_tets = std::max(folded_tets, point.jacobian.folded_tets);
     }
     const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
     write_stream_atomically(csv, false, [&](std::ostream& out) {
       out << "time_point,frame,time_s,scales,physiology_volume_mL,expected_lung_volume_mL,warped_lung_volume_mL,"
-             "volume_error_percent,min_jacobian,max_jacobian\n";
+             "volume_error_percent,min_jacobian,max_jacobian,folded_tets,folded_volume_fraction\n";
       for (const std::string& row : rows) out << row;
     });
     files.push_back(csv);
@@ -187,6 +196,7 @@ class VoxelsOutput final : public Output {
               {"voxels.spacing_mm", fmt::format("{:.6g}", grid.spacing_m().x() * 1e3)},
               {"voxels.min_jacobian", fmt::format("{:.6g}", min_jacobian)},
               {"voxels.folded_volume_fraction", fmt::format("{:.6g}", folded)},
+              {"voxels.folded_tets", std::to_string(folded_tets)},
               {"voxels.max_lung_volume_error_percent", fmt::format("{:.6g}", worst_volume_error * 100.0)},
               {"voxels.interior_model", field::interior_model_name(model.lungs.front().interior->options.model)},
               {"voxels.interior_tets", std::to_string(tet_count(model))}};

@@ -6,7 +6,9 @@
 #include <tbb/parallel_for.h>
 
 #include <array>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "pneuma/core/tsan.h"
 
@@ -35,13 +37,15 @@ void for_each_sample(const DisplacementField& field, const Grid& source, const F
 
 }  // namespace
 
-mesh::LabelMap warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback) {
+mesh::LabelMap warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback,
+                           const std::vector<std::vector<int>>* lung_labels) {
   mesh::LabelMap out;
-  warp_labels(labels, pullback, out);
+  warp_labels(labels, pullback, out, lung_labels);
   return out;
 }
 
-void warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback, mesh::LabelMap& out) {
+void warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback, mesh::LabelMap& out,
+                 const std::vector<std::vector<int>>* lung_labels) {
   out.size = pullback.grid.size;
   out.ijk_to_lps = pullback.grid.ijk_to_lps;
   out.transform_source = labels.transform_source;
@@ -60,7 +64,35 @@ void warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback
       }
       at[a] = static_cast<std::size_t>(r);
     }
-    out.labels[v] = labels.labels[at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2])];
+    std::int32_t label = labels.labels[at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2])];
+    const std::uint8_t lung = pullback.lung[v];
+    if (lung_labels && lung != 0 && lung <= lung_labels->size()) {
+      const std::vector<int>& own = (*lung_labels)[lung - 1u];
+      auto is_own = [&](std::int32_t l) { return std::find(own.begin(), own.end(), l) != own.end(); };
+      if (!is_own(label)) {
+        // The nearest of the eight voxels around q that holds one of the lung's labels.
+        double best = std::numeric_limits<double>::infinity();
+        for (int corner = 0; corner < 8; ++corner) {
+          std::array<double, 3> c{};
+          bool inside = true;
+          for (std::size_t a = 0; a < 3; ++a) {
+            const double base = std::floor(q[static_cast<Eigen::Index>(a)]);
+            c[a] = base + static_cast<double>((corner >> a) & 1);
+            inside = inside && c[a] >= 0.0 && c[a] < n[a];
+          }
+          if (!inside) continue;
+          const std::int32_t candidate = labels.labels[static_cast<std::size_t>(c[0]) +
+                                                       labels.size[0] * (static_cast<std::size_t>(c[1]) +
+                                                                         labels.size[1] * static_cast<std::size_t>(c[2]))];
+          const double d = (Eigen::Vector3d(c[0], c[1], c[2]) - q).squaredNorm();
+          if (is_own(candidate) && d < best) {
+            best = d;
+            label = candidate;
+          }
+        }
+      }
+    }
+    out.labels[v] = label;
   });
 }
 

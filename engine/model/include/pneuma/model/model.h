@@ -58,7 +58,7 @@ struct LungModel {
   double share = 1.0;              // mesh volume = rest + share * (V - reference)
   double reference_volume_m3 = 0.0;
   int compartment = -1;  // V is this physiology compartment's volume; -1: the total
-  std::vector<int> label_values;  // the label map's values of this lung (names resolved); empty: no label map
+  std::vector<int> label_values = {};  // the label map's values of this lung (names resolved); empty: no label map
 
   // ---- The inside (compile with CompileOptions::interior; else null) -------------------------------
   std::shared_ptr<const LungInterior> interior = nullptr;

@@ -6,6 +6,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "pneuma/mesh/labels/labels.h"
 #include "pneuma/voxels/dvf.h"
@@ -16,6 +17,7 @@ namespace pneuma::voxels {
 
 struct TimePointInputs {
   const mesh::LabelMap* labels = nullptr;  // warped when given
+  std::vector<std::vector<int>> lung_labels;  // per lung: its label values (warp_labels), or empty
   const Image* ct = nullptr;               // warped when given
   OutsideField forward_outside;            // the forward field outside the lungs (empty: 0)
   OutsideField pullback_outside;           // the pull-back field outside the deformed lungs (empty: 0)
