@@ -421,6 +421,7 @@ TEST(Runner, AVolumeBeyondWhatTheSurfaceCanTakeIsRefused) {
   EXPECT_NE(r.err.find("lower the tidal volume"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "out/frames")) << "no frame before the check";
+  EXPECT_FALSE(std::filesystem::exists(dir / "out/field.h5")) << "the field cache is staged like every output";
 }
 
 TEST(Runner, CtrlCLeavesNoHalfWrittenFile) {

@@ -139,7 +139,7 @@ MeshSpec lung_mesh_spec(const MeshSpec& mesh, const scenario::LungSpec& lung) {
 // for these inputs. A file mesh is looked up by its bytes and the options that shape it before
 // it is repaired and remeshed, so a cache hit pays for neither.
 CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m, const std::filesystem::path& cache,
-                          const std::vector<int>& other_lung_labels) {
+                          const std::filesystem::path& save_to, const std::vector<int>& other_lung_labels) {
   const field::Tissue& tissue = s.field.tissue;
   const field::FieldOptions& given = s.field.options;
   const bool from_source = !mesh.phantom;
@@ -158,7 +158,7 @@ CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m
     const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
     return {compute_field_record(surface, inputs), false, {}, inputs.options.regions};
   }
-  if (!from_source) return load_or_compute(cache, phantom_surface(mesh, edge_m), tissue, given);
+  if (!from_source) return load_or_compute(cache, phantom_surface(mesh, edge_m), tissue, given, save_to);
   const bool labels = !mesh.labels_file.empty();
   std::string options_text =
       fmt::format("{} unit {:.17g} m, repair {}, edge {:.17g} m, labels {}", labels ? "labels" : "file",
@@ -166,12 +166,15 @@ CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m
   if (!other_lung_labels.empty()) options_text += fmt::format(", apart from {}", fmt::join(other_lung_labels, ","));
   const std::string key = source_key({labels ? mesh.labels_file : mesh.file, s.field.tissue_file}, options_text);
   std::shared_ptr<const mesh::SurfaceRegions> regions;
-  CacheLookup lookup = load_or_compute(cache, source_field_key(key, tissue.name, given), [&] {
-    const mesh::TriangleMesh surface = source();
-    const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
-    regions = inputs.options.regions;
-    return compute_field_record(surface, inputs);
-  });
+  CacheLookup lookup = load_or_compute(
+      cache, source_field_key(key, tissue.name, given),
+      [&] {
+        const mesh::TriangleMesh surface = source();
+        const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
+        regions = inputs.options.regions;
+        return compute_field_record(surface, inputs);
+      },
+      save_to);
   lookup.regions = std::move(regions);
   return lookup;
 }
@@ -184,10 +187,15 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
   auto start = Clock::now();
   const MeshSpec mesh = lung_mesh_spec(s.mesh, spec);
   const double edge = options.edge_override_m.value_or(mesh.edge_m);
-  const std::filesystem::path cache = lung_cache_path(
-      s.field.cache == scenario::FieldCache::file ? s.field.cache_file : options.output_dir / "field.h5", spec.side,
-      two_lungs);
-  CacheLookup computed = surface_field(s, mesh, edge, cache, other_lung_labels);
+  // `cache: auto`: looked up in the output folder, written into the stage (a failed run leaves
+  // the folder as it was). `cache: <file>`: the user's file, read and written in place.
+  const bool automatic = s.field.cache != scenario::FieldCache::file;
+  const std::filesystem::path cache =
+      lung_cache_path(automatic ? options.output_dir / "field.h5" : s.field.cache_file, spec.side, two_lungs);
+  const std::filesystem::path save_to = automatic && !options.stage_dir.empty()
+                                            ? lung_cache_path(options.stage_dir / "field.h5", spec.side, two_lungs)
+                                            : std::filesystem::path();
+  CacheLookup computed = surface_field(s, mesh, edge, cache, save_to, other_lung_labels);
   field_reused = computed.reused;
   if (!computed.discarded.empty()) {
     // The cache is derived data: a damaged one is replaced, never used, and the user told.
