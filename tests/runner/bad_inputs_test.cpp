@@ -91,3 +91,75 @@ TEST(BadInputs, ADeviceIsRefusedAsAScenarioAndAsAPreset) {
   EXPECT_NE(p.err.find("/dev/zero"), std::string::npos) << p.err;
   EXPECT_FALSE(fs::exists(dir / "out"));
 }
+
+namespace {
+
+struct TooBig {
+  const char* name;
+  const char* yaml;
+  const char* message;  // after "<file>"
+};
+
+// Nothing in `folder` (it may not exist: a scenario refused at load; or be empty: refused while
+// the model is compiled, before any output).
+bool holds_nothing(const fs::path& folder) { return !fs::exists(folder) || fs::is_empty(folder); }
+
+}  // namespace
+
+class RunTooBig : public ::testing::TestWithParam<TooBig> {};
+
+// What cannot finish (hours of frames, millions of vertices) is refused up front with the numbers.
+TEST_P(RunTooBig, RefusedUpFrontWithTheNumbers) {
+  TempDir dir;
+  pneuma::test::run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", (dir / "mm.ply").string()});
+  const auto file = dir.write("s.yaml", GetParam().yaml);
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() + GetParam().message + "\n");
+  EXPECT_TRUE(holds_nothing(dir / "out"));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, RunTooBig,
+    ::testing::Values(
+        TooBig{"duration", "duration: 1e9 s\nphysiology: {preset: healthy-adult}\n",
+               ":1:11: duration: expected at most 86400 s (one day), got 1e+09 s"},
+        TooBig{"duration_1e308", "duration: 1e308 s\nphysiology: {preset: healthy-adult}\n",
+               ":1:11: duration: expected at most 86400 s (one day), got 1e+308 s"},
+        TooBig{"frame_rate", "duration: 4 s\nframes: {rate: 1e9 Hz}\nphysiology: {preset: healthy-adult}\n",
+               ":2:16: frames.rate: 4e+09 frames (4 s at 1e+09 Hz); expected at most 1000000: lower frames.rate or "
+               "the duration"},
+        TooBig{"frame_rate_by_duration",
+               "duration: 20000 s\nframes: {rate: 100 Hz}\nphysiology: {preset: healthy-adult}\n",
+               ":2:16: frames.rate: 2e+06 frames (20000 s at 100 Hz); expected at most 1000000: lower frames.rate or "
+               "the duration"},
+        TooBig{"output_rate", "duration: 100 s\nphysiology: {preset: healthy-adult, output_rate: 1e9 Hz}\n",
+               ":2:50: physiology.output_rate: 1e+11 physiology samples (100 s at 1e+09 Hz); expected at most "
+               "10000000: lower physiology.output_rate or the duration"},
+        TooBig{"edge", "duration: 4 s\nmesh: {phantom: right, edge: 0.1 mm}\nphysiology: {preset: healthy-adult}\n",
+               ": mesh.edge: a surface of 0.07417 m2 at an edge of 0.1 mm would have about 8.56e+06 vertices; "
+               "expected at most 2000000 (a coarser edge)"},
+        TooBig{"millimetres_read_as_metres",
+               "duration: 4 s\nmesh: {file: mm.ply, unit: m, edge: 4 mm}\nphysiology: {preset: healthy-adult}\n",
+               ": mesh.edge: a surface of 7.384e+04 m2 at an edge of 4 mm would have about 5.33e+09 vertices; expected "
+               "at most 2000000 (a coarser edge); 7.384e+04 m2 is not the area of a lung (about 0.1 m2): is mesh.unit "
+               "right?"}),
+    [](const auto& test_case) { return std::string(test_case.param.name); });
+
+// Options out of range are usage errors (exit 2), refused before anything is read or written.
+TEST(BadInputs, OptionsOutOfRangeAreUsageErrors) {
+  TempDir dir;
+  const auto file = dir.write("s.yaml", kScenario);
+  for (const char* edge : {"-1mm", "0mm", "1e-308mm", "0.01mm"}) {
+    const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q", "--edge", edge});
+    EXPECT_EQ(r.exit_code, 2) << edge;
+    EXPECT_EQ(r.err, "pneuma: --edge: must be at least 0.1 mm\n") << edge;
+  }
+  for (const char* values : {"", "0", "3,-1"}) {
+    const auto labels =
+        run_pneuma({"mesh", "from-labels", file.string(), "--labels", values, "-o", (dir / "out.ply").string()});
+    EXPECT_EQ(labels.exit_code, 2) << values;
+    EXPECT_EQ(labels.err, "pneuma: --labels: expected label values of 1 or more, such as 3,4,5\n") << values;
+  }
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"});
+}

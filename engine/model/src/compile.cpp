@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -27,6 +28,35 @@ namespace {
 
 using scenario::MeshSpec;
 using scenario::Scenario;
+
+// The most vertices a lung's surface may be remeshed to: the field's graph and solver, the frames
+// and the outputs all grow with it, and a 0.3 mm mesh of a real lung (about 1.5 million vertices)
+// is already finer than any CT it comes from. Documented in docs/scenarios.md (limits).
+constexpr double kMaxSurfaceVertices = 2e6;
+
+// Where a remeshing target came from, for messages: the scenario file and its key ("mesh.edge"),
+// or the option ("--edge").
+struct EdgeSource {
+  std::string file;
+  std::string key;
+};
+
+// Refuses a remeshing target `edge_m` that would make a surface of `area_m2` larger than
+// kMaxSurfaceVertices (equilateral triangles: two per vertex, each sqrt(3)/4 h^2), before any
+// of it is made. An area far beyond a lung's (about 0.1 m2) is most often a file in millimetres
+// read as metres: the message says so.
+void check_surface_size(const EdgeSource& where, double area_m2, double edge_m) {
+  if (!(edge_m > 0.0)) return;  // not remeshed
+  const double vertices = 2.0 * area_m2 / (std::sqrt(3.0) * edge_m * edge_m);
+  if (vertices <= kMaxSurfaceVertices) return;
+  const std::string unit_hint =
+      area_m2 > 10.0 ? fmt::format("; {:.4g} m2 is not the area of a lung (about 0.1 m2): is mesh.unit right?", area_m2)
+                     : std::string();
+  throw InputError(
+      fmt::format("{}: {}: a surface of {:.4g} m2 at an edge of {:.4g} mm would have about {:.3g} vertices; "
+                  "expected at most {:.0f} (a coarser edge){}",
+                  where.file, where.key, area_m2, edge_m * 1e3, vertices, kMaxSurfaceVertices, unit_hint));
+}
 
 mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {
   mesh::PhantomOptions phantom;
@@ -64,15 +94,19 @@ mesh::TriangleMesh remeshed(mesh::TriangleMesh surface, double edge_m) {
 // target is repaired, remeshed, and only then judged: remeshing removes slivers repair left.
 // A label map is extracted at its own resolution (at most 2 mm, finer for a finer target) and
 // remeshed to the target.
-mesh::TriangleMesh source_surface(const MeshSpec& spec, double edge_m) {
+mesh::TriangleMesh source_surface(const MeshSpec& spec, double edge_m, const EdgeSource& where) {
   if (!spec.labels_file.empty()) {
     mesh::LabelSurfaceOptions extract;
     if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
-    return remeshed(mesh::surface_from_labels(spec.labels_file, spec.label_values, extract).mesh, edge_m);
+    mesh::TriangleMesh surface = mesh::surface_from_labels(spec.labels_file, spec.label_values, extract).mesh;
+    check_surface_size(where, mesh::surface_area(surface), edge_m);
+    return remeshed(std::move(surface), edge_m);
   }
-  if (!spec.repair) return remeshed(read_file_mesh(spec), edge_m);
-  if (edge_m <= 0.0) return file_surface(spec);
-  return mesh::repair_and_remesh(read_file_mesh(spec), spec.file.string(), {}, remesh_options(edge_m)).remesh.mesh;
+  mesh::TriangleMesh surface = read_file_mesh(spec);
+  check_surface_size(where, mesh::surface_area(surface), edge_m);
+  if (!spec.repair) return remeshed(std::move(surface), edge_m);
+  if (edge_m <= 0.0) return mesh::repair_or_throw(surface, spec.file.string());
+  return mesh::repair_and_remesh(surface, spec.file.string(), {}, remesh_options(edge_m)).remesh.mesh;
 }
 
 // Two lungs from one label map: where they touch (26-neighbour voxels), both lose those voxels,
@@ -138,20 +172,24 @@ MeshSpec lung_mesh_spec(const MeshSpec& mesh, const scenario::LungSpec& lung) {
 // The field of one surface (`mesh`: one lung), from the cache file `cache` where it holds one
 // for these inputs. A file mesh is looked up by its bytes and the options that shape it before
 // it is repaired and remeshed, so a cache hit pays for neither.
-CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m, const std::filesystem::path& cache,
-                          const std::filesystem::path& save_to, const std::vector<int>& other_lung_labels) {
+CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m, const EdgeSource& where,
+                          const std::filesystem::path& cache, const std::filesystem::path& save_to,
+                          const std::vector<int>& other_lung_labels) {
   const field::Tissue& tissue = s.field.tissue;
   const field::FieldOptions& given = s.field.options;
   const bool from_source = !mesh.phantom;
+  if (!from_source) check_surface_size(where, mesh::surface_area(phantom_surface(mesh, 0.01)), edge_m);
   // A lung of two from one label map is extracted from the map with the contact band removed.
   auto source = [&] {
-    if (other_lung_labels.empty()) return source_surface(mesh, edge_m);
+    if (other_lung_labels.empty()) return source_surface(mesh, edge_m, where);
     mesh::LabelSurfaceOptions extract;
     if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
     const mesh::LabelMap map =
         separated_lungs(mesh::read_label_map(mesh.labels_file), mesh.label_values, other_lung_labels);
-    return remeshed(
-        mesh::surface_from_labels(map, mesh.labels_file.filename().string(), mesh.label_values, extract).mesh, edge_m);
+    mesh::TriangleMesh surface =
+        mesh::surface_from_labels(map, mesh.labels_file.filename().string(), mesh.label_values, extract).mesh;
+    check_surface_size(where, mesh::surface_area(surface), edge_m);
+    return remeshed(std::move(surface), edge_m);
   };
   if (s.field.cache == scenario::FieldCache::off) {
     const mesh::TriangleMesh surface = from_source ? source() : phantom_surface(mesh, edge_m);
@@ -195,7 +233,8 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
   const std::filesystem::path save_to = automatic && !options.stage_dir.empty()
                                             ? lung_cache_path(options.stage_dir / "field.h5", spec.side, two_lungs)
                                             : std::filesystem::path();
-  CacheLookup computed = surface_field(s, mesh, edge, cache, save_to, other_lung_labels);
+  const EdgeSource where{s.file.string(), options.edge_override_m ? "--edge" : "mesh.edge"};
+  CacheLookup computed = surface_field(s, mesh, edge, where, cache, save_to, other_lung_labels);
   field_reused = computed.reused;
   if (!computed.discarded.empty()) {
     // The cache is derived data: a damaged one is replaced, never used, and the user told.

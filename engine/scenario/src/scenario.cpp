@@ -17,6 +17,31 @@ namespace {
 namespace kind = units::kind;
 using config::Node;
 
+// The longest run pneuma starts (docs/scenarios.md, limits): every sample of the drive and every
+// frame is held in memory, and a run past these would take hours before its first output.
+constexpr double kMaxDurationS = 86400.0;      // one day of breathing
+constexpr double kMaxFrames = 1e6;             // duration x frames.rate
+constexpr double kMaxPhysiologySamples = 1e7;  // duration x physiology.output_rate
+
+// Refuses a run with too many frames or samples, at the key that makes it so (the rate where the scenario
+// gives one, else the duration), with the numbers.
+void check_run_size(const Node& root, const Scenario& s) {
+  const auto too_many = [&](const std::optional<Node>& section, const std::string& key, double rate_hz, double most,
+                            const char* what) {
+    const double count = s.duration_s * rate_hz;
+    if (!(count > most)) return;
+    const std::string message =
+        fmt::format("{:.4g} {} ({:.6g} s at {:.6g} Hz); expected at most {:.0f}: lower {} or the duration", count, what,
+                    s.duration_s, rate_hz, most, key);
+    if (section && section->has(key.substr(key.find('.') + 1)))
+      section->fail_at(key.substr(key.find('.') + 1), message);
+    root.fail_at("duration", message);
+  };
+  too_many(root.optional_map("frames"), "frames.rate", s.frame_rate_hz, kMaxFrames, "frames");
+  too_many(root.optional_map("physiology"), "physiology.output_rate", s.physiology.options.output_rate_hz,
+           kMaxPhysiologySamples, "physiology samples");
+}
+
 // Share of the total lung volume change by side: the right lung has three lobes and about
 // 55 % of the volume (Yamaguchi et al., Radiology 1997; textbook 55:45).
 double default_share(const std::optional<mesh::Lung>& lung) {
@@ -229,7 +254,7 @@ FieldSpec read_field(const config::Node& n, const std::filesystem::path& config_
     }
     if (i.has("model")) {
       f.interior.model = i.choice("model", {"elastic", "harmonic"}) == "elastic" ? field::InteriorModel::elastic
-                                                                                  : field::InteriorModel::harmonic;
+                                                                                 : field::InteriorModel::harmonic;
     }
     if (i.has("poisson_ratio")) {
       f.interior.poisson_ratio = i.quantity("poisson_ratio", kind::number);
@@ -345,6 +370,10 @@ Scenario read_scenario(const config::Node& root, const std::filesystem::path& fi
   s.name = root.optional_string("name").value_or(file.stem().string());
   s.description = root.optional_string("description").value_or("");
   s.duration_s = root.positive_quantity("duration", kind::duration);
+  if (s.duration_s > kMaxDurationS) {
+    root.fail_at("duration",
+                 fmt::format("expected at most {:.0f} s (one day), got {:.6g} s", kMaxDurationS, s.duration_s));
+  }
   if (auto frames = root.optional_map("frames")) {
     if (frames->has("rate")) s.frame_rate_hz = frames->positive_quantity("rate", kind::rate);
     frames->finish();
@@ -363,6 +392,7 @@ Scenario read_scenario(const config::Node& root, const std::filesystem::path& fi
     s.field.tissue = load_tissue(s.field.tissue_file);
   }
   s.physiology = read_physiology(root.map("physiology"), s.duration_s, config_dir);
+  check_run_size(root, s);
   resolve_compartments(root, s);
   s.outputs = read_outputs(root.optional_map("outputs"), outputs);
   root.finish();
