@@ -163,3 +163,54 @@ TEST(BadInputs, OptionsOutOfRangeAreUsageErrors) {
   }
   EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"});
 }
+
+namespace {
+
+struct OutOfRange {
+  const char* name;
+  const char* yaml;
+  const char* message;  // after "<dir>/"
+};
+
+}  // namespace
+
+class RunOutOfRange : public ::testing::TestWithParam<OutOfRange> {};
+
+// Lung parameters, solver tolerances and shear moduli at 1e308 or 1e-320 are refused at load, at
+// their key in the file that gives them (CVODE or the field failed later without naming it).
+TEST_P(RunOutOfRange, RefusedAtTheKeyInItsFile) {
+  TempDir dir;
+  std::string tissue = read_text(pneuma::test::source_dir() / "configs/tissue/healthy-upright.yaml");
+  tissue.replace(tissue.find("apex: 3 kPa"), 11, "apex: 1e308 kPa");
+  dir.write("stiff.yaml", tissue);
+  const auto file = dir.write("s.yaml", GetParam().yaml);
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, (dir / GetParam().message).string() + "\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, RunOutOfRange,
+    ::testing::Values(
+        OutOfRange{"compliance", "duration: 4 s\nphysiology: {preset: healthy-adult, compliance: 1e308 L/cmH2O}\n",
+                   "s.yaml:2:49: physiology.compliance: expected a compliance from 0.001 to 10 L/cmH2O, got '1e308 "
+                   "L/cmH2O'"},
+        OutOfRange{"resistance",
+                   "duration: 4 s\nphysiology:\n  preset: healthy-adult\n  resistance: 1e-320 cmH2O*s/L\n",
+                   "s.yaml:4:15: physiology.resistance: expected a resistance from 0.1 to 1000 cmH2O*s/L, got "
+                   "'1e-320 cmH2O*s/L'"},
+        OutOfRange{"relative_tolerance",
+                   "duration: 4 s\nphysiology:\n  preset: healthy-adult\n  solver: {relative_tolerance: 1e-320, "
+                   "absolute_tolerance: 1e-9 L}\n",
+                   "s.yaml:4:32: physiology.solver.relative_tolerance: expected a relative tolerance from 1e-12 to "
+                   "0.1, got '1e-320'"},
+        OutOfRange{"absolute_tolerance",
+                   "duration: 4 s\nphysiology:\n  preset: healthy-adult\n  solver: {relative_tolerance: 1e-6, "
+                   "absolute_tolerance: 1e308 L}\n",
+                   "s.yaml:4:58: physiology.solver.absolute_tolerance: expected an absolute tolerance from 1e-12 L to "
+                   "0.1 L, got '1e308 L'"},
+        OutOfRange{"shear_modulus", "duration: 4 s\nfield: {tissue: stiff.yaml}\nphysiology: {preset: healthy-adult}\n",
+                   "stiff.yaml:25:18: stiffness.moduli.apex: expected a shear modulus from 1 Pa to 1 GPa, got '1e308 "
+                   "kPa'"}),
+    [](const auto& test_case) { return std::string(test_case.param.name); });
