@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <sstream>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -214,3 +215,39 @@ INSTANTIATE_TEST_SUITE_P(
                    "stiff.yaml:25:18: stiffness.moduli.apex: expected a shear modulus from 1 Pa to 1 GPa, got '1e308 "
                    "kPa'"}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
+
+// A surface the field cannot enlarge (its normals inward) is named by its file, not as "mesh".
+TEST(BadInputs, AnInwardSurfaceIsNamedByItsFile) {
+  TempDir dir;
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", (dir / "r.obj").string()}).exit_code, 0);
+  std::istringstream in(read_text(dir / "r.obj"));
+  std::string flipped;
+  for (std::string line; std::getline(in, line);) {
+    if (line.starts_with("f ")) {
+      std::istringstream face(line.substr(2));
+      std::string a, b, c;
+      face >> a >> b >> c;
+      line = "f " + a + " " + c + " " + b;
+    }
+    flipped += line + "\n";
+  }
+  dir.write("inward.obj", flipped);
+  const auto file = dir.write("s.yaml", "duration: 2 s\nmesh: {file: inward.obj, repair: false}\nphysiology: {preset: "
+                                        "healthy-adult}\noutputs: {png: false}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 5);
+  EXPECT_EQ(r.err, (dir / "inward.obj").string() +
+                       ": pushing every vertex outward along its displacement direction does not increase the surface "
+                       "area (is the mesh oriented with its normals outward?)\n");
+  EXPECT_TRUE(holds_nothing(dir / "out"));
+}
+
+TEST(BadInputs, AMeshEdgeBelowATenthOfAMillimetreIsRefusedAtItsKey) {
+  TempDir dir;
+  const auto file = dir.write(
+      "s.yaml", "duration: 2 s\nmesh: {phantom: right, edge: 1e-308 mm}\nphysiology: {preset: healthy-adult}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() + ":2:30: mesh.edge: expected an edge of at least 0.1 mm, got '1e-308 mm'\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}

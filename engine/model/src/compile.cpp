@@ -234,7 +234,19 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
                                             ? lung_cache_path(options.stage_dir / "field.h5", spec.side, two_lungs)
                                             : std::filesystem::path();
   const EdgeSource where{s.file.string(), options.edge_override_m ? "--edge" : "mesh.edge"};
-  CacheLookup computed = surface_field(s, mesh, edge, where, cache, save_to, other_lung_labels);
+  // The file the surface came from (the scenario's for a phantom), for what the field finds wrong
+  // with it (an inward-oriented surface).
+  const std::filesystem::path& source =
+      !mesh.labels_file.empty() ? mesh.labels_file : (!mesh.file.empty() ? mesh.file : s.file);
+  CacheLookup computed = [&] {
+    try {
+      return surface_field(s, mesh, edge, where, cache, save_to, other_lung_labels);
+    } catch (const UnsupportedError& e) {
+      const std::string what = e.what();
+      if (!what.starts_with("mesh: ")) throw;
+      throw UnsupportedError(source.string() + ": " + what.substr(6));
+    }
+  }();
   field_reused = computed.reused;
   if (!computed.discarded.empty()) {
     // The cache is derived data: a damaged one is replaced, never used, and the user told.
@@ -258,9 +270,14 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
   // The field's regions are the rest surface's unless the run exports the original mesh. A lung
   // of two has its side (one surface: the side found from its geometry, as before).
   const mesh::SurfaceRegions* regions = mesh.export_original ? nullptr : computed.regions.get();
-  LungModel lung =
-      make_model(std::move(rest), std::move(u), s.field.options.area_unit, field::body_axes(s.field.tissue), regions,
-                 two_lungs ? spec.side : std::optional<mesh::Lung>{});
+  LungModel lung = [&] {
+    try {
+      return make_model(std::move(rest), std::move(u), s.field.options.area_unit, field::body_axes(s.field.tissue),
+                        regions, two_lungs ? spec.side : std::optional<mesh::Lung>{});
+    } catch (const UnsupportedError& e) {  // a field that does not enlarge the surface: name what it came from
+      throw UnsupportedError(source.string() + ": " + e.what());
+    }
+  }();
   lung.side = spec.side;
   lung.share = spec.share;
   lung.reference_volume_m3 = s.mesh.reference_volume_m3;

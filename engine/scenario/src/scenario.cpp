@@ -196,7 +196,11 @@ MeshSpec read_mesh_spec(const config::Node& n) {
     }
     m.edge_m = 4e-3;
   }
-  if (n.has("edge")) m.edge_m = n.positive_quantity("edge", kind::length);
+  if (n.has("edge")) {
+    m.edge_m = n.positive_quantity("edge", kind::length);
+    // As the --edge options: finer is millions of vertices on any lung (compile checks the rest).
+    if (!(m.edge_m >= 1e-4)) n.fail_at("edge", "expected an edge of at least 0.1 mm, got '" + n.string("edge") + "'");
+  }
   if (m.export_original && m.edge_m == 0.0)
     n.fail_at("export", "exporting the original mesh needs an 'edge' to remesh to");
   m.share = default_share(m.phantom);
