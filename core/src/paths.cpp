@@ -1,5 +1,7 @@
 #include "pneuma/core/paths.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <fstream>
@@ -8,6 +10,14 @@
 #include "pneuma/core/error.h"
 
 namespace pneuma {
+
+std::string missing_reason(const std::filesystem::path& path) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (ec == std::errc::permission_denied) return "permission denied";
+  if (ec || !std::filesystem::exists(status)) return "no such file";
+  return {};
+}
 
 std::string read_file_bytes(const std::filesystem::path& path, std::uintmax_t max_bytes) {
   std::error_code ec;
@@ -19,7 +29,8 @@ std::string read_file_bytes(const std::filesystem::path& path, std::uintmax_t ma
     throw InputError(path.string() + ": not a regular file (a device, pipe or socket); expected a file");
   }
   std::ifstream in(path, std::ios::binary);
-  if (!in && errno == EACCES) throw IoError(path.string() + ": cannot open file: permission denied");
+  if (!in && ::access(path.c_str(), R_OK) != 0 && errno == EACCES)
+    throw IoError(path.string() + ": cannot open file: permission denied");
   if (!in || std::filesystem::is_directory(path, ec)) throw IoError(path.string() + ": cannot open file");
   if (const std::uintmax_t size = std::filesystem::file_size(path, ec); !ec && size > max_bytes) {
     throw InputError(path.string() + ": a file of " + std::to_string(size) + " bytes; expected at most " +

@@ -1,6 +1,7 @@
 // Bad inputs that used to get through (#29): each is refused with one line naming the file and
 // the place, the documented exit code, and the output folder as the previous run left it.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <map>
 #include <sstream>
@@ -250,4 +251,39 @@ TEST(BadInputs, AMeshEdgeBelowATenthOfAMillimetreIsRefusedAtItsKey) {
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(r.err, file.string() + ":2:30: mesh.edge: expected an edge of at least 0.1 mm, got '1e-308 mm'\n");
   EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+// A file that cannot be read for want of permission is reported as such, not as missing. As
+// root (who reads everything), pneuma runs as nobody through setpriv.
+TEST(BadInputs, PermissionDeniedIsReportedAsSuch) {
+  std::vector<std::string> prefix;
+  fs::path program;
+  if (::geteuid() == 0) {
+    const fs::path setpriv = pneuma::test::find_program({"setpriv"});
+    if (setpriv.empty()) GTEST_SKIP() << "running as root without setpriv";
+    prefix = {"--reuid", "65534", "--regid", "65534", "--clear-groups", PNEUMA_EXE};
+    program = setpriv;
+  }
+  TempDir dir;
+  fs::permissions(dir.path(), fs::perms::all);
+  fs::create_directories(dir / "secret");
+  dir.write("secret/lung.ply", "ply\n");
+  fs::permissions(dir / "secret", fs::perms::owner_all);
+  const auto yaml = "duration: 2 s\nmesh: {file: secret/lung.ply}\nphysiology: {preset: healthy-adult}\n";
+  const auto readable = dir.write("m.yaml", yaml);
+  const auto locked = dir.write("z.yaml", yaml);
+  fs::permissions(locked, fs::perms::none);
+  auto run = [&](const fs::path& scenario) {
+    std::vector<std::string> args = prefix;
+    args.insert(args.end(), {"run", scenario.string(), "-o", (dir / "out").string(), "-q"});
+    return prefix.empty() ? run_pneuma(args) : pneuma::test::run_program(program, args);
+  };
+  const auto hidden = run(readable);
+  EXPECT_EQ(hidden.exit_code, 3);
+  EXPECT_EQ(hidden.err,
+            readable.string() + ":2:14: mesh.file: permission denied: " + (dir / "secret/lung.ply").string() + "\n");
+  const auto unreadable = run(locked);
+  EXPECT_EQ(unreadable.exit_code, 4);
+  EXPECT_EQ(unreadable.err, locked.string() + ": cannot open file: permission denied\n");
+  fs::permissions(dir / "secret", fs::perms::owner_all | fs::perms::group_all | fs::perms::others_all);
 }

@@ -485,7 +485,7 @@ physiology::TraceSignal signal_from(const std::string& name) {
 physiology::Trace read_trace_driver(const config::Node& n, double duration_s) {
   physiology::TraceOptions o;
   const std::filesystem::path file = n.directory("file") / n.string("file");
-  if (!path_exists(file)) n.fail_at("file", "no such file: " + file.string());
+  if (const std::string why = missing_reason(file); !why.empty()) n.fail_at("file", why + ": " + file.string());
   std::string format = n.has("format") ? n.choice("format", {"auto", "csv", "rpm"}) : "auto";
   if (format == "auto") {
     std::string ext = file.extension().string();

@@ -117,7 +117,8 @@ std::vector<LungSpec> read_lungs(const config::Node& n, bool labels) {
     } else {
       if (lung.has("values")) lung.fail_at("values", "label values need a label map: add 'labels: FILE' to mesh");
       spec.file = lung.directory("file") / lung.string("file");
-      if (!path_exists(spec.file)) lung.fail_at("file", "no such file: " + spec.file.string());
+      if (const std::string why = missing_reason(spec.file); !why.empty())
+        lung.fail_at("file", why + ": " + spec.file.string());
     }
     if (auto share = lung.optional_quantity("share", kind::fraction)) {
       if (!(*share > 0.0 && *share <= 1.0))
@@ -160,7 +161,8 @@ MeshSpec read_mesh_spec(const config::Node& n) {
   if (n.has("labels")) {
     m.phantom.reset();
     m.labels_file = n.directory("labels") / n.string("labels");
-    if (!path_exists(m.labels_file)) n.fail_at("labels", "no such file: " + m.labels_file.string());
+    if (const std::string why = missing_reason(m.labels_file); !why.empty())
+      n.fail_at("labels", why + ": " + m.labels_file.string());
     if (n.has("lungs")) {
       m.lungs = read_lungs(n, true);
     } else {
@@ -173,7 +175,7 @@ MeshSpec read_mesh_spec(const config::Node& n) {
   } else if (n.has("file")) {
     m.phantom.reset();
     m.file = n.directory("file") / n.string("file");
-    if (!path_exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
+    if (const std::string why = missing_reason(m.file); !why.empty()) n.fail_at("file", why + ": " + m.file.string());
     if (n.has("unit")) {
       m.unit_given = true;
       m.metres_per_unit = read_unit(n);

@@ -17,6 +17,10 @@ inline bool path_exists(const std::filesystem::path& path) noexcept {
   return std::filesystem::exists(path, ec) && !ec;
 }
 
+// Why nothing usable is at `path`: "no such file", or "permission denied" where a folder on the
+// way cannot be searched (so that it is not reported as missing); empty when something is there.
+std::string missing_reason(const std::filesystem::path& path);
+
 // The whole file as bytes. Throws IoError ("<path>: cannot open file") for a missing file or a
 // folder, ("<path>: cannot open file: permission denied") for one without read permission and
 // ("<path>: cannot read file") for a read that fails; InputError for something that is not a
