@@ -228,7 +228,8 @@ TEST(BadInputs, AnInwardSurfaceIsNamedByItsFile) {
       std::istringstream face(line.substr(2));
       std::string a, b, c;
       face >> a >> b >> c;
-      line = "f " + a + " " + c + " " + b;
+      line = "f ";
+      line.append(a).append(" ").append(c).append(" ").append(b);
     }
     flipped += line + "\n";
   }

@@ -336,8 +336,8 @@ TEST(Runner, SummaryCountsTheFilesOfEachFolder) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::size_t frames = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir / "out/frames")) frames += entry.is_regular_file();
-  EXPECT_EQ(frames, 41u);
-  EXPECT_NE(r.out.find("  " + (dir / "out/frames").string() + "/ 41 files\n"), std::string::npos) << r.out;
+  EXPECT_EQ(frames, 42u) << "41 frames and their index, frame.ply.series";
+  EXPECT_NE(r.out.find("  " + (dir / "out/frames").string() + "/ 42 files\n"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("  " + (dir / "out/series.h5").string() + "\n"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("frame_00000"), std::string::npos) << r.out;
 }
