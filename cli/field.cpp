@@ -70,10 +70,11 @@ mesh::TriangleMesh load_mesh_for_cli(const std::string& spec, const std::string&
       } catch (const std::exception&) {
         level = -1;
       }
-      if (radius > 0.0 && level >= 0 && level <= 9) return mesh::make_icosphere(radius, level);
+      if (radius >= 1e-3 && radius <= 10.0 && level >= 0 && level <= 9) return mesh::make_icosphere(radius, level);
     }
-    throw UsageError("pneuma: MESH: expected icosphere:<radius>:<subdivisions 0-9>, such as icosphere:0.1:5, got '" +
-                     spec + "'");
+    throw UsageError(
+        "pneuma: MESH: expected icosphere:<radius 1 mm to 10 m>:<subdivisions 0-9>, such as icosphere:0.1:5, got '" +
+        spec + "'");
   }
   mesh::ReadOptions read;
   read.metres_per_unit = mesh::parse_length_unit(unit);
@@ -95,8 +96,10 @@ void run_field(const FieldCliOptions& o) {
   field::FieldOptions options;
   if (o.clique < 1 || o.clique > field::kMaxCliqueHops)
     throw UsageError(fmt::format("pneuma: --clique: expected 1 to {} hops, got {}", field::kMaxCliqueHops, o.clique));
-  if (!(o.tolerance > 0.0 && o.tolerance < 1.0))
-    throw UsageError(fmt::format("pneuma: --tol: expected a tolerance between 0 and 1, got {}", o.tolerance));
+  // Below 1e-12 the residual is lost in rounding: the solver would never stop.
+  if (!(o.tolerance >= 1e-12 && o.tolerance < 1.0))
+    throw UsageError(fmt::format("pneuma: --tol: expected a tolerance from 1e-12 to below 1, got {}", o.tolerance));
+  if (!(o.edge_m >= 1e-4)) throw UsageError("pneuma: --edge: must be at least 0.1 mm");
   options.clique_hops = o.clique;
   options.tolerance = o.tolerance;
   if (!o.solver.empty()) {

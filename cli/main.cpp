@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/interrupt.h"
+#include "pneuma/core/text.h"
 
 namespace {
 
@@ -28,7 +29,7 @@ int run(int argc, char** argv) {
   app.set_version_flag("--version", "pneuma " PNEUMA_VERSION);
   app.require_subcommand(1);
   app.failure_message([](const CLI::App*, const CLI::Error& e) {
-    return std::string("pneuma: ") + e.what() + " (see 'pneuma --help')\n";
+    return "pneuma: " + pneuma::quote_bytes(e.what()) + " (see 'pneuma --help')\n";
   });
   // Every parallel loop (TBB) and the software renderer (llvmpipe) use at most N threads; the
   // outputs are the same bytes at any N. Accepted after the subcommand too (fallthrough).
@@ -59,10 +60,11 @@ int run(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? 0 : static_cast<int>(pneuma::ExitCode::usage);
   } catch (const pneuma::Error& e) {
-    std::fprintf(stderr, "%s\n", e.what());
+    // Text copied from a bad input (a control character, bytes that are not UTF-8) as "\x1b".
+    std::fprintf(stderr, "%s\n", pneuma::quote_bytes(e.what()).c_str());
     return static_cast<int>(e.code());
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "pneuma: internal error: %s\n", e.what());
+    std::fprintf(stderr, "pneuma: internal error: %s\n", pneuma::quote_bytes(e.what()).c_str());
     return static_cast<int>(pneuma::ExitCode::failure);
   }
   return 0;

@@ -139,6 +139,9 @@ void run_remesh(const MeshOptions& o) {
 }
 
 void run_from_labels(const MeshOptions& o) {
+  // ('' reads as 0: CLI11 turns an empty item into a default-made int.)
+  if (o.labels.empty() || std::any_of(o.labels.begin(), o.labels.end(), [](int label) { return label < 1; }))
+    throw UsageError("pneuma: --labels: expected label values of 1 or more, such as 3,4,5");
   mesh::format_for_path(o.output, o.ascii);
   const mesh::LabelSurface s = mesh::surface_from_labels(o.input, o.labels, o.from_labels);
   mesh::write_mesh(o.output, s.mesh, {.metres_per_unit = mesh::kMetresPerMillimetre, .ascii = o.ascii});

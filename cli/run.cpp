@@ -2,7 +2,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -16,16 +18,19 @@ namespace {
 struct RunCommandOptions {
   std::string scenario;
   std::string output = "out";
-  double edge_m = 0.0;
+  double edge_m = std::numeric_limits<double>::quiet_NaN();  // NaN: not given
   bool quiet = false;
 };
 
 void run_command(const RunCommandOptions& o) {
+  // As `pneuma phantom` and `pneuma field`: a finer target is millions of vertices (and the
+  // scenario's own size check names --edge for what is left).
+  if (!std::isnan(o.edge_m) && !(o.edge_m >= 1e-4)) throw UsageError("pneuma: --edge: must be at least 0.1 mm");
   const scenario::Scenario scenario = runner::load_scenario(o.scenario);
   runner::RunOptions options;
   options.output_dir = o.output;
   options.quiet = o.quiet;
-  if (o.edge_m > 0.0) options.edge_override_m = o.edge_m;
+  if (!std::isnan(o.edge_m)) options.edge_override_m = o.edge_m;
   const runner::RunResult r = runner::run_scenario(scenario, options);
   if (o.quiet) return;
   fmt::print("{}: {} frames at {} Hz over {} s, mesh of {} vertices, field {}\n", scenario.name, r.frame_count,

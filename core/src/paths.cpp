@@ -1,6 +1,9 @@
 #include "pneuma/core/paths.h"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <fstream>
 #include <iterator>
 
@@ -8,10 +11,31 @@
 
 namespace pneuma {
 
-std::string read_file_bytes(const std::filesystem::path& path) {
+std::string missing_reason(const std::filesystem::path& path) {
   std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (ec == std::errc::permission_denied) return "permission denied";
+  if (ec || !std::filesystem::exists(status)) return "no such file";
+  return {};
+}
+
+std::string read_file_bytes(const std::filesystem::path& path, std::uintmax_t max_bytes) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (ec == std::errc::permission_denied) throw IoError(path.string() + ": cannot open file: permission denied");
+  if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status) &&
+      !std::filesystem::is_directory(status)) {
+    // A device (/dev/zero), pipe or socket: it may never end, or block on open.
+    throw InputError(path.string() + ": not a regular file (a device, pipe or socket); expected a file");
+  }
   std::ifstream in(path, std::ios::binary);
+  if (!in && ::access(path.c_str(), R_OK) != 0 && errno == EACCES)
+    throw IoError(path.string() + ": cannot open file: permission denied");
   if (!in || std::filesystem::is_directory(path, ec)) throw IoError(path.string() + ": cannot open file");
+  if (const std::uintmax_t size = std::filesystem::file_size(path, ec); !ec && size > max_bytes) {
+    throw InputError(path.string() + ": a file of " + std::to_string(size) + " bytes; expected at most " +
+                     std::to_string(max_bytes) + " bytes for this kind of file");
+  }
   std::string bytes(std::istreambuf_iterator<char>(in), {});
   if (in.bad()) throw IoError(path.string() + ": cannot read file");
   return bytes;

@@ -5,6 +5,7 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cerrno>
@@ -150,13 +151,15 @@ StagedOutput::~StagedOutput() {
   if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 
-void StagedOutput::commit(const std::vector<std::string>& obsolete) {
+void StagedOutput::commit(const std::vector<std::string>& obsolete, const std::string& last) {
   std::error_code ec;
   std::vector<fs::path> entries;
   for (const auto& entry : fs::directory_iterator(stage_, ec)) {
     if (entry.path().filename() != "lock") entries.push_back(entry.path());
   }
   if (ec) throw IoError(stage_.string() + ": cannot list the stage: " + ec.message());
+  std::stable_partition(entries.begin(), entries.end(),
+                        [&](const fs::path& entry) { return entry.filename() != last; });
   const fs::path replaced = stage_ / "replaced";
   for (const auto& from : entries) {
     const fs::path to = folder_ / from.filename();

@@ -27,6 +27,26 @@ TEST(Paths, ReadFileBytesRefusesMissingFilesAndFolders) {
   }
 }
 
+TEST(Paths, ReadFileBytesRefusesDevicesAndFilesOverTheLimit) {
+  // /dev/zero never ends: refused before a byte is read.
+  try {
+    pneuma::read_file_bytes("/dev/zero");
+    ADD_FAILURE() << "/dev/zero was read";
+  } catch (const pneuma::InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "/dev/zero: not a regular file (a device, pipe or socket); expected a file");
+  }
+  TempDir dir;
+  const auto file = dir.write("big.yaml", std::string(100, 'x'));
+  EXPECT_EQ(pneuma::read_file_bytes(file, 100).size(), 100u);
+  try {
+    pneuma::read_file_bytes(file, 99);
+    ADD_FAILURE() << "read past the limit";
+  } catch (const pneuma::InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              file.string() + ": a file of 100 bytes; expected at most 99 bytes for this kind of file");
+  }
+}
+
 TEST(Paths, FileStemsListsMatchingRegularFilesSorted) {
   TempDir dir;
   dir.write("stiff.yaml", "");

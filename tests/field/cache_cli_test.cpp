@@ -263,7 +263,19 @@ TEST(FieldCli, BadInputIsOneLineWithItsExitCode) {
            "; shipped presets: fibrotic-lower-lobe, healthy-supine, healthy-upright, healthy-upright-ct)"},
       {{"field", "icosphere:big:2", "--tissue", "healthy-upright", "-o", out},
        2,
-       "pneuma: MESH: expected icosphere:<radius>:<subdivisions 0-9>, such as icosphere:0.1:5, got 'icosphere:big:2'"},
+       "pneuma: MESH: expected icosphere:<radius 1 mm to 10 m>:<subdivisions 0-9>, such as icosphere:0.1:5, got "
+       "'icosphere:big:2'"},
+      // #29: options out of range are usage errors (exit 2), not file errors or internal ones.
+      {{"field", "icosphere:1e308m:2", "--tissue", "healthy-upright", "-o", out},
+       2,
+       "pneuma: MESH: expected icosphere:<radius 1 mm to 10 m>:<subdivisions 0-9>, such as icosphere:0.1:5, got "
+       "'icosphere:1e308m:2'"},
+      {{"field", "icosphere:0.1:2", "--tissue", "healthy-upright", "--tol", "1e-300", "-o", out},
+       2,
+       "pneuma: --tol: expected a tolerance from 1e-12 to below 1, got 1e-300"},
+      {{"field", "phantom:right", "--tissue", "healthy-upright", "--edge", "1e-308mm", "-o", out},
+       2,
+       "pneuma: --edge: must be at least 0.1 mm"},
   };
   for (const Case& c : cases) {
     const auto r = run_pneuma(c.args);

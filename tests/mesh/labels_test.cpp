@@ -210,6 +210,18 @@ TEST(LabelsCli, BadInputIsOneLineAndExitThree) {
   write_nifti(dir / "claims.nii", {4000, 4000, 1000}, std::vector<std::int16_t>(8, 1), Qform{});
   expect_error((dir / "claims.nii").string(), "1", 3,
                "truncated or corrupt: expected 4000 x 4000 x 1000 voxels of INT16 (32000000000 bytes of data)");
+
+  // #29: a voxel size of 0 or NaN (no sform to give it) is refused, not read as 1 mm.
+  Qform flat = Qform{};
+  flat.spacing = {1.0, 0.0, 1.0};
+  write_nifti(dir / "flat.nii", {8, 8, 8}, std::vector<std::int16_t>(512, 1), flat);
+  expect_error((dir / "flat.nii").string(), "1", 3,
+               "pixdim[2] is 0: expected a positive voxel size (the file has no sform to give it instead)");
+  Qform unknown = Qform{};
+  unknown.spacing = {std::nan(""), 1.0, 1.0};
+  write_nifti(dir / "nan.nii", {8, 8, 8}, std::vector<std::int16_t>(512, 1), unknown);
+  expect_error((dir / "nan.nii").string(), "1", 3,
+               "pixdim[1] is nan: expected a positive voxel size (the file has no sform to give it instead)");
 }
 
 // ---- The six real lobe segmentations (CC BY 4.0, see ../shared/data/ct-lobes/README.md) ----

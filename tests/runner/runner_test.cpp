@@ -336,8 +336,8 @@ TEST(Runner, SummaryCountsTheFilesOfEachFolder) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::size_t frames = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir / "out/frames")) frames += entry.is_regular_file();
-  EXPECT_EQ(frames, 41u);
-  EXPECT_NE(r.out.find("  " + (dir / "out/frames").string() + "/ 41 files\n"), std::string::npos) << r.out;
+  EXPECT_EQ(frames, 42u) << "41 frames and their index, frame.ply.series";
+  EXPECT_NE(r.out.find("  " + (dir / "out/frames").string() + "/ 42 files\n"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("  " + (dir / "out/series.h5").string() + "\n"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("frame_00000"), std::string::npos) << r.out;
 }
@@ -421,6 +421,7 @@ TEST(Runner, AVolumeBeyondWhatTheSurfaceCanTakeIsRefused) {
   EXPECT_NE(r.err.find("lower the tidal volume"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "out/frames")) << "no frame before the check";
+  EXPECT_FALSE(std::filesystem::exists(dir / "out/field.h5")) << "the field cache is staged like every output";
 }
 
 TEST(Runner, CtrlCLeavesNoHalfWrittenFile) {

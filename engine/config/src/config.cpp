@@ -1,12 +1,17 @@
 #include "pneuma/config/config.h"
 
-#include <fstream>
-#include <sstream>
+#include <algorithm>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/paths.h"
+#include "pneuma/core/text.h"
 
 namespace pneuma::config {
 namespace {
+
+// The largest YAML file read (a scenario, tissue, physiology preset or cohort is a few kB): a
+// bigger one is not one of them, and /dev/zero or a pipe never ends (read_file_bytes refuses it).
+constexpr std::uintmax_t kMaxYamlBytes = 16u << 20u;
 
 std::string join(const std::vector<std::string>& items) {
   std::string out;
@@ -31,6 +36,15 @@ YAML::Mark key_mark(const YAML::Node& map, const std::string& key) {
 Node::Node(std::vector<Layer> layers, std::string path) : layers_(std::move(layers)), path_(std::move(path)) {}
 
 Node Node::load_string(const std::string& text, const std::string& name) {
+  // YAML is UTF-8 text; bytes that are not would reach the outputs' JSON and HTML (the scenario
+  // name in manifest.json) and fail there, after the run.
+  if (const std::optional<std::size_t> bad = first_invalid_utf8(text)) {
+    const std::size_t line_start = text.rfind('\n', *bad) == std::string::npos ? 0 : text.rfind('\n', *bad) + 1;
+    const auto line0 =
+        static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(*bad), '\n'));
+    throw InputError(location(name, line0, static_cast<int>(*bad - line_start)) +
+                     ": expected UTF-8 text, got the byte " + quote_bytes(text.substr(*bad, 1)));
+  }
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -48,11 +62,7 @@ Node Node::from_yaml(const YAML::Node& root, const std::string& name) {
 }
 
 Node Node::load_file(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw IoError(path.string() + ": cannot open file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return load_string(buffer.str(), path.string());
+  return load_string(read_file_bytes(path, kMaxYamlBytes), path.string());
 }
 
 std::filesystem::path Node::directory(const std::string& key) const {

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -27,6 +28,35 @@ namespace {
 
 using scenario::MeshSpec;
 using scenario::Scenario;
+
+// The most vertices a lung's surface may be remeshed to: the field's graph and solver, the frames
+// and the outputs all grow with it, and a 0.3 mm mesh of a real lung (about 1.5 million vertices)
+// is already finer than any CT it comes from. Documented in docs/scenarios.md (limits).
+constexpr double kMaxSurfaceVertices = 2e6;
+
+// Where a remeshing target came from, for messages: the scenario file and its key ("mesh.edge"),
+// or the option ("--edge").
+struct EdgeSource {
+  std::string file;
+  std::string key;
+};
+
+// Refuses a remeshing target `edge_m` that would make a surface of `area_m2` larger than
+// kMaxSurfaceVertices (equilateral triangles: two per vertex, each sqrt(3)/4 h^2), before any
+// of it is made. An area far beyond a lung's (about 0.1 m2) is most often a file in millimetres
+// read as metres: the message says so.
+void check_surface_size(const EdgeSource& where, double area_m2, double edge_m) {
+  if (!(edge_m > 0.0)) return;  // not remeshed
+  const double vertices = 2.0 * area_m2 / (std::sqrt(3.0) * edge_m * edge_m);
+  if (vertices <= kMaxSurfaceVertices) return;
+  const std::string unit_hint =
+      area_m2 > 10.0 ? fmt::format("; {:.4g} m2 is not the area of a lung (about 0.1 m2): is mesh.unit right?", area_m2)
+                     : std::string();
+  throw InputError(
+      fmt::format("{}: {}: a surface of {:.4g} m2 at an edge of {:.4g} mm would have about {:.3g} vertices; "
+                  "expected at most {:.0f} (a coarser edge){}",
+                  where.file, where.key, area_m2, edge_m * 1e3, vertices, kMaxSurfaceVertices, unit_hint));
+}
 
 mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {
   mesh::PhantomOptions phantom;
@@ -64,15 +94,19 @@ mesh::TriangleMesh remeshed(mesh::TriangleMesh surface, double edge_m) {
 // target is repaired, remeshed, and only then judged: remeshing removes slivers repair left.
 // A label map is extracted at its own resolution (at most 2 mm, finer for a finer target) and
 // remeshed to the target.
-mesh::TriangleMesh source_surface(const MeshSpec& spec, double edge_m) {
+mesh::TriangleMesh source_surface(const MeshSpec& spec, double edge_m, const EdgeSource& where) {
   if (!spec.labels_file.empty()) {
     mesh::LabelSurfaceOptions extract;
     if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
-    return remeshed(mesh::surface_from_labels(spec.labels_file, spec.label_values, extract).mesh, edge_m);
+    mesh::TriangleMesh surface = mesh::surface_from_labels(spec.labels_file, spec.label_values, extract).mesh;
+    check_surface_size(where, mesh::surface_area(surface), edge_m);
+    return remeshed(std::move(surface), edge_m);
   }
-  if (!spec.repair) return remeshed(read_file_mesh(spec), edge_m);
-  if (edge_m <= 0.0) return file_surface(spec);
-  return mesh::repair_and_remesh(read_file_mesh(spec), spec.file.string(), {}, remesh_options(edge_m)).remesh.mesh;
+  mesh::TriangleMesh surface = read_file_mesh(spec);
+  check_surface_size(where, mesh::surface_area(surface), edge_m);
+  if (!spec.repair) return remeshed(std::move(surface), edge_m);
+  if (edge_m <= 0.0) return mesh::repair_or_throw(surface, spec.file.string());
+  return mesh::repair_and_remesh(surface, spec.file.string(), {}, remesh_options(edge_m)).remesh.mesh;
 }
 
 // Two lungs from one label map: where they touch (26-neighbour voxels), both lose those voxels,
@@ -138,27 +172,31 @@ MeshSpec lung_mesh_spec(const MeshSpec& mesh, const scenario::LungSpec& lung) {
 // The field of one surface (`mesh`: one lung), from the cache file `cache` where it holds one
 // for these inputs. A file mesh is looked up by its bytes and the options that shape it before
 // it is repaired and remeshed, so a cache hit pays for neither.
-CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m, const std::filesystem::path& cache,
+CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m, const EdgeSource& where,
+                          const std::filesystem::path& cache, const std::filesystem::path& save_to,
                           const std::vector<int>& other_lung_labels) {
   const field::Tissue& tissue = s.field.tissue;
   const field::FieldOptions& given = s.field.options;
   const bool from_source = !mesh.phantom;
+  if (!from_source) check_surface_size(where, mesh::surface_area(phantom_surface(mesh, 0.01)), edge_m);
   // A lung of two from one label map is extracted from the map with the contact band removed.
   auto source = [&] {
-    if (other_lung_labels.empty()) return source_surface(mesh, edge_m);
+    if (other_lung_labels.empty()) return source_surface(mesh, edge_m, where);
     mesh::LabelSurfaceOptions extract;
     if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
     const mesh::LabelMap map =
         separated_lungs(mesh::read_label_map(mesh.labels_file), mesh.label_values, other_lung_labels);
-    return remeshed(
-        mesh::surface_from_labels(map, mesh.labels_file.filename().string(), mesh.label_values, extract).mesh, edge_m);
+    mesh::TriangleMesh surface =
+        mesh::surface_from_labels(map, mesh.labels_file.filename().string(), mesh.label_values, extract).mesh;
+    check_surface_size(where, mesh::surface_area(surface), edge_m);
+    return remeshed(std::move(surface), edge_m);
   };
   if (s.field.cache == scenario::FieldCache::off) {
     const mesh::TriangleMesh surface = from_source ? source() : phantom_surface(mesh, edge_m);
     const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
     return {compute_field_record(surface, inputs), false, {}, inputs.options.regions};
   }
-  if (!from_source) return load_or_compute(cache, phantom_surface(mesh, edge_m), tissue, given);
+  if (!from_source) return load_or_compute(cache, phantom_surface(mesh, edge_m), tissue, given, save_to);
   const bool labels = !mesh.labels_file.empty();
   std::string options_text =
       fmt::format("{} unit {:.17g} m, repair {}, edge {:.17g} m, labels {}", labels ? "labels" : "file",
@@ -166,12 +204,15 @@ CacheLookup surface_field(const Scenario& s, const MeshSpec& mesh, double edge_m
   if (!other_lung_labels.empty()) options_text += fmt::format(", apart from {}", fmt::join(other_lung_labels, ","));
   const std::string key = source_key({labels ? mesh.labels_file : mesh.file, s.field.tissue_file}, options_text);
   std::shared_ptr<const mesh::SurfaceRegions> regions;
-  CacheLookup lookup = load_or_compute(cache, source_field_key(key, tissue.name, given), [&] {
-    const mesh::TriangleMesh surface = source();
-    const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
-    regions = inputs.options.regions;
-    return compute_field_record(surface, inputs);
-  });
+  CacheLookup lookup = load_or_compute(
+      cache, source_field_key(key, tissue.name, given),
+      [&] {
+        const mesh::TriangleMesh surface = source();
+        const field::TissueFieldInputs inputs = field::tissue_field_inputs(surface, tissue, given);
+        regions = inputs.options.regions;
+        return compute_field_record(surface, inputs);
+      },
+      save_to);
   lookup.regions = std::move(regions);
   return lookup;
 }
@@ -184,10 +225,28 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
   auto start = Clock::now();
   const MeshSpec mesh = lung_mesh_spec(s.mesh, spec);
   const double edge = options.edge_override_m.value_or(mesh.edge_m);
-  const std::filesystem::path cache = lung_cache_path(
-      s.field.cache == scenario::FieldCache::file ? s.field.cache_file : options.output_dir / "field.h5", spec.side,
-      two_lungs);
-  CacheLookup computed = surface_field(s, mesh, edge, cache, other_lung_labels);
+  // `cache: auto`: looked up in the output folder, written into the stage (a failed run leaves
+  // the folder as it was). `cache: <file>`: the user's file, read and written in place.
+  const bool automatic = s.field.cache != scenario::FieldCache::file;
+  const std::filesystem::path cache =
+      lung_cache_path(automatic ? options.output_dir / "field.h5" : s.field.cache_file, spec.side, two_lungs);
+  const std::filesystem::path save_to = automatic && !options.stage_dir.empty()
+                                            ? lung_cache_path(options.stage_dir / "field.h5", spec.side, two_lungs)
+                                            : std::filesystem::path();
+  const EdgeSource where{s.file.string(), options.edge_override_m ? "--edge" : "mesh.edge"};
+  // The file the surface came from (the scenario's for a phantom), for what the field finds wrong
+  // with it (an inward-oriented surface).
+  const std::filesystem::path& source =
+      !mesh.labels_file.empty() ? mesh.labels_file : (!mesh.file.empty() ? mesh.file : s.file);
+  CacheLookup computed = [&] {
+    try {
+      return surface_field(s, mesh, edge, where, cache, save_to, other_lung_labels);
+    } catch (const UnsupportedError& e) {
+      const std::string what = e.what();
+      if (!what.starts_with("mesh: ")) throw;
+      throw UnsupportedError(source.string() + ": " + what.substr(6));
+    }
+  }();
   field_reused = computed.reused;
   if (!computed.discarded.empty()) {
     // The cache is derived data: a damaged one is replaced, never used, and the user told.
@@ -212,7 +271,7 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
       fresh->key = key;
       interior = fresh;
       computed.record.interior = fresh;
-      if (s.field.cache != scenario::FieldCache::off) save_field(cache, computed.record);
+      if (s.field.cache != scenario::FieldCache::off) save_field(save_to.empty() ? cache : save_to, computed.record);
     }
     timings_s.emplace_back((cached ? "interior (cached)" : "interior") + what, seconds_since(start));
   }
@@ -231,9 +290,14 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
   // The field's regions are the rest surface's unless the run exports the original mesh. A lung
   // of two has its side (one surface: the side found from its geometry, as before).
   const mesh::SurfaceRegions* regions = mesh.export_original ? nullptr : computed.regions.get();
-  LungModel lung =
-      make_model(std::move(rest), std::move(u), s.field.options.area_unit, field::body_axes(s.field.tissue), regions,
-                 two_lungs ? spec.side : std::optional<mesh::Lung>{});
+  LungModel lung = [&] {
+    try {
+      return make_model(std::move(rest), std::move(u), s.field.options.area_unit, field::body_axes(s.field.tissue),
+                        regions, two_lungs ? spec.side : std::optional<mesh::Lung>{});
+    } catch (const UnsupportedError& e) {  // a field that does not enlarge the surface: name what it came from
+      throw UnsupportedError(source.string() + ": " + e.what());
+    }
+  }();
   lung.side = spec.side;
   lung.share = spec.share;
   lung.reference_volume_m3 = s.mesh.reference_volume_m3;

@@ -527,21 +527,28 @@ std::optional<FieldRecord> load_cache(const std::filesystem::path& path, std::st
 }  // namespace
 
 CacheLookup load_or_compute(const std::filesystem::path& path, const std::string& key,
-                            const std::function<FieldRecord()>& compute) {
+                            const std::function<FieldRecord()>& compute, const std::filesystem::path& save_to) {
   std::string discarded;
   if (std::optional<FieldRecord> cached = load_cache(path, discarded); cached && cached->metadata.key == key) {
+    if (!save_to.empty() && save_to != path) {
+      std::error_code ec;
+      std::filesystem::copy_file(path, save_to, std::filesystem::copy_options::overwrite_existing, ec);
+      if (ec) throw IoError(save_to.string() + ": cannot copy the field cache " + path.string() + ": " + ec.message());
+    }
     return {std::move(*cached), true, {}, nullptr};
   }
   CacheLookup out{compute(), false, std::move(discarded), nullptr};
   out.record.metadata.key = key;
-  save_field(path, out.record);
+  save_field(save_to.empty() ? path : save_to, out.record);
   return out;
 }
 
 CacheLookup load_or_compute(const std::filesystem::path& path, const mesh::TriangleMesh& rest,
-                            const field::Tissue& tissue, const field::FieldOptions& options) {
+                            const field::Tissue& tissue, const field::FieldOptions& options,
+                            const std::filesystem::path& save_to) {
   const field::TissueFieldInputs inputs = field::tissue_field_inputs(rest, tissue, options);
-  CacheLookup out = load_or_compute(path, field_key(rest, inputs), [&] { return compute_field_record(rest, inputs); });
+  CacheLookup out = load_or_compute(
+      path, field_key(rest, inputs), [&] { return compute_field_record(rest, inputs); }, save_to);
   out.regions = inputs.options.regions;
   return out;
 }

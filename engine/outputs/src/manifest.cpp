@@ -75,7 +75,9 @@ std::filesystem::path write_manifest(const std::filesystem::path& output_dir, co
   for (const auto& [stage, seconds] : input.timings_s) timings[stage] = seconds;
   j["timings_s"] = timings;
   auto path = output_dir / "manifest.json";
-  write_stream_atomically(path, false, [&](std::ostream& out) { out << j.dump(2) << '\n'; });
+  write_stream_atomically(path, false, [&](std::ostream& out) {
+    out << j.dump(2, ' ', false, nlohmann::ordered_json::error_handler_t::replace) << '\n';
+  });
   return path;
 }
 

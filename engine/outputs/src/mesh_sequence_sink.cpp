@@ -1,8 +1,14 @@
 // One mesh file per frame (PLY, OBJ or STL), named frame_00000.ply, ... so that any viewer
 // that plays numbered sequences (ParaView, Blender's importers, MeshLab) can load them. Two
 // lungs: one file per lung per frame, right_00000.ply and left_00000.ply (two sequences).
+// Beside each sequence, ParaView's file-series index (frame.ply.series: every file with its time
+// in seconds), so that ParaView plays it in seconds rather than by file index (a .pvd collection
+// would not do: ParaView's PVD reader takes VTK XML files only).
 #include <fmt/format.h>
 
+#include <nlohmann/json.hpp>
+
+#include "pneuma/core/atomic_file.h"
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/outputs/frame_outputs.h"
 
@@ -22,6 +28,7 @@ class MeshSequenceSink final : public Output {
       frame_meshes_.push_back(lung.rest);  // triangles once; vertices overwritten per frame, same size
       prefixes_.push_back(model.two_lungs() ? scenario::lung_name(lung.side) : "frame");
     }
+    series_.assign(model.lungs.size(), nlohmann::ordered_json::array());
   }
 
   void frame(const model::Model&, const frame::Frame& f) override {
@@ -34,10 +41,19 @@ class MeshSequenceSink final : public Output {
       options.ascii = spec_.ascii;
       mesh::write_mesh(path, frame_meshes_[i], options);
       files_.push_back(path);
+      series_[i].push_back({{"name", path.filename().string()}, {"time", f.time_s}});
     }
   }
 
-  std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord&) override { return files_; }
+  std::vector<std::filesystem::path> finish(const model::Model&, const RunRecord&) override {
+    for (std::size_t i = 0; i < prefixes_.size(); ++i) {
+      const nlohmann::ordered_json index{{"file-series-version", "1.0"}, {"files", series_[i]}};
+      const auto path = dir_ / fmt::format("{}.{}.series", prefixes_[i], spec_.format);
+      write_stream_atomically(path, false, [&](std::ostream& out) { out << index.dump(2) << '\n'; });
+      files_.push_back(path);
+    }
+    return files_;
+  }
 
  private:
   std::filesystem::path dir_;
@@ -46,6 +62,7 @@ class MeshSequenceSink final : public Output {
   std::vector<mesh::TriangleMesh> frame_meshes_;  // one per lung
   std::vector<std::string> prefixes_;             // "frame" (one lung), else the lung's side
   std::vector<std::filesystem::path> files_;
+  std::vector<nlohmann::ordered_json> series_;  // per lung: {"name", "time"} of every file written
 };
 
 }  // namespace

@@ -24,10 +24,13 @@ struct RunningOutput {
   double seconds = 0.0;
 };
 
-// Writes manifest.json and moves the staged outputs into the folder, in one step that Ctrl-C
-// cannot cut: the folder holds the previous output or this one, never half of each.
+// Writes manifest.json into the stage (where a failure, such as text JSON cannot hold, still
+// leaves the folder as it was), then moves the staged outputs into the folder, the manifest
+// last, in one step that Ctrl-C cannot cut: the folder holds the previous output or this one,
+// never half of each.
 void commit_run(StagedOutput& staged, const std::filesystem::path& folder, RunResult& result,
                 const outputs::ManifestInput& manifest) {
+  const std::filesystem::path written = outputs::write_manifest(staged.stage(), manifest);
   const DeferInterruptions defer;
   std::vector<std::string> obsolete;  // what the previous run wrote and this one did not
   for (auto& name : outputs::manifest_entries(folder)) {
@@ -37,8 +40,8 @@ void commit_run(StagedOutput& staged, const std::filesystem::path& folder, RunRe
   }
   std::error_code ec;
   std::filesystem::remove(folder / "manifest.json", ec);  // no manifest: not complete (yet)
-  staged.commit(obsolete);
-  result.files.push_back(std::filesystem::relative(outputs::write_manifest(folder, manifest), folder));
+  staged.commit(obsolete, written.filename().string());
+  result.files.push_back(written.filename());
 }
 
 // The manifest's facts of the model. One lung: as they always were. Two: the totals, then each
@@ -76,10 +79,9 @@ std::vector<std::pair<std::string, std::string>> run_facts(const scenario::Scena
 
 RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   RunResult result;
-  // Every output but the field cache is written into a stage and moved into the folder at the
-  // end (staged_output.h): a failed or interrupted run leaves the previous complete output as
-  // it was. The cache stays in the folder itself: it is complete on its own (written
-  // atomically) and worth keeping after an interruption.
+  // Every output, the field cache (`cache: auto`) and the manifest included, is written into a
+  // stage and moved into the folder at the end (staged_output.h): a failed or interrupted run
+  // leaves the previous complete output as it was. The cache is looked up in the folder.
   const std::filesystem::path& folder = options.output_dir;
   StagedOutput staged(folder);
   const std::filesystem::path& out = staged.stage();
@@ -98,9 +100,11 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   result.timings_s.emplace_back("physiology", seconds_since(start));
 
   // Compile: the model and the scale of every frame, checked.
-  const model::Compiled compiled = model::compile(
-      s, drive,
-      {.output_dir = options.output_dir, .edge_override_m = options.edge_override_m, .interior = needs_interior});
+  const model::Compiled compiled = model::compile(s, drive,
+                                                  {.output_dir = options.output_dir,
+                                                   .edge_override_m = options.edge_override_m,
+                                                   .interior = needs_interior,
+                                                   .stage_dir = out});
   const model::Model& model = compiled.model;
   result.timings_s.insert(result.timings_s.end(), compiled.timings_s.begin(), compiled.timings_s.end());
   result.field_reused = compiled.field_reused;

@@ -325,11 +325,38 @@ Driver build_driver(const config::Node& n, const std::string& mode, const Driver
   return driver;
 }
 
+// The ranges the lung model and its solver take (docs/scenarios.md, limits): far outside them
+// CVODE fails after minutes, or at once, without naming the key. SI bounds; `range` says them in
+// the units users write.
+struct Range {
+  double lo, hi;
+  const char* text;
+};
+constexpr double kLitresPerCmH2O = 1e-3 / 98.0665;        // m3/Pa
+constexpr double kCmH2OSecondsPerLitre = 98.0665 / 1e-3;  // Pa s/m3
+constexpr Range kCompliance{1e-3 * kLitresPerCmH2O, 10.0 * kLitresPerCmH2O, "a compliance from 0.001 to 10 L/cmH2O"};
+constexpr Range kResistance{0.1 * kCmH2OSecondsPerLitre, 1000.0 * kCmH2OSecondsPerLitre,
+                            "a resistance from 0.1 to 1000 cmH2O*s/L"};
+constexpr Range kRelativeTolerance{1e-12, 0.1, "a relative tolerance from 1e-12 to 0.1"};
+constexpr Range kAbsoluteTolerance{1e-15, 1e-4, "an absolute tolerance from 1e-12 L to 0.1 L"};
+constexpr Range kMaxStep{1e-6, 10.0, "a maximum step from 1e-6 s to 10 s"};
+
+// `value` (read from `key`) when it lies in `range`; else the one-line error at the key, in the
+// file that holds it (a preset's own file for a value it gives).
+double in_range(const config::Node& n, const std::string& key, double value, const Range& range) {
+  if (!(value >= range.lo && value <= range.hi))
+    n.fail_at(key, std::string("expected ") + range.text + ", got '" + n.string(key) + "'");
+  return value;
+}
+
 // A compartment's elastic recoil: `compliance` (linear) or `pressure_volume_curve` (sigmoid).
 std::optional<physiology::Elasticity> read_elasticity(const config::Node& n) {
   if (n.has("compliance") && n.has("pressure_volume_curve"))
     n.fail_at("pressure_volume_curve", "give compliance or pressure_volume_curve, not both");
-  if (n.has("compliance")) return physiology::LinearCompliance{n.positive_quantity("compliance", kind::compliance)};
+  if (n.has("compliance")) {
+    return physiology::LinearCompliance{
+        in_range(n, "compliance", n.positive_quantity("compliance", kind::compliance), kCompliance)};
+  }
   if (auto curve = n.optional_map("pressure_volume_curve")) {
     physiology::SigmoidCompliance s;
     s.lower_volume_m3 = curve->quantity("lower_volume", kind::volume);
@@ -349,7 +376,7 @@ void overlay_compartment(const config::Node& n, physiology::Compartment& c, bool
   if (auto e = read_elasticity(n)) c.elasticity = *e;
   if (auto r = n.optional_quantity("resistance", kind::resistance)) {
     if (!(*r > 0)) n.fail_at("resistance", "expected a positive resistance");
-    c.resistance_pa_s_per_m3 = *r;
+    c.resistance_pa_s_per_m3 = in_range(n, "resistance", *r, kResistance);
   } else if (need_resistance) {
     n.fail("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
   }
@@ -388,7 +415,7 @@ void overlay_mechanics(const config::Node& n, const std::string& model, Mechanic
   if (auto r = n.optional_quantity("resistance", kind::resistance)) {
     if (!(*r > 0) && model == "single") n.fail_at("resistance", "expected a positive resistance");
     if (!(*r >= 0)) n.fail_at("resistance", "expected a resistance >= 0");
-    m.airway_resistance_pa_s_per_m3 = *r;
+    m.airway_resistance_pa_s_per_m3 = *r > 0.0 ? in_range(n, "resistance", *r, kResistance) : *r;
   } else if (initial) {
     n.fail("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
   }
@@ -458,7 +485,7 @@ physiology::TraceSignal signal_from(const std::string& name) {
 physiology::Trace read_trace_driver(const config::Node& n, double duration_s) {
   physiology::TraceOptions o;
   const std::filesystem::path file = n.directory("file") / n.string("file");
-  if (!path_exists(file)) n.fail_at("file", "no such file: " + file.string());
+  if (const std::string why = missing_reason(file); !why.empty()) n.fail_at("file", why + ": " + file.string());
   std::string format = n.has("format") ? n.choice("format", {"auto", "csv", "rpm"}) : "auto";
   if (format == "auto") {
     std::string ext = file.extension().string();
@@ -608,9 +635,14 @@ PhysiologyConfig read_physiology(const config::Node& raw_section, double duratio
   out.options.output_rate_hz =
       section.has("output_rate") ? section.positive_quantity("output_rate", kind::rate) : 100.0;
   if (auto solver = section.optional_map("solver")) {
-    out.options.solver.relative_tolerance = solver->positive_quantity("relative_tolerance", kind::number);
-    out.options.solver.absolute_tolerance_m3 = solver->positive_quantity("absolute_tolerance", kind::volume);
-    if (auto h = solver->optional_quantity("max_step", kind::duration)) out.options.solver.max_step_s = *h;
+    out.options.solver.relative_tolerance =
+        in_range(*solver, "relative_tolerance", solver->positive_quantity("relative_tolerance", kind::number),
+                 kRelativeTolerance);
+    out.options.solver.absolute_tolerance_m3 =
+        in_range(*solver, "absolute_tolerance", solver->positive_quantity("absolute_tolerance", kind::volume),
+                 kAbsoluteTolerance);
+    if (auto h = solver->optional_quantity("max_step", kind::duration))
+      out.options.solver.max_step_s = in_range(*solver, "max_step", *h, kMaxStep);
     solver->finish();
   }
   section.accept("preset");

@@ -17,6 +17,31 @@ namespace {
 namespace kind = units::kind;
 using config::Node;
 
+// The longest run pneuma starts (docs/scenarios.md, limits): every sample of the drive and every
+// frame is held in memory, and a run past these would take hours before its first output.
+constexpr double kMaxDurationS = 86400.0;      // one day of breathing
+constexpr double kMaxFrames = 1e6;             // duration x frames.rate
+constexpr double kMaxPhysiologySamples = 1e7;  // duration x physiology.output_rate
+
+// Refuses a run with too many frames or samples, at the key that makes it so (the rate where the scenario
+// gives one, else the duration), with the numbers.
+void check_run_size(const Node& root, const Scenario& s) {
+  const auto too_many = [&](const std::optional<Node>& section, const std::string& key, double rate_hz, double most,
+                            const char* what) {
+    const double count = s.duration_s * rate_hz;
+    if (!(count > most)) return;
+    const std::string message =
+        fmt::format("{:.4g} {} ({:.6g} s at {:.6g} Hz); expected at most {:.0f}: lower {} or the duration", count, what,
+                    s.duration_s, rate_hz, most, key);
+    if (section && section->has(key.substr(key.find('.') + 1)))
+      section->fail_at(key.substr(key.find('.') + 1), message);
+    root.fail_at("duration", message);
+  };
+  too_many(root.optional_map("frames"), "frames.rate", s.frame_rate_hz, kMaxFrames, "frames");
+  too_many(root.optional_map("physiology"), "physiology.output_rate", s.physiology.options.output_rate_hz,
+           kMaxPhysiologySamples, "physiology samples");
+}
+
 // Share of the total lung volume change by side: the right lung has three lobes and about
 // 55 % of the volume (Yamaguchi et al., Radiology 1997; textbook 55:45).
 double default_share(const std::optional<mesh::Lung>& lung) {
@@ -92,7 +117,8 @@ std::vector<LungSpec> read_lungs(const config::Node& n, bool labels) {
     } else {
       if (lung.has("values")) lung.fail_at("values", "label values need a label map: add 'labels: FILE' to mesh");
       spec.file = lung.directory("file") / lung.string("file");
-      if (!path_exists(spec.file)) lung.fail_at("file", "no such file: " + spec.file.string());
+      if (const std::string why = missing_reason(spec.file); !why.empty())
+        lung.fail_at("file", why + ": " + spec.file.string());
     }
     if (auto share = lung.optional_quantity("share", kind::fraction)) {
       if (!(*share > 0.0 && *share <= 1.0))
@@ -135,7 +161,8 @@ MeshSpec read_mesh_spec(const config::Node& n) {
   if (n.has("labels")) {
     m.phantom.reset();
     m.labels_file = n.directory("labels") / n.string("labels");
-    if (!path_exists(m.labels_file)) n.fail_at("labels", "no such file: " + m.labels_file.string());
+    if (const std::string why = missing_reason(m.labels_file); !why.empty())
+      n.fail_at("labels", why + ": " + m.labels_file.string());
     if (n.has("lungs")) {
       m.lungs = read_lungs(n, true);
     } else {
@@ -148,7 +175,7 @@ MeshSpec read_mesh_spec(const config::Node& n) {
   } else if (n.has("file")) {
     m.phantom.reset();
     m.file = n.directory("file") / n.string("file");
-    if (!path_exists(m.file)) n.fail_at("file", "no such file: " + m.file.string());
+    if (const std::string why = missing_reason(m.file); !why.empty()) n.fail_at("file", why + ": " + m.file.string());
     if (n.has("unit")) {
       m.unit_given = true;
       m.metres_per_unit = read_unit(n);
@@ -171,7 +198,11 @@ MeshSpec read_mesh_spec(const config::Node& n) {
     }
     m.edge_m = 4e-3;
   }
-  if (n.has("edge")) m.edge_m = n.positive_quantity("edge", kind::length);
+  if (n.has("edge")) {
+    m.edge_m = n.positive_quantity("edge", kind::length);
+    // As the --edge options: finer is millions of vertices on any lung (compile checks the rest).
+    if (!(m.edge_m >= 1e-4)) n.fail_at("edge", "expected an edge of at least 0.1 mm, got '" + n.string("edge") + "'");
+  }
   if (m.export_original && m.edge_m == 0.0)
     n.fail_at("export", "exporting the original mesh needs an 'edge' to remesh to");
   m.share = default_share(m.phantom);
@@ -345,6 +376,10 @@ Scenario read_scenario(const config::Node& root, const std::filesystem::path& fi
   s.name = root.optional_string("name").value_or(file.stem().string());
   s.description = root.optional_string("description").value_or("");
   s.duration_s = root.positive_quantity("duration", kind::duration);
+  if (s.duration_s > kMaxDurationS) {
+    root.fail_at("duration",
+                 fmt::format("expected at most {:.0f} s (one day), got {:.6g} s", kMaxDurationS, s.duration_s));
+  }
   if (auto frames = root.optional_map("frames")) {
     if (frames->has("rate")) s.frame_rate_hz = frames->positive_quantity("rate", kind::rate);
     frames->finish();
@@ -363,6 +398,7 @@ Scenario read_scenario(const config::Node& root, const std::filesystem::path& fi
     s.field.tissue = load_tissue(s.field.tissue_file);
   }
   s.physiology = read_physiology(root.map("physiology"), s.duration_s, config_dir);
+  check_run_size(root, s);
   resolve_compartments(root, s);
   s.outputs = read_outputs(root.optional_map("outputs"), outputs);
   root.finish();

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/paths.h"
 #include "pneuma/core/units.h"
 
 namespace pneuma::scenario {
@@ -31,8 +32,7 @@ struct Token {
   int line;
 };
 std::vector<Token> read_tokens(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw IoError(file.string() + ": cannot open file");
+  std::istringstream in(read_file_bytes(file, 1u << 30u));  // a device or a pipe is refused there
   std::vector<Token> tokens;
   std::string line;
   for (int number = 1; std::getline(in, line); ++number) {
@@ -43,20 +43,33 @@ std::vector<Token> read_tokens(const std::filesystem::path& file) {
   return tokens;
 }
 
+// The shear moduli the field takes (docs/tissue.md): lung tissue is 0.1 to tens of kPa; far past
+// 1 GPa sums overflow and the field fails away from the key that caused it.
+constexpr double kMinShearModulusPa = 1.0;
+constexpr double kMaxShearModulusPa = 1e9;
+constexpr const char* kShearModulusRange = "a shear modulus from 1 Pa to 1 GPa";
+
+double shear_modulus(const config::Node& n, const std::string& key) {
+  const double pa = n.positive_quantity(key, kind::shear_modulus);
+  if (!(pa >= kMinShearModulusPa && pa <= kMaxShearModulusPa))
+    n.fail_at(key, std::string("expected ") + kShearModulusRange + ", got '" + n.string(key) + "'");
+  return pa;
+}
+
 field::GradientStiffness read_gradient(const config::Node& s) {
   field::GradientStiffness g;
   g.profile = s.choice("profile", {"linear", "exponential"}) == "linear"
                   ? field::GradientStiffness::Profile::linear
                   : field::GradientStiffness::Profile::exponential;
-  g.nondependent_pa = s.positive_quantity("nondependent", kind::shear_modulus);
-  g.dependent_pa = s.positive_quantity("dependent", kind::shear_modulus);
+  g.nondependent_pa = shear_modulus(s, "nondependent");
+  g.dependent_pa = shear_modulus(s, "dependent");
   for (const config::Node& band : s.sequence("bands")) {
     field::StiffnessBand b;
     b.from = band.quantity("from", kind::fraction);
     b.to = band.quantity("to", kind::fraction);
     if (!(b.from >= 0.0 && b.from <= 1.0)) band.fail_at("from", "expected a position from 0 to 1");
     if (!(b.to > b.from && b.to <= 1.0)) band.fail_at("to", "expected a position after 'from' and at most 1");
-    b.shear_modulus_pa = band.positive_quantity("shear_modulus", kind::shear_modulus);
+    b.shear_modulus_pa = shear_modulus(band, "shear_modulus");
     band.finish();
     g.bands.push_back(b);
   }
@@ -85,6 +98,9 @@ field::PerVertexStiffness read_per_vertex(const config::Node& s) {
     if (used != t.text.size() || !(v > 0.0) || !std::isfinite(v))
       throw InputError(file.string() + ":" + std::to_string(t.line) + ": expected a positive number, got '" + t.text +
                        "'");
+    if (!(v * factor >= kMinShearModulusPa && v * factor <= kMaxShearModulusPa))
+      throw InputError(file.string() + ":" + std::to_string(t.line) + ": expected " + kShearModulusRange + ", got '" +
+                       t.text + " " + unit + "'");
     p.shear_modulus_pa.push_back(v * factor);
   }
   return p;
@@ -93,8 +109,7 @@ field::PerVertexStiffness read_per_vertex(const config::Node& s) {
 field::RegionStiffness read_regions(const config::Node& s) {
   field::RegionStiffness r;
   const config::Node moduli = s.map("moduli");
-  for (const std::string& label : moduli.keys())
-    r.shear_modulus_pa[label] = moduli.positive_quantity(label, kind::shear_modulus);
+  for (const std::string& label : moduli.keys()) r.shear_modulus_pa[label] = shear_modulus(moduli, label);
   if (r.shear_modulus_pa.empty()) s.fail_at("moduli", "expected at least one label with its shear modulus");
   if (auto g = s.optional_map("gravity")) {
     r.gravity_nondependent = g->quantity("nondependent", kind::fraction);

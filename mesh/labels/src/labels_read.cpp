@@ -317,6 +317,17 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
     if (v < 1) throw InputError(name + ": expected a non-empty 3D volume");
     size[a] = static_cast<std::size_t>(v);
   }
+  // Without an sform, the voxel size is pixdim's: 0 or NaN there used to become 1 mm in silence
+  // (niftilib's rule), a wrong volume with no word (2,628 mL for 2,275 mL).
+  if (n.sform_code <= 0) {
+    for (std::size_t d = 1; d <= 3; ++d) {
+      if (static_cast<std::int64_t>(d) <= rank && !(n.pixdim[d] > 0.0 && std::isfinite(n.pixdim[d]))) {
+        throw InputError(fmt::format("{}: pixdim[{}] is {}: expected a positive voxel size (the file has no sform "
+                                     "to give it instead)",
+                                     name, d, n.pixdim[d]));
+      }
+    }
+  }
   const char* type = nifti_type_name(n.datatype);
   const int type_bytes = nifti_type_bytes(n.datatype);
   if (type_bytes == 0) {

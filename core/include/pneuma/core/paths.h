@@ -2,7 +2,9 @@
 // Questions about paths that answer instead of throwing: std::filesystem's throwing overloads
 // raise filesystem_error for a name too long for the file system or a folder without
 // permission, which would escape a loader as something other than pneuma::Error.
+#include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -15,9 +17,17 @@ inline bool path_exists(const std::filesystem::path& path) noexcept {
   return std::filesystem::exists(path, ec) && !ec;
 }
 
-// The whole file as bytes. Throws IoError ("<path>: cannot open file") for a missing file, a
-// folder or one without read permission, and ("<path>: cannot read file") for a read that fails.
-std::string read_file_bytes(const std::filesystem::path& path);
+// Why nothing usable is at `path`: "no such file", or "permission denied" where a folder on the
+// way cannot be searched (so that it is not reported as missing); empty when something is there.
+std::string missing_reason(const std::filesystem::path& path);
+
+// The whole file as bytes. Throws IoError ("<path>: cannot open file") for a missing file or a
+// folder, ("<path>: cannot open file: permission denied") for one without read permission and
+// ("<path>: cannot read file") for a read that fails; InputError for something that is not a
+// regular file (a device such as /dev/zero, a pipe: it may never end) and for a file larger than
+// `max_bytes`.
+std::string read_file_bytes(const std::filesystem::path& path,
+                            std::uintmax_t max_bytes = std::numeric_limits<std::uintmax_t>::max());
 
 // The names, without extension and sorted, of the regular files in `folder` whose name ends in
 // `extension` (such as ".yaml"); empty where the folder cannot be listed. For messages that

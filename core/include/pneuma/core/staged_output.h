@@ -26,11 +26,12 @@ class StagedOutput {
   const std::filesystem::path& folder() const { return folder_; }
   const std::filesystem::path& stage() const { return stage_; }
 
-  // Moves every entry of the stage (files and folders, top level) into the folder, then
-  // removes the entries named in `obsolete` (relative names, top level: what the previous
-  // output had and this one has not), then the stage. Call it inside a DeferInterruptions
-  // scope. Throws IoError when an entry cannot be moved.
-  void commit(const std::vector<std::string>& obsolete = {});
+  // Moves every entry of the stage (files and folders, top level) into the folder, the one
+  // named `last` (if any: the manifest, whose presence says the folder is complete) after all
+  // the others, then removes the entries named in `obsolete` (relative names, top level: what
+  // the previous output had and this one has not), then the stage. Call it inside a
+  // DeferInterruptions scope. Throws IoError when an entry cannot be moved.
+  void commit(const std::vector<std::string>& obsolete = {}, const std::string& last = {});
 
  private:
   std::filesystem::path folder_;

@@ -26,9 +26,10 @@
 namespace pneuma::model {
 
 struct CompileOptions {
-  std::filesystem::path output_dir;                      // where `field: {cache: auto}` keeps field.h5
+  std::filesystem::path output_dir;                      // where `field: {cache: auto}` looks for field.h5
   std::optional<double> edge_override_m = std::nullopt;  // a coarser or finer mesh than the scenario's
   bool interior = false;                                 // compute each lung's inside (an output needs it)
+  std::filesystem::path stage_dir = {};  // where `cache: auto` writes field.h5 (the run's stage); empty: output_dir
 };
 
 // The scales of one lung over the run.

@@ -103,14 +103,17 @@ struct CacheLookup {
 // in the record it returns and writes it to `path`. A damaged or foreign file there (truncated,
 // edited, not a pneuma field file) is never used: it is recomputed and replaced, and `discarded`
 // holds the one-line reason for a warning. Throws IoError when the file exists but cannot be read.
+// With `save_to` (a run's stage), the field is written there instead, and a reused file copied
+// there: `path` itself is left as it was.
 CacheLookup load_or_compute(const std::filesystem::path& path, const std::string& key,
-                            const std::function<FieldRecord()>& compute);
+                            const std::function<FieldRecord()>& compute, const std::filesystem::path& save_to = {});
 
 // load_or_compute() for a surface at hand: keyed by field_key() of `tissue` applied to `rest`
 // (its regions found once, and handed back in `regions` where the tissue needed them).
 CacheLookup load_or_compute(const std::filesystem::path& path, const mesh::TriangleMesh& rest,
                             const field::Tissue& tissue,
-                            const field::FieldOptions& options = field::default_field_options);
+                            const field::FieldOptions& options = field::default_field_options,
+                            const std::filesystem::path& save_to = {});
 
 // A digest of the bytes of `files` and of `options_text` (whatever else shapes a surface made
 // from them: unit, repair, remeshing target). Throws IoError when a file cannot be read.

@@ -1,0 +1,25 @@
+#include "pneuma/core/text.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+using namespace std::string_literals;
+
+TEST(Text, FirstInvalidUtf8FindsTheFirstBadByte) {
+  EXPECT_EQ(pneuma::first_invalid_utf8("plain ascii"), std::nullopt);
+  EXPECT_EQ(pneuma::first_invalid_utf8("lung \xc3\xa9t\xc3\xa9 \xe2\x86\x92 \xf0\x9f\xab\x81"), std::nullopt);
+  EXPECT_EQ(pneuma::first_invalid_utf8("ab\xff"), 2u);
+  EXPECT_EQ(pneuma::first_invalid_utf8("a\xc3"), 1u) << "a sequence cut short";
+  EXPECT_EQ(pneuma::first_invalid_utf8("\xc0\xaf"), 0u) << "an overlong '/'";
+  EXPECT_EQ(pneuma::first_invalid_utf8("x\xed\xa0\x80"), 1u) << "a surrogate";
+  EXPECT_EQ(pneuma::first_invalid_utf8("\xf4\x90\x80\x80"), 0u) << "above U+10FFFF";
+}
+
+TEST(Text, QuoteBytesWritesUnprintableBytesAsHexAndKeepsUtf8) {
+  EXPECT_EQ(pneuma::quote_bytes("name: a\x1b[31mb"), "name: a\\x1b[31mb");
+  EXPECT_EQ(pneuma::quote_bytes("form\ffeed\nline\x7f"), "form\\x0cfeed\\x0aline\\x7f");
+  EXPECT_EQ(pneuma::quote_bytes("nul\0here"s), "nul\\x00here") << "not cut at a NUL byte";
+  EXPECT_EQ(pneuma::quote_bytes("bad \xff\xfe end"), "bad \\xff\\xfe end");
+  EXPECT_EQ(pneuma::quote_bytes("caf\xc3\xa9\ttab"), "caf\xc3\xa9\ttab");
+}

@@ -1,0 +1,290 @@
+// Bad inputs that used to get through (#29): each is refused with one line naming the file and
+// the place, the documented exit code, and the output folder as the previous run left it.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <map>
+#include <sstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "test_support.h"
+
+using pneuma::test::read_text;
+using pneuma::test::run_pneuma;
+using pneuma::test::TempDir;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kScenario = R"(duration: 2 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 12 mm, share: 55 %}
+field: {tissue: healthy-upright}
+physiology: {preset: healthy-adult}
+outputs:
+  mesh_sequence: {format: ply, every: 5}
+  png: false
+)";
+
+// Every file under `folder` with its bytes.
+std::map<std::string, std::string> snapshot(const fs::path& folder) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(folder)) {
+    if (e.is_regular_file()) files[fs::relative(e.path(), folder).generic_string()] = read_text(e.path());
+  }
+  return files;
+}
+
+}  // namespace
+
+// A name JSON cannot hold used to fail while the manifest was written, after the other outputs
+// had been moved into the folder (exit 1, a mixed folder). It is refused at load, and the
+// previous output stays byte for byte.
+TEST(BadInputs, ANameThatIsNotUtf8IsRefusedAtLoadAndThePreviousOutputKept) {
+  TempDir dir;
+  const auto out = dir / "out";
+  const auto good = run_pneuma({"run", dir.write("good.yaml", kScenario).string(), "-o", out.string(), "-q"});
+  ASSERT_EQ(good.exit_code, 0) << good.err;
+  const auto before = snapshot(out);
+  const auto bad = dir.write("bad.yaml", std::string("name: \"lung \xff\xfe\"\n") + kScenario);
+  const auto r = run_pneuma({"run", bad.string(), "-o", out.string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, bad.string() + ":1:13: expected UTF-8 text, got the byte \\xff\n");
+  EXPECT_EQ(snapshot(out), before);
+}
+
+// A scenario file whose name is not UTF-8 (the run's name by default): the manifest holds it with
+// U+FFFD in place of the bad byte, and the run succeeds.
+TEST(BadInputs, AScenarioFileNameThatIsNotUtf8StillGivesAValidManifest) {
+  TempDir dir;
+  const auto file = dir.write("lung-\xff.yaml", kScenario);
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto manifest = nlohmann::json::parse(read_text(dir / "out/manifest.json"));
+  EXPECT_EQ(manifest["scenario"]["name"].get<std::string>(), "lung-\xef\xbf\xbd");
+}
+
+// Bytes of the input that would not print (ESC, form feed) are quoted in the message.
+TEST(BadInputs, ControlBytesFromTheInputAreQuotedInTheMessage) {
+  TempDir dir;
+  const auto file = dir.write("s.yaml", "duration: 2 s\nphysiology: {preset: healthy-adult, \"\x1b[31mred\x0c\": 1}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() +
+                       ":2:37: physiology.\\x1b[31mred\\x0c: unknown key; expected one of: actions, "
+                       "chest_wall_fraction, compartments, compliance, driver, effort, model, output_rate, preset, "
+                       "pressure_volume_curve, resistance, solver, transpulmonary_pressure_at_rest\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+// A device never ends: refused before it is read, as a scenario and as a preset.
+TEST(BadInputs, ADeviceIsRefusedAsAScenarioAndAsAPreset) {
+  TempDir dir;
+  const auto r = run_pneuma({"run", "/dev/zero", "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, "/dev/zero: not a regular file (a device, pipe or socket); expected a file\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  const auto file = dir.write("s.yaml", "duration: 2 s\nphysiology: {preset: /dev/zero}\n");
+  const auto p = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(p.exit_code, 3) << p.err;
+  EXPECT_EQ(std::count(p.err.begin(), p.err.end(), '\n'), 1) << p.err;
+  EXPECT_NE(p.err.find("/dev/zero"), std::string::npos) << p.err;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+namespace {
+
+struct TooBig {
+  const char* name;
+  const char* yaml;
+  const char* message;  // after "<file>"
+};
+
+// Nothing in `folder` (it may not exist: a scenario refused at load; or be empty: refused while
+// the model is compiled, before any output).
+bool holds_nothing(const fs::path& folder) { return !fs::exists(folder) || fs::is_empty(folder); }
+
+}  // namespace
+
+class RunTooBig : public ::testing::TestWithParam<TooBig> {};
+
+// What cannot finish (hours of frames, millions of vertices) is refused up front with the numbers.
+TEST_P(RunTooBig, RefusedUpFrontWithTheNumbers) {
+  TempDir dir;
+  pneuma::test::run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", (dir / "mm.ply").string()});
+  const auto file = dir.write("s.yaml", GetParam().yaml);
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() + GetParam().message + "\n");
+  EXPECT_TRUE(holds_nothing(dir / "out"));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, RunTooBig,
+    ::testing::Values(
+        TooBig{"duration", "duration: 1e9 s\nphysiology: {preset: healthy-adult}\n",
+               ":1:11: duration: expected at most 86400 s (one day), got 1e+09 s"},
+        TooBig{"duration_1e308", "duration: 1e308 s\nphysiology: {preset: healthy-adult}\n",
+               ":1:11: duration: expected at most 86400 s (one day), got 1e+308 s"},
+        TooBig{"frame_rate", "duration: 4 s\nframes: {rate: 1e9 Hz}\nphysiology: {preset: healthy-adult}\n",
+               ":2:16: frames.rate: 4e+09 frames (4 s at 1e+09 Hz); expected at most 1000000: lower frames.rate or "
+               "the duration"},
+        TooBig{"frame_rate_by_duration",
+               "duration: 20000 s\nframes: {rate: 100 Hz}\nphysiology: {preset: healthy-adult}\n",
+               ":2:16: frames.rate: 2e+06 frames (20000 s at 100 Hz); expected at most 1000000: lower frames.rate or "
+               "the duration"},
+        TooBig{"output_rate", "duration: 100 s\nphysiology: {preset: healthy-adult, output_rate: 1e9 Hz}\n",
+               ":2:50: physiology.output_rate: 1e+11 physiology samples (100 s at 1e+09 Hz); expected at most "
+               "10000000: lower physiology.output_rate or the duration"},
+        TooBig{"edge", "duration: 4 s\nmesh: {phantom: right, edge: 0.1 mm}\nphysiology: {preset: healthy-adult}\n",
+               ": mesh.edge: a surface of 0.07417 m2 at an edge of 0.1 mm would have about 8.56e+06 vertices; "
+               "expected at most 2000000 (a coarser edge)"},
+        TooBig{"millimetres_read_as_metres",
+               "duration: 4 s\nmesh: {file: mm.ply, unit: m, edge: 4 mm}\nphysiology: {preset: healthy-adult}\n",
+               ": mesh.edge: a surface of 7.384e+04 m2 at an edge of 4 mm would have about 5.33e+09 vertices; expected "
+               "at most 2000000 (a coarser edge); 7.384e+04 m2 is not the area of a lung (about 0.1 m2): is mesh.unit "
+               "right?"}),
+    [](const auto& test_case) { return std::string(test_case.param.name); });
+
+// Options out of range are usage errors (exit 2), refused before anything is read or written.
+TEST(BadInputs, OptionsOutOfRangeAreUsageErrors) {
+  TempDir dir;
+  const auto file = dir.write("s.yaml", kScenario);
+  for (const char* edge : {"-1mm", "0mm", "1e-308mm", "0.01mm"}) {
+    const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q", "--edge", edge});
+    EXPECT_EQ(r.exit_code, 2) << edge;
+    EXPECT_EQ(r.err, "pneuma: --edge: must be at least 0.1 mm\n") << edge;
+  }
+  for (const char* values : {"", "0", "3,-1"}) {
+    const auto labels =
+        run_pneuma({"mesh", "from-labels", file.string(), "--labels", values, "-o", (dir / "out.ply").string()});
+    EXPECT_EQ(labels.exit_code, 2) << values;
+    EXPECT_EQ(labels.err, "pneuma: --labels: expected label values of 1 or more, such as 3,4,5\n") << values;
+  }
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"});
+}
+
+namespace {
+
+struct OutOfRange {
+  const char* name;
+  const char* yaml;
+  const char* message;  // after "<dir>/"
+};
+
+}  // namespace
+
+class RunOutOfRange : public ::testing::TestWithParam<OutOfRange> {};
+
+// Lung parameters, solver tolerances and shear moduli at 1e308 or 1e-320 are refused at load, at
+// their key in the file that gives them (CVODE or the field failed later without naming it).
+TEST_P(RunOutOfRange, RefusedAtTheKeyInItsFile) {
+  TempDir dir;
+  std::string tissue = read_text(pneuma::test::source_dir() / "configs/tissue/healthy-upright.yaml");
+  tissue.replace(tissue.find("apex: 3 kPa"), 11, "apex: 1e308 kPa");
+  dir.write("stiff.yaml", tissue);
+  const auto file = dir.write("s.yaml", GetParam().yaml);
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, (dir / GetParam().message).string() + "\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, RunOutOfRange,
+    ::testing::Values(
+        OutOfRange{"compliance", "duration: 4 s\nphysiology: {preset: healthy-adult, compliance: 1e308 L/cmH2O}\n",
+                   "s.yaml:2:49: physiology.compliance: expected a compliance from 0.001 to 10 L/cmH2O, got '1e308 "
+                   "L/cmH2O'"},
+        OutOfRange{"resistance",
+                   "duration: 4 s\nphysiology:\n  preset: healthy-adult\n  resistance: 1e-320 cmH2O*s/L\n",
+                   "s.yaml:4:15: physiology.resistance: expected a resistance from 0.1 to 1000 cmH2O*s/L, got "
+                   "'1e-320 cmH2O*s/L'"},
+        OutOfRange{"relative_tolerance",
+                   "duration: 4 s\nphysiology:\n  preset: healthy-adult\n  solver: {relative_tolerance: 1e-320, "
+                   "absolute_tolerance: 1e-9 L}\n",
+                   "s.yaml:4:32: physiology.solver.relative_tolerance: expected a relative tolerance from 1e-12 to "
+                   "0.1, got '1e-320'"},
+        OutOfRange{"absolute_tolerance",
+                   "duration: 4 s\nphysiology:\n  preset: healthy-adult\n  solver: {relative_tolerance: 1e-6, "
+                   "absolute_tolerance: 1e308 L}\n",
+                   "s.yaml:4:58: physiology.solver.absolute_tolerance: expected an absolute tolerance from 1e-12 L to "
+                   "0.1 L, got '1e308 L'"},
+        OutOfRange{"shear_modulus", "duration: 4 s\nfield: {tissue: stiff.yaml}\nphysiology: {preset: healthy-adult}\n",
+                   "stiff.yaml:25:18: stiffness.moduli.apex: expected a shear modulus from 1 Pa to 1 GPa, got '1e308 "
+                   "kPa'"}),
+    [](const auto& test_case) { return std::string(test_case.param.name); });
+
+// A surface the field cannot enlarge (its normals inward) is named by its file, not as "mesh".
+TEST(BadInputs, AnInwardSurfaceIsNamedByItsFile) {
+  TempDir dir;
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", (dir / "r.obj").string()}).exit_code, 0);
+  std::istringstream in(read_text(dir / "r.obj"));
+  std::string flipped;
+  for (std::string line; std::getline(in, line);) {
+    if (line.starts_with("f ")) {
+      std::istringstream face(line.substr(2));
+      std::string a, b, c;
+      face >> a >> b >> c;
+      line = "f ";
+      line.append(a).append(" ").append(c).append(" ").append(b);
+    }
+    flipped += line + "\n";
+  }
+  dir.write("inward.obj", flipped);
+  const auto file = dir.write("s.yaml", "duration: 2 s\nmesh: {file: inward.obj, repair: false}\nphysiology: {preset: "
+                                        "healthy-adult}\noutputs: {png: false}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 5);
+  EXPECT_EQ(r.err, (dir / "inward.obj").string() +
+                       ": pushing every vertex outward along its displacement direction does not increase the surface "
+                       "area (is the mesh oriented with its normals outward?)\n");
+  EXPECT_TRUE(holds_nothing(dir / "out"));
+}
+
+TEST(BadInputs, AMeshEdgeBelowATenthOfAMillimetreIsRefusedAtItsKey) {
+  TempDir dir;
+  const auto file = dir.write(
+      "s.yaml", "duration: 2 s\nmesh: {phantom: right, edge: 1e-308 mm}\nphysiology: {preset: healthy-adult}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() + ":2:30: mesh.edge: expected an edge of at least 0.1 mm, got '1e-308 mm'\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+// A file that cannot be read for want of permission is reported as such, not as missing. As
+// root (who reads everything), pneuma runs as nobody through setpriv.
+TEST(BadInputs, PermissionDeniedIsReportedAsSuch) {
+  std::vector<std::string> prefix;
+  fs::path program;
+  if (::geteuid() == 0) {
+    const fs::path setpriv = pneuma::test::find_program({"setpriv"});
+    if (setpriv.empty()) GTEST_SKIP() << "running as root without setpriv";
+    prefix = {"--reuid", "65534", "--regid", "65534", "--clear-groups", PNEUMA_EXE};
+    program = setpriv;
+  }
+  TempDir dir;
+  fs::permissions(dir.path(), fs::perms::all);
+  fs::create_directories(dir / "secret");
+  dir.write("secret/lung.ply", "ply\n");
+  fs::permissions(dir / "secret", fs::perms::owner_all);
+  const auto yaml = "duration: 2 s\nmesh: {file: secret/lung.ply}\nphysiology: {preset: healthy-adult}\n";
+  const auto readable = dir.write("m.yaml", yaml);
+  const auto locked = dir.write("z.yaml", yaml);
+  fs::permissions(locked, fs::perms::none);
+  auto run = [&](const fs::path& scenario) {
+    std::vector<std::string> args = prefix;
+    args.insert(args.end(), {"run", scenario.string(), "-o", (dir / "out").string(), "-q"});
+    return prefix.empty() ? run_pneuma(args) : pneuma::test::run_program(program, args);
+  };
+  const auto hidden = run(readable);
+  EXPECT_EQ(hidden.exit_code, 3);
+  EXPECT_EQ(hidden.err,
+            readable.string() + ":2:14: mesh.file: permission denied: " + (dir / "secret/lung.ply").string() + "\n");
+  const auto unreadable = run(locked);
+  EXPECT_EQ(unreadable.exit_code, 4);
+  EXPECT_EQ(unreadable.err, locked.string() + ": cannot open file: permission denied\n");
+  fs::permissions(dir / "secret", fs::perms::owner_all | fs::perms::group_all | fs::perms::others_all);
+}
