@@ -38,9 +38,8 @@ std::vector<CsvRow> read_voxels_csv(const std::filesystem::path& path) {
   std::ifstream in(path);
   std::string line;
   std::getline(in, line);
-  EXPECT_EQ(line,
-            "time_point,frame,time_s,scales,physiology_volume_mL,expected_lung_volume_mL,warped_lung_volume_mL,"
-            "volume_error_percent,min_jacobian,max_jacobian,folded_tets,folded_volume_fraction");
+  EXPECT_EQ(line, "time_point,frame,time_s,scales,physiology_volume_mL,expected_lung_volume_mL,warped_lung_volume_mL,"
+                  "volume_error_percent,min_jacobian,max_jacobian,folded_tets,folded_volume_fraction");
   std::vector<CsvRow> rows;
   while (std::getline(in, line)) {
     std::vector<std::string> cells;
@@ -96,8 +95,8 @@ TEST(VoxelsRun, ThePhantomsWarpedLungFollowsThePhysiologysVolume) {
     EXPECT_NEAR(warped_m3 * 1e6, row.warped_mL, 1e-3 * row.warped_mL);
     EXPECT_NEAR(warped_m3 * 1e6 / row.expected_mL, 1.0, 0.02) << row.time_point;
     EXPECT_GT(row.min_jacobian, 0.0) << row.time_point;
-    std::cout << row.time_point << ": warped lung " << warped_m3 * 1e6 << " mL, expected " << row.expected_mL
-              << " mL (" << row.error_percent << " %), min Jacobian " << row.min_jacobian << "\n";
+    std::cout << row.time_point << ": warped lung " << warped_m3 * 1e6 << " mL, expected " << row.expected_mL << " mL ("
+              << row.error_percent << " %), min Jacobian " << row.min_jacobian << "\n";
   }
   // End-inspiration holds more lung than end-expiration, by about the right lung's share of 800 mL.
   const double breath_mL = rows[1].expected_mL - rows[0].expected_mL;
@@ -126,7 +125,8 @@ TEST(VoxelsRun, TheWarpedLungsBoundaryIsTheSurfaceFrames) {
   pneuma::mesh::TriangleMesh frame = lung.rest;
   for (std::size_t v = 0; v < frame.vertices.size(); ++v) frame.vertices[v] += scale * lung.unit_displacement[v];
   std::vector<Eigen::Vector3d> moved;
-  for (const auto b : inside.boundary_nodes) moved.push_back(inside.mesh.nodes[b] + scale * inside.unit_displacement[b]);
+  for (const auto b : inside.boundary_nodes)
+    moved.push_back(inside.mesh.nodes[b] + scale * inside.unit_displacement[b]);
   // The field "position" carried to each point is the closest point of the frame's surface.
   const auto closest = pneuma::mesh::transfer_vertex_field(frame, frame.vertices, moved);
   double worst = 0.0;
@@ -204,13 +204,13 @@ TEST_P(CtVoxels, TheWarpedLobesFollowThePhysiologysVolume) {
                  << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
   }
   TempDir dir;
-  const auto scenario = dir.write(
-      "ct.yaml", "duration: 4 s\nframes: {rate: 5 Hz}\nmesh: {labels: " + file.string() +
-                     ", lungs: {right: [3, 4, 5], left: [1, 2]}, edge: 5 mm}\n"
-                     "field: {tissue: healthy-upright-ct, interior: {edge: 6 mm}}\n"
-                     "physiology:\n  preset: healthy-adult\n"
-                     "  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}\n"
-                     "outputs: {gltf: false, report: false, hdf5: false, voxels: {spacing: 4 mm}}\n");
+  const auto scenario =
+      dir.write("ct.yaml", "duration: 4 s\nframes: {rate: 5 Hz}\nmesh: {labels: " + file.string() +
+                               ", lungs: {right: [3, 4, 5], left: [1, 2]}, edge: 5 mm}\n"
+                               "field: {tissue: healthy-upright-ct, interior: {edge: 6 mm}}\n"
+                               "physiology:\n  preset: healthy-adult\n"
+                               "  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}\n"
+                               "outputs: {gltf: false, report: false, hdf5: false, voxels: {spacing: 4 mm}}\n");
   const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
   ASSERT_EQ(r.exit_code, 0) << GetParam() << ": " << r.err;
   const auto rows = read_voxels_csv(dir / "out/voxels/voxels.csv");

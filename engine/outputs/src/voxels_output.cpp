@@ -21,7 +21,8 @@ namespace {
 
 namespace kind = units::kind;
 
-constexpr const char* kAtExpected = "expected end_expiration, end_inspiration or a time >= 0 with its unit, such as '2.4 s'";
+constexpr const char* kAtExpected =
+    "expected end_expiration, end_inspiration or a time >= 0 with its unit, such as '2.4 s'";
 
 std::any read_spec(const config::Node* options) {
   VoxelsSpec spec;
@@ -84,7 +85,8 @@ voxels::Grid run_grid(const model::Model& model, const mesh::LabelMap* labels, d
   lo -= Eigen::Vector3d(0.03, 0.03, 0.08);  // room below the diaphragm for the abdomen's motion
   hi += Eigen::Vector3d::Constant(0.03);
   voxels::Grid grid;
-  for (int a = 0; a < 3; ++a) grid.size[static_cast<std::size_t>(a)] = static_cast<std::size_t>(std::ceil((hi[a] - lo[a]) / h)) + 1;
+  for (int a = 0; a < 3; ++a)
+    grid.size[static_cast<std::size_t>(a)] = static_cast<std::size_t>(std::ceil((hi[a] - lo[a]) / h)) + 1;
   grid.ijk_to_lps = Eigen::Matrix4d::Identity();
   grid.ijk_to_lps.block<3, 3>(0, 0) *= h;
   grid.ijk_to_lps.block<3, 1>(0, 3) = lo;
@@ -118,11 +120,12 @@ class VoxelsOutput final : public Output {
       for (std::size_t i = 0; i < model.lungs.size(); ++i) lung_labels.push_back(static_cast<int>(i) + 1);
     }
     const double rest_lung_m3 = lung_volume(*labels, lung_labels);
-    std::vector<std::vector<int>> own_labels;
-    for (std::size_t i = 0; i < model.lungs.size(); ++i) {
-      own_labels.push_back(model.lungs[i].label_values.empty() ? std::vector<int>{static_cast<int>(i) + 1}
-                                                               : model.lungs[i].label_values);
+    // Which voxels of the label map each lung's rest mesh holds (warp_labels keeps its rim).
+    std::vector<voxels::LungMotion> at_rest;
+    for (const model::LungModel& lung : model.lungs) {
+      at_rest.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
     }
+    const std::vector<std::uint8_t> rest_lung = voxels::forward_dvf(voxels::grid_of(*labels), at_rest).lung;
 
     std::filesystem::create_directories(dir_ / "voxels");
     std::vector<std::filesystem::path> files;
@@ -141,7 +144,7 @@ class VoxelsOutput final : public Output {
       const model::BodyMotion* body = model.body.get();
       voxels::TimePointInputs inputs;
       inputs.labels = &*labels;
-      inputs.lung_labels = own_labels;
+      inputs.rest_lung = &rest_lung;
       inputs.ct = spec_.image.get();
       if (body) {
         inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
@@ -179,9 +182,9 @@ class VoxelsOutput final : public Output {
       std::string scale_text;
       for (const double sc : scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
       rows.push_back(fmt::format("{},{},{:.6f},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", tag, k,
-                                 series.time_s[k], scale_text, series.volume_m3[k] * 1e6, expected * 1e6,
-                                 warped * 1e6, error * 100.0, point.jacobian.min, point.jacobian.max,
-                                 point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
+                                 series.time_s[k], scale_text, series.volume_m3[k] * 1e6, expected * 1e6, warped * 1e6,
+                                 error * 100.0, point.jacobian.min, point.jacobian.max, point.jacobian.folded_tets,
+                                 point.jacobian.folded_volume_fraction));
       folded_tets = std::max(folded_tets, point.jacobian.folded_tets);
     }
     const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
@@ -208,7 +211,8 @@ class VoxelsOutput final : public Output {
   // The rest tetrahedra on the grid as labels: lung i + 1 where its rest tets hold the voxel.
   static mesh::LabelMap rest_label_map(const model::Model& model, const voxels::Grid& grid) {
     std::vector<voxels::LungMotion> lungs;
-    for (const model::LungModel& lung : model.lungs) lungs.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
+    for (const model::LungModel& lung : model.lungs)
+      lungs.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
     const voxels::DisplacementField rest = voxels::forward_dvf(grid, lungs);
     mesh::LabelMap map;
     map.size = grid.size;
@@ -246,9 +250,10 @@ class VoxelsOutput final : public Output {
         k = *moment == VoxelMoment::end_expiration ? low : high;
       } else {
         const double t = std::get<double>(at);
-        k = static_cast<std::size_t>(std::min_element(time_s.begin(), time_s.end(),
-                                                      [t](double a, double b) { return std::abs(a - t) < std::abs(b - t); }) -
-                                     time_s.begin());
+        k = static_cast<std::size_t>(
+            std::min_element(time_s.begin(), time_s.end(),
+                             [t](double a, double b) { return std::abs(a - t) < std::abs(b - t); }) -
+            time_s.begin());
       }
       if (std::find(frames.begin(), frames.end(), k) == frames.end()) frames.push_back(k);
     }

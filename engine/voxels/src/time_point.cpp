@@ -18,8 +18,7 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
   point.jacobian = jacobian_stats(lungs);
   if (inputs.labels != nullptr) {
     if (!point.labels) point.labels.emplace();
-    warp_labels(*inputs.labels, point.pullback, *point.labels,
-                inputs.lung_labels.empty() ? nullptr : &inputs.lung_labels);
+    warp_labels(*inputs.labels, point.pullback, *point.labels, inputs.rest_lung);
   } else {
     point.labels.reset();
   }

@@ -5,11 +5,12 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include <array>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
+#include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
 
 namespace pneuma::voxels {
@@ -38,14 +39,17 @@ void for_each_sample(const DisplacementField& field, const Grid& source, const F
 }  // namespace
 
 mesh::LabelMap warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback,
-                           const std::vector<std::vector<int>>* lung_labels) {
+                           const std::vector<std::uint8_t>* rest_lung) {
   mesh::LabelMap out;
-  warp_labels(labels, pullback, out, lung_labels);
+  warp_labels(labels, pullback, out, rest_lung);
   return out;
 }
 
 void warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback, mesh::LabelMap& out,
-                 const std::vector<std::vector<int>>* lung_labels) {
+                 const std::vector<std::uint8_t>* rest_lung) {
+  if (rest_lung && rest_lung->size() != labels.labels.size()) {
+    throw ValueError("warp_labels: the rest lungs' voxels are not those of the label map");
+  }
   out.size = pullback.grid.size;
   out.ijk_to_lps = pullback.grid.ijk_to_lps;
   out.transform_source = labels.transform_source;
@@ -64,34 +68,30 @@ void warp_labels(const mesh::LabelMap& labels, const DisplacementField& pullback
       }
       at[a] = static_cast<std::size_t>(r);
     }
-    std::int32_t label = labels.labels[at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2])];
+    std::size_t nearest = at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2]);
     const std::uint8_t lung = pullback.lung[v];
-    if (lung_labels && lung != 0 && lung <= lung_labels->size()) {
-      const std::vector<int>& own = (*lung_labels)[lung - 1u];
-      auto is_own = [&](std::int32_t l) { return std::find(own.begin(), own.end(), l) != own.end(); };
-      if (!is_own(label)) {
-        // The nearest of the eight voxels around q that holds one of the lung's labels.
-        double best = std::numeric_limits<double>::infinity();
-        for (int corner = 0; corner < 8; ++corner) {
-          std::array<double, 3> c{};
-          bool inside = true;
-          for (std::size_t a = 0; a < 3; ++a) {
-            const double base = std::floor(q[static_cast<Eigen::Index>(a)]);
-            c[a] = base + static_cast<double>((corner >> a) & 1);
-            inside = inside && c[a] >= 0.0 && c[a] < n[a];
-          }
-          if (!inside) continue;
-          const std::int32_t candidate = labels.labels[static_cast<std::size_t>(c[0]) +
-                                                       labels.size[0] * (static_cast<std::size_t>(c[1]) +
-                                                                         labels.size[1] * static_cast<std::size_t>(c[2]))];
-          const double d = (Eigen::Vector3d(c[0], c[1], c[2]) - q).squaredNorm();
-          if (is_own(candidate) && d < best) {
-            best = d;
-            label = candidate;
-          }
+    if (rest_lung && lung != 0 && (*rest_lung)[nearest] != lung) {
+      // The nearest of the eight voxels around q inside this lung's rest mesh.
+      double best = std::numeric_limits<double>::infinity();
+      for (int corner = 0; corner < 8; ++corner) {
+        std::array<double, 3> c{};
+        bool inside = true;
+        for (std::size_t a = 0; a < 3; ++a) {
+          c[a] = std::floor(q[static_cast<Eigen::Index>(a)]) + static_cast<double>((corner >> a) & 1);
+          inside = inside && c[a] >= 0.0 && c[a] < n[a];
+        }
+        if (!inside) continue;
+        const std::size_t candidate =
+            static_cast<std::size_t>(c[0]) +
+            labels.size[0] * (static_cast<std::size_t>(c[1]) + labels.size[1] * static_cast<std::size_t>(c[2]));
+        const double d = (Eigen::Vector3d(c[0], c[1], c[2]) - q).squaredNorm();
+        if ((*rest_lung)[candidate] == lung && d < best) {
+          best = d;
+          nearest = candidate;
         }
       }
     }
+    const std::int32_t label = labels.labels[nearest];
     out.labels[v] = label;
   });
 }

@@ -57,7 +57,7 @@ struct LungModel {
   std::optional<mesh::Lung> side;  // nullopt: a one-surface run of a file or label map
   double share = 1.0;              // mesh volume = rest + share * (V - reference)
   double reference_volume_m3 = 0.0;
-  int compartment = -1;  // V is this physiology compartment's volume; -1: the total
+  int compartment = -1;                // V is this physiology compartment's volume; -1: the total
   std::vector<int> label_values = {};  // the label map's values of this lung (names resolved); empty: no label map
 
   // ---- The inside (compile with CompileOptions::interior; else null) -------------------------------

@@ -17,10 +17,11 @@ namespace pneuma::voxels {
 
 struct TimePointInputs {
   const mesh::LabelMap* labels = nullptr;  // warped when given
-  std::vector<std::vector<int>> lung_labels;  // per lung: its label values (warp_labels), or empty
-  const Image* ct = nullptr;               // warped when given
-  OutsideField forward_outside;            // the forward field outside the lungs (empty: 0)
-  OutsideField pullback_outside;           // the pull-back field outside the deformed lungs (empty: 0)
+  // Per voxel of `labels`: 1 + the lung whose rest mesh holds it, else 0 (warp_labels); may be null.
+  const std::vector<std::uint8_t>* rest_lung = nullptr;
+  const Image* ct = nullptr;      // warped when given
+  OutsideField forward_outside;   // the forward field outside the lungs (empty: 0)
+  OutsideField pullback_outside;  // the pull-back field outside the deformed lungs (empty: 0)
 };
 
 struct TimePoint {
