@@ -100,13 +100,12 @@ void BM_InteriorField(benchmark::State& state) {
 BENCHMARK(BM_SurfaceField)->Unit(benchmark::kSecond)->Iterations(1);
 BENCHMARK(BM_Tetrahedralize)
     ->Args({50, 0})
-    ->Args({50, 5})
     ->Args({50, 10})
-    ->Args({30, 0})
+    ->Args({40, 10})
     ->Args({30, 10})
     ->Unit(benchmark::kSecond)
     ->Iterations(1);
-BENCHMARK(BM_InteriorField)->Args({50, 0})->Unit(benchmark::kSecond)->Iterations(1);
+BENCHMARK(BM_InteriorField)->Args({50, 0})->Args({50, 1})->Args({40, 0})->Args({30, 0})->Unit(benchmark::kSecond)->Iterations(1);
 
 }  // namespace
 
