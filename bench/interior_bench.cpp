@@ -105,7 +105,13 @@ BENCHMARK(BM_Tetrahedralize)
     ->Args({30, 10})
     ->Unit(benchmark::kSecond)
     ->Iterations(1);
-BENCHMARK(BM_InteriorField)->Args({50, 0})->Args({50, 1})->Args({40, 0})->Args({30, 0})->Unit(benchmark::kSecond)->Iterations(1);
+BENCHMARK(BM_InteriorField)
+    ->Args({50, 0})
+    ->Args({50, 1})
+    ->Args({40, 0})
+    ->Args({30, 0})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 
 }  // namespace
 
