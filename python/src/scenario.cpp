@@ -16,6 +16,7 @@
 #include "pneuma/core/units.h"
 #include "pneuma/frame/frame.h"
 #include "pneuma/model/compile.h"
+#include "pneuma/outputs/voxels_output.h"
 #include "pneuma/runner/output_registry.h"
 #include "pneuma/runner/runner.h"
 #include "pneuma/scenario/scenario.h"
@@ -181,6 +182,9 @@ struct Animation {
   std::vector<double> time_s, lung_volume_m3;
   std::vector<std::vector<double>> scales;  // [lung][frame]
   bool field_reused = false;
+  // The voxel outputs' setting (outputs.voxels), made at the first voxels() call.
+  std::shared_ptr<const outputs::VoxelsSpec> voxels_spec;
+  mutable std::shared_ptr<const outputs::VoxelScene> voxel_scene;
 
   std::size_t frame_count() const { return time_s.size(); }
 
@@ -213,6 +217,55 @@ struct Animation {
     }
     return by_lung([&](std::size_t i) { return points_to_array(frame.lungs[i].positions); });
   }
+  // The voxel outputs of frame `index`, as `pneuma run` writes them (outputs.voxels).
+  py::dict voxels(std::size_t index) const {
+    if (!voxels_spec) {
+      throw ValueError("voxels: the scenario has no `outputs: voxels` (the lungs' inside is made only for it)");
+    }
+    if (index >= frame_count()) {
+      throw ValueError(fmt::format("index: expected a frame index from 0 to {}, got {}", frame_count() - 1, index));
+    }
+    voxels::TimePoint point;
+    {
+      py::gil_scoped_release release;
+      if (!voxel_scene) voxel_scene = std::make_shared<const outputs::VoxelScene>(*model, scenario, *voxels_spec);
+      std::vector<double> at;
+      for (const auto& lung : scales) at.push_back(lung[index]);
+      voxel_scene->compute(at, point);
+    }
+    const voxels::Grid& grid = voxel_scene->grid();
+    const auto nx = static_cast<py::ssize_t>(grid.size[0]), ny = static_cast<py::ssize_t>(grid.size[1]),
+               nz = static_cast<py::ssize_t>(grid.size[2]);
+    // Indexed [i, j, k(, component)] like the NIfTI files (i fastest in memory).
+    auto field = [&](const voxels::DisplacementField& f) {
+      constexpr auto d = static_cast<py::ssize_t>(sizeof(double));
+      py::array_t<double> out({nx, ny, nz, py::ssize_t{3}}, {3 * d, 3 * d * nx, 3 * d * nx * ny, d});
+      std::copy_n(f.displacement_m.front().data(), 3 * f.displacement_m.size(), out.mutable_data());
+      return out;
+    };
+    constexpr auto w = static_cast<py::ssize_t>(sizeof(std::int32_t));
+    py::array_t<std::int32_t> labels({nx, ny, nz}, {w, w * nx, w * nx * ny});
+    std::copy(point.labels->labels.begin(), point.labels->labels.end(), labels.mutable_data());
+    py::dict out;
+    out["forward_m"] = field(point.forward);
+    out["pullback_m"] = field(point.pullback);
+    out["labels"] = labels;
+    if (point.ct) {
+      constexpr auto f = static_cast<py::ssize_t>(sizeof(float));
+      py::array_t<float> ct({nx, ny, nz}, {f, f * nx, f * nx * ny});
+      std::copy(point.ct->values.begin(), point.ct->values.end(), ct.mutable_data());
+      out["ct"] = ct;
+    }
+    py::array_t<double> affine({4, 4});
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) affine.mutable_at(r, c) = grid.ijk_to_lps(r, c);
+    out["ijk_to_lps"] = affine;
+    out["min_jacobian"] = point.jacobian.min;
+    out["max_jacobian"] = point.jacobian.max;
+    out["folded_tets"] = point.jacobian.folded_tets;
+    out["lung_volume_m3"] = voxel_scene->lung_volume_m3(*point.labels);
+    return out;
+  }
   // The frame whose time is nearest to t (frames are 1 / frame_rate apart).
   std::size_t index_at(double t) const {
     if (!(t >= time_s.front() - 1e-9 && t <= time_s.back() + 1e-9)) {
@@ -236,6 +289,10 @@ Animation make_animation(const scenario::Scenario& given, const std::optional<st
   model::CompileOptions options;
   if (output_dir) options.output_dir = *output_dir;
   options.edge_override_m = edge_m;
+  if (const scenario::OutputRequest* voxels = a.scenario.output("voxels")) {
+    a.voxels_spec = std::make_shared<const outputs::VoxelsSpec>(std::any_cast<outputs::VoxelsSpec>(voxels->settings));
+    options.interior = true;
+  }
   py::gil_scoped_release release;
   const physiology::SimulationResult drive = scenario::simulate_physiology(a.scenario, a.scenario.frame_rate_hz);
   model::Compiled compiled = model::compile(a.scenario, drive, options);  // what `pneuma run` animates
@@ -488,6 +545,13 @@ void register_scenario(py::module_& m) {
           "frame_at_time", [](const Animation& a, double t) { return a.frame(a.index_at(t)); }, py::arg("time_s"),
           "frame_at_time(time_s) -> (V, 3) float64: the frame nearest to time_s (frames are 1 / frame_rate apart).")
       .def("index_at_time", &Animation::index_at, py::arg("time_s"), "The index of the frame nearest to time_s.")
+      .def("voxels", &Animation::voxels, py::arg("index"),
+           "voxels(index) -> dict: the voxel outputs of frame `index` as `pneuma run` writes them (the scenario "
+           "needs `outputs: voxels`; docs/voxels.md): 'forward_m' and 'pullback_m' (nx, ny, nz, 3) float64 "
+           "displacement fields in metres, LPS (forward: where each rest point goes; pull-back: out(x) = in(x + "
+           "v(x))), 'labels' (nx, ny, nz) int32 the label map warped to that frame, 'ct' (nx, ny, nz) float32 "
+           "where the scenario names an image, 'ijk_to_lps' (4, 4) the grid (metres), 'min_jacobian', "
+           "'max_jacobian', 'folded_tets', 'lung_volume_m3' (the warped lungs' voxels).")
       .def("__len__", [](const Animation& a) { return a.frame_count(); })
       .def("__repr__", [](const Animation& a) {
         return fmt::format("<pneuma.Animation '{}' {} frames, {} vertices{}>", a.scenario.name, a.frame_count(),

@@ -165,6 +165,23 @@ TEST(Dvf, FirstLungWinsAndOutsideComesFromTheCallback) {
   }
 }
 
+// rest_lungs: the rest meshes' voxels alone, by the analytic cube (inside, outside).
+TEST(Dvf, RestLungsAreTheVoxelsOfTheRestCube) {
+  const AffineCube cube;
+  const std::vector<std::uint8_t> rest = rest_lungs(cube.grid, cube.lungs());
+  ASSERT_EQ(rest.size(), cube.grid.voxel_count());
+  std::size_t checked = 0;
+  for (std::size_t k = 0; k < cube.grid.size[2]; ++k)
+    for (std::size_t j = 0; j < cube.grid.size[1]; ++j)
+      for (std::size_t i = 0; i < cube.grid.size[0]; ++i) {
+        const int side = cube.side(cube.grid.centre_m(i, j, k));
+        if (side == 0) continue;  // on the cube's faces: either
+        EXPECT_EQ(rest[cube.grid.index(i, j, k)], side == 1 ? 1 : 0) << i << " " << j << " " << k;
+        ++checked;
+      }
+  EXPECT_GT(checked, 100u);
+}
+
 TEST(Dvf, RefusesADisplacementCountThatIsNotTheNodeCount) {
   const AffineCube cube;
   const std::vector<Eigen::Vector3d> short_field(3, Eigen::Vector3d::Zero());

@@ -93,6 +93,29 @@ voxels::Grid run_grid(const model::Model& model, const mesh::LabelMap* labels, d
   return grid;
 }
 
+// The rest tetrahedra on the grid as labels: lung i + 1 where its rest tets hold the voxel.
+mesh::LabelMap rest_label_map(const model::Model& model, const voxels::Grid& grid) {
+  std::vector<voxels::LungMotion> lungs;
+  for (const model::LungModel& lung : model.lungs)
+    lungs.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
+  const std::vector<std::uint8_t> rest = voxels::rest_lungs(grid, lungs);
+  mesh::LabelMap map;
+  map.size = grid.size;
+  map.ijk_to_lps = grid.ijk_to_lps;
+  map.labels.assign(rest.begin(), rest.end());
+  map.transform_source = "pneuma";
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    map.segments.push_back({std::string(scenario::lung_name(model.lungs[i].side)), static_cast<std::int32_t>(i) + 1});
+  }
+  return map;
+}
+// The volume of the voxels holding any of `values` (m^3).
+double lung_volume(const mesh::LabelMap& map, const std::vector<int>& values) {
+  std::size_t count = 0;
+  for (const std::int32_t v : map.labels) count += std::find(values.begin(), values.end(), v) != values.end();
+  return static_cast<double>(count) * map.voxel_volume_m3();
+}
+
 class VoxelsOutput final : public Output {
  public:
   VoxelsOutput(std::filesystem::path dir, VoxelsSpec spec) : dir_(std::move(dir)), spec_(std::move(spec)) {}
@@ -101,31 +124,9 @@ class VoxelsOutput final : public Output {
   std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {
     const scenario::Scenario& s = *run.scenario;
     const auto& series = run.drive->series;
-    for (const model::LungModel& lung : model.lungs) {
-      if (!lung.interior) throw Error(ExitCode::failure, "voxels: the model was compiled without the lungs' inside");
-    }
-    // The label map the lungs came from, read again (compile does not keep it), else one of the
-    // rest tetrahedra: 1 for the right lung (or the only one), 2 for the left.
-    std::optional<mesh::LabelMap> labels;
-    std::vector<int> lung_labels;
-    if (!s.mesh.labels_file.empty()) {
-      labels = mesh::read_label_map(s.mesh.labels_file);
-      for (const model::LungModel& lung : model.lungs) {
-        lung_labels.insert(lung_labels.end(), lung.label_values.begin(), lung.label_values.end());
-      }
-    }
-    const voxels::Grid grid = run_grid(model, labels ? &*labels : nullptr, spec_.spacing_m);
-    if (!labels) {
-      labels = rest_label_map(model, grid);
-      for (std::size_t i = 0; i < model.lungs.size(); ++i) lung_labels.push_back(static_cast<int>(i) + 1);
-    }
-    const double rest_lung_m3 = lung_volume(*labels, lung_labels);
-    // Which voxels of the label map each lung's rest mesh holds (warp_labels keeps its rim).
-    std::vector<voxels::LungMotion> at_rest;
-    for (const model::LungModel& lung : model.lungs) {
-      at_rest.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
-    }
-    const std::vector<std::uint8_t> rest_lung = voxels::forward_dvf(voxels::grid_of(*labels), at_rest).lung;
+    const VoxelScene scene(model, s, spec_);
+    const double rest_lung_m3 = scene.lung_volume_m3(scene.labels());
+    const voxels::Grid& grid = scene.grid();
 
     std::filesystem::create_directories(dir_ / "voxels");
     std::vector<std::filesystem::path> files;
@@ -135,32 +136,8 @@ class VoxelsOutput final : public Output {
     std::size_t folded_tets = 0;
     for (const std::size_t k : frames_of(series.time_s, series.volume_m3)) {
       std::vector<double> scales;
-      std::vector<voxels::LungMotion> lungs;
-      for (std::size_t i = 0; i < model.lungs.size(); ++i) {
-        scales.push_back(run.scales[i][k]);
-        const model::LungInterior& inside = *model.lungs[i].interior;
-        lungs.push_back({inside.mesh, inside.unit_displacement, scales.back()});
-      }
-      const model::BodyMotion* body = model.body.get();
-      voxels::TimePointInputs inputs;
-      inputs.labels = &*labels;
-      inputs.rest_lung = &rest_lung;
-      inputs.ct = spec_.image.get();
-      if (body) {
-        inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
-        // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L).
-        inputs.pullback_outside = [body, scales](const Eigen::Vector3d& x) {
-          Eigen::Vector3d v = -body->displacement(x, scales);
-          for (int it = 0; it < 50; ++it) {
-            const Eigen::Vector3d next = -body->displacement(x + v, scales);
-            const double change = (next - v).norm();
-            v = next;
-            if (change < 1e-9) break;
-          }
-          return v;
-        };
-      }
-      voxels::compute_time_point(grid, lungs, inputs, point);
+      for (std::size_t i = 0; i < model.lungs.size(); ++i) scales.push_back(run.scales[i][k]);
+      scene.compute(scales, point);
       const std::string tag = fmt::format("{:.3f}s", series.time_s[k]);
       const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", tag, point, spec_.extension);
       for (const auto& f : {written.forward, written.pullback, written.labels, written.ct}) {
@@ -174,7 +151,7 @@ class VoxelsOutput final : public Output {
         expected += lung.share * (model::lung_volumes(lung, *run.drive)[k] - lung.reference_volume_m3) -
                     lung.share * (model::lung_volumes(lung, *run.drive)[rest_frame_] - lung.reference_volume_m3);
       }
-      const double warped = lung_volume(*point.labels, lung_labels);
+      const double warped = scene.lung_volume_m3(*point.labels);
       const double error = (warped - expected) / expected;
       worst_volume_error = std::max(worst_volume_error, std::abs(error));
       min_jacobian = std::min(min_jacobian, point.jacobian.min);
@@ -208,28 +185,6 @@ class VoxelsOutput final : public Output {
   std::vector<std::pair<std::string, std::string>> facts() const override { return facts_; }
 
  private:
-  // The rest tetrahedra on the grid as labels: lung i + 1 where its rest tets hold the voxel.
-  static mesh::LabelMap rest_label_map(const model::Model& model, const voxels::Grid& grid) {
-    std::vector<voxels::LungMotion> lungs;
-    for (const model::LungModel& lung : model.lungs)
-      lungs.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
-    const voxels::DisplacementField rest = voxels::forward_dvf(grid, lungs);
-    mesh::LabelMap map;
-    map.size = grid.size;
-    map.ijk_to_lps = grid.ijk_to_lps;
-    map.labels.assign(rest.lung.begin(), rest.lung.end());
-    map.transform_source = "pneuma";
-    for (std::size_t i = 0; i < model.lungs.size(); ++i) {
-      map.segments.push_back({std::string(scenario::lung_name(model.lungs[i].side)), static_cast<std::int32_t>(i) + 1});
-    }
-    return map;
-  }
-  // The volume of the voxels holding any of `values` (m^3).
-  static double lung_volume(const mesh::LabelMap& map, const std::vector<int>& values) {
-    std::size_t count = 0;
-    for (const std::int32_t v : map.labels) count += std::find(values.begin(), values.end(), v) != values.end();
-    return static_cast<double>(count) * map.voxel_volume_m3();
-  }
   static std::size_t tet_count(const model::Model& model) {
     std::size_t n = 0;
     for (const model::LungModel& lung : model.lungs) n += lung.interior->mesh.tet_count();
@@ -267,6 +222,67 @@ class VoxelsOutput final : public Output {
 };
 
 }  // namespace
+
+VoxelScene::VoxelScene(const model::Model& model, const scenario::Scenario& scenario, const VoxelsSpec& spec)
+    : model_(model), spec_(spec) {
+  for (const model::LungModel& lung : model.lungs) {
+    if (!lung.interior) throw Error(ExitCode::failure, "voxels: the model was compiled without the lungs' inside");
+  }
+  // The label map the lungs came from, read again (compile does not keep it), else one of the
+  // rest tetrahedra: 1 for the right lung (or the only one), 2 for the left.
+  const bool from_labels = !scenario.mesh.labels_file.empty();
+  if (from_labels) {
+    labels_ = mesh::read_label_map(scenario.mesh.labels_file);
+    for (const model::LungModel& lung : model.lungs) {
+      lung_labels_.insert(lung_labels_.end(), lung.label_values.begin(), lung.label_values.end());
+    }
+  }
+  grid_ = run_grid(model, from_labels ? &labels_ : nullptr, spec.spacing_m);
+  if (!from_labels) {
+    labels_ = rest_label_map(model, grid_);
+    for (std::size_t i = 0; i < model.lungs.size(); ++i) lung_labels_.push_back(static_cast<int>(i) + 1);
+  }
+  // Which voxels of the label map each lung's rest mesh holds (warp_labels keeps its rim).
+  std::vector<voxels::LungMotion> at_rest;
+  for (const model::LungModel& lung : model.lungs) {
+    at_rest.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
+  }
+  rest_lung_ = voxels::rest_lungs(voxels::grid_of(labels_), at_rest);
+}
+
+double VoxelScene::lung_volume_m3(const mesh::LabelMap& map) const { return lung_volume(map, lung_labels_); }
+
+void VoxelScene::compute(std::span<const double> scales_in, voxels::TimePoint& point) const {
+  if (scales_in.size() != model_.lungs.size()) {
+    throw ValueError(fmt::format("voxels: {} scales for {} lungs", scales_in.size(), model_.lungs.size()));
+  }
+  const std::vector<double> scales(scales_in.begin(), scales_in.end());
+  std::vector<voxels::LungMotion> lungs;
+  for (std::size_t i = 0; i < model_.lungs.size(); ++i) {
+    const model::LungInterior& inside = *model_.lungs[i].interior;
+    lungs.push_back({inside.mesh, inside.unit_displacement, scales[i]});
+  }
+  const model::BodyMotion* body = model_.body.get();
+  voxels::TimePointInputs inputs;
+  inputs.labels = &labels_;
+  inputs.rest_lung = &rest_lung_;
+  inputs.ct = spec_.image.get();
+  if (body) {
+    inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
+    // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L).
+    inputs.pullback_outside = [body, scales](const Eigen::Vector3d& x) {
+      Eigen::Vector3d v = -body->displacement(x, scales);
+      for (int it = 0; it < 50; ++it) {
+        const Eigen::Vector3d next = -body->displacement(x + v, scales);
+        const double change = (next - v).norm();
+        v = next;
+        if (change < 1e-9) break;
+      }
+      return v;
+    };
+  }
+  voxels::compute_time_point(grid_, lungs, inputs, point);
+}
 
 OutputPlugin voxels_output() {
   OutputNeeds needs;

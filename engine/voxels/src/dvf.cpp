@@ -41,6 +41,19 @@ DisplacementField pullback_dvf(const Grid& grid, std::span<const LungMotion> lun
   return field;
 }
 
+std::vector<std::uint8_t> rest_lungs(const Grid& grid, std::span<const LungMotion> lungs) {
+  check_lungs(lungs);
+  std::vector<detail::TetSet> sets;
+  sets.reserve(lungs.size());
+  for (const LungMotion& lung : lungs) sets.push_back({lung.mesh.tets, lung.mesh.nodes});
+  std::vector<std::uint8_t> owner;
+  detail::rasterize(
+      grid, std::span<const detail::TetSet>(sets), owner,
+      [](std::size_t, std::size_t, std::size_t, const Eigen::Vector4d&, std::size_t, std::size_t, std::size_t) {},
+      [](std::size_t, std::size_t, std::size_t, std::size_t) {});
+  return owner;
+}
+
 void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
                  const OutsideField& outside) {
   check_lungs(lungs);

@@ -18,15 +18,14 @@
 // surface files) warp a label map of their rest tetrahedra (1 right or the only lung, 2 left).
 #include <filesystem>
 #include <memory>
+#include <span>
 #include <string>
 #include <variant>
 #include <vector>
 
 #include "pneuma/outputs/output.h"
 
-namespace pneuma::voxels {
-struct Image;
-}
+#include "pneuma/voxels/time_point.h"
 
 namespace pneuma::outputs {
 
@@ -40,6 +39,33 @@ struct VoxelsSpec {
   std::shared_ptr<const voxels::Image> image;
   std::filesystem::path image_file;
   std::string extension = ".nii.gz";
+};
+
+// A run's voxel setting, made once from the compiled model (with the lungs' inside): the grid,
+// the label map to warp (the scenario's, or one of the rest tetrahedra), each lung's rest voxels
+// on it and the body's motion outside the lungs. `pneuma run` (the plugin) and the Python module
+// compute their time points through it, so they give the same arrays.
+class VoxelScene {
+ public:
+  // Throws Error(failure) when the model has no lungs' inside (compiled without it).
+  VoxelScene(const model::Model& model, const scenario::Scenario& scenario, const VoxelsSpec& spec);
+
+  const voxels::Grid& grid() const { return grid_; }
+  const mesh::LabelMap& labels() const { return labels_; }  // at rest, on its own grid
+  // The label values that are lung (the scenario's lungs, or 1 and 2 for the rest tets' map).
+  const std::vector<int>& lung_labels() const { return lung_labels_; }
+  // The volume of the lung labels in `map` (m^3).
+  double lung_volume_m3(const mesh::LabelMap& map) const;
+  // The DVFs, the Jacobian, the warped label map (and CT) at the lungs' scales (one per model lung).
+  void compute(std::span<const double> scales, voxels::TimePoint& point) const;
+
+ private:
+  const model::Model& model_;
+  const VoxelsSpec& spec_;
+  mesh::LabelMap labels_;
+  std::vector<int> lung_labels_;
+  voxels::Grid grid_;
+  std::vector<std::uint8_t> rest_lung_;
 };
 
 OutputPlugin voxels_output();

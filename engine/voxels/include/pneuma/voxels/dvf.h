@@ -46,6 +46,9 @@ struct DisplacementField {
 // Throws ValueError for a lung that check_lung_motion() refuses or more than 255 lungs.
 DisplacementField forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, const OutsideField& outside = {});
 DisplacementField pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, const OutsideField& outside = {});
+// Per voxel: 0 when no lung's rest mesh holds its centre, else 1 + that lung's index (the rule
+// of forward_dvf's `lung`, without the field: a byte per voxel, for warp_labels' `rest_lung`).
+std::vector<std::uint8_t> rest_lungs(const Grid& grid, std::span<const LungMotion> lungs);
 // The same into `field`, whose buffers are reused when they have the grid's size (no allocation
 // and no first touch of fresh pages per time point; the same values as the two above).
 void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,

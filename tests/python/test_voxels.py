@@ -1,0 +1,52 @@
+"""Voxel outputs from Python (Animation.voxels) against the NIfTI files `pneuma run` (the CLI, a
+separate compile) writes: the same displacement fields and warped label map, read back with
+nibabel (LPS millimetres in the files, metres here)."""
+import nibabel as nib
+import numpy as np
+import pytest
+
+import pneuma
+from conftest import SMALL_SCENARIO, run_cli
+
+VOXELS = SMALL_SCENARIO.replace("  hdf5: {positions: float64}\n",
+                                "  hdf5: false\n  voxels: {at: [end_inspiration], spacing: 4 mm}\n")
+
+
+def test_voxels_are_the_cli_files(tmp_path):
+    assert VOXELS != SMALL_SCENARIO
+    scenario = tmp_path / "voxels.yaml"
+    scenario.write_text(VOXELS)
+    code, _, err = run_cli("run", scenario, "-o", tmp_path / "cli", "--quiet")
+    assert code == 0, err
+    animation = pneuma.Animation(scenario)
+    k = int(np.argmax(animation.volume_mL))
+    tag = f"{animation.time_s[k]:.3f}s"
+    out = animation.voxels(k)
+    folder = tmp_path / "cli" / "voxels"
+    for key, name in (("forward_m", "dvf-forward"), ("pullback_m", "dvf-pullback")):
+        image = nib.load(folder / f"{name}-{tag}.nii.gz")
+        stored = np.asarray(image.dataobj)[:, :, :, 0, :]  # (nx, ny, nz, 1, 3) float32, LPS mm
+        assert stored.shape == out[key].shape
+        np.testing.assert_allclose(out[key] * 1e3, stored, atol=1e-4)  # float32 in the file
+        assert np.abs(out[key]).max() > 5e-3  # the lung moves by millimetres at end-inspiration
+    labels = nib.load(folder / f"labels-{tag}.nii.gz")
+    np.testing.assert_array_equal(out["labels"], np.asarray(labels.dataobj))
+    # The grid: NIfTI's RAS+ affine is diag(-1, -1, 1) times the LPS one, in mm.
+    ras = np.diag([-1.0, -1.0, 1.0, 1.0]) @ out["ijk_to_lps"]
+    ras[:3, :] *= 1e3
+    np.testing.assert_allclose(labels.affine, ras, atol=1e-6)
+    # The warped lung, counted by numpy, is its rest volume plus the lung's share of the breath.
+    rest = animation.voxels(int(np.argmin(animation.volume_mL)))
+    voxel_m3 = abs(np.linalg.det(out["ijk_to_lps"][:3, :3]))
+    grown = (np.count_nonzero(out["labels"]) - np.count_nonzero(rest["labels"])) * voxel_m3
+    breath = animation.share * (animation.volume_mL[k] - animation.volume_mL.min()) * 1e-6
+    assert grown == pytest.approx(breath, rel=0.15)
+    assert out["lung_volume_m3"] == pytest.approx(np.count_nonzero(out["labels"]) * voxel_m3)
+    assert out["min_jacobian"] > 0 and out["folded_tets"] == 0
+
+
+def test_voxels_need_the_output(tmp_path):
+    scenario = tmp_path / "plain.yaml"
+    scenario.write_text(SMALL_SCENARIO)
+    with pytest.raises(ValueError, match="outputs: voxels"):
+        pneuma.Animation(scenario).voxels(0)
