@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <iostream>
+#include <string>
 
 #include "pneuma/field/interior.h"
 #include "pneuma/mesh/geometry/deformed_surface.h"
@@ -28,21 +29,27 @@ double surface_volume(const model::LungModel& lung, double s) {
   return mesh::enclosed_volume(moved, lung.rest.triangles);
 }
 
-TEST(LungInterior, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithPositiveJacobians) {
-  test::TempDir dir;
-  const auto file = dir.write("s.yaml", R"(name: inside
-duration: 4 s
-frames: {rate: 5 Hz}
-mesh: {phantom: right, edge: 8 mm}
-field: {tissue: healthy-upright, interior: {edge: 8 mm}}
-physiology:
-  preset: healthy-adult
-  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 1 L}
-outputs: {gltf: false, report: false, hdf5: false}
-)");
+// The right-lung phantom (8 mm) breathing `tidal_volume` for 4 s, compiled with its inside of
+// `interior_edge` tets.
+model::Compiled phantom_with_inside(const test::TempDir& dir, const std::string& interior_edge,
+                                    const std::string& tidal_volume) {
+  const auto file =
+      dir.write("s.yaml", "name: inside\nduration: 4 s\nframes: {rate: 5 Hz}\n"
+                          "mesh: {phantom: right, edge: 8 mm}\n"
+                          "field: {tissue: healthy-upright, interior: {edge: " +
+                              interior_edge +
+                              "}}\n"
+                              "physiology:\n  preset: healthy-adult\n"
+                              "  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: " +
+                              tidal_volume + "}\noutputs: {gltf: false, report: false, hdf5: false}\n");
   const scenario::Scenario s = runner::load_scenario(file);
   const auto drive = scenario::simulate_physiology(s, s.frame_rate_hz);
-  const model::Compiled c = model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
+  return model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
+}
+
+TEST(LungInterior, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithPositiveJacobians) {
+  test::TempDir dir;
+  const model::Compiled c = phantom_with_inside(dir, "8 mm", "1 L");
   ASSERT_EQ(c.model.lungs.size(), 1u);
   const model::LungModel& lung = c.model.lungs[0];
   ASSERT_NE(lung.interior, nullptr);
@@ -126,19 +133,7 @@ namespace {
 // Jacobian (finite differences) stays positive everywhere on a box around the lung.
 TEST(BodyMotion, TheAbdomenFollowsTheDiaphragmAndFadesWithDepthWithoutFolding) {
   test::TempDir dir;
-  const auto file = dir.write("s.yaml", R"(name: body
-duration: 4 s
-frames: {rate: 5 Hz}
-mesh: {phantom: right, edge: 8 mm}
-field: {tissue: healthy-upright, interior: {edge: 10 mm}}
-physiology:
-  preset: healthy-adult
-  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 1.5 L}
-outputs: {gltf: false, report: false, hdf5: false}
-)");
-  const scenario::Scenario s = runner::load_scenario(file);
-  const auto drive = scenario::simulate_physiology(s, s.frame_rate_hz);
-  const model::Compiled c = model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
+  const model::Compiled c = phantom_with_inside(dir, "10 mm", "1.5 L");
   ASSERT_NE(c.model.body, nullptr);
   const model::LungModel& lung = c.model.lungs[0];
   const model::BodyMotion& body = *c.model.body;
