@@ -134,6 +134,7 @@ class VoxelsOutput final : public Output {
     voxels::TimePoint point;
     double worst_volume_error = 0.0, min_jacobian = std::numeric_limits<double>::infinity(), folded = 0.0;
     std::size_t folded_tets = 0;
+    const std::size_t rest_frame = lowest_volume_frame(series.volume_m3);
     for (const std::size_t k : frames_of(series.time_s, series.volume_m3)) {
       std::vector<double> scales;
       for (std::size_t i = 0; i < model.lungs.size(); ++i) scales.push_back(run.scales[i][k]);
@@ -148,8 +149,8 @@ class VoxelsOutput final : public Output {
       double expected = rest_lung_m3;
       for (std::size_t i = 0; i < model.lungs.size(); ++i) {
         const model::LungModel& lung = model.lungs[i];
-        expected += lung.share * (model::lung_volumes(lung, *run.drive)[k] - lung.reference_volume_m3) -
-                    lung.share * (model::lung_volumes(lung, *run.drive)[rest_frame_] - lung.reference_volume_m3);
+        const std::vector<double>& volume = model::lung_volumes(lung, *run.drive);
+        expected += lung.share * (volume[k] - volume[rest_frame]);
       }
       const double warped = scene.lung_volume_m3(*point.labels);
       const double error = (warped - expected) / expected;
@@ -191,13 +192,15 @@ class VoxelsOutput final : public Output {
     return n;
   }
 
-  // The frames of the time points, in the order asked (repeats dropped); the rest frame (the
-  // run's lowest volume) is remembered as the volume reference of the rest label map.
-  std::vector<std::size_t> frames_of(const std::vector<double>& time_s, const std::vector<double>& volume_m3) {
-    const auto low = static_cast<std::size_t>(std::min_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
+  // The frame of the run's lowest volume: end-expiration, and the volume the rest label map stands for.
+  static std::size_t lowest_volume_frame(const std::vector<double>& volume_m3) {
+    return static_cast<std::size_t>(std::min_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
+  }
+  // The frames of the time points, in the order asked (repeats dropped).
+  std::vector<std::size_t> frames_of(const std::vector<double>& time_s, const std::vector<double>& volume_m3) const {
+    const std::size_t low = lowest_volume_frame(volume_m3);
     const auto high =
         static_cast<std::size_t>(std::max_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
-    rest_frame_ = low;
     std::vector<std::size_t> frames;
     for (const VoxelTime& at : spec_.at) {
       std::size_t k = 0;
@@ -217,7 +220,6 @@ class VoxelsOutput final : public Output {
 
   std::filesystem::path dir_;
   VoxelsSpec spec_;
-  std::size_t rest_frame_ = 0;
   std::vector<std::pair<std::string, std::string>> facts_;
 };
 
