@@ -16,6 +16,7 @@
 #include "pneuma/cohort/cohort.h"
 #include "pneuma/cohort/workflow.h"
 #include "pneuma/core/markup.h"
+#include "pneuma/core/staged_output.h"
 
 namespace {
 
@@ -137,11 +138,20 @@ CommandResult run_cohort(const fs::path& cohort, const fs::path& out, const std:
   return run_pneuma(args);
 }
 
+// The manifests of finished runs. A run writes its manifest into its stage folder first and
+// moves it out last, so one found inside a stage belongs to a run still going (or killed).
 std::vector<fs::path> manifests(const fs::path& out) {
   std::vector<fs::path> found;
   if (!fs::exists(out / "runs")) return found;
-  for (const auto& e : fs::recursive_directory_iterator(out / "runs")) {
-    if (e.path().filename() == "manifest.json") found.push_back(e.path());
+  // Error codes, not exceptions: the cohort may move or remove a stage while this walks.
+  std::error_code error;
+  for (auto e = fs::recursive_directory_iterator(out / "runs", error); !error && e != fs::recursive_directory_iterator();
+       e.increment(error)) {
+    if (e->path().filename().string().rfind(pneuma::kStagePrefix, 0) == 0) {
+      e.disable_recursion_pending();
+    } else if (e->path().filename() == "manifest.json") {
+      found.push_back(e->path());
+    }
   }
   std::sort(found.begin(), found.end());
   return found;
