@@ -166,6 +166,63 @@ TEST(VoxelsRun, TheWarpedLungsBoundaryIsTheSurfaceFrames) {
   EXPECT_LT(largest_error, 1e-9);
 }
 
+// `at: [phases]`: a DVF pair and warped label map per respiratory bin of outputs.phases, each at
+// the bin's mean volume. Oracles: phases.csv (the bins' mean volumes, from the binning of the
+// frames' volumes) and the lung volume counted here in each warped label map.
+TEST(VoxelsRun, EachPhaseBinGetsItsFieldsAndLabelMapAtItsMeanVolume) {
+  TempDir dir;
+  std::string text = kPhantom;
+  text.replace(text.find("duration: 4 s"), std::string("duration: 4 s").size(), "duration: 12 s");
+  const std::string voxels = "voxels: {at: [end_expiration, end_inspiration, 1 s], spacing: 3 mm}";
+  text.replace(text.find(voxels), voxels.size(),
+               "voxels: {at: [phases], spacing: 4 mm}\n  phases: {bins: 4, surfaces: false}");
+  const auto scenario = dir.write("s.yaml", text);
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+
+  std::vector<double> mean_mL;  // phases.csv, by bin
+  {
+    std::ifstream csv(dir / "out/phases.csv");
+    std::string line;
+    std::getline(csv, line);
+    while (std::getline(csv, line)) {
+      std::vector<std::string> cells;
+      std::stringstream ss(line);
+      for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+      ASSERT_GE(cells.size(), 4u) << line;
+      mean_mL.push_back(std::stod(cells[3]));
+    }
+  }
+  ASSERT_EQ(mean_mL.size(), 4u);
+  const auto rows = read_voxels_csv(dir / "out/voxels/voxels.csv");
+  ASSERT_EQ(rows.size(), 4u);
+  std::vector<double> warped_mL;
+  for (std::size_t b = 0; b < rows.size(); ++b) {
+    EXPECT_EQ(rows[b].time_point, fmt::format("bin_{:02}", b));
+    for (const char* kind : {"dvf-forward-", "dvf-pullback-"}) {
+      EXPECT_TRUE(std::filesystem::exists(dir / "out/voxels" / (kind + rows[b].time_point + ".nii.gz")));
+    }
+    const auto warped = pneuma::mesh::read_label_map(dir / "out/voxels" / ("labels-" + rows[b].time_point + ".nii.gz"));
+    warped_mL.push_back(lung_voxels_volume_m3(warped, {1}) * 1e6);
+    EXPECT_NEAR(warped_mL.back() / rows[b].expected_mL, 1.0, 0.02) << b;
+    EXPECT_GT(rows[b].min_jacobian, 0.0) << b;
+  }
+  // 0 % is end-inspiration, 50 % (bin 2 of 4) end-expiration: the most and the least lung.
+  EXPECT_EQ(std::max_element(warped_mL.begin(), warped_mL.end()) - warped_mL.begin(), 0);
+  EXPECT_EQ(std::min_element(warped_mL.begin(), warped_mL.end()) - warped_mL.begin(), 2);
+  // The warped lung changes between bins as the bins' mean volumes do, times the lung's share
+  // (the same share for every pair: one lung, one field).
+  const double share = (rows[0].expected_mL - rows[2].expected_mL) / (mean_mL[0] - mean_mL[2]);
+  EXPECT_GT(share, 0.3);
+  EXPECT_LT(share, 1.0);
+  for (std::size_t b : {1u, 3u}) {
+    EXPECT_NEAR((rows[b].expected_mL - rows[2].expected_mL) / (mean_mL[b] - mean_mL[2]), share, 1e-3 * share) << b;
+    EXPECT_NEAR(warped_mL[b] - warped_mL[2], share * (mean_mL[b] - mean_mL[2]),
+                0.1 * share * (mean_mL[0] - mean_mL[2]))
+        << b;
+  }
+}
+
 TEST(VoxelsRun, BadOptionsAreOneLineErrorsAndWriteNothing) {
   TempDir dir;
   struct Case {
@@ -173,7 +230,8 @@ TEST(VoxelsRun, BadOptionsAreOneLineErrorsAndWriteNothing) {
   };
   const std::vector<Case> cases{
       {"{at: [noon]}",
-       "outputs.voxels.at[0]: expected end_expiration, end_inspiration or a time >= 0 with its unit, such as '2.4 s'"},
+       "outputs.voxels.at[0]: expected end_expiration, end_inspiration, phases or a time >= 0 with its unit, such as "
+       "'2.4 s'"},
       {"{spacing: 0.1 mm}", "outputs.voxels.spacing: expected a voxel size between 0.25 mm and 20 mm, such as '2 mm'"},
       {"{image: missing.nii.gz}", "outputs.voxels.image:"},
       {"{format: png}", "outputs.voxels.format:"},

@@ -61,9 +61,8 @@ class Phases final : public Output {
       for (auto& fact : trace_facts(*run.scenario->physiology.trace)) facts_.push_back(std::move(fact));
     }
     if (spec_.surfaces) {
-      // Each bin's surface at its mean volume, through the same volume -> scale map as the frames.
-      // Two lungs: one surface per lung per bin (bin_00_right.ply, bin_00_left.ply), each lung at
-      // the bin's mean of the volume it follows (the total, or its compartment's).
+      // Each bin's surface at its mean volume (phase_bin_scales). Two lungs: one surface per lung
+      // per bin (bin_00_right.ply, bin_00_left.ply).
       std::filesystem::create_directories(dir_ / "phases");
       frame::Frame frame(model);
       std::vector<mesh::TriangleMesh> surfaces;
@@ -74,17 +73,8 @@ class Phases final : public Output {
         const physiology::PhaseBin& bin = binning.bins[b];
         if (bin.samples.empty()) continue;
         frame::FrameInput input{b, 0.0, bin.mean_volume_m3, {}};
-        for (std::size_t i = 0; i < model.lungs.size(); ++i) {
-          const model::LungModel& lung = model.lungs[i];
-          double volume = bin.mean_volume_m3;
-          if (lung.compartment >= 0) {
-            const std::vector<double>& v = model::lung_volumes(lung, *run.drive);
-            volume = 0.0;
-            for (std::size_t k : bin.samples) volume += v[k];
-            volume /= static_cast<double>(bin.samples.size());
-          }
-          input.scale[i] = model::frame_scales(lung, {0.0}, {volume}).front();
-        }
+        const std::vector<double> scales = phase_bin_scales(model, *run.drive, bin);
+        for (std::size_t i = 0; i < model.lungs.size(); ++i) input.scale[i] = scales[i];
         frame::advance(model, input, frame);
         for (std::size_t i = 0; i < model.lungs.size(); ++i) {
           surfaces[i].vertices = frame.lungs[i].positions;
@@ -123,6 +113,31 @@ void write_phases_csv(const std::filesystem::path& path, const std::vector<doubl
                          joined(times));
     }
   });
+}
+
+std::vector<double> phase_bin_scales(const model::Model& model, const physiology::SimulationResult& drive,
+                                     const physiology::PhaseBin& bin) {
+  std::vector<double> scales;
+  for (const model::LungModel& lung : model.lungs) {
+    double volume = bin.mean_volume_m3;
+    if (lung.compartment >= 0) {
+      const std::vector<double>& v = model::lung_volumes(lung, drive);
+      volume = 0.0;
+      for (std::size_t k : bin.samples) volume += v[k];
+      volume /= static_cast<double>(bin.samples.size());
+    }
+    scales.push_back(model::frame_scales(lung, {0.0}, {volume}).front());
+  }
+  return scales;
+}
+
+physiology::PhaseBinning run_phase_bins(const RunRecord& run) {
+  PhasesSpec spec;
+  if (const scenario::OutputRequest* phases = run.scenario->output("phases")) {
+    spec = std::any_cast<PhasesSpec>(phases->settings);
+  }
+  const auto& series = run.drive->series;
+  return physiology::bin_phases(series.time_s, series.volume_m3, spec.binning);
 }
 
 std::vector<std::pair<std::string, std::string>> trace_facts(const physiology::Trace& trace) {

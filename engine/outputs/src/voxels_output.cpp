@@ -6,12 +6,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/labels/labels.h"
 #include "pneuma/model/body_motion.h"
 #include "pneuma/model/compile.h"
+#include "pneuma/outputs/phases.h"
 #include "pneuma/voxels/grid.h"
 #include "pneuma/voxels/time_point.h"
 #include "pneuma/voxels/voxel_io.h"
@@ -22,7 +24,7 @@ namespace {
 namespace kind = units::kind;
 
 constexpr const char* kAtExpected =
-    "expected end_expiration, end_inspiration or a time >= 0 with its unit, such as '2.4 s'";
+    "expected end_expiration, end_inspiration, phases or a time >= 0 with its unit, such as '2.4 s'";
 
 std::any read_spec(const config::Node* options) {
   VoxelsSpec spec;
@@ -35,6 +37,8 @@ std::any read_spec(const config::Node* options) {
         spec.at.emplace_back(VoxelMoment::end_expiration);
       } else if (text == "end_inspiration") {
         spec.at.emplace_back(VoxelMoment::end_inspiration);
+      } else if (text == "phases") {
+        spec.phase_bins = true;
       } else {
         double t = -1.0;
         try {
@@ -46,7 +50,8 @@ std::any read_spec(const config::Node* options) {
         spec.at.emplace_back(t);
       }
     }
-    if (spec.at.empty()) options->fail_at("at", "expected at least one time point, such as '[end_inspiration]'");
+    if (spec.at.empty() && !spec.phase_bins)
+      options->fail_at("at", "expected at least one time point, such as '[end_inspiration]'");
   }
   if (options->has("spacing")) {
     spec.spacing_m = options->positive_quantity("spacing", kind::length);
@@ -134,35 +139,27 @@ class VoxelsOutput final : public Output {
     voxels::TimePoint point;
     double worst_volume_error = 0.0, min_jacobian = std::numeric_limits<double>::infinity(), folded = 0.0;
     std::size_t folded_tets = 0;
-    const std::size_t rest_frame = lowest_volume_frame(series.volume_m3);
-    for (const std::size_t k : frames_of(series.time_s, series.volume_m3)) {
-      std::vector<double> scales;
-      for (std::size_t i = 0; i < model.lungs.size(); ++i) scales.push_back(run.scales[i][k]);
-      scene.compute(scales, point);
-      const std::string tag = fmt::format("{:.3f}s", series.time_s[k]);
-      const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", tag, point, spec_.extension);
+    for (const VoxelPoint& at : points(model, run)) {
+      scene.compute(at.scales, point);
+      const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension);
       for (const auto& f : {written.forward, written.pullback, written.labels, written.ct}) {
         if (!f.empty()) files.push_back(f);
       }
       // The warped lungs' volume against the rest label map's plus each lung's share of the
       // physiology's change (the volume the surface frames follow).
-      double expected = rest_lung_m3;
-      for (std::size_t i = 0; i < model.lungs.size(); ++i) {
-        const model::LungModel& lung = model.lungs[i];
-        const std::vector<double>& volume = model::lung_volumes(lung, *run.drive);
-        expected += lung.share * (volume[k] - volume[rest_frame]);
-      }
+      const double expected = rest_lung_m3 + at.lung_change_m3;
       const double warped = scene.lung_volume_m3(*point.labels);
       const double error = (warped - expected) / expected;
       worst_volume_error = std::max(worst_volume_error, std::abs(error));
       min_jacobian = std::min(min_jacobian, point.jacobian.min);
       folded = std::max(folded, point.jacobian.folded_volume_fraction);
       std::string scale_text;
-      for (const double sc : scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
-      rows.push_back(fmt::format("{},{},{:.6f},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", tag, k,
-                                 series.time_s[k], scale_text, series.volume_m3[k] * 1e6, expected * 1e6, warped * 1e6,
-                                 error * 100.0, point.jacobian.min, point.jacobian.max, point.jacobian.folded_tets,
-                                 point.jacobian.folded_volume_fraction));
+      for (const double sc : at.scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
+      rows.push_back(fmt::format("{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
+                                 at.frame ? std::to_string(*at.frame) : "",
+                                 at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "", scale_text,
+                                 at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
+                                 point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
       folded_tets = std::max(folded_tets, point.jacobian.folded_tets);
     }
     const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
@@ -196,6 +193,49 @@ class VoxelsOutput final : public Output {
   static std::size_t lowest_volume_frame(const std::vector<double>& volume_m3) {
     return static_cast<std::size_t>(std::min_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
   }
+  // A time point to write: a frame, or a respiratory bin at its mean volume.
+  struct VoxelPoint {
+    std::string tag;                   // in the file names: "2.400s", "bin_03"
+    std::optional<std::size_t> frame;  // none for a bin
+    std::vector<double> scales;        // per model lung
+    double volume_m3 = 0.0;            // the physiology's volume above FRC
+    double lung_change_m3 = 0.0;       // the lungs' volume change from end-expiration (their shares of it)
+  };
+
+  // The frames asked for, then (with `phases` in `at`) the non-empty bins of the run's binning.
+  std::vector<VoxelPoint> points(const model::Model& model, const RunRecord& run) const {
+    const auto& series = run.drive->series;
+    const std::size_t rest_frame = lowest_volume_frame(series.volume_m3);
+    // Lung i's volume change from the rest frame, averaged over `frames`.
+    auto lung_change = [&](const std::vector<std::size_t>& frames) {
+      double change = 0.0;
+      for (const model::LungModel& lung : model.lungs) {
+        const std::vector<double>& volume = model::lung_volumes(lung, *run.drive);
+        double mean = 0.0;
+        for (const std::size_t k : frames) mean += volume[k];
+        mean /= static_cast<double>(frames.size());
+        change += lung.share * (mean - volume[rest_frame]);
+      }
+      return change;
+    };
+    std::vector<VoxelPoint> out;
+    for (const std::size_t k : frames_of(series.time_s, series.volume_m3)) {
+      VoxelPoint p{fmt::format("{:.3f}s", series.time_s[k]), k, {}, series.volume_m3[k], lung_change({k})};
+      for (std::size_t i = 0; i < model.lungs.size(); ++i) p.scales.push_back(run.scales[i][k]);
+      out.push_back(std::move(p));
+    }
+    if (spec_.phase_bins) {
+      const physiology::PhaseBinning binning = run_phase_bins(run);
+      for (std::size_t b = 0; b < binning.bins.size(); ++b) {
+        const physiology::PhaseBin& bin = binning.bins[b];
+        if (bin.samples.empty()) continue;
+        out.push_back({fmt::format("bin_{:02}", b), std::nullopt, phase_bin_scales(model, *run.drive, bin),
+                       bin.mean_volume_m3, lung_change(bin.samples)});
+      }
+    }
+    return out;
+  }
+
   // The frames of the time points, in the order asked (repeats dropped).
   std::vector<std::size_t> frames_of(const std::vector<double>& time_s, const std::vector<double>& volume_m3) const {
     const std::size_t low = lowest_volume_frame(volume_m3);

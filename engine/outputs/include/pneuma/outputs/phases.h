@@ -33,6 +33,14 @@ struct PhasesSpec {
 void write_phases_csv(const std::filesystem::path& path, const std::vector<double>& time_s,
                       const physiology::PhaseBinning& binning);
 
+// Each model lung's scale s at a bin: the lung at the bin's mean of the volume it follows (the
+// total, or its compartment's), through the same volume -> scale map as the frames.
+std::vector<double> phase_bin_scales(const model::Model& model, const physiology::SimulationResult& drive,
+                                     const physiology::PhaseBin& bin);
+
+// The bins of a run's frames as `outputs.phases` sets them (its defaults when it is off).
+physiology::PhaseBinning run_phase_bins(const RunRecord& run);
+
 // The trace's processing report as manifest facts ("trace.invalid_samples", ...).
 std::vector<std::pair<std::string, std::string>> trace_facts(const physiology::Trace& trace);
 

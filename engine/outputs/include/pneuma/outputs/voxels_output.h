@@ -6,15 +6,17 @@
 //
 //   outputs:
 //     voxels:                          # off by default
-//       at: [end_expiration, end_inspiration, 2.4 s]   # the frames of the lowest and highest
-//                                      # volume, and the frame nearest to a time (the default: the first two)
+//       at: [end_expiration, end_inspiration, 2.4 s, phases]   # the frames of the lowest and
+//                                      # highest volume, the frame nearest to a time (the default:
+//                                      # the first two), and each bin of outputs.phases (10 phase
+//                                      # bins when that is off) at its mean volume
 //       spacing: 2 mm                  # a grid of this spacing over the label map's extent (default:
 //                                      # the label map's own grid; lungs without one: 2 mm over their box)
 //       image: ct.nii.gz               # a CT on the label map's geometry (or its own) to pull back
 //       format: nii.gz                 # nii.gz | nii | mha
 //
 // Files (voxels/): dvf-forward-<t>, dvf-pullback-<t>, labels-<t> and ct-<t> with <t> the frame's
-// time ("2.400s"), and voxels.csv. Label-map lungs warp the label map; other lungs (the phantom,
+// time ("2.400s") or the bin ("bin_03"), and voxels.csv (a bin's frame and time are empty). Label-map lungs warp the label map; other lungs (the phantom,
 // surface files) warp a label map of their rest tetrahedra (1 right or the only lung, 2 left).
 #include <filesystem>
 #include <memory>
@@ -35,6 +37,7 @@ using VoxelTime = std::variant<VoxelMoment, double>;
 
 struct VoxelsSpec {
   std::vector<VoxelTime> at{VoxelMoment::end_expiration, VoxelMoment::end_inspiration};
+  bool phase_bins = false;  // `phases` in `at`: every respiratory bin of outputs.phases at its mean volume
   double spacing_m = 0.0;  // 0: the label map's grid (2 mm where there is none)
   std::shared_ptr<const voxels::Image> image;
   std::filesystem::path image_file;
