@@ -112,6 +112,13 @@ void run_remesh(const MeshOptions& o) {
   if (!(o.edge_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '3 mm'");
   mesh::format_for_path(o.output, o.ascii);
   const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit, .unit_from_file = !o.unit_given});
+  // What cannot finish is refused before any of it is made.
+  const double area_m2 = mesh::surface_area(m);
+  if (const double vertices = mesh::vertex_count_at_edge(area_m2, o.edge_m); !(vertices <= mesh::kMaxSurfaceVertices)) {
+    throw UsageError(fmt::format("pneuma: --edge: {}: a surface of {:.4g} cm2 at an edge of {:.4g} mm would have about "
+                                 "{:.3g} vertices; expected at most {:.0f} (a coarser edge)",
+                                 o.input, area_m2 * 1e4, o.edge_m * 1e3, vertices, mesh::kMaxSurfaceVertices));
+  }
   const mesh::RemeshOptions remesh_options{.target_edge_length_m = o.edge_m, .iterations = o.iterations};
   const mesh::ValidationReport r = mesh::validate(m);
   mesh::RemeshResult result;
@@ -143,7 +150,13 @@ void run_from_labels(const MeshOptions& o) {
   if (o.labels.empty() || std::any_of(o.labels.begin(), o.labels.end(), [](int label) { return label < 1; }))
     throw UsageError("pneuma: --labels: expected label values of 1 or more, such as 3,4,5");
   mesh::format_for_path(o.output, o.ascii);
-  const mesh::LabelSurface s = mesh::surface_from_labels(o.input, o.labels, o.from_labels);
+  const mesh::LabelMap map = mesh::read_label_map(o.input);
+  try {
+    mesh::check_label_surface_size(map, o.input, o.labels, o.from_labels);
+  } catch (const ValueError& e) {
+    throw UsageError(std::string("pneuma: ") + e.what());  // an option's value: a usage error
+  }
+  const mesh::LabelSurface s = mesh::surface_from_labels(map, o.input, o.labels, o.from_labels);
   mesh::write_mesh(o.output, s.mesh, {.metres_per_unit = mesh::kMetresPerMillimetre, .ascii = o.ascii});
   const auto record = mesh::provenance_path(o.output);
   write_stream_atomically(record, false, [&](std::ostream& out) { out << s.report.provenance(); });

@@ -1,14 +1,19 @@
 // Bad inputs that used to get through (#29): each is refused with one line naming the file and
 // the place, the documented exit code, and the output folder as the previous run left it.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <map>
 #include <sstream>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
+#include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/mesh/io/mesh_io.h"
 #include "test_support.h"
 
 using pneuma::test::read_text;
@@ -287,4 +292,92 @@ TEST(BadInputs, PermissionDeniedIsReportedAsSuch) {
   EXPECT_EQ(unreadable.exit_code, 4);
   EXPECT_EQ(unreadable.err, locked.string() + ": cannot open file: permission denied\n");
   fs::permissions(dir / "secret", fs::perms::owner_all | fs::perms::group_all | fs::perms::others_all);
+}
+
+// A key a physiology preset lacks (and the scenario does not give) is reported at the scenario's
+// `preset:` line, naming the preset file.
+TEST(BadInputs, AKeyMissingInAPhysiologyPresetIsReportedAtThePresetLine) {
+  TempDir dir;
+  const std::string preset = read_text(pneuma::test::source_dir() / "configs/physiology/healthy-adult.yaml");
+  const auto line = preset.find("\nresistance:");
+  ASSERT_NE(line, std::string::npos);
+  dir.write("p.yaml", preset.substr(0, line) + preset.substr(preset.find('\n', line + 1)));
+  const auto file = dir.write("s.yaml", "duration: 2 s\nphysiology:\n  preset: p.yaml\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() + ":3:11: physiology.preset: " + (dir / "p.yaml").string() +
+                       ": missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L'), and physiology "
+                       "does not give it either\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+// A NUL byte of the input is quoted as \x00 like any other unprintable byte; it used to end the
+// message there.
+TEST(BadInputs, ANulByteIsQuotedAndTheMessageGoesOn) {
+  TempDir dir;
+  const auto file =
+      dir.write("s.yaml", std::string("duration: 2 s\nphysiology: {preset: healthy-adult, \"ab") + '\0' + "cd\": 1}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() +
+                       ":2:37: physiology.ab\\x00cd: unknown key; expected one of: actions, "
+                       "chest_wall_fraction, compartments, compliance, driver, effort, model, output_rate, preset, "
+                       "pressure_volume_curve, resistance, solver, transpulmonary_pressure_at_rest\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+// `mesh remesh` and `mesh from-labels` refuse up front, with the numbers, what could not finish:
+// millions of vertices, a blur wider than the whole label map (they ran for minutes).
+TEST(BadInputs, MeshCommandsThatCannotFinishAreRefusedUpFront) {
+  TempDir dir;
+  const auto ply = dir / "r.ply";
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", ply.string()}).exit_code, 0);
+  const auto remesh = run_pneuma({"mesh", "remesh", ply.string(), "--edge", "0.05mm", "-o", (dir / "o.ply").string()});
+  EXPECT_EQ(remesh.exit_code, 2);
+  // The estimate against the area of the file as read here: equilateral triangles, two per vertex.
+  const double area_m2 = pneuma::mesh::surface_area(pneuma::mesh::read_mesh(ply));
+  EXPECT_EQ(remesh.err, fmt::format("pneuma: --edge: {}: a surface of {:.4g} cm2 at an edge of 0.05 mm would have "
+                                    "about {:.3g} vertices; expected at most 2000000 (a coarser edge)\n",
+                                    ply.string(), area_m2 * 1e4, 2.0 * area_m2 / (std::sqrt(3.0) * 0.05e-3 * 0.05e-3)));
+  // 12 x 12 x 12 voxels of 2 mm: 24 mm at the widest, a sigma of at most 8 mm.
+  const auto nii = pneuma::test::source_dir() / "fuzz/corpus/nifti/blocks-uint8.nii";
+  const auto smooth = run_pneuma(
+      {"mesh", "from-labels", nii.string(), "--labels", "1", "--smooth", "1e308mm", "-o", (dir / "s.ply").string()});
+  EXPECT_EQ(smooth.exit_code, 2);
+  EXPECT_EQ(smooth.err, "pneuma: " + nii.string() +
+                            ": smoothing: a sigma of 1e+308 mm blurs beyond the whole label map (12 x 12 x 12 "
+                            "voxels, 24 mm at its widest); expected at most 8 mm (a third of its widest side)\n");
+  const auto closing = run_pneuma(
+      {"mesh", "from-labels", nii.string(), "--labels", "1", "--closing", "1e9mm", "-o", (dir / "s.ply").string()});
+  EXPECT_EQ(closing.exit_code, 2);
+  EXPECT_EQ(closing.err, "pneuma: " + nii.string() +
+                             ": closing: a radius of 1e+09 mm is beyond the whole label map (12 x 12 x 12 voxels, "
+                             "24 mm at its widest); expected at most 24 mm\n");
+  const auto edge = run_pneuma(
+      {"mesh", "from-labels", nii.string(), "--labels", "1", "--edge", "1e-6mm", "-o", (dir / "s.ply").string()});
+  EXPECT_EQ(edge.exit_code, 2);
+  EXPECT_TRUE(edge.err.starts_with("pneuma: " + nii.string() + ": edge: ")) << edge.err;
+  EXPECT_NE(edge.err.find("vertices; expected at most 2000000 (a coarser edge)\n"), std::string::npos) << edge.err;
+  EXPECT_EQ(std::count(edge.err.begin(), edge.err.end(), '\n'), 1) << edge.err;
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"r.ply"});
+}
+
+// A ventilator's pressures far beyond any breath are refused at their key (peep: 1e308 cmH2O
+// ended in exit 1, "CVODE failed ... at the first call"; found by scripts/mutate).
+TEST(BadInputs, AVentilatorPressureOutOfRangeIsRefusedAtItsKey) {
+  TempDir dir;
+  std::string text = read_text(pneuma::test::source_dir() / "scenarios/ventilator-pc-ac.yaml");
+  const auto at = text.find("peep: 6 cmH2O");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, 13, "peep: 1e308 cmH2O");
+  const auto file = dir.write("s.yaml", text);
+  const auto value = at + 6;  // where '1e308' starts: line and column counted here
+  const auto line = std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(value), '\n') + 1;
+  const auto column = value - text.rfind('\n', value);
+  const auto r = run_pneuma({"simulate", file.string(), "-o", (dir / "t.csv").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, fmt::format("{}:{}:{}: physiology.driver.peep: expected a pressure from -200 to 200 cmH2O, got "
+                               "'1e308 cmH2O'\n",
+                               file.string(), line, column));
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"});
 }

@@ -110,9 +110,15 @@ void Node::fail_at(const std::string& key, const std::string& message) const {
   throw InputError(value_where(key) + ": " + message);
 }
 
+void Node::fail_missing(const std::string& message) const {
+  if (via_.empty() || layers_.size() < 2 || !layer_with(via_)) fail(message);
+  throw InputError(value_where(via_) + ": " + *layers_.back().file + ": " + message + ", and " +
+                   (path_.empty() ? std::string("the file") : path_) + " does not give it either");
+}
+
 Node Node::map(const std::string& key) const {
   auto node = optional_map(key);
-  if (!node) fail("missing key '" + key + "'");
+  if (!node) fail_missing("missing key '" + key + "'");
   return *node;
 }
 
@@ -151,7 +157,7 @@ std::vector<Node> Node::sequence(const std::string& key) const {
 
 std::string Node::scalar(const std::string& key, const char* expected) const {
   YAML::Node value = child(key);
-  if (!value) fail("missing key '" + key + "' (" + expected + ")");
+  if (!value) fail_missing("missing key '" + key + "' (" + expected + ")");
   if (!value.IsScalar()) fail_at(key, std::string(expected) + ", got a " + (value.IsMap() ? "mapping" : "list"));
   return value.Scalar();
 }
@@ -296,13 +302,15 @@ void Node::finish() const {
   }
 }
 
-Node Node::with_fallback(const Node& fallback) const {
+Node Node::with_fallback(const Node& fallback, const std::string& via) const {
   std::vector<Layer> layers;
   layers.reserve(layers_.size() + fallback.layers_.size());
   for (const auto* from : {&layers_, &fallback.layers_}) {
     for (const Layer& layer : *from) layers.push_back(layer);
   }
-  return Node(std::move(layers), path_);
+  Node layered(std::move(layers), path_);
+  layered.via_ = via;
+  return layered;
 }
 
 }  // namespace pneuma::config

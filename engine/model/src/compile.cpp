@@ -29,11 +29,6 @@ namespace {
 using scenario::MeshSpec;
 using scenario::Scenario;
 
-// The most vertices a lung's surface may be remeshed to: the field's graph and solver, the frames
-// and the outputs all grow with it, and a 0.3 mm mesh of a real lung (about 1.5 million vertices)
-// is already finer than any CT it comes from. Documented in docs/scenarios.md (limits).
-constexpr double kMaxSurfaceVertices = 2e6;
-
 // Where a remeshing target came from, for messages: the scenario file and its key ("mesh.edge"),
 // or the option ("--edge").
 struct EdgeSource {
@@ -42,20 +37,19 @@ struct EdgeSource {
 };
 
 // Refuses a remeshing target `edge_m` that would make a surface of `area_m2` larger than
-// kMaxSurfaceVertices (equilateral triangles: two per vertex, each sqrt(3)/4 h^2), before any
-// of it is made. An area far beyond a lung's (about 0.1 m2) is most often a file in millimetres
-// read as metres: the message says so.
+// mesh::kMaxSurfaceVertices, before any of it is made. An area far beyond a lung's (about 0.1 m2)
+// is most often a file in millimetres read as metres: the message says so.
 void check_surface_size(const EdgeSource& where, double area_m2, double edge_m) {
   if (!(edge_m > 0.0)) return;  // not remeshed
-  const double vertices = 2.0 * area_m2 / (std::sqrt(3.0) * edge_m * edge_m);
-  if (vertices <= kMaxSurfaceVertices) return;
+  const double vertices = mesh::vertex_count_at_edge(area_m2, edge_m);
+  if (vertices <= mesh::kMaxSurfaceVertices) return;
   const std::string unit_hint =
       area_m2 > 10.0 ? fmt::format("; {:.4g} m2 is not the area of a lung (about 0.1 m2): is mesh.unit right?", area_m2)
                      : std::string();
   throw InputError(
       fmt::format("{}: {}: a surface of {:.4g} m2 at an edge of {:.4g} mm would have about {:.3g} vertices; "
                   "expected at most {:.0f} (a coarser edge){}",
-                  where.file, where.key, area_m2, edge_m * 1e3, vertices, kMaxSurfaceVertices, unit_hint));
+                  where.file, where.key, area_m2, edge_m * 1e3, vertices, mesh::kMaxSurfaceVertices, unit_hint));
 }
 
 mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {

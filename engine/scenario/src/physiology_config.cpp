@@ -164,6 +164,35 @@ void read_cycle(const config::Node& n, DriverFields& f) {
   }
 }
 
+// The ranges the lung model and its solver take (docs/scenarios.md, limits): far outside them
+// CVODE fails after minutes, or at once, without naming the key. SI bounds; `range` says them in
+// the units users write.
+struct Range {
+  double lo, hi;
+  const char* text;
+};
+constexpr double kLitresPerCmH2O = 1e-3 / 98.0665;        // m3/Pa
+constexpr double kCmH2OSecondsPerLitre = 98.0665 / 1e-3;  // Pa s/m3
+constexpr Range kCompliance{1e-3 * kLitresPerCmH2O, 10.0 * kLitresPerCmH2O, "a compliance from 0.001 to 10 L/cmH2O"};
+constexpr Range kResistance{0.1 * kCmH2OSecondsPerLitre, 1000.0 * kCmH2OSecondsPerLitre,
+                            "a resistance from 0.1 to 1000 cmH2O*s/L"};
+constexpr Range kRelativeTolerance{1e-12, 0.1, "a relative tolerance from 1e-12 to 0.1"};
+constexpr Range kAbsoluteTolerance{1e-15, 1e-4, "an absolute tolerance from 1e-12 L to 0.1 L"};
+constexpr Range kMaxStep{1e-6, 10.0, "a maximum step from 1e-6 s to 10 s"};
+// A driver's pressures (PEEP, inspiratory, muscle, support, limit) and volumes (tidal, limit):
+// far beyond any breath, where the lung model's first step fails (peep: 1e308 cmH2O).
+constexpr Range kDriverPressure{-200.0 * units::pa_per_cmh2o, 200.0 * units::pa_per_cmh2o,
+                                "a pressure from -200 to 200 cmH2O"};
+constexpr Range kDriverVolume{-1e-2, 1e-2, "a volume of at most 10 L"};
+
+// `value` (read from `key`) when it lies in `range`; else the one-line error at the key, in the
+// file that holds it (a preset's own file for a value it gives).
+double in_range(const config::Node& n, const std::string& key, double value, const Range& range) {
+  if (!(value >= range.lo && value <= range.hi))
+    n.fail_at(key, std::string("expected ") + range.text + ", got '" + n.string(key) + "'");
+  return value;
+}
+
 // Overlays the driver keys present in `n` on `f`, refusing keys the mode does not take.
 void overlay_driver(const config::Node& n, const std::string& mode, DriverFields& f) {
   for (const std::string& key : kDriverKeys) {
@@ -183,16 +212,17 @@ void overlay_driver(const config::Node& n, const std::string& mode, DriverFields
     f.ie_ratio.reset();
   }
   if (auto v = n.optional_quantity("tidal_volume", kind::volume)) {
-    f.tidal_volume = v;
+    f.tidal_volume = in_range(n, "tidal_volume", *v, kDriverVolume);
     f.muscle_pressure.reset();
   }
   if (auto v = n.optional_quantity("muscle_pressure", kind::pressure)) {
-    f.muscle_pressure = v;
+    f.muscle_pressure = in_range(n, "muscle_pressure", *v, kDriverPressure);
     f.tidal_volume.reset();
   }
   if (auto v = n.optional_quantity("pause", kind::duration)) f.pause = v;
-  if (auto v = n.optional_quantity("peep", kind::pressure)) f.peep = v;
-  if (auto v = n.optional_quantity("inspiratory_pressure", kind::pressure)) f.inspiratory_pressure = v;
+  if (auto v = n.optional_quantity("peep", kind::pressure)) f.peep = in_range(n, "peep", *v, kDriverPressure);
+  if (auto v = n.optional_quantity("inspiratory_pressure", kind::pressure))
+    f.inspiratory_pressure = in_range(n, "inspiratory_pressure", *v, kDriverPressure);
   if (n.has("waveform")) {
     f.waveform = n.choice("waveform", {"square", "decelerating"}) == "square" ? physiology::FlowWaveform::square
                                                                               : physiology::FlowWaveform::decelerating;
@@ -201,12 +231,15 @@ void overlay_driver(const config::Node& n, const std::string& mode, DriverFields
     if (!(*v >= 0.0)) n.fail_at("rise_time", "expected a duration >= 0, got '" + n.string("rise_time") + "'");
     f.rise_time = v;
   }
-  if (n.has("pressure_limit")) f.pressure_limit = n.positive_quantity("pressure_limit", kind::pressure);
-  if (n.has("volume_limit")) f.volume_limit = n.positive_quantity("volume_limit", kind::volume);
+  if (n.has("pressure_limit"))
+    f.pressure_limit =
+        in_range(n, "pressure_limit", n.positive_quantity("pressure_limit", kind::pressure), kDriverPressure);
+  if (n.has("volume_limit"))
+    f.volume_limit = in_range(n, "volume_limit", n.positive_quantity("volume_limit", kind::volume), kDriverVolume);
   if (auto v = n.optional_quantity("pressure_support", kind::pressure)) {
     if (!(*v >= 0.0))
       n.fail_at("pressure_support", "expected a pressure >= 0, got '" + n.string("pressure_support") + "'");
-    f.pressure_support = v;
+    f.pressure_support = in_range(n, "pressure_support", *v, kDriverPressure);
   }
   if (n.has("trigger")) read_trigger(n, f);
   if (n.has("cycle")) read_cycle(n, f);
@@ -221,7 +254,8 @@ std::string fmt_cmh2o(double pa) {
 
 double require(const config::Node& n, const std::optional<double>& value, const std::string& key,
                const units::Kind& k) {
-  if (!value) n.fail(std::string("missing key '") + key + "' (expected " + k.name + " such as '" + k.example + "')");
+  if (!value)
+    n.fail_missing(std::string("missing key '") + key + "' (expected " + k.name + " such as '" + k.example + "')");
   return *value;
 }
 
@@ -242,7 +276,7 @@ physiology::Assisted build_assisted(const config::Node& n, const std::string& mo
   if (f.inspiratory_time) a.inspiratory_time_s = *f.inspiratory_time;
   else if (f.ie_ratio && !support) a.inspiratory_time_s = (1.0 / a.rate_hz) * *f.ie_ratio / (1.0 + *f.ie_ratio);
   else if (support) a.inspiratory_time_s = 3.0;
-  else n.fail("missing key 'inspiratory_time' or 'ie_ratio' (expected a duration such as '1 s')");
+  else n.fail_missing("missing key 'inspiratory_time' or 'ie_ratio' (expected a duration such as '1 s')");
   a.trigger = f.trigger.value_or(physiology::TriggerKind::flow);
   a.trigger_threshold = f.trigger_threshold.value_or(2.0 * units::m3_per_litre / 60.0);
   if (simv) {
@@ -298,7 +332,7 @@ Driver build_driver(const config::Node& n, const std::string& mode, const Driver
   if (mode == "spontaneous") {
     physiology::Spontaneous s;
     s.rate_hz = rate;
-    if (!f.ie_ratio) n.fail("missing key 'ie_ratio' (expected a ratio such as '1:2')");
+    if (!f.ie_ratio) n.fail_missing("missing key 'ie_ratio' (expected a ratio such as '1:2')");
     s.ie_ratio = *f.ie_ratio;
     if (f.tidal_volume) s.target_tidal_volume_m3 = *f.tidal_volume;
     else s.amplitude_pa = require(n, f.muscle_pressure, "tidal_volume' or 'muscle_pressure", kind::volume);
@@ -307,7 +341,7 @@ Driver build_driver(const config::Node& n, const std::string& mode, const Driver
     double ti = 0.0;
     if (f.inspiratory_time) ti = *f.inspiratory_time;
     else if (f.ie_ratio) ti = (1.0 / rate) * *f.ie_ratio / (1.0 + *f.ie_ratio);
-    else n.fail("missing key 'inspiratory_time' or 'ie_ratio' (expected a duration such as '1 s')");
+    else n.fail_missing("missing key 'inspiratory_time' or 'ie_ratio' (expected a duration such as '1 s')");
     const double peep = f.peep.value_or(0.0);
     if (mode == "volume_control") {
       driver = physiology::VolumeControl{rate, require(n, f.tidal_volume, "tidal_volume", kind::volume), ti,
@@ -323,30 +357,6 @@ Driver build_driver(const config::Node& n, const std::string& mode, const Driver
     n.fail(e.what());
   }
   return driver;
-}
-
-// The ranges the lung model and its solver take (docs/scenarios.md, limits): far outside them
-// CVODE fails after minutes, or at once, without naming the key. SI bounds; `range` says them in
-// the units users write.
-struct Range {
-  double lo, hi;
-  const char* text;
-};
-constexpr double kLitresPerCmH2O = 1e-3 / 98.0665;        // m3/Pa
-constexpr double kCmH2OSecondsPerLitre = 98.0665 / 1e-3;  // Pa s/m3
-constexpr Range kCompliance{1e-3 * kLitresPerCmH2O, 10.0 * kLitresPerCmH2O, "a compliance from 0.001 to 10 L/cmH2O"};
-constexpr Range kResistance{0.1 * kCmH2OSecondsPerLitre, 1000.0 * kCmH2OSecondsPerLitre,
-                            "a resistance from 0.1 to 1000 cmH2O*s/L"};
-constexpr Range kRelativeTolerance{1e-12, 0.1, "a relative tolerance from 1e-12 to 0.1"};
-constexpr Range kAbsoluteTolerance{1e-15, 1e-4, "an absolute tolerance from 1e-12 L to 0.1 L"};
-constexpr Range kMaxStep{1e-6, 10.0, "a maximum step from 1e-6 s to 10 s"};
-
-// `value` (read from `key`) when it lies in `range`; else the one-line error at the key, in the
-// file that holds it (a preset's own file for a value it gives).
-double in_range(const config::Node& n, const std::string& key, double value, const Range& range) {
-  if (!(value >= range.lo && value <= range.hi))
-    n.fail_at(key, std::string("expected ") + range.text + ", got '" + n.string(key) + "'");
-  return value;
 }
 
 // A compartment's elastic recoil: `compliance` (linear) or `pressure_volume_curve` (sigmoid).
@@ -378,7 +388,7 @@ void overlay_compartment(const config::Node& n, physiology::Compartment& c, bool
     if (!(*r > 0)) n.fail_at("resistance", "expected a positive resistance");
     c.resistance_pa_s_per_m3 = in_range(n, "resistance", *r, kResistance);
   } else if (need_resistance) {
-    n.fail("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
+    n.fail_missing("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
   }
 }
 
@@ -390,22 +400,22 @@ void overlay_mechanics(const config::Node& n, const std::string& model, Mechanic
     physiology::Compartment& lung = m.compartments[0];
     const bool had = n.has("compliance") || n.has("pressure_volume_curve");
     if (auto e = read_elasticity(n)) lung.elasticity = *e;
-    if (initial && !had) n.fail("missing key 'compliance' (expected a compliance such as '0.1 L/cmH2O')");
+    if (initial && !had) n.fail_missing("missing key 'compliance' (expected a compliance such as '0.1 L/cmH2O')");
   } else {
     for (const char* key : {"compliance", "pressure_volume_curve"}) {
       if (n.has(key))
         n.fail_at(key, "a two_compartment model sets this per compartment (compartments.upper, compartments.lower)");
     }
     auto compartments = n.optional_map("compartments");
-    if (initial && !compartments) n.fail("missing key 'compartments' (with 'upper' and 'lower')");
+    if (initial && !compartments) n.fail_missing("missing key 'compartments' (with 'upper' and 'lower')");
     if (compartments) {
       for (std::size_t i = 0; i < 2; ++i) {
         const std::string name = i == 0 ? "upper" : "lower";
         auto c = compartments->optional_map(name);
-        if (initial && !c) compartments->fail("missing key '" + name + "'");
+        if (initial && !c) compartments->fail_missing("missing key '" + name + "'");
         if (!c) continue;
         const bool had = c->has("compliance") || c->has("pressure_volume_curve");
-        if (initial && !had) c->fail("missing key 'compliance' (expected a compliance such as '0.05 L/cmH2O')");
+        if (initial && !had) c->fail_missing("missing key 'compliance' (expected a compliance such as '0.05 L/cmH2O')");
         overlay_compartment(*c, m.compartments[i], initial);
         c->finish();
       }
@@ -417,7 +427,7 @@ void overlay_mechanics(const config::Node& n, const std::string& model, Mechanic
     if (!(*r >= 0)) n.fail_at("resistance", "expected a resistance >= 0");
     m.airway_resistance_pa_s_per_m3 = *r > 0.0 ? in_range(n, "resistance", *r, kResistance) : *r;
   } else if (initial) {
-    n.fail("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
+    n.fail_missing("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
   }
 }
 
@@ -438,7 +448,8 @@ physiology::PatientEffort overlay_effort(const config::Node& n, physiology::Pati
     effort.amplitude_pa = *p;
   }
   e->finish();
-  if (effort.active() && !(effort.rate_hz > 0.0)) e->fail("missing key 'rate' (expected a rate such as '15 /min')");
+  if (effort.active() && !(effort.rate_hz > 0.0))
+    e->fail_missing("missing key 'rate' (expected a rate such as '15 /min')");
   if (effort.active() && !physiology::is_ventilator(driver))
     n.fail_at("effort",
               "a patient effort acts on a ventilated patient; spontaneous mode is the patient's own breathing");
@@ -458,7 +469,7 @@ config::Node with_preset(const config::Node& section, const std::filesystem::pat
     section.fail_at("preset", "no preset '" + *preset + "' (looked for " + file.string() + "; shipped presets: " +
                                   join_names(file_stems(config_dir / "physiology", ".yaml")) + ")");
   }
-  return section.with_fallback(config::Node::load_file(file));
+  return section.with_fallback(config::Node::load_file(file), "preset");
 }
 
 // The keys of the lumped model, which a trace replaces.

@@ -16,6 +16,10 @@ double surface_area(const std::vector<Eigen::Vector3d>& p, const std::vector<Tri
 
 double surface_area(const TriangleMesh& mesh) { return surface_area(mesh.vertices, mesh.triangles); }
 
+double vertex_count_at_edge(double area_m2, double edge_m) {
+  return 2.0 * area_m2 / (std::sqrt(3.0) * edge_m * edge_m);
+}
+
 double enclosed_volume(const std::vector<Eigen::Vector3d>& p, const std::vector<Triangle>& triangles) {
   double six_volume = 0.0;
   for (const Triangle& t : triangles) six_volume += p[t[0]].dot(p[t[1]].cross(p[t[2]]));

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <set>
 #include <stdexcept>
 
@@ -392,6 +393,39 @@ std::filesystem::path provenance_path(const std::filesystem::path& mesh_path) {
   return p;
 }
 
+void check_label_surface_size(const LabelMap& map, const std::string& name, const std::vector<int>& labels,
+                              const LabelSurfaceOptions& options) {
+  const Eigen::Vector3d spacing = map.spacing_m();
+  double extent_m = 0.0;
+  for (std::size_t a = 0; a < 3; ++a)
+    extent_m = std::max(extent_m, static_cast<double>(map.size[a]) * spacing[static_cast<Eigen::Index>(a)]);
+  const double closing_m = std::max(options.closing_radius_m, options.max_closing_radius_m);
+  const auto dims = fmt::format("{} x {} x {} voxels, {:.4g} mm at its widest", map.size[0], map.size[1], map.size[2],
+                                extent_m * 1e3);
+  if (3.0 * options.smoothing_m > extent_m) {
+    throw ValueError(fmt::format("{}: smoothing: a sigma of {:.4g} mm blurs beyond the whole label map ({}); "
+                                 "expected at most {:.3g} mm (a third of its widest side)",
+                                 name, options.smoothing_m * 1e3, dims, extent_m / 3 * 1e3));
+  }
+  if (closing_m > extent_m) {
+    throw ValueError(fmt::format("{}: closing: a radius of {:.4g} mm is beyond the whole label map ({}); expected at "
+                                 "most {:.3g} mm",
+                                 name, closing_m * 1e3, dims, extent_m * 1e3));
+  }
+  const std::set<int> wanted(labels.begin(), labels.end());
+  std::size_t count = 0;
+  for (const std::int32_t l : map.labels) count += wanted.count(l);
+  const double volume_m3 = static_cast<double>(count) * map.voxel_volume_m3();
+  const double area_m2 = 1.5 * std::cbrt(36.0 * std::numbers::pi * volume_m3 * volume_m3);
+  const double vertices = vertex_count_at_edge(area_m2, options.edge_length_m);
+  if (!(vertices <= kMaxSurfaceVertices)) {
+    throw ValueError(
+        fmt::format("{}: edge: {:.4g} mL of labels (about {:.4g} cm2 of surface) at a facet size of {:.4g} "
+                    "mm would have about {:.3g} vertices; expected at most {:.0f} (a coarser edge)",
+                    name, volume_m3 * 1e6, area_m2 * 1e4, options.edge_length_m * 1e3, vertices, kMaxSurfaceVertices));
+  }
+}
+
 LabelSurface surface_from_labels(const std::filesystem::path& path, const std::vector<int>& labels,
                                  const LabelSurfaceOptions& options) {
   return surface_from_labels(read_label_map(path), path.string(), labels, options);
@@ -410,6 +444,7 @@ LabelSurface surface_from_labels(const LabelMap& map, const std::string& name, c
   if (labels.empty()) throw std::invalid_argument("surface_from_labels: no labels given");
   if (map.labels.size() != map.voxel_count())
     throw std::invalid_argument("surface_from_labels: label map size mismatch");
+  check_label_surface_size(map, name, labels, options);
 
   LabelSurface result;
   LabelSurfaceReport& rep = result.report;

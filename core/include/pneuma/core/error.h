@@ -19,9 +19,13 @@ enum class ExitCode : int {
   unsupported = 5,  // valid input that pneuma cannot handle (e.g. no OpenGL context)
 };
 
+// `message` with each NUL byte written as \x00: what() is a C string, and a NUL copied from the
+// input would end the message there (the CLI quotes every other unprintable byte the same way).
+std::string without_nul(const std::string& message);
+
 class Error : public std::runtime_error {
  public:
-  Error(ExitCode code, const std::string& message) : std::runtime_error(message), code_(code) {}
+  Error(ExitCode code, const std::string& message) : std::runtime_error(without_nul(message)), code_(code) {}
   ExitCode code() const noexcept { return code_; }
 
  private:

@@ -72,6 +72,10 @@ class Node {
   [[noreturn]] void fail(const std::string& message) const;
   // A one-line error at the value of `key`.
   [[noreturn]] void fail_at(const std::string& key, const std::string& message) const;
+  // A key this node needs and neither it nor its fallback gives (`message`: "missing key 'x'
+  // (expected ...)"): for a node made by with_fallback(fallback, via), at the key `via` that named
+  // the fallback (a scenario's `preset:`), naming the fallback's file; else as fail().
+  [[noreturn]] void fail_missing(const std::string& message) const;
 
   // Keys of this mapping (marks them read; for maps whose keys are data, e.g. region labels).
   std::vector<std::string> keys() const;
@@ -79,8 +83,9 @@ class Node {
   void accept(const std::string& key) const;
 
   // This node with `fallback` behind it: a key missing here is looked up there (presets).
-  // Both layers are checked by finish(), and messages name the file each value came from.
-  Node with_fallback(const Node& fallback) const;
+  // Both layers are checked by finish(), and messages name the file each value came from;
+  // `via`: the key of this node that named the fallback, where a key missing in both is reported.
+  Node with_fallback(const Node& fallback, const std::string& via = {}) const;
 
  private:
   struct Layer {
@@ -109,6 +114,7 @@ class Node {
 
   std::vector<Layer> layers_;  // front: the node itself; back: its deepest fallback
   std::string path_;
+  std::string via_;  // the key that named the fallback layers (with_fallback), or empty
   // Every key this node was asked for, present or not: the list an unknown key is told of.
   std::shared_ptr<std::set<std::string>> asked_keys_ = std::make_shared<std::set<std::string>>();
 };

@@ -29,6 +29,13 @@ inline double triangle_area(const Eigen::Vector3d& a, const Eigen::Vector3d& b, 
 // Total surface area (m^2): the sum of triangle_area() in triangle order.
 double surface_area(const TriangleMesh& mesh);
 double surface_area(const std::vector<Eigen::Vector3d>& positions, const std::vector<Triangle>& triangles);
+// The most vertices pneuma makes a surface of (remeshing, a label map's surface): the field, the
+// frames and the outputs grow with it, and a 0.3 mm mesh of a real lung (about 1.5 million
+// vertices) is already finer than any CT it comes from. Documented in README.md (limits).
+inline constexpr double kMaxSurfaceVertices = 2e6;
+// About how many vertices a surface of `area_m2` has at edge `edge_m` (equilateral triangles,
+// two per vertex, each sqrt(3)/4 edge^2).
+double vertex_count_at_edge(double area_m2, double edge_m);
 // Enclosed volume (m^3) as a sum of signed tetrahedra against the origin; positive for a
 // closed, outward-oriented surface.
 double enclosed_volume(const TriangleMesh& mesh);

@@ -150,6 +150,13 @@ struct LabelSurface {
   LabelSurfaceReport report;
 };
 
+// Refuses, before any work, an extraction that cannot finish: a smoothing or closing that reaches
+// beyond the whole map (sigma 1e308 mm), or a facet size that would give the labels' surface over
+// kMaxSurfaceVertices (its area estimated as 1.5 times a sphere's of their volume). Throws
+// ValueError "<name>: smoothing|closing|edge: ..." with the numbers.
+void check_label_surface_size(const LabelMap& map, const std::string& name, const std::vector<int>& labels,
+                              const LabelSurfaceOptions& options);
+
 // Throws InputError "<file>: ..." for a file that is not a label map, a label that is absent
 // ("label 7 is not in the file (labels present: 0, 1, 2)"), and IoError as read_label_map().
 LabelSurface surface_from_labels(const std::filesystem::path& path, const std::vector<int>& labels,
