@@ -253,6 +253,14 @@ TEST(Tissue, BadFilesAreOneLine) {
       {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
        "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, dome: {radius: 6 cm, rim: 0.3}}\n",
        "3:68: load.dome: missing key 'falloff' (expected length such as '3 mm')"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, dome: {radius: 6 cm, area: 150 cm^2, falloff: 2 "
+       "cm, rim: 0.3}}\n",
+       "3:68: load.dome: expected one of 'radius' and 'area'"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, dome: {area: -1 cm^2, falloff: 2 cm, rim: 0.3}}\n",
+       "3:75: load.dome.area: expected a positive area, got '-1 cm^2'"},
+      {"alias: healthy-upright\nposture: upright\n", "2:1: posture: unknown key; expected one of: alias"},
   };
   for (const Bad& c : cases) {
     const auto file = dir.write("t.yaml", c.yaml);

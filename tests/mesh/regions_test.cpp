@@ -305,6 +305,44 @@ TEST(RegionalLoad, TheDomeProfileMovesTheDiaphragmsDriveInwardAndKeepsItsTotal) 
 namespace pneuma::mesh {
 namespace {
 
+// The dome profile sized by area (one preset for every lung): the radius is where the
+// diaphragm's area, counted outward from the dome's centre, reaches the given area. On a sphere
+// of radius R the cap within horizontal distance rho of the axis has area 2 pi R (R - sqrt(R^2 -
+// rho^2)): asking for the cap of rho = 40 mm gives the profile of a 40 mm radius, to within the
+// mesh's spacing; asking for more than the whole diaphragm leaves the load as it is.
+TEST(RegionalLoad, TheDomeProfileSizedByAreaTakesItsRadiusFromTheDiaphragmsArea) {
+  const double radius = 0.1;
+  const TriangleMesh s = make_icosphere(radius, 5);
+  RegionOptions o;
+  o.side = Lung::right;
+  const SurfaceRegions r = find_regions(s, o);
+  const std::array<double, kRegionCount> load{0.0, 0.0, 1.0, 0.0};
+  const std::vector<double> plain = regional_load(s, r, load);
+  EXPECT_EQ(regional_load(s, r, load, {.area_m2 = 1.0, .falloff_m = 0.01, .rim = 0.25}), plain);
+  // The lower cap is wholly diaphragmatic out to rho = 40 mm (checked, so that the cap's area is
+  // the diaphragm's there).
+  const std::vector<double> area = vertex_areas(s);
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    if (s.vertices[i].z() < 0.0 && s.vertices[i].head<2>().norm() < 0.045) {
+      ASSERT_EQ(r.weight[i][static_cast<std::size_t>(Region::diaphragmatic)], 1.0) << i;
+    }
+  }
+  const double rho = 0.04;
+  const double cap_m2 = 2.0 * std::numbers::pi * radius * (radius - std::sqrt(radius * radius - rho * rho));
+  const std::vector<double> by_area = regional_load(s, r, load, {.area_m2 = cap_m2, .falloff_m = 0.01, .rim = 0.25});
+  const std::vector<double> by_radius = regional_load(s, r, load, {.radius_m = rho, .falloff_m = 0.01, .rim = 0.25});
+  double total = 0.0, difference = 0.0;
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    total += area[i] * by_radius[i];
+    difference += area[i] * std::abs(by_area[i] - by_radius[i]);
+  }
+  EXPECT_GT(total, 0.0);
+  // Vertices lie about 5 mm apart: the radius found is within one of them of 40 mm, which moves
+  // a little of the load across a 20 mm wide step.
+  EXPECT_LT(difference, 0.03 * total);
+  EXPECT_THROW(regional_load(s, r, load, {.area_m2 = -1.0}), pneuma::ValueError);
+}
+
 TEST(Geometry, SphereMeanCurvatureIsOneOverRadiusAndHullDepthIsZero) {
   const TriangleMesh s = make_icosphere(0.1, 4);
   // Per vertex within 15 % (the barycentric area is rough at the icosahedron's valence-5

@@ -190,7 +190,10 @@ field::Tissue read_tissue(const config::Node& root) {
       g->finish();
     }
     if (auto d = l->optional_map("dome")) {
-      t.dome_load.radius_m = d->positive_quantity("radius", kind::length);
+      // Either a fixed radius or the lung's own, from the area that moves with the dome.
+      if (d->has("radius") == d->has("area")) d->fail("expected one of 'radius' and 'area'");
+      if (d->has("radius")) t.dome_load.radius_m = d->positive_quantity("radius", kind::length);
+      else t.dome_load.area_m2 = d->positive_quantity("area", kind::area);
       t.dome_load.falloff_m = d->positive_quantity("falloff", kind::length);
       t.dome_load.rim = d->quantity("rim", kind::fraction);
       if (!(t.dome_load.rim >= 0.0 && t.dome_load.rim <= 1.0)) d->fail_at("rim", "expected a factor from 0 to 1");
@@ -214,7 +217,20 @@ field::Tissue read_tissue(const config::Node& root) {
   return t;
 }
 
-field::Tissue load_tissue(const std::filesystem::path& path) { return read_tissue(config::Node::load_file(path)); }
+field::Tissue load_tissue(const std::filesystem::path& path) {
+  const config::Node root = config::Node::load_file(path);
+  // `alias: NAME`: another preset beside this file under a former name (healthy-upright-ct).
+  if (const auto alias = root.optional_string("alias")) {
+    root.finish();
+    const std::filesystem::path target = path.parent_path() / (*alias + ".yaml");
+    if (alias->empty() || alias->find('/') != std::string::npos || !path_exists(target))
+      root.fail_at("alias", "expected the name of a tissue preset beside this file (no " + target.string() + ")");
+    const config::Node aliased = config::Node::load_file(target);
+    if (aliased.has("alias")) aliased.fail_at("alias", "expected a tissue preset, not another alias");
+    return read_tissue(aliased);
+  }
+  return read_tissue(root);
+}
 
 std::filesystem::path tissue_file(const std::string& name_or_path, const std::filesystem::path& config_dir) {
   if (name_or_path.find('/') != std::string::npos || name_or_path.ends_with(".yaml")) return name_or_path;

@@ -321,9 +321,32 @@ std::vector<bool> dome_top_vertices(const TriangleMesh& mesh, const SurfaceRegio
   return on_top;
 }
 
+namespace {
+// The horizontal distance from the dome's centre within which the diaphragm (vertex area times
+// its diaphragmatic weight) covers `target_m2`; infinite when the whole diaphragm is smaller.
+template <class Distance>
+double dome_radius_for_area(std::size_t n, const std::vector<double>& area, const SurfaceRegions& regions,
+                            const Distance& distance, double target_m2) {
+  constexpr auto kDiaphragm = static_cast<std::size_t>(Region::diaphragmatic);
+  std::vector<std::pair<double, double>> by_distance;  // (distance, diaphragmatic area)
+  for (std::size_t i = 0; i < n; ++i) {
+    const double a = area[i] * regions.weight[i][kDiaphragm];
+    if (a > 0.0) by_distance.emplace_back(distance(i), a);
+  }
+  std::sort(by_distance.begin(), by_distance.end());
+  double covered = 0.0;
+  for (const auto& [d, a] : by_distance) {
+    covered += a;
+    if (covered >= target_m2) return d;
+  }
+  return std::numeric_limits<double>::infinity();
+}
+}  // namespace
+
 std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions& regions,
                                   const std::array<double, kRegionCount>& load, const DomeLoad& dome) {
   if (!(dome.radius_m >= 0.0)) throw ValueError("regional_load: the dome radius must be >= 0");
+  if (!(dome.area_m2 >= 0.0)) throw ValueError("regional_load: the dome area must be >= 0");
   if (!(dome.falloff_m > 0.0)) throw ValueError("regional_load: the dome's falloff must be > 0");
   if (!(dome.rim >= 0.0 && dome.rim <= 1.0)) throw ValueError("regional_load: the dome rim factor must lie in [0, 1]");
   const std::size_t n = regions.weight.size();
@@ -334,7 +357,7 @@ std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions
   std::vector<double> drive(n);
   for (std::size_t i = 0; i < n; ++i)
     drive[i] = regions.weight[i][kDiaphragm] * std::max(0.0, -regions.normal[i].dot(up));
-  if (dome.radius_m > 0.0) {
+  if (dome.radius_m > 0.0 || dome.area_m2 > 0.0) {
     const std::vector<bool> on_top = dome_top_vertices(mesh, regions);
     const std::vector<double> area = vertex_areas(mesh);
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
@@ -344,15 +367,21 @@ std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions
       centre += area[i] * mesh.vertices[i];
       top_area += area[i];
     }
-    if (top_area > 0.0) {
-      centre /= top_area;
+    if (top_area > 0.0) centre /= top_area;
+    auto horizontal_distance = [&](std::size_t i) {
+      const Eigen::Vector3d r = mesh.vertices[i] - centre;
+      return (r - r.dot(up) * up).norm();
+    };
+    const double radius = dome.area_m2 > 0.0 && top_area > 0.0
+                              ? dome_radius_for_area(n, area, regions, horizontal_distance, dome.area_m2)
+                              : dome.radius_m;
+    if (top_area > 0.0 && std::isfinite(radius)) {
       // The profile moves the drive toward the dome and keeps its total (so the diaphragm's share
       // of the volume stays what the regional loads make it).
       double before = 0.0, after = 0.0;
       for (std::size_t i = 0; i < n; ++i) {
-        const Eigen::Vector3d r = mesh.vertices[i] - centre;
         const double profile =
-            dome.rim + (1.0 - dome.rim) * (1.0 - ramp((r - r.dot(up) * up).norm(), dome.radius_m, dome.falloff_m));
+            dome.rim + (1.0 - dome.rim) * (1.0 - ramp(horizontal_distance(i), radius, dome.falloff_m));
         before += area[i] * drive[i];
         drive[i] *= profile;
         after += area[i] * drive[i];

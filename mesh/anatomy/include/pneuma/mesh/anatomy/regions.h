@@ -123,9 +123,13 @@ std::vector<bool> dome_top_vertices(const TriangleMesh& mesh, const SurfaceRegio
 // the ribs barely): times a profile of the horizontal distance r (across `up`) from the
 // area-weighted centre of the dome's top (dome_top_vertices), 1 inside `radius_m - falloff_m`,
 // `rim` beyond `radius_m + falloff_m`, a smooth step between; then scaled so that the diaphragm's
-// total load is unchanged. radius 0: no profile.
+// total load is unchanged. radius 0: no profile. With `area_m2` the radius is the lung's own:
+// the distance within which the diaphragm (area times its region weight) covers `area_m2`, so
+// that the same area moves with the dome on a small diaphragm as on a wide one; a diaphragm
+// smaller than `area_m2` has no profile.
 struct DomeLoad {
   double radius_m = 0.0;
+  double area_m2 = 0.0;  // > 0: the radius from this area (radius_m is then ignored)
   double falloff_m = 0.02;
   double rim = 1.0;  // the factor far from the dome, in [0, 1]
 };
