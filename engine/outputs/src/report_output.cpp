@@ -79,8 +79,12 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
                          fmt::format("{} ({} '{}'), {} samples, {} invalid, {} gap{}", trace.file.filename().string(),
                                      physiology::signal_name(trace.signal), trace.column, t.samples, t.invalid_samples,
                                      t.gaps, t.gaps == 1 ? "" : "s"));
-    if (trace.signal == physiology::TraceSignal::amplitude)
-      r.facts.emplace_back("trace calibration", fmt::format("{:.1f} mL per amplitude unit", t.scale_m3_per_unit * 1e6));
+    if (trace.signal == physiology::TraceSignal::amplitude) {
+      std::string how = fmt::format("{:.1f} mL per amplitude unit", t.scale_m3_per_unit * 1e6);
+      if (t.calibration_span_s > 0.0)
+        how += fmt::format(" (from spirometry over {:.1f} s, r\u00b2 = {:.3f})", t.calibration_span_s, t.calibration_r2);
+      r.facts.emplace_back("trace calibration", how);
+    }
     if (t.drift_m3_per_s != 0.0)
       r.facts.emplace_back("trace drift removed", fmt::format("{:.1f} mL/min", t.drift_m3_per_s * 1e6 * 60.0));
   }
