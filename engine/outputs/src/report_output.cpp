@@ -3,7 +3,9 @@
 
 #include "pneuma/outputs/frame_outputs.h"
 #include "pneuma/outputs/motion_csv.h"
+#include "pneuma/outputs/phases.h"
 #include "pneuma/outputs/report.h"
+#include "pneuma/outputs/voxels_output.h"
 
 namespace pneuma::outputs {
 namespace {
@@ -103,6 +105,23 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
   r.motion = *run.motion;
   r.lung_names = motion_lung_names(model);
   r.glb = make_glb(model, run.info, time_s, run.scales);
+  // The respiratory bins, when the run sorts its frames into them or follows a measured trace.
+  if (s.output("phases") != nullptr || s.physiology.trace) {
+    const physiology::PhaseBinning binning = run_phase_bins(run);
+    ReportBins bins;
+    const scenario::OutputRequest* phases = s.output("phases");
+    const bool amplitude = phases != nullptr && std::any_cast<const PhasesSpec&>(phases->settings).binning.method ==
+                                                    physiology::BinningMethod::amplitude;
+    bins.method = amplitude ? "amplitude" : "phase";
+    for (const physiology::PhaseBin& bin : binning.bins) {
+      bins.centre_percent.push_back(bin.centre_percent);
+      bins.frames.push_back(bin.samples.size());
+      bins.mean_volume_m3.push_back(bin.mean_volume_m3);
+    }
+    bins.bin_of_frame = binning.bin_of;
+    r.bins = std::move(bins);
+  }
+  r.slices = report_label_slices(model, run, r.lung_labels);
   return r;
 }
 

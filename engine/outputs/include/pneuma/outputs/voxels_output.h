@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "pneuma/outputs/output.h"
+#include "pneuma/outputs/report.h"
 
 #include "pneuma/voxels/time_point.h"
 
@@ -61,6 +62,9 @@ class VoxelScene {
   double lung_volume_m3(const mesh::LabelMap& map) const;
   // The DVFs, the Jacobian, the warped label map (and CT) at the lungs' scales (one per model lung).
   void compute(std::span<const double> scales, voxels::TimePoint& point) const;
+  // The same on another grid (a plane for report.html's slices), the CT only if `with_image`.
+  void compute_on(const voxels::Grid& grid, std::span<const double> scales, voxels::TimePoint& point,
+                  bool with_image = true) const;
 
  private:
   const model::Model& model_;
@@ -70,6 +74,13 @@ class VoxelScene {
   voxels::Grid grid_;
   std::vector<std::uint8_t> rest_lung_;
 };
+
+// report.html's slices of the warped label map (voxel outputs on; empty otherwise): a coronal
+// plane through the middle of the lungs and a sagittal one through the middle of the first, with
+// pixels of 2 mm (coarser for a chest wider than 40 cm), at up to `max_times` frames spread
+// evenly over the run. `lung_labels` gets the label values that are lung.
+std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
+                                            std::vector<int>& lung_labels, std::size_t max_times = 32);
 
 OutputPlugin voxels_output();
 
