@@ -170,8 +170,8 @@ std::string vxp(int seconds, double rate_hz, bool with_invalid, double scale_fac
 // lines, then rows of amplitude (cm), [two more fields in 1.7,] phase, timestamp (ms), validflag,
 // video index, ttlin, beam.
 std::string dat(const char* version, int seconds, double rate_hz) {
-  std::string text = fmt::format(
-      "CRC=2F4A\nVERSION = {},\n0.4000,0.0000,\n#TRUE#,\n30.0000,70.0000,\n0,\n0,\n0,\n0,\n0,\n", version);
+  std::string text =
+      fmt::format("CRC=2F4A\nVERSION = {},\n0.4000,0.0000,\n#TRUE#,\n30.0000,70.0000,\n0,\n0,\n0,\n0,\n0,\n", version);
   const bool v17 = std::string(version) == "1.7";
   const int n = static_cast<int>(seconds * rate_hz);
   for (int k = 0; k <= n; ++k) {

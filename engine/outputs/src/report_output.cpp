@@ -84,7 +84,8 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
     if (trace.signal == physiology::TraceSignal::amplitude) {
       std::string how = fmt::format("{:.1f} mL per amplitude unit", t.scale_m3_per_unit * 1e6);
       if (t.calibration_span_s > 0.0)
-        how += fmt::format(" (from spirometry over {:.1f} s, r\u00b2 = {:.3f})", t.calibration_span_s, t.calibration_r2);
+        how +=
+            fmt::format(" (from spirometry over {:.1f} s, r\u00b2 = {:.3f})", t.calibration_span_s, t.calibration_r2);
       r.facts.emplace_back("trace calibration", how);
     }
     if (t.drift_m3_per_s != 0.0)

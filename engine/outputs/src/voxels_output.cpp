@@ -4,10 +4,10 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <optional>
-#include <array>
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
@@ -156,11 +156,11 @@ class VoxelsOutput final : public Output {
       folded = std::max(folded, point.jacobian.folded_volume_fraction);
       std::string scale_text;
       for (const double sc : at.scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
-      rows.push_back(fmt::format("{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
-                                 at.frame ? std::to_string(*at.frame) : "",
-                                 at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "", scale_text,
-                                 at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
-                                 point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
+      rows.push_back(fmt::format(
+          "{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
+          at.frame ? std::to_string(*at.frame) : "", at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "",
+          scale_text, at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
+          point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
       folded_tets = std::max(folded_tets, point.jacobian.folded_tets);
     }
     const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
@@ -367,9 +367,8 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
                         : std::array<std::size_t, 3>{1, count(extent.y()), count(extent.z())};
     grid.ijk_to_lps = Eigen::Matrix4d::Identity();
     grid.ijk_to_lps.block<3, 3>(0, 0) *= h;
-    grid.ijk_to_lps.block<3, 1>(0, 3) =
-        coronal ? Eigen::Vector3d(lo.x(), 0.5 * (lo.y() + hi.y()), lo.z())
-                : Eigen::Vector3d(0.5 * (first_lo.x() + first_hi.x()), lo.y(), lo.z());
+    grid.ijk_to_lps.block<3, 1>(0, 3) = coronal ? Eigen::Vector3d(lo.x(), 0.5 * (lo.y() + hi.y()), lo.z())
+                                                : Eigen::Vector3d(0.5 * (first_lo.x() + first_hi.x()), lo.y(), lo.z());
     return grid;
   };
   const std::vector<double>& time_s = run.drive->series.time_s;
@@ -381,7 +380,8 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
     LabelSlice slice;
     slice.name = coronal ? "coronal" : "sagittal";
     const Eigen::Vector3d origin = grid.ijk_to_lps.block<3, 1>(0, 3);
-    slice.fixed = coronal ? fmt::format("y = {:.1f} mm", origin.y() * 1e3) : fmt::format("x = {:.1f} mm", origin.x() * 1e3);
+    slice.fixed =
+        coronal ? fmt::format("y = {:.1f} mm", origin.y() * 1e3) : fmt::format("x = {:.1f} mm", origin.x() * 1e3);
     slice.width = coronal ? grid.size[0] : grid.size[1];
     slice.height = grid.size[2];
     slice.pixel_mm = h * 1e3;

@@ -490,8 +490,9 @@ physiology::Trace read_spirometry(const config::Node& calibration) {
   physiology::TraceOptions options;
   const physiology::RawTrace raw = physiology::read_trace_file(file, options);
   if (raw.signal == physiology::TraceSignal::amplitude)
-    calibration.fail_at("spirometry", "expected a volume or flow trace (such as 'time_s,volume_mL'), got the amplitude '" +
-                                          raw.column + "' of " + file.filename().string());
+    calibration.fail_at(
+        "spirometry", "expected a volume or flow trace (such as 'time_s,volume_mL'), got the amplitude '" + raw.column +
+                          "' of " + file.filename().string());
   return physiology::process_trace(raw, options);
 }
 

@@ -77,11 +77,11 @@ struct TraceReport {
   std::size_t invalid_samples = 0;  // dropped
   std::size_t gaps = 0;             // bridged by a straight line
   double longest_gap_s = 0.0;
-  double drift_m3_per_s = 0.0;     // slope of the removed trough line (volume units)
-  double scale_m3_per_unit = 0.0;  // amplitude: the calibration applied
-  double calibration_r2 = 0.0;     // spirometry: the squared correlation of the fit (1: exact)
+  double drift_m3_per_s = 0.0;      // slope of the removed trough line (volume units)
+  double scale_m3_per_unit = 0.0;   // amplitude: the calibration applied
+  double calibration_r2 = 0.0;      // spirometry: the squared correlation of the fit (1: exact)
   double calibration_span_s = 0.0;  // spirometry: the stretch both traces cover
-  double reference_m3 = 0.0;       // what was subtracted so that FRC is 0 (volume: absolute FRC)
+  double reference_m3 = 0.0;        // what was subtracted so that FRC is 0 (volume: absolute FRC)
   std::size_t breaths = 0;
 };
 

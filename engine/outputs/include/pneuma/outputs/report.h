@@ -29,7 +29,7 @@ std::size_t report_stride(std::size_t samples, std::size_t max_samples = kReport
 // The run's frames in respiratory bins (outputs.phases, or a measured trace), for the bands on
 // the volume plot and the bin under the cursor.
 struct ReportBins {
-  std::string method;                 // "phase" | "amplitude"
+  std::string method;                  // "phase" | "amplitude"
   std::vector<double> centre_percent;  // per bin
   std::vector<std::size_t> frames;     // per bin: how many frames it holds
   std::vector<double> mean_volume_m3;  // per bin (NaN when empty)
@@ -39,8 +39,8 @@ struct ReportBins {
 // One plane through the warped label map at several times (voxel outputs on): the image the
 // page draws under the cursor, the diaphragm's descent visible in it.
 struct LabelSlice {
-  std::string name;                  // "coronal" | "sagittal"
-  std::string fixed;                 // the plane, such as "y = 12.0 mm" (LPS)
+  std::string name;                   // "coronal" | "sagittal"
+  std::string fixed;                  // the plane, such as "y = 12.0 mm" (LPS)
   std::size_t width = 0, height = 0;  // pixels; row 0 is the most superior
   double pixel_mm = 0.0;
   std::vector<double> times_s;

@@ -16,8 +16,9 @@
 //       format: nii.gz                 # nii.gz | nii | mha
 //
 // Files (voxels/): dvf-forward-<t>, dvf-pullback-<t>, labels-<t> and ct-<t> with <t> the frame's
-// time ("2.400s") or the bin ("bin_03"), and voxels.csv (a bin's frame and time are empty). Label-map lungs warp the label map; other lungs (the phantom,
-// surface files) warp a label map of their rest tetrahedra (1 right or the only lung, 2 left).
+// time ("2.400s") or the bin ("bin_03"), and voxels.csv (a bin's frame and time are empty). Label-map lungs warp the
+// label map; other lungs (the phantom, surface files) warp a label map of their rest tetrahedra (1 right or the only
+// lung, 2 left).
 #include <filesystem>
 #include <memory>
 #include <span>
@@ -39,7 +40,7 @@ using VoxelTime = std::variant<VoxelMoment, double>;
 struct VoxelsSpec {
   std::vector<VoxelTime> at{VoxelMoment::end_expiration, VoxelMoment::end_inspiration};
   bool phase_bins = false;  // `phases` in `at`: every respiratory bin of outputs.phases at its mean volume
-  double spacing_m = 0.0;  // 0: the label map's grid (2 mm where there is none)
+  double spacing_m = 0.0;   // 0: the label map's grid (2 mm where there is none)
   std::shared_ptr<const voxels::Image> image;
   std::filesystem::path image_file;
   std::string extension = ".nii.gz";
