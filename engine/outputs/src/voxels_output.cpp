@@ -128,9 +128,8 @@ class VoxelsOutput final : public Output {
   std::string name() const override { return "voxels"; }
 
   std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {
-    const scenario::Scenario& s = *run.scenario;
     const auto& series = run.drive->series;
-    const VoxelScene scene(model, s, spec_);
+    const VoxelScene& scene = run_voxel_scene(model, run);
     const double rest_lung_m3 = scene.lung_volume_m3(scene.labels());
     const voxels::Grid& grid = scene.grid();
 
@@ -332,14 +331,23 @@ void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> sc
   voxels::compute_time_point(grid, lungs, inputs, point);
 }
 
+const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& run) {
+  if (!run.voxel_scene) {
+    const scenario::OutputRequest* request = run.scenario->output("voxels");
+    if (request == nullptr) throw Error(ExitCode::failure, "voxels: the scenario has no voxel output");
+    run.voxel_scene =
+        std::make_shared<const VoxelScene>(model, *run.scenario, std::any_cast<const VoxelsSpec&>(request->settings));
+  }
+  return *run.voxel_scene;
+}
+
 std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
                                             std::vector<int>& lung_labels, std::size_t max_times) {
-  const scenario::OutputRequest* request = run.scenario->output("voxels");
-  if (request == nullptr || max_times == 0) return {};
+  if (run.scenario->output("voxels") == nullptr || max_times == 0) return {};
   for (const model::LungModel& lung : model.lungs) {
     if (!lung.interior) return {};
   }
-  const VoxelScene scene(model, *run.scenario, std::any_cast<const VoxelsSpec&>(request->settings));
+  const VoxelScene& scene = run_voxel_scene(model, run);
   lung_labels = scene.lung_labels();
   // The lungs' box at rest, and the first lung's middle.
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;

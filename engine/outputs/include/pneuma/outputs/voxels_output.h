@@ -76,6 +76,11 @@ class VoxelScene {
   std::vector<std::uint8_t> rest_lung_;
 };
 
+// The run's VoxelScene (RunRecord::voxel_scene), built on first use from the scenario's
+// `outputs.voxels` settings. Throws Error(failure) when that output is off or the model has no
+// lungs' inside.
+const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& run);
+
 // report.html's slices of the warped label map (voxel outputs on; empty otherwise): a coronal
 // plane through the middle of the lungs and a sagittal one through the middle of the first, with
 // pixels of 2 mm (coarser for a chest wider than 40 cm), at up to `max_times` frames spread
