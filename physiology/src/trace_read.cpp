@@ -270,6 +270,38 @@ RawTrace read_csv(const std::filesystem::path& file, std::string_view text, cons
   return raw;
 }
 
+// Where an RPM row keeps its amplitude, timestamp (ms) and validflag (kNoField: none, all valid).
+constexpr std::size_t kNoField = static_cast<std::size_t>(-1);
+struct RpmFields {
+  std::size_t amplitude, timestamp, validflag;
+};
+
+// One RPM row into `raw`: its amplitude times `cm_per_value`, its time from the first row's
+// timestamp (`first_ms`, set by the first row). Throws InputError at `at` for a field that is not
+// a number or a time that does not increase.
+void add_rpm_sample(RawTrace& raw, const std::vector<std::string_view>& cells, const RpmFields& f, double cm_per_value,
+                    const std::string& at, std::size_t line, double& first_ms) {
+  const auto a = number(cells[f.amplitude]);
+  if (!a) throw InputError(at + "amplitude: expected a number, got '" + std::string(cells[f.amplitude]) + "'");
+  const auto ms = number(cells[f.timestamp]);
+  if (!ms) throw InputError(at + "timestamp: expected a number (ms), got '" + std::string(cells[f.timestamp]) + "'");
+  bool valid = true;
+  if (f.validflag != kNoField) {
+    const auto flag = number(cells[f.validflag]);
+    if (!flag) throw InputError(at + "validflag: expected a number, got '" + std::string(cells[f.validflag]) + "'");
+    valid = *flag >= 0.0;
+  }
+  if (raw.time_s.empty()) first_ms = *ms;
+  const double time = (*ms - first_ms) * 1e-3;
+  if (!raw.time_s.empty() && !(time > raw.time_s.back()))
+    throw InputError(at + "timestamp " + number_text(*ms) + " ms is not after the previous sample's " +
+                     number_text(raw.time_s.back() * 1e3 + first_ms) + " ms (times must increase)");
+  raw.time_s.push_back(time);
+  raw.value.push_back(*a * cm_per_value);
+  raw.valid.push_back(valid);
+  raw.line.push_back(line);
+}
+
 // Varian RPM .vxp (versions 1.5 and 1.6), as plastimatch's readrpm.m (1.5, 2009) reads it: a
 // [Header] of key=value lines (Data_layout names the columns, Samples_per_second, Scale_factor),
 // then [Data] rows "amplitude,phase,timestamp,validflag,ttlin,mark,ttlout" with the amplitude in
@@ -343,25 +375,8 @@ RawTrace read_vxp(const std::filesystem::path& file, std::string_view text) {
     if (cells.size() < columns.size())
       throw InputError(at + "expected " + std::to_string(columns.size()) + " fields (" + layout.first + "), got " +
                        std::to_string(cells.size()));
-    const auto a = number(cells[amplitude]);
-    if (!a) throw InputError(at + "amplitude: expected a number, got '" + std::string(cells[amplitude]) + "'");
-    const auto ms = number(cells[timestamp]);
-    if (!ms) throw InputError(at + "timestamp: expected a number (ms), got '" + std::string(cells[timestamp]) + "'");
-    bool valid = true;
-    if (validflag != columns.size()) {
-      const auto flag = number(cells[validflag]);
-      if (!flag) throw InputError(at + "validflag: expected a number, got '" + std::string(cells[validflag]) + "'");
-      valid = *flag >= 0.0;
-    }
-    if (raw.time_s.empty()) first_ms = *ms;
-    const double time = (*ms - first_ms) * 1e-3;
-    if (!raw.time_s.empty() && !(time > raw.time_s.back()))
-      throw InputError(at + "timestamp " + number_text(*ms) + " ms is not after the previous sample's " +
-                       number_text(raw.time_s.back() * 1e3 + first_ms) + " ms (times must increase)");
-    raw.time_s.push_back(time);
-    raw.value.push_back(*a * *scale_factor / 10.0);
-    raw.valid.push_back(valid);
-    raw.line.push_back(l + 1);
+    add_rpm_sample(raw, cells, {amplitude, timestamp, validflag == columns.size() ? kNoField : validflag},
+                   *scale_factor / 10.0, at, l + 1, first_ms);
   }
   if (raw.time_s.empty()) throw InputError(where(file, data_line) + "no samples after '[Data]'");
   return raw;
@@ -412,21 +427,7 @@ RawTrace read_dat(const std::filesystem::path& file, std::string_view text) {
     if (cells.size() < fields)
       throw InputError(at + "expected " + std::to_string(fields) + " fields (" + layout + "), got " +
                        std::to_string(cells.size()));
-    const auto a = number(cells[amplitude]);
-    if (!a) throw InputError(at + "amplitude: expected a number, got '" + std::string(cells[amplitude]) + "'");
-    const auto ms = number(cells[timestamp]);
-    if (!ms) throw InputError(at + "timestamp: expected a number (ms), got '" + std::string(cells[timestamp]) + "'");
-    const auto flag = number(cells[validflag]);
-    if (!flag) throw InputError(at + "validflag: expected a number, got '" + std::string(cells[validflag]) + "'");
-    if (raw.time_s.empty()) first_ms = *ms;
-    const double time = (*ms - first_ms) * 1e-3;
-    if (!raw.time_s.empty() && !(time > raw.time_s.back()))
-      throw InputError(at + "timestamp " + number_text(*ms) + " ms is not after the previous sample's " +
-                       number_text(raw.time_s.back() * 1e3 + first_ms) + " ms (times must increase)");
-    raw.time_s.push_back(time);
-    raw.value.push_back(*a);
-    raw.valid.push_back(*flag >= 0.0);
-    raw.line.push_back(l + 1);
+    add_rpm_sample(raw, cells, {amplitude, timestamp, validflag}, 1.0, at, l + 1, first_ms);
   }
   if (raw.time_s.empty()) throw InputError(where(file, kHeaderLines + 1) + "no samples after the RPM .dat header");
   return raw;
