@@ -30,7 +30,8 @@ void hull_of(const std::vector<Point>& points, std::vector<Point>& vertices, std
   // Into index arrays (no halfedge graph, no hash maps), with the traits that filter the plane
   // tests on point triples (CGAL's default for an indexed output constructs inexact planes).
   CGAL::Convex_hull_3::internal::Indexed_triangle_set<std::vector<Point>, std::vector<Face>> out(vertices, faces);
-  CGAL::convex_hull_3(points.begin(), points.end(), out, CGAL::Convex_hull_traits_3<Kernel, CGAL::Default, CGAL::Tag_true>());
+  CGAL::convex_hull_3(points.begin(), points.end(), out,
+                      CGAL::Convex_hull_traits_3<Kernel, CGAL::Default, CGAL::Tag_true>());
 }
 
 // The points that can be corners of the hull (Akl-Toussaint): the hull of the points extreme
@@ -96,8 +97,8 @@ std::vector<Point> possible_corners(const std::vector<Eigen::Vector3d>& points) 
   for (const Point& q : corners) centre += Eigen::Vector3d(q.x(), q.y(), q.z());
   centre /= static_cast<double>(std::max<std::size_t>(corners.size(), 1));
   const bool solid = planes.size() >= 4 && std::all_of(planes.begin(), planes.end(), [&](const auto& plane) {
-    return plane.first.dot(centre) - plane.second < -margin;
-  });
+                       return plane.first.dot(centre) - plane.second < -margin;
+                     });
   std::vector<char> keep(points.size(), 1);
   if (solid) {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 4096),
@@ -168,17 +169,16 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
   using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, CGAL::AABB_triangle_primitive<Kernel, Iterator>>>;
   Tree tree(triangles.cbegin(), triangles.cend());
   tree.accelerate_distance_queries();  // built here: queries from several threads only read it
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size(), 256),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i < range.end(); ++i) {
-                        const Eigen::Vector3d& q = queries[i];
-                        if (std::binary_search(corners.begin(), corners.end(), std::array<double, 3>{q.x(), q.y(), q.z()}))
-                          continue;
-                        const Iterator face = tree.closest_point_and_primitive(Point(q.x(), q.y(), q.z())).second;
-                        const auto& [n, offset] = planes[static_cast<std::size_t>(face - triangles.cbegin())];
-                        depth[i] = std::max(0.0, offset - n.dot(q));
-                      }
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, queries.size(), 256), [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t i = range.begin(); i < range.end(); ++i) {
+          const Eigen::Vector3d& q = queries[i];
+          if (std::binary_search(corners.begin(), corners.end(), std::array<double, 3>{q.x(), q.y(), q.z()})) continue;
+          const Iterator face = tree.closest_point_and_primitive(Point(q.x(), q.y(), q.z())).second;
+          const auto& [n, offset] = planes[static_cast<std::size_t>(face - triangles.cbegin())];
+          depth[i] = std::max(0.0, offset - n.dot(q));
+        }
+      });
   return depth;
 }
 
