@@ -74,6 +74,7 @@ std::vector<Point> possible_corners(const std::vector<Eigen::Vector3d>& points) 
   std::sort(extreme.begin(), extreme.end());
   extreme.erase(std::unique(extreme.begin(), extreme.end()), extreme.end());
   std::vector<Point> seeds;
+  seeds.reserve(extreme.size());
   for (std::size_t i : extreme) seeds.emplace_back(points[i].x(), points[i].y(), points[i].z());
   std::vector<Point> corners;
   std::vector<Face> faces;
