@@ -8,7 +8,8 @@
 // Also the kernel at one thread (tbb::global_control) and on the SSE2 path.
 // Meshes: the phantom, both lungs, 1.30 mm edges (100,844 vertices) and 0.411 mm (1,003,704);
 // synthetic field (rest normals x 5 mm: the cost does not depend on the values).
-// Argument: 0 = ~100k vertices, 1 = ~1M vertices, 2 = ~240k (the issue #35 size). Results: BENCHMARKS.md, "Frame kernel".
+// Argument: 0 = ~100k vertices, 1 = ~1M vertices, 2 = ~240k (the issue #35 size). Results: BENCHMARKS.md, "Frame
+// kernel".
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
 
