@@ -89,10 +89,9 @@ TEST_P(CtInteriorProfile, SupineQuietBreathingMovesTheInsideAsDirLab) {
        {std::pair{std::vector<int>{3, 4, 5}, 0.55}, std::pair{std::vector<int>{1, 2}, 0.45}}) {
     const std::string what = std::string(GetParam()) + (share > 0.5 ? " right" : " left");
     SCOPED_TRACE(what);
-    const mesh::TriangleMesh rest =
-        mesh::remesh_isotropic(mesh::surface_from_labels(map, file.string(), labels).mesh,
-                               {.target_edge_length_m = 4e-3, .measure_deviation = false})
-            .mesh;
+    const mesh::TriangleMesh rest = mesh::remesh_isotropic(mesh::surface_from_labels(map, file.string(), labels).mesh,
+                                                           {.target_edge_length_m = 4e-3, .measure_deviation = false})
+                                        .mesh;
     const model::FieldRecord field = model::compute_field_record(rest, tissue, field::default_field_options);
     const model::VolumeScaleMap volume(rest.vertices, field.unit_displacement, rest.triangles);
     const double quiet = volume.scale_for(volume.volume(0.0) + share * 500e-6);

@@ -226,7 +226,8 @@ field::Tissue read_tissue(const config::Node& root) {
     }
     if (sl->has("base")) {
       t.sliding.base = sl->quantity("base", kind::fraction);
-      if (!(t.sliding.base >= 0.0 && t.sliding.base < 1.0)) sl->fail_at("base", "expected a fraction from 0 to below 1");
+      if (!(t.sliding.base >= 0.0 && t.sliding.base < 1.0))
+        sl->fail_at("base", "expected a fraction from 0 to below 1");
     }
     sl->finish();
   }

@@ -18,7 +18,8 @@ double smooth(double u) {
 
 std::vector<Eigen::Vector3d> sliding_field(const TriangleMesh& mesh, const SurfaceRegions& regions,
                                            const Sliding& sliding, double sigma) {
-  if (!(sliding.caudal >= 0.0 && sliding.anterior >= 0.0 && sliding.mediastinal >= 0.0 && sliding.exponent > 0.0 && sliding.base >= 0.0 && sliding.base < 1.0))
+  if (!(sliding.caudal >= 0.0 && sliding.anterior >= 0.0 && sliding.mediastinal >= 0.0 && sliding.exponent > 0.0 &&
+        sliding.base >= 0.0 && sliding.base < 1.0))
     throw ValueError("sliding_field: the amplitudes must be >= 0");
   require_regions_of(regions, mesh, regions.axes, "sliding_field");
   const std::size_t n = mesh.vertices.size();
@@ -40,8 +41,9 @@ std::vector<Eigen::Vector3d> sliding_field(const TriangleMesh& mesh, const Surfa
                          sliding.mediastinal * w[static_cast<std::size_t>(Region::mediastinal)];
     const double a = front > back ? (mesh.vertices[i].dot(anterior) - back) / (front - back) : 0.0;
     const double fade = sliding.base > 0.0 ? smooth(regions.height[i] / sliding.base) : 1.0;
-    slide[i] = fade * share * (sliding.caudal * std::pow(1.0 - regions.height[i], sliding.exponent) * across(-up, normal[i]) +
-                        sliding.anterior * a * across(anterior, normal[i]));
+    slide[i] = fade * share *
+               (sliding.caudal * std::pow(1.0 - regions.height[i], sliding.exponent) * across(-up, normal[i]) +
+                sliding.anterior * a * across(anterior, normal[i]));
   }
   return slide;
 }
