@@ -10,7 +10,8 @@ Nothing in it was recorded: it is a made-up patient whose marker follows
              + 0.004 cm/s t + 1.3 cm                        (the baseline sinks as the patient relaxes)
 
 sampled at 25 Hz for 32 s, written as RPM writes it (Data_layout amplitude,phase,timestamp,
-validflag,ttlin,mark,ttlout; the amplitude in mm with Scale_factor 10; the timestamp in ms; the
+validflag,ttlin,mark,ttlout; the amplitude in cm with Scale_factor 10, as plastimatch's readrpm.m
+reads it: value * Scale_factor / 10 cm; the timestamp in ms; the
 phase in radians with 0 at end-inspiration, marks Z at 0 and P at pi) and with the marker lost for
 0.8 s at 20 s (validflag -1, the amplitude meaningless), as when the patient's arm covers it.
 The same arguments give the same bytes.
@@ -58,8 +59,8 @@ def main():
                 mark = "P"
         previous_phase = phase
         lost = 20.0 <= t < 20.8
-        amplitude_mm = 99.0 if lost else 10.0 * amplitude_cm(t)
-        lines.append("%.4f,%.4f,%d,%d,0,%s,0" % (amplitude_mm, phase, round(t * 1000.0), -1 if lost else 0, mark))
+        value = 9.9 if lost else amplitude_cm(t)
+        lines.append("%.5f,%.4f,%d,%d,0,%s,0" % (value, phase, round(t * 1000.0), -1 if lost else 0, mark))
     with open(path, "w", newline="\r\n") as out:
         out.write("\n".join(lines) + "\n")
 

@@ -19,6 +19,9 @@ constexpr double kMaxAboveFrcM3 = 6e-3;
 constexpr double kMaxBelowFrcM3 = 3e-3;
 // Hysteresis of the breath finder, as a share of the signal's half swing (5th to 95th percentile).
 constexpr double kHysteresis = 0.25;
+// A spirometry calibration whose fit explains less of the volume than this is refused: the two
+// traces are not of the same breaths (a wrong offset) or the surrogate does not follow the volume.
+constexpr double kMinCalibrationR2 = 0.8;
 
 double quantile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
@@ -65,6 +68,48 @@ double interpolate(const std::vector<double>& t, const std::vector<double>& v, d
   while (t[hint + 1] < x) ++hint;
   const double w = (x - t[hint]) / (t[hint + 1] - t[hint]);
   return v[hint] + w * (v[hint + 1] - v[hint]);
+}
+
+// A spirometry calibration's least-squares fit: volume = scale * amplitude + c.
+struct SpirometryFit {
+  double scale = 0.0, r2 = 0.0, span_s = 0.0;
+};
+
+// `amplitude` is the surrogate with its drift removed and its FRC level at 0 (the spirometry has
+// had the same done to its volume), on its own clock; the spirometry's samples are taken at
+// their times + offset. Throws InputError when the two share less than one whole breath.
+SpirometryFit fit_spirometry(const Trace& spirometry, double offset_s, const Trace& amplitude,
+                             const std::vector<BreathCycle>& breaths) {
+  const double lo = std::max(amplitude.time_s.front(), spirometry.time_s.front() + offset_s);
+  const double hi = std::min(amplitude.end_s(), spirometry.end_s() + offset_s);
+  const bool whole_breath = std::any_of(breaths.begin(), breaths.end(), [&](const BreathCycle& b) {
+    return amplitude.time_s[b.start] >= lo && amplitude.time_s[b.end] <= hi;
+  });
+  if (!whole_breath) {
+    char buffer[200];
+    std::snprintf(buffer, sizeof buffer,
+                  "the spirometry (%.1f to %.1f s on this trace's clock) covers no whole breath of the trace (%.1f to "
+                  "%.1f s); check its 'offset'",
+                  spirometry.time_s.front() + offset_s, spirometry.end_s() + offset_s, amplitude.time_s.front(),
+                  amplitude.end_s());
+    throw InputError(where(spirometry.file, 0) + buffer);
+  }
+  std::vector<double> a, y;
+  std::size_t hint = 0;
+  for (std::size_t k = 0; k < spirometry.time_s.size(); ++k) {
+    const double x = spirometry.time_s[k] + offset_s;
+    if (x < lo || x > hi) continue;
+    a.push_back(interpolate(amplitude.time_s, amplitude.volume_m3, x, hint));
+    y.push_back(spirometry.volume_m3[k]);
+  }
+  const auto [c, scale] = fit_line(a, y);
+  double ss_res = 0.0, ss_tot = 0.0;
+  const double y_mean = std::accumulate(y.begin(), y.end(), 0.0) / static_cast<double>(y.size());
+  for (std::size_t k = 0; k < y.size(); ++k) {
+    ss_res += (y[k] - c - scale * a[k]) * (y[k] - c - scale * a[k]);
+    ss_tot += (y[k] - y_mean) * (y[k] - y_mean);
+  }
+  return {scale, ss_tot > 0.0 ? 1.0 - ss_res / ss_tot : 0.0, hi - lo};
 }
 
 }  // namespace
@@ -194,6 +239,24 @@ Trace process_trace(const RawTrace& raw, const TraceOptions& options) {
   // A surrogate's calibration to volume.
   if (raw.signal == TraceSignal::amplitude) {
     double scale = options.calibration.volume_per_unit_m3;
+    if (options.calibration.spirometry) {
+      const SpirometryFit fit =
+          fit_spirometry(*options.calibration.spirometry, options.calibration.spirometry_offset_s, out, breaths);
+      scale = fit.scale;
+      report.calibration_r2 = fit.r2;
+      report.calibration_span_s = fit.span_s;
+      if (!(scale > 0.0))
+        throw InputError(where(raw.file, 0) + "the amplitude falls as the spirometer's volume rises (slope " +
+                         std::to_string(scale * 1e6) + " mL per unit; a marker that moves down needs 'invert: true')");
+      if (fit.r2 < kMinCalibrationR2) {
+        char buffer[200];
+        std::snprintf(buffer, sizeof buffer,
+                      "the amplitude and the spirometer's volume agree poorly over their common %.1f s (r^2 = %.2f, "
+                      "expected at least %.2f; is the spirometry's 'offset' right?)",
+                      fit.span_s, fit.r2, kMinCalibrationR2);
+        throw InputError(where(raw.file, 0) + buffer);
+      }
+    }
     if (options.calibration.tidal_volume_m3 > 0.0) {
       std::vector<double> swings;
       swings.reserve(breaths.size());

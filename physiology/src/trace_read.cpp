@@ -270,10 +270,44 @@ RawTrace read_csv(const std::filesystem::path& file, std::string_view text, cons
   return raw;
 }
 
-// Varian RPM .vxp (versions 1.5 and 1.6): a [Header] of key=value lines (Data_layout names the
-// columns, Samples_per_second, Scale_factor: amplitude values per cm), then [Data] rows
-// "amplitude,phase,timestamp,validflag,ttlin,mark,ttlout" with the timestamp in ms, validflag < 0
-// for a sample the system marked invalid, and marks Z / P at phase zero and pi.
+// Where an RPM row keeps its amplitude, timestamp (ms) and validflag (kNoField: none, all valid).
+constexpr std::size_t kNoField = static_cast<std::size_t>(-1);
+struct RpmFields {
+  std::size_t amplitude, timestamp, validflag;
+};
+
+// One RPM row into `raw`: its amplitude times `cm_per_value`, its time from the first row's
+// timestamp (`first_ms`, set by the first row). Throws InputError at `at` for a field that is not
+// a number or a time that does not increase.
+void add_rpm_sample(RawTrace& raw, const std::vector<std::string_view>& cells, const RpmFields& f, double cm_per_value,
+                    const std::string& at, std::size_t line, double& first_ms) {
+  const auto a = number(cells[f.amplitude]);
+  if (!a) throw InputError(at + "amplitude: expected a number, got '" + std::string(cells[f.amplitude]) + "'");
+  const auto ms = number(cells[f.timestamp]);
+  if (!ms) throw InputError(at + "timestamp: expected a number (ms), got '" + std::string(cells[f.timestamp]) + "'");
+  bool valid = true;
+  if (f.validflag != kNoField) {
+    const auto flag = number(cells[f.validflag]);
+    if (!flag) throw InputError(at + "validflag: expected a number, got '" + std::string(cells[f.validflag]) + "'");
+    valid = *flag >= 0.0;
+  }
+  if (raw.time_s.empty()) first_ms = *ms;
+  const double time = (*ms - first_ms) * 1e-3;
+  if (!raw.time_s.empty() && !(time > raw.time_s.back()))
+    throw InputError(at + "timestamp " + number_text(*ms) + " ms is not after the previous sample's " +
+                     number_text(raw.time_s.back() * 1e3 + first_ms) + " ms (times must increase)");
+  raw.time_s.push_back(time);
+  raw.value.push_back(*a * cm_per_value);
+  raw.valid.push_back(valid);
+  raw.line.push_back(line);
+}
+
+// Varian RPM .vxp (versions 1.5 and 1.6), as plastimatch's readrpm.m (1.5, 2009) reads it: a
+// [Header] of key=value lines (Data_layout names the columns, Samples_per_second, Scale_factor),
+// then [Data] rows "amplitude,phase,timestamp,validflag,ttlin,mark,ttlout" with the amplitude in
+// cm as value * Scale_factor / 10 (so the usual Scale_factor=10 means values in cm), the
+// timestamp in ms, validflag < 0 for a sample the system marked invalid, and marks Z / P at
+// phase zero and pi.
 RawTrace read_vxp(const std::filesystem::path& file, std::string_view text) {
   const std::vector<std::string_view> lines = lines_of(text);
   std::size_t l = 0;
@@ -341,27 +375,61 @@ RawTrace read_vxp(const std::filesystem::path& file, std::string_view text) {
     if (cells.size() < columns.size())
       throw InputError(at + "expected " + std::to_string(columns.size()) + " fields (" + layout.first + "), got " +
                        std::to_string(cells.size()));
-    const auto a = number(cells[amplitude]);
-    if (!a) throw InputError(at + "amplitude: expected a number, got '" + std::string(cells[amplitude]) + "'");
-    const auto ms = number(cells[timestamp]);
-    if (!ms) throw InputError(at + "timestamp: expected a number (ms), got '" + std::string(cells[timestamp]) + "'");
-    bool valid = true;
-    if (validflag != columns.size()) {
-      const auto flag = number(cells[validflag]);
-      if (!flag) throw InputError(at + "validflag: expected a number, got '" + std::string(cells[validflag]) + "'");
-      valid = *flag >= 0.0;
-    }
-    if (raw.time_s.empty()) first_ms = *ms;
-    const double time = (*ms - first_ms) * 1e-3;
-    if (!raw.time_s.empty() && !(time > raw.time_s.back()))
-      throw InputError(at + "timestamp " + number_text(*ms) + " ms is not after the previous sample's " +
-                       number_text(raw.time_s.back() * 1e3 + first_ms) + " ms (times must increase)");
-    raw.time_s.push_back(time);
-    raw.value.push_back(*a / *scale_factor);
-    raw.valid.push_back(valid);
-    raw.line.push_back(l + 1);
+    add_rpm_sample(raw, cells, {amplitude, timestamp, validflag == columns.size() ? kNoField : validflag},
+                   *scale_factor / 10.0, at, l + 1, first_ms);
   }
   if (raw.time_s.empty()) throw InputError(where(file, data_line) + "no samples after '[Data]'");
+  return raw;
+}
+
+// The older Varian RPM .dat (versions 1.4 and 1.7), as plastimatch's readrpm.m reads it (the
+// only public description): line 1 starts with "CRC", line 2 is "VERSION = 1.4", lines 3-5 the
+// reference position, the gating type (#TRUE# phase, #FALSE# amplitude) and the gating window,
+// lines 6-10 more settings; from line 11 one sample a row, comma-separated: 1.4
+// "amplitude,phase,timestamp,validflag,video,ttlin,beam", 1.7 with two more fields after the
+// amplitude ("amplitude,_,_,phase,timestamp,validflag,video,ttlin,beam"). The amplitude is in cm
+// (readrpm assumes so too: the header has no scale), the timestamp in ms. There is no sampling
+// rate in the header: gaps are judged against the median interval.
+RawTrace read_dat(const std::filesystem::path& file, std::string_view text) {
+  constexpr std::size_t kHeaderLines = 10;
+  const std::vector<std::string_view> lines = lines_of(text);
+  if (lines.empty() || trim(lines[0]).substr(0, 3) != "CRC")
+    throw InputError(where(file, 1) + "expected 'CRC' on the first line (a Varian RPM .dat file)");
+  const std::string_view version_line = lines.size() > 1 ? trim(lines[1]) : std::string_view();
+  const auto eq = version_line.find('=');
+  std::string version;  // "VERSION = 1.4," (readrpm reads it as 'VERSION = %s,')
+  if (eq != std::string_view::npos && lower(trim(version_line.substr(0, eq))) == "version") {
+    const std::string_view value = trim(version_line.substr(eq + 1));
+    version = std::string(trim(value.substr(0, value.find(','))));
+  }
+  if (version != "1.4" && version != "1.7")
+    throw InputError(where(file, 2) + "RPM .dat version '" + std::string(version_line) +
+                     "' (expected 'VERSION = 1.4' or 'VERSION = 1.7')");
+  if (lines.size() <= kHeaderLines)
+    throw InputError(where(file, lines.size()) + "no samples after the RPM .dat header (10 lines)");
+  // Field positions: amplitude, phase, timestamp, validflag, and how many a row has at least.
+  const bool v17 = version == "1.7";
+  const std::size_t amplitude = 0, timestamp = v17 ? 4 : 2, validflag = v17 ? 5 : 3, fields = v17 ? 9 : 7;
+  const char* layout = v17 ? "amplitude,_,_,phase,timestamp,validflag,video,ttlin,beam"
+                           : "amplitude,phase,timestamp,validflag,video,ttlin,beam";
+
+  RawTrace raw;
+  raw.file = file;
+  raw.signal = TraceSignal::amplitude;
+  raw.column = "amplitude";
+  raw.amplitude_unit = "cm";
+  double first_ms = 0.0;
+  for (std::size_t l = kHeaderLines; l < lines.size(); ++l) {
+    if (trim(lines[l]).empty()) continue;
+    std::vector<std::string_view> cells = split(lines[l], ',');
+    while (!cells.empty() && trim(cells.back()).empty()) cells.pop_back();  // a trailing comma
+    const std::string at = where(file, l + 1);
+    if (cells.size() < fields)
+      throw InputError(at + "expected " + std::to_string(fields) + " fields (" + layout + "), got " +
+                       std::to_string(cells.size()));
+    add_rpm_sample(raw, cells, {amplitude, timestamp, validflag}, 1.0, at, l + 1, first_ms);
+  }
+  if (raw.time_s.empty()) throw InputError(where(file, kHeaderLines + 1) + "no samples after the RPM .dat header");
   return raw;
 }
 
@@ -378,7 +446,12 @@ const char* signal_name(TraceSignal signal) {
 
 RawTrace read_trace_file(const std::filesystem::path& file, const TraceOptions& options) {
   const std::string text = read_file_bytes(file);
-  if (options.format == TraceFormat::rpm) return read_vxp(file, text);
+  if (options.format == TraceFormat::rpm) {
+    // Both RPM formats: the .dat's first line starts with "CRC", the .vxp's is "[Header]".
+    const std::vector<std::string_view> lines = lines_of(text);
+    const bool dat = !lines.empty() && trim(lines.front()).substr(0, 3) == "CRC";
+    return dat ? read_dat(file, text) : read_vxp(file, text);
+  }
   return read_csv(file, text, options);
 }
 

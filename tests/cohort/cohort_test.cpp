@@ -145,8 +145,8 @@ std::vector<fs::path> manifests(const fs::path& out) {
   if (!fs::exists(out / "runs")) return found;
   // Error codes, not exceptions: the cohort may move or remove a stage while this walks.
   std::error_code error;
-  for (auto e = fs::recursive_directory_iterator(out / "runs", error); !error && e != fs::recursive_directory_iterator();
-       e.increment(error)) {
+  for (auto e = fs::recursive_directory_iterator(out / "runs", error);
+       !error && e != fs::recursive_directory_iterator(); e.increment(error)) {
     if (e->path().filename().string().rfind(pneuma::kStagePrefix, 0) == 0) {
       e.disable_recursion_pending();
     } else if (e->path().filename() == "manifest.json") {

@@ -149,10 +149,11 @@ TEST(SimulateCli, ANameTooLongForTheFileSystemIsTheUsualOneLine) {
       dir.write("r.yaml", "duration: 20 s\nphysiology:\n  preset: healthy-adult\nfield:\n  tissue: " + name + "\n");
   r = run_pneuma({"run", run.string(), "-o", (dir / "out").string()});
   EXPECT_EQ(r.exit_code, 3);
-  EXPECT_EQ(r.err,
-            run.string() + ":5:11: field.tissue: no tissue '" + name +
-                "' (looked for " PNEUMA_SOURCE_DIR "/configs/tissue/" + name +
-                ".yaml; shipped presets: fibrotic-lower-lobe, healthy-supine, healthy-upright, healthy-upright-ct)\n");
+  EXPECT_EQ(
+      r.err,
+      run.string() + ":5:11: field.tissue: no tissue '" + name + "' (looked for " PNEUMA_SOURCE_DIR "/configs/tissue/" +
+          name +
+          ".yaml; shipped presets: fibrotic-lower-lobe, healthy-supine, healthy-supine-slide, healthy-upright, healthy-upright-ct)\n");
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
 }
 

@@ -260,7 +260,7 @@ TEST(FieldCli, BadInputIsOneLineWithItsExitCode) {
        2,
        "pneuma: --tissue: no preset 'healthy-martian' (looked for " +
            (test::source_dir() / "configs" / "tissue" / "healthy-martian.yaml").string() +
-           "; shipped presets: fibrotic-lower-lobe, healthy-supine, healthy-upright, healthy-upright-ct)"},
+           "; shipped presets: fibrotic-lower-lobe, healthy-supine, healthy-supine-slide, healthy-upright, healthy-upright-ct)"},
       {{"field", "icosphere:big:2", "--tissue", "healthy-upright", "-o", out},
        2,
        "pneuma: MESH: expected icosphere:<radius 1 mm to 10 m>:<subdivisions 0-9>, such as icosphere:0.1:5, got "

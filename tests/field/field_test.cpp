@@ -225,6 +225,15 @@ TEST(Tissue, DomeProfileIsReadWithItsUnits) {
   EXPECT_EQ(plain.dome_load.radius_m, 0.0);
 }
 
+TEST(Tissue, SlidingIsReadInUnitsOfTheDiaphragmsDescent) {
+  const Tissue slide = preset("healthy-supine-slide");
+  EXPECT_DOUBLE_EQ(slide.sliding.caudal, 1.2);
+  EXPECT_DOUBLE_EQ(slide.sliding.exponent, 0.5);
+  EXPECT_DOUBLE_EQ(slide.sliding.anterior, 0.5);
+  EXPECT_DOUBLE_EQ(slide.sliding.mediastinal, 0.0);
+  EXPECT_FALSE(preset("healthy-supine").sliding.active());
+}
+
 TEST(Tissue, BadFilesAreOneLine) {
   test::TempDir dir;
   struct Bad {
@@ -261,6 +270,12 @@ TEST(Tissue, BadFilesAreOneLine) {
        "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, dome: {area: -1 cm^2, falloff: 2 cm, rim: 0.3}}\n",
        "3:75: load.dome.area: expected a positive area, got '-1 cm^2'"},
       {"alias: healthy-upright\nposture: upright\n", "2:1: posture: unknown key; expected one of: alias"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "sliding: {caudal: 7}\n",
+       "3:19: sliding.caudal: expected a factor from 0 to 5 (of the diaphragm's descent)"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "sliding: {caudal: 1, exponent: 0}\n",
+       "3:32: sliding.exponent: expected an exponent above 0 and at most 4"},
   };
   for (const Bad& c : cases) {
     const auto file = dir.write("t.yaml", c.yaml);

@@ -5,11 +5,13 @@
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 
 #include "field_fixture.h"
 #include "pneuma/field/tissue.h"
 #include "pneuma/mesh/anatomy/motion_summary.h"
 #include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/anatomy/sliding.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
 #include "pneuma/mesh/labels/labels.h"
 #include "pneuma/mesh/repair/remesh.h"
@@ -131,6 +133,54 @@ TEST(Realism, DirectionEntersTheCacheKey) {
   FieldOptions e = a;
   e.magnitude_smoothing = 0.003;
   EXPECT_NE(field_key(m, mu, "t", a), field_key(m, mu, "t", e));
+}
+
+TEST(Realism, SlidingEntersTheCacheKey) {
+  mesh::PhantomOptions p;
+  p.edge_length_m = 8e-3;
+  const mesh::TriangleMesh m = mesh::make_lung_phantom(p);
+  const std::vector<double> mu(m.vertices.size(), 1e3);
+  FieldOptions a, b;
+  b.sliding.caudal = 1.0;
+  EXPECT_NE(field_key(m, mu, "t", a), field_key(m, mu, "t", b));
+  FieldOptions c = b;
+  c.sliding.exponent = 0.5;
+  EXPECT_NE(field_key(m, mu, "t", b), field_key(m, mu, "t", c));
+}
+
+TEST(Realism, TheSlideLiesAcrossTheSmoothedNormalAndFollowsTheDiaphragm) {
+  // Oracles: the slide is orthogonal to the smoothed normal (a tangential field), it is the
+  // field's own diaphragm descent times mesh::sliding_field, and the whole still adds one area unit.
+  mesh::PhantomOptions p;
+  p.edge_length_m = 8e-3;
+  const mesh::TriangleMesh m = mesh::make_lung_phantom(p);
+  const std::vector<double> mu = test::graded_modulus(m, 1e3, 3e3);
+  mesh::RegionOptions ro;
+  const auto regions = std::make_shared<const mesh::SurfaceRegions>(mesh::find_regions(m, ro));
+  FieldOptions plain;
+  plain.direction = DirectionKind::anatomical;
+  plain.regions = regions;
+  FieldOptions sliding = plain;
+  sliding.sliding = {.caudal = 1.2, .anterior = 0.5, .mediastinal = 0.0, .exponent = 0.5};
+  const std::vector<Eigen::Vector3d> slide = mesh::sliding_field(m, *regions, sliding.sliding, 0.02);
+  const std::vector<Eigen::Vector3d> normal = mesh::smoothed_normals(m, 0.02);
+  double largest = 0.0;
+  for (std::size_t i = 0; i < slide.size(); ++i) {
+    EXPECT_NEAR(slide[i].dot(normal[i]), 0.0, 1e-12);
+    largest = std::max(largest, slide[i].norm());
+  }
+  EXPECT_GT(largest, 0.5);
+  const ElastostaticField a = compute_field(m, mu, plain), b = compute_field(m, mu, sliding);
+  const double descent = mesh::diaphragm_descent(m, *regions, a.unit_displacement);
+  EXPECT_GT(descent, 0.0);
+  const double k = b.normalisation / a.normalisation;  // the same force, scaled once more
+  EXPECT_NEAR(k, 1.0, 0.2);
+  for (std::size_t i = 0; i < slide.size(); ++i)
+    EXPECT_LT((b.unit_displacement[i] - k * (a.unit_displacement[i] + descent * slide[i])).norm(), 1e-12);
+  const auto g = mesh::area_gradient(m);
+  double rate = 0.0;
+  for (std::size_t i = 0; i < g.size(); ++i) rate += g[i].dot(b.unit_displacement[i]);
+  EXPECT_NEAR(rate, sliding.area_unit, 1e-12 * sliding.area_unit);
 }
 
 TEST(Realism, MagnitudeSmoothingBlursTheForceAndKeepsOneAreaUnit) {

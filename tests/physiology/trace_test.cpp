@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <random>
 #include <string>
 
@@ -142,22 +143,44 @@ TEST(Trace, PulseEngineCsvDrivesByItsTotalLungVolume) {
   EXPECT_LT(worst_error(trace_result(trace, 25.0, 30.0)), 2e-3);
 }
 
-// A Varian RPM .vxp file as the format documents it (plastimatch's readrpm.m): the amplitude
-// in file units (Scale_factor per cm: 10, so mm), the timestamp in ms, validflag < 0 invalid.
-std::string vxp(int seconds, double rate_hz, bool with_invalid) {
+// The marker of the RPM files below: 1.2 cm per breath above a 0.4 cm baseline.
+double marker_cm(double t) { return 1.2 * volume(t) / kTidal + 0.4; }
+
+// A Varian RPM .vxp file as plastimatch's readrpm.m reads it: the amplitude in cm is the value
+// times Scale_factor / 10, the timestamp in ms, validflag < 0 invalid.
+std::string vxp(int seconds, double rate_hz, bool with_invalid, double scale_factor = 10.0) {
   std::string text =
       "[Header]\nCRC=12345\nVersion=1.6\nData_layout=amplitude,phase,timestamp,validflag,ttlin,mark,ttlout\n"
       "Patient_ID=phantom\nDate=11-24-2026\nTotal_study_time=" +
-      std::to_string(seconds) + "\nSamples_per_second=" + fmt::format("{}", rate_hz) + "\nScale_factor=10.0\n[Data]\n";
+      std::to_string(seconds) + "\nSamples_per_second=" + fmt::format("{}", rate_hz) +
+      fmt::format("\nScale_factor={:.1f}\n[Data]\n", scale_factor);
   const int n = static_cast<int>(seconds * rate_hz);
   for (int k = 0; k <= n; ++k) {
     const double t = k / rate_hz;
     const double phase = std::fmod(2.0 * kPi * (t / kPeriod + 0.5), 2.0 * kPi);  // 0 at end-inspiration
     const bool invalid = with_invalid && (k % 97 == 5 || (k >= 300 && k < 320));
-    const double amplitude_mm = invalid ? 87.0 : 12.0 * volume(t) / kTidal + 4.0;  // 1.2 cm per breath
+    const double value = invalid ? 87.0 : marker_cm(t) * 10.0 / scale_factor;
     const char* mark = std::abs(phase) < 1e-9 ? "Z" : "";
-    text += fmt::format("{:.4f},{:.4f},{:.0f},{},0,{},0\n", amplitude_mm, phase, 5000.0 + t * 1000.0, invalid ? -1 : 0,
-                        mark);
+    text += fmt::format("{:.5f},{:.4f},{:.0f},{},0,{},0\n", value, phase, 5000.0 + t * 1000.0, invalid ? -1 : 0, mark);
+  }
+  return text;
+}
+
+// The older RPM .dat as readrpm.m reads it: "CRC..." and "VERSION = 1.x," then 8 more header
+// lines, then rows of amplitude (cm), [two more fields in 1.7,] phase, timestamp (ms), validflag,
+// video index, ttlin, beam.
+std::string dat(const char* version, int seconds, double rate_hz) {
+  std::string text =
+      fmt::format("CRC=2F4A\nVERSION = {},\n0.4000,0.0000,\n#TRUE#,\n30.0000,70.0000,\n0,\n0,\n0,\n0,\n0,\n", version);
+  const bool v17 = std::string(version) == "1.7";
+  const int n = static_cast<int>(seconds * rate_hz);
+  for (int k = 0; k <= n; ++k) {
+    const double t = k / rate_hz;
+    const double phase = std::fmod(2.0 * kPi * (t / kPeriod + 0.5), 2.0 * kPi);
+    const int valid = k % 53 == 7 ? -2 : 0;  // -2: non-periodic breathing (a cough)
+    const double amplitude = valid < 0 ? -5.0 : marker_cm(t);
+    text += fmt::format("{:.5f},{}{:.4f},{:.0f},{},{},0,0,\n", amplitude, v17 ? "0,0," : "", phase, 2000.0 + t * 1000.0,
+                        valid, k);
   }
   return text;
 }
@@ -169,7 +192,14 @@ TEST(Trace, RpmVxpDropsInvalidSamplesAndBridgesTheGap) {
   options.calibration.tidal_volume_m3 = kTidal;
   const RawTrace raw = read_trace_file(dir.write("p.vxp", vxp(40, 30.0, true)), options);
   EXPECT_EQ(raw.amplitude_unit, "cm");
-  EXPECT_NEAR(raw.value[1], 1.2 * volume(1.0 / 30.0) / kTidal + 0.4, 1e-5);  // cm
+  EXPECT_NEAR(raw.value[1], marker_cm(1.0 / 30.0), 1e-5);  // cm
+  // Another Scale_factor, the same marker: Scale_factor 1 stores tenfold values (mm).
+  const RawTrace mm = read_trace_file(dir.write("mm.vxp", vxp(40, 30.0, true, 1.0)), options);
+  for (std::size_t k = 0; k < raw.value.size(); k += 50) {
+    if (raw.valid[k]) {
+      EXPECT_NEAR(mm.value[k], raw.value[k], 1e-5) << k;
+    }
+  }
   EXPECT_EQ(raw.line.front(), 11u);
   const Trace trace = process_trace(raw, options);
   std::size_t expected_invalid = 20;
@@ -187,6 +217,88 @@ TEST(Trace, RpmVxpDropsInvalidSamplesAndBridgesTheGap) {
     worst = std::max(worst, std::abs(r.series.volume_m3[k] - volume(t)));
   }
   EXPECT_LT(worst / kTidal, 5e-3);
+}
+
+TEST(Trace, RpmDatVersions14And17ReadAsPlastimatchReadsThem) {
+  TempDir dir;
+  TraceOptions options;
+  options.format = TraceFormat::rpm;
+  options.calibration.tidal_volume_m3 = kTidal;
+  for (const char* version : {"1.4", "1.7"}) {
+    const RawTrace raw = read_trace_file(dir.write("p.dat", dat(version, 30, 25.0)), options);
+    ASSERT_EQ(raw.time_s.size(), 751u) << version;
+    EXPECT_EQ(raw.line.front(), 11u);
+    EXPECT_EQ(raw.amplitude_unit, "cm");
+    EXPECT_NEAR(raw.time_s[100], 4.0, 1e-9);  // from the first sample's 2000 ms
+    EXPECT_NEAR(raw.value[100], marker_cm(4.0), 1e-5);
+    EXPECT_FALSE(raw.valid[7]);
+    const Trace trace = process_trace(raw, options);
+    std::size_t coughs = 0;
+    for (int k = 0; k <= 750; ++k) coughs += k % 53 == 7;
+    EXPECT_EQ(trace.report.invalid_samples, coughs) << version;
+    EXPECT_NEAR(trace.report.scale_m3_per_unit, kTidal / 1.2, 0.005 * kTidal / 1.2) << version;  // per cm
+    EXPECT_LT(worst_error(trace_result(trace, 29.0, 25.0)), 5e-3) << version;
+  }
+  const std::string d = dir.path().string() + "/";
+  std::string v9 = dat("1.4", 10, 25.0);
+  v9.replace(v9.find("VERSION = 1.4"), 13, "VERSION = 1.9");
+  EXPECT_EQ(message_of(dir.write("v9.dat", v9), options),
+            d + "v9.dat:2: RPM .dat version 'VERSION = 1.9,' (expected 'VERSION = 1.4' or 'VERSION = 1.7')");
+  std::string short_row = dat("1.7", 10, 25.0);
+  short_row.replace(short_row.find("0,0,", short_row.find("\n0,\n0,\n0,\n0,\n0,\n") + 10), 4, "");
+  EXPECT_EQ(message_of(dir.write("short.dat", short_row), options),
+            d + "short.dat:11: expected 9 fields (amplitude,_,_,phase,timestamp,validflag,video,ttlin,beam), got 7");
+  EXPECT_EQ(message_of(dir.write("head.dat", "CRC=1\nVERSION = 1.4,\n0,0,\n"), options),
+            d + "head.dat:3: no samples after the RPM .dat header (10 lines)");
+}
+
+// A surrogate calibrated by a spirometer recorded over part of the session: the marker is the
+// volume times 2.4 cm/L, plus a sinking baseline and noise; the spirometer's volume (absolute,
+// its own clock starting 6 s into the marker's) covers 20 s. The calibration is the slope of the
+// one against the other: 1 / 2.4 L per cm.
+TEST(Trace, SpirometryCalibratesAnAmplitudeToVolume) {
+  TempDir dir;
+  std::mt19937 random(7);
+  std::normal_distribution<double> noise(0.0, 0.005);  // cm
+  std::string marker = "time_s,amplitude_cm\n";
+  for (int k = 0; k <= 60 * 25; ++k) {
+    const double t = k / 25.0;
+    marker += fmt::format("{:.3f},{:.5f}\n", t, 2.4e3 * volume(t) + 1.0 - 0.003 * t + noise(random));
+  }
+  std::string spiro = "time_s,volume_mL\n";
+  for (int k = 0; k <= 20 * 50; ++k) {
+    const double t = k / 50.0;
+    spiro += fmt::format("{:.3f},{:.4f}\n", t, (2.6e-3 + volume(t + 6.0)) * 1e6);
+  }
+  TraceOptions options;
+  options.calibration.spirometry = std::make_shared<const Trace>(load(dir.write("spiro.csv", spiro)));
+  options.calibration.spirometry_offset_s = 6.0;
+  const Trace trace = load(dir.write("marker.csv", marker), options);
+  EXPECT_NEAR(trace.report.scale_m3_per_unit, 1e-3 / 2.4, 0.005 * 1e-3 / 2.4);
+  EXPECT_GT(trace.report.calibration_r2, 0.99);
+  EXPECT_NEAR(trace.report.calibration_span_s, 20.0, 1e-6);
+  // The calibrated trace follows the closed form within 0.5 % of a breath (the noise is 0.8 %
+  // of a breath per sample; the frames interpolate it).
+  EXPECT_LT(worst_error(trace_result(trace, 55.0, 25.0)), 0.02);
+  double mean_error = 0.0;
+  const SimulationResult r = trace_result(trace, 55.0, 25.0);
+  for (std::size_t k = 0; k < r.series.size(); ++k)
+    mean_error += std::abs(r.series.volume_m3[k] - volume(r.series.time_s[k]));
+  EXPECT_LT(mean_error / static_cast<double>(r.series.size()) / kTidal, 0.005);
+
+  // The wrong offset (half a breath off): the two disagree, and the message says so.
+  options.calibration.spirometry_offset_s = 6.0 + kPeriod / 2;
+  const std::string wrong = message_of(dir.path() / "marker.csv", options);
+  EXPECT_NE(wrong.find("marker.csv: the amplitude falls as the spirometer's volume rises"), std::string::npos) << wrong;
+  options.calibration.spirometry_offset_s = 6.0 + kPeriod / 4;
+  const std::string quarter = message_of(dir.path() / "marker.csv", options);
+  EXPECT_NE(quarter.find("agree poorly over their common 20.0 s"), std::string::npos) << quarter;
+  // A spirometry beyond the marker's end.
+  options.calibration.spirometry_offset_s = 58.0;
+  const std::string outside = message_of(dir.path() / "marker.csv", options);
+  EXPECT_NE(outside.find("spiro.csv: the spirometry (58.0 to 78.0 s on this trace's clock) covers no whole breath"),
+            std::string::npos)
+      << outside;
 }
 
 TEST(Trace, BadFilesAreOneLineNamingFileAndLine) {

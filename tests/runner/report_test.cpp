@@ -298,6 +298,33 @@ TEST(Report, OffWhenTheScenarioSaysSo) {
 // The page in headless Chromium (Debian's chromium, software WebGL): loads without errors,
 // renders a non-blank lung at two times, the two renders differ (the lung moved), and the
 // mesh's morph weight at each time is the glb's animation there (the one clock drives both).
+// "#selftest=" times as the page reads them.
+std::string fmt_times(double a, double b) {
+  std::ostringstream text;
+  text << a << "," << b;
+  return text.str();
+}
+
+// The page at `html` opened by headless Chromium with `#selftest=<times>`: the dumped DOM's
+// self-test result (report.js) and Chromium's log; all empty when Chromium is not installed.
+struct Chromium {
+  pneuma::test::CommandResult run;
+  std::string selftest;  // the self-test's JSON text, or "" / "pending" when it did not finish
+};
+Chromium open_in_chromium(const TempDir& dir, const std::filesystem::path& html, const std::string& times) {
+  const auto chromium = pneuma::test::find_program({"chromium", "chromium-browser"});
+  if (chromium.empty()) return {};
+  const auto url = "file://" + std::filesystem::absolute(html).string() + "#selftest=" + times;
+  Chromium c;
+  c.run = pneuma::test::run_program(
+      "/usr/bin/timeout",
+      {"120", chromium.string(), "--headless=new", "--no-sandbox", "--no-first-run", "--disable-gpu",
+       "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--user-data-dir=" + (dir / "profile").string(),
+       "--window-size=1280,900", "--virtual-time-budget=15000", "--enable-logging=stderr", "--v=0", "--dump-dom", url});
+  c.selftest = between(c.run.out, R"(<pre id="selftest">)", "</pre>");
+  return c;
+}
+
 TEST(Report, RendersInHeadlessChromiumAtTwoTimes) {
   const auto chromium = pneuma::test::find_program({"chromium", "chromium-browser"});
   if (chromium.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
@@ -308,14 +335,10 @@ TEST(Report, RendersInHeadlessChromiumAtTwoTimes) {
           .exit_code,
       0);
   const double t0 = 0.1, t1 = 1.6;  // near rest and near the end of inspiration
-  const auto url = "file://" + std::filesystem::absolute(out / "report.html").string() + "#selftest=0.1,1.6";
-  const auto r = pneuma::test::run_program(
-      "/usr/bin/timeout",
-      {"120", chromium.string(), "--headless=new", "--no-sandbox", "--no-first-run", "--disable-gpu",
-       "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--user-data-dir=" + (dir / "profile").string(),
-       "--window-size=1280,900", "--virtual-time-budget=15000", "--enable-logging=stderr", "--v=0", "--dump-dom", url});
+  const Chromium c = open_in_chromium(dir, out / "report.html", "0.1,1.6");
+  const auto& r = c.run;
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const std::string text = between(r.out, R"(<pre id="selftest">)", "</pre>");
+  const std::string& text = c.selftest;
   ASSERT_FALSE(text.empty()) << r.out.substr(0, 2000);
   ASSERT_NE(text, "pending") << "the page never finished loading\n" << r.err;
   const auto result = nlohmann::json::parse(text);
@@ -389,18 +412,122 @@ outputs: {hdf5: false}
 
   const auto chromium = pneuma::test::find_program({"chromium", "chromium-browser"});
   if (chromium.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
-  const auto url = "file://" + std::filesystem::absolute(out / "report.html").string() + "#selftest=1.5,6";
-  const auto r = pneuma::test::run_program(
-      "/usr/bin/timeout",
-      {"120", chromium.string(), "--headless=new", "--no-sandbox", "--no-first-run", "--disable-gpu",
-       "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--user-data-dir=" + (dir / "profile").string(),
-       "--window-size=1280,900", "--virtual-time-budget=15000", "--enable-logging=stderr", "--v=0", "--dump-dom", url});
+  const Chromium c = open_in_chromium(dir, out / "report.html", "1.5,6");
+  const auto& r = c.run;
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const std::string text = between(r.out, R"(<pre id="selftest">)", "</pre>");
+  const std::string& text = c.selftest;
   ASSERT_FALSE(text.empty()) << r.out.substr(0, 2000);
   ASSERT_NE(text, "pending") << "the page never finished loading\n" << r.err;
   EXPECT_EQ(nlohmann::json::parse(text)["errors"], 0) << text;
   EXPECT_NE(r.out.find("Pressure-volume loop"), std::string::npos);
   std::stringstream log(r.err);
   for (std::string l; std::getline(log, l);) EXPECT_EQ(l.find("Uncaught"), std::string::npos) << l;
+}
+
+// With phases and voxel outputs the page carries the respiratory bins (checked against
+// phases.csv) and slices of the warped label map (checked against the physiology's volume: the
+// plane holds the most lung near end-inspiration), and draws both under the cursor: the
+// canvases read back show what the data holds, and the bin under the cursor is the frame's.
+TEST(Report, BinsAndLabelSlicesFollowTheCursor) {
+  TempDir dir;
+  const auto out = dir / "out";
+  const auto scenario = dir.write("v.yaml", R"(duration: 8 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 8 mm}
+field: {tissue: healthy-upright, interior: {edge: 8 mm}}
+physiology:
+  preset: healthy-adult
+  output_rate: 10 Hz
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}
+outputs:
+  hdf5: false
+  phases: {bins: 4, surfaces: false}
+  voxels: {at: [end_inspiration], spacing: 4 mm}
+)");
+  const auto run = run_pneuma({"run", scenario.string(), "-o", out.string(), "--quiet"});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const Page page = read_page(out / "report.html");
+
+  // The bins: each frame listed in phases.csv is in that bin on the page, and no other is.
+  ASSERT_TRUE(page.data.contains("bins"));
+  const auto& bin_of_frame = page.data["bins"]["bin_of_frame"];
+  ASSERT_EQ(bin_of_frame.size(), 81u);
+  std::vector<int> expected(81, -1);
+  std::stringstream phases(read_text(out / "phases.csv"));
+  std::string line;
+  std::getline(phases, line);
+  while (std::getline(phases, line)) {
+    std::stringstream cells(line);
+    std::string cell;
+    std::vector<std::string> row;
+    while (std::getline(cells, cell, ',')) row.push_back(cell);
+    ASSERT_EQ(row.size(), 8u) << line;
+    std::stringstream times(row[7]);
+    for (double t = 0; times >> t;) expected[static_cast<std::size_t>(std::lround(t * 10.0))] = std::stoi(row[0]);
+  }
+  for (std::size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(bin_of_frame[k].get<int>(), expected[k]) << k;
+
+  // The slices: whole images; the plane with the most lung is near end-inspiration.
+  ASSERT_TRUE(page.data.contains("slices"));
+  const auto& lung_labels = page.data["slices"]["lung_labels"];
+  const auto& planes = page.data["slices"]["planes"];
+  ASSERT_EQ(planes.size(), 2u);
+  const Csv physiology = read_csv(out / "physiology.csv");
+  const std::size_t time_column = physiology.column("time_s"), volume_column = physiology.column("volume_mL");
+  double most_volume = 0;
+  for (const auto& row : physiology.rows) most_volume = std::max(most_volume, row[volume_column]);
+  std::vector<std::vector<double>> lung_pixels(2);
+  double most_lung_time = 0;
+  for (std::size_t p = 0; p < 2; ++p) {
+    const auto& plane = planes[p];
+    EXPECT_EQ(plane["name"], p == 0 ? "coronal" : "sagittal");
+    const std::size_t pixels = plane["width"].get<std::size_t>() * plane["height"].get<std::size_t>();
+    const auto& times_s = plane["times_s"];
+    ASSERT_EQ(times_s.size(), 32u);
+    EXPECT_EQ(times_s.front().get<double>(), 0.0);
+    EXPECT_NEAR(times_s.back().get<double>(), 8.0, 1e-9);
+    std::size_t most = 0;
+    for (std::size_t t = 0; t < times_s.size(); ++t) {
+      const auto& runs = plane["labels"][t];
+      std::size_t total = 0, lung = 0;
+      for (std::size_t r = 0; r + 1 < runs.size(); r += 2) {
+        total += runs[r + 1].get<std::size_t>();
+        for (const auto& v : lung_labels) lung += v == runs[r] ? runs[r + 1].get<std::size_t>() : 0;
+      }
+      EXPECT_EQ(total, pixels) << p << " " << t;
+      lung_pixels[p].push_back(static_cast<double>(lung));
+      if (lung_pixels[p][t] > lung_pixels[p][most]) most = t;
+    }
+    const double t_most = times_s[most].get<double>();
+    double volume = 0;
+    for (const auto& row : physiology.rows) {
+      if (std::abs(row[time_column] - t_most) < 1e-6) volume = row[volume_column];
+    }
+    EXPECT_GT(volume, 0.85 * most_volume) << plane["name"] << " holds the most lung at " << t_most << " s";
+    EXPECT_GT(lung_pixels[p][most], 1.05 * lung_pixels[p][0]);
+    if (p == 0) most_lung_time = t_most;
+  }
+
+  const Chromium c = open_in_chromium(dir, out / "report.html", fmt_times(0.0, most_lung_time));
+  if (c.run.out.empty() && c.run.err.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
+  ASSERT_EQ(c.run.exit_code, 0) << c.run.err;
+  ASSERT_FALSE(c.selftest.empty() || c.selftest == "pending") << c.run.err;
+  const auto result = nlohmann::json::parse(c.selftest);
+  EXPECT_EQ(result["errors"], 0) << result["messages"].dump();
+  const std::size_t peak_frame = static_cast<std::size_t>(std::lround(most_lung_time * 10.0));
+  EXPECT_EQ(result["bins"][0].get<int>(), expected[0]);
+  EXPECT_EQ(result["bins"][1].get<int>(), expected[peak_frame]);
+  for (std::size_t p = 0; p < 2; ++p) {
+    // What the canvas shows: the lung pixels of the data (less the dashed line's, at most a row).
+    const double width = planes[p]["width"].get<double>();
+    const double shown_rest = result["slices"][0][p]["lung_pixels"].get<double>();
+    const double shown_peak = result["slices"][1][p]["lung_pixels"].get<double>();
+    const auto& times_s = planes[p]["times_s"];
+    std::size_t peak_index = 0;
+    for (std::size_t t = 0; t < times_s.size(); ++t) {
+      if (std::abs(times_s[t].get<double>() - most_lung_time) < 1e-9) peak_index = t;
+    }
+    EXPECT_NEAR(shown_rest, lung_pixels[p][0], width) << p;
+    EXPECT_NEAR(shown_peak, lung_pixels[p][peak_index], width) << p;
+  }
 }

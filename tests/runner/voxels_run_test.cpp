@@ -217,8 +217,7 @@ TEST(VoxelsRun, EachPhaseBinGetsItsFieldsAndLabelMapAtItsMeanVolume) {
   EXPECT_LT(share, 1.0);
   for (std::size_t b : {1u, 3u}) {
     EXPECT_NEAR((rows[b].expected_mL - rows[2].expected_mL) / (mean_mL[b] - mean_mL[2]), share, 1e-3 * share) << b;
-    EXPECT_NEAR(warped_mL[b] - warped_mL[2], share * (mean_mL[b] - mean_mL[2]),
-                0.1 * share * (mean_mL[0] - mean_mL[2]))
+    EXPECT_NEAR(warped_mL[b] - warped_mL[2], share * (mean_mL[b] - mean_mL[2]), 0.1 * share * (mean_mL[0] - mean_mL[2]))
         << b;
   }
 }

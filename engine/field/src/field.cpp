@@ -1,6 +1,8 @@
 #include "pneuma/field/field.h"
 
 #include <chrono>
+#include <cmath>
+#include <memory>
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/stopwatch.h"
@@ -23,19 +25,29 @@ DirectionKind parse_direction_kind(const std::string& name) {
   throw ValueError("unknown displacement direction '" + name + "'");
 }
 
+namespace {
+
+// The surface's regions for these options: the ones given (checked), else found here.
+std::shared_ptr<const mesh::SurfaceRegions> regions_for(const mesh::TriangleMesh& mesh, const FieldOptions& options,
+                                                        const char* who) {
+  if (options.regions) {
+    mesh::require_regions_of(*options.regions, mesh, options.axes, who);
+    return options.regions;
+  }
+  mesh::RegionOptions regions;
+  regions.axes = options.axes;
+  return std::make_shared<const mesh::SurfaceRegions>(mesh::find_regions(mesh, regions));
+}
+
+}  // namespace
+
 std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& mesh, const FieldOptions& options) {
   switch (options.direction) {
     case DirectionKind::vertex_normal: return mesh::vertex_normals(mesh);
     case DirectionKind::smoothed_normal: return mesh::smoothed_normals(mesh, options.direction_smoothing);
-    case DirectionKind::anatomical: {
-      if (options.regions) {
-        mesh::require_regions_of(*options.regions, mesh, options.axes, "displacement_directions");
-        return mesh::anatomical_directions(mesh, *options.regions, options.direction_smoothing);
-      }
-      mesh::RegionOptions regions;
-      regions.axes = options.axes;
-      return mesh::anatomical_directions(mesh, mesh::find_regions(mesh, regions), options.direction_smoothing);
-    }
+    case DirectionKind::anatomical:
+      return mesh::anatomical_directions(mesh, *regions_for(mesh, options, "displacement_directions"),
+                                         options.direction_smoothing);
   }
   return mesh::vertex_normals(mesh);
 }
@@ -102,6 +114,23 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
     field.force = mesh::blurred_in_space(mesh, field.force, options.magnitude_smoothing);
   const std::vector<Eigen::Vector3d> direction = displacement_directions(mesh, options);
   auto [u, scale] = normalise_displacement(mesh, field.force, direction, options.area_unit);
+  if (options.sliding.active()) {
+    // The slide in units of this field's own diaphragm descent, so it follows the load; then the
+    // whole field scaled back to one area unit (the slide is tangential: a factor near 1).
+    const auto regions = regions_for(mesh, options, "compute_field");
+    const std::vector<Eigen::Vector3d> slide =
+        mesh::sliding_field(mesh, *regions, options.sliding, options.direction_smoothing);
+    const double descent = mesh::diaphragm_descent(mesh, *regions, u);
+    for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * slide[i];
+    const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
+    double area_rate = 0.0;
+    for (std::size_t i = 0; i < u.size(); ++i) area_rate += gradient[i].dot(u[i]);
+    if (!(area_rate > 0.0) || !std::isfinite(area_rate))
+      throw UnsupportedError("mesh: the field with the lung's slide does not increase the surface area");
+    const double again = options.area_unit / area_rate;
+    for (Eigen::Vector3d& v : u) v *= again;
+    scale *= again;
+  }
   field.unit_displacement = std::move(u);
   field.normalisation = scale;
   return field;

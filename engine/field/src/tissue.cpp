@@ -104,9 +104,10 @@ FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh:
   options.direction_smoothing = tissue.direction_smoothing_m;
   options.magnitude_smoothing = tissue.magnitude_smoothing_m;
   options.axes = body_axes(tissue);
+  options.sliding = tissue.sliding;
   const auto* stiffness = std::get_if<RegionStiffness>(&tissue.stiffness);
-  const bool needs_regions =
-      tissue.regional_load || (stiffness && stiffness->anatomical) || tissue.direction == DirectionKind::anatomical;
+  const bool needs_regions = tissue.regional_load || (stiffness && stiffness->anatomical) ||
+                             tissue.direction == DirectionKind::anatomical || tissue.sliding.active();
   options.regions = needs_regions ? std::make_shared<const mesh::SurfaceRegions>(regions_of(tissue, mesh)) : nullptr;
   if (tissue.regional_load) {
     options.load = mesh::regional_load(mesh, *options.regions, *tissue.regional_load, tissue.dome_load);

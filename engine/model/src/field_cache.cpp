@@ -393,6 +393,17 @@ void hash_options(Hasher& h, const field::FieldOptions& o) {
   h.value(static_cast<std::uint64_t>(o.load.size()));
   h.bytes(o.load.data(), o.load.size() * sizeof(double));
   h.value(o.magnitude_smoothing);
+  if (o.sliding.active()) {  // absent: the keys of fields made before the slide existed stay valid
+    h.text("sliding");
+    h.value(o.sliding.caudal);
+    h.value(o.sliding.anterior);
+    h.value(o.sliding.mediastinal);
+    h.value(o.sliding.exponent);
+    h.value(o.sliding.base);
+    h.value(o.direction_smoothing);
+    h.bytes(o.axes.up.data(), 3 * sizeof(double));
+    h.bytes(o.axes.anterior.data(), 3 * sizeof(double));
+  }
   if (o.direction != field::DirectionKind::vertex_normal) {
     h.value(o.direction_smoothing);
     h.bytes(o.axes.up.data(), 3 * sizeof(double));

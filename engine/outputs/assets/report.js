@@ -208,6 +208,7 @@
       g.textAlign = x > this.right - 20 * dpr ? 'right' : 'center';
       g.fillText(+t.toPrecision(6) + ' s', Math.min(x, this.right), this.bottom + 3 * dpr);
     }
+    if (this.bands) this.bands(g);
     g.lineWidth = 1.5 * dpr; g.lineJoin = 'round';
     this.lines.forEach(function (l) {
       g.strokeStyle = l.color;
@@ -315,6 +316,121 @@
     loops.forEach(function (l) { loopsRoot.appendChild(l.root); plots.push({
       layout: function () { l.layout(); }, drawCursor: function (t) { l.draw(t); } }); });
   }
+  // ---- respiratory bins: bands on the volume plot, the table, the bin under the cursor ----
+  var bins = data.bins || null;
+  function binColor(b, alpha) { return 'hsla(' + Math.round(b * 360 / bins.bins.length) + ',70%,55%,' + alpha + ')'; }
+  function binAt(t) {
+    if (!bins) return -1;
+    var k = Math.min(bins.bin_of_frame.length - 1, Math.max(0, Math.round(t * data.frame_rate_hz)));
+    return bins.bin_of_frame[k];
+  }
+  if (bins && plots.length > 0) {
+    var volumePlot = plots[0];
+    volumePlot.bands = function (g) {  // each stretch of frames in one bin, half a frame either side
+      var of = bins.bin_of_frame, start = 0;
+      for (var k = 1; k <= of.length; ++k) {
+        if (k < of.length && of[k] === of[start]) continue;
+        if (of[start] >= 0) {
+          var x0 = volumePlot.xAt(Math.max(0, (start - 0.5) * frameStep));
+          var x1 = volumePlot.xAt(Math.min(duration, (k - 0.5) * frameStep));
+          g.fillStyle = binColor(of[start], 0.22);
+          g.fillRect(x0, volumePlot.top, x1 - x0, volumePlot.bottom - volumePlot.top);
+        }
+        start = k;
+      }
+    };
+    document.getElementById('bins-panel').hidden = false;
+    var binTable = document.getElementById('bins');
+    var head = el('tr');
+    ['bin', bins.method + ' (%)', 'frames', 'mean volume (mL)'].forEach(function (c) { head.appendChild(el('th', null, c)); });
+    binTable.appendChild(head);
+    var binRows = bins.bins.map(function (b, i) {
+      var tr = el('tr');
+      var first = el('td');
+      var sw = el('span', { 'class': 'swatch' });
+      sw.style.background = binColor(i, 0.6);
+      first.appendChild(sw);
+      first.appendChild(document.createTextNode(String(i)));
+      tr.appendChild(first);
+      tr.appendChild(el('td', null, fmt(b.percent, 0)));
+      tr.appendChild(el('td', null, String(b.frames)));
+      tr.appendChild(el('td', null, fmt(b.mean_volume_mL, 1)));
+      binTable.appendChild(tr);
+      return tr;
+    });
+    document.getElementById('bins-note').textContent = '0 % is end-inspiration (as Varian RPM marks it); the ' +
+      'bands on the volume plot are the frames of each bin (phases.csv).';
+    listeners.push(function (t) {
+      var b = binAt(t);
+      binRows.forEach(function (tr, i) { tr.className = i === b ? 'current' : ''; });
+    });
+  }
+
+  // ---- slices of the warped label map (voxel outputs), the time point nearest the cursor ----
+  var LUNG_COLORS = ['#e8a33d', '#4c9be8', '#6cc16c', '#d0729c', '#b9a2e8', '#e86a5a', '#5ad0c8'];
+  var slices = data.slices || null;
+  var slicePlanes = [];
+  if (slices) {
+    var slicesRoot = document.getElementById('slices');
+    slicesRoot.hidden = false;
+    var lungIndex = {};
+    slices.lung_labels.forEach(function (v, i) { lungIndex[v] = i; });
+    slices.planes.forEach(function (plane) {
+      var root = el('div', { 'class': 'slice' });
+      var headEl = el('div', { 'class': 'head' });
+      headEl.appendChild(el('b', null, plane.name.charAt(0).toUpperCase() + plane.name.slice(1)));
+      var info = el('span', null, '');
+      headEl.appendChild(document.createTextNode(' warped label map, ' + plane.fixed + ' (LPS), ' + fmt(plane.pixel_mm, 1) +
+        ' mm pixels' + (plane.name === 'coronal' ? ', patient right on the left' : ', anterior on the left') + '; '));
+      headEl.appendChild(info);
+      var canvas = el('canvas', { width: String(plane.width), height: String(plane.height), 'aria-label': plane.name + ' slice' });
+      canvas.style.aspectRatio = plane.width + ' / ' + plane.height;
+      root.appendChild(headEl);
+      root.appendChild(canvas);
+      slicesRoot.appendChild(root);
+      // Decoded once each: RGBA pixels, the lung pixel count and the lowest row with lung.
+      var decoded = plane.labels.map(function (runs) {
+        var img = new ImageData(plane.width, plane.height), px = img.data, at = 0, lung = 0, lowest = -1;
+        for (var r = 0; r < runs.length; r += 2) {
+          var label = runs[r], n = runs[r + 1], li = lungIndex[label];
+          var c = label === 0 ? [32, 36, 40] : li === undefined ? [120, 120, 120] : hexRgb(LUNG_COLORS[li % LUNG_COLORS.length]);
+          for (var j = 0; j < n; ++j, ++at) {
+            px[4 * at] = c[0]; px[4 * at + 1] = c[1]; px[4 * at + 2] = c[2]; px[4 * at + 3] = 255;
+          }
+          if (li !== undefined) { lung += n; lowest = Math.floor((at - 1) / plane.width); }
+        }
+        return { image: img, lung: lung, lowest: lowest };
+      });
+      // The reference line: the lungs' lowest row at the time point with the least lung (end-expiration).
+      var least = 0;
+      decoded.forEach(function (d, i) { if (d.lung < decoded[least].lung) least = i; });
+      slicePlanes.push({ plane: plane, canvas: canvas, info: info, decoded: decoded, reference: decoded[least].lowest,
+                         reference_time: plane.times_s[least], shown: -1 });
+    });
+    listeners.push(function (t) { slicePlanes.forEach(function (s) { drawSlice(s, t); }); });
+  }
+  var LUNG_RGB = {};  // the lung colours as "r,g,b", for the self-test's count
+  LUNG_COLORS.forEach(function (h) { LUNG_RGB[hexRgb(h).join(',')] = true; });
+  function hexRgb(h) { return [parseInt(h.slice(1, 3), 16), parseInt(h.slice(3, 5), 16), parseInt(h.slice(5, 7), 16)]; }
+  function nearestIndex(list, t) {
+    var i = lowerIndex(list, t);
+    return i + 1 < list.length && Math.abs(list[i + 1] - t) < Math.abs(list[i] - t) ? i + 1 : i;
+  }
+  function drawSlice(s, t) {
+    var i = nearestIndex(s.plane.times_s, t);
+    if (i === s.shown) return;
+    s.shown = i;
+    var g = s.canvas.getContext('2d'), d = s.decoded[i];
+    g.putImageData(d.image, 0, 0);
+    if (s.reference >= 0) {  // dashed: the lungs' lowest point at end-expiration
+      g.strokeStyle = '#ffffff'; g.lineWidth = 1; g.setLineDash([3, 3]);
+      g.beginPath(); g.moveTo(0, s.reference + 1); g.lineTo(s.plane.width, s.reference + 1); g.stroke();
+      g.setLineDash([]);
+    }
+    s.info.textContent = 't = ' + fmt(s.plane.times_s[i], 2) + ' s; dashed: the lowest lung at ' +
+      fmt(s.reference_time, 2) + ' s; the lungs ' + fmt((d.lowest - s.reference) * s.plane.pixel_mm, 0) + ' mm lower';
+  }
+
   function layoutPlots() { plots.forEach(function (p) { p.layout(); p.drawCursor(state.t); }); }
   listeners.push(function (t) { plots.forEach(function (p) { p.drawCursor(t); }); });
 
@@ -342,7 +458,9 @@
   });
   listeners.push(function (t) {
     scrub.value = String(t);
-    timeText.textContent = 't = ' + t.toFixed(3) + ' s / ' + duration.toFixed(1) + ' s';
+    var b = binAt(t);
+    timeText.textContent = 't = ' + t.toFixed(3) + ' s / ' + duration.toFixed(1) + ' s' +
+      (b >= 0 ? ' \u00b7 bin ' + b + ' (' + fmt(bins.bins[b].percent, 0) + ' %)' : '');
   });
 
   // ---- the 3D view: the run's glb, its morph-weight animation driven by the shared clock ----
@@ -469,7 +587,7 @@
     return Math.abs(a[i] - b[j]) + Math.abs(a[i + 1] - b[j + 1]) + Math.abs(a[i + 2] - b[j + 2]) > 24;
   }
   function selftest(at) {
-    var result = { times_s: [], nonblank: [], weights: [], changed: 0, pixels: 0, samples: times.length,
+    var result = { times_s: [], nonblank: [], weights: [], bins: [], slices: [], changed: 0, pixels: 0, samples: times.length,
                    rows: series.rows, stride: series.stride, glb_bytes: 0, errors: 0, messages: [] };
     var shots = at.map(function (t) {
       seek(t);
@@ -480,6 +598,12 @@
       result.times_s.push(state.t);
       result.nonblank.push(count);
       result.weights.push(lung && lung.morphTargetInfluences ? lung.morphTargetInfluences[0] : null);
+      result.bins.push(binAt(state.t));
+      result.slices.push(slicePlanes.map(function (s) {  // what the canvas shows, read back
+        var p = s.canvas.getContext('2d').getImageData(0, 0, s.plane.width, s.plane.height).data, lungPixels = 0;
+        for (var i = 0; i < p.length; i += 4) if (LUNG_RGB[p[i] + ',' + p[i + 1] + ',' + p[i + 2]]) ++lungPixels;
+        return { time_s: s.plane.times_s[s.shown], lung_pixels: lungPixels };
+      }));
       result.pixels = shot.w * shot.h;
       return shot;
     });

@@ -155,6 +155,10 @@ std::vector<std::pair<std::string, std::string>> trace_facts(const physiology::T
       {"trace.frc_reference_mL", fmt::format("{:.6g}", r.reference_m3 * 1e6)}};
   if (trace.signal == physiology::TraceSignal::amplitude)
     facts.emplace_back("trace.calibration_mL_per_unit", fmt::format("{:.6g}", r.scale_m3_per_unit * 1e6));
+  if (r.calibration_span_s > 0.0) {
+    facts.emplace_back("trace.calibration_r2", fmt::format("{:.6g}", r.calibration_r2));
+    facts.emplace_back("trace.calibration_span_s", fmt::format("{:.6g}", r.calibration_span_s));
+  }
   return facts;
 }
 

@@ -163,6 +163,51 @@ Json motion_json(const std::vector<BreathMotion>& motion) {
   return Json{{"breaths", motion.size()}, {"dome_top_caudal_mm", rounded(dome * 1e3, 4)}, {"regions", regions}};
 }
 
+// The bins: per bin its phase, frames and mean volume; per frame its bin.
+Json bins_json(const ReportBins& bins) {
+  Json rows = Json::array();
+  for (std::size_t b = 0; b < bins.centre_percent.size(); ++b) {
+    const double mean = bins.mean_volume_m3[b];
+    rows.push_back(Json{{"percent", rounded(bins.centre_percent[b], 3)},
+                        {"frames", bins.frames[b]},
+                        {"mean_volume_mL", std::isfinite(mean) ? Json(rounded(mean * kMl, 2)) : Json(nullptr)}});
+  }
+  return Json{{"method", bins.method}, {"bins", rows}, {"bin_of_frame", bins.bin_of_frame}};
+}
+
+// A slice's labels run-length encoded, row by row as stored: [label, count, label, count, ...]
+// (a lung plane is a few runs a row: tens of kB instead of megabytes).
+Json run_lengths(const std::vector<std::int32_t>& labels) {
+  Json out = Json::array();
+  for (std::size_t i = 0; i < labels.size();) {
+    std::size_t j = i;
+    while (j < labels.size() && labels[j] == labels[i]) ++j;
+    out.push_back(labels[i]);
+    out.push_back(j - i);
+    i = j;
+  }
+  return out;
+}
+
+Json slices_json(const std::vector<LabelSlice>& slices, const std::vector<int>& lung_labels) {
+  Json planes = Json::array();
+  for (const LabelSlice& slice : slices) {
+    Json times = Json::array(), images = Json::array();
+    for (std::size_t t = 0; t < slice.times_s.size(); ++t) {
+      times.push_back(rounded(slice.times_s[t], 6));
+      images.push_back(run_lengths(slice.labels[t]));
+    }
+    planes.push_back(Json{{"name", slice.name},
+                          {"fixed", slice.fixed},
+                          {"width", slice.width},
+                          {"height", slice.height},
+                          {"pixel_mm", rounded(slice.pixel_mm, 4)},
+                          {"times_s", times},
+                          {"labels", images}});
+  }
+  return Json{{"lung_labels", lung_labels}, {"planes", planes}};
+}
+
 // Fills `@NAME@` placeholders of the template in one pass over the template only (what is
 // substituted, three.js among it, is never scanned). Every placeholder must be known.
 std::string fill(std::string_view page, const std::map<std::string, std::string_view>& values) {
@@ -241,6 +286,9 @@ std::string report_html(const ReportInput& input) {
     }
     data["motion"] = Json{{"breaths", breaths}, {"dome_top_caudal_mm_by_lung", dome}, {"regions", regions}};
   }
+
+  if (input.bins) data["bins"] = bins_json(*input.bins);
+  if (!input.slices.empty()) data["slices"] = slices_json(input.slices, input.lung_labels);
 
   const std::string json = script_json(data);
   const std::string glb = base64(input.glb);

@@ -3,7 +3,9 @@
 
 #include "pneuma/outputs/frame_outputs.h"
 #include "pneuma/outputs/motion_csv.h"
+#include "pneuma/outputs/phases.h"
 #include "pneuma/outputs/report.h"
+#include "pneuma/outputs/voxels_output.h"
 
 namespace pneuma::outputs {
 namespace {
@@ -79,8 +81,13 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
                          fmt::format("{} ({} '{}'), {} samples, {} invalid, {} gap{}", trace.file.filename().string(),
                                      physiology::signal_name(trace.signal), trace.column, t.samples, t.invalid_samples,
                                      t.gaps, t.gaps == 1 ? "" : "s"));
-    if (trace.signal == physiology::TraceSignal::amplitude)
-      r.facts.emplace_back("trace calibration", fmt::format("{:.1f} mL per amplitude unit", t.scale_m3_per_unit * 1e6));
+    if (trace.signal == physiology::TraceSignal::amplitude) {
+      std::string how = fmt::format("{:.1f} mL per amplitude unit", t.scale_m3_per_unit * 1e6);
+      if (t.calibration_span_s > 0.0)
+        how +=
+            fmt::format(" (from spirometry over {:.1f} s, r\u00b2 = {:.3f})", t.calibration_span_s, t.calibration_r2);
+      r.facts.emplace_back("trace calibration", how);
+    }
     if (t.drift_m3_per_s != 0.0)
       r.facts.emplace_back("trace drift removed", fmt::format("{:.1f} mL/min", t.drift_m3_per_s * 1e6 * 60.0));
   }
@@ -99,6 +106,23 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
   r.motion = *run.motion;
   r.lung_names = motion_lung_names(model);
   r.glb = make_glb(model, run.info, time_s, run.scales);
+  // The respiratory bins, when the run sorts its frames into them or follows a measured trace.
+  if (s.output("phases") != nullptr || s.physiology.trace) {
+    const physiology::PhaseBinning binning = run_phase_bins(run);
+    ReportBins bins;
+    const scenario::OutputRequest* phases = s.output("phases");
+    const bool amplitude = phases != nullptr && std::any_cast<const PhasesSpec&>(phases->settings).binning.method ==
+                                                    physiology::BinningMethod::amplitude;
+    bins.method = amplitude ? "amplitude" : "phase";
+    for (const physiology::PhaseBin& bin : binning.bins) {
+      bins.centre_percent.push_back(bin.centre_percent);
+      bins.frames.push_back(bin.samples.size());
+      bins.mean_volume_m3.push_back(bin.mean_volume_m3);
+    }
+    bins.bin_of_frame = binning.bin_of;
+    r.bins = std::move(bins);
+  }
+  r.slices = report_label_slices(model, run, r.lung_labels);
   return r;
 }
 

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -127,9 +128,8 @@ class VoxelsOutput final : public Output {
   std::string name() const override { return "voxels"; }
 
   std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {
-    const scenario::Scenario& s = *run.scenario;
     const auto& series = run.drive->series;
-    const VoxelScene scene(model, s, spec_);
+    const VoxelScene& scene = run_voxel_scene(model, run);
     const double rest_lung_m3 = scene.lung_volume_m3(scene.labels());
     const voxels::Grid& grid = scene.grid();
 
@@ -155,11 +155,11 @@ class VoxelsOutput final : public Output {
       folded = std::max(folded, point.jacobian.folded_volume_fraction);
       std::string scale_text;
       for (const double sc : at.scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
-      rows.push_back(fmt::format("{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
-                                 at.frame ? std::to_string(*at.frame) : "",
-                                 at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "", scale_text,
-                                 at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
-                                 point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
+      rows.push_back(fmt::format(
+          "{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
+          at.frame ? std::to_string(*at.frame) : "", at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "",
+          scale_text, at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
+          point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
       folded_tets = std::max(folded_tets, point.jacobian.folded_tets);
     }
     const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
@@ -294,7 +294,12 @@ VoxelScene::VoxelScene(const model::Model& model, const scenario::Scenario& scen
 
 double VoxelScene::lung_volume_m3(const mesh::LabelMap& map) const { return lung_volume(map, lung_labels_); }
 
-void VoxelScene::compute(std::span<const double> scales_in, voxels::TimePoint& point) const {
+void VoxelScene::compute(std::span<const double> scales, voxels::TimePoint& point) const {
+  compute_on(grid_, scales, point);
+}
+
+void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> scales_in, voxels::TimePoint& point,
+                            bool with_image) const {
   if (scales_in.size() != model_.lungs.size()) {
     throw ValueError(fmt::format("voxels: {} scales for {} lungs", scales_in.size(), model_.lungs.size()));
   }
@@ -308,7 +313,7 @@ void VoxelScene::compute(std::span<const double> scales_in, voxels::TimePoint& p
   voxels::TimePointInputs inputs;
   inputs.labels = &labels_;
   inputs.rest_lung = &rest_lung_;
-  inputs.ct = spec_.image.get();
+  inputs.ct = with_image ? spec_.image.get() : nullptr;
   if (body) {
     inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
     // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L).
@@ -323,7 +328,90 @@ void VoxelScene::compute(std::span<const double> scales_in, voxels::TimePoint& p
       return v;
     };
   }
-  voxels::compute_time_point(grid_, lungs, inputs, point);
+  voxels::compute_time_point(grid, lungs, inputs, point);
+}
+
+const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& run) {
+  if (!run.voxel_scene) {
+    const scenario::OutputRequest* request = run.scenario->output("voxels");
+    if (request == nullptr) throw Error(ExitCode::failure, "voxels: the scenario has no voxel output");
+    run.voxel_scene =
+        std::make_shared<const VoxelScene>(model, *run.scenario, std::any_cast<const VoxelsSpec&>(request->settings));
+  }
+  return *run.voxel_scene;
+}
+
+std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
+                                            std::vector<int>& lung_labels, std::size_t max_times) {
+  if (run.scenario->output("voxels") == nullptr || max_times == 0) return {};
+  for (const model::LungModel& lung : model.lungs) {
+    if (!lung.interior) return {};
+  }
+  const VoxelScene& scene = run_voxel_scene(model, run);
+  lung_labels = scene.lung_labels();
+  // The lungs' box at rest, and the first lung's middle.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  Eigen::Vector3d first_lo = lo, first_hi = hi;
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    for (const auto& v : model.lungs[i].rest.vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+      if (i == 0) {
+        first_lo = first_lo.cwiseMin(v);
+        first_hi = first_hi.cwiseMax(v);
+      }
+    }
+  }
+  // Margins: 2 cm around, 8 cm below (the abdomen moving with the diaphragm).
+  lo -= Eigen::Vector3d(0.02, 0.02, 0.08);
+  hi += Eigen::Vector3d::Constant(0.02);
+  const Eigen::Vector3d extent = hi - lo;
+  const double h = std::max(2e-3, extent.maxCoeff() / 200.0);
+  const auto count = [h](double length) { return static_cast<std::size_t>(std::ceil(length / h)) + 1; };
+  // A plane's grid: i along `across` (x or y), k along z (S), one voxel thick at `fixed`.
+  auto plane = [&](bool coronal) {
+    voxels::Grid grid;
+    grid.size = coronal ? std::array<std::size_t, 3>{count(extent.x()), 1, count(extent.z())}
+                        : std::array<std::size_t, 3>{1, count(extent.y()), count(extent.z())};
+    grid.ijk_to_lps = Eigen::Matrix4d::Identity();
+    grid.ijk_to_lps.block<3, 3>(0, 0) *= h;
+    grid.ijk_to_lps.block<3, 1>(0, 3) = coronal ? Eigen::Vector3d(lo.x(), 0.5 * (lo.y() + hi.y()), lo.z())
+                                                : Eigen::Vector3d(0.5 * (first_lo.x() + first_hi.x()), lo.y(), lo.z());
+    return grid;
+  };
+  const std::vector<double>& time_s = run.drive->series.time_s;
+  const std::size_t frames = time_s.size(), n = std::min(frames, max_times);
+  std::vector<LabelSlice> slices;
+  voxels::TimePoint point;
+  for (const bool coronal : {true, false}) {
+    const voxels::Grid grid = plane(coronal);
+    LabelSlice slice;
+    slice.name = coronal ? "coronal" : "sagittal";
+    const Eigen::Vector3d origin = grid.ijk_to_lps.block<3, 1>(0, 3);
+    slice.fixed =
+        coronal ? fmt::format("y = {:.1f} mm", origin.y() * 1e3) : fmt::format("x = {:.1f} mm", origin.x() * 1e3);
+    slice.width = coronal ? grid.size[0] : grid.size[1];
+    slice.height = grid.size[2];
+    slice.pixel_mm = h * 1e3;
+    for (std::size_t t = 0; t < n; ++t) {
+      // Frames spread evenly, the first and the last included.
+      const std::size_t k = n == 1 ? 0 : (t * (frames - 1) + (n - 1) / 2) / (n - 1);
+      std::vector<double> scales;
+      for (std::size_t i = 0; i < model.lungs.size(); ++i) scales.push_back(run.scales[i][k]);
+      scene.compute_on(grid, scales, point, false);
+      std::vector<std::int32_t> image;
+      image.reserve(slice.width * slice.height);
+      for (std::size_t row = 0; row < slice.height; ++row) {
+        const std::size_t z = slice.height - 1 - row;  // row 0 is the most superior
+        for (std::size_t c = 0; c < slice.width; ++c)
+          image.push_back(point.labels->labels[coronal ? grid.index(c, 0, z) : grid.index(0, c, z)]);
+      }
+      slice.times_s.push_back(time_s[k]);
+      slice.labels.push_back(std::move(image));
+    }
+    slices.push_back(std::move(slice));
+  }
+  return slices;
 }
 
 OutputPlugin voxels_output() {

@@ -161,7 +161,7 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   // The end of the run: what needs all of it, then the manifest.
   std::vector<outputs::BreathMotion> motion;
   if (needs_motion) motion = outputs::breath_motion(model, drive, scales);
-  const outputs::RunRecord record{&s, info, &drive, &physiology, scales, &motion, compiled.field_reused};
+  const outputs::RunRecord record{&s, info, &drive, &physiology, scales, &motion, compiled.field_reused, {}};
   outputs::ManifestInput manifest{s.file, s.name, {}, {}, run_facts(s, model, compiled, result)};
   for (RunningOutput& o : running) {
     const auto begin = Clock::now();

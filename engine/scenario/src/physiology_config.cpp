@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <optional>
 
 #include "pneuma/core/error.h"
@@ -490,6 +492,21 @@ physiology::TraceSignal signal_from(const std::string& name) {
   return physiology::TraceSignal::volume;
 }
 
+// `calibration: {spirometry: file.csv}`: a volume or flow CSV (trace.h), processed as a volume
+// trace is (FRC at 0, a flow's drift removed).
+physiology::Trace read_spirometry(const config::Node& calibration) {
+  const std::filesystem::path file = calibration.directory("spirometry") / calibration.string("spirometry");
+  if (const std::string why = missing_reason(file); !why.empty())
+    calibration.fail_at("spirometry", why + ": " + file.string());
+  physiology::TraceOptions options;
+  const physiology::RawTrace raw = physiology::read_trace_file(file, options);
+  if (raw.signal == physiology::TraceSignal::amplitude)
+    calibration.fail_at(
+        "spirometry", "expected a volume or flow trace (such as 'time_s,volume_mL'), got the amplitude '" + raw.column +
+                          "' of " + file.filename().string());
+  return physiology::process_trace(raw, options);
+}
+
 // `driver: {mode: trace, file: ..., ...}`: the file read and processed here, so that a bad trace
 // fails when the scenario is loaded. Errors in the file name the file and line; errors of the
 // keys name the scenario's key.
@@ -501,7 +518,7 @@ physiology::Trace read_trace_driver(const config::Node& n, double duration_s) {
   if (format == "auto") {
     std::string ext = file.extension().string();
     for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    format = ext == ".vxp" ? "rpm" : "csv";
+    format = ext == ".vxp" || ext == ".dat" ? "rpm" : "csv";
   }
   o.format = format == "rpm" ? physiology::TraceFormat::rpm : physiology::TraceFormat::csv;
   if (n.has("signal")) {
@@ -522,19 +539,34 @@ physiology::Trace read_trace_driver(const config::Node& n, double duration_s) {
   }
   std::optional<config::Node> calibration = n.optional_map("calibration");
   if (calibration) {
-    if (calibration->has("tidal_volume") == calibration->has("volume_per_unit"))
+    const int given = static_cast<int>(calibration->has("tidal_volume")) +
+                      static_cast<int>(calibration->has("volume_per_unit")) +
+                      static_cast<int>(calibration->has("spirometry"));
+    if (given != 1)
       calibration->fail(
-          "expected one of 'tidal_volume' (such as '500 mL') or 'volume_per_unit' (the volume of one amplitude unit, such as '400 mL')");
-    if (calibration->has("tidal_volume"))
+          "expected one of 'tidal_volume' (such as '500 mL'), 'volume_per_unit' (the volume of one amplitude unit, "
+          "such as '400 mL') or 'spirometry' (a volume or flow CSV recorded at the same time)");
+    if (calibration->has("tidal_volume")) {
       o.calibration.tidal_volume_m3 = calibration->positive_quantity("tidal_volume", kind::volume);
-    else o.calibration.volume_per_unit_m3 = calibration->positive_quantity("volume_per_unit", kind::volume);
+    } else if (calibration->has("volume_per_unit")) {
+      o.calibration.volume_per_unit_m3 = calibration->positive_quantity("volume_per_unit", kind::volume);
+    } else {
+      o.calibration.spirometry = std::make_shared<const physiology::Trace>(read_spirometry(*calibration));
+      if (auto offset = calibration->optional_quantity("offset", kind::duration)) {
+        if (!std::isfinite(*offset)) calibration->fail_at("offset", "expected a finite time, such as '2.5 s'");
+        o.calibration.spirometry_offset_s = *offset;
+      }
+    }
     calibration->finish();
+  } else if (n.has("offset")) {
+    n.fail_at("offset", "the spirometry's 'offset' goes inside 'calibration: {spirometry: ..., offset: ...}'");
   }
   n.finish();
   const physiology::RawTrace raw = physiology::read_trace_file(file, o);
   if (raw.signal == physiology::TraceSignal::amplitude && !calibration)
     n.fail("an amplitude trace ('" + raw.column + "' of " + file.filename().string() +
-           ") needs 'calibration: {tidal_volume: 500 mL}' or 'calibration: {volume_per_unit: 400 mL}'");
+           ") needs 'calibration: {tidal_volume: 500 mL}', 'calibration: {volume_per_unit: 400 mL}' or "
+           "'calibration: {spirometry: spirometer.csv}'");
   if (raw.signal != physiology::TraceSignal::amplitude && calibration)
     n.fail_at("calibration", std::string("only an amplitude trace is calibrated; this one holds a ") +
                                  physiology::signal_name(raw.signal));

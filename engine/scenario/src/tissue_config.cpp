@@ -213,6 +213,27 @@ field::Tissue read_tissue(const config::Node& root) {
     }
     d->finish();
   }
+  if (auto sl = root.optional_map("sliding")) {
+    auto amplitude = [&](const char* key) {
+      const double v = sl->optional_quantity(key, kind::fraction).value_or(0.0);
+      if (!(v >= 0.0 && v <= 5.0)) sl->fail_at(key, "expected a factor from 0 to 5 (of the diaphragm's descent)");
+      return v;
+    };
+    t.sliding.caudal = amplitude("caudal");
+    t.sliding.anterior = amplitude("anterior");
+    t.sliding.mediastinal = amplitude("mediastinal");
+    if (sl->has("exponent")) {
+      t.sliding.exponent = sl->quantity("exponent", kind::fraction);
+      if (!(t.sliding.exponent > 0.0 && t.sliding.exponent <= 4.0))
+        sl->fail_at("exponent", "expected an exponent above 0 and at most 4");
+    }
+    if (sl->has("base")) {
+      t.sliding.base = sl->quantity("base", kind::fraction);
+      if (!(t.sliding.base >= 0.0 && t.sliding.base < 1.0))
+        sl->fail_at("base", "expected a fraction from 0 to below 1");
+    }
+    sl->finish();
+  }
   root.finish();
   return t;
 }

@@ -20,6 +20,7 @@
 // amplitude on the signal with its least-squares line removed, for volume on the signal itself.
 #include <cstddef>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -31,10 +32,19 @@ namespace pneuma::physiology {
 enum class TraceSignal { volume, flow, amplitude };
 enum class TraceFormat { csv, rpm };  // csv: any CSV with a header (Pulse's included)
 
-// How a surrogate amplitude becomes volume: exactly one of the two is > 0.
+struct Trace;
+
+// How a surrogate amplitude becomes volume: exactly one of the three is given.
+//   tidal_volume     the median breath's trough-to-peak swing becomes this volume;
+//   volume_per_unit  the volume of one amplitude unit (cm for RPM);
+//   spirometry       a volume (or flow) trace recorded at the same time, processed (FRC at 0):
+//                    the volume per unit is the least-squares slope of its volume against the
+//                    amplitude (drift removed) sampled at its times, over the stretch both cover.
 struct TraceCalibration {
-  double tidal_volume_m3 = 0.0;     // the median breath's trough-to-peak swing
-  double volume_per_unit_m3 = 0.0;  // the volume of one amplitude unit (cm for RPM)
+  double tidal_volume_m3 = 0.0;
+  double volume_per_unit_m3 = 0.0;
+  std::shared_ptr<const Trace> spirometry;
+  double spirometry_offset_s = 0.0;  // the amplitude trace's time (from its first sample) of the spirometry's 0 s
 };
 
 struct TraceOptions {
@@ -67,9 +77,11 @@ struct TraceReport {
   std::size_t invalid_samples = 0;  // dropped
   std::size_t gaps = 0;             // bridged by a straight line
   double longest_gap_s = 0.0;
-  double drift_m3_per_s = 0.0;     // slope of the removed trough line (volume units)
-  double scale_m3_per_unit = 0.0;  // amplitude: the calibration applied
-  double reference_m3 = 0.0;       // what was subtracted so that FRC is 0 (volume: absolute FRC)
+  double drift_m3_per_s = 0.0;      // slope of the removed trough line (volume units)
+  double scale_m3_per_unit = 0.0;   // amplitude: the calibration applied
+  double calibration_r2 = 0.0;      // spirometry: the squared correlation of the fit (1: exact)
+  double calibration_span_s = 0.0;  // spirometry: the stretch both traces cover
+  double reference_m3 = 0.0;        // what was subtracted so that FRC is 0 (volume: absolute FRC)
   std::size_t breaths = 0;
 };
 

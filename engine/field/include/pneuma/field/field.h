@@ -9,6 +9,8 @@
 //                (mesh/regions.h, docs/realism.md), which cannot close a crease
 //   normalise:   u_i = c F_i n_i with c such that sum_i dA/dx_i . u_i = one area unit, i.e. the
 //                first-order surface-area increase of x + s u is s area units.
+//   slide:       optionally (FieldOptions::sliding), plus D_c * slide_i (mesh::sliding_field),
+//                D_c the diaphragm's mean descent of c F d, all scaled again to one area unit.
 // Only relative moduli matter: multiplying every mu by a constant leaves u unchanged.
 #include <Eigen/Core>
 #include <cstdint>
@@ -21,6 +23,7 @@
 #include "pneuma/field/field_graph.h"
 #include "pneuma/field/field_solver.h"
 #include "pneuma/mesh/anatomy/regions.h"
+#include "pneuma/mesh/anatomy/sliding.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::field {
@@ -47,7 +50,10 @@ struct FieldOptions {
   // displacement (mesh::blurred_in_space); 0: none, the paper's. Bounds the field's gradient in
   // space at any edge length, so a deep breath cannot crumple the surface (docs/realism.md).
   double magnitude_smoothing = 0.0;
-  mesh::BodyAxes axes;       // up and anterior, for the anatomical directions
+  mesh::BodyAxes axes;  // up and anterior, for the anatomical directions
+  // The lung sliding along the chest wall (mesh/sliding.h): a tangential field added to the
+  // normalised displacement, in units of the diaphragm's mean descent; none by default.
+  mesh::Sliding sliding;
   std::vector<double> load;  // per vertex (>= 0, not all 0); empty: 1 everywhere (the paper)
   // The surface's regions in `frame`, when already found (with_tissue finds them once per
   // surface: seconds on a fine one); the anatomical direction finds them itself otherwise.
@@ -59,7 +65,8 @@ struct ElastostaticField {
   std::vector<Eigen::Vector3d> unit_displacement;  // u per vertex, mesh units per area unit
   std::vector<double> force;                       // F per vertex for f = 1 (before normalisation; blurred
                                                    // in space when options.magnitude_smoothing > 0)
-  double normalisation = 0.0;  // c: unit_displacement_i = c * force_i * d_i (not the breathing scale s)
+  double normalisation = 0.0;  // c: unit_displacement_i = c * force_i * d_i (not the breathing scale s),
+                               // plus the slide when options.sliding is active
   std::uint32_t mass_nodes = 0, spring_nodes = 0;
   SolveReport report;
   double graph_seconds = 0.0;  // building the graph and the solver (report.seconds: solving)

@@ -34,6 +34,8 @@ struct RunInfo {
   std::filesystem::path output_dir;
 };
 
+class VoxelScene;  // voxels_output.h
+
 // The whole run, as finish() sees it. The runner fills every field; an output reads only what
 // its plugin's OutputNeeds asked for (the rest may be null or empty).
 struct RunRecord {
@@ -44,6 +46,9 @@ struct RunRecord {
   std::vector<std::span<const double>> scales;               // per model lung: s of every frame
   const std::vector<BreathMotion>* motion = nullptr;         // per breath and region (needs.breath_motion)
   bool field_reused = false;
+  // The run's voxel setting, built by the first output that needs it (run_voxel_scene) and
+  // shared by the others (the voxel files and report.html's slices read the label map once).
+  mutable std::shared_ptr<const VoxelScene> voxel_scene;
 };
 
 class Output {

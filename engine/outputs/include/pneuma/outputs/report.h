@@ -1,11 +1,14 @@
 #pragma once
 // report.html: one self-contained page per run (docs/formats.md): the lung breathing (the
 // run's glb, three.js, orbit, play/pause/scrub) in step with the physiology plots (volume, flow,
-// pressures) and the per-region motion table, under one time cursor. It opens from the file
+// pressures), the per-region motion table, the respiratory bins (phases) and slices of the
+// warped label map (voxel outputs), under one time cursor. It opens from the file
 // system without a server or the internet: three.js (Debian's libjs-three, r111, found at
 // configure time), the page's script, the data and the glb (base64) are all inside the file.
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -23,6 +26,27 @@ inline constexpr std::size_t kReportMaxSamples = 4000;
 // The page plots samples 0, stride, 2 stride, ... and always the last one: at most max_samples.
 std::size_t report_stride(std::size_t samples, std::size_t max_samples = kReportMaxSamples);
 
+// The run's frames in respiratory bins (outputs.phases, or a measured trace), for the bands on
+// the volume plot and the bin under the cursor.
+struct ReportBins {
+  std::string method;                  // "phase" | "amplitude"
+  std::vector<double> centre_percent;  // per bin
+  std::vector<std::size_t> frames;     // per bin: how many frames it holds
+  std::vector<double> mean_volume_m3;  // per bin (NaN when empty)
+  std::vector<int> bin_of_frame;       // per frame: its bin, -1 for none
+};
+
+// One plane through the warped label map at several times (voxel outputs on): the image the
+// page draws under the cursor, the diaphragm's descent visible in it.
+struct LabelSlice {
+  std::string name;                   // "coronal" | "sagittal"
+  std::string fixed;                  // the plane, such as "y = 12.0 mm" (LPS)
+  std::size_t width = 0, height = 0;  // pixels; row 0 is the most superior
+  double pixel_mm = 0.0;
+  std::vector<double> times_s;
+  std::vector<std::vector<std::int32_t>> labels;  // per time: width * height, row by row
+};
+
 struct ReportInput {
   std::string scenario_name;
   std::string description;
@@ -35,6 +59,9 @@ struct ReportInput {
   std::vector<std::string> lung_names;                     // two lungs: by BreathMotion::lung; one: empty
   std::vector<std::pair<std::string, std::string>> facts;  // {label, value with unit}, in order
   std::string glb;                                         // the run's breathing.glb bytes
+  std::optional<ReportBins> bins;                          // with outputs.phases or a trace
+  std::vector<LabelSlice> slices;                          // with voxel outputs
+  std::vector<int> lung_labels;                            // the slices' lung label values
 };
 
 // The whole page. Throws ValueError when `physiology` is null or empty.

@@ -16,8 +16,9 @@
 //       format: nii.gz                 # nii.gz | nii | mha
 //
 // Files (voxels/): dvf-forward-<t>, dvf-pullback-<t>, labels-<t> and ct-<t> with <t> the frame's
-// time ("2.400s") or the bin ("bin_03"), and voxels.csv (a bin's frame and time are empty). Label-map lungs warp the label map; other lungs (the phantom,
-// surface files) warp a label map of their rest tetrahedra (1 right or the only lung, 2 left).
+// time ("2.400s") or the bin ("bin_03"), and voxels.csv (a bin's frame and time are empty). Label-map lungs warp the
+// label map; other lungs (the phantom, surface files) warp a label map of their rest tetrahedra (1 right or the only
+// lung, 2 left).
 #include <filesystem>
 #include <memory>
 #include <span>
@@ -26,6 +27,7 @@
 #include <vector>
 
 #include "pneuma/outputs/output.h"
+#include "pneuma/outputs/report.h"
 
 #include "pneuma/voxels/time_point.h"
 
@@ -38,7 +40,7 @@ using VoxelTime = std::variant<VoxelMoment, double>;
 struct VoxelsSpec {
   std::vector<VoxelTime> at{VoxelMoment::end_expiration, VoxelMoment::end_inspiration};
   bool phase_bins = false;  // `phases` in `at`: every respiratory bin of outputs.phases at its mean volume
-  double spacing_m = 0.0;  // 0: the label map's grid (2 mm where there is none)
+  double spacing_m = 0.0;   // 0: the label map's grid (2 mm where there is none)
   std::shared_ptr<const voxels::Image> image;
   std::filesystem::path image_file;
   std::string extension = ".nii.gz";
@@ -61,6 +63,9 @@ class VoxelScene {
   double lung_volume_m3(const mesh::LabelMap& map) const;
   // The DVFs, the Jacobian, the warped label map (and CT) at the lungs' scales (one per model lung).
   void compute(std::span<const double> scales, voxels::TimePoint& point) const;
+  // The same on another grid (a plane for report.html's slices), the CT only if `with_image`.
+  void compute_on(const voxels::Grid& grid, std::span<const double> scales, voxels::TimePoint& point,
+                  bool with_image = true) const;
 
  private:
   const model::Model& model_;
@@ -70,6 +75,18 @@ class VoxelScene {
   voxels::Grid grid_;
   std::vector<std::uint8_t> rest_lung_;
 };
+
+// The run's VoxelScene (RunRecord::voxel_scene), built on first use from the scenario's
+// `outputs.voxels` settings. Throws Error(failure) when that output is off or the model has no
+// lungs' inside.
+const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& run);
+
+// report.html's slices of the warped label map (voxel outputs on; empty otherwise): a coronal
+// plane through the middle of the lungs and a sagittal one through the middle of the first, with
+// pixels of 2 mm (coarser for a chest wider than 40 cm), at up to `max_times` frames spread
+// evenly over the run. `lung_labels` gets the label values that are lung.
+std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
+                                            std::vector<int>& lung_labels, std::size_t max_times = 32);
 
 OutputPlugin voxels_output();
 
