@@ -381,3 +381,27 @@ TEST(BadInputs, AVentilatorPressureOutOfRangeIsRefusedAtItsKey) {
                                file.string(), line, column));
   EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"});
 }
+
+// A pressure-volume curve far beyond any lung is refused at its key in the preset that gives it
+// (volume_range: 2.2e300 L ended in exit 1, CVODE's first call; found by scripts/mutate).
+TEST(BadInputs, APressureVolumeCurveOutOfRangeIsRefusedAtItsKeyInThePreset) {
+  TempDir dir;
+  std::string preset = read_text(pneuma::test::source_dir() / "configs/physiology/stiff-lung.yaml");
+  const auto at = preset.find("volume_range: 2.2 L");
+  ASSERT_NE(at, std::string::npos);
+  preset.replace(at, 19, "volume_range: 2.2e300 L");
+  dir.write("p.yaml", preset);
+  const auto value = at + 14;  // where '2.2e300' starts
+  const auto line = std::count(preset.begin(), preset.begin() + static_cast<std::ptrdiff_t>(value), '\n') + 1;
+  const auto column = value - preset.rfind('\n', value);
+  const auto file = dir.write("s.yaml", "duration: 2 s\nframes: {rate: 5 Hz}\nmesh: {phantom: right, edge: 10 mm}\n"
+                                        "physiology: {preset: ./p.yaml}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  // Named as the scenario names it (./p.yaml), at the preset's line and column.
+  EXPECT_EQ(r.err, fmt::format("{}:{}:{}: physiology.pressure_volume_curve.volume_range: expected a volume of at "
+                               "most 10 L, got '2.2e300 L'\n",
+                               (dir / "./p.yaml").string(), line, column));
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
+  EXPECT_FALSE(std::filesystem::exists(dir / "out"));
+}

@@ -181,11 +181,13 @@ constexpr Range kResistance{0.1 * kCmH2OSecondsPerLitre, 1000.0 * kCmH2OSecondsP
 constexpr Range kRelativeTolerance{1e-12, 0.1, "a relative tolerance from 1e-12 to 0.1"};
 constexpr Range kAbsoluteTolerance{1e-15, 1e-4, "an absolute tolerance from 1e-12 L to 0.1 L"};
 constexpr Range kMaxStep{1e-6, 10.0, "a maximum step from 1e-6 s to 10 s"};
-// A driver's pressures (PEEP, inspiratory, muscle, support, limit) and volumes (tidal, limit):
-// far beyond any breath, where the lung model's first step fails (peep: 1e308 cmH2O).
+// A driver's pressures (PEEP, inspiratory, muscle, support, limit) and volumes (tidal, limit),
+// and a pressure-volume curve's: far beyond any breath, where the lung model's first step fails
+// (peep: 1e308 cmH2O, volume_range: 2e300 L).
 constexpr Range kDriverPressure{-200.0 * units::pa_per_cmh2o, 200.0 * units::pa_per_cmh2o,
                                 "a pressure from -200 to 200 cmH2O"};
 constexpr Range kDriverVolume{-1e-2, 1e-2, "a volume of at most 10 L"};
+constexpr Range kCurveWidth{0.1 * units::pa_per_cmh2o, 200.0 * units::pa_per_cmh2o, "a width from 0.1 to 200 cmH2O"};
 
 // `value` (read from `key`) when it lies in `range`; else the one-line error at the key, in the
 // file that holds it (a preset's own file for a value it gives).
@@ -371,11 +373,14 @@ std::optional<physiology::Elasticity> read_elasticity(const config::Node& n) {
   }
   if (auto curve = n.optional_map("pressure_volume_curve")) {
     physiology::SigmoidCompliance s;
-    s.lower_volume_m3 = curve->quantity("lower_volume", kind::volume);
-    s.volume_range_m3 = curve->positive_quantity("volume_range", kind::volume);
-    s.inflection_pressure_pa = curve->quantity("inflection_pressure", kind::pressure);
-    s.width_pa = curve->positive_quantity("width", kind::pressure);
-    s.relaxed_volume_m3 = curve->positive_quantity("relaxed_volume", kind::volume);
+    s.lower_volume_m3 = in_range(*curve, "lower_volume", curve->quantity("lower_volume", kind::volume), kDriverVolume);
+    s.volume_range_m3 =
+        in_range(*curve, "volume_range", curve->positive_quantity("volume_range", kind::volume), kDriverVolume);
+    s.inflection_pressure_pa = in_range(*curve, "inflection_pressure",
+                                        curve->quantity("inflection_pressure", kind::pressure), kDriverPressure);
+    s.width_pa = in_range(*curve, "width", curve->positive_quantity("width", kind::pressure), kCurveWidth);
+    s.relaxed_volume_m3 =
+        in_range(*curve, "relaxed_volume", curve->positive_quantity("relaxed_volume", kind::volume), kDriverVolume);
     curve->finish();
     if (!(s.relaxed_volume_m3 > s.lower_volume_m3 && s.relaxed_volume_m3 < s.lower_volume_m3 + s.volume_range_m3))
       curve->fail_at("relaxed_volume", "expected a volume between lower_volume and lower_volume + volume_range");
