@@ -405,3 +405,36 @@ TEST(BadInputs, APressureVolumeCurveOutOfRangeIsRefusedAtItsKeyInThePreset) {
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
 }
+
+// A breathing rate of a breath a year is refused at its key (rate: 1.2e-05 /min ran for hours:
+// the tidal-volume calibration integrates eight whole breaths; found by scripts/mutate).
+TEST(BadInputs, ABreathingRateOutOfRangeIsRefusedAtItsKey) {
+  TempDir dir;
+  const std::string text =
+      "duration: 2 s\nframes: {rate: 5 Hz}\nmesh: {phantom: right, edge: 10 mm}\n"
+      "physiology:\n  preset: healthy-adult\n  driver: {mode: spontaneous, rate: 1.2e-05 /min, tidal_volume: 500 mL}\n";
+  const auto file = dir.write("s.yaml", text);
+  const auto value = text.find("1.2e-05");
+  const auto line = std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(value), '\n') + 1;
+  const auto column = value - text.rfind('\n', value);
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, fmt::format("{}:{}:{}: physiology.driver.rate: expected a rate from 1 /min to 200 /min, got "
+                               "'1.2e-05 /min'\n",
+                               file.string(), line, column));
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"});
+}
+
+// A smoothing far below a voxel is no smoothing (--smooth 1e-308mm hung in Mesh_3: the kernel's
+// sigma squared underflowed to 0 and its weights became NaN; found by scripts/mutate): the same
+// surface as --smooth 0mm, byte for byte.
+TEST(BadInputs, ASmoothingFarBelowAVoxelIsNoSmoothing) {
+  TempDir dir;
+  const auto nii = pneuma::test::source_dir() / "fuzz/corpus/nifti/blocks-uint8.nii";
+  for (const char* sigma : {"0mm", "1e-308mm"}) {
+    const auto r = run_pneuma({"mesh", "from-labels", nii.string(), "--labels", "1", "--smooth", sigma, "-o",
+                               (dir / (std::string(sigma) + ".ply")).string()});
+    ASSERT_EQ(r.exit_code, 0) << sigma << ": " << r.err;
+  }
+  EXPECT_EQ(read_text(dir / "0mm.ply"), read_text(dir / "1e-308mm.ply"));
+}

@@ -187,6 +187,10 @@ constexpr Range kMaxStep{1e-6, 10.0, "a maximum step from 1e-6 s to 10 s"};
 constexpr Range kDriverPressure{-200.0 * units::pa_per_cmh2o, 200.0 * units::pa_per_cmh2o,
                                 "a pressure from -200 to 200 cmH2O"};
 constexpr Range kDriverVolume{-1e-2, 1e-2, "a volume of at most 10 L"};
+// A breathing or ventilator rate: one breath a minute to beyond the fastest conventional
+// ventilation (high-frequency oscillation is not what the lumped model describes). At 1e-5 /min
+// the tidal-volume calibration integrates eight breaths of a year each.
+constexpr Range kBreathingRate{1.0 / 60.0, 200.0 / 60.0, "a rate from 1 /min to 200 /min"};
 constexpr Range kCurveWidth{0.1 * units::pa_per_cmh2o, 200.0 * units::pa_per_cmh2o, "a width from 0.1 to 200 cmH2O"};
 
 // `value` (read from `key`) when it lies in `range`; else the one-line error at the key, in the
@@ -206,7 +210,7 @@ void overlay_driver(const config::Node& n, const std::string& mode, DriverFields
     n.fail_at("inspiratory_time", "give ie_ratio or inspiratory_time, not both");
   if (n.has("tidal_volume") && n.has("muscle_pressure"))
     n.fail_at("muscle_pressure", "give tidal_volume or muscle_pressure, not both");
-  if (auto v = n.optional_quantity("rate", kind::rate)) f.rate = v;
+  if (n.has("rate")) f.rate = in_range(n, "rate", n.quantity("rate", kind::rate), kBreathingRate);
   if (auto v = n.optional_ratio("ie_ratio")) {
     f.ie_ratio = v;
     f.inspiratory_time.reset();
@@ -444,7 +448,7 @@ physiology::PatientEffort overlay_effort(const config::Node& n, physiology::Pati
                                          const physiology::Driver& driver) {
   auto e = n.optional_map("effort");
   if (!e) return effort;
-  if (e->has("rate")) effort.rate_hz = e->positive_quantity("rate", kind::rate);
+  if (e->has("rate")) effort.rate_hz = in_range(*e, "rate", e->quantity("rate", kind::rate), kBreathingRate);
   if (auto r = e->optional_ratio("ie_ratio")) {
     if (!(*r > 0.0)) e->fail_at("ie_ratio", "expected a positive ratio such as '1:2'");
     effort.ie_ratio = *r;

@@ -268,6 +268,9 @@ std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, co
   std::vector<float> line;
   for (int axis = 0; axis < 3; ++axis) {
     const double s = sigma / spacing[axis];
+    // Narrower than a twentieth of a voxel, the kernel is the identity (its side weights are
+    // below 1e-86), and s * s would underflow to 0 for a tiny sigma.
+    if (s < 0.05) continue;
     const auto radius = static_cast<std::ptrdiff_t>(std::ceil(3.0 * s));
     std::vector<float> kernel(static_cast<std::size_t>(2 * radius + 1));
     double sum = 0.0;
