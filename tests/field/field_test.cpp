@@ -276,6 +276,9 @@ TEST(Tissue, BadFilesAreOneLine) {
       {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
        "sliding: {caudal: 1, exponent: 0}\n",
        "3:32: sliding.exponent: expected an exponent above 0 and at most 4"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "sliding: {caudal: 1, blur: 1 m}\n",
+       "3:28: sliding.blur: expected a length from 0 to 200 mm"},
   };
   for (const Bad& c : cases) {
     const auto file = dir.write("t.yaml", c.yaml);

@@ -183,6 +183,32 @@ TEST(Realism, TheSlideLiesAcrossTheSmoothedNormalAndFollowsTheDiaphragm) {
   EXPECT_NEAR(rate, sliding.area_unit, 1e-12 * sliding.area_unit);
 }
 
+TEST(Realism, TheBlurredSlideIsTheCostalShareAveragedInSpaceAndKeptOffTheMediastinum) {
+  // Oracle: the same tangential vector per vertex, scaled by B[w_costal] (1 - w_mediastinal)
+  // instead of w_costal, with B mesh::blurred_in_space (an independent function).
+  mesh::PhantomOptions p;
+  p.edge_length_m = 8e-3;
+  const mesh::TriangleMesh m = mesh::make_lung_phantom(p);
+  const mesh::SurfaceRegions regions = mesh::find_regions(m, mesh::RegionOptions{});
+  mesh::Sliding plain{.caudal = 1.2, .anterior = 0.5, .mediastinal = 0.0, .exponent = 0.5};
+  mesh::Sliding blurred = plain;
+  blurred.blur_m = 0.015;
+  const auto a = mesh::sliding_field(m, regions, plain, 0.02), b = mesh::sliding_field(m, regions, blurred, 0.02);
+  std::vector<double> costal(m.vertices.size());
+  for (std::size_t i = 0; i < costal.size(); ++i) costal[i] = regions.weight[i][1];
+  const std::vector<double> averaged = mesh::blurred_in_space(m, costal, 0.015);
+  std::size_t moved_by_blur = 0;
+  for (std::size_t i = 0; i < costal.size(); ++i) {
+    const double share = averaged[i] * (1.0 - regions.weight[i][3]);
+    EXPECT_LT((b[i] * costal[i] - a[i] * share).norm(), 1e-12) << "vertex " << i;
+    if (regions.weight[i][3] == 1.0) {
+      EXPECT_EQ(b[i].norm(), 0.0) << "vertex " << i;
+    }
+    moved_by_blur += std::abs(share - costal[i]) > 0.05;
+  }
+  EXPECT_GT(moved_by_blur, 10u);  // the blur changes the share somewhere
+}
+
 TEST(Realism, MagnitudeSmoothingBlursTheForceAndKeepsOneAreaUnit) {
   // The force with smoothing is the blur of the force without (mesh::blurred_in_space, an
   // independent function), and the field still adds one area unit.

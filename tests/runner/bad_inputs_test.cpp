@@ -438,3 +438,22 @@ TEST(BadInputs, ASmoothingFarBelowAVoxelIsNoSmoothing) {
   }
   EXPECT_EQ(read_text(dir / "0mm.ply"), read_text(dir / "1e-308mm.ply"));
 }
+
+// A surface kilometres across is not a lung: refused before remeshing (a damaged STL with one
+// vertex at z = 11 km ran for hours in CGAL's isotropic remeshing; found by scripts/mutate).
+TEST(BadInputs, ASurfaceFarLargerThanALungIsRefusedBeforeRemeshing) {
+  TempDir dir;
+  // An octahedron 0.2 m across with its top vertex pulled to 2 km.
+  const auto obj = dir.write("far.obj", "v 0.1 0 0\nv -0.1 0 0\nv 0 0.1 0\nv 0 -0.1 0\nv 0 0 2000\nv 0 0 -0.1\n"
+                                        "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n");
+  const auto file =
+      dir.write("s.yaml", "duration: 2 s\nframes: {rate: 5 Hz}\nmesh: {file: far.obj, unit: m, edge: 10 mm}\n"
+                          "physiology: {preset: healthy-adult}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err,
+            fmt::format("{}: the surface spans 2000 m along z (0.2 x 0.2 x 2000 m); expected a lung, at most 1 m "
+                        "across (is mesh.unit right, or a vertex damaged?)\n",
+                        (dir / "far.obj").string()));
+  EXPECT_EQ(dir.files(), (std::vector<std::string>{"far.obj", "s.yaml"}));
+}

@@ -52,6 +52,25 @@ void check_surface_size(const EdgeSource& where, double area_m2, double edge_m) 
                   where.file, where.key, area_m2, edge_m * 1e3, vertices, mesh::kMaxSurfaceVertices, unit_hint));
 }
 
+// Refuses a surface more than a metre across: not a lung (an adult's is about 0.3 m tall), but a
+// file in millimetres read as metres or a damaged vertex far away, whose needle triangles
+// remeshing would split for hours (a vertex of a damaged STL at z = 11 km; found by scripts/mutate).
+void check_lung_extent(const std::filesystem::path& file, const mesh::TriangleMesh& surface) {
+  if (surface.vertices.empty()) return;
+  Eigen::Vector3d lo = surface.vertices.front(), hi = lo;
+  for (const Eigen::Vector3d& v : surface.vertices) {
+    lo = lo.cwiseMin(v);
+    hi = hi.cwiseMax(v);
+  }
+  const Eigen::Vector3d size = hi - lo;
+  Eigen::Index axis = 0;
+  const double largest = size.maxCoeff(&axis);
+  if (largest <= 1.0) return;
+  throw InputError(fmt::format("{}: the surface spans {:.4g} m along {} ({:.4g} x {:.4g} x {:.4g} m); expected a lung, "
+                               "at most 1 m across (is mesh.unit right, or a vertex damaged?)",
+                               file.string(), largest, "xyz"[axis], size.x(), size.y(), size.z()));
+}
+
 mesh::TriangleMesh phantom_surface(const MeshSpec& spec, double edge_m) {
   mesh::PhantomOptions phantom;
   phantom.lung = *spec.phantom;
@@ -97,6 +116,7 @@ mesh::TriangleMesh source_surface(const MeshSpec& spec, double edge_m, const Edg
     return remeshed(std::move(surface), edge_m);
   }
   mesh::TriangleMesh surface = read_file_mesh(spec);
+  check_lung_extent(spec.file, surface);
   check_surface_size(where, mesh::surface_area(surface), edge_m);
   if (!spec.repair) return remeshed(std::move(surface), edge_m);
   if (edge_m <= 0.0) return mesh::repair_or_throw(surface, spec.file.string());

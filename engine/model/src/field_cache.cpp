@@ -205,6 +205,12 @@ void write_file(const std::filesystem::path& tmp, const std::string& shown, cons
     const auto iterations = static_cast<std::uint64_t>(i.report.iterations);
     w.number_attribute(g, "iterations", H5T_STD_U64LE, H5T_NATIVE_UINT64, iterations);
     w.number_attribute(g, "residual", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.report.relative_residual);
+    w.number_attribute(g, "unfold_m3", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.options.unfold_volume_m3);
+    const auto unfolded = static_cast<std::uint64_t>(i.report.unfolded_nodes);
+    const auto dropped = static_cast<std::uint64_t>(i.report.dropped_tets);
+    w.number_attribute(g, "unfolded_nodes", H5T_STD_U64LE, H5T_NATIVE_UINT64, unfolded);
+    w.number_attribute(g, "dropped_tets", H5T_STD_U64LE, H5T_NATIVE_UINT64, dropped);
+    w.number_attribute(g, "dropped_volume_m3", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.report.dropped_volume_m3);
     const hsize_t nn = i.mesh.nodes.size();
     w.dataset(g, "nodes", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.mesh.nodes.data(), nn, 3, "m");
     w.dataset(g, "tets", H5T_STD_U32LE, H5T_NATIVE_UINT32, i.mesh.tets.data(), i.mesh.tets.size(), 4, "1");
@@ -299,6 +305,16 @@ std::shared_ptr<const LungInterior> read_interior(const Reader& r) {
   i.options.tolerance = g.number_attribute<double>("tolerance", H5T_NATIVE_DOUBLE, H5T_FLOAT);
   i.report.iterations = g.number_attribute<std::uint64_t>("iterations", H5T_NATIVE_UINT64, H5T_INTEGER);
   i.report.relative_residual = g.number_attribute<double>("residual", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  // The unfolding's (absent in files written before it: their key differs, so the interior is
+  // computed again, but the surface field in the file is still good).
+  if (H5Aexists(group.get(), "unfold_m3") > 0) {
+    i.options.unfold_volume_m3 = g.number_attribute<double>("unfold_m3", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+    i.report.unfolded_nodes = g.number_attribute<std::uint64_t>("unfolded_nodes", H5T_NATIVE_UINT64, H5T_INTEGER);
+    i.report.dropped_tets = g.number_attribute<std::uint64_t>("dropped_tets", H5T_NATIVE_UINT64, H5T_INTEGER);
+    i.report.dropped_volume_m3 = g.number_attribute<double>("dropped_volume_m3", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  } else {
+    i.options.unfold_volume_m3 = 0.0;
+  }
   const std::size_t nn = g.dataset("nodes", H5T_NATIVE_DOUBLE, H5T_FLOAT, 3, i.mesh.nodes, 3);
   g.dataset("tets", H5T_NATIVE_UINT32, H5T_INTEGER, 4, i.mesh.tets, 4);
   g.dataset("boundary_nodes", H5T_NATIVE_UINT32, H5T_INTEGER, 0, i.boundary_nodes, 1);
@@ -400,6 +416,7 @@ void hash_options(Hasher& h, const field::FieldOptions& o) {
     h.value(o.sliding.mediastinal);
     h.value(o.sliding.exponent);
     h.value(o.sliding.base);
+    if (o.sliding.blur_m != 0.0) h.value(o.sliding.blur_m);  // absent: earlier keys stay valid
     h.value(o.direction_smoothing);
     h.bytes(o.axes.up.data(), 3 * sizeof(double));
     h.bytes(o.axes.anterior.data(), 3 * sizeof(double));
@@ -498,6 +515,7 @@ std::string interior_key(const std::string& field_key, double edge_m, const fiel
   h.value(options.poisson_ratio);
   h.value(options.tolerance);
   h.value(static_cast<std::uint64_t>(options.max_iterations));
+  h.value(options.unfold_volume_m3);
   return h.hex();
 }
 

@@ -2,10 +2,14 @@
 // boundary nodes, the interior field solved for the rest.
 #include <fmt/format.h>
 
+#include <cmath>
+
 #include "pneuma/core/error.h"
+#include "pneuma/field/untangle.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
 #include "pneuma/mesh/volume/tetrahedralize.h"
 #include "pneuma/model/model.h"
+#include "pneuma/model/volume_scale.h"
 
 namespace pneuma::model {
 
@@ -19,6 +23,21 @@ std::shared_ptr<LungInterior> compute_interior(const mesh::TriangleMesh& rest,
   for (const std::uint32_t b : volume.boundary_nodes) boundary_points.push_back(volume.mesh.nodes[b]);
   const std::vector<Eigen::Vector3d> boundary = mesh::transfer_vertex_field(rest, unit_displacement, boundary_points);
   field::InteriorSolution solution = field::solve_interior(volume.mesh, volume.boundary_nodes, boundary, options);
+  if (options.unfold_volume_m3 > 0.0) {
+    // The breath of unfold_volume_m3 above rest, or the deepest this field reaches.
+    const VolumeScaleMap volume_map(rest.vertices, unit_displacement, rest.triangles);
+    const double target = volume_map.volume(0.0) + options.unfold_volume_m3;
+    const double scale = target < volume_map.max_volume() ? volume_map.scale_for(target) : volume_map.max_scale();
+    if (scale > 0.0 && std::isfinite(scale)) {
+      const field::UntangleReport u =
+          field::untangle_interior(volume.mesh, volume.boundary_nodes, solution.displacement, scale);
+      const field::DroppedTets d =
+          field::drop_folded_boundary_tets(volume.mesh, volume.boundary_nodes, solution.displacement, scale);
+      solution.report.unfolded_nodes = u.nodes_moved;
+      solution.report.dropped_tets = d.count;
+      solution.report.dropped_volume_m3 = d.rest_volume_m3;
+    }
+  }
   out->mesh = std::move(volume.mesh);
   out->boundary_nodes = std::move(volume.boundary_nodes);
   out->unit_displacement = std::move(solution.displacement);

@@ -178,6 +178,17 @@ class VoxelsOutput final : public Output {
               {"voxels.max_lung_volume_error_percent", fmt::format("{:.6g}", worst_volume_error * 100.0)},
               {"voxels.interior_model", field::interior_model_name(model.lungs.front().interior->options.model)},
               {"voxels.interior_tets", std::to_string(tet_count(model))}};
+    // What the unfolding did (docs/voxels.md, "No folded tetrahedron"), over the lungs.
+    std::size_t unfolded = 0, dropped = 0;
+    double dropped_m3 = 0.0;
+    for (const model::LungModel& lung : model.lungs) {
+      unfolded += lung.interior->report.unfolded_nodes;
+      dropped += lung.interior->report.dropped_tets;
+      dropped_m3 += lung.interior->report.dropped_volume_m3;
+    }
+    facts_.emplace_back("voxels.unfolded_nodes", std::to_string(unfolded));
+    facts_.emplace_back("voxels.dropped_tets", std::to_string(dropped));
+    facts_.emplace_back("voxels.dropped_volume_mm3", fmt::format("{:.6g}", dropped_m3 * 1e9));
     return files;
   }
   std::vector<std::pair<std::string, std::string>> facts() const override { return facts_; }

@@ -268,6 +268,12 @@ FieldSpec read_field(const config::Node& n, const std::filesystem::path& config_
         i.fail_at("poisson_ratio", "expected a Poisson ratio between 0 and 0.49, such as '0.4'");
       }
     }
+    if (i.has("unfold")) {
+      f.interior.unfold_volume_m3 = i.quantity("unfold", kind::volume);
+      if (!(f.interior.unfold_volume_m3 >= 0.0 && f.interior.unfold_volume_m3 <= 5e-3)) {
+        i.fail_at("unfold", "expected a volume from 0 L to 5 L above rest, such as '1 L'");
+      }
+    }
     i.finish();
   }
   n.finish();

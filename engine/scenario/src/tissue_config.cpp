@@ -222,6 +222,11 @@ field::Tissue read_tissue(const config::Node& root) {
     t.sliding.caudal = amplitude("caudal");
     t.sliding.anterior = amplitude("anterior");
     t.sliding.mediastinal = amplitude("mediastinal");
+    if (sl->has("blur")) {
+      t.sliding.blur_m = sl->quantity("blur", kind::length);
+      if (!(t.sliding.blur_m >= 0.0 && t.sliding.blur_m <= 0.2))
+        sl->fail_at("blur", "expected a length from 0 to 200 mm");
+    }
     if (sl->has("exponent")) {
       t.sliding.exponent = sl->quantity("exponent", kind::fraction);
       if (!(t.sliding.exponent > 0.0 && t.sliding.exponent <= 4.0))

@@ -18,8 +18,8 @@ double smooth(double u) {
 
 std::vector<Eigen::Vector3d> sliding_field(const TriangleMesh& mesh, const SurfaceRegions& regions,
                                            const Sliding& sliding, double sigma) {
-  if (!(sliding.caudal >= 0.0 && sliding.anterior >= 0.0 && sliding.mediastinal >= 0.0 && sliding.exponent > 0.0 &&
-        sliding.base >= 0.0 && sliding.base < 1.0))
+  if (!(sliding.caudal >= 0.0 && sliding.anterior >= 0.0 && sliding.mediastinal >= 0.0 && sliding.blur_m >= 0.0 &&
+        sliding.exponent > 0.0 && sliding.base >= 0.0 && sliding.base < 1.0))
     throw ValueError("sliding_field: the amplitudes must be >= 0");
   require_regions_of(regions, mesh, regions.axes, "sliding_field");
   const std::size_t n = mesh.vertices.size();
@@ -35,13 +35,19 @@ std::vector<Eigen::Vector3d> sliding_field(const TriangleMesh& mesh, const Surfa
   auto across = [](const Eigen::Vector3d& v, const Eigen::Vector3d& nrm) -> Eigen::Vector3d {
     return v - v.dot(nrm) * nrm;
   };
+  constexpr auto kCostal = static_cast<std::size_t>(Region::costal);
+  constexpr auto kMediastinal = static_cast<std::size_t>(Region::mediastinal);
+  std::vector<double> share(n);
+  for (std::size_t i = 0; i < n; ++i) share[i] = regions.weight[i][kCostal];
+  if (sliding.blur_m > 0.0) {
+    share = blurred_in_space(mesh, share, sliding.blur_m);
+    for (std::size_t i = 0; i < n; ++i) share[i] *= 1.0 - regions.weight[i][kMediastinal];
+  }
+  for (std::size_t i = 0; i < n; ++i) share[i] += sliding.mediastinal * regions.weight[i][kMediastinal];
   for (std::size_t i = 0; i < n; ++i) {
-    const auto& w = regions.weight[i];
-    const double share = w[static_cast<std::size_t>(Region::costal)] +
-                         sliding.mediastinal * w[static_cast<std::size_t>(Region::mediastinal)];
     const double a = front > back ? (mesh.vertices[i].dot(anterior) - back) / (front - back) : 0.0;
     const double fade = sliding.base > 0.0 ? smooth(regions.height[i] / sliding.base) : 1.0;
-    slide[i] = fade * share *
+    slide[i] = fade * share[i] *
                (sliding.caudal * std::pow(1.0 - regions.height[i], sliding.exponent) * across(-up, normal[i]) +
                 sliding.anterior * a * across(anterior, normal[i]));
   }

@@ -34,12 +34,20 @@ struct InteriorOptions {
   double poisson_ratio = 0.4;  // elastic only; in [0, 0.5)
   double tolerance = 1e-10;    // on |K u - f| / |f| (2-norms over the free nodes)
   std::size_t max_iterations = 20000;
+  // Where the elastic field folds a tetrahedron by a breath up to this volume above rest (of this
+  // lung), its free nodes are moved until no tetrahedron folds (field/untangle.h), and a folded
+  // tetrahedron with all four nodes on the surface is left out of the mesh. 0: neither.
+  double unfold_volume_m3 = 1e-3;
 };
 
 struct InteriorReport {
   std::size_t free_nodes = 0, boundary_nodes = 0;
   std::size_t iterations = 0;
   double relative_residual = 0.0;
+  // The unfolding (InteriorOptions::unfold_volume_m3): nodes moved, and the tetrahedra with all
+  // four nodes on the surface left out because they fold (and their rest volume).
+  std::size_t unfolded_nodes = 0, dropped_tets = 0;
+  double dropped_volume_m3 = 0.0;
 };
 
 struct InteriorSolution {

@@ -24,7 +24,7 @@
 // `displacement: {direction: vertex_normal | smoothed_normal | anatomical, smoothing: 20 mm,
 // magnitude_smoothing: 3 mm}` (optional, default vertex_normal, no magnitude smoothing) chooses
 // the field's displacement direction and how much its magnitude is blurred in space (field.h).
-// `sliding: {caudal, anterior, mediastinal}` (optional): the tangential slide along the chest
+// `sliding: {caudal, anterior, mediastinal, exponent, base, blur}` (optional): the tangential slide along the chest
 // wall (mesh/sliding.h).
 #include <Eigen/Core>
 #include <array>
@@ -86,9 +86,9 @@ struct Tissue {
   // Optional `dome: {radius: 60 mm, falloff: 20 mm, rim: 0.3}` inside `load`: the diaphragm's load
   // concentrated at its dome, its total kept (mesh::DomeLoad); none: no concentration.
   mesh::DomeLoad dome_load;
-  // `sliding: {caudal: 1.2, anterior: 0.5, mediastinal: 0, exponent: 0.5, base: 0}` (optional): the lung slides along
-  // the chest wall (mesh/sliding.h, docs/realism.md 7.), in units of its diaphragm's mean descent;
-  // none: no slide. Independent of the load: it scales with whatever descent the load gives.
+  // `sliding: {caudal: 1.2, anterior: 0.5, mediastinal: 0, exponent: 0.5, base: 0, blur: 15 mm}` (optional): the lung
+  // slides along the chest wall (mesh/sliding.h, docs/realism.md 7.), in units of its diaphragm's mean descent; none:
+  // no slide. Independent of the load: it scales with whatever descent the load gives.
   mesh::Sliding sliding;
 };
 

@@ -1,0 +1,278 @@
+#include "pneuma/field/untangle.h"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "pneuma/core/error.h"
+
+namespace pneuma::field {
+namespace {
+
+// One tetrahedron's Jacobian as an affine function of one node's deformed position p:
+// J(p) = a . p + b (its deformed volume over its rest volume).
+// The breaths, as fractions of `scale`, at which the star of a moved node is kept unfolded (the
+// Jacobian is cubic in s, so a map unfolded at the deepest breath can fold at a lighter one).
+constexpr std::array<double, 8> kFractions{0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0};
+
+struct AffineJacobian {
+  Eigen::Vector3d a;
+  double b = 0.0;
+};
+
+// The Jacobian of (p0, p1, p2, p3) with node `k` replaced by p, as a . p + b: the signed volume
+// is affine in any one node, so four evaluations give it exactly (to rounding).
+AffineJacobian affine_in_node(std::array<Eigen::Vector3d, 4> p, std::size_t k, double rest_volume6) {
+  auto volume6 = [&] { return mesh::tet_volume6(p[0], p[1], p[2], p[3]); };
+  const Eigen::Vector3d at = p[k];
+  p[k] = at;
+  const double here = volume6();
+  Eigen::Vector3d a;
+  for (int d = 0; d < 3; ++d) {
+    p[k] = at + Eigen::Vector3d::Unit(d) * 1e-3;  // 1 mm: the size of the moves sought
+    a(d) = (volume6() - here) / 1e-3;
+  }
+  return {a / rest_volume6, (here - a.dot(at)) / rest_volume6};
+}
+
+// max over p of min over i of (a_i . p + b_i): a linear program in (p, t); its optimum (bounded
+// when the a_i surround the origin, as for a node inside its star) lies at a vertex where four
+// constraints are active. Returns false when no vertex is feasible.
+bool maximise_smallest(const std::vector<AffineJacobian>& f, Eigen::Vector3d& best_p, double& best_t) {
+  const std::size_t m = f.size();
+  bool found = false;
+  best_t = -std::numeric_limits<double>::infinity();
+  Eigen::Matrix4d a;
+  Eigen::Vector4d rhs;
+  for (std::size_t i = 0; i < m; ++i) {
+    for (std::size_t j = i + 1; j < m; ++j) {
+      for (std::size_t k = j + 1; k < m; ++k) {
+        for (std::size_t l = k + 1; l < m; ++l) {
+          const std::array<std::size_t, 4> rows{i, j, k, l};
+          for (int r = 0; r < 4; ++r) {
+            const AffineJacobian& g = f[rows[static_cast<std::size_t>(r)]];
+            a.row(r) << g.a.x(), g.a.y(), g.a.z(), -1.0;
+            rhs(r) = -g.b;
+          }
+          Eigen::Matrix4d inverse;
+          double determinant = 0.0;
+          bool invertible = false;
+          a.computeInverseAndDetWithCheck(inverse, determinant, invertible, 1e-14);
+          if (!invertible) continue;
+          const Eigen::Vector4d x = inverse * rhs;
+          const double t = x(3);
+          if (!(t > best_t) || !x.allFinite()) continue;
+          const Eigen::Vector3d p = x.head<3>();
+          bool feasible = true;
+          for (const AffineJacobian& g : f) {
+            if (g.a.dot(p) + g.b < t - 1e-12 * (1.0 + std::abs(t))) {
+              feasible = false;
+              break;
+            }
+          }
+          if (!feasible) continue;
+          best_t = t;
+          best_p = p;
+          found = true;
+        }
+      }
+    }
+  }
+  return found;
+}
+
+}  // namespace
+
+UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std::uint32_t> boundary_nodes,
+                                 std::vector<Eigen::Vector3d>& displacement, double scale, double min_jacobian,
+                                 std::size_t max_sweeps) {
+  const std::size_t n = mesh.node_count();
+  if (displacement.size() != n) throw ValueError("untangle_interior: one displacement per node");
+  if (!(scale > 0.0) || !std::isfinite(scale)) throw ValueError("untangle_interior: the scale must be positive");
+  if (!(min_jacobian > 0.0 && min_jacobian < 1.0))
+    throw ValueError("untangle_interior: the smallest Jacobian sought must lie in (0, 1)");
+  std::vector<char> fixed(n, 0);
+  for (const std::uint32_t b : boundary_nodes) {
+    if (b >= n) throw ValueError("untangle_interior: boundary node out of range");
+    fixed[b] = 1;
+  }
+  // The tets around each node (CSR), and each tet's rest volume (times 6).
+  std::vector<std::uint32_t> start(n + 1, 0), star;
+  for (const auto& t : mesh.tets)
+    for (const std::uint32_t v : t) ++start[v + 1];
+  for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
+  star.resize(start[n]);
+  {
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t)
+      for (const std::uint32_t v : mesh.tets[t]) star[fill[v]++] = static_cast<std::uint32_t>(t);
+  }
+  std::vector<double> rest6(mesh.tet_count());
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto& q = mesh.tets[t];
+    rest6[t] = mesh::tet_volume6(mesh.nodes[q[0]], mesh.nodes[q[1]], mesh.nodes[q[2]], mesh.nodes[q[3]]);
+    if (!(rest6[t] > 0.0)) throw ValueError("untangle_interior: a tetrahedron with no positive rest volume");
+  }
+  auto jacobian_at = [&](std::size_t t, double s) {
+    const auto& q = mesh.tets[t];
+    std::array<Eigen::Vector3d, 4> x;
+    for (std::size_t c = 0; c < 4; ++c) x[c] = mesh.nodes[q[c]] + s * displacement[q[c]];
+    return mesh::tet_volume6(x[0], x[1], x[2], x[3]) / rest6[t];
+  };
+  // Below the floor at `scale`; folded and the smallest over every breath checked.
+  auto census = [&](std::size_t& below, std::size_t& folded, double& smallest) {
+    below = folded = 0;
+    smallest = std::numeric_limits<double>::infinity();
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      bool folds = false;
+      for (const double fraction : kFractions) {
+        const double j = jacobian_at(t, fraction * scale);
+        if (fraction == 1.0) below += j < min_jacobian;
+        folds = folds || j <= 0.0;
+        smallest = std::min(smallest, j);
+      }
+      folded += folds;
+    }
+  };
+  UntangleReport report;
+  census(report.tets_below_before, report.folded_before, report.min_jacobian_before);
+  std::vector<char> touched(n, 0);
+  std::vector<AffineJacobian> f;
+  // The lightest breath first; a deeper one may not push a lighter one below the floor again.
+  for (std::size_t level = 0; level < kFractions.size(); ++level) {
+    const double s = kFractions[level] * scale;
+    for (std::size_t sweep = 0; sweep < max_sweeps; ++sweep) {
+      // The free nodes of the tets below the floor at this breath, ascending.
+      std::vector<std::uint32_t> nodes;
+      for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+        if (jacobian_at(t, s) >= min_jacobian) continue;
+        for (const std::uint32_t v : mesh.tets[t])
+          if (!fixed[v]) nodes.push_back(v);
+      }
+      if (nodes.empty()) break;
+      std::sort(nodes.begin(), nodes.end());
+      nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+      report.sweeps = std::max(report.sweeps, sweep + 1);
+      bool improved = false;
+      for (const std::uint32_t v : nodes) {
+        f.clear();
+        for (std::uint32_t k = start[v]; k < start[v + 1]; ++k) {
+          const auto& q = mesh.tets[star[k]];
+          std::array<Eigen::Vector3d, 4> p;
+          for (std::size_t c = 0; c < 4; ++c) p[c] = mesh.nodes[q[c]] + s * displacement[q[c]];
+          f.push_back(affine_in_node(p, static_cast<std::size_t>(std::find(q.begin(), q.end(), v) - q.begin()),
+                                     rest6[star[k]]));
+        }
+        Eigen::Vector3d optimum;
+        double best = 0.0;
+        if (!maximise_smallest(f, optimum, best)) continue;
+        // On the way from the node's U to the one that reaches the optimum at this breath, the
+        // star's smallest Jacobian at this breath (`here`) and at each lighter one (`lighter`) is
+        // concave in lambda: go no further than the lighter breaths allow (not below the floor, or
+        // below where they are), and there as far as needed to reach the floor, else to the best.
+        const Eigen::Vector3d u0 = displacement[v], u1 = (optimum - mesh.nodes[v]) / s;
+        auto smallest = [&](double lambda, std::size_t from, std::size_t to) {
+          const Eigen::Vector3d u = u0 + lambda * (u1 - u0);
+          double m = std::numeric_limits<double>::infinity();
+          for (std::uint32_t k = start[v]; k < start[v + 1]; ++k) {
+            const auto& q = mesh.tets[star[k]];
+            for (std::size_t l = from; l < to; ++l) {
+              std::array<Eigen::Vector3d, 4> x;
+              for (std::size_t c = 0; c < 4; ++c)
+                x[c] = mesh.nodes[q[c]] + kFractions[l] * scale * (q[c] == v ? u : displacement[q[c]]);
+              m = std::min(m, mesh::tet_volume6(x[0], x[1], x[2], x[3]) / rest6[star[k]]);
+            }
+          }
+          return m;
+        };
+        auto here = [&](double lambda) { return smallest(lambda, level, level + 1); };
+        auto lighter = [&](double lambda) { return smallest(lambda, 0, level); };
+        const double start_here = here(0.0);
+        if (!(best > start_here + 1e-9)) continue;
+        const double keep = std::min(min_jacobian, lighter(0.0));
+        double reach = 1.0;  // the lighter breaths allow [0, reach]
+        if (lighter(1.0) < keep) {
+          double lo = 0.0, hi = 1.0;
+          for (int it = 0; it < 40; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            (lighter(mid) >= keep ? lo : hi) = mid;
+          }
+          reach = lo;
+        }
+        double lambda = reach;
+        if (here(reach) >= min_jacobian) {
+          double lo = 0.0, hi = reach;  // the first point at the floor
+          for (int it = 0; it < 40; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            (here(mid) >= min_jacobian ? hi : lo) = mid;
+          }
+          lambda = hi;
+        } else {
+          double lo = 0.0, hi = reach;  // golden-section search for the best
+          constexpr double kGolden = 0.6180339887498949;
+          for (int it = 0; it < 40; ++it) {
+            const double a = hi - kGolden * (hi - lo), b = lo + kGolden * (hi - lo);
+            if (here(a) < here(b)) {
+              lo = a;
+            } else {
+              hi = b;
+            }
+          }
+          lambda = 0.5 * (lo + hi);
+        }
+        if (!(here(lambda) > start_here + 1e-9)) continue;
+        displacement[v] = u0 + lambda * (u1 - u0);
+        if (!touched[v]) {
+          touched[v] = 1;
+          ++report.nodes_moved;
+        }
+        improved = true;
+      }
+      if (!improved) break;
+    }
+  }
+  census(report.tets_below_after, report.folded_after, report.min_jacobian_after);
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto& q = mesh.tets[t];
+    if (!(fixed[q[0]] && fixed[q[1]] && fixed[q[2]] && fixed[q[3]])) continue;
+    bool folds = false;
+    for (const double fraction : kFractions) folds = folds || jacobian_at(t, fraction * scale) <= 0.0;
+    report.folded_all_boundary += folds;
+  }
+  return report;
+}
+
+DroppedTets drop_folded_boundary_tets(mesh::TetMesh& mesh, std::span<const std::uint32_t> boundary_nodes,
+                                      const std::vector<Eigen::Vector3d>& displacement, double scale) {
+  if (displacement.size() != mesh.node_count())
+    throw ValueError("drop_folded_boundary_tets: one displacement per node");
+  auto on_boundary = [&](std::uint32_t v) {
+    return std::binary_search(boundary_nodes.begin(), boundary_nodes.end(), v);
+  };
+  DroppedTets dropped;
+  std::vector<mesh::Tetrahedron> kept;
+  kept.reserve(mesh.tet_count());
+  for (const mesh::Tetrahedron& q : mesh.tets) {
+    bool folds = false;
+    if (on_boundary(q[0]) && on_boundary(q[1]) && on_boundary(q[2]) && on_boundary(q[3])) {
+      for (const double fraction : kFractions) {
+        std::array<Eigen::Vector3d, 4> x;
+        for (std::size_t c = 0; c < 4; ++c) x[c] = mesh.nodes[q[c]] + fraction * scale * displacement[q[c]];
+        folds = folds || mesh::tet_volume6(x[0], x[1], x[2], x[3]) <= 0.0;
+      }
+    }
+    if (folds) {
+      ++dropped.count;
+      dropped.rest_volume_m3 +=
+          mesh::tet_volume6(mesh.nodes[q[0]], mesh.nodes[q[1]], mesh.nodes[q[2]], mesh.nodes[q[3]]) / 6.0;
+    } else {
+      kept.push_back(q);
+    }
+  }
+  mesh.tets = std::move(kept);
+  return dropped;
+}
+
+}  // namespace pneuma::field

@@ -1,0 +1,99 @@
+// Unfolding the interior field (engine/field/untangle.h). Oracle: a regular octahedron split
+// into eight tetrahedra around its centre, where the Jacobian of each tetrahedron is an affine
+// function of the centre's position known in closed form: with the centre at (x, 0, 0) and the
+// corners still, the four tetrahedra on the +x side keep 1 - x/e of their volume, the others
+// 1 + x/e.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "pneuma/core/error.h"
+#include "pneuma/field/untangle.h"
+
+namespace pneuma::field {
+namespace {
+
+constexpr double kCorner = 0.01;  // e: the corners lie 10 mm from the centre
+
+// Node 0 the centre, 1..6 the corners +x, -x, +y, -y, +z, -z; eight positively oriented tets.
+mesh::TetMesh octahedron() {
+  mesh::TetMesh m;
+  m.nodes = {Eigen::Vector3d::Zero()};
+  for (int axis = 0; axis < 3; ++axis) {
+    for (const double sign : {1.0, -1.0}) m.nodes.push_back(sign * kCorner * Eigen::Vector3d::Unit(axis));
+  }
+  for (const std::uint32_t x : {1u, 2u}) {
+    for (const std::uint32_t y : {3u, 4u}) {
+      for (const std::uint32_t z : {5u, 6u}) {
+        mesh::Tetrahedron t{0, x, y, z};
+        const auto& n = m.nodes;
+        if (mesh::tet_volume6(n[t[0]], n[t[1]], n[t[2]], n[t[3]]) < 0.0) std::swap(t[2], t[3]);
+        m.tets.push_back(t);
+      }
+    }
+  }
+  return m;
+}
+
+double smallest_jacobian(const mesh::TetMesh& m, const std::vector<Eigen::Vector3d>& u, double s) {
+  double smallest = 1e300;
+  for (const auto& t : m.tets) {
+    std::array<Eigen::Vector3d, 4> x, r;
+    for (std::size_t c = 0; c < 4; ++c) {
+      r[c] = m.nodes[t[c]];
+      x[c] = r[c] + s * u[t[c]];
+    }
+    smallest =
+        std::min(smallest, mesh::tet_volume6(x[0], x[1], x[2], x[3]) / mesh::tet_volume6(r[0], r[1], r[2], r[3]));
+  }
+  return smallest;
+}
+
+TEST(Untangle, TheCentrePushedOutOfItsOctahedronComesBackJustToTheFloor) {
+  const mesh::TetMesh m = octahedron();
+  const std::vector<std::uint32_t> corners{1, 2, 3, 4, 5, 6};
+  const double scale = 2.0;
+  std::vector<Eigen::Vector3d> u(m.node_count(), Eigen::Vector3d::Zero());
+  u[0] = Eigen::Vector3d(2.0 * kCorner / scale, 0.0, 0.0);  // at the full breath: x = 2e, beyond the +x corner
+  ASSERT_NEAR(smallest_jacobian(m, u, scale), 1.0 - 2.0, 1e-12);
+  const UntangleReport r = untangle_interior(m, corners, u, scale, 0.2);
+  EXPECT_EQ(r.folded_before, 4u);  // the +x side, at the breaths where x >= e (fractions 0.5 to 1)
+  EXPECT_EQ(r.folded_after, 0u);
+  EXPECT_EQ(r.nodes_moved, 1u);
+  // Only as far as the floor: min J = 1 - x/e = 0.2 at x = 0.8 e, along the way back (no y, z).
+  EXPECT_NEAR(scale * u[0].x(), 0.8 * kCorner, 1e-9 * kCorner);
+  EXPECT_NEAR(u[0].y(), 0.0, 1e-12);
+  EXPECT_NEAR(u[0].z(), 0.0, 1e-12);
+  EXPECT_NEAR(r.min_jacobian_after, 0.2, 1e-7);
+  for (std::size_t c = 1; c < m.node_count(); ++c) EXPECT_EQ(u[c], Eigen::Vector3d::Zero());
+}
+
+TEST(Untangle, AFoldThatNoFreeNodeCanMendIsLeftAndDropped) {
+  mesh::TetMesh m = octahedron();
+  const std::vector<std::uint32_t> all{0, 1, 2, 3, 4, 5, 6};  // the centre on the boundary too
+  std::vector<Eigen::Vector3d> u(m.node_count(), Eigen::Vector3d::Zero());
+  u[0] = Eigen::Vector3d(2.0 * kCorner, 0.0, 0.0);
+  const UntangleReport r = untangle_interior(m, all, u, 1.0, 0.2);
+  EXPECT_EQ(r.nodes_moved, 0u);
+  EXPECT_EQ(r.folded_after, 4u);
+  EXPECT_EQ(r.folded_all_boundary, 4u);
+  const DroppedTets d = drop_folded_boundary_tets(m, all, u, 1.0);
+  EXPECT_EQ(d.count, 4u);
+  EXPECT_NEAR(d.rest_volume_m3, 4.0 * std::pow(kCorner, 3) / 6.0, 1e-18);  // four of the octahedron's eight
+  ASSERT_EQ(m.tet_count(), 4u);
+  EXPECT_NEAR(smallest_jacobian(m, u, 1.0), 3.0, 1e-12);  // the -x side: 1 + x/e at x = 2e
+}
+
+TEST(Untangle, BadArgumentsAreRefused) {
+  const mesh::TetMesh m = octahedron();
+  std::vector<Eigen::Vector3d> u(m.node_count(), Eigen::Vector3d::Zero());
+  const std::vector<std::uint32_t> corners{1, 2, 3, 4, 5, 6};
+  EXPECT_THROW(untangle_interior(m, corners, u, 0.0), ValueError);
+  EXPECT_THROW(untangle_interior(m, corners, u, 1.0, 1.5), ValueError);
+  std::vector<Eigen::Vector3d> short_u(3, Eigen::Vector3d::Zero());
+  EXPECT_THROW(untangle_interior(m, corners, short_u, 1.0), ValueError);
+  EXPECT_THROW(untangle_interior(m, std::vector<std::uint32_t>{99}, u, 1.0), ValueError);
+}
+
+}  // namespace
+}  // namespace pneuma::field
