@@ -187,6 +187,9 @@ INSTANTIATE_TEST_SUITE_P(
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  hdf5: {positions: true}\n",
                     "5:21: outputs.hdf5.positions: expected float32 or float64 (the stored type; series.h5 now "
                     "always stores every frame's positions, the plain geometry ParaView and meshio read), got 'true'"},
+        BadScenario{"hdf5_compression_unknown",
+                    "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  hdf5: {compression: lzf}\n",
+                    "5:23: outputs.hdf5.compression: expected one of: none, gzip; got 'lzf'"},
         BadScenario{"report_not_a_switch",
                     "duration: 20 s\nphysiology:\n  preset: healthy-adult\noutputs:\n  report: maybe\n",
                     "5:11: outputs.report: expected true or false, got 'maybe'"},

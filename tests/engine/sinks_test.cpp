@@ -6,6 +6,7 @@
 #include <hdf5.h>
 #include <tiny_gltf.h>
 
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -259,6 +260,55 @@ TEST(Hdf5Sink, XdmfParsesAndItsShapesMatchTheDatasets) {
           const double expected = is_double ? exact[c] : static_cast<double>(static_cast<float>(exact[c]));
           ASSERT_EQ(positions[3 * i + static_cast<std::size_t>(c)], expected) << "frame " << k << " vertex " << i;
         }
+      }
+    }
+    H5Fclose(file);
+  }
+}
+
+// The per-frame positions' storage as HDF5 itself reports it: `none` is one contiguous block of
+// exactly 3 N floats with no filter; `gzip` one chunk per frame through shuffle, then deflate
+// level 1. Either way the values read back are rest + s_k u rounded to float32.
+TEST(Hdf5Sink, PositionsAreContiguousOrShuffledAndDeflatedAsAsked) {
+  for (const PositionCompression compression : {PositionCompression::none, PositionCompression::gzip}) {
+    const bool gzip = compression == PositionCompression::gzip;
+    TempDir dir;
+    const model::Model model = sphere_model();
+    auto sink = make_hdf5_output(dir / "series.h5", dir / "series.xdmf", PositionPrecision::float32, compression);
+    const auto scales = drive(*sink, model, 4, 30.0);
+    const hid_t file = H5Fopen((dir / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const std::size_t n = model.lungs[0].rest.vertex_count();
+    for (std::size_t k = 0; k < scales.size(); ++k) {
+      const std::string path = fmt::format("/frames/positions/{:06d}", k);
+      const hid_t set = H5Dopen2(file, path.c_str(), H5P_DEFAULT);
+      ASSERT_GE(set, 0) << path;
+      const hid_t dcpl = H5Dget_create_plist(set);
+      EXPECT_EQ(H5Pget_layout(dcpl), gzip ? H5D_CHUNKED : H5D_CONTIGUOUS) << path;
+      ASSERT_EQ(H5Pget_nfilters(dcpl), gzip ? 2 : 0) << path;
+      if (gzip) {
+        std::array<hsize_t, 2> chunk{};
+        ASSERT_EQ(H5Pget_chunk(dcpl, 2, chunk.data()), 2);
+        EXPECT_EQ(chunk, (std::array<hsize_t, 2>{n, 3})) << path;
+        unsigned flags = 0;
+        std::size_t count = 1;
+        unsigned level = 0;
+        EXPECT_EQ(H5Pget_filter2(dcpl, 0, &flags, &count, &level, 0, nullptr, nullptr), H5Z_FILTER_SHUFFLE);
+        count = 1;
+        EXPECT_EQ(H5Pget_filter2(dcpl, 1, &flags, &count, &level, 0, nullptr, nullptr), H5Z_FILTER_DEFLATE);
+        EXPECT_EQ(level, 1u) << path;
+      } else {
+        EXPECT_EQ(H5Dget_storage_size(set), 3 * n * sizeof(float)) << path;
+      }
+      H5Pclose(dcpl);
+      H5Dclose(set);
+      const auto positions = h5_doubles(file, path);
+      ASSERT_EQ(positions.size(), 3 * n);
+      for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d exact = model.lungs[0].rest.vertices[i] + scales[k] * model.lungs[0].unit_displacement[i];
+        for (int c = 0; c < 3; ++c)
+          ASSERT_EQ(positions[3 * i + static_cast<std::size_t>(c)], static_cast<double>(static_cast<float>(exact[c])))
+              << path << " vertex " << i;
       }
     }
     H5Fclose(file);

@@ -2,6 +2,7 @@
 // taken for a finished one, a damaged cache is replaced, and the outputs are the same bytes at
 // any thread count.
 #include <gtest/gtest.h>
+#include <hdf5.h>
 
 #include <algorithm>
 #include <csignal>
@@ -157,7 +158,8 @@ TEST(Sturdiness, ADamagedCacheInTheOutputFolderIsReplacedWithAWarning) {
 TEST(Sturdiness, TheSameBytesAtOneTwoAndFourThreads) {
   // Field computed in each run (fresh folders), every output kind, PNG frames included.
   TempDir dir;
-  const auto yaml = dir.write("s.yaml", scenario("3 s") + "  gltf: true\n  hdf5: {positions: float64}\n");
+  const auto yaml =
+      dir.write("s.yaml", scenario("3 s") + "  gltf: true\n  hdf5: {positions: float64, compression: gzip}\n");
   std::map<std::string, std::string> reference;
   for (const char* threads : {"1", "2", "4"}) {
     const auto out = dir / (std::string("out-") + threads);
@@ -174,6 +176,33 @@ TEST(Sturdiness, TheSameBytesAtOneTwoAndFourThreads) {
     ASSERT_EQ(files.size(), reference.size());
     for (const auto& [name, bytes] : files)
       EXPECT_TRUE(bytes == reference[name]) << name << " at " << threads << " threads";
+  }
+}
+
+// outputs.hdf5.compression reaches the file: HDF5 reports no filter on a frame's positions by
+// default, and shuffle then deflate with `gzip`.
+TEST(Sturdiness, Hdf5CompressionIsTheScenariosChoice) {
+  TempDir dir;
+  for (const std::string compression : {"", "none", "gzip"}) {
+    const std::string option = compression.empty() ? "true" : "{compression: " + compression + "}";
+    const auto yaml = dir.write("s.yaml", scenario("1 s", false) + "  hdf5: " + option + "\n");
+    const auto out = dir / ("out-" + compression);
+    const auto r = run_pneuma({"run", yaml.string(), "-o", out.string(), "-q"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const hid_t file = H5Fopen((out / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(file, 0) << compression;
+    const hid_t set = H5Dopen2(file, "/frames/positions/000000", H5P_DEFAULT);
+    ASSERT_GE(set, 0) << compression;
+    const hid_t dcpl = H5Dget_create_plist(set);
+    const int filters = H5Pget_nfilters(dcpl);
+    ASSERT_EQ(filters, compression == "gzip" ? 2 : 0) << compression;
+    if (filters == 2) {
+      EXPECT_EQ(H5Pget_filter2(dcpl, 0, nullptr, nullptr, nullptr, 0, nullptr, nullptr), H5Z_FILTER_SHUFFLE);
+      EXPECT_EQ(H5Pget_filter2(dcpl, 1, nullptr, nullptr, nullptr, 0, nullptr, nullptr), H5Z_FILTER_DEFLATE);
+    }
+    H5Pclose(dcpl);
+    H5Dclose(set);
+    H5Fclose(file);
   }
 }
 

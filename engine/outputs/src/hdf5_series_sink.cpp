@@ -11,7 +11,8 @@
 //   /frames/time_s, /frames/scale, /frames/lung_volume_m3, /frames/mesh_volume_m3,
 //   /frames/area_m2   (F) float64
 //   /frames/positions/NNNNNN (N, 3) float32 (or float64: outputs.hdf5.positions), m: frame k's
-//     positions, rest + s_k u rounded to the stored type; shuffle + deflate
+//     positions, rest + s_k u rounded to the stored type; contiguous, or shuffle + deflate 1 in
+//     one chunk (outputs.hdf5.compression: gzip)
 // Two lungs: the root attribute lungs = "right,left", and each lung's rest/, field/ and frames/
 // as above under /right and /left (each with its own scale, mesh volume and area columns).
 #include <hdf5.h>
@@ -37,10 +38,12 @@ constexpr int kSeriesFormatVersion = 2;  // 2: per-frame /frames/positions/NNNNN
 
 class Hdf5Sink final : public Output {
  public:
-  Hdf5Sink(std::filesystem::path h5, std::filesystem::path xdmf, PositionPrecision precision)
+  Hdf5Sink(std::filesystem::path h5, std::filesystem::path xdmf, PositionPrecision precision,
+           PositionCompression compression)
       : h5_path_(std::move(h5)),
         xdmf_path_(std::move(xdmf)),
         double_(precision == PositionPrecision::float64),
+        gzip_(compression == PositionCompression::gzip),
         w_{h5_path_.string()} {}
   std::string name() const override { return "hdf5"; }
 
@@ -84,7 +87,7 @@ class Hdf5Sink final : public Output {
       lung.area.push_back(lf.area_m2);
       const std::string name = frame_name(f.index);
       w_.dataset(lung.positions_group, name.c_str(), double_ ? H5T_IEEE_F64LE : H5T_IEEE_F32LE, H5T_NATIVE_DOUBLE,
-                 lf.positions.data(), lung.vertex_count, 3, "m", true);
+                 lf.positions.data(), lung.vertex_count, 3, "m", gzip_, kPositionsDeflateLevel);
     }
   }
 
@@ -232,6 +235,9 @@ class Hdf5Sink final : public Output {
 
   std::filesystem::path h5_path_, xdmf_path_;
   bool double_;  // per-frame positions stored as float64 (else float32)
+  bool gzip_;    // per-frame positions shuffled and deflated (else contiguous)
+  // Level 1: within 1 % of level 4's size on the demo's frames, 8 % less CPU (BENCHMARKS.md).
+  static constexpr unsigned kPositionsDeflateLevel = 1;
   hdf5::Hdf5Writer w_;
   std::unique_ptr<PendingFile> pending_;
   hid_t file_ = -1;
@@ -244,13 +250,20 @@ class Hdf5Sink final : public Output {
 }  // namespace
 
 std::unique_ptr<Output> make_hdf5_output(const std::filesystem::path& h5_file, const std::filesystem::path& xdmf_file,
-                                         PositionPrecision positions) {
-  return std::make_unique<Hdf5Sink>(h5_file, xdmf_file, positions);
+                                         PositionPrecision positions, PositionCompression compression) {
+  return std::make_unique<Hdf5Sink>(h5_file, xdmf_file, positions, compression);
 }
 
 OutputPlugin hdf5_output() {
-  const auto read = [](const config::Node* options) -> std::any {
+  struct Settings {
     PositionPrecision positions = PositionPrecision::float32;
+    PositionCompression compression = PositionCompression::none;
+  };
+  const auto read = [](const config::Node* options) -> std::any {
+    Settings settings;
+    PositionPrecision& positions = settings.positions;
+    if (options && options->has("compression") && options->choice("compression", {"none", "gzip"}) == "gzip")
+      settings.compression = PositionCompression::gzip;
     if (options && options->has("positions")) {
       const std::string value = options->string("positions");
       if (value == "true" || value == "false")
@@ -259,10 +272,11 @@ OutputPlugin hdf5_output() {
                                           value + "'");
       if (options->choice("positions", {"float32", "float64"}) == "float64") positions = PositionPrecision::float64;
     }
-    return positions;
+    return settings;
   };
-  return {{"hdf5", true, read}, {}, [](const std::any& settings, const std::filesystem::path& out) {
-            return make_hdf5_output(out / "series.h5", out / "series.xdmf", std::any_cast<PositionPrecision>(settings));
+  return {{"hdf5", true, read}, {}, [](const std::any& any, const std::filesystem::path& out) {
+            const auto& settings = std::any_cast<const Settings&>(any);
+            return make_hdf5_output(out / "series.h5", out / "series.xdmf", settings.positions, settings.compression);
           }};
 }
 

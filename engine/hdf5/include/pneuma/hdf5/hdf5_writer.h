@@ -67,9 +67,11 @@ struct Hdf5Writer {
     check(H5Awrite(attr.get(), memory_type, &value), name);
   }
   // A 1-D (columns == 0) or 2-D dataset; `units` (e.g. "m") becomes its `units` attribute.
-  // `compress`: shuffle + deflate in one chunk (zlib is deterministic: same data, same bytes).
+  // `compress`: shuffle + deflate at `level` in one chunk (zlib is deterministic: same data, same
+  // bytes); otherwise contiguous.
   void dataset(hid_t parent, const char* name, hid_t file_type, hid_t memory_type, const void* data, hsize_t rows,
-               hsize_t columns, const char* units = nullptr, bool compress = false) const {
+               hsize_t columns, const char* units = nullptr, bool compress = false,
+               unsigned level = kDeflateLevel) const {
     const std::array<hsize_t, 2> dims{rows, columns};
     const int rank = columns == 0 ? 1 : 2;
     Hdf5Handle space(H5Screate_simple(rank, dims.data(), nullptr), H5Sclose);
@@ -78,7 +80,7 @@ struct Hdf5Writer {
     if (compress && rows > 0) {
       check(H5Pset_chunk(dcpl.get(), rank, dims.data()), name);
       check(H5Pset_shuffle(dcpl.get()), name);
-      check(H5Pset_deflate(dcpl.get(), kDeflateLevel), name);
+      check(H5Pset_deflate(dcpl.get(), level), name);
     }
     Hdf5Handle set(H5Dcreate2(parent, name, file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose);
     if (!set.ok()) fail(name);

@@ -27,17 +27,21 @@ std::unique_ptr<Output> make_gltf_output(const std::filesystem::path& file);
 std::string make_glb(const model::Model& model, const RunInfo& run, std::span<const double> time_s,
                      const std::vector<std::span<const double>>& scales);
 
-// ---- series.h5 + series.xdmf (`outputs: {hdf5: {positions: float32}}`) ---------------------------
+// ---- series.h5 + series.xdmf (`outputs: {hdf5: {positions: float32, compression: none}}`) ---------
 // The stored type of series.h5's per-frame positions (the exact rest + s u is always there in
 // float64: /rest/positions, /field/unit_displacement, /frames/scale).
 enum class PositionPrecision { float32, float64 };
+// The per-frame positions' filter: none (contiguous, the default: about 12x less CPU than gzip
+// for 1.2x the bytes, BENCHMARKS.md) or gzip (shuffle + deflate level 1, one chunk per frame).
+enum class PositionCompression { none, gzip };
 
 // HDF5 time series (rest mesh, field, per-frame time, scale, volumes, area and positions) and
 // an XDMF file beside it that ParaView and meshio open as a temporal collection
 // (docs/formats.md).
 OutputPlugin hdf5_output();
 std::unique_ptr<Output> make_hdf5_output(const std::filesystem::path& h5_file, const std::filesystem::path& xdmf_file,
-                                         PositionPrecision positions = PositionPrecision::float32);
+                                         PositionPrecision positions = PositionPrecision::float32,
+                                         PositionCompression compression = PositionCompression::none);
 
 // ---- frames/frame_NNNNN.<format> (`outputs: {mesh_sequence: {format: ply, ascii: false, every: 1}}`)
 struct MeshSequenceSpec {
