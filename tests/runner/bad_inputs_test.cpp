@@ -146,11 +146,10 @@ INSTANTIATE_TEST_SUITE_P(
         TooBig{"edge", "duration: 4 s\nmesh: {phantom: right, edge: 0.1 mm}\nphysiology: {preset: healthy-adult}\n",
                ": mesh.edge: a surface of 0.07417 m2 at an edge of 0.1 mm would have about 8.56e+06 vertices; "
                "expected at most 2000000 (a coarser edge)"},
-        TooBig{"millimetres_read_as_metres",
-               "duration: 4 s\nmesh: {file: mm.ply, unit: m, edge: 4 mm}\nphysiology: {preset: healthy-adult}\n",
-               ": mesh.edge: a surface of 7.384e+04 m2 at an edge of 4 mm would have about 5.33e+09 vertices; expected "
-               "at most 2000000 (a coarser edge); 7.384e+04 m2 is not the area of a lung (about 0.1 m2): is mesh.unit "
-               "right?"}),
+        // A file in millimetres read as metres is refused by its extent first (ASurfaceFarLargerThanALung...).
+        TooBig{"file_edge", "duration: 4 s\nmesh: {file: mm.ply, edge: 0.1 mm}\nphysiology: {preset: healthy-adult}\n",
+               ": mesh.edge: a surface of 0.07384 m2 at an edge of 0.1 mm would have about 8.53e+06 vertices; "
+               "expected at most 2000000 (a coarser edge)"}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 
 // Options out of range are usage errors (exit 2), refused before anything is read or written.
@@ -456,4 +455,14 @@ TEST(BadInputs, ASurfaceFarLargerThanALungIsRefusedBeforeRemeshing) {
                         "across (is mesh.unit right, or a vertex damaged?)\n",
                         (dir / "far.obj").string()));
   EXPECT_EQ(dir.files(), (std::vector<std::string>{"far.obj", "s.yaml"}));
+  // The usual cause: a file in millimetres declared in metres (the phantom, 243 mm tall).
+  const auto ply = dir / "mm.ply";
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", ply.string()}).exit_code, 0);
+  const auto mm = dir.write("mm.yaml", "duration: 2 s\nmesh: {file: mm.ply, unit: m, edge: 4 mm}\n"
+                                       "physiology: {preset: healthy-adult}\n");
+  const auto m = run_pneuma({"run", mm.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(m.exit_code, 3);
+  EXPECT_EQ(m.err, ply.string() + ": the surface spans 242.9 m along z (92.48 x 140.5 x 242.9 m); expected a lung, at "
+                                  "most 1 m across (is mesh.unit right, or a vertex damaged?)\n");
+  EXPECT_TRUE(!std::filesystem::exists(dir / "out") || std::filesystem::is_empty(dir / "out"));
 }
