@@ -466,3 +466,24 @@ TEST(BadInputs, ASurfaceFarLargerThanALungIsRefusedBeforeRemeshing) {
                                   "most 1 m across (is mesh.unit right, or a vertex damaged?)\n");
   EXPECT_TRUE(!std::filesystem::exists(dir / "out") || std::filesystem::is_empty(dir / "out"));
 }
+
+// A file unit near the smallest doubles is refused (mesh remesh --unit 1e-308mm crashed in CGAL's
+// remeshing, whose squared lengths underflowed; found by scripts/mutate), on the command line and
+// in a scenario.
+TEST(BadInputs, AFileUnitOutsideANanometreToAKilometreIsRefused) {
+  TempDir dir;
+  const auto ply = dir / "r.ply";
+  ASSERT_EQ(run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", ply.string()}).exit_code, 0);
+  for (const char* unit : {"1e-308mm", "1e9m"}) {
+    const auto r =
+        run_pneuma({"mesh", "remesh", ply.string(), "--edge", "12mm", "--unit", unit, "-o", (dir / "o.ply").string()});
+    EXPECT_EQ(r.exit_code, 2) << unit;
+    EXPECT_EQ(r.err, std::string("pneuma: --unit: expected a length unit from 1 nm to 1 km, got '") + unit + "'\n");
+  }
+  const auto file = dir.write("s.yaml", "duration: 2 s\nmesh: {file: r.ply, unit: 1e-308 mm, edge: 12 mm}\n"
+                                        "physiology: {preset: healthy-adult}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, file.string() + ":2:27: mesh.unit: expected a length unit from 1 nm to 1 km, got '1e-308 mm'\n");
+  EXPECT_EQ(dir.files(), (std::vector<std::string>{"r.ply", "s.yaml"}));
+}

@@ -61,6 +61,8 @@ double read_unit(const config::Node& n) {
     metres = 0.0;
   }
   if (!(metres > 0.0)) n.fail_at("unit", "expected a length unit such as 'mm' or '0.5 mm', got '" + text + "'");
+  if (metres < 1e-9 || metres > 1e3)  // as mesh::parse_length_unit (the CLI's --unit)
+    n.fail_at("unit", "expected a length unit from 1 nm to 1 km, got '" + text + "'");
   return metres;
 }
 
