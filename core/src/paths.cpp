@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <fstream>
+#include <ios>
 #include <iterator>
 
 #include "pneuma/core/error.h"
@@ -36,7 +37,13 @@ std::string read_file_bytes(const std::filesystem::path& path, std::uintmax_t ma
     throw InputError(path.string() + ": a file of " + std::to_string(size) + " bytes; expected at most " +
                      std::to_string(max_bytes) + " bytes for this kind of file");
   }
-  std::string bytes(std::istreambuf_iterator<char>(in), {});
+  // libstdc++'s filebuf throws on a read error (EIO from /proc/self/mem, a failing disk).
+  std::string bytes;
+  try {
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  } catch (const std::ios_base::failure&) {
+    throw IoError(path.string() + ": cannot read file (an input/output error)");
+  }
   if (in.bad()) throw IoError(path.string() + ": cannot read file");
   return bytes;
 }

@@ -6,6 +6,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <string>
@@ -486,4 +489,33 @@ TEST(BadInputs, AFileUnitOutsideANanometreToAKilometreIsRefused) {
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(r.err, file.string() + ":2:27: mesh.unit: expected a length unit from 1 nm to 1 km, got '1e-308 mm'\n");
   EXPECT_EQ(dir.files(), (std::vector<std::string>{"r.ply", "s.yaml"}));
+}
+
+// A NaN in a NIfTI's orientation is refused before ITK sees it (it aborted in ITK's SVD of the
+// direction matrix; found by scripts/mutate).
+TEST(BadInputs, ANiftiOrientationThatIsNotFiniteIsRefused) {
+  TempDir dir;
+  std::string bytes = read_text(pneuma::test::source_dir() / "fuzz/corpus/nifti/blocks-uint8.nii");
+  ASSERT_GE(bytes.size(), 348u);
+  const std::int16_t sform_code = 1;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(bytes.data() + 254, &sform_code, sizeof sform_code);  // little-endian, as the corpus file
+  std::memcpy(bytes.data() + 320, &nan, sizeof nan);                // srow_z[2]
+  const auto nii = dir.write("l.nii", bytes);
+  const auto r = run_pneuma({"mesh", "from-labels", nii.string(), "--labels", "1", "-o", (dir / "s.ply").string()});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, nii.string() + ": srow_z is nan: expected a finite number (the voxel -> world orientation)\n");
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"l.nii"});
+}
+
+// A preset that cannot be read (EIO from /proc/self/mem) is a file error naming it, not an
+// internal error (found by scripts/mutate).
+TEST(BadInputs, AFileThatFailsToReadIsAnIoError) {
+  TempDir dir;
+  const auto file = dir.write("s.yaml", "duration: 2 s\nmesh: {phantom: right, edge: 10 mm}\n"
+                                        "physiology: {preset: /proc/self/mem}\n");
+  const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 4);
+  EXPECT_EQ(r.err, "/proc/self/mem: cannot read file (an input/output error)\n");
+  EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"});
 }

@@ -328,6 +328,24 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
       }
     }
   }
+  // The orientation's numbers, before ITK sees them: a NaN in srow or the quaternion aborted
+  // inside ITK's SVD of the direction matrix (vnl's assert_finite; found by scripts/mutate).
+  auto require_finite = [&](const char* field, double value) {
+    if (!std::isfinite(value))
+      throw InputError(
+          fmt::format("{}: {} is {}: expected a finite number (the voxel -> world orientation)", name, field, value));
+  };
+  if (n.sform_code > 0) {
+    static constexpr std::array<const char*, 3> kRows{"srow_x", "srow_y", "srow_z"};
+    for (std::size_t r = 0; r < 3; ++r)
+      for (std::size_t c = 0; c < 4; ++c) require_finite(kRows[r], n.srow[r][c]);
+  }
+  if (n.qform_code > 0) {
+    require_finite("quatern_b", n.quatern_b), require_finite("quatern_c", n.quatern_c);
+    require_finite("quatern_d", n.quatern_d), require_finite("qoffset_x", n.qoffset_x);
+    require_finite("qoffset_y", n.qoffset_y), require_finite("qoffset_z", n.qoffset_z);
+  }
+  for (std::size_t d = 0; d <= 3; ++d) require_finite(fmt::format("pixdim[{}]", d).c_str(), n.pixdim[d]);
   const char* type = nifti_type_name(n.datatype);
   const int type_bytes = nifti_type_bytes(n.datatype);
   if (type_bytes == 0) {
