@@ -491,21 +491,37 @@ TEST(BadInputs, AFileUnitOutsideANanometreToAKilometreIsRefused) {
   EXPECT_EQ(dir.files(), (std::vector<std::string>{"r.ply", "s.yaml"}));
 }
 
-// A NaN in a NIfTI's orientation is refused before ITK sees it (it aborted in ITK's SVD of the
-// direction matrix; found by scripts/mutate).
+// A NaN or a huge number in a NIfTI's orientation, or a fractional data offset, is refused before
+// ITK sees it (they aborted or hung in ITK's SVD of the direction matrix, or made niftilib warn;
+// found by scripts/mutate).
 TEST(BadInputs, ANiftiOrientationThatIsNotFiniteIsRefused) {
-  TempDir dir;
-  std::string bytes = read_text(pneuma::test::source_dir() / "fuzz/corpus/nifti/blocks-uint8.nii");
-  ASSERT_GE(bytes.size(), 348u);
-  const std::int16_t sform_code = 1;
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  std::memcpy(bytes.data() + 254, &sform_code, sizeof sform_code);  // little-endian, as the corpus file
-  std::memcpy(bytes.data() + 320, &nan, sizeof nan);                // srow_z[2]
-  const auto nii = dir.write("l.nii", bytes);
-  const auto r = run_pneuma({"mesh", "from-labels", nii.string(), "--labels", "1", "-o", (dir / "s.ply").string()});
-  EXPECT_EQ(r.exit_code, 3);
-  EXPECT_EQ(r.err, nii.string() + ": srow_z is nan: expected a finite number (the voxel -> world orientation)\n");
-  EXPECT_EQ(dir.files(), std::vector<std::string>{"l.nii"});
+  // Each case: the corpus' block map with a float written at a header offset, and the message.
+  struct Case {
+    std::size_t offset;
+    float value;
+    std::string message;
+  };
+  const std::vector<Case> cases{
+      {320, std::numeric_limits<float>::quiet_NaN(),  // srow_z[2]: aborted in ITK's SVD
+       ": srow_z is nan: expected a finite number of magnitude at most 1e6 (the voxel -> world orientation)"},
+      {304, -1.7014118e38f,  // srow_y[2]: ITK's SVD ran for ever
+       ": srow_y is -1.70141e+38: expected a finite number of magnitude at most 1e6 (the voxel -> world "
+       "orientation)"},
+      {108, 352.016f, ": vox_offset is 352.016: expected a whole number of bytes"},  // niftilib warned on stderr
+  };
+  for (const Case& c : cases) {
+    TempDir dir;
+    std::string bytes = read_text(pneuma::test::source_dir() / "fuzz/corpus/nifti/blocks-uint8.nii");
+    ASSERT_GE(bytes.size(), 348u);
+    const std::int16_t sform_code = 1;
+    std::memcpy(bytes.data() + 254, &sform_code, sizeof sform_code);  // little-endian, as the corpus file
+    std::memcpy(bytes.data() + c.offset, &c.value, sizeof c.value);
+    const auto nii = dir.write("l.nii", bytes);
+    const auto r = run_pneuma({"mesh", "from-labels", nii.string(), "--labels", "1", "-o", (dir / "s.ply").string()});
+    EXPECT_EQ(r.exit_code, 3) << c.message;
+    EXPECT_EQ(r.err, nii.string() + c.message + "\n");
+    EXPECT_EQ(dir.files(), std::vector<std::string>{"l.nii"});
+  }
 }
 
 // A preset that cannot be read (EIO from /proc/self/mem) is a file error naming it, not an

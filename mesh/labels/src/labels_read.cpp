@@ -328,13 +328,18 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
       }
     }
   }
-  // The orientation's numbers, before ITK sees them: a NaN in srow or the quaternion aborted
-  // inside ITK's SVD of the direction matrix (vnl's assert_finite; found by scripts/mutate).
+  // The orientation's numbers, before ITK sees them: a NaN in srow aborted inside ITK's SVD of
+  // the direction matrix (vnl's assert_finite), and -1.7e38 made that SVD run for ever (found by
+  // scripts/mutate). A kilometre (1e6 mm) is far beyond any scanner.
   auto require_finite = [&](const char* field, double value) {
-    if (!std::isfinite(value))
-      throw InputError(
-          fmt::format("{}: {} is {}: expected a finite number (the voxel -> world orientation)", name, field, value));
+    if (!(std::abs(value) <= 1e6))
+      throw InputError(fmt::format("{}: {} is {:g}: expected a finite number of magnitude at most 1e6 (the voxel -> "
+                                   "world orientation)",
+                                   name, field, value));
   };
+  // niftilib warns on stderr about a fractional data offset, and no NIfTI writer makes one.
+  if (n.vox_offset != std::floor(n.vox_offset) || n.vox_offset > 1e12)
+    throw InputError(fmt::format("{}: vox_offset is {:g}: expected a whole number of bytes", name, n.vox_offset));
   if (n.sform_code > 0) {
     static constexpr std::array<const char*, 3> kRows{"srow_x", "srow_y", "srow_z"};
     for (std::size_t r = 0; r < 3; ++r)
