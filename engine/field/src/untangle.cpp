@@ -11,12 +11,12 @@
 namespace pneuma::field {
 namespace {
 
-// One tetrahedron's Jacobian as an affine function of one node's deformed position p:
-// J(p) = a . p + b (its deformed volume over its rest volume).
 // The breaths, as fractions of `scale`, at which the star of a moved node is kept unfolded (the
 // Jacobian is cubic in s, so a map unfolded at the deepest breath can fold at a lighter one).
 constexpr std::array<double, 8> kFractions{0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0};
 
+// One tetrahedron's Jacobian as an affine function of one node's deformed position p:
+// J(p) = a . p + b (its deformed volume over its rest volume).
 struct AffineJacobian {
   Eigen::Vector3d a;
   double b = 0.0;
@@ -27,7 +27,6 @@ struct AffineJacobian {
 AffineJacobian affine_in_node(std::array<Eigen::Vector3d, 4> p, std::size_t k, double rest_volume6) {
   auto volume6 = [&] { return mesh::tet_volume6(p[0], p[1], p[2], p[3]); };
   const Eigen::Vector3d at = p[k];
-  p[k] = at;
   const double here = volume6();
   Eigen::Vector3d a;
   for (int d = 0; d < 3; ++d) {
