@@ -508,6 +508,8 @@ TEST(BadInputs, ANiftiOrientationThatIsNotFiniteIsRefused) {
        ": srow_y is -1.70141e+38: expected a finite number of magnitude at most 1e6 (the voxel -> world "
        "orientation)"},
       {108, 352.016f, ": vox_offset is 352.016: expected a whole number of bytes"},  // niftilib warned on stderr
+      {320, 4.3368087e-19f,  // srow_z[2]: the smoothing kernel would have been 1e18 voxels wide
+       ": the voxel size along axis 3 (sform) is 4.33681e-19 mm: expected at least 0.001 mm"},
   };
   for (const Case& c : cases) {
     TempDir dir;

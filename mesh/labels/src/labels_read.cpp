@@ -351,6 +351,18 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
     require_finite("qoffset_y", n.qoffset_y), require_finite("qoffset_z", n.qoffset_z);
   }
   for (std::size_t d = 0; d <= 3; ++d) require_finite(fmt::format("pixdim[{}]", d).c_str(), n.pixdim[d]);
+  // A voxel thinner than a micrometre is a damaged header (srow_z 4e-19 made the smoothing kernel
+  // 1e18 voxels wide; found by scripts/mutate).
+  {
+    std::string source;
+    const Eigen::Matrix4d m = nifti_ijk_to_lps(n, source);
+    for (int axis = 0; axis < 3; ++axis) {
+      const double size_m = m.block<3, 1>(0, axis).norm();
+      if (!(size_m >= 1e-6))
+        throw InputError(fmt::format("{}: the voxel size along axis {} ({}) is {:g} mm: expected at least 0.001 mm",
+                                     name, axis + 1, source, size_m * 1e3));
+    }
+  }
   const char* type = nifti_type_name(n.datatype);
   const int type_bytes = nifti_type_bytes(n.datatype);
   if (type_bytes == 0) {
