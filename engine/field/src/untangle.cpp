@@ -15,6 +15,21 @@ namespace {
 // Jacobian is cubic in s, so a map unfolded at the deepest breath can fold at a lighter one).
 constexpr std::array<double, 8> kFractions{0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0};
 
+// Six times the signed volume of tet `q` at the breath s (node k at x_k + s u_k).
+double deformed_volume6(const mesh::TetMesh& mesh, const mesh::Tetrahedron& q,
+                        const std::vector<Eigen::Vector3d>& displacement, double s) {
+  std::array<Eigen::Vector3d, 4> x;
+  for (std::size_t c = 0; c < 4; ++c) x[c] = mesh.nodes[q[c]] + s * displacement[q[c]];
+  return mesh::tet_volume6(x[0], x[1], x[2], x[3]);
+}
+
+// Whether tet `q` folds at one of the breaths checked up to `scale`.
+bool folds_by(const mesh::TetMesh& mesh, const mesh::Tetrahedron& q, const std::vector<Eigen::Vector3d>& displacement,
+              double scale) {
+  return std::any_of(kFractions.begin(), kFractions.end(),
+                     [&](double fraction) { return deformed_volume6(mesh, q, displacement, fraction * scale) <= 0.0; });
+}
+
 // One tetrahedron's Jacobian as an affine function of one node's deformed position p:
 // J(p) = a . p + b (its deformed volume over its rest volume).
 struct AffineJacobian {
@@ -115,10 +130,7 @@ UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std:
     if (!(rest6[t] > 0.0)) throw ValueError("untangle_interior: a tetrahedron with no positive rest volume");
   }
   auto jacobian_at = [&](std::size_t t, double s) {
-    const auto& q = mesh.tets[t];
-    std::array<Eigen::Vector3d, 4> x;
-    for (std::size_t c = 0; c < 4; ++c) x[c] = mesh.nodes[q[c]] + s * displacement[q[c]];
-    return mesh::tet_volume6(x[0], x[1], x[2], x[3]) / rest6[t];
+    return deformed_volume6(mesh, mesh.tets[t], displacement, s) / rest6[t];
   };
   // Below the floor at `scale`; folded and the smallest over every breath checked.
   auto census = [&](std::size_t& below, std::size_t& folded, double& smallest) {
@@ -236,9 +248,7 @@ UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std:
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
     const auto& q = mesh.tets[t];
     if (!(fixed[q[0]] && fixed[q[1]] && fixed[q[2]] && fixed[q[3]])) continue;
-    bool folds = false;
-    for (const double fraction : kFractions) folds = folds || jacobian_at(t, fraction * scale) <= 0.0;
-    report.folded_all_boundary += folds;
+    report.folded_all_boundary += folds_by(mesh, q, displacement, scale);
   }
   return report;
 }
@@ -254,15 +264,8 @@ DroppedTets drop_folded_boundary_tets(mesh::TetMesh& mesh, std::span<const std::
   std::vector<mesh::Tetrahedron> kept;
   kept.reserve(mesh.tet_count());
   for (const mesh::Tetrahedron& q : mesh.tets) {
-    bool folds = false;
-    if (on_boundary(q[0]) && on_boundary(q[1]) && on_boundary(q[2]) && on_boundary(q[3])) {
-      for (const double fraction : kFractions) {
-        std::array<Eigen::Vector3d, 4> x;
-        for (std::size_t c = 0; c < 4; ++c) x[c] = mesh.nodes[q[c]] + fraction * scale * displacement[q[c]];
-        folds = folds || mesh::tet_volume6(x[0], x[1], x[2], x[3]) <= 0.0;
-      }
-    }
-    if (folds) {
+    if (on_boundary(q[0]) && on_boundary(q[1]) && on_boundary(q[2]) && on_boundary(q[3]) &&
+        folds_by(mesh, q, displacement, scale)) {
       ++dropped.count;
       dropped.rest_volume_m3 +=
           mesh::tet_volume6(mesh.nodes[q[0]], mesh.nodes[q[1]], mesh.nodes[q[2]], mesh.nodes[q[3]]) / 6.0;
