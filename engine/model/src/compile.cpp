@@ -57,11 +57,7 @@ void check_surface_size(const EdgeSource& where, double area_m2, double edge_m) 
 // remeshing would split for hours (a vertex of a damaged STL at z = 11 km; found by scripts/mutate).
 void check_lung_extent(const std::filesystem::path& file, const mesh::TriangleMesh& surface) {
   if (surface.vertices.empty()) return;
-  Eigen::Vector3d lo = surface.vertices.front(), hi = lo;
-  for (const Eigen::Vector3d& v : surface.vertices) {
-    lo = lo.cwiseMin(v);
-    hi = hi.cwiseMax(v);
-  }
+  const auto [lo, hi] = mesh::bounding_box(surface.vertices);
   const Eigen::Vector3d size = hi - lo;
   Eigen::Index axis = 0;
   const double largest = size.maxCoeff(&axis);
