@@ -169,3 +169,51 @@ TEST(DeformedSurface, MismatchedInputIsAnInputError) {
   EXPECT_THROW(DeformedSurface(rest, std::vector<Eigen::Vector3d>(2), {{0, 1, 2}}), pneuma::InputError);
   EXPECT_THROW(DeformedSurface(rest, std::vector<Eigen::Vector3d>(3), {{0, 1, 3}}), pneuma::InputError);
 }
+
+TEST(DeformedSurface, TabulatedMeasuresMatchTheExactSumsAndPositionsKeepTheirBits) {
+  // The oracle: the exact per-frame sums (measure()) and rest + s u per vertex; the table must
+  // agree with the first within its tolerance everywhere in its range (not only at its nodes).
+  const TriangleMesh phantom = make_lung_phantom({.lung = kBothLungs, .edge_length_m = 4e-3});
+  std::vector<Eigen::Vector3d> u = vertex_normals(phantom);
+  for (auto& v : u) v *= 9e-3;
+  DeformedSurface exact(phantom.vertices, u, phantom.triangles);
+  DeformedSurface table(phantom.vertices, u, phantom.triangles);
+  ASSERT_TRUE(table.tabulate_measures(-0.2, 1.3));
+  EXPECT_TRUE(table.tabulated(-0.2) && table.tabulated(1.3) && table.tabulated(0.77));
+  EXPECT_FALSE(table.tabulated(1.31));
+  std::vector<Eigen::Vector3d> p, q;
+  double worst_volume = 0.0, worst_area = 0.0;
+  for (double s = -0.2; s <= 1.3; s += 0.0137) {
+    const SurfaceMeasures a = exact.update(s, p), b = table.update(s, q);
+    worst_volume = std::max(worst_volume, std::abs(a.volume_m3 - b.volume_m3) / a.volume_m3);
+    worst_area = std::max(worst_area, std::abs(a.area_m2 - b.area_m2) / a.area_m2);
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(bits(q[i][c]), bits(phantom.vertices[i][c] + s * u[i][c])) << i;
+    }
+  }
+  EXPECT_LT(worst_volume, 1e-12);
+  EXPECT_LT(worst_area, 1e-12);
+  EXPECT_GT(worst_area, 0.0);  // it is an interpolant, not the sum (else this test checks nothing)
+  // Outside the range: the exact sum, to the bit.
+  const SurfaceMeasures outside = table.update(1.5, q), reference = exact.update(1.5, p);
+  EXPECT_EQ(bits(outside.area_m2), bits(reference.area_m2));
+  // A table made at one thread gives the same bits as one made at two.
+  DeformedSurface one(phantom.vertices, u, phantom.triangles);
+  {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+    ASSERT_TRUE(one.tabulate_measures(-0.2, 1.3));
+  }
+  EXPECT_EQ(bits(one.update(0.613, p).area_m2), bits(table.update(0.613, q).area_m2));
+}
+
+TEST(DeformedSurface, NoTableWhenATriangleCollapsesInTheRange) {
+  // A tetrahedron whose apex comes down onto the edge 0-1 at s = 1: the face (0, 1, 3) has area
+  // |1 - s| / 2, a kink there, so the table must refuse a range holding s = 1.
+  const std::vector<Eigen::Vector3d> rest = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.5, 0, 1}};
+  const std::vector<Eigen::Vector3d> u = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, -1}};
+  const std::vector<Triangle> faces = {{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {2, 0, 3}};
+  DeformedSurface surface(rest, u, faces);
+  EXPECT_FALSE(surface.tabulate_measures(0.0, 2.0));
+  EXPECT_FALSE(surface.tabulated(0.5));
+  EXPECT_TRUE(surface.tabulate_measures(0.0, 0.5));
+}

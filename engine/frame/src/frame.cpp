@@ -2,12 +2,17 @@
 
 namespace pneuma::frame {
 
-LungFrame::LungFrame(const model::LungModel& lung)
-    : positions(lung.rest.vertex_count()), surface(lung.rest.vertices, lung.unit_displacement, lung.rest.triangles) {}
+LungFrame::LungFrame(const model::LungModel& lung, std::optional<ScaleRange> scales)
+    : positions(lung.rest.vertex_count()), surface(lung.rest.vertices, lung.unit_displacement, lung.rest.triangles) {
+  // No table (the exact sum every frame) when A(s) is not smooth over the range.
+  if (scales) surface.tabulate_measures(scales->min, scales->max);
+}
 
-Frame::Frame(const model::Model& model) {
+Frame::Frame(const model::Model& model, std::span<const ScaleRange> scales) {
   lungs.reserve(model.lungs.size());
-  for (const model::LungModel& lung : model.lungs) lungs.emplace_back(lung);
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    lungs.emplace_back(model.lungs[i], i < scales.size() ? std::optional<ScaleRange>(scales[i]) : std::nullopt);
+  }
 }
 
 void advance(const model::Model& model, const FrameInput& input, Frame& frame) {

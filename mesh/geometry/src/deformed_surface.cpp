@@ -19,12 +19,16 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <optional>
+#include <span>
 #include <string>
 
 #include "deformed_surface_internal.h"
+#include "pneuma/core/chebyshev.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
 
@@ -69,8 +73,10 @@ struct DeformedSurface::Impl {
   std::vector<double> sums;      // 2 per chunk
   tbb::enumerable_thread_specific<std::vector<double>> scratch;
   detail::KernelData data;
+  std::optional<ChebyshevTable> measures;  // V and A by s, when tabulated
 
   SurfaceMeasures run(double s, double* out);
+  void displace(double s, double* out);
 };
 
 DeformedSurface::DeformedSurface(const std::vector<Eigen::Vector3d>& rest, const std::vector<Eigen::Vector3d>& u,
@@ -207,11 +213,51 @@ SurfaceMeasures DeformedSurface::Impl::run(double s, double* out) {
   return {six_volume / 6.0, 0.5 * two_area};
 }
 
+void DeformedSurface::Impl::displace(double s, double* out) {
+  if (!out) return;
+  [[maybe_unused]] const bool avx2 = active_path() == Path::avx2;
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunk_count),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t k = range.begin(); k != range.end(); ++k) {
+#ifdef PNEUMA_HAVE_AVX2_KERNEL
+                        if (avx2) detail::avx2::displace_block(data, k, s, out);
+                        else
+#endif
+                          detail::baseline::kernel::displace_block<false>(data, k, s, out, nullptr);
+                      }
+                    }));
+  region.join();
+}
+
 SurfaceMeasures DeformedSurface::update(double s, std::vector<Eigen::Vector3d>& positions) {
   static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double), "Vector3d must be three packed doubles");
   if (positions.size() != impl_->vertex_count) positions.resize(impl_->vertex_count);
-  return impl_->run(s, impl_->vertex_count ? positions.data()->data() : nullptr);
+  double* out = impl_->vertex_count ? positions.data()->data() : nullptr;
+  if (!tabulated(s)) return impl_->run(s, out);
+  impl_->displace(s, out);
+  std::array<double, 2> measures{};
+  impl_->measures->evaluate(s, measures);
+  return {measures[0], measures[1]};
 }
+
+void DeformedSurface::displace(double s, std::vector<Eigen::Vector3d>& positions) {
+  if (positions.size() != impl_->vertex_count) positions.resize(impl_->vertex_count);
+  impl_->displace(s, impl_->vertex_count ? positions.data()->data() : nullptr);
+}
+
+bool DeformedSurface::tabulate_measures(double s_lo, double s_hi, double relative_tolerance) {
+  impl_->measures = ChebyshevTable::fit(
+      [this](double s, std::span<double> values) {
+        const SurfaceMeasures m = impl_->run(s, nullptr);
+        values[0] = m.volume_m3;
+        values[1] = m.area_m2;
+      },
+      2, s_lo, s_hi, relative_tolerance);
+  return impl_->measures.has_value();
+}
+
+bool DeformedSurface::tabulated(double s) const { return impl_->measures && impl_->measures->covers(s); }
 
 SurfaceMeasures DeformedSurface::measure(double s) { return impl_->run(s, nullptr); }
 

@@ -16,4 +16,8 @@ void run_chunk(const KernelData& d, std::size_t k, double s, double* out, double
   kernel::run_chunk(d, k, s, out, scratch, sums);
 }
 
+void displace_block(const KernelData& d, std::size_t k, double s, double* out) {
+  kernel::displace_block<false>(d, k, s, out, nullptr);
+}
+
 }  // namespace pneuma::mesh::detail::avx2

@@ -21,6 +21,8 @@ struct KernelData {
 namespace avx2 {
 // In deformed_surface_avx2.cpp (built with -mavx2); call only where the processor has AVX2.
 void run_chunk(const KernelData& d, std::size_t k, double s, double* out, double* scratch, double* sums);
+// Only the positions of chunk k's vertex block, streamed to `out`.
+void displace_block(const KernelData& d, std::size_t k, double s, double* out);
 }  // namespace avx2
 
 }  // namespace pneuma::mesh::detail

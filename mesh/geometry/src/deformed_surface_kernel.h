@@ -9,6 +9,54 @@
 // Arithmetic: IEEE multiplies, adds, subtracts and square roots in a fixed order, in 4 lanes
 // (one AVX register, or two SSE2 registers), never FMA (the AVX2 unit is built without -mfma
 // and with -ffp-contract=off): the same bits on either instruction set.
+// Positions of chunk `k`'s vertex block, p = r + s u (one multiply and one add per coordinate),
+// streamed to `out` (not read back soon: it bypasses the caches) and, when kScratch, also stored
+// to `scratch` for the chunk's triangles.
+template <bool kScratch>
+inline void displace_block(const KernelData& d, std::size_t k, double s, double* out, double* scratch) {
+  const std::size_t v0 = k * d.block;
+  const std::size_t v1 = v0 + d.block < d.vertex_count ? v0 + d.block : d.vertex_count;
+  const std::size_t m = 3 * (v1 - v0);
+  const double* r = d.rest + 3 * v0;
+  const double* u = d.u + 3 * v0;
+  double* o = out + 3 * v0;
+  double* S = scratch;
+  std::size_t i = 0;
+#if defined(__AVX__)
+  constexpr std::uintptr_t align = 32;
+#else
+  constexpr std::uintptr_t align = 16;
+#endif
+  for (; i < m && reinterpret_cast<std::uintptr_t>(o + i) % align != 0; ++i) {
+    const double p = r[i] + s * u[i];
+    o[i] = p;
+    if constexpr (kScratch) S[i] = p;
+  }
+#if defined(__AVX__)
+  const __m256d sv = _mm256_set1_pd(s);
+  for (; i + 4 <= m; i += 4) {
+    const __m256d p = _mm256_add_pd(_mm256_loadu_pd(r + i), _mm256_mul_pd(sv, _mm256_loadu_pd(u + i)));
+    _mm256_stream_pd(o + i, p);
+    if constexpr (kScratch) _mm256_storeu_pd(S + i, p);
+  }
+#elif defined(__SSE2__)
+  const __m128d sv = _mm_set1_pd(s);
+  for (; i + 2 <= m; i += 2) {
+    const __m128d p = _mm_add_pd(_mm_loadu_pd(r + i), _mm_mul_pd(sv, _mm_loadu_pd(u + i)));
+    _mm_stream_pd(o + i, p);
+    if constexpr (kScratch) _mm_storeu_pd(S + i, p);
+  }
+#endif
+  for (; i < m; ++i) {
+    const double p = r[i] + s * u[i];
+    o[i] = p;
+    if constexpr (kScratch) S[i] = p;
+  }
+#if defined(__SSE2__)
+  _mm_sfence();  // this thread's streamed stores are ordered before it reports the chunk done
+#endif
+}
+
 // Chunk `k`: positions of its vertex block (into `out` when not null, and into `scratch`), its
 // halo vertices (into `scratch` after the block), then its triangles; sums[0] = 6 V, sums[1] = 2 A
 // of its triangles.
@@ -16,48 +64,14 @@ inline void run_chunk(const KernelData& d, std::size_t k, double s, double* out,
   const std::size_t v0 = k * d.block;
   const std::size_t v1 = v0 + d.block < d.vertex_count ? v0 + d.block : d.vertex_count;
   const std::size_t m = 3 * (v1 - v0);
-  const double* r = d.rest + 3 * v0;
-  const double* u = d.u + 3 * v0;
   double* S = scratch;
-  // 1. The block: p = r + s u, one multiply and one add per coordinate.
-  std::size_t i = 0;
+  // 1. The block.
   if (out) {
-    double* o = out + 3 * v0;
-#if defined(__AVX__)
-    constexpr std::uintptr_t align = 32;
-#else
-    constexpr std::uintptr_t align = 16;
-#endif
-    for (; i < m && reinterpret_cast<std::uintptr_t>(o + i) % align != 0; ++i) {
-      const double p = r[i] + s * u[i];
-      o[i] = p;
-      S[i] = p;
-    }
-#if defined(__AVX__)
-    const __m256d sv = _mm256_set1_pd(s);
-    for (; i + 4 <= m; i += 4) {
-      const __m256d p = _mm256_add_pd(_mm256_loadu_pd(r + i), _mm256_mul_pd(sv, _mm256_loadu_pd(u + i)));
-      _mm256_stream_pd(o + i, p);
-      _mm256_storeu_pd(S + i, p);
-    }
-#elif defined(__SSE2__)
-    const __m128d sv = _mm_set1_pd(s);
-    for (; i + 2 <= m; i += 2) {
-      const __m128d p = _mm_add_pd(_mm_loadu_pd(r + i), _mm_mul_pd(sv, _mm_loadu_pd(u + i)));
-      _mm_stream_pd(o + i, p);
-      _mm_storeu_pd(S + i, p);
-    }
-#endif
-    for (; i < m; ++i) {
-      const double p = r[i] + s * u[i];
-      o[i] = p;
-      S[i] = p;
-    }
-#if defined(__SSE2__)
-    _mm_sfence();  // this thread's streamed stores are ordered before it reports the chunk done
-#endif
+    displace_block<true>(d, k, s, out, S);
   } else {
-    for (; i < m; ++i) S[i] = r[i] + s * u[i];
+    const double* r = d.rest + 3 * v0;
+    const double* u = d.u + 3 * v0;
+    for (std::size_t i = 0; i < m; ++i) S[i] = r[i] + s * u[i];
   }
   // 2. The halo: vertices of this chunk's triangles outside its block.
   {

@@ -9,6 +9,11 @@
 // chunk order. So volume and area are the same bits at any thread count and on either instruction
 // set (both do the same IEEE multiplies, adds and square roots, never FMA). The positions are
 // bit-for-bit `rest[i] + s * u[i]` (one multiply, one add per coordinate), as frame::displace.
+//
+// A run knows every frame's s before its first frame, so tabulate_measures() can take V and A out
+// of the per-frame work: both are smooth in s (V is a cubic, A a sum of square roots of quartics),
+// so a Chebyshev table of the exact sums over the run's range reproduces them to ~1e-15 of their
+// size, and update() is then a positions-only pass (the same bits) plus an O(table) evaluation.
 #include <Eigen/Core>
 #include <cstddef>
 #include <memory>
@@ -43,6 +48,18 @@ class DeformedSurface {
   SurfaceMeasures update(double s, std::vector<Eigen::Vector3d>& positions);
   // The same measures without writing positions.
   SurfaceMeasures measure(double s);
+  // Only positions[i] = rest[i] + s * u[i] (the same bits as update()), threaded.
+  void displace(double s, std::vector<Eigen::Vector3d>& positions);
+
+  // Tabulates V(s) and A(s) on [s_lo, s_hi] from measure() at 17 to 257 Chebyshev points
+  // (core/chebyshev.h), if that table predicts its own last refinement within
+  // `relative_tolerance` of max V and max A. After that, update(s) for s in [s_lo, s_hi] is
+  // displace(s) plus the table: V and A within the tolerance of the exact sums (no longer the same
+  // bits), still the same at any thread count. Returns false, and leaves update() exact, when V or
+  // A is not smooth enough there (a triangle collapsing in the range) or the range is not finite.
+  bool tabulate_measures(double s_lo, double s_hi, double relative_tolerance = 1e-12);
+  // Whether update(s) takes its measures from the table.
+  bool tabulated(double s) const;
 
   std::size_t vertex_count() const;
   std::size_t triangle_count() const;
