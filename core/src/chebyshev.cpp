@@ -16,8 +16,8 @@ double node(double lo, double hi, std::size_t j, std::size_t n) {
 }
 
 // The barycentric formula of the second kind with weights (-1)^j, halved at both ends.
-void interpolate(const std::vector<double>& nodes, const std::vector<double>& samples, std::size_t components,
-                 double x, std::span<double> values) {
+void interpolate(const std::vector<double>& nodes, const std::vector<double>& samples, std::size_t components, double x,
+                 std::span<double> values) {
   const std::size_t n = nodes.size() - 1;
   for (std::size_t j = 0; j <= n; ++j) {
     if (x == nodes[j]) {

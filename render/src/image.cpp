@@ -39,29 +39,40 @@ void Image::set(int x, int y, Rgba colour) {
 
 namespace {
 
-png_image png_header(const Image& image, const PngOptions& options) {
+png_image png_header(const Image& image, const PngOptions& options, bool opaque) {
   png_image png;
   std::memset(&png, 0, sizeof png);
   png.version = PNG_IMAGE_VERSION;
   png.width = static_cast<png_uint_32>(image.width);
   png.height = static_cast<png_uint_32>(image.height);
-  png.format = PNG_FORMAT_RGBA;
+  png.format = opaque ? PNG_FORMAT_RGB : PNG_FORMAT_RGBA;
   png.flags = options.fast ? PNG_IMAGE_FLAG_FAST : 0;
   return png;
+}
+
+// The image without its alpha channel when every pixel is opaque (every rendered frame: the
+// background is opaque), so zlib compresses a quarter fewer bytes; empty otherwise.
+std::vector<std::uint8_t> opaque_rgb(const Image& image) {
+  const std::size_t n = image.pixel_count();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (image.rgba[4 * i + 3] != 255) return {};
+  }
+  std::vector<std::uint8_t> rgb(3 * n);
+  for (std::size_t i = 0; i < n; ++i) std::memcpy(&rgb[3 * i], &image.rgba[4 * i], 3);
+  return rgb;
 }
 
 }  // namespace
 
 std::vector<std::uint8_t> encode_png(const Image& image, const PngOptions& options) {
   PNEUMA_ASSERT(image.rgba.size() == image.pixel_count() * 4, "image buffer does not match its size");
-  png_image png = png_header(image, options);
-  png_alloc_size_t size = 0;
-  // First call measures, second writes (libpng's documented two-pass use).
-  if (!png_image_write_to_memory(&png, nullptr, &size, 0, image.rgba.data(), 0, nullptr)) {
-    throw Error(ExitCode::failure, std::string("render: PNG encoding failed: ") + png.message);
-  }
+  const std::vector<std::uint8_t> rgb = opaque_rgb(image);
+  const void* pixels = rgb.empty() ? static_cast<const void*>(image.rgba.data()) : rgb.data();
+  png_image png = png_header(image, options, !rgb.empty());
+  // One pass into a buffer of libpng's bound for this image (measuring first would compress twice).
+  png_alloc_size_t size = PNG_IMAGE_PNG_SIZE_MAX(png);
   std::vector<std::uint8_t> bytes(size);
-  if (!png_image_write_to_memory(&png, bytes.data(), &size, 0, image.rgba.data(), 0, nullptr)) {
+  if (!png_image_write_to_memory(&png, bytes.data(), &size, 0, pixels, 0, nullptr)) {
     throw Error(ExitCode::failure, std::string("render: PNG encoding failed: ") + png.message);
   }
   bytes.resize(size);

@@ -35,6 +35,22 @@ TEST(Png, RoundTripKeepsEveryByte) {
   EXPECT_EQ(dir.files(), std::vector<std::string>{"a.png"}) << "no temporary left";
 }
 
+TEST(Png, OpaqueImagesAreWrittenAsRgbAndTranslucentOnesKeepTheirAlpha) {
+  // The PNG header's colour type (byte 25: 2 = RGB, 6 = RGBA) is the oracle, and the round trip.
+  render::Image image = gradient(64, 48);
+  for (bool fast : {false, true}) {
+    const std::vector<std::uint8_t> opaque = render::encode_png(image, {.fast = fast});
+    ASSERT_GT(opaque.size(), 26u);
+    EXPECT_EQ(opaque[25], 2);
+  }
+  image.set(63, 47, {1, 2, 3, 128});
+  const std::vector<std::uint8_t> translucent = render::encode_png(image, {.fast = true});
+  EXPECT_EQ(translucent[25], 6);
+  test::TempDir dir;
+  render::write_png(dir / "t.png", image, {.fast = true});
+  EXPECT_EQ(render::read_png(dir / "t.png").rgba, image.rgba);
+}
+
 TEST(Png, MissingAndForeignFilesAreOneLineErrors) {
   test::TempDir dir;
   try {

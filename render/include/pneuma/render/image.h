@@ -34,7 +34,8 @@ struct PngOptions {
 };
 inline constexpr PngOptions default_png_options{};
 
-// Encodes `image` as a PNG file in memory (RGBA, 8 bits per channel).
+// Encodes `image` as a PNG file in memory, 8 bits per channel: RGB when every pixel is opaque,
+// RGBA otherwise.
 std::vector<std::uint8_t> encode_png(const Image& image, const PngOptions& options = default_png_options);
 
 // Writes a PNG atomically (temporary name, then rename). Throws IoError.
