@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <mutex>
+#include <string>
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
@@ -130,6 +131,13 @@ outputs::OutputPlugin png_output() {
       }
       spec.every = static_cast<std::size_t>(png->integer("every", 1, 1, 1000000));
       r.overlay_magnitude = png->boolean("overlay", false);
+      if (png->has("antialiasing")) {
+        // msaa: 4 samples of the geometry (the default); fxaa: a filter pass over the image
+        // (cheaper on llvmpipe, softer); none: the fastest, stair-stepped silhouettes.
+        const std::string aa = png->choice("antialiasing", {"msaa", "fxaa", "none"});
+        r.msaa_samples = aa == "msaa" ? 4 : 0;
+        r.fxaa = aa == "fxaa";
+      }
       if (png->has("gl")) parse_gl_backend(png->choice("gl", {"auto", "egl", "osmesa"}), r.gl);
     }
     return spec;

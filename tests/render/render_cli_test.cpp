@@ -1,7 +1,10 @@
 // `pneuma render` end to end: --compare results and exit codes, one-line errors, --info.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
+#include <set>
+#include <string>
 
 #include "pneuma/render/image.h"
 #include "test_support.h"
@@ -182,4 +185,50 @@ outputs:
   EXPECT_FALSE(std::filesystem::exists(out / "png" / "frame_00001.png")) << "every: 5";
   EXPECT_NE(frames[0].rgba, frames[2].rgba) << "the lung moves between frames 0 and 10 (2 s apart)";
   EXPECT_NE(test::read_text(out / "manifest.json").find("png/frame_00015.png"), std::string::npos);
+}
+
+// `antialiasing`: without it a silhouette pixel is the lung's or the background's colour; MSAA and
+// FXAA blend the two, so the same frame holds more distinct colours. A value not in the list is a
+// one-line error at its place in the file.
+TEST(RenderCli, AntialiasingKeyChoosesMsaaFxaaOrNone) {
+  TempDir dir;
+  const auto scenario_with = [&](const std::string& aa) {
+    return dir.write("s-" + aa + ".yaml", R"(name: aa
+duration: 1 s
+frames:
+  rate: 5 Hz
+mesh:
+  phantom: right
+  edge: 15 mm
+field:
+  tissue: healthy-upright
+  cache: off
+physiology:
+  preset: healthy-adult
+outputs:
+  physiology_csv: {enabled: false}
+  gltf: {enabled: false}
+  hdf5: {enabled: false}
+  png: {width: 96, height: 72, camera: anterior, every: 5, antialiasing: )" + aa + "}\n");
+  };
+  const auto colours = [&](const std::string& aa) {
+    const auto out = dir / ("out-" + aa);
+    const auto r = run_pneuma({"run", scenario_with(aa).string(), "-o", out.string(), "-q"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    const render::Image image = render::read_png(out / "png" / "frame_00000.png");
+    std::set<std::uint32_t> distinct;
+    for (std::size_t i = 0; i < image.pixel_count(); ++i) {
+      const std::uint8_t* p = &image.rgba[4 * i];
+      distinct.insert(std::uint32_t{p[0]} << 16 | std::uint32_t{p[1]} << 8 | p[2]);
+    }
+    return distinct.size();
+  };
+  const std::size_t none = colours("none"), msaa = colours("msaa"), fxaa = colours("fxaa");
+  EXPECT_GT(msaa, none + 20);
+  EXPECT_GT(fxaa, none + 20);
+  const auto bad = run_pneuma({"run", scenario_with("ssaa").string(), "-o", (dir / "bad").string(), "-q"});
+  EXPECT_EQ(bad.exit_code, 3);
+  EXPECT_NE(bad.err.find(":17:"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("outputs.png.antialiasing"), std::string::npos) << bad.err;
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
 }
