@@ -209,7 +209,8 @@ outputs:
   physiology_csv: {enabled: false}
   gltf: {enabled: false}
   hdf5: {enabled: false}
-  png: {width: 96, height: 72, camera: anterior, every: 5, antialiasing: )" + aa + "}\n");
+  png: {width: 96, height: 72, camera: anterior, every: 5, antialiasing: )" +
+                                              aa + "}\n");
   };
   const auto colours = [&](const std::string& aa) {
     const auto out = dir / ("out-" + aa);
