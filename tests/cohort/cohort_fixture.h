@@ -49,7 +49,7 @@ inline fs::path write_cohort(
 
 inline std::string ct_subject(const std::string& case_name) {
   return "{mesh: {labels: " + (ct_lobes_dir() / (case_name + "_lobes.nii.gz")).string() +
-         ", values: [3, 4, 5], share: 55 %}, field: {tissue: healthy-upright-ct}}";
+         ", values: [3, 4, 5], share: 55 %}, field: {tissue: healthy-upright}}";
 }
 
 inline const char* kPhantom = "{mesh: {phantom: right}}";
