@@ -6,7 +6,7 @@
 # outputs. Prints one TSV line per run: binary, output set, the runner's seconds for each output
 # (manifest.json's timings_s), and the process's wall, user and system seconds (/usr/bin/time).
 # The baseline set is physiology_csv alone: a set's CPU minus the baseline's is its outputs' cost.
-#   bench/demo_outputs_runs.sh REPS WORK_DIR BINARY...
+#   [PNG_SETTINGS='{...}'] bench/demo_outputs_runs.sh REPS WORK_DIR BINARY...
 set -euo pipefail
 reps=$1
 work=$2
@@ -21,8 +21,12 @@ set_of() {
     "$root/scenarios/quiet-breathing.yaml" >"$work/$1.yaml"
   printf 'outputs:\n  report: false\n  physiology_csv: true\n%s' "$2" >>"$work/$1.yaml"
 }
-png='  png: {width: 480, height: 360, camera: anterior, every: 15}
-'
+# PNG_SETTINGS: the png output's settings (default: the demo's, e.g. with antialiasing: fxaa; pass
+# '{width: 480, height: 360, camera: anterior, every: 15}' to compare with a binary older than
+# that key: MSAA 4x, the default).
+png_settings=${PNG_SETTINGS:-$(sed -n 's/^  png: //p' "$root/scenarios/quiet-breathing.yaml")}
+png="  png: $png_settings
+"
 set_of baseline '  gltf: false
   hdf5: false
 '
