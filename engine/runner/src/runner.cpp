@@ -140,8 +140,13 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   }
   const auto& t = drive.series.time_s;
   const auto tables = Clock::now();
+  // A table costs 33 to 257 exact area sums (about one frame's work each): worth it from a few
+  // hundred frames on; a short run sums every frame.
+  constexpr std::size_t kFramesForAreaTables = 256;
   std::vector<frame::ScaleRange> ranges;
-  for (const model::LungScales& lung : compiled.lungs) ranges.push_back({lung.min_scale, lung.max_scale});
+  if (result.frame_count >= kFramesForAreaTables) {
+    for (const model::LungScales& lung : compiled.lungs) ranges.push_back({lung.min_scale, lung.max_scale});
+  }
   frame::Frame frame(model, ranges);
   Progress progress("frames", result.frame_count, options.quiet);
   double update_seconds = seconds_since(tables);  // the area tables are part of the frames' work
