@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <iostream>
 
 #include <nlohmann/json.hpp>
 
@@ -264,6 +265,58 @@ TEST(Runner, AreaGrowsByOneAreaUnitPerUnitScaleAtFirstOrder) {
     ++checked;
   }
   EXPECT_GT(checked, 10);
+}
+
+// The area in series.h5 against the oracle of the file's own float64 frame: the sum of its
+// triangles' areas (Heron-free: half the cross product's length), summed here. A run of 300
+// frames takes its areas from a table (within 1e-12 of the sum); one of 40 frames sums each
+// frame exactly (frame::Frame's ranges are given from 256 frames on).
+TEST(Runner, SeriesAreaIsTheSumOfTheFramesTrianglesWithOrWithoutATable) {
+  TempDir dir;
+  for (const int seconds : {30, 4}) {
+    std::string yaml = kSmall;
+    yaml.replace(yaml.find("duration: 4 s"), 13, fmt::format("duration: {} s", seconds));
+    yaml.replace(yaml.find("  mesh_sequence: {format: ply}\n"), 31, "");
+    const auto out = dir / fmt::format("out{}", seconds);
+    ASSERT_EQ(run_pneuma({"run", dir.write("s.yaml", yaml).string(), "-o", out.string(), "--quiet"}).exit_code, 0);
+    const hid_t file = H5Fopen((out / "series.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const auto read = [&](const std::string& name, std::size_t count, hid_t type, void* data) {
+      const hid_t set = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+      ASSERT_GE(set, 0) << name;
+      const hid_t space = H5Dget_space(set);
+      EXPECT_EQ(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)), count) << name;
+      H5Sclose(space);
+      EXPECT_GE(H5Dread(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), 0) << name;
+      H5Dclose(set);
+    };
+    const std::size_t frames = static_cast<std::size_t>(seconds) * 10 + 1;
+    std::vector<double> area(frames);
+    read("/frames/area_m2", frames, H5T_NATIVE_DOUBLE, area.data());
+    const hid_t tri_set = H5Dopen2(file, "/rest/triangles", H5P_DEFAULT);
+    const hid_t tri_space = H5Dget_space(tri_set);
+    const auto triangle_count = static_cast<std::size_t>(H5Sget_simple_extent_npoints(tri_space)) / 3;
+    H5Sclose(tri_space);
+    H5Dclose(tri_set);
+    std::vector<std::uint32_t> triangles(3 * triangle_count);
+    read("/rest/triangles", triangles.size(), H5T_NATIVE_UINT32, triangles.data());
+    const std::size_t vertices = (triangle_count + 4) / 2;  // a closed genus-0 surface: V = F / 2 + 2
+    double worst = 0.0;
+    for (std::size_t k = 0; k < frames; k += 7) {
+      std::vector<double> p(3 * vertices);
+      read(fmt::format("/frames/positions/{:06}", k), p.size(), H5T_NATIVE_DOUBLE, p.data());
+      double sum = 0.0;
+      for (std::size_t t = 0; t < triangle_count; ++t) {
+        const Eigen::Vector3d a(&p[3 * triangles[3 * t]]), b(&p[3 * triangles[3 * t + 1]]),
+            c(&p[3 * triangles[3 * t + 2]]);
+        sum += 0.5 * (b - a).cross(c - a).norm();
+      }
+      worst = std::max(worst, std::abs(area[k] - sum) / sum);
+    }
+    H5Fclose(file);
+    std::cout << frames << " frames: largest relative difference " << worst << "\n";
+    EXPECT_LT(worst, 1e-12) << seconds << " s";
+  }
 }
 
 // field.h5 and series.h5 of one run call the same data by the same names, describe themselves
