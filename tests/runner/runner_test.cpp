@@ -306,9 +306,11 @@ TEST(Runner, SeriesAreaIsTheSumOfTheFramesTrianglesWithOrWithoutATable) {
       std::vector<double> p(3 * vertices);
       read(fmt::format("/frames/positions/{:06}", k), p.size(), H5T_NATIVE_DOUBLE, p.data());
       double sum = 0.0;
+      const auto corner = [&](std::size_t t, std::size_t j) {
+        return Eigen::Vector3d(&p[3 * std::size_t{triangles[3 * t + j]}]);
+      };
       for (std::size_t t = 0; t < triangle_count; ++t) {
-        const Eigen::Vector3d a(&p[3 * triangles[3 * t]]), b(&p[3 * triangles[3 * t + 1]]),
-            c(&p[3 * triangles[3 * t + 2]]);
+        const Eigen::Vector3d a = corner(t, 0), b = corner(t, 1), c = corner(t, 2);
         sum += 0.5 * (b - a).cross(c - a).norm();
       }
       worst = std::max(worst, std::abs(area[k] - sum) / sum);
