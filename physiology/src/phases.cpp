@@ -28,6 +28,10 @@ Turn refine(const std::vector<double>& t, const std::vector<double>& v, std::siz
 
 }  // namespace
 
+const char* binning_method_name(BinningMethod method) {
+  return method == BinningMethod::amplitude ? "amplitude" : "phase";
+}
+
 PhaseBinning bin_phases(const std::vector<double>& time_s, const std::vector<double>& volume_m3,
                         const PhaseBinningOptions& options) {
   if (options.bins < 2 || options.bins > 100)
@@ -35,6 +39,7 @@ PhaseBinning bin_phases(const std::vector<double>& time_s, const std::vector<dou
   if (time_s.size() != volume_m3.size()) throw ValueError("phase bins: times and volumes differ in length");
   const auto n = static_cast<std::size_t>(options.bins);
   PhaseBinning out;
+  out.method = options.method;
   out.bins.resize(n);
   for (std::size_t b = 0; b < n; ++b)
     out.bins[b].centre_percent = 100.0 * static_cast<double>(b) / static_cast<double>(n);

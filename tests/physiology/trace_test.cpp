@@ -370,6 +370,7 @@ TEST(PhaseBins, RegularSinusoidBinsHoldTheExpectedTimePoints) {
   for (BinningMethod method : {BinningMethod::phase, BinningMethod::amplitude}) {
     const PhaseBinning bins = bin_phases(t, v, {10, method});
     ASSERT_EQ(bins.bins.size(), 10u);
+    EXPECT_EQ(bins.method, method);
     EXPECT_EQ(bins.cycles, 8u);  // peaks at 2.15, 6.45, ..., 36.55 s
     std::size_t checked = 0, near_edge = 0;
     for (std::size_t k = 0; k < t.size(); ++k) {

@@ -49,11 +49,11 @@ class Phases final : public Output {
 
   std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {
     const auto& series = run.drive->series;
-    const physiology::PhaseBinning binning = physiology::bin_phases(series.time_s, series.volume_m3, spec_.binning);
+    const physiology::PhaseBinning binning = run_phase_bins(run);  // the bins the report and voxels use
     std::vector<std::filesystem::path> files{dir_ / "phases.csv"};
     write_phases_csv(files.front(), series.time_s, binning);
     facts_ = {{"phases.bins", std::to_string(binning.bins.size())},
-              {"phases.method", spec_.binning.method == physiology::BinningMethod::phase ? "phase" : "amplitude"},
+              {"phases.method", physiology::binning_method_name(binning.method)},
               {"phases.cycles", std::to_string(binning.cycles)},
               {"phases.irregular_cycles", std::to_string(binning.irregular_cycles)},
               {"phases.unassigned_frames", std::to_string(binning.unassigned_samples)}};

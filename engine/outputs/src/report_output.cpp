@@ -110,10 +110,7 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
   if (s.output("phases") != nullptr || s.physiology.trace) {
     const physiology::PhaseBinning binning = run_phase_bins(run);
     ReportBins bins;
-    const scenario::OutputRequest* phases = s.output("phases");
-    const bool amplitude = phases != nullptr && std::any_cast<const PhasesSpec&>(phases->settings).binning.method ==
-                                                    physiology::BinningMethod::amplitude;
-    bins.method = amplitude ? "amplitude" : "phase";
+    bins.method = physiology::binning_method_name(binning.method);
     for (const physiology::PhaseBin& bin : binning.bins) {
       bins.centre_percent.push_back(bin.centre_percent);
       bins.frames.push_back(bin.samples.size());

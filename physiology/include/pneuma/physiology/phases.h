@@ -21,6 +21,9 @@ namespace pneuma::physiology {
 
 enum class BinningMethod { phase, amplitude };
 
+// "phase" or "amplitude": the name the scenario, the manifest and the report use.
+const char* binning_method_name(BinningMethod method);
+
 struct PhaseBinningOptions {
   int bins = 10;
   BinningMethod method = BinningMethod::phase;
@@ -37,6 +40,7 @@ struct PhaseBin {
 };
 
 struct PhaseBinning {
+  BinningMethod method = BinningMethod::phase;  // how the samples were binned
   std::vector<PhaseBin> bins;
   std::vector<double> position;        // per sample: phase or amplitude position in [0, 1), NaN outside any cycle
   std::vector<int> bin_of;             // per sample: its bin, -1 for none
