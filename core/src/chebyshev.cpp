@@ -58,7 +58,7 @@ std::optional<ChebyshevTable> ChebyshevTable::fit(const Sample& f, std::size_t c
     table.nodes_[j] = node(lo, hi, j, n);
     f(table.nodes_[j], std::span<double>(table.samples_).subspan(j * components, components));
   }
-  std::vector<double> predicted(components), sample(components), scale(components);
+  std::vector<double> predicted(components), scale(components);
   while (2 * n <= max_intervals) {
     // The n new points of 2n intervals are the odd ones; the even ones are the current nodes.
     std::vector<double> nodes(2 * n + 1), samples((2 * n + 1) * components);

@@ -8,6 +8,7 @@
 #include "pneuma/config/config.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
+#include "pneuma/core/units.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/scenario/tissue_config.h"
 
@@ -61,7 +62,7 @@ double read_unit(const config::Node& n) {
     metres = 0.0;
   }
   if (!(metres > 0.0)) n.fail_at("unit", "expected a length unit such as 'mm' or '0.5 mm', got '" + text + "'");
-  if (metres < 1e-9 || metres > 1e3)  // as mesh::parse_length_unit (the CLI's --unit)
+  if (metres < units::kMinFileUnitM || metres > units::kMaxFileUnitM)
     n.fail_at("unit", "expected a length unit from 1 nm to 1 km, got '" + text + "'");
   return metres;
 }

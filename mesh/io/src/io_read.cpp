@@ -115,9 +115,7 @@ double parse_length_unit(const std::string& text) {
   try {
     const double metres = units::parse(has_number ? text : "1 " + text, units::kind::length);
     if (!(metres > 0.0) || !std::isfinite(metres)) throw units::UnitError("must be positive");
-    // A file unit outside 1 nm to 1 km is no unit a lung is drawn in; near the smallest doubles
-    // CGAL's remeshing divides by squared lengths that underflow (--unit 1e-308mm crashed it).
-    if (metres < kMinFileUnitM || metres > kMaxFileUnitM)
+    if (metres < units::kMinFileUnitM || metres > units::kMaxFileUnitM)
       throw UsageError("pneuma: --unit: expected a length unit from 1 nm to 1 km, got '" + text + "'");
     return metres;
   } catch (const units::UnitError&) {

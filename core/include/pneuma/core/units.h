@@ -22,6 +22,11 @@ struct Dimension {
   friend bool operator==(const Dimension&, const Dimension&) = default;
 };
 
+// The length of one unit of a mesh file (`--unit`, `mesh.unit`) must lie in [1 nm, 1 km]: no lung
+// is drawn in anything else, and near the smallest doubles CGAL's remeshing divides by squared
+// lengths that underflow (`--unit 1e-308mm` crashed it; found by scripts/mutate).
+inline constexpr double kMinFileUnitM = 1e-9, kMaxFileUnitM = 1e3;
+
 // What a value must be: its dimension, a human name and an example for error messages.
 struct Kind {
   const char* name;

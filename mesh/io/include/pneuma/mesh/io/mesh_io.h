@@ -61,9 +61,6 @@ struct WriteOptions {
 // extension and IoError when the file cannot be written.
 void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, const WriteOptions& options = {});
 
-// The file units pneuma takes: 1 nm to 1 km.
-inline constexpr double kMinFileUnitM = 1e-9, kMaxFileUnitM = 1e3;
-
 // A length unit name or quantity ("mm", "cm", "m", "um", "0.5 mm") in metres. Throws
 // UsageError naming the text when it is not a length, or one outside 1 nm to 1 km.
 double parse_length_unit(const std::string& text);
