@@ -1,7 +1,9 @@
 // The lung's inside (#31) on a real CT lung: case004's right lung (../shared/data/ct-lobes,
-// CC BY 4.0: see its README.md; or PNEUMA_CT_LOBES), surface extracted at 2 mm. Per tetrahedron
-// size: Mesh_3 (mesh::tetrahedralize) and the interior field (elastic and harmonic). Baseline in
-// the same run: the surface field of the same lung with healthy-upright (model::compute_field_record),
+// CC BY 4.0: see its README.md; or PNEUMA_CT_LOBES), surface extracted at 2 mm (and at 1 mm for
+// the whole inside). Per tetrahedron size and mesher (0 delaunay, 1 lattice): the tets
+// (mesh::tetrahedralize), the interior field (elastic and harmonic), and the whole inside as a run
+// makes it (model::compute_interior: tets, boundary values, solve, unfolding). Baseline in the
+// same run: the surface field of the same lung with healthy-upright (model::compute_field_record),
 // which every run pays. One iteration each (seconds). Results: BENCHMARKS.md, "Interior".
 #include <benchmark/benchmark.h>
 
@@ -15,6 +17,7 @@
 #include "pneuma/mesh/labels/labels.h"
 #include "pneuma/mesh/volume/tetrahedralize.h"
 #include "pneuma/model/field_cache.h"
+#include "pneuma/model/model.h"
 #include "pneuma/scenario/tissue_config.h"
 
 namespace {
@@ -32,29 +35,34 @@ struct Lung {
   std::vector<Eigen::Vector3d> unit_displacement;
 };
 
-const Lung* lung() {
-  static std::unique_ptr<Lung> cached;
+const Lung* lung(double surface_edge_m = 2e-3) {
+  static std::map<double, std::unique_ptr<Lung>> lungs;
+  auto& cached = lungs[surface_edge_m];
   if (cached) return cached.get();
   const auto file = data_dir() / "case004_lobes.nii.gz";
   if (!std::filesystem::exists(file)) return nullptr;
   cached = std::make_unique<Lung>();
-  cached->surface = mesh::surface_from_labels(file, {3, 4, 5}).mesh;
+  cached->surface = mesh::surface_from_labels(file, {3, 4, 5}, {.edge_length_m = surface_edge_m}).mesh;
   const auto tissue =
       scenario::load_tissue(std::filesystem::path(PNEUMA_BENCH_SOURCE_DIR) / "configs/tissue/healthy-upright.yaml");
   cached->unit_displacement = model::compute_field_record(cached->surface, tissue).unit_displacement;
   return cached.get();
 }
 
-const mesh::VolumeMesh& volume(double edge_m) {
-  static std::map<double, mesh::VolumeMesh> meshes;
-  auto it = meshes.find(edge_m);
+mesh::TetMesher mesher_of(std::int64_t arg) { return arg == 0 ? mesh::TetMesher::delaunay : mesh::TetMesher::lattice; }
+
+const mesh::VolumeMesh& volume(double edge_m, mesh::TetMesher mesher) {
+  static std::map<std::pair<double, mesh::TetMesher>, mesh::VolumeMesh> meshes;
+  const auto key = std::make_pair(edge_m, mesher);
+  auto it = meshes.find(key);
   if (it == meshes.end())
-    it = meshes.emplace(edge_m, mesh::tetrahedralize(lung()->surface, {.edge_length_m = edge_m})).first;
+    it = meshes.emplace(key, mesh::tetrahedralize(lung()->surface, {.mesher = mesher, .edge_length_m = edge_m})).first;
   return it->second;
 }
 
+// Arg: the surface's edge (0.1 mm).
 void BM_SurfaceField(benchmark::State& state) {
-  const Lung* l = lung();
+  const Lung* l = lung(static_cast<double>(state.range(0)) * 1e-4);
   if (!l) return state.SkipWithError("no CT lobe maps (set PNEUMA_CT_LOBES)");
   const auto tissue =
       scenario::load_tissue(std::filesystem::path(PNEUMA_BENCH_SOURCE_DIR) / "configs/tissue/healthy-upright.yaml");
@@ -67,14 +75,18 @@ void BM_Tetrahedralize(benchmark::State& state) {
   if (!l) return state.SkipWithError("no CT lobe maps (set PNEUMA_CT_LOBES)");
   const double edge = static_cast<double>(state.range(0)) * 1e-4;
   const double bound = static_cast<double>(state.range(1));
+  const mesh::TetMesher mesher = mesher_of(state.range(2));
   std::size_t tets = 0;
   for (auto _ : state) {
-    const auto v = mesh::tetrahedralize(l->surface, {.edge_length_m = edge, .sliver_bound_deg = bound});
+    const auto v =
+        mesh::tetrahedralize(l->surface, {.mesher = mesher, .edge_length_m = edge, .sliver_bound_deg = bound});
     tets = v.mesh.tet_count();
     state.counters["min_dihedral_deg"] = v.min_dihedral_deg;
   }
   state.counters["tets"] = static_cast<double>(tets);
-  state.SetLabel(bound > 0.0 ? "exuded" : "not exuded");
+  state.SetLabel(mesher == mesh::TetMesher::lattice ? "lattice"
+                 : bound > 0.0                      ? "delaunay, exuded"
+                                                    : "delaunay, not exuded");
 }
 
 void BM_InteriorField(benchmark::State& state) {
@@ -82,7 +94,7 @@ void BM_InteriorField(benchmark::State& state) {
   if (!l) return state.SkipWithError("no CT lobe maps (set PNEUMA_CT_LOBES)");
   const double edge = static_cast<double>(state.range(0)) * 1e-4;
   const auto model = state.range(1) == 0 ? field::InteriorModel::elastic : field::InteriorModel::harmonic;
-  const mesh::VolumeMesh& v = volume(edge);
+  const mesh::VolumeMesh& v = volume(edge, mesher_of(state.range(2)));
   std::vector<Eigen::Vector3d> points;
   for (const auto b : v.boundary_nodes) points.push_back(v.mesh.nodes[b]);
   const auto boundary = mesh::transfer_vertex_field(l->surface, l->unit_displacement, points);
@@ -94,22 +106,55 @@ void BM_InteriorField(benchmark::State& state) {
   state.counters["tets"] = static_cast<double>(v.mesh.tet_count());
   state.counters["nodes"] = static_cast<double>(v.mesh.node_count());
   state.counters["cg_iterations"] = static_cast<double>(iterations);
-  state.SetLabel(field::interior_model_name(model));
+  state.SetLabel(field::interior_model_name(model) + ", " + mesh::tet_mesher_name(mesher_of(state.range(2))));
 }
 
-BENCHMARK(BM_SurfaceField)->Unit(benchmark::kSecond)->Iterations(1);
+// The whole inside of the lung's 1 mm surface, as a run computes it; args: tet edge (0.1 mm),
+// mesher, unfolding (1: the default, 0: none).
+void BM_WholeInterior(benchmark::State& state) {
+  const Lung* l = lung(1e-3);
+  if (!l) return state.SkipWithError("no CT lobe maps (set PNEUMA_CT_LOBES)");
+  const double edge = static_cast<double>(state.range(0)) * 1e-4;
+  const mesh::TetMesher mesher = mesher_of(state.range(1));
+  field::InteriorOptions options;
+  if (state.range(2) == 0) options.unfold_volume_m3 = 0.0;
+  std::shared_ptr<model::LungInterior> interior;
+  for (auto _ : state) interior = model::compute_interior(l->surface, l->unit_displacement, edge, options, mesher);
+  state.counters["unfolded_nodes"] = static_cast<double>(interior->report.unfolded_nodes);
+  state.counters["tets"] = static_cast<double>(interior->mesh.tet_count());
+  state.counters["nodes"] = static_cast<double>(interior->mesh.node_count());
+  state.counters["cg_iterations"] = static_cast<double>(interior->report.iterations);
+  state.counters["surface_vertices"] = static_cast<double>(l->surface.vertex_count());
+  state.SetLabel(mesh::tet_mesher_name(mesher));
+}
+
+BENCHMARK(BM_SurfaceField)->Arg(20)->Arg(10)->Unit(benchmark::kSecond)->Iterations(1);
 BENCHMARK(BM_Tetrahedralize)
-    ->Args({50, 0})
-    ->Args({50, 10})
-    ->Args({40, 10})
-    ->Args({30, 10})
+    ->Args({50, 0, 0})
+    ->Args({50, 10, 0})
+    ->Args({40, 10, 0})
+    ->Args({30, 10, 0})
+    ->Args({50, 0, 1})
+    ->Args({40, 0, 1})
+    ->Args({30, 0, 1})
+    ->Args({25, 0, 1})
+    ->Args({20, 0, 1})
     ->Unit(benchmark::kSecond)
     ->Iterations(1);
 BENCHMARK(BM_InteriorField)
-    ->Args({50, 0})
-    ->Args({50, 1})
-    ->Args({40, 0})
-    ->Args({30, 0})
+    ->Args({50, 0, 0})
+    ->Args({50, 1, 0})
+    ->Args({40, 0, 0})
+    ->Args({30, 0, 0})
+    ->Args({50, 0, 1})
+    ->Args({40, 0, 1})
+    ->Args({30, 0, 1})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
+BENCHMARK(BM_WholeInterior)
+    ->Args({25, 1, 1})
+    ->Args({25, 1, 0})
+    ->Args({20, 1, 1})
     ->Unit(benchmark::kSecond)
     ->Iterations(1);
 

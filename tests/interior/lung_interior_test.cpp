@@ -32,12 +32,12 @@ double surface_volume(const model::LungModel& lung, double s) {
 // The right-lung phantom (8 mm) breathing `tidal_volume` for 4 s, compiled with its inside of
 // `interior_edge` tets.
 model::Compiled phantom_with_inside(const test::TempDir& dir, const std::string& interior_edge,
-                                    const std::string& tidal_volume) {
+                                    const std::string& tidal_volume, const std::string& mesher = "delaunay") {
   const auto file =
       dir.write("s.yaml", "name: inside\nduration: 4 s\nframes: {rate: 5 Hz}\n"
                           "mesh: {phantom: right, edge: 8 mm}\n"
                           "field: {tissue: healthy-upright, interior: {edge: " +
-                              interior_edge +
+                              interior_edge + ", mesher: " + mesher +
                               "}}\n"
                               "physiology:\n  preset: healthy-adult\n"
                               "  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: " +
@@ -47,17 +47,21 @@ model::Compiled phantom_with_inside(const test::TempDir& dir, const std::string&
   return model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
 }
 
-TEST(LungInterior, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithPositiveJacobians) {
+class LungInteriorByMesher : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(LungInteriorByMesher, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithPositiveJacobians) {
   test::TempDir dir;
-  const model::Compiled c = phantom_with_inside(dir, "8 mm", "1 L");
+  const model::Compiled c = phantom_with_inside(dir, "8 mm", "1 L", GetParam());
   ASSERT_EQ(c.model.lungs.size(), 1u);
   const model::LungModel& lung = c.model.lungs[0];
   ASSERT_NE(lung.interior, nullptr);
   const model::LungInterior& inside = *lung.interior;
   EXPECT_GT(inside.report.free_nodes, 200u);
   EXPECT_EQ(inside.options.model, field::InteriorModel::elastic);
+  EXPECT_STREQ(mesh::tet_mesher_name(inside.mesher), GetParam());
 
-  // The tetrahedra fill the surface (to Mesh_3's facet distance, edge / 10).
+  // The tetrahedra fill the surface (to Mesh_3's facet distance, edge / 10; the lattice's cut
+  // follows the surface's triangles).
   const double rest = surface_volume(lung, 0.0);
   EXPECT_NEAR(tets_volume(inside.mesh, inside.unit_displacement, 0.0) / rest, 1.0, 0.02);
   // At the run's largest scale (1 L above rest) the inside grows by what the surface encloses:
@@ -82,6 +86,8 @@ TEST(LungInterior, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithPositiveJac
     std::cout << "scale " << scale << ": min Jacobian " << worst << "\n";
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(Meshers, LungInteriorByMesher, ::testing::Values("delaunay", "lattice"));
 
 bool has_timing(const model::Compiled& c, const std::string& name) {
   return std::any_of(c.timings_s.begin(), c.timings_s.end(), [&](const auto& t) { return t.first == name; });
@@ -120,6 +126,15 @@ outputs: {gltf: false, report: false, hdf5: false}
   EXPECT_TRUE(harmonic.field_reused);
   EXPECT_TRUE(has_timing(harmonic, "interior"));
   EXPECT_EQ(harmonic.model.lungs[0].interior->options.model, field::InteriorModel::harmonic);
+  // Another mesher: made again, and then kept beside the same field.
+  const model::Compiled lattice = compile_with("field: {interior: {edge: 12 mm, mesher: lattice}}\n");
+  EXPECT_TRUE(lattice.field_reused);
+  EXPECT_TRUE(has_timing(lattice, "interior"));
+  EXPECT_EQ(lattice.model.lungs[0].interior->mesher, mesh::TetMesher::lattice);
+  const model::Compiled lattice_again = compile_with("field: {interior: {edge: 12 mm, mesher: lattice}}\n");
+  EXPECT_TRUE(has_timing(lattice_again, "interior (cached)"));
+  EXPECT_EQ(lattice_again.model.lungs[0].interior->mesher, mesh::TetMesher::lattice);
+  EXPECT_EQ(lattice_again.model.lungs[0].interior->mesh.tets, lattice.model.lungs[0].interior->mesh.tets);
 }
 
 }  // namespace

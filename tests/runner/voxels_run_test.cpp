@@ -248,20 +248,26 @@ TEST(VoxelsRun, BadOptionsAreOneLineErrorsAndWriteNothing) {
   }
 }
 
-TEST(VoxelsRun, AnUnfoldingVolumeOutOfRangeIsRefusedAtItsKey) {
-  TempDir dir;
-  std::string text = kPhantom;
-  const std::string from = "interior: {edge: 8 mm}";
-  ASSERT_NE(text.find(from), std::string::npos);
-  text.replace(text.find(from), from.size(), "interior: {edge: 8 mm, unfold: 9 L}");
-  const auto scenario = dir.write("bad.yaml", text);
-  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
-  EXPECT_EQ(r.exit_code, 3) << r.err;
-  EXPECT_NE(r.err.find("field.interior.unfold: expected a volume from 0 L to 5 L above rest, such as '1 L'"),
-            std::string::npos)
-      << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  EXPECT_FALSE(std::filesystem::exists(dir / "out"));
+TEST(VoxelsRun, AnUnfoldingVolumeOutOfRangeOrAnUnknownMesherIsRefusedAtItsKey) {
+  struct Case {
+    std::string interior, expected;
+  };
+  for (const Case& c : {Case{"interior: {edge: 8 mm, unfold: 9 L}",
+                             "field.interior.unfold: expected a volume from 0 L to 5 L above rest, such as '1 L'"},
+                        Case{"interior: {edge: 8 mm, mesher: voronoi}",
+                             "field.interior.mesher: expected one of: delaunay, lattice; got 'voronoi'"}}) {
+    TempDir dir;
+    std::string text = kPhantom;
+    const std::string from = "interior: {edge: 8 mm}";
+    ASSERT_NE(text.find(from), std::string::npos);
+    text.replace(text.find(from), from.size(), c.interior);
+    const auto scenario = dir.write("bad.yaml", text);
+    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir / "out"));
+  }
 }
 
 // Both lungs of each shared CT case: the warped label map's lungs follow the physiology's volume

@@ -271,13 +271,15 @@ LungModel lung_model(const Scenario& s, const scenario::LungSpec& spec, const st
   std::shared_ptr<const LungInterior> interior;
   if (options.interior) {
     start = Clock::now();
-    const std::string key = interior_key(computed.record.metadata.key, s.field.interior_edge_m, s.field.interior);
+    const std::string key =
+        interior_key(computed.record.metadata.key, s.field.interior_edge_m, s.field.interior, s.field.interior_mesher);
     const bool cached = computed.record.interior && computed.record.interior->key == key;
     if (cached) {
       interior = computed.record.interior;
     } else {
-      std::shared_ptr<LungInterior> fresh = compute_interior(computed.record.rest, computed.record.unit_displacement,
-                                                             s.field.interior_edge_m, s.field.interior);
+      std::shared_ptr<LungInterior> fresh =
+          compute_interior(computed.record.rest, computed.record.unit_displacement, s.field.interior_edge_m,
+                           s.field.interior, s.field.interior_mesher);
       fresh->key = key;
       interior = fresh;
       computed.record.interior = fresh;

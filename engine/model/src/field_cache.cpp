@@ -97,6 +97,7 @@ std::string checksum(const FieldRecord& m) {
     h.text(i.key);
     h.text(field::interior_model_name(i.options.model));
     h.value(i.edge_m);
+    if (i.mesher != mesh::TetMesher::delaunay) h.text(mesh::tet_mesher_name(i.mesher));
     h.value(i.options.poisson_ratio);
     h.value(i.options.tolerance);
     h.value(static_cast<std::uint64_t>(i.report.iterations));
@@ -200,6 +201,7 @@ void write_file(const std::filesystem::path& tmp, const std::string& shown, cons
     w.string_attribute(g, "key", i.key);
     w.string_attribute(g, "model", field::interior_model_name(i.options.model));
     w.number_attribute(g, "edge_m", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.edge_m);
+    w.string_attribute(g, "mesher", mesh::tet_mesher_name(i.mesher));
     w.number_attribute(g, "poisson_ratio", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.options.poisson_ratio);
     w.number_attribute(g, "tolerance", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, i.options.tolerance);
     const auto iterations = static_cast<std::uint64_t>(i.report.iterations);
@@ -301,6 +303,12 @@ std::shared_ptr<const LungInterior> read_interior(const Reader& r) {
   if (model != "elastic" && model != "harmonic") r.refuse("interior model '" + model + "' is not elastic or harmonic");
   i.options.model = model == "elastic" ? field::InteriorModel::elastic : field::InteriorModel::harmonic;
   i.edge_m = g.number_attribute<double>("edge_m", H5T_NATIVE_DOUBLE, H5T_FLOAT);
+  if (H5Aexists(group.get(), "mesher") > 0) {  // absent in files written before the lattice: delaunay
+    const std::string mesher = g.string_attribute("mesher");
+    if (mesher != "delaunay" && mesher != "lattice")
+      r.refuse("interior mesher '" + mesher + "' is not delaunay or lattice");
+    i.mesher = mesher == "lattice" ? mesh::TetMesher::lattice : mesh::TetMesher::delaunay;
+  }
   i.options.poisson_ratio = g.number_attribute<double>("poisson_ratio", H5T_NATIVE_DOUBLE, H5T_FLOAT);
   i.options.tolerance = g.number_attribute<double>("tolerance", H5T_NATIVE_DOUBLE, H5T_FLOAT);
   i.report.iterations = g.number_attribute<std::uint64_t>("iterations", H5T_NATIVE_UINT64, H5T_INTEGER);
@@ -505,7 +513,8 @@ std::string source_field_key(const std::string& source, const std::string& tissu
   return h.hex();
 }
 
-std::string interior_key(const std::string& field_key, double edge_m, const field::InteriorOptions& options) {
+std::string interior_key(const std::string& field_key, double edge_m, const field::InteriorOptions& options,
+                         mesh::TetMesher mesher) {
   Hasher h;
   h.text("pneuma-interior-key/1");
   h.text(PNEUMA_VERSION);
@@ -516,6 +525,7 @@ std::string interior_key(const std::string& field_key, double edge_m, const fiel
   h.value(options.tolerance);
   h.value(static_cast<std::uint64_t>(options.max_iterations));
   h.value(options.unfold_volume_m3);
+  if (mesher != mesh::TetMesher::delaunay) h.text(mesh::tet_mesher_name(mesher));
   return h.hex();
 }
 

@@ -1,4 +1,4 @@
-// A lung's inside: Mesh_3 tetrahedra of the rest surface, the surface field carried to their
+// A lung's inside: tetrahedra of the rest surface (Mesh_3 or the lattice), the surface field carried to their
 // boundary nodes, the interior field solved for the rest.
 #include <fmt/format.h>
 
@@ -15,9 +15,9 @@ namespace pneuma::model {
 
 std::shared_ptr<LungInterior> compute_interior(const mesh::TriangleMesh& rest,
                                                const std::vector<Eigen::Vector3d>& unit_displacement, double edge_m,
-                                               const field::InteriorOptions& options) {
+                                               const field::InteriorOptions& options, mesh::TetMesher mesher) {
   auto out = std::make_shared<LungInterior>();
-  mesh::VolumeMesh volume = mesh::tetrahedralize(rest, {.edge_length_m = edge_m});
+  mesh::VolumeMesh volume = mesh::tetrahedralize(rest, {.mesher = mesher, .edge_length_m = edge_m});
   std::vector<Eigen::Vector3d> boundary_points;
   boundary_points.reserve(volume.boundary_nodes.size());
   for (const std::uint32_t b : volume.boundary_nodes) boundary_points.push_back(volume.mesh.nodes[b]);
@@ -42,6 +42,7 @@ std::shared_ptr<LungInterior> compute_interior(const mesh::TriangleMesh& rest,
   out->boundary_nodes = std::move(volume.boundary_nodes);
   out->unit_displacement = std::move(solution.displacement);
   out->edge_m = edge_m;
+  out->mesher = mesher;
   out->options = options;
   out->report = solution.report;
   return out;

@@ -261,6 +261,10 @@ FieldSpec read_field(const config::Node& n, const std::filesystem::path& config_
         i.fail_at("edge", "expected a tetrahedron size between 0.5 mm and 50 mm, such as '3 mm'");
       }
     }
+    if (i.has("mesher")) {
+      f.interior_mesher = i.choice("mesher", {"delaunay", "lattice"}) == "lattice" ? mesh::TetMesher::lattice
+                                                                                   : mesh::TetMesher::delaunay;
+    }
     if (i.has("model")) {
       f.interior.model = i.choice("model", {"elastic", "harmonic"}) == "elastic" ? field::InteriorModel::elastic
                                                                                  : field::InteriorModel::harmonic;

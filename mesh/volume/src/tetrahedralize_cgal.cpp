@@ -1,6 +1,6 @@
-// CGAL Mesh_3 on the polyhedral domain a closed surface bounds. The only translation unit of
-// mesh/volume that includes Mesh_3 (slow to compile). Sequential, seeded (CGAL::Random(0)):
-// deterministic.
+// CGAL Mesh_3 on the polyhedral domain a closed surface bounds, and the entry point of both
+// meshers. The only translation unit of mesh/volume that includes Mesh_3 (slow to compile). Sequential, seeded
+// (CGAL::Random(0)): deterministic.
 #include <CGAL/Mesh_complex_3_in_triangulation_3.h>
 #include <CGAL/Mesh_criteria_3.h>
 #include <CGAL/Mesh_triangulation_3.h>
@@ -18,6 +18,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/cgal/cgal_surface_mesh.h"
 #include "pneuma/mesh/volume/tetrahedralize.h"
+#include "tet_quality.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -32,30 +33,9 @@ using Criteria = CGAL::Mesh_criteria_3<Tr>;
 // Mesh_3 works in millimetres (criteria and error bounds of order 1).
 constexpr double kMm = 1e-3;
 
-// The smallest of the six dihedral angles (degrees): between the two faces at each edge.
-double min_dihedral_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                        const Eigen::Vector3d& d) {
-  const std::array<Eigen::Vector3d, 4> p{a, b, c, d};
-  // Outward face normals (face i opposite vertex i); the dihedral at the edge shared by faces i
-  // and j is pi minus the angle between their outward normals.
-  std::array<Eigen::Vector3d, 4> normal;
-  for (std::size_t i = 0; i < 4; ++i) {
-    const Eigen::Vector3d& q0 = p[(i + 1) % 4];
-    Eigen::Vector3d n = (p[(i + 2) % 4] - q0).cross(p[(i + 3) % 4] - q0);
-    if (n.dot(p[i] - q0) > 0.0) n = -n;
-    normal[i] = n.normalized();
-  }
-  double smallest = 180.0;
-  for (std::size_t i = 0; i < 4; ++i) {
-    for (std::size_t j = i + 1; j < 4; ++j) {
-      const double cosine = std::clamp(-normal[i].dot(normal[j]), -1.0, 1.0);
-      smallest = std::min(smallest, std::acos(cosine) * 180.0 / std::numbers::pi);
-    }
-  }
-  return smallest;
-}
-
 }  // namespace
+
+const char* tet_mesher_name(TetMesher mesher) { return mesher == TetMesher::lattice ? "lattice" : "delaunay"; }
 
 VolumeMesh tetrahedralize(const TriangleMesh& closed_surface, const TetrahedralizeOptions& options) {
   if (!(options.edge_length_m > 0.0) || !std::isfinite(options.edge_length_m)) {
@@ -67,6 +47,8 @@ VolumeMesh tetrahedralize(const TriangleMesh& closed_surface, const Tetrahedrali
   if (!sm || !CGAL::is_closed(*sm)) {
     throw ValueError("tetrahedralize: the surface is not closed and manifold, so it bounds no volume");
   }
+  if (options.mesher == TetMesher::lattice)
+    return detail::tetrahedralize_lattice(closed_surface, options.edge_length_m);
 
   CGAL::Random rng(0);
   const Domain domain(*sm, &rng);
@@ -109,7 +91,7 @@ VolumeMesh tetrahedralize(const TriangleMesh& closed_surface, const Tetrahedrali
     out.mesh.tets.push_back(t);
     out.volume_m3 += v6 / 6.0;
     out.min_volume_m3 = std::min(out.min_volume_m3, v6 / 6.0);
-    out.min_dihedral_deg = std::min(out.min_dihedral_deg, min_dihedral_deg(n[t[0]], n[t[1]], n[t[2]], n[t[3]]));
+    out.min_dihedral_deg = std::min(out.min_dihedral_deg, detail::min_dihedral_deg(n[t[0]], n[t[1]], n[t[2]], n[t[3]]));
   }
   if (out.mesh.tets.empty()) throw ValueError("tetrahedralize: Mesh_3 found no cell inside the surface");
 

@@ -63,9 +63,10 @@ struct FieldRecord {
   std::shared_ptr<const LungInterior> interior;  // with its key (LungInterior::key); may be null
 };
 
-// The key of the inside of a field's surface (`field_key`: the record's key) for `edge_m` and
-// `options`.
-std::string interior_key(const std::string& field_key, double edge_m, const field::InteriorOptions& options);
+// The key of the inside of a field's surface (`field_key`: the record's key) for `edge_m`,
+// `options` and `mesher` (delaunay adds nothing: the keys of files written before the lattice).
+std::string interior_key(const std::string& field_key, double edge_m, const field::InteriorOptions& options,
+                         mesh::TetMesher mesher = mesh::TetMesher::delaunay);
 
 // A 128-bit hex digest of the inputs that determine the field.
 std::string field_key(const mesh::TriangleMesh& rest, std::span<const double> shear_modulus_pa,

@@ -13,6 +13,7 @@
 
 #include "pneuma/field/interior.h"
 #include "pneuma/mesh/geometry/tet_mesh.h"
+#include "pneuma/mesh/volume/tetrahedralize.h"
 #include "pneuma/model/body_motion.h"
 
 #include "pneuma/mesh/anatomy/lung.h"
@@ -33,6 +34,7 @@ struct LungInterior {
   std::vector<std::uint32_t> boundary_nodes;       // ascending
   std::vector<Eigen::Vector3d> unit_displacement;  // per node, metres per unit of s
   double edge_m = 0.0;                             // the tetrahedra's target size
+  mesh::TetMesher mesher = mesh::TetMesher::delaunay;
   field::InteriorOptions options;
   field::InteriorReport report;
   std::string key;  // what it was made from (field_cache.h: interior_key), for the cache
@@ -88,11 +90,12 @@ LungModel make_model(mesh::TriangleMesh rest, std::vector<Eigen::Vector3d> unit_
                      const mesh::BodyAxes& axes = {}, const mesh::SurfaceRegions* regions = nullptr,
                      std::optional<mesh::Lung> side = std::nullopt);
 
-// The inside of the surface `rest` as tetrahedra of about `edge_m` (mesh::tetrahedralize) and its
+// The inside of the surface `rest` as tetrahedra of about `edge_m` by `mesher` (mesh::tetrahedralize) and its
 // interior field for `options`, with `unit_displacement` (per vertex of `rest`) on the boundary.
 // Throws ValueError when the surface bounds no volume.
 std::shared_ptr<LungInterior> compute_interior(const mesh::TriangleMesh& rest,
                                                const std::vector<Eigen::Vector3d>& unit_displacement, double edge_m,
-                                               const field::InteriorOptions& options);
+                                               const field::InteriorOptions& options,
+                                               mesh::TetMesher mesher = mesh::TetMesher::delaunay);
 
 }  // namespace pneuma::model

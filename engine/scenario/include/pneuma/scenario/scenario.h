@@ -19,6 +19,7 @@
 #include "pneuma/field/interior.h"
 #include "pneuma/field/tissue.h"
 #include "pneuma/mesh/anatomy/lung.h"
+#include "pneuma/mesh/volume/tetrahedralize.h"
 #include "pneuma/scenario/physiology_config.h"
 
 namespace pneuma::scenario {
@@ -82,6 +83,7 @@ struct FieldSpec {
   // The lung's inside (`field.interior`), computed only when an output needs it (voxel outputs):
   // a tetrahedral mesh of `edge` and the interior field of `model` (field/interior.h).
   double interior_edge_m = 4e-3;
+  mesh::TetMesher interior_mesher = mesh::TetMesher::delaunay;  // `mesher`: delaunay | lattice
   field::InteriorOptions interior;
 };
 
