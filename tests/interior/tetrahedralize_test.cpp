@@ -170,6 +170,9 @@ TEST(TetrahedralizeLattice, FillsTwoSeparateBallsAndRefusesAnOpenSurface) {
   EXPECT_THROW(tetrahedralize(open, {.mesher = TetMesher::lattice}), ValueError);
   EXPECT_THROW(tetrahedralize(make_icosphere(0.04, 2), {.mesher = TetMesher::lattice, .edge_length_m = 0.0}),
                ValueError);
+  // A lattice of 8e9 nodes is refused before anything is allocated.
+  EXPECT_THROW(tetrahedralize(make_icosphere(1.0, 1), {.mesher = TetMesher::lattice, .edge_length_m = 0.5e-3}),
+               ValueError);
 }
 
 }  // namespace

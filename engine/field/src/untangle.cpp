@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "fixed_blocks.h"
 #include "pneuma/core/error.h"
@@ -75,46 +76,47 @@ bool satisfies(const AffineJacobian& g, const Eigen::Vector3d& p, double t) {
   return g.a.dot(p) + g.b >= t - 1e-12 * (1.0 + std::abs(t));
 }
 
-// The best vertex over the 4-subsets of `subset` (ascending) that satisfies every constraint of
-// `subset`; with `optimal_only`, only vertices where the objective's gradient lies in the cone of
-// the active constraints' (the KKT multipliers are >= 0): the subset's own optimum.
-bool best_vertex(const std::vector<AffineJacobian>& f, const std::vector<std::size_t>& subset, bool optimal_only,
-                 Eigen::Vector3d& best_p, double& best_t) {
-  const std::size_t m = subset.size();
-  bool found = false;
-  best_t = -std::numeric_limits<double>::infinity();
+// The optimum of the constraints `subset` (ascending) among the vertices of their 4-subsets
+// where the objective's gradient lies in the cone of the active constraints' (KKT multipliers
+// >= 0) and every constraint of `subset` holds; its rows and multipliers.
+struct Vertex {
+  std::array<std::size_t, 4> rows{};
+  Eigen::Vector4d x, multipliers;
+};
+std::optional<Vertex> subset_optimum(const std::vector<AffineJacobian>& f, const std::vector<std::size_t>& subset) {
+  std::optional<Vertex> best;
   Eigen::Vector4d x;
   Eigen::Matrix4d inverse;
+  const std::size_t m = subset.size();
   for (std::size_t i = 0; i < m; ++i) {
     for (std::size_t j = i + 1; j < m; ++j) {
       for (std::size_t k = j + 1; k < m; ++k) {
         for (std::size_t l = k + 1; l < m; ++l) {
-          if (!vertex_of(f, {subset[i], subset[j], subset[k], subset[l]}, x, inverse)) continue;
+          const std::array<std::size_t, 4> rows{subset[i], subset[j], subset[k], subset[l]};
+          if (!vertex_of(f, rows, x, inverse)) continue;
           const double t = x(3);
-          if (!(t > best_t)) continue;
+          if (best && !(t > best->x(3))) continue;
           // Stationarity: sum lambda_r (a_r, -1) = -(0, 0, 0, 1), so lambda = -(row 3 of A^-1).
-          if (optimal_only && (-inverse.row(3).array() < -1e-12).any()) continue;
+          const Eigen::Vector4d lambda = -inverse.row(3).transpose();
+          if ((lambda.array() < -1e-12).any()) continue;
           const Eigen::Vector3d p = x.head<3>();
           if (!std::all_of(subset.begin(), subset.end(), [&](std::size_t r) { return satisfies(f[r], p, t); }))
             continue;
-          best_t = t;
-          best_p = p;
-          found = true;
+          best = Vertex{rows, x, lambda};
         }
       }
     }
   }
-  return found;
+  return best;
 }
 
-// max over p of min over i of (a_i . p + b_i): a linear program in (p, t); its optimum (bounded
-// when the a_i surround the origin, as for a node inside its star) lies at a vertex where four
-// constraints are active. By active sets: the optimum of the constraints lowest at `current`,
-// grown by the one the candidate violates most, until the candidate satisfies them all (then it
-// is the whole program's optimum: feasible, with multipliers >= 0). A star of 24 tets takes tens
-// of 4 x 4 solves instead of all 10,626 vertices. Returns false when no vertex is feasible.
-bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector3d& current, Eigen::Vector3d& best_p,
-                       double& best_t) {
+// The rows of the optimum of all constraints, when it is one point where exactly four of them
+// are active with multipliers clearly > 0: by active sets, the optimum of the constraints lowest
+// at `current`, grown by the one it violates most until it violates none (then it is the whole
+// program's optimum: feasible, with multipliers >= 0); tens of 4 x 4 solves. Nothing where the
+// optimum is degenerate (more than four constraints active, or a multiplier near 0).
+std::optional<std::array<std::size_t, 4>> unique_optimum_rows(const std::vector<AffineJacobian>& f,
+                                                              const Eigen::Vector3d& current) {
   const std::size_t m = f.size();
   std::vector<std::size_t> order(m);
   for (std::size_t i = 0; i < m; ++i) order[i] = i;
@@ -130,19 +132,30 @@ bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector
   };
   while (next < m && subset.size() < 6) add(order[next++]);
   for (;;) {
-    if (best_vertex(f, subset, true, best_p, best_t)) {
+    if (const std::optional<Vertex> v = subset_optimum(f, subset)) {
+      const Eigen::Vector3d p = v->x.head<3>();
+      const double t = v->x(3);
       std::size_t worst = m;
-      double worst_value = 0.0;
+      double worst_slack = 0.0;
       for (std::size_t r = 0; r < m; ++r) {
-        const double slack = f[r].a.dot(best_p) + f[r].b - best_t;
-        if (!active[r] && !satisfies(f[r], best_p, best_t) && (worst == m || slack < worst_value)) {
+        const double slack = f[r].a.dot(p) + f[r].b - t;
+        if (!active[r] && !satisfies(f[r], p, t) && (worst == m || slack < worst_slack)) {
           worst = r;
-          worst_value = slack;
+          worst_slack = slack;
         }
       }
-      if (worst == m) return true;
-      add(worst);
-      continue;
+      if (worst < m) {
+        add(worst);
+        continue;
+      }
+      // The optimum. One point, and the same rows every search finds, when no fifth constraint
+      // is within 1e-9 of the terms' size of active and no multiplier is within 1e-9 of 0.
+      double size = 1.0 + std::abs(t);
+      for (const AffineJacobian& g : f) size = std::max(size, g.a.norm() * p.norm() + std::abs(g.b));
+      std::size_t near_active = 0;
+      for (const AffineJacobian& g : f) near_active += g.a.dot(p) + g.b - t <= 1e-9 * size ? 1 : 0;
+      if (near_active != 4 || (v->multipliers.array() <= 1e-9).any()) return std::nullopt;
+      return v->rows;
     }
     // No bounded optimum among these yet: twice as many of the lowest constraints (one more at a
     // time would enumerate every subset again and again).
@@ -151,10 +164,52 @@ bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector
       if (!active[order[next]]) add(order[next]);
       ++next;
     }
-    if (subset.size() < target) break;
+    if (subset.size() < target) return std::nullopt;
   }
-  // Degenerate stars: the best feasible vertex of them all.
-  return best_vertex(f, subset, false, best_p, best_t);
+}
+
+// max over p of min over i of (a_i . p + b_i): a linear program in (p, t); its optimum (bounded
+// when the a_i surround the origin, as for a node inside its star) lies at a vertex where four
+// constraints are active. The answer is the best feasible vertex, the first in the constraints'
+// order where several are optimal (an active-set answer alone picked others there, and on
+// case007 that sent the node-by-node unfolding down a path that left a tet folded). Where the
+// optimum is one non-degenerate vertex, its rows come from active sets and it is solved as the
+// full visit would solve it (the same bits); else every vertex is visited (10,626 for 24 tets).
+// Returns false when no vertex is feasible.
+bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector3d& current, Eigen::Vector3d& best_p,
+                       double& best_t) {
+  Eigen::Vector4d x;
+  Eigen::Matrix4d inverse;
+  if (const auto rows = unique_optimum_rows(f, current)) {
+    if (vertex_of(f, *rows, x, inverse)) {
+      const Eigen::Vector3d p = x.head<3>();
+      if (std::all_of(f.begin(), f.end(), [&](const AffineJacobian& g) { return satisfies(g, p, x(3)); })) {
+        best_p = p;
+        best_t = x(3);
+        return true;
+      }
+    }
+  }
+  const std::size_t m = f.size();
+  bool found = false;
+  best_t = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < m; ++i) {
+    for (std::size_t j = i + 1; j < m; ++j) {
+      for (std::size_t k = j + 1; k < m; ++k) {
+        for (std::size_t l = k + 1; l < m; ++l) {
+          if (!vertex_of(f, {i, j, k, l}, x, inverse)) continue;
+          const double t = x(3);
+          if (!(t > best_t)) continue;
+          const Eigen::Vector3d p = x.head<3>();
+          if (!std::all_of(f.begin(), f.end(), [&](const AffineJacobian& g) { return satisfies(g, p, t); })) continue;
+          best_t = t;
+          best_p = p;
+          found = true;
+        }
+      }
+    }
+  }
+  return found;
 }
 
 }  // namespace

@@ -30,9 +30,9 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
+#include "pneuma/mesh/geometry/triangle_mesh.h"
 #include "pneuma/mesh/volume/tetrahedralize.h"
 #include "tet_quality.h"
-#include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -91,13 +91,14 @@ CellBins bin_triangles(const TriangleMesh& surface, const Lattice& lattice) {
     }
     bins.z_range[f] = {lo.z(), hi.z()};
     auto cell = [&](double v, int axis) {
-      return std::clamp(static_cast<std::int64_t>(std::floor((v - lattice.origin[axis]) / lattice.h)),
-                        std::int64_t{0}, lattice.n[static_cast<std::size_t>(axis)] - 1);
+      return std::clamp(static_cast<std::int64_t>(std::floor((v - lattice.origin[axis]) / lattice.h)), std::int64_t{0},
+                        lattice.n[static_cast<std::size_t>(axis)] - 1);
     };
     // Inclusive: a box ending exactly on x_i also lies in cell i - 1.
     span[f] = {cell(lo.x(), 0), cell(hi.x(), 0), cell(lo.y(), 1), cell(hi.y(), 1)};
     for (std::int64_t j = span[f][2]; j <= span[f][3]; ++j) {
-      for (std::int64_t i = span[f][0]; i <= span[f][1]; ++i) ++bins.first[static_cast<std::size_t>(i + lattice.n[0] * j) + 1];
+      for (std::int64_t i = span[f][0]; i <= span[f][1]; ++i)
+        ++bins.first[static_cast<std::size_t>(i + lattice.n[0] * j) + 1];
     }
   }
   for (std::size_t c = 0; c < cells; ++c) bins.first[c + 1] += bins.first[c];
@@ -191,7 +192,7 @@ class LatticeMesher {
       lattice_.n[static_cast<std::size_t>(a)] =
           static_cast<std::int64_t>(std::ceil((box[1][a] - lattice_.origin[a]) / h)) + 2;
     }
-    if (static_cast<double>(lattice_.node_count()) > 4e8) {
+    if (static_cast<double>(lattice_.node_count()) > 1e8) {
       throw ValueError(fmt::format("tetrahedralize: a {:.3g} mm lattice over this surface would have {:.3g} nodes; "
                                    "choose a larger edge",
                                    h * 1e3, static_cast<double>(lattice_.node_count())));
@@ -216,8 +217,8 @@ class LatticeMesher {
       if (lattice_.offset(m) == d) bits = m;
     }
     const std::int64_t edge = lo * kDirections + bits - 1;
-    const auto it = std::lower_bound(cuts_.begin(), cuts_.end(), edge,
-                                     [](const Cut& c, std::int64_t e) { return c.edge < e; });
+    const auto it =
+        std::lower_bound(cuts_.begin(), cuts_.end(), edge, [](const Cut& c, std::int64_t e) { return c.edge < e; });
     return static_cast<std::int64_t>(it - cuts_.begin());
   }
   // -1 inside, +1 outside, 0 moved onto the surface.
@@ -473,12 +474,8 @@ VolumeMesh LatticeMesher::run() {
     warp(pinned);
     std::vector<std::int64_t> flat;
     emitted = cut_tets(flat);
-    if (flat.empty()) break;
-    if (round + 1 == kMaxRounds) {
-      throw Error(ExitCode::failure, fmt::format("tetrahedralize: the lattice mesher left {} flat tetrahedra after "
-                                                 "{} rounds; try the delaunay mesher",
-                                                 flat.size(), kMaxRounds));
-    }
+    // After the last round flat tets are kept if they are positive (checked below).
+    if (flat.empty() || round + 1 == kMaxRounds) break;
     for (const std::int64_t v : flat) pinned[static_cast<std::size_t>(v)] = 1;
   }
   if (emitted.tets.empty()) throw ValueError("tetrahedralize: no lattice node lies inside the surface");
@@ -507,7 +504,8 @@ VolumeMesh LatticeMesher::run() {
     out.mesh.tets.push_back(tet);
     out.volume_m3 += v6 / 6.0;
     out.min_volume_m3 = std::min(out.min_volume_m3, v6 / 6.0);
-    out.min_dihedral_deg = std::min(out.min_dihedral_deg, detail::min_dihedral_deg(n[tet[0]], n[tet[1]], n[tet[2]], n[tet[3]]));
+    out.min_dihedral_deg =
+        std::min(out.min_dihedral_deg, detail::min_dihedral_deg(n[tet[0]], n[tet[1]], n[tet[2]], n[tet[3]]));
   }
   if (!(out.min_volume_m3 > 0.0)) {
     throw Error(ExitCode::failure, fmt::format("tetrahedralize: the lattice mesher made a tetrahedron of volume {:.3g} "
