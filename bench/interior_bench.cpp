@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <string>
 
 #include "pneuma/field/interior.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
@@ -35,16 +36,16 @@ struct Lung {
   std::vector<Eigen::Vector3d> unit_displacement;
 };
 
-const Lung* lung(double surface_edge_m = 2e-3) {
-  static std::map<double, std::unique_ptr<Lung>> lungs;
-  auto& cached = lungs[surface_edge_m];
+const Lung* lung(double surface_edge_m = 2e-3, const std::string& tissue_name = "healthy-upright") {
+  static std::map<std::pair<double, std::string>, std::unique_ptr<Lung>> lungs;
+  auto& cached = lungs[{surface_edge_m, tissue_name}];
   if (cached) return cached.get();
   const auto file = data_dir() / "case004_lobes.nii.gz";
   if (!std::filesystem::exists(file)) return nullptr;
   cached = std::make_unique<Lung>();
   cached->surface = mesh::surface_from_labels(file, {3, 4, 5}, {.edge_length_m = surface_edge_m}).mesh;
-  const auto tissue =
-      scenario::load_tissue(std::filesystem::path(PNEUMA_BENCH_SOURCE_DIR) / "configs/tissue/healthy-upright.yaml");
+  const auto tissue = scenario::load_tissue(std::filesystem::path(PNEUMA_BENCH_SOURCE_DIR) / "configs/tissue" /
+                                            (tissue_name + ".yaml"));
   cached->unit_displacement = model::compute_field_record(cached->surface, tissue).unit_displacement;
   return cached.get();
 }
@@ -110,9 +111,9 @@ void BM_InteriorField(benchmark::State& state) {
 }
 
 // The whole inside of the lung's 1 mm surface, as a run computes it; args: tet edge (0.1 mm),
-// mesher, unfolding (1: the default, 0: none).
+// mesher, unfolding (1: the default, 0: none), tissue (0: healthy-upright, 1: healthy-supine-slide).
 void BM_WholeInterior(benchmark::State& state) {
-  const Lung* l = lung(1e-3);
+  const Lung* l = lung(1e-3, state.range(3) == 0 ? "healthy-upright" : "healthy-supine-slide");
   if (!l) return state.SkipWithError("no CT lobe maps (set PNEUMA_CT_LOBES)");
   const double edge = static_cast<double>(state.range(0)) * 1e-4;
   const mesh::TetMesher mesher = mesher_of(state.range(1));
@@ -152,9 +153,11 @@ BENCHMARK(BM_InteriorField)
     ->Unit(benchmark::kSecond)
     ->Iterations(1);
 BENCHMARK(BM_WholeInterior)
-    ->Args({25, 1, 1})
-    ->Args({25, 1, 0})
-    ->Args({20, 1, 1})
+    ->Args({25, 1, 1, 0})
+    ->Args({25, 1, 0, 0})
+    ->Args({20, 1, 1, 0})
+    ->Args({25, 1, 1, 1})
+    ->Args({25, 1, 0, 1})
     ->Unit(benchmark::kSecond)
     ->Iterations(1);
 

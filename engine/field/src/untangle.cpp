@@ -110,13 +110,14 @@ std::optional<Vertex> subset_optimum(const std::vector<AffineJacobian>& f, const
   return best;
 }
 
-// The rows of the optimum of all constraints, when it is one point where exactly four of them
-// are active with multipliers clearly > 0: by active sets, the optimum of the constraints lowest
-// at `current`, grown by the one it violates most until it violates none (then it is the whole
-// program's optimum: feasible, with multipliers >= 0); tens of 4 x 4 solves. Nothing where the
-// optimum is degenerate (more than four constraints active, or a multiplier near 0).
-std::optional<std::array<std::size_t, 4>> unique_optimum_rows(const std::vector<AffineJacobian>& f,
-                                                              const Eigen::Vector3d& current) {
+// The constraints active at the optimum of all constraints (ascending), when that optimum is one
+// point: by active sets, the optimum of the constraints lowest at `current`, grown by the one it
+// violates most until it violates none (then it is the whole program's optimum: feasible, with
+// multipliers >= 0); tens of 4 x 4 solves. One point where its four multipliers are clearly > 0
+// (> 1e-9); active: within 1e-9 of the terms' size. Nothing where a multiplier is near 0 (the
+// optimum may be an edge or a face).
+std::optional<std::vector<std::size_t>> optimum_active_set(const std::vector<AffineJacobian>& f,
+                                                           const Eigen::Vector3d& current) {
   const std::size_t m = f.size();
   std::vector<std::size_t> order(m);
   for (std::size_t i = 0; i < m; ++i) order[i] = i;
@@ -148,14 +149,14 @@ std::optional<std::array<std::size_t, 4>> unique_optimum_rows(const std::vector<
         add(worst);
         continue;
       }
-      // The optimum. One point, and the same rows every search finds, when no fifth constraint
-      // is within 1e-9 of the terms' size of active and no multiplier is within 1e-9 of 0.
+      if ((v->multipliers.array() <= 1e-9).any()) return std::nullopt;
       double size = 1.0 + std::abs(t);
       for (const AffineJacobian& g : f) size = std::max(size, g.a.norm() * p.norm() + std::abs(g.b));
-      std::size_t near_active = 0;
-      for (const AffineJacobian& g : f) near_active += g.a.dot(p) + g.b - t <= 1e-9 * size ? 1 : 0;
-      if (near_active != 4 || (v->multipliers.array() <= 1e-9).any()) return std::nullopt;
-      return v->rows;
+      std::vector<std::size_t> near_active;
+      for (std::size_t r = 0; r < m; ++r) {
+        if (f[r].a.dot(p) + f[r].b - t <= 1e-9 * size) near_active.push_back(r);
+      }
+      return near_active;
     }
     // No bounded optimum among these yet: twice as many of the lowest constraints (one more at a
     // time would enumerate every subset again and again).
@@ -168,36 +169,21 @@ std::optional<std::array<std::size_t, 4>> unique_optimum_rows(const std::vector<
   }
 }
 
-// max over p of min over i of (a_i . p + b_i): a linear program in (p, t); its optimum (bounded
-// when the a_i surround the origin, as for a node inside its star) lies at a vertex where four
-// constraints are active. The answer is the best feasible vertex, the first in the constraints'
-// order where several are optimal (an active-set answer alone picked others there, and on
-// case007 that sent the node-by-node unfolding down a path that left a tet folded). Where the
-// optimum is one non-degenerate vertex, its rows come from active sets and it is solved as the
-// full visit would solve it (the same bits); else every vertex is visited (10,626 for 24 tets).
-// Returns false when no vertex is feasible.
-bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector3d& current, Eigen::Vector3d& best_p,
-                       double& best_t) {
-  Eigen::Vector4d x;
-  Eigen::Matrix4d inverse;
-  if (const auto rows = unique_optimum_rows(f, current)) {
-    if (vertex_of(f, *rows, x, inverse)) {
-      const Eigen::Vector3d p = x.head<3>();
-      if (std::all_of(f.begin(), f.end(), [&](const AffineJacobian& g) { return satisfies(g, p, x(3)); })) {
-        best_p = p;
-        best_t = x(3);
-        return true;
-      }
-    }
-  }
-  const std::size_t m = f.size();
+// The best feasible vertex among the 4-subsets of `rows` (ascending), the first in their order
+// where several are best: every vertex is solved and checked the same way, so a subset of the
+// rows that holds every best vertex gives the same answer, bit for bit, as all of them.
+bool best_feasible_vertex(const std::vector<AffineJacobian>& f, const std::vector<std::size_t>& rows,
+                          Eigen::Vector3d& best_p, double& best_t) {
+  const std::size_t m = rows.size();
   bool found = false;
   best_t = -std::numeric_limits<double>::infinity();
+  Eigen::Vector4d x;
+  Eigen::Matrix4d inverse;
   for (std::size_t i = 0; i < m; ++i) {
     for (std::size_t j = i + 1; j < m; ++j) {
       for (std::size_t k = j + 1; k < m; ++k) {
         for (std::size_t l = k + 1; l < m; ++l) {
-          if (!vertex_of(f, {i, j, k, l}, x, inverse)) continue;
+          if (!vertex_of(f, {rows[i], rows[j], rows[k], rows[l]}, x, inverse)) continue;
           const double t = x(3);
           if (!(t > best_t)) continue;
           const Eigen::Vector3d p = x.head<3>();
@@ -210,6 +196,24 @@ bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector
     }
   }
   return found;
+}
+
+// max over p of min over i of (a_i . p + b_i): a linear program in (p, t); its optimum (bounded
+// when the a_i surround the origin, as for a node inside its star) lies at a vertex where four
+// constraints are active. The answer is the best feasible vertex, the first in the constraints'
+// order where several are best (an active-set answer alone picked other optimal vertices, and on
+// case007 that sent the node-by-node unfolding down a path that left a tet folded). Where the
+// optimum is one point, only the constraints active there can make a best vertex, so only their
+// 4-subsets are visited (1 to tens); else all of them (10,626 for 24 tets). Returns false when no
+// vertex is feasible.
+bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector3d& current, Eigen::Vector3d& best_p,
+                       double& best_t) {
+  if (const auto active = optimum_active_set(f, current)) {
+    if (best_feasible_vertex(f, *active, best_p, best_t)) return true;
+  }
+  std::vector<std::size_t> all(f.size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+  return best_feasible_vertex(f, all, best_p, best_t);
 }
 
 }  // namespace
