@@ -13,18 +13,25 @@
 namespace pneuma::mesh {
 namespace {
 
+// The tets' total volume; every tet must be positively oriented.
+double checked_tets_volume(const TetMesh& mesh) {
+  double sum = 0.0;
+  std::size_t not_positive = 0;
+  for (const auto& t : mesh.tets) {
+    const double v = tet_volume6(mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]], mesh.nodes[t[3]]) / 6.0;
+    not_positive += v > 0.0 ? 0 : 1;
+    sum += v;
+  }
+  EXPECT_EQ(not_positive, 0u);
+  return sum;
+}
+
 TEST(Tetrahedralize, FillsAnIcosphereWithPositiveTetsWhoseVolumesSumToTheEnclosedVolume) {
   const double radius = 0.05;
   const TriangleMesh sphere = make_icosphere(radius, 4);
   const VolumeMesh volume = tetrahedralize(sphere, {.edge_length_m = 8e-3});
   ASSERT_GT(volume.mesh.tet_count(), 200u);
-  double sum = 0.0;
-  for (const auto& t : volume.mesh.tets) {
-    const auto& n = volume.mesh.nodes;
-    const double v = tet_volume6(n[t[0]], n[t[1]], n[t[2]], n[t[3]]) / 6.0;
-    ASSERT_GT(v, 0.0);
-    sum += v;
-  }
+  const double sum = checked_tets_volume(volume.mesh);
   EXPECT_NEAR(sum, volume.volume_m3, 1e-15);
   // Boundary facets approximate the polyhedron within facet_distance (edge / 10): a chord error
   // of order d * area / volume.
@@ -97,13 +104,7 @@ TEST(TetrahedralizeLattice, FillsAnIcosphereConformingWithBoundaryNodesOnTheSurf
   const TriangleMesh sphere = make_icosphere(radius, 4);
   const VolumeMesh volume = tetrahedralize(sphere, {.mesher = TetMesher::lattice, .edge_length_m = 6e-3});
   ASSERT_GT(volume.mesh.tet_count(), 1000u);
-  double sum = 0.0;
-  for (const auto& t : volume.mesh.tets) {
-    const auto& n = volume.mesh.nodes;
-    const double v = tet_volume6(n[t[0]], n[t[1]], n[t[2]], n[t[3]]) / 6.0;
-    ASSERT_GT(v, 0.0);
-    sum += v;
-  }
+  const double sum = checked_tets_volume(volume.mesh);
   EXPECT_NEAR(sum, volume.volume_m3, 1e-15);
   EXPECT_GT(volume.min_dihedral_deg, 1.0);
 
@@ -158,11 +159,7 @@ TEST(TetrahedralizeLattice, FillsTwoSeparateBallsAndRefusesAnOpenSurface) {
   for (auto& v : other.vertices) two.vertices.push_back(v + Eigen::Vector3d(0.05, 0.01, -0.02));
   for (auto t : other.triangles) two.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
   const VolumeMesh volume = tetrahedralize(two, {.mesher = TetMesher::lattice, .edge_length_m = 3e-3});
-  double sum = 0.0;
-  for (const auto& t : volume.mesh.tets) {
-    const auto& n = volume.mesh.nodes;
-    sum += tet_volume6(n[t[0]], n[t[1]], n[t[2]], n[t[3]]) / 6.0;
-  }
+  const double sum = checked_tets_volume(volume.mesh);
   EXPECT_NEAR(sum / enclosed_volume(two), 1.0, 0.02);
 
   TriangleMesh open = make_icosphere(0.04, 2);
