@@ -76,9 +76,16 @@ outputs:
 
 }  // namespace
 
-TEST(VoxelsRun, ThePhantomsWarpedLungFollowsThePhysiologysVolume) {
+// With either mesher of the inside (field.interior.mesher), named in the manifest.
+class VoxelsRunByMesher : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(VoxelsRunByMesher, ThePhantomsWarpedLungFollowsThePhysiologysVolume) {
   TempDir dir;
-  const auto scenario = dir.write("s.yaml", kPhantom);
+  std::string text = kPhantom;
+  const std::string from = "interior: {edge: 8 mm}";
+  ASSERT_NE(text.find(from), std::string::npos);
+  text.replace(text.find(from), from.size(), std::string("interior: {edge: 8 mm, mesher: ") + GetParam() + "}");
+  const auto scenario = dir.write("s.yaml", text);
   const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto rows = read_voxels_csv(dir / "out/voxels/voxels.csv");
@@ -107,7 +114,10 @@ TEST(VoxelsRun, ThePhantomsWarpedLungFollowsThePhysiologysVolume) {
   const auto manifest = nlohmann::json::parse(pneuma::test::read_text(dir / "out/manifest.json"));
   EXPECT_EQ(manifest.at("facts").at("voxels.time_points").get<std::string>(), "3");
   EXPECT_GT(std::stod(manifest.at("facts").at("voxels.min_jacobian").get<std::string>()), 0.0);
+  EXPECT_EQ(manifest.at("facts").at("voxels.interior_mesher").get<std::string>(), GetParam());
 }
+
+INSTANTIATE_TEST_SUITE_P(Meshers, VoxelsRunByMesher, ::testing::Values("delaunay", "lattice"));
 
 // The warped lung's boundary is the surface frame's: the interior's boundary nodes, moved as the
 // DVFs move them (the interior field at scale s), lie on the surface of the same frame, and the

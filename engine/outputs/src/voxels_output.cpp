@@ -12,6 +12,7 @@
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/labels/labels.h"
+#include "pneuma/mesh/volume/tetrahedralize.h"
 #include "pneuma/model/body_motion.h"
 #include "pneuma/model/compile.h"
 #include "pneuma/outputs/phases.h"
@@ -177,6 +178,7 @@ class VoxelsOutput final : public Output {
               {"voxels.folded_tets", std::to_string(folded_tets)},
               {"voxels.max_lung_volume_error_percent", fmt::format("{:.6g}", worst_volume_error * 100.0)},
               {"voxels.interior_model", field::interior_model_name(model.lungs.front().interior->options.model)},
+              {"voxels.interior_mesher", mesh::tet_mesher_name(model.lungs.front().interior->mesher)},
               {"voxels.interior_tets", std::to_string(tet_count(model))}};
     // What the unfolding did (docs/voxels.md, "No folded tetrahedron"), over the lungs.
     std::size_t unfolded = 0, dropped = 0;
