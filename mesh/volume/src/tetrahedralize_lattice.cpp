@@ -176,9 +176,8 @@ constexpr std::array<std::array<int, 4>, 6> kKuhn = [] {
   return tets;
 }();
 
-struct Emitted {
-  std::vector<std::array<std::int64_t, 4>> tets;  // ids: lattice node, or node_count + cut index
-};
+// Tets by id: a lattice node, or node_count + a cut's index.
+using IdTets = std::vector<std::array<std::int64_t, 4>>;
 
 class LatticeMesher {
  public:
@@ -206,7 +205,7 @@ class LatticeMesher {
   void classify_nodes();
   void find_cuts();
   void warp(const std::vector<char>& pinned);
-  Emitted cut_tets(std::vector<std::int64_t>& flat_nodes) const;
+  IdTets cut_tets(std::vector<std::int64_t>& flat_nodes) const;
   void cut_one(const std::array<std::int64_t, 4>& node, std::vector<std::array<std::int64_t, 4>>& out) const;
 
   std::int64_t cut_index(std::int64_t a, std::int64_t b) const {
@@ -242,7 +241,6 @@ class LatticeMesher {
   std::vector<Cut> cuts_;  // ascending edge
   std::vector<char> warped_;
   std::vector<std::uint32_t> warp_to_;  // cut index, where warped
-  std::size_t odd_columns_ = 0;
 };
 
 void LatticeMesher::classify_nodes() {
@@ -272,11 +270,11 @@ void LatticeMesher::classify_nodes() {
     }
   }));
   region.join();
-  odd_columns_ = static_cast<std::size_t>(std::count(odd.begin(), odd.end(), 1));
-  if (odd_columns_ > 0) {
+  const auto odd_columns = std::count(odd.begin(), odd.end(), 1);
+  if (odd_columns > 0) {
     throw ValueError(fmt::format("tetrahedralize: {} lattice lines cross the surface an odd number of times, so it "
                                  "does not bound a volume (holes, or faces that overlap)",
-                                 odd_columns_));
+                                 odd_columns));
   }
 }
 
@@ -307,7 +305,9 @@ void LatticeMesher::find_cuts() {
             const double t = segment_crossing(surface_, tri, p, q);
             if (t >= 0.0 && t < best) best = t;
           }
-          if (best > 1.0) best = 0.5;  // counted below: the parity and the segment test disagree
+          // None found: the parity and the segment test disagree at a grazing hit; the midpoint,
+          // whose boundary value still comes from the closest point of the surface.
+          if (best > 1.0) best = 0.5;
           const double from_inside = best;
           cut.t = sa < 0 ? from_inside : 1.0 - from_inside;
           cut.position = p + from_inside * (q - p);
@@ -417,7 +417,7 @@ void LatticeMesher::cut_one(const std::array<std::int64_t, 4>& node,
   }
 }
 
-Emitted LatticeMesher::cut_tets(std::vector<std::int64_t>& flat_nodes) const {
+IdTets LatticeMesher::cut_tets(std::vector<std::int64_t>& flat_nodes) const {
   const std::int64_t nx = lattice_.n[0], ny = lattice_.n[1], nz = lattice_.n[2];
   std::vector<std::vector<std::array<std::int64_t, 4>>> slab(static_cast<std::size_t>(nz));
   std::vector<std::vector<std::int64_t>> flat(static_cast<std::size_t>(nz));
@@ -457,19 +457,19 @@ Emitted LatticeMesher::cut_tets(std::vector<std::int64_t>& flat_nodes) const {
     }
   }));
   region.join();
-  Emitted emitted;
+  IdTets tets;
   for (std::size_t k = 0; k < slab.size(); ++k) {
-    emitted.tets.insert(emitted.tets.end(), slab[k].begin(), slab[k].end());
+    tets.insert(tets.end(), slab[k].begin(), slab[k].end());
     flat_nodes.insert(flat_nodes.end(), flat[k].begin(), flat[k].end());
   }
-  return emitted;
+  return tets;
 }
 
 VolumeMesh LatticeMesher::run() {
   classify_nodes();
   find_cuts();
   std::vector<char> pinned(static_cast<std::size_t>(lattice_.node_count()), 0);
-  Emitted emitted;
+  IdTets emitted;
   for (int round = 0;; ++round) {
     warp(pinned);
     std::vector<std::int64_t> flat;
@@ -478,17 +478,17 @@ VolumeMesh LatticeMesher::run() {
     if (flat.empty() || round + 1 == kMaxRounds) break;
     for (const std::int64_t v : flat) pinned[static_cast<std::size_t>(v)] = 1;
   }
-  if (emitted.tets.empty()) throw ValueError("tetrahedralize: no lattice node lies inside the surface");
+  if (emitted.empty()) throw ValueError("tetrahedralize: no lattice node lies inside the surface");
 
   // Nodes numbered by first use, lattice order (good locality for the solver).
   VolumeMesh out;
   const std::int64_t lattice_nodes = lattice_.node_count();
   std::vector<std::uint32_t> index(static_cast<std::size_t>(lattice_nodes) + cuts_.size(), ~std::uint32_t{0});
-  out.mesh.tets.reserve(emitted.tets.size());
+  out.mesh.tets.reserve(emitted.size());
   out.min_volume_m3 = std::numeric_limits<double>::infinity();
   out.min_dihedral_deg = 180.0;
   std::vector<char> on_surface;
-  for (const auto& t : emitted.tets) {
+  for (const auto& t : emitted) {
     Tetrahedron tet{};
     for (std::size_t v = 0; v < 4; ++v) {
       const auto s = static_cast<std::size_t>(t[v]);
