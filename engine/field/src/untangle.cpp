@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <optional>
 
 #include "fixed_blocks.h"
@@ -76,6 +77,25 @@ bool satisfies(const AffineJacobian& g, const Eigen::Vector3d& p, double t) {
   return g.a.dot(p) + g.b >= t - 1e-12 * (1.0 + std::abs(t));
 }
 
+// visit(rows, x, inverse) for each 4-subset of `rows` (ascending, in lexicographic order) whose
+// constraints meet in one vertex x (vertex_of).
+template <typename Visit>
+void for_each_vertex(const std::vector<AffineJacobian>& f, const std::vector<std::size_t>& rows, const Visit& visit) {
+  Eigen::Vector4d x;
+  Eigen::Matrix4d inverse;
+  const std::size_t m = rows.size();
+  for (std::size_t i = 0; i < m; ++i) {
+    for (std::size_t j = i + 1; j < m; ++j) {
+      for (std::size_t k = j + 1; k < m; ++k) {
+        for (std::size_t l = k + 1; l < m; ++l) {
+          const std::array<std::size_t, 4> four{rows[i], rows[j], rows[k], rows[l]};
+          if (vertex_of(f, four, x, inverse)) visit(four, x, inverse);
+        }
+      }
+    }
+  }
+}
+
 // The optimum of the constraints `subset` (ascending) among the vertices of their 4-subsets
 // where the objective's gradient lies in the cone of the active constraints' (KKT multipliers
 // >= 0) and every constraint of `subset` holds; its rows and multipliers.
@@ -85,28 +105,17 @@ struct Vertex {
 };
 std::optional<Vertex> subset_optimum(const std::vector<AffineJacobian>& f, const std::vector<std::size_t>& subset) {
   std::optional<Vertex> best;
-  Eigen::Vector4d x;
-  Eigen::Matrix4d inverse;
-  const std::size_t m = subset.size();
-  for (std::size_t i = 0; i < m; ++i) {
-    for (std::size_t j = i + 1; j < m; ++j) {
-      for (std::size_t k = j + 1; k < m; ++k) {
-        for (std::size_t l = k + 1; l < m; ++l) {
-          const std::array<std::size_t, 4> rows{subset[i], subset[j], subset[k], subset[l]};
-          if (!vertex_of(f, rows, x, inverse)) continue;
-          const double t = x(3);
-          if (best && !(t > best->x(3))) continue;
-          // Stationarity: sum lambda_r (a_r, -1) = -(0, 0, 0, 1), so lambda = -(row 3 of A^-1).
-          const Eigen::Vector4d lambda = -inverse.row(3).transpose();
-          if ((lambda.array() < -1e-12).any()) continue;
-          const Eigen::Vector3d p = x.head<3>();
-          if (!std::all_of(subset.begin(), subset.end(), [&](std::size_t r) { return satisfies(f[r], p, t); }))
-            continue;
-          best = Vertex{rows, x, lambda};
-        }
-      }
-    }
-  }
+  for_each_vertex(
+      f, subset, [&](const std::array<std::size_t, 4>& rows, const Eigen::Vector4d& x, const Eigen::Matrix4d& inverse) {
+        const double t = x(3);
+        if (best && !(t > best->x(3))) return;
+        // Stationarity: sum lambda_r (a_r, -1) = -(0, 0, 0, 1), so lambda = -(row 3 of A^-1).
+        const Eigen::Vector4d lambda = -inverse.row(3).transpose();
+        if ((lambda.array() < -1e-12).any()) return;
+        const Eigen::Vector3d p = x.head<3>();
+        if (!std::all_of(subset.begin(), subset.end(), [&](std::size_t r) { return satisfies(f[r], p, t); })) return;
+        best = Vertex{rows, x, lambda};
+      });
   return best;
 }
 
@@ -120,7 +129,7 @@ std::optional<std::vector<std::size_t>> optimum_active_set(const std::vector<Aff
                                                            const Eigen::Vector3d& current) {
   const std::size_t m = f.size();
   std::vector<std::size_t> order(m);
-  for (std::size_t i = 0; i < m; ++i) order[i] = i;
+  std::iota(order.begin(), order.end(), std::size_t{0});
   std::vector<double> value(m);
   for (std::size_t i = 0; i < m; ++i) value[i] = f[i].a.dot(current) + f[i].b;
   std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return value[x] < value[y]; });
@@ -174,27 +183,17 @@ std::optional<std::vector<std::size_t>> optimum_active_set(const std::vector<Aff
 // rows that holds every best vertex gives the same answer, bit for bit, as all of them.
 bool best_feasible_vertex(const std::vector<AffineJacobian>& f, const std::vector<std::size_t>& rows,
                           Eigen::Vector3d& best_p, double& best_t) {
-  const std::size_t m = rows.size();
   bool found = false;
   best_t = -std::numeric_limits<double>::infinity();
-  Eigen::Vector4d x;
-  Eigen::Matrix4d inverse;
-  for (std::size_t i = 0; i < m; ++i) {
-    for (std::size_t j = i + 1; j < m; ++j) {
-      for (std::size_t k = j + 1; k < m; ++k) {
-        for (std::size_t l = k + 1; l < m; ++l) {
-          if (!vertex_of(f, {rows[i], rows[j], rows[k], rows[l]}, x, inverse)) continue;
-          const double t = x(3);
-          if (!(t > best_t)) continue;
-          const Eigen::Vector3d p = x.head<3>();
-          if (!std::all_of(f.begin(), f.end(), [&](const AffineJacobian& g) { return satisfies(g, p, t); })) continue;
-          best_t = t;
-          best_p = p;
-          found = true;
-        }
-      }
-    }
-  }
+  for_each_vertex(f, rows, [&](const std::array<std::size_t, 4>&, const Eigen::Vector4d& x, const Eigen::Matrix4d&) {
+    const double t = x(3);
+    if (!(t > best_t)) return;
+    const Eigen::Vector3d p = x.head<3>();
+    if (!std::all_of(f.begin(), f.end(), [&](const AffineJacobian& g) { return satisfies(g, p, t); })) return;
+    best_t = t;
+    best_p = p;
+    found = true;
+  });
   return found;
 }
 
@@ -212,7 +211,7 @@ bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector
     if (best_feasible_vertex(f, *active, best_p, best_t)) return true;
   }
   std::vector<std::size_t> all(f.size());
-  for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+  std::iota(all.begin(), all.end(), std::size_t{0});
   return best_feasible_vertex(f, all, best_p, best_t);
 }
 
