@@ -4,7 +4,7 @@
 // al., Phys Med Biol 54:1849, 2009: 0.21 / 0.36 / 0.56 / 0.80 / 1, apex to base), measured
 // independently of the field: volume-weighted over the tetrahedra of the interior solve, each at
 // its centroid. Also the surface criteria of docs/realism.md with the slide in (apex <= 3 mm,
-// mediastinum <= 1 mm, diaphragm >= 8 mm and >= 60 % of the volume), no self-intersection of
+// mediastinum <= 1 mm, diaphragm >= 8 mm and 60-78 % of the volume), no self-intersection of
 // the surface at a 1.5 L breath, and no folded tetrahedron inside (the smallest Jacobian of rest
 // -> frame, from the tets' own nodes: an invariant of the map, whatever unfolded it).
 #include <gtest/gtest.h>
@@ -102,11 +102,8 @@ TEST_P(CtInteriorProfile, SupineQuietBreathingMovesTheInsideAsDirLab) {
     const auto inside = model::compute_interior(rest, field.unit_displacement, 8e-3, {});
     const InteriorProfile p = interior_profile(rest, *inside, quiet, tissue.up);
     const auto& base = p.magnitude_m[4];
-    // The goal's +/- 0.15 on every fifth but the fourth, where case009 (both lungs) and case007's left
-    // lung reach 0.64 on these tets (0.64-0.65 on 6 mm ones, 2-4 mm surfaces; docs/realism.md, 7.):
-    // the one criterion of #36 missed.
-    for (std::size_t f = 0; f < 4; ++f)
-      EXPECT_NEAR(p.magnitude_m[f] / base, kDirLab[f], f == 3 ? 0.18 : 0.15) << "fifth " << f + 1;
+    // The goal: within +/- 0.15 of DIR-Lab's in every fifth.
+    for (std::size_t f = 0; f < 4; ++f) EXPECT_NEAR(p.magnitude_m[f] / base, kDirLab[f], 0.15) << "fifth " << f + 1;
     for (std::size_t f = 0; f < 4; ++f) EXPECT_LT(p.caudal_m[f], p.caudal_m[f + 1]) << "fifth " << f + 1;
 
     mesh::RegionOptions o;
@@ -115,6 +112,7 @@ TEST_P(CtInteriorProfile, SupineQuietBreathingMovesTheInsideAsDirLab) {
         mesh::summarize_motion(rest, field.unit_displacement, quiet, mesh::find_regions(rest, o));
     EXPECT_GE(of(s, mesh::Region::diaphragmatic).caudal_mean_m, 8e-3);
     EXPECT_GE(of(s, mesh::Region::diaphragmatic).volume_share, 0.60);
+    EXPECT_LE(of(s, mesh::Region::diaphragmatic).volume_share, 0.78);
     EXPECT_LE(of(s, mesh::Region::apex).magnitude_mean_m, 3e-3);
     EXPECT_LE(of(s, mesh::Region::mediastinal).magnitude_mean_m, 1e-3);
     EXPECT_GT(p.min_jacobian, 0.0);
