@@ -3,6 +3,9 @@
 // standard adult values: lung height ~25 cm, transverse ~10-12 cm, antero-posterior ~15-17 cm
 // at the base, diaphragmatic dome ~5 cm, right dome ~2 cm higher (liver), heart left of the
 // midline on the left dome.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -237,25 +240,30 @@ void neighbours(const TriangleMesh& m, std::vector<std::uint32_t>& start, std::v
 TriangleMesh sample_lung(const LungShape& s, int n, int passes) {
   TriangleMesh m = geodesic_sphere(n);
   const Eigen::Vector3d c = star_centre(s);
-  std::vector<double> radius(m.vertex_count());
-  for (std::size_t v = 0; v < m.vertex_count(); ++v) {
-    radius[v] = ray_root(s, c, m.vertices[v], 0.0, kFarOutside);
-    m.vertices[v] = c + radius[v] * m.vertices[v];
-  }
+  // Each vertex's root depends only on its own ray (and, in a pass, on the previous pass's
+  // positions), so the vertices are solved on every thread, each writing its own slot: the same
+  // bits at any thread count.
+  auto each_vertex = [&](const auto& body) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.vertex_count(), 2048),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                        for (std::size_t v = range.begin(); v < range.end(); ++v) body(v);
+                      });
+  };
+  each_vertex(
+      [&](std::size_t v) { m.vertices[v] = c + ray_root(s, c, m.vertices[v], 0.0, kFarOutside) * m.vertices[v]; });
   if (passes <= 0) return m;
   std::vector<std::uint32_t> start, list;
   neighbours(m, start, list);
   std::vector<Eigen::Vector3d> next(m.vertex_count());
   for (int pass = 0; pass < passes; ++pass) {
-    for (std::size_t v = 0; v < m.vertex_count(); ++v) {
+    each_vertex([&](std::size_t v) {
       Eigen::Vector3d mean = Eigen::Vector3d::Zero();
       for (std::uint32_t k = start[v]; k < start[v + 1]; ++k) mean += m.vertices[list[k]];
       mean /= static_cast<double>(start[v + 1] - start[v]);
       const Eigen::Vector3d moved = m.vertices[v] + 0.5 * (mean - m.vertices[v]);
       const Eigen::Vector3d d = (moved - c).normalized();
-      radius[v] = ray_root_near(s, c, d, (moved - c).norm());
-      next[v] = c + radius[v] * d;
-    }
+      next[v] = c + ray_root_near(s, c, d, (moved - c).norm()) * d;
+    });
     std::swap(m.vertices, next);
   }
   return m;
