@@ -10,6 +10,7 @@
 
 #include "commands.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/heap.h"
 #include "pneuma/core/interrupt.h"
 #include "pneuma/core/text.h"
 
@@ -18,6 +19,7 @@ namespace {
 int run(int argc, char** argv) {
   // Ctrl-C and SIGTERM remove half-written files and stages, then exit 130 / 143.
   pneuma::install_interrupt_handlers();
+  pneuma::keep_large_blocks_in_heap();  // a speed setting: where it is refused, nothing else changes
 
   // Named explicitly: Usage lines say "pneuma", not the path the binary was started from.
   CLI::App app{"pneuma " PNEUMA_VERSION ": breathing 3D lungs for visualization, training and imaging research",
