@@ -101,7 +101,7 @@ void BM_FusedKernel(benchmark::State& state) {
 }
 
 // What a run's frame update is since its scales are known up front: positions only, V and A from
-// the table (the frame the runner advances; frame::Frame with the run's ScaleRange).
+// the table (the frame the runner advances; model::Frame with the run's ScaleRange).
 void BM_TabulatedUpdate(benchmark::State& state) {
   Case& c = test_case(state.range(0));
   kernel(state, c, *c.tabulated);

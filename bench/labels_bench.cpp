@@ -23,7 +23,7 @@ std::filesystem::path file_of(int c) { return data_dir() / (std::string(kCases[c
 void BM_ReadLabelMap(benchmark::State& state) {
   const auto file = file_of(static_cast<int>(state.range(0)));
   if (!std::filesystem::exists(file)) return state.SkipWithError("no CT lobe maps (set PNEUMA_CT_LOBES)");
-  for (auto _ : state) benchmark::DoNotOptimize(pneuma::mesh::read_label_map(file));
+  for (auto _ : state) benchmark::DoNotOptimize(pneuma::image::read_label_map(file));
   state.SetLabel(kCases[state.range(0)]);
 }
 

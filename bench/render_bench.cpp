@@ -19,7 +19,7 @@
 #include <memory>
 #include <string>
 
-#include "pneuma/frame/frame.h"
+#include "pneuma/model/frame.h"
 #include "pneuma/render/image.h"
 #include "pneuma/render/png_sink.h"
 #include "pneuma/render/renderer.h"
@@ -221,7 +221,7 @@ void BM_PngSequence(benchmark::State& state) {
   name_antialiasing(state, 2);
   const auto folder = std::filesystem::temp_directory_path() / ("pneuma-png-bench-" + std::to_string(::getpid()));
   constexpr std::size_t kFrames = 16;
-  frame::Frame frame(breathing);
+  model::Frame frame(breathing);
   const double cpu_start = process_cpu_ms();
   for (auto _ : state) {
     state.PauseTiming();
@@ -229,7 +229,7 @@ void BM_PngSequence(benchmark::State& state) {
     sink.begin(breathing, outputs::RunInfo{kFrames, 30.0, {0.0}, {1.0}, folder});
     state.ResumeTiming();
     for (std::size_t k = 0; k < kFrames; ++k) {
-      frame::advance(breathing, {k, 0.0, 0.0, {static_cast<double>(k) / kFrames}}, frame);
+      model::advance(breathing, {k, 0.0, 0.0, {static_cast<double>(k) / kFrames}}, frame);
       sink.frame(breathing, frame);
     }
     benchmark::DoNotOptimize(sink.finish(breathing, {}).size());

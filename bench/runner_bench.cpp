@@ -1,5 +1,5 @@
 // Per-frame update of the scenario runner: positions = rest + s * u with V(s) and A(s)
-// (frame::advance, the fused mesh::DeformedSurface kernel), in vertices per second, against
+// (model::advance, the fused mesh::DeformedSurface kernel), in vertices per second, against
 // memory-bandwidth baselines measured in the same run:
 //   copy (BM_CopyRest): std::copy of the rest positions into the frame buffer
 //     (24 B read + 24 B written per vertex);
@@ -18,9 +18,9 @@
 #include <memory>
 #include <vector>
 
-#include "pneuma/frame/frame.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
+#include "pneuma/model/frame.h"
 
 namespace {
 
@@ -81,14 +81,14 @@ void BM_CopyRestAndField(benchmark::State& state) {
   report(state, c, 96.0);
 }
 
-// What run_scenario does per frame before the outputs: frame::advance (positions, V(s), A(s)).
+// What run_scenario does per frame before the outputs: model::advance (positions, V(s), A(s)).
 void BM_FrameUpdate(benchmark::State& state) {
   Case& c = test_case(state.range(0));
-  frame::Frame frame(c.model);
+  model::Frame frame(c.model);
   double s = 0.5;
   std::size_t k = 0;
   for (auto _ : state) {
-    frame::advance(c.model, {k++, 0.0, 0.0, {s}}, frame);
+    model::advance(c.model, {k++, 0.0, 0.0, {s}}, frame);
     benchmark::DoNotOptimize(frame.lungs[0].area_m2);
     s = s > 1.0 ? 0.5 : s + 1e-3;
   }

@@ -26,7 +26,7 @@ struct Scene {
   mesh::TetMesh mesh;
   std::vector<Eigen::Vector3d> u;
   Grid grid;
-  mesh::LabelMap labels;
+  image::LabelMap labels;
 
   Scene() {
     grid.size = {256, 256, 200};
@@ -107,7 +107,7 @@ void BM_PullbackDvfAndWarpedLabels(benchmark::State& state) {
 void BM_PullbackDvfAndWarpedLabelsReused(benchmark::State& state) {
   const Scene& s = scene();
   DisplacementField pull;
-  mesh::LabelMap warped;
+  image::LabelMap warped;
   pullback_dvf(s.grid, s.lungs(), pull);  // the buffers' first touch, outside the timing
   warp_labels(s.labels, pull, warped);
   for (auto _ : state) {

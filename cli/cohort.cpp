@@ -1,6 +1,6 @@
 // pneuma cohort COHORT.yaml -o DIR: subjects x scenarios through Snakemake, locally or on Slurm;
 // and the three steps its workflow runs (cohort-field, cohort-run, cohort-summary). Thin: the
-// work is in engine/cohort (docs/cohorts.md).
+// work is in cohort/ (docs/cohorts.md).
 #include <fmt/format.h>
 #include <unistd.h>
 

@@ -5,6 +5,8 @@
 #include <initializer_list>
 #include <string>
 
+#include "pneuma/core/parameters.h"
+
 namespace pneuma::cli {
 
 void register_simulate(CLI::App& app);
@@ -20,6 +22,10 @@ void register_cohort(CLI::App& app);
 // Adds `--name VALUE` that parses a quantity with its unit (e.g. "3mm") into SI.
 CLI::Option* add_quantity_option(CLI::App& command, const std::string& name, double& value_si,
                                  const std::string& description, const char* kind_name);
+
+// Throws UsageError "pneuma: <option>: expected ..., got ..." unless `parameter` takes `value`
+// (SI): the rule and its words are the parameter table's, as in a scenario and in Python.
+void check_option(const std::string& option, const parameters::Parameter& parameter, double value);
 
 // Ends the command's --help with "Examples:" and one command line per entry.
 void add_examples(CLI::App& command, std::initializer_list<const char*> lines);

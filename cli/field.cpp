@@ -8,8 +8,10 @@
 
 #include "commands.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/parameters.h"
 #include "pneuma/core/paths.h"
 #include "pneuma/core/units.h"
+#include "pneuma/field/field_graph.h"
 #include "pneuma/field/tissue.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
@@ -21,16 +23,18 @@
 namespace pneuma::cli {
 namespace {
 
+static_assert(parameters::kCliqueHops.max == field::kMaxCliqueHops, "the table's clique sizes are the field's");
+
 struct FieldCliOptions {
   std::string mesh;
   std::string tissue;
   std::string solver;  // empty: cg for a 1-hop clique, shot otherwise
-  int clique = 1;
-  double tolerance = 1e-6;
+  int clique = static_cast<int>(parameters::kCliqueHops.default_si);
+  double tolerance = parameters::kFieldTolerance.default_si;
   std::string output = "field.h5";
   std::string unit = "mm";
   bool unit_given = false;  // --unit given: it wins over a unit recorded in the file
-  double edge_m = 4e-3;
+  double edge_m = parameters::kEdge.default_si;
   bool quiet = false;
 };
 
@@ -94,12 +98,9 @@ field::Tissue load_tissue_for_cli(const std::string& name_or_path) {
 
 void run_field(const FieldCliOptions& o) {
   field::FieldOptions options;
-  if (o.clique < 1 || o.clique > field::kMaxCliqueHops)
-    throw UsageError(fmt::format("pneuma: --clique: expected 1 to {} hops, got {}", field::kMaxCliqueHops, o.clique));
-  // Below 1e-12 the residual is lost in rounding: the solver would never stop.
-  if (!(o.tolerance >= 1e-12 && o.tolerance < 1.0))
-    throw UsageError(fmt::format("pneuma: --tol: expected a tolerance from 1e-12 to below 1, got {}", o.tolerance));
-  if (!(o.edge_m >= 1e-4)) throw UsageError("pneuma: --edge: must be at least 0.1 mm");
+  check_option("--clique", parameters::kCliqueHops, o.clique);
+  check_option("--tol", parameters::kFieldTolerance, o.tolerance);
+  check_option("--edge", parameters::kEdge, o.edge_m);
   options.clique_hops = o.clique;
   options.tolerance = o.tolerance;
   if (!o.solver.empty()) {
@@ -155,14 +156,17 @@ void register_field(CLI::App& app) {
       ->required();
   cmd->add_option("--solver", options->solver,
                   "shot (the paper's), sweep, direct or cg (default: cg, which takes --clique 1 only)");
-  cmd->add_option("--clique", options->clique, "Clique size M in hops, 1 to 4")->capture_default_str();
-  cmd->add_option("--tol", options->tolerance, "Stop when max UnShot <= tol * max force")->capture_default_str();
+  cmd->add_option("--clique", options->clique, parameters::kCliqueHops.help_text(false))->capture_default_str();
+  cmd->add_option("--tol", options->tolerance, parameters::kFieldTolerance.help_text(false))->capture_default_str();
   cmd->add_option("-o,--output", options->output, "Field file to write (HDF5)")->capture_default_str();
   cmd->add_option("--unit", options->unit,
                   "Length of one unit of the mesh file (mm, cm, m, ...; default: the unit "
                   "the file records, else mm)")
       ->capture_default_str();
-  add_quantity_option(*cmd, "--edge", options->edge_m, "Phantom edge length (default 4 mm)", "length");
+  add_quantity_option(*cmd, "--edge", options->edge_m,
+                      "Phantom edge length, " + parameters::kEdge.range() + " (default " +
+                          parameters::kEdge.show(parameters::kEdge.default_si) + ")",
+                      "length");
   cmd->add_flag("-q,--quiet", options->quiet, "Print nothing on success");
   add_examples(*cmd, {"pneuma field phantom:right --tissue healthy-upright -o field.h5",
                       "pneuma field right.ply --tissue configs/tissue/healthy-supine.yaml -o right-field.h5",

@@ -10,6 +10,8 @@
 #include "commands.h"
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/parameters.h"
+#include "pneuma/core/units.h"
 #include "pneuma/mesh/geometry/validate.h"
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/mesh/labels/labels.h"
@@ -53,7 +55,7 @@ void print_report(const std::string& name, const mesh::TriangleMesh& m, const me
       box[0].x() * 1e3, box[1].x() * 1e3, box[0].y() * 1e3, box[1].y() * 1e3, box[0].z() * 1e3, box[1].z() * 1e3,
       size.x() * 1e3, size.y() * 1e3, size.z() * 1e3);
   fmt::print("area: {:.6g} cm^2\n", r.area_m2 * 1e4);
-  if (r.closed()) fmt::print("volume: {:.6g} mL\n", r.volume_m3 * 1e6);
+  if (r.closed()) fmt::print("volume: {:.6g} mL\n", r.volume_m3 * units::ml_per_m3);
   else fmt::print("volume: undefined (open surface)\n");
   print_quality("", mesh::measure_quality(m));
   fmt::print("closed: {}, manifold: {}, consistently oriented: {}, genus: {}\n", yes_no(r.closed()),
@@ -104,12 +106,13 @@ void run_repair(const MeshOptions& o) {
   if (actions.empty()) fmt::print("{}: nothing to repair\n", o.input);
   for (const auto& a : actions) fmt::print("{}: {}\n", o.input, a);
   fmt::print("wrote {} ({} vertices, {} triangles, closed and manifold, {:.6g} mL)\n", o.output,
-             result.mesh.vertex_count(), result.mesh.triangle_count(), mesh::enclosed_volume(result.mesh) * 1e6);
+             result.mesh.vertex_count(), result.mesh.triangle_count(),
+             mesh::enclosed_volume(result.mesh) * units::ml_per_m3);
 }
 
 void run_remesh(const MeshOptions& o) {
   const double unit = mesh::parse_length_unit(o.unit);
-  if (!(o.edge_m > 0.0)) throw UsageError("pneuma: --edge: must be a positive length such as '3 mm'");
+  check_option("--edge", parameters::kEdge, o.edge_m);
   mesh::format_for_path(o.output, o.ascii);
   const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit, .unit_from_file = !o.unit_given});
   // What cannot finish is refused before any of it is made.
@@ -140,8 +143,8 @@ void run_remesh(const MeshOptions& o) {
   print_quality("after:  ", result.after);
   const double v1 = mesh::enclosed_volume(result.mesh);
   fmt::print("triangles {} -> {}, volume {:.6g} -> {:.6g} mL ({:+.3f} %), farthest from the input surface {:.4f} mm\n",
-             m.triangle_count(), result.mesh.triangle_count(), v0 * 1e6, v1 * 1e6, 100.0 * (v1 - v0) / v0,
-             result.max_deviation_m * 1e3);
+             m.triangle_count(), result.mesh.triangle_count(), v0 * units::ml_per_m3, v1 * units::ml_per_m3,
+             100.0 * (v1 - v0) / v0, result.max_deviation_m * 1e3);
   fmt::print("wrote {}\n", o.output);
 }
 
@@ -150,7 +153,7 @@ void run_from_labels(const MeshOptions& o) {
   if (o.labels.empty() || std::any_of(o.labels.begin(), o.labels.end(), [](int label) { return label < 1; }))
     throw UsageError("pneuma: --labels: expected label values of 1 or more, such as 3,4,5");
   mesh::format_for_path(o.output, o.ascii);
-  const mesh::LabelMap map = mesh::read_label_map(o.input);
+  const image::LabelMap map = image::read_label_map(o.input);
   try {
     mesh::check_label_surface_size(map, o.input, o.labels, o.from_labels);
   } catch (const ValueError& e) {
@@ -212,7 +215,7 @@ void register_mesh(CLI::App& app) {
 
   CLI::App* remesh = mesh_cmd->add_subcommand("remesh", "Isotropic remeshing to a target edge length");
   remesh->add_option("input", o->input, "Mesh file (repaired first when it is not a valid surface)")->required();
-  add_quantity_option(*remesh, "--edge", o->edge_m, "Target edge length", "length")->required();
+  add_quantity_option(*remesh, "--edge", o->edge_m, parameters::kEdge.help_text(false), "length")->required();
   remesh->add_option("-o,--output", o->output, "Remeshed surface (.ply, .obj or .stl)")->required();
   remesh->add_option("--iterations", o->iterations, "Remeshing iterations")
       ->capture_default_str()
@@ -238,7 +241,8 @@ void register_mesh(CLI::App& app) {
       ->delimiter(',')
       ->required();
   o->from_labels.edge_length_m = 2e-3;
-  add_quantity_option(*labels, "--edge", o->from_labels.edge_length_m, "Target facet size (default 2 mm)", "length");
+  add_quantity_option(*labels, "--edge", o->from_labels.edge_length_m,
+                      "Target facet size, " + parameters::kEdge.range() + " (default 2 mm)", "length");
   add_quantity_option(*labels, "--smooth", o->from_labels.smoothing_m,
                       "Gaussian smoothing of the mask, sigma (default 1 mm; 0 mm: none)", "length");
   add_quantity_option(*labels, "--closing", o->from_labels.closing_radius_m,
@@ -254,8 +258,8 @@ void register_mesh(CLI::App& app) {
   add_examples(*labels, {"pneuma mesh from-labels lobes.nii.gz --labels 3,4,5 -o right.stl",
                          "pneuma mesh from-labels lobes.nii.gz --labels 1,2 --edge 1mm --smooth 0.5mm -o left.ply"});
   labels->callback([o] {
-    if (!(o->from_labels.edge_length_m > 0.0))
-      throw UsageError("pneuma: --edge: must be a positive length such as '2 mm'");
+    // The facet size is the surface's edge length: the same rule as every other edge.
+    check_option("--edge", parameters::kEdge, o->from_labels.edge_length_m);
     if (o->from_labels.smoothing_m < 0.0) throw UsageError("pneuma: --smooth: must be a length >= 0 such as '1 mm'");
     if (o->from_labels.closing_radius_m < 0.0)
       throw UsageError("pneuma: --closing: must be a length >= 0 such as '1.5 mm'");

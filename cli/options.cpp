@@ -40,6 +40,10 @@ CLI::Option* add_quantity_option(CLI::App& command, const std::string& name, dou
       ->type_name(std::string("<") + kind_name + ", e.g. " + compact(kind->example) + ">");
 }
 
+void check_option(const std::string& option, const parameters::Parameter& parameter, double value) {
+  if (const auto why = parameter.check(value)) throw UsageError("pneuma: " + option + ": " + *why);
+}
+
 void add_examples(CLI::App& command, std::initializer_list<const char*> lines) {
   std::string footer = "\nExamples:\n";
   for (const char* line : lines) footer += std::string("  ") + line + "\n";

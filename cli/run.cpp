@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "pneuma/core/parameters.h"
 #include "pneuma/runner/output_registry.h"
 #include "pneuma/runner/runner.h"
 
@@ -23,9 +24,7 @@ struct RunCommandOptions {
 };
 
 void run_command(const RunCommandOptions& o) {
-  // As `pneuma phantom` and `pneuma field`: a finer target is millions of vertices (and the
-  // scenario's own size check names --edge for what is left).
-  if (!std::isnan(o.edge_m) && !(o.edge_m >= 1e-4)) throw UsageError("pneuma: --edge: must be at least 0.1 mm");
+  if (!std::isnan(o.edge_m)) check_option("--edge", parameters::kEdge, o.edge_m);
   const scenario::Scenario scenario = runner::load_scenario(o.scenario);
   runner::RunOptions options;
   options.output_dir = o.output;
@@ -72,7 +71,8 @@ void register_run(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("run", "Run a breathing scenario: physiology, field, frames and every output");
   cmd->add_option("scenario", options->scenario, "Scenario YAML file")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", options->output, "Output folder")->capture_default_str();
-  add_quantity_option(*cmd, "--edge", options->edge_m, "Override the mesh edge length (e.g. 8mm for a quick run)",
+  add_quantity_option(*cmd, "--edge", options->edge_m,
+                      "Override the mesh edge length, " + parameters::kEdge.range() + " (e.g. 8mm for a quick run)",
                       "length");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress and no summary");
   add_examples(*cmd, {"pneuma run scenarios/quiet-breathing.yaml -o out/demo",

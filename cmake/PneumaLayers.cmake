@@ -70,24 +70,28 @@ endfunction()
 
 function(pneuma_check_layers)
   set(mesh_targets pneuma_mesh_geometry pneuma_mesh_io pneuma_mesh_labels pneuma_mesh_repair pneuma_mesh_anatomy
-      pneuma_mesh_volume)
-  set(below_render pneuma_core pneuma_physiology ${mesh_targets} pneuma_config pneuma_field pneuma_paper
-                   pneuma_scenario pneuma_model pneuma_frame pneuma_voxels pneuma_outputs)
+      pneuma_mesh_volume pneuma_mesh_source)
+  set(below_render pneuma_core pneuma_physiology pneuma_image ${mesh_targets} pneuma_field pneuma_paper
+                   pneuma_voxels pneuma_scenario pneuma_model pneuma_outputs)
   pneuma_forbid(TARGETS ${below_render} USES pneuma_render
                 WHY "nothing below render links OpenGL or the renderer")
-  pneuma_forbid(TARGETS pneuma_field pneuma_paper ${mesh_targets} pneuma_physiology USES pneuma_config yaml-cpp
-                WHY "the field, the paper, mesh and physiology know no YAML")
-  pneuma_forbid(TARGETS pneuma_physiology USES ${mesh_targets} WHY "physiology knows nothing of meshes")
+  pneuma_forbid(TARGETS pneuma_field pneuma_paper pneuma_image ${mesh_targets} pneuma_physiology pneuma_voxels
+                USES pneuma_scenario yaml-cpp
+                WHY "the field, the paper, image, mesh, voxels and physiology know no YAML")
+  pneuma_forbid(TARGETS pneuma_physiology USES pneuma_image ${mesh_targets} WHY "physiology knows nothing of meshes")
+  pneuma_forbid(TARGETS pneuma_image USES ${mesh_targets} pneuma_physiology WHY "image IO is below mesh")
   pneuma_forbid(TARGETS ${mesh_targets} USES pneuma_physiology pneuma_field pneuma_scenario pneuma_model
                 WHY "mesh is below the engine")
-  pneuma_forbid(TARGETS pneuma_voxels USES pneuma_field pneuma_scenario pneuma_model pneuma_frame pneuma_outputs
+  pneuma_forbid(TARGETS pneuma_voxels USES pneuma_scenario pneuma_model pneuma_outputs
                 WHY "voxels knows tetrahedra and grids, not the run (its plugin is in outputs)")
-  pneuma_forbid(TARGETS pneuma_scenario USES pneuma_model pneuma_frame pneuma_outputs pneuma_runner
+  pneuma_forbid(TARGETS pneuma_scenario USES pneuma_model pneuma_outputs pneuma_runner
                 WHY "the scenario is read before anything is computed")
-  pneuma_forbid(TARGETS pneuma_model pneuma_frame pneuma_outputs USES pneuma_runner
+  pneuma_forbid(TARGETS pneuma_model pneuma_outputs USES pneuma_runner
                 WHY "the runner is the top of the engine")
   pneuma_forbid(TARGETS ${below_render} pneuma_render pneuma_runner USES pneuma_cohort
                 WHY "a cohort is made of runs: only the CLI uses it")
   pneuma_forbid(TARGETS pneuma_mesh_geometry USES pneuma_mesh_io pneuma_mesh_labels pneuma_mesh_repair
-                pneuma_mesh_anatomy pneuma_mesh_volume WHY "geometry is the bottom of mesh/")
+                pneuma_mesh_anatomy pneuma_mesh_volume pneuma_mesh_source WHY "geometry is the bottom of mesh/")
+  pneuma_forbid(TARGETS pneuma_mesh_io pneuma_mesh_labels pneuma_mesh_repair pneuma_mesh_anatomy pneuma_mesh_volume
+                USES pneuma_mesh_source WHY "the surface source is the top of mesh/")
 endfunction()

@@ -11,6 +11,7 @@
 
 #include "cvode_integrator.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/units.h"
 
 namespace pneuma::physiology {
 namespace {
@@ -744,10 +745,10 @@ Driver Simulation::resolved_driver(std::size_t setting) {
   const double target = spontaneous->target_tidal_volume_m3;
   double compliance = 0.0;
   for (const auto& c : s.mechanics.compartments) compliance += compliance_at(c.elasticity, 0.0);
-  constexpr double kMaxAmplitude = 100.0 * 98.0665;  // 100 cmH2O: far beyond any real effort
+  constexpr double kMaxAmplitude = 100.0 * units::pa_per_cmh2o;  // 100 cmH2O: far beyond any real effort
   auto unreachable = [&] {
     return Error(ExitCode::bad_input,
-                 "physiology: a tidal volume of " + std::to_string(std::lround(target * 1e6)) +
+                 "physiology: a tidal volume of " + std::to_string(std::lround(target * units::ml_per_m3)) +
                      " mL cannot be reached by spontaneous breathing with these mechanics (setting from t = " +
                      fmt_seconds(s.start_time_s) + " s)");
   };

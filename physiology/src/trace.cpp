@@ -7,6 +7,7 @@
 #include <numeric>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/units.h"
 #include "pneuma/physiology/trace.h"
 
 namespace pneuma::physiology {
@@ -50,7 +51,7 @@ std::pair<double, double> fit_line(const std::vector<double>& t, const std::vect
 
 std::string ml(double m3) {
   char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.0f mL", m3 * 1e6);
+  std::snprintf(buffer, sizeof buffer, "%.0f mL", m3 * units::ml_per_m3);
   return buffer;
 }
 
@@ -247,7 +248,8 @@ Trace process_trace(const RawTrace& raw, const TraceOptions& options) {
       report.calibration_span_s = fit.span_s;
       if (!(scale > 0.0))
         throw InputError(where(raw.file, 0) + "the amplitude falls as the spirometer's volume rises (slope " +
-                         std::to_string(scale * 1e6) + " mL per unit; a marker that moves down needs 'invert: true')");
+                         std::to_string(scale * units::ml_per_m3) +
+                         " mL per unit; a marker that moves down needs 'invert: true')");
       if (fit.r2 < kMinCalibrationR2) {
         char buffer[200];
         std::snprintf(buffer, sizeof buffer,

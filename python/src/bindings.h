@@ -1,5 +1,5 @@
 #pragma once
-// Shared by the translation units of the Python module: numpy conversions and the three
+// Shared by the translation units of the Python module: numpy conversions and the
 // registration functions (module.cpp calls them). Thin: every computation is the engine's.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -25,7 +25,9 @@ std::vector<Eigen::Vector3d> array_to_points(const py::handle& array, const char
 // Triangles from an integer array-like of shape (F, 3), each index below `vertex_count`.
 std::vector<mesh::Triangle> array_to_triangles(const py::handle& array, std::size_t vertex_count);
 
-void register_scenario(py::module_& m);  // Scenario, load_scenario, simulate, run, Animation
-void register_geometry(py::module_& m);  // Mesh, load_mesh, phantom, Field
+void register_scenario(py::module_& m);    // Scenario, load_scenario, run
+void register_simulation(py::module_& m);  // Simulation, simulate
+void register_animation(py::module_& m);   // Animation
+void register_geometry(py::module_& m);    // Mesh, load_mesh, phantom, Field
 
 }  // namespace pneuma::python

@@ -9,19 +9,25 @@
 
 #include "bindings.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/parameters.h"
 #include "pneuma/core/units.h"
 #include "pneuma/field/tissue.h"
-#include "pneuma/frame/frame.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/model/field_cache.h"
+#include "pneuma/model/frame.h"
 #include "pneuma/scenario/physiology_config.h"
 #include "pneuma/scenario/tissue_config.h"
 
 namespace pneuma::python {
 namespace {
 
-constexpr double kMlPerM3 = 1.0 / units::m3_per_ml;
+constexpr double kMlPerM3 = units::ml_per_m3;
+
+// ValueError "<argument>: <the table's words>", as the CLI and a scenario say it.
+void check_argument(const char* argument, const parameters::Parameter& parameter, double value) {
+  if (const auto why = parameter.check(value)) throw ValueError(std::string(argument) + ": " + *why);
+}
 
 mesh::TriangleMesh make_mesh(const py::handle& vertices, const py::handle& triangles) {
   mesh::TriangleMesh m;
@@ -42,10 +48,10 @@ struct Field {
   }
 
   py::array_t<double> frame_at(double scale) const {
-    frame::Frame frame(*model);
+    model::Frame frame(*model);
     {
       py::gil_scoped_release release;
-      frame::advance(*model, {0, 0.0, 0.0, {scale}}, frame);
+      model::advance(*model, {0, 0.0, 0.0, {scale}}, frame);
     }
     return points_to_array(frame.lungs[0].positions);
   }
@@ -59,17 +65,12 @@ Field compute(const mesh::TriangleMesh& rest, const std::string& tissue_name, co
               double tolerance, int clique_hops, double area_unit_m2) {
   field::FieldOptions options;
   options.solver = field::parse_solver_kind(solver);
-  if (!(tolerance > 0.0 && tolerance < 1.0)) {
-    throw ValueError(fmt::format("tolerance: expected a number between 0 and 1, got {}", tolerance));
-  }
-  if (!field::solver_takes_clique(options.solver, clique_hops)) {
-    throw ValueError(fmt::format(
-        "clique_hops: the {} solver takes {}, got {}", solver,
-        options.solver == field::SolverKind::cg ? std::string("1 only") : fmt::format("1 to {}", field::kMaxCliqueHops),
-        clique_hops));
-  }
-  if (!(area_unit_m2 > 0.0))
-    throw ValueError(fmt::format("area_unit_m2: expected a positive area, got {}", area_unit_m2));
+  check_argument("tolerance", parameters::kFieldTolerance, tolerance);
+  check_argument("clique_hops", parameters::kCliqueHops, clique_hops);
+  check_argument("area_unit_m2", parameters::kAreaUnit, area_unit_m2);
+  // In range, only cg refuses a clique (of more than one hop).
+  if (!field::solver_takes_clique(options.solver, clique_hops))
+    throw ValueError(fmt::format("clique_hops: the {} solver takes 1 only, got {}", solver, clique_hops));
   options.tolerance = tolerance;
   options.clique_hops = clique_hops;
   options.area_unit = area_unit_m2;
@@ -151,12 +152,12 @@ void register_geometry(py::module_& m) {
       [](const std::string& side, double edge_m) {
         mesh::PhantomOptions options;
         options.lung = parse_side(side);
-        if (!(edge_m > 0.0)) throw ValueError(fmt::format("edge_m: expected a positive length, got {}", edge_m));
+        check_argument("edge_m", parameters::kEdge, edge_m);
         options.edge_length_m = edge_m;
         py::gil_scoped_release release;
         return mesh::make_lung_phantom(options);
       },
-      py::arg("side") = "right", py::arg("edge_m") = 4e-3,
+      py::arg("side") = "right", py::arg("edge_m") = parameters::kEdge.default_si,
       "phantom(side='right', edge_m=0.004) -> Mesh\n\n"
       "The built-in lung phantom ('right', 'left' or 'both'), LPS coordinates in metres, with mean edge length "
       "edge_m (metres).");
@@ -170,7 +171,9 @@ void register_geometry(py::module_& m) {
              return compute(mesh, tissue, solver, tolerance, clique_hops, area_unit_m2);
            }),
            py::arg("mesh"), py::kw_only(), py::arg("tissue") = "healthy-upright", py::arg("solver") = "cg",
-           py::arg("tolerance") = 1e-6, py::arg("clique_hops") = 1, py::arg("area_unit_m2") = 1e-4,
+           py::arg("tolerance") = parameters::kFieldTolerance.default_si,
+           py::arg("clique_hops") = static_cast<int>(parameters::kCliqueHops.default_si),
+           py::arg("area_unit_m2") = parameters::kAreaUnit.default_si,
            "Field(mesh, *, tissue='healthy-upright', solver='cg', tolerance=1e-6, clique_hops=1, area_unit_m2=1e-4)\n\n"
            "Computes the field of a Mesh. tissue: a preset name (configs/tissue) or a tissue YAML path; solver: "
            "shot, sweep, direct or cg (cg takes clique_hops 1 only). Raises pneuma.Error for a bad mesh, tissue "
@@ -180,8 +183,9 @@ void register_geometry(py::module_& m) {
              return compute(make_mesh(vertices, triangles), tissue, solver, tolerance, clique_hops, area_unit_m2);
            }),
            py::arg("vertices"), py::arg("triangles"), py::kw_only(), py::arg("tissue") = "healthy-upright",
-           py::arg("solver") = "cg", py::arg("tolerance") = 1e-6, py::arg("clique_hops") = 1,
-           py::arg("area_unit_m2") = 1e-4,
+           py::arg("solver") = "cg", py::arg("tolerance") = parameters::kFieldTolerance.default_si,
+           py::arg("clique_hops") = static_cast<int>(parameters::kCliqueHops.default_si),
+           py::arg("area_unit_m2") = parameters::kAreaUnit.default_si,
            "Field(vertices, triangles, *, ...): the same from arrays (vertices (V, 3) in metres, triangles (F, 3)).")
       .def_static(
           "load",

@@ -155,4 +155,6 @@ PYBIND11_MODULE(_pneuma, m) {
   pp::register_errors(m);
   pp::register_geometry(m);
   pp::register_scenario(m);
+  pp::register_simulation(m);
+  pp::register_animation(m);
 }

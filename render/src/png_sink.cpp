@@ -99,7 +99,7 @@ std::filesystem::path PngFrameSink::path_of(std::size_t index) const {
   return directory_ / fmt::format("{}{:05d}.png", options_.prefix, index);
 }
 
-void PngFrameSink::frame(const model::Model&, const frame::Frame& frame) {
+void PngFrameSink::frame(const model::Model&, const model::Frame& frame) {
   if (!renderer_) throw Error(ExitCode::failure, "render: PngFrameSink::frame() called before begin()");
   if (frame.index % options_.every != 0) return;
   Image image = encoder_->take_buffer();
@@ -120,7 +120,7 @@ std::vector<std::filesystem::path> PngFrameSink::finish(const model::Model&, con
 }
 
 outputs::OutputPlugin png_output() {
-  const auto read = [](const config::Node* png) -> std::any {
+  const auto read = [](const scenario::Node* png) -> std::any {
     PngSinkOptions spec;
     if (png) {
       RenderOptions& r = spec.render;

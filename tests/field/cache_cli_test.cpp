@@ -252,7 +252,7 @@ TEST(FieldCli, BadInputIsOneLineWithItsExitCode) {
        "pneuma: --solver cg: needs --clique 1; use shot, sweep or direct for larger cliques"},
       {{"field", "icosphere:0.1:2", "--tissue", "healthy-upright", "--clique", "5", "-o", out},
        2,
-       "pneuma: --clique: expected 1 to 4 hops, got 5"},
+       "pneuma: --clique: expected a clique size from 1 to 4 hops, got 5 hops"},
       {{"field", "icosphere:0.1:2", "--tissue", "healthy-upright", "--clique", "2", "-o", out},
        2,
        "pneuma: --clique 2: the default solver (cg) takes clique 1 only; add --solver shot, sweep or direct"},
@@ -275,7 +275,7 @@ TEST(FieldCli, BadInputIsOneLineWithItsExitCode) {
        "pneuma: --tol: expected a tolerance from 1e-12 to below 1, got 1e-300"},
       {{"field", "phantom:right", "--tissue", "healthy-upright", "--edge", "1e-308mm", "-o", out},
        2,
-       "pneuma: --edge: must be at least 0.1 mm"},
+       "pneuma: --edge: expected an edge of at least 0.1 mm, got 1e-308 mm"},
   };
   for (const Case& c : cases) {
     const auto r = run_pneuma(c.args);

@@ -267,7 +267,7 @@ TEST_P(CtLungRealism, DeepBreathDoesNotFoldAndQuietBreathIsHuman) {
     GTEST_SKIP() << "no CT lobe maps at " << file.parent_path()
                  << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
   }
-  const mesh::LabelMap map = mesh::read_label_map(file);
+  const image::LabelMap map = image::read_label_map(file);
   const std::vector<std::pair<std::string, Tissue>> presets{
       {"healthy-upright", load_tissue(tissue_file("healthy-upright", default_config_dir()))}};
   for (const auto& [labels, share] :

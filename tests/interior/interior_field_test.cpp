@@ -1,4 +1,4 @@
-// The interior field (engine/field/interior.h). Oracles: linear fields are reproduced exactly
+// The interior field (field/interior.h). Oracles: linear fields are reproduced exactly
 // by both models (the ball whose surface moves by c x moves inside by c x, Jacobian (1 + c)^3);
 // a quadratic solution of Navier's equation, to which the elastic solution converges at the
 // order P1 elements reach, while the harmonic one does not (it solves another equation).

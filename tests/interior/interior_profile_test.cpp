@@ -86,7 +86,7 @@ TEST_P(CtInteriorProfile, SupineQuietBreathingMovesTheInsideAsDirLab) {
   const field::Tissue tissue =
       scenario::load_tissue(scenario::tissue_file("healthy-supine-slide", scenario::default_config_dir()));
   ASSERT_TRUE(tissue.sliding.active());
-  const mesh::LabelMap map = mesh::read_label_map(file);
+  const image::LabelMap map = image::read_label_map(file);
   for (const auto& [labels, share] :
        {std::pair{std::vector<int>{3, 4, 5}, 0.55}, std::pair{std::vector<int>{1, 2}, 0.45}}) {
     const std::string what = std::string(GetParam()) + (share > 0.5 ? " right" : " left");

@@ -9,8 +9,8 @@
 
 #include "pneuma/field/interior.h"
 #include "pneuma/mesh/geometry/deformed_surface.h"
-#include "pneuma/model/compile.h"
 #include "pneuma/runner/output_registry.h"
+#include "pneuma/runner/runner.h"
 #include "test_support.h"
 
 namespace pneuma {
@@ -31,8 +31,8 @@ double surface_volume(const model::LungModel& lung, double s) {
 
 // The right-lung phantom (8 mm) breathing `tidal_volume` for 4 s, compiled with its inside of
 // `interior_edge` tets.
-model::Compiled phantom_with_inside(const test::TempDir& dir, const std::string& interior_edge,
-                                    const std::string& tidal_volume, const std::string& mesher = "delaunay") {
+runner::Prepared phantom_with_inside(const test::TempDir& dir, const std::string& interior_edge,
+                                     const std::string& tidal_volume, const std::string& mesher = "delaunay") {
   const auto file =
       dir.write("s.yaml", "name: inside\nduration: 4 s\nframes: {rate: 5 Hz}\n"
                           "mesh: {phantom: right, edge: 8 mm}\n"
@@ -44,14 +44,14 @@ model::Compiled phantom_with_inside(const test::TempDir& dir, const std::string&
                               tidal_volume + "}\noutputs: {gltf: false, report: false, hdf5: false}\n");
   const scenario::Scenario s = runner::load_scenario(file);
   const auto drive = scenario::simulate_physiology(s, s.frame_rate_hz);
-  return model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
+  return runner::prepare(s, drive, {.auto_cache_file = dir.path() / "field.h5", .interior = true});
 }
 
 class LungInteriorByMesher : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(LungInteriorByMesher, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithPositiveJacobians) {
   test::TempDir dir;
-  const model::Compiled c = phantom_with_inside(dir, "8 mm", "1 L", GetParam());
+  const runner::Prepared c = phantom_with_inside(dir, "8 mm", "1 L", GetParam());
   ASSERT_EQ(c.model.lungs.size(), 1u);
   const model::LungModel& lung = c.model.lungs[0];
   ASSERT_NE(lung.interior, nullptr);
@@ -66,7 +66,7 @@ TEST_P(LungInteriorByMesher, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithP
   EXPECT_NEAR(tets_volume(inside.mesh, inside.unit_displacement, 0.0) / rest, 1.0, 0.02);
   // At the run's largest scale (1 L above rest) the inside grows by what the surface encloses:
   // the boundary moves with the surface, so the volume change agrees to the facet approximation.
-  const double s_max = c.lungs[0].max_scale;
+  const double s_max = c.scales[0].max_scale;
   ASSERT_GT(s_max, 0.0);
   const double surface_change = surface_volume(lung, s_max) - rest;
   const double tets_change = tets_volume(inside.mesh, inside.unit_displacement, s_max) -
@@ -76,7 +76,7 @@ TEST_P(LungInteriorByMesher, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithP
   std::cout << inside.mesh.tet_count() << " tets, " << inside.report.iterations << " CG iterations; volume change "
             << tets_change * 1e3 << " L inside against " << surface_change * 1e3 << " L of the surface\n";
   // The map rest -> frame stays invertible inside at both ends of the run.
-  for (const double scale : {c.lungs[0].min_scale, s_max}) {
+  for (const double scale : {c.scales[0].min_scale, s_max}) {
     double worst = 1e9;
     for (std::size_t t = 0; t < inside.mesh.tet_count(); ++t) {
       const Eigen::Matrix3d g = field::tet_displacement_gradient(inside.mesh, t, inside.unit_displacement);
@@ -89,7 +89,7 @@ TEST_P(LungInteriorByMesher, ThePhantomsInsideChangesVolumeAsItsSurfaceDoesWithP
 
 INSTANTIATE_TEST_SUITE_P(Meshers, LungInteriorByMesher, ::testing::Values("delaunay", "lattice"));
 
-bool has_timing(const model::Compiled& c, const std::string& name) {
+bool has_timing(const runner::Prepared& c, const std::string& name) {
   return std::any_of(c.timings_s.begin(), c.timings_s.end(), [&](const auto& t) { return t.first == name; });
 }
 
@@ -108,13 +108,13 @@ outputs: {gltf: false, report: false, hdf5: false}
     const auto file = dir.write("s.yaml", base + field);
     const scenario::Scenario s = runner::load_scenario(file);
     const auto drive = scenario::simulate_physiology(s, s.frame_rate_hz);
-    return model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
+    return runner::prepare(s, drive, {.auto_cache_file = dir.path() / "field.h5", .interior = true});
   };
-  const model::Compiled first = compile_with("field: {interior: {edge: 12 mm}}\n");
+  const runner::Prepared first = compile_with("field: {interior: {edge: 12 mm}}\n");
   EXPECT_TRUE(has_timing(first, "interior"));
-  const model::Compiled again = compile_with("field: {interior: {edge: 12 mm}}\n");
+  const runner::Prepared again = compile_with("field: {interior: {edge: 12 mm}}\n");
   EXPECT_TRUE(has_timing(again, "interior (cached)"));
-  EXPECT_TRUE(again.field_reused);
+  EXPECT_TRUE(again.model.report.field_reused);
   const model::LungInterior& a = *first.model.lungs[0].interior;
   const model::LungInterior& b = *again.model.lungs[0].interior;
   EXPECT_EQ(a.mesh.tets, b.mesh.tets);
@@ -122,16 +122,16 @@ outputs: {gltf: false, report: false, hdf5: false}
   EXPECT_EQ(a.unit_displacement, b.unit_displacement);
   EXPECT_EQ(a.boundary_nodes, b.boundary_nodes);
   // Another model of the inside: the field is reused, the inside made again.
-  const model::Compiled harmonic = compile_with("field: {interior: {edge: 12 mm, model: harmonic}}\n");
-  EXPECT_TRUE(harmonic.field_reused);
+  const runner::Prepared harmonic = compile_with("field: {interior: {edge: 12 mm, model: harmonic}}\n");
+  EXPECT_TRUE(harmonic.model.report.field_reused);
   EXPECT_TRUE(has_timing(harmonic, "interior"));
   EXPECT_EQ(harmonic.model.lungs[0].interior->options.model, field::InteriorModel::harmonic);
   // Another mesher: made again, and then kept beside the same field.
-  const model::Compiled lattice = compile_with("field: {interior: {edge: 12 mm, mesher: lattice}}\n");
-  EXPECT_TRUE(lattice.field_reused);
+  const runner::Prepared lattice = compile_with("field: {interior: {edge: 12 mm, mesher: lattice}}\n");
+  EXPECT_TRUE(lattice.model.report.field_reused);
   EXPECT_TRUE(has_timing(lattice, "interior"));
   EXPECT_EQ(lattice.model.lungs[0].interior->mesher, mesh::TetMesher::lattice);
-  const model::Compiled lattice_again = compile_with("field: {interior: {edge: 12 mm, mesher: lattice}}\n");
+  const runner::Prepared lattice_again = compile_with("field: {interior: {edge: 12 mm, mesher: lattice}}\n");
   EXPECT_TRUE(has_timing(lattice_again, "interior (cached)"));
   EXPECT_EQ(lattice_again.model.lungs[0].interior->mesher, mesh::TetMesher::lattice);
   EXPECT_EQ(lattice_again.model.lungs[0].interior->mesh.tets, lattice.model.lungs[0].interior->mesh.tets);
@@ -148,11 +148,11 @@ namespace {
 // Jacobian (finite differences) stays positive everywhere on a box around the lung.
 TEST(BodyMotion, TheAbdomenFollowsTheDiaphragmAndFadesWithDepthWithoutFolding) {
   test::TempDir dir;
-  const model::Compiled c = phantom_with_inside(dir, "10 mm", "1.5 L");
+  const runner::Prepared c = phantom_with_inside(dir, "10 mm", "1.5 L");
   ASSERT_NE(c.model.body, nullptr);
   const model::LungModel& lung = c.model.lungs[0];
   const model::BodyMotion& body = *c.model.body;
-  const double scale = c.lungs[0].max_scale;
+  const double scale = c.scales[0].max_scale;
   const std::vector<double> scales{scale};
   // The lowest vertex: the diaphragm's deepest point.
   std::size_t lowest = 0;

@@ -1,4 +1,4 @@
-// Unfolding the interior field (engine/field/untangle.h). Oracle: a regular octahedron split
+// Unfolding the interior field (field/untangle.h). Oracle: a regular octahedron split
 // into eight tetrahedra around its centre, where the Jacobian of each tetrahedron is an affine
 // function of the centre's position known in closed form: with the centre at (x, 0, 0) and the
 // corners still, the four tetrahedra on the +x side keep 1 - x/e of their volume, the others

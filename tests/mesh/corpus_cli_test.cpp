@@ -189,7 +189,7 @@ TEST(MeshCli, MissingFileAndBadOptions) {
   const auto file = write(dir, "s.obj", sphere());
   auto r = run_pneuma({"mesh", "remesh", file, "--edge", "0 mm", "-o", (dir / "o.ply").string()});
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_EQ(r.err, "pneuma: --edge: must be a positive length such as '3 mm'\n");
+  EXPECT_EQ(r.err, "pneuma: --edge: expected an edge of at least 0.1 mm, got 0 mm\n");
   r = run_pneuma({"mesh", "remesh", file, "--edge", "3 kg", "-o", (dir / "o.ply").string()});
   EXPECT_EQ(r.exit_code, 2);
   r = run_pneuma({"mesh", "info", file, "--unit", "kg"});

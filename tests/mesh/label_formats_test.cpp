@@ -15,6 +15,7 @@
 #include "test_support.h"
 
 using namespace pneuma::mesh;
+using namespace pneuma::image;
 using namespace pneuma::mesh::test;
 using pneuma::test::TempDir;
 

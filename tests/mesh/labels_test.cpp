@@ -14,6 +14,7 @@
 #include "test_support.h"
 
 using namespace pneuma::mesh;
+using namespace pneuma::image;
 using namespace pneuma::mesh::test;
 using pneuma::test::run_pneuma;
 using pneuma::test::TempDir;

@@ -16,6 +16,7 @@
 #include "pneuma/mesh/repair/repair.h"
 
 using namespace pneuma::mesh;
+using namespace pneuma::image;
 
 namespace {
 

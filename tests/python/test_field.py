@@ -93,6 +93,19 @@ def test_errors(field, tmp_path):
     with pytest.raises(pneuma.ValueError) as e:
         pneuma.Field(field.mesh, solver="cg", clique_hops=2)
     assert str(e.value) == "clique_hops: the cg solver takes 1 only, got 2"
+    # The rules and words of `pneuma field --tol` and `--clique` (core/include/pneuma/core/parameters.h).
+    with pytest.raises(pneuma.ValueError) as e:
+        pneuma.Field(field.mesh, tolerance=1e-13)
+    assert str(e.value) == "tolerance: expected a tolerance from 1e-12 to below 1, got 1e-13"
+    with pytest.raises(pneuma.ValueError) as e:
+        pneuma.Field(field.mesh, tolerance=1.0)
+    assert str(e.value) == "tolerance: expected a tolerance from 1e-12 to below 1, got 1"
+    with pytest.raises(pneuma.ValueError) as e:
+        pneuma.Field(field.mesh, solver="shot", clique_hops=5)
+    assert str(e.value) == "clique_hops: expected a clique size from 1 to 4 hops, got 5 hops"
+    with pytest.raises(pneuma.ValueError) as e:
+        pneuma.Field(field.mesh, area_unit_m2=0.0)
+    assert str(e.value) == "area_unit_m2: expected an area unit above 0 cm^2, got 0 cm^2"
     with pytest.raises(pneuma.ValueError) as e:
         pneuma.Field(field.mesh, solver="magic")
     assert str(e.value) == "unknown solver 'magic' (expected shot, sweep, direct or cg)"

@@ -54,3 +54,12 @@ def test_missing_file_is_an_io_error(tmp_path):
     assert str(tmp_path / "nowhere.stl") in str(e.value)
     with pytest.raises(pneuma.ValueError):
         pneuma.phantom("middle")
+
+
+def test_an_edge_below_a_tenth_of_a_millimetre_is_refused_in_the_words_of_the_cli(tmp_path):
+    with pytest.raises(pneuma.ValueError) as e:
+        pneuma.phantom("right", edge_m=5e-5)
+    assert str(e.value) == "edge_m: expected an edge of at least 0.1 mm, got 0.05 mm"
+    code, out, err = run_cli("phantom", "--lung", "right", "--edge", "0.05mm", "-o", tmp_path / "p.ply")
+    assert (code, out) == (2, "")
+    assert err == "pneuma: --edge: expected an edge of at least 0.1 mm, got 0.05 mm\n"

@@ -244,9 +244,9 @@ TEST(PngFrameSink, WritesEveryNthFrameAndNothingElse) {
   render::PngFrameSink sink(dir / "frames", options);
   sink.begin(model, outputs::RunInfo{5, 30.0, {-0.5}, {1.0}, dir.path()});
   const double scales[] = {-0.5, 0.25, 1.0, 0.1, 0.25};
-  frame::Frame frame(model);
+  model::Frame frame(model);
   for (std::size_t k = 0; k < 5; ++k) {
-    frame::advance(model, {k, 0.0, 0.0, {scales[k]}}, frame);
+    model::advance(model, {k, 0.0, 0.0, {scales[k]}}, frame);
     sink.frame(model, frame);
   }
   const auto written = sink.finish(model, {});
@@ -297,9 +297,9 @@ std::vector<std::filesystem::path> write_sequence(const test::LungStandIn& lung,
   options.render = small_options(render::CameraPreset::oblique);
   render::PngFrameSink sink(folder, options);
   sink.begin(model, outputs::RunInfo{scales.size(), 30.0, {0.0}, {1.0}, folder});
-  frame::Frame frame(model);
+  model::Frame frame(model);
   for (std::size_t k = 0; k < scales.size(); ++k) {
-    frame::advance(model, {k, 0.0, 0.0, {scales[k]}}, frame);
+    model::advance(model, {k, 0.0, 0.0, {scales[k]}}, frame);
     sink.frame(model, frame);
   }
   return sink.finish(model, {});

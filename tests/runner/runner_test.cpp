@@ -230,7 +230,7 @@ INSTANTIATE_TEST_SUITE_P(
                3},
         BadRun{"clique_too_large",
                "duration: 4 s\nfield: {solver: shot, clique: 5}\nphysiology: {preset: healthy-adult}\n",
-               "2:31: field.clique: expected a whole number from 1 to 4, got '5'", 3}),
+               "2:31: field.clique: expected a clique size from 1 to 4 hops, got '5'", 3}),
     [](const auto& test_case) { return std::string(test_case.param.name); });
 
 TEST(Runner, AreaGrowsByOneAreaUnitPerUnitScaleAtFirstOrder) {
@@ -270,7 +270,7 @@ TEST(Runner, AreaGrowsByOneAreaUnitPerUnitScaleAtFirstOrder) {
 // The area in series.h5 against the oracle of the file's own float64 frame: the sum of its
 // triangles' areas (Heron-free: half the cross product's length), summed here. A run of 300
 // frames takes its areas from a table (within 1e-12 of the sum); one of 40 frames sums each
-// frame exactly (frame::Frame's ranges are given from 256 frames on).
+// frame exactly (model::Frame's ranges are given from 256 frames on).
 TEST(Runner, SeriesAreaIsTheSumOfTheFramesTrianglesWithOrWithoutATable) {
   TempDir dir;
   for (const int seconds : {30, 4}) {
@@ -449,9 +449,9 @@ TEST(Runner, TheModelsRegionsAreThoseOfItsRestSurfaceOnEveryPath) {
     for (const char* pass : {"first", "second"}) {
       SCOPED_TRACE(name + ", " + pass + " run");
       const auto drive = pneuma::scenario::simulate_physiology(s, s.frame_rate_hz);
-      const auto compiled = pneuma::model::compile(s, drive, {out, std::nullopt});
+      const auto compiled = pneuma::runner::prepare(s, drive, {.auto_cache_file = out / "field.h5"});
       const auto& model = compiled.model.lungs.front();
-      EXPECT_EQ(compiled.field_reused, std::string(pass) == "second" && name != "phantom, no cache");
+      EXPECT_EQ(compiled.model.report.field_reused, std::string(pass) == "second" && name != "phantom, no cache");
       const auto direct = pneuma::mesh::find_regions(model.rest, axes);
       EXPECT_EQ(model.regions.label, direct.label);
       EXPECT_EQ(model.regions.weight, direct.weight);
@@ -508,7 +508,7 @@ TEST_P(CtLobeRuns, BothLungsBreathe) {
     GTEST_SKIP() << "no CT lobe maps at " << file.parent_path()
                  << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
   }
-  const pneuma::mesh::LabelMap map = pneuma::mesh::read_label_map(file);
+  const pneuma::image::LabelMap map = pneuma::image::read_label_map(file);
   struct Lung {
     const char* values;
     std::vector<int> labels;

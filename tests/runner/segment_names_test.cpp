@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "pneuma/core/error.h"
-#include "pneuma/model/compile.h"
 #include "pneuma/runner/output_registry.h"
+#include "pneuma/runner/runner.h"
 #include "pneuma/scenario/scenario.h"
 #include "test_support.h"
 
@@ -58,7 +58,7 @@ std::string scenario_with(const std::string& mesh) {
 std::vector<double> rest_volumes(const std::filesystem::path& scenario, const std::filesystem::path& out) {
   const auto s = pneuma::runner::load_scenario(scenario);
   const auto drive = pneuma::scenario::simulate_physiology(s, s.frame_rate_hz);
-  const auto compiled = pneuma::model::compile(s, drive, {out, std::nullopt});
+  const auto compiled = pneuma::runner::prepare(s, drive, {.auto_cache_file = out / "field.h5"});
   std::vector<double> volumes;
   for (const auto& lung : compiled.model.lungs) volumes.push_back(lung.volume_map.volume(0.0));
   return volumes;

@@ -230,7 +230,7 @@ TEST_P(CtBothLungs, OneScenarioBreathesBothLungs) {
   const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
   ASSERT_EQ(r.exit_code, 0) << GetParam() << ": " << r.err;
   const auto manifest = nlohmann::json::parse(pneuma::test::read_text(dir / "out/manifest.json"));
-  const pneuma::mesh::LabelMap map = pneuma::mesh::read_label_map(file);
+  const pneuma::image::LabelMap map = pneuma::image::read_label_map(file);
   const auto s = pneuma::runner::load_scenario(scenario);
   auto options = s.physiology.options;
   options.output_rate_hz = 5.0;

@@ -17,8 +17,8 @@
 
 #include "pneuma/mesh/geometry/surface_queries.h"
 #include "pneuma/mesh/labels/labels.h"
-#include "pneuma/model/compile.h"
 #include "pneuma/runner/output_registry.h"
+#include "pneuma/runner/runner.h"
 #include "pneuma/voxels/dvf.h"
 #include "test_support.h"
 
@@ -53,7 +53,7 @@ std::vector<CsvRow> read_voxels_csv(const std::filesystem::path& path) {
   return rows;
 }
 
-double lung_voxels_volume_m3(const pneuma::mesh::LabelMap& map, const std::vector<int>& values) {
+double lung_voxels_volume_m3(const pneuma::image::LabelMap& map, const std::vector<int>& values) {
   std::size_t n = 0;
   for (const auto v : map.labels) n += std::find(values.begin(), values.end(), v) != values.end();
   return static_cast<double>(n) * map.voxel_volume_m3();
@@ -90,14 +90,14 @@ TEST_P(VoxelsRunByMesher, ThePhantomsWarpedLungFollowsThePhysiologysVolume) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto rows = read_voxels_csv(dir / "out/voxels/voxels.csv");
   ASSERT_EQ(rows.size(), 3u);
-  const auto rest = pneuma::mesh::read_label_map(dir / "out/voxels" / ("labels-" + rows[0].time_point + ".nii.gz"));
+  const auto rest = pneuma::image::read_label_map(dir / "out/voxels" / ("labels-" + rows[0].time_point + ".nii.gz"));
   const double rest_m3 = lung_voxels_volume_m3(rest, {1});
   for (const CsvRow& row : rows) {
     for (const char* kind : {"dvf-forward-", "dvf-pullback-", "labels-"}) {
       EXPECT_TRUE(std::filesystem::exists(dir / "out/voxels" / (kind + row.time_point + ".nii.gz"))) << row.time_point;
     }
     // Counted here from the file written, not taken from the CSV.
-    const auto warped = pneuma::mesh::read_label_map(dir / "out/voxels" / ("labels-" + row.time_point + ".nii.gz"));
+    const auto warped = pneuma::image::read_label_map(dir / "out/voxels" / ("labels-" + row.time_point + ".nii.gz"));
     const double warped_m3 = lung_voxels_volume_m3(warped, {1});
     EXPECT_NEAR(warped_m3 * 1e6, row.warped_mL, 1e-3 * row.warped_mL);
     EXPECT_NEAR(warped_m3 * 1e6 / row.expected_mL, 1.0, 0.02) << row.time_point;
@@ -128,10 +128,10 @@ TEST(VoxelsRun, TheWarpedLungsBoundaryIsTheSurfaceFrames) {
   const auto file = dir.write("s.yaml", kPhantom);
   const auto s = pneuma::runner::load_scenario(file);
   const auto drive = pneuma::scenario::simulate_physiology(s, s.frame_rate_hz);
-  const auto c = pneuma::model::compile(s, drive, {.output_dir = dir.path(), .interior = true});
+  const auto c = pneuma::runner::prepare(s, drive, {.auto_cache_file = dir.path() / "field.h5", .interior = true});
   const auto& lung = c.model.lungs[0];
   const auto& inside = *lung.interior;
-  const double scale = c.lungs[0].max_scale;
+  const double scale = c.scales[0].max_scale;
   pneuma::mesh::TriangleMesh frame = lung.rest;
   for (std::size_t v = 0; v < frame.vertices.size(); ++v) frame.vertices[v] += scale * lung.unit_displacement[v];
   std::vector<Eigen::Vector3d> moved;
@@ -212,7 +212,8 @@ TEST(VoxelsRun, EachPhaseBinGetsItsFieldsAndLabelMapAtItsMeanVolume) {
     for (const char* kind : {"dvf-forward-", "dvf-pullback-"}) {
       EXPECT_TRUE(std::filesystem::exists(dir / "out/voxels" / (kind + rows[b].time_point + ".nii.gz")));
     }
-    const auto warped = pneuma::mesh::read_label_map(dir / "out/voxels" / ("labels-" + rows[b].time_point + ".nii.gz"));
+    const auto warped =
+        pneuma::image::read_label_map(dir / "out/voxels" / ("labels-" + rows[b].time_point + ".nii.gz"));
     warped_mL.push_back(lung_voxels_volume_m3(warped, {1}) * 1e6);
     EXPECT_NEAR(warped_mL.back() / rows[b].expected_mL, 1.0, 0.02) << b;
     EXPECT_GT(rows[b].min_jacobian, 0.0) << b;
@@ -305,7 +306,7 @@ TEST_P(CtVoxels, TheWarpedLobesFollowThePhysiologysVolume) {
   const auto rows = read_voxels_csv(dir / "out/voxels/voxels.csv");
   ASSERT_EQ(rows.size(), 2u);
   for (const CsvRow& row : rows) {
-    const auto warped = pneuma::mesh::read_label_map(dir / "out/voxels" / ("labels-" + row.time_point + ".nii.gz"));
+    const auto warped = pneuma::image::read_label_map(dir / "out/voxels" / ("labels-" + row.time_point + ".nii.gz"));
     const double warped_mL = lung_voxels_volume_m3(warped, {1, 2, 3, 4, 5}) * 1e6;
     EXPECT_NEAR(warped_mL / row.expected_mL, 1.0, 0.02) << GetParam() << " " << row.time_point;
     EXPECT_EQ(row.folded_tets, 0u) << GetParam() << " " << row.time_point;

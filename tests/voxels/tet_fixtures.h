@@ -35,7 +35,7 @@ struct Ball {
   double radius_m = 19e-3;
   mesh::TetMesh mesh;
   Grid grid;
-  mesh::LabelMap labels;
+  image::LabelMap labels;
 
   Eigen::Vector3d corner_m() const { return centre_m - Eigen::Vector3d::Constant(cell_m * cells / 2); }
   // The oracle for "inside the rest mesh": the cell holding p is one of the mesh's.

@@ -118,7 +118,7 @@ TEST(VoxelFiles, LabelMapAndCtReadBackOnTheSameGeometry) {
     const TimePointFiles files = write_time_point(dir.path(), "0.500s", point, extension);
     EXPECT_EQ(files.forward.filename().string(), "dvf-forward-0.500s" + extension);
     EXPECT_EQ(files.pullback.filename().string(), "dvf-pullback-0.500s" + extension);
-    const mesh::LabelMap labels = mesh::read_label_map(files.labels);
+    const image::LabelMap labels = image::read_label_map(files.labels);
     EXPECT_EQ(labels.size, point.labels->size);
     EXPECT_EQ(labels.labels, point.labels->labels);
     EXPECT_LE((labels.ijk_to_lps - point.labels->ijk_to_lps).cwiseAbs().maxCoeff(), 1e-9);
@@ -206,7 +206,7 @@ TEST(VoxelFiles, TheDocsScipyExampleWarpsTheCtAsPneumaDoes) {
   EXPECT_LE(worst_hu, 0.05);  // float32 displacements (in the file) against pneuma's doubles
 }
 
-double dice(const mesh::LabelMap& a, const mesh::LabelMap& b, std::int32_t label) {
+double dice(const image::LabelMap& a, const image::LabelMap& b, std::int32_t label) {
   std::size_t na = 0, nb = 0, both = 0;
   for (std::size_t v = 0; v < a.labels.size(); ++v) {
     na += a.labels[v] == label;
@@ -222,7 +222,7 @@ TEST(VoxelFiles, PlastimatchWarpsLikePneuma) {
   if (!fs::exists(plastimatch)) GTEST_SKIP() << "plastimatch is not installed (install-deps: plastimatch)";
   const Moved m;
   const DisplacementField pull = pullback_dvf(m.ball.grid, m.lungs());
-  const mesh::LabelMap ours = warp_labels(m.ball.labels, pull);
+  const image::LabelMap ours = warp_labels(m.ball.labels, pull);
   const TempDir dir;
   write_label_map(dir / "labels.nii.gz", m.ball.labels);
   write_dvf(dir / "pull.nii.gz", pull);
@@ -230,7 +230,7 @@ TEST(VoxelFiles, PlastimatchWarpsLikePneuma) {
       plastimatch, {"warp", "--input", (dir / "labels.nii.gz").string(), "--output-img", (dir / "out.nii.gz").string(),
                     "--xf", (dir / "pull.nii.gz").string(), "--interpolation", "nn"});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
-  const mesh::LabelMap theirs = mesh::read_label_map(dir / "out.nii.gz");
+  const image::LabelMap theirs = image::read_label_map(dir / "out.nii.gz");
   ASSERT_EQ(theirs.size, ours.size);
   EXPECT_LE((theirs.ijk_to_lps - ours.ijk_to_lps).cwiseAbs().maxCoeff(), 1e-9);
   for (const std::int32_t label : {1, 2, 7}) {

@@ -11,7 +11,7 @@
 namespace pneuma::voxels {
 namespace {
 
-std::size_t count_label(const mesh::LabelMap& map, std::int32_t label) {
+std::size_t count_label(const image::LabelMap& map, std::int32_t label) {
   return static_cast<std::size_t>(std::count(map.labels.begin(), map.labels.end(), label));
 }
 
@@ -28,7 +28,7 @@ TEST(WarpLabels, DilatedBallGrowsByTheCubeOfItsScale) {
   EXPECT_NEAR(j.deformed_volume_m3, factor * j.rest_volume_m3, 1e-12 * j.rest_volume_m3);
 
   const DisplacementField pull = pullback_dvf(ball.grid, lungs);
-  const mesh::LabelMap warped = warp_labels(ball.labels, pull);
+  const image::LabelMap warped = warp_labels(ball.labels, pull);
   EXPECT_EQ(warped.size, ball.labels.size);
   EXPECT_EQ(warped.segments.size(), 3u);
   // Voxel by voxel against the analytic inverse: inside the deformed ball (the rest point

@@ -22,7 +22,6 @@
 #include "pneuma/core/paths.h"
 #include "pneuma/core/units.h"
 #include "pneuma/mesh/io/mesh_io.h"
-#include "pneuma/mesh/io/readable_file.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -168,7 +167,7 @@ std::optional<double> recorded_unit(const std::filesystem::path& path) {
 
 TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& options) {
   const std::string name = path.string();
-  detail::require_readable_file(path);
+  require_readable_file(path);
   std::error_code ec;
   const std::uintmax_t size = std::filesystem::file_size(path, ec);
   if (ec) throw IoError(name + ": cannot read: " + ec.message());

@@ -396,7 +396,7 @@ std::filesystem::path provenance_path(const std::filesystem::path& mesh_path) {
   return p;
 }
 
-void check_label_surface_size(const LabelMap& map, const std::string& name, const std::vector<int>& labels,
+void check_label_surface_size(const image::LabelMap& map, const std::string& name, const std::vector<int>& labels,
                               const LabelSurfaceOptions& options) {
   const Eigen::Vector3d spacing = map.spacing_m();
   double extent_m = 0.0;
@@ -431,10 +431,10 @@ void check_label_surface_size(const LabelMap& map, const std::string& name, cons
 
 LabelSurface surface_from_labels(const std::filesystem::path& path, const std::vector<int>& labels,
                                  const LabelSurfaceOptions& options) {
-  return surface_from_labels(read_label_map(path), path.string(), labels, options);
+  return surface_from_labels(image::read_label_map(path), path.string(), labels, options);
 }
 
-LabelSurface surface_from_labels(const LabelMap& map, const std::string& name, const std::vector<int>& labels,
+LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& name, const std::vector<int>& labels,
                                  const LabelSurfaceOptions& options) {
   auto positive = [](double x) { return x > 0.0 && std::isfinite(x); };
   auto non_negative = [](double x) { return x >= 0.0 && std::isfinite(x); };

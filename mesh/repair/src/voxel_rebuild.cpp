@@ -86,7 +86,7 @@ VoxelRebuild rebuild_through_voxels(const TriangleMesh& mesh, const std::string&
     }
   }
 
-  LabelMap map;
+  image::LabelMap map;
   map.size = n;
   map.transform_source = "voxelized surface";
   map.ijk_to_lps.topLeftCorner<3, 3>() = Eigen::Matrix3d::Identity() * h;

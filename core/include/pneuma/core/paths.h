@@ -29,6 +29,10 @@ std::string missing_reason(const std::filesystem::path& path);
 std::string read_file_bytes(const std::filesystem::path& path,
                             std::uintmax_t max_bytes = std::numeric_limits<std::uintmax_t>::max());
 
+// The check every reader makes before it opens an input file, with the one-line IoErrors they
+// share: "<file>: cannot read: no such file | is a folder | permission denied".
+void require_readable_file(const std::filesystem::path& path);
+
 // The names, without extension and sorted, of the regular files in `folder` whose name ends in
 // `extension` (such as ".yaml"); empty where the folder cannot be listed. For messages that
 // name what is available (the shipped presets), so that they cannot drift from the folder.

@@ -68,4 +68,11 @@ inline constexpr double m3_per_ml = 1e-6;
 inline constexpr double m3_per_l_per_pa_per_cmh2o = m3_per_litre / pa_per_cmh2o;      // L/cmH2O -> m^3/Pa
 inline constexpr double pa_s_per_m3_per_cmh2o_s_per_l = pa_per_cmh2o / m3_per_litre;  // cmH2O*s/L -> Pa*s/m^3
 
+// From SI to the units outputs show (physiology CSV, report, Python): multiply an SI value.
+inline constexpr double ml_per_m3 = 1.0 / m3_per_ml;
+inline constexpr double litres_per_m3 = 1.0 / m3_per_litre;
+inline constexpr double cmh2o_per_pa = 1.0 / pa_per_cmh2o;
+// The reciprocals round to the exact powers of ten, so `x * ml_per_m3` is `x * 1e6` bit for bit.
+static_assert(ml_per_m3 == 1e6 && litres_per_m3 == 1e3);
+
 }  // namespace pneuma::units

@@ -33,7 +33,7 @@ class PngFrameSink final : public outputs::Output {
   // Throws what Renderer's constructor throws (UnsupportedError without OpenGL).
   void begin(const model::Model& model, const outputs::RunInfo& run) override;
   // A frame that cannot be written throws IoError from a later frame() or from finish().
-  void frame(const model::Model& model, const frame::Frame& frame) override;
+  void frame(const model::Model& model, const model::Frame& frame) override;
   std::vector<std::filesystem::path> finish(const model::Model& model, const outputs::RunRecord& run) override;
 
   std::filesystem::path path_of(std::size_t index) const;

@@ -8,7 +8,7 @@
 // its smallest vertex index); each chunk sums in 4 fixed lanes and the chunk sums are added in
 // chunk order. So volume and area are the same bits at any thread count and on either instruction
 // set (both do the same IEEE multiplies, adds and square roots, never FMA). The positions are
-// bit-for-bit `rest[i] + s * u[i]` (one multiply, one add per coordinate), as frame::displace.
+// bit-for-bit `rest[i] + s * u[i]` (one multiply, one add per coordinate), as model::displace.
 //
 // A run knows every frame's s before its first frame, so tabulate_measures() can take V and A out
 // of the per-frame work: both are smooth in s (V is a cubic, A a sum of square roots of quartics),

@@ -1,0 +1,229 @@
+// The one translation unit that includes ITK (5.2: ITKIONIFTI, ITKIONRRD, ITKIOMeta over
+// ITKIOImageBase). The ImageIO classes are used directly, not through itk::Image and the IO
+// factories: the file's own component type is read into a buffer of that type and converted to
+// int32 here, and no image template is instantiated (compile time). ITK's messages (exception
+// text with source locations, MetaIO's lines on std::cerr, warnings) never reach the user:
+// each failure becomes one pneuma line.
+// clang-format off
+#include "itk_clang.h"  // first: Debian's ITK headers under clang
+// clang-format on
+#include <itkMetaDataObject.h>
+#include <itkMetaImageIO.h>
+#include <itkNiftiImageIO.h>
+#include <itkNrrdImageIO.h>
+
+#include "itk_quiet.h"
+
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
+
+#include "itk_image.h"
+#include "pneuma/core/error.h"
+
+namespace pneuma::image::detail {
+namespace {
+
+using Component = itk::IOComponentEnum;
+
+itk::ImageIOBase::Pointer make_io(ImageFormat format) {
+  switch (format) {
+    case ImageFormat::nifti: return itk::NiftiImageIO::New().GetPointer();
+    case ImageFormat::nrrd: return itk::NrrdImageIO::New().GetPointer();
+    case ImageFormat::meta: return itk::MetaImageIO::New().GetPointer();
+  }
+  return nullptr;
+}
+
+const char* format_expectation(ImageFormat format) {
+  switch (format) {
+    case ImageFormat::nifti:
+      return "not a NIfTI file: expected a NIfTI-1 or NIfTI-2 header (348 or 540 bytes, magic 'n+1' or 'n+2'), "
+             "gzip-compressed for .nii.gz";
+    case ImageFormat::nrrd:
+      return "not a NRRD file: expected the magic line 'NRRD0001'..'NRRD0005' and a header with type, dimension, "
+             "sizes and encoding";
+    case ImageFormat::meta:
+      return "not a MetaImage file: expected 'Key = Value' header lines with NDims, DimSize, ElementType and "
+             "ElementDataFile";
+  }
+  return "";
+}
+
+// NIfTI's names for the types (niftilib's nifti_datatype_string), whatever the format.
+const char* type_name(Component c) {
+  switch (c) {
+    case Component::UCHAR: return "UINT8";
+    case Component::CHAR: return "INT8";
+    case Component::USHORT: return "UINT16";
+    case Component::SHORT: return "INT16";
+    case Component::UINT: return "UINT32";
+    case Component::INT: return "INT32";
+    case Component::ULONG: return sizeof(unsigned long) == 8 ? "UINT64" : "UINT32";
+    case Component::LONG: return sizeof(long) == 8 ? "INT64" : "INT32";
+    case Component::ULONGLONG: return "UINT64";
+    case Component::LONGLONG: return "INT64";
+    case Component::FLOAT: return "FLOAT32";
+    case Component::DOUBLE: return "FLOAT64";
+    case Component::LDOUBLE: return "FLOAT128";
+    default: return "UNKNOWN";
+  }
+}
+
+template <typename T>
+void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& image, VoxelKind kind) {
+  const std::size_t count = image.voxel_count() * image.components;
+  std::vector<T> buffer(count);
+  io.Read(buffer.data());
+  if (kind == VoxelKind::reals) {
+    image.reals.resize(count);
+    for (std::size_t v = 0; v < count; ++v) image.reals[v] = static_cast<float>(buffer[v]);
+    return;
+  }
+  image.values.resize(count);
+  for (std::size_t v = 0; v < count; ++v) {
+    const double value = static_cast<double>(buffer[v]);
+    if (!(value == std::floor(value)) || std::abs(value) > 2147483647.0) {
+      std::ostringstream text;
+      text << name << ": voxel " << v / image.components << " holds " << std::to_string(value)
+           << ": expected integer labels (a label map, not an image)";
+      throw InputError(text.str());
+    }
+    image.values[v] = static_cast<std::int32_t>(value);
+  }
+}
+
+}  // namespace
+
+std::string truncated_message(const std::string& name, const std::array<std::size_t, 3>& size, std::size_t components,
+                              const std::string& type_name, double data_bytes, bool compressed) {
+  std::ostringstream text;
+  text.precision(std::numeric_limits<double>::max_digits10);
+  text << name << ": truncated or corrupt: expected " << size[0] << " x " << size[1] << " x " << size[2]
+       << " voxels of " << type_name;
+  if (components > 1) text << " in " << components << " layers";
+  text << " (" << static_cast<std::uint64_t>(data_bytes) << " bytes of data"
+       << (compressed ? " after decompression" : "") << ")";
+  return text.str();
+}
+
+namespace {
+
+// The header as ITK reads it; ITK's exceptions pass (the caller turns them into one line).
+ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat format, VoxelKind kind) {
+  const std::string expected = kind == VoxelKind::labels ? "expected integer labels (uint8, int16, int32, ...)"
+                                                         : "expected numbers (int16, float32, ...)";
+  if (!io.CanReadFile(name.c_str())) throw InputError(name + ": " + format_expectation(format));
+  io.ReadImageInformation();
+  ItkImage image;
+  const unsigned dims = io.GetNumberOfDimensions();
+  for (unsigned d = 3; d < dims; ++d) {
+    if (io.GetDimensions(d) > 1) {
+      throw InputError(name + ": " + std::to_string(dims) +
+                       "-dimensional data: expected one 3D label volume (dimension " + std::to_string(d + 1) + " has " +
+                       std::to_string(io.GetDimensions(d)) + " entries)");
+    }
+  }
+  if (dims < 2) throw InputError(name + ": " + std::to_string(dims) + "-dimensional data: expected a 3D label volume");
+  // ITK's spacing and origin are millimetres in LPS (NRRD in a right-anterior space and
+  // MetaImage are turned into LPS by ITK); a 2D image is one slice of unit thickness.
+  Eigen::Matrix3d direction = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d spacing_mm = Eigen::Vector3d::Ones(), origin_mm = Eigen::Vector3d::Zero();
+  const unsigned shown = std::min(dims, 3u);
+  for (unsigned d = 0; d < shown; ++d) {
+    image.size[d] = io.GetDimensions(d);
+    spacing_mm[d] = io.GetSpacing(d);
+    origin_mm[d] = io.GetOrigin(d);
+    const std::vector<double> column = io.GetDirection(d);
+    for (unsigned r = 0; r < shown && r < column.size(); ++r) direction(r, d) = column[r];
+  }
+  for (unsigned d = shown; d < 3; ++d) image.size[d] = 1;
+  image.ijk_to_lps.block<3, 3>(0, 0) = direction * spacing_mm.asDiagonal() * 1e-3;
+  image.ijk_to_lps.block<3, 1>(0, 3) = origin_mm * 1e-3;
+  if (image.voxel_count() == 0) throw InputError(name + ": expected a non-empty 3D volume");
+  image.components = io.GetNumberOfComponents();
+  const Component component = io.GetComponentType();
+  image.type_name = type_name(component);
+  const itk::IOPixelEnum pixel = io.GetPixelType();
+  const bool integral_or_real = component != Component::UNKNOWNCOMPONENTTYPE && component != Component::LDOUBLE;
+  if (!integral_or_real) {
+    throw InputError(name + ": voxels of an unknown type: " + expected);
+  }
+  if (pixel == itk::IOPixelEnum::COMPLEX || pixel == itk::IOPixelEnum::RGB || pixel == itk::IOPixelEnum::RGBA ||
+      image.components == 0) {
+    throw InputError(name + ": voxels of type " + itk::ImageIOBase::GetPixelTypeAsString(pixel) + " " +
+                     image.type_name + ": " + expected);
+  }
+  image.component_bytes = io.GetComponentSize();
+
+  const itk::MetaDataDictionary& dictionary = io.GetMetaDataDictionary();
+  for (const std::string& key : dictionary.GetKeys()) {
+    std::string value;
+    if (itk::ExposeMetaData<std::string>(dictionary, key, value)) image.metadata.emplace(key, value);
+  }
+  return image;
+}
+
+}  // namespace
+
+ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
+                        const std::function<StoredData(const ItkImage&)>& stored, VoxelKind kind) {
+  const std::string name = path.string();
+  // One ITK call at a time: std::cerr's buffer and ITK's warning switch are process-wide.
+  const std::lock_guard<std::mutex> lock(itk_quiet::mutex());
+  itk::Object::SetGlobalWarningDisplay(false);
+  const itk_quiet::SilenceStdErr silence;
+  itk::ImageIOBase::Pointer io = make_io(format);
+  io->SetFileName(name);
+  ItkImage image;
+  try {
+    image = read_header(*io, name, format, kind);
+  } catch (const itk::ExceptionObject&) {
+    throw InputError(name + ": " + format_expectation(format));
+  } catch (const std::bad_alloc&) {
+    throw InputError(name + ": " + format_expectation(format));
+  } catch (const std::length_error&) {
+    throw InputError(name + ": " + format_expectation(format));
+  }
+
+  const StoredData data = stored(image);
+  const double claimed = image.data_bytes();
+  const double room = data.exact || !data.compressed ? data.bytes : 1032.0 * data.bytes + 4096.0;
+  const std::string truncated =
+      truncated_message(name, image.size, image.components, image.type_name, claimed, data.compressed);
+  if (claimed > room) throw InputError(truncated);
+  try {
+    // The whole image (an ImageIO reads only its IO region, empty unless set).
+    const unsigned dims = io->GetNumberOfDimensions();
+    itk::ImageIORegion region(dims);
+    for (unsigned d = 0; d < dims; ++d) {
+      region.SetIndex(d, 0);
+      region.SetSize(d, io->GetDimensions(d));
+    }
+    io->SetIORegion(region);
+    switch (io->GetComponentType()) {
+      case Component::UCHAR: read_and_convert<unsigned char>(*io, name, image, kind); break;
+      case Component::CHAR: read_and_convert<signed char>(*io, name, image, kind); break;
+      case Component::USHORT: read_and_convert<unsigned short>(*io, name, image, kind); break;
+      case Component::SHORT: read_and_convert<short>(*io, name, image, kind); break;
+      case Component::UINT: read_and_convert<unsigned int>(*io, name, image, kind); break;
+      case Component::INT: read_and_convert<int>(*io, name, image, kind); break;
+      case Component::ULONG: read_and_convert<unsigned long>(*io, name, image, kind); break;
+      case Component::LONG: read_and_convert<long>(*io, name, image, kind); break;
+      case Component::ULONGLONG: read_and_convert<unsigned long long>(*io, name, image, kind); break;
+      case Component::LONGLONG: read_and_convert<long long>(*io, name, image, kind); break;
+      case Component::FLOAT: read_and_convert<float>(*io, name, image, kind); break;
+      case Component::DOUBLE: read_and_convert<double>(*io, name, image, kind); break;
+      default: throw InputError(truncated);  // excluded with the header
+    }
+  } catch (const itk::ExceptionObject&) {
+    throw InputError(truncated);
+  } catch (const std::bad_alloc&) {
+    throw InputError(truncated);
+  }
+  return image;
+}
+
+}  // namespace pneuma::image::detail

@@ -1,0 +1,211 @@
+#include "pneuma/mesh/source/surface_source.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+
+#include "pneuma/core/error.h"
+#include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/geometry/validate.h"
+#include "pneuma/mesh/io/mesh_io.h"
+#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/mesh/repair/remesh.h"
+#include "pneuma/mesh/repair/repair.h"
+
+namespace pneuma::mesh {
+namespace {
+
+// Refuses a remeshing target `edge_m` that would make a surface of `area_m2` larger than
+// kMaxSurfaceVertices, before any of it is made. An area far beyond a lung's (about 0.1 m2)
+// is most often a file in millimetres read as metres: the message says so.
+void check_surface_size(const SurfaceSourceSpec& where, double area_m2, double edge_m) {
+  if (!(edge_m > 0.0)) return;  // not remeshed
+  const double vertices = vertex_count_at_edge(area_m2, edge_m);
+  if (vertices <= kMaxSurfaceVertices) return;
+  const std::string unit_hint =
+      area_m2 > 10.0 ? fmt::format("; {:.4g} m2 is not the area of a lung (about 0.1 m2): is mesh.unit right?", area_m2)
+                     : std::string();
+  throw InputError(
+      fmt::format("{}: {}: a surface of {:.4g} m2 at an edge of {:.4g} mm would have about {:.3g} vertices; "
+                  "expected at most {:.0f} (a coarser edge){}",
+                  where.origin, where.edge_key, area_m2, edge_m * 1e3, vertices, kMaxSurfaceVertices, unit_hint));
+}
+
+// Refuses a surface more than a metre across: not a lung (an adult's is about 0.3 m tall), but a
+// file in millimetres read as metres or a damaged vertex far away, whose needle triangles
+// remeshing would split for hours (a vertex of a damaged STL at z = 11 km; found by scripts/mutate).
+void check_lung_extent(const std::filesystem::path& file, const mesh::TriangleMesh& surface) {
+  if (surface.vertices.empty()) return;
+  const auto [lo, hi] = bounding_box(surface.vertices);
+  const Eigen::Vector3d size = hi - lo;
+  Eigen::Index axis = 0;
+  const double largest = size.maxCoeff(&axis);
+  if (largest <= 1.0) return;
+  throw InputError(fmt::format("{}: the surface spans {:.4g} m along {} ({:.4g} x {:.4g} x {:.4g} m); expected a lung, "
+                               "at most 1 m across (is mesh.unit right, or a vertex damaged?)",
+                               file.string(), largest, "xyz"[axis], size.x(), size.y(), size.z()));
+}
+
+TriangleMesh phantom_surface(Lung side, double edge_m) {
+  PhantomOptions phantom;
+  phantom.lung = side;
+  phantom.edge_length_m = edge_m;
+  return make_lung_phantom(phantom);
+}
+
+RemeshOptions remesh_options(double edge_m) {
+  RemeshOptions remesh;
+  remesh.target_edge_length_m = edge_m;
+  return remesh;
+}
+
+TriangleMesh remeshed(TriangleMesh surface, double edge_m) {
+  if (edge_m <= 0.0) return surface;
+  return remesh_isotropic(surface, remesh_options(edge_m)).mesh;
+}
+
+// Two lungs from one label map: where they touch (26-neighbour voxels), both lose those voxels,
+// so that their surfaces, each extracted and remeshed alone, keep a gap of about two voxels and
+// do not cut into each other at rest (they did on case007 at 4 mm). Only the contact band goes:
+// a few mL at most, against litres.
+image::LabelMap separated_lungs(image::LabelMap map, const std::vector<int>& one, const std::vector<int>& other) {
+  auto in = [](const std::vector<int>& values, std::int32_t label) {
+    return std::find(values.begin(), values.end(), label) != values.end();
+  };
+  const auto [nx, ny, nz] = map.size;
+  std::vector<std::uint8_t> side(map.labels.size(), 0);  // 1: `one`, 2: `other`
+  for (std::size_t v = 0; v < side.size(); ++v)
+    side[v] = in(one, map.labels[v]) ? 1 : (in(other, map.labels[v]) ? 2 : 0);
+  std::vector<std::size_t> contact;
+  for (std::size_t k = 0; k < nz; ++k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      for (std::size_t i = 0; i < nx; ++i) {
+        const std::size_t v = i + nx * (j + ny * k);
+        if (side[v] == 0) continue;
+        bool touches = false;
+        for (int dk = -1; dk <= 1 && !touches; ++dk) {
+          for (int dj = -1; dj <= 1 && !touches; ++dj) {
+            for (int di = -1; di <= 1 && !touches; ++di) {
+              const auto ii = static_cast<std::ptrdiff_t>(i) + di, jj = static_cast<std::ptrdiff_t>(j) + dj,
+                         kk = static_cast<std::ptrdiff_t>(k) + dk;
+              if (ii < 0 || jj < 0 || kk < 0 || ii >= static_cast<std::ptrdiff_t>(nx) ||
+                  jj >= static_cast<std::ptrdiff_t>(ny) || kk >= static_cast<std::ptrdiff_t>(nz))
+                continue;
+              const std::uint8_t s = side[static_cast<std::size_t>(ii) +
+                                          nx * (static_cast<std::size_t>(jj) + ny * static_cast<std::size_t>(kk))];
+              touches = s != 0 && s != side[v];
+            }
+          }
+        }
+        if (touches) contact.push_back(v);
+      }
+    }
+  }
+  for (const std::size_t v : contact) map.labels[v] = 0;
+  return map;
+}
+
+bool contains(const std::vector<int>& values, int value) {
+  return std::find(values.begin(), values.end(), value) != values.end();
+}
+
+}  // namespace
+
+SurfaceSource::SurfaceSource(SurfaceSourceSpec spec) : spec_(std::move(spec)) {
+  const bool named =
+      std::any_of(spec_.lungs.begin(), spec_.lungs.end(), [](const auto& l) { return !l.label_names.empty(); });
+  if (!named) return;
+  // Segment names given for a lung (`values: [lung_upper_lobe_left, ...]`) become the label map's
+  // values for them, added to the numbers given.
+  const std::shared_ptr<const image::LabelMap> map = label_map();
+  for (LungSource& lung : spec_.lungs) {
+    if (lung.label_names.empty()) continue;
+    std::vector<int> values;
+    try {
+      values = image::resolve_labels(*map, spec_.labels_file.filename().string(), lung.label_names);
+    } catch (const ValueError& e) {
+      throw InputError(fmt::format("{}: {}: {}", spec_.origin, lung.label_key, e.what()));
+    }
+    for (const int value : values) {
+      if (!contains(lung.label_values, value)) lung.label_values.push_back(value);
+    }
+    lung.label_names.clear();
+  }
+  if (two_lungs()) {
+    for (const int value : spec_.lungs[0].label_values) {
+      if (contains(spec_.lungs[1].label_values, value))
+        throw InputError(fmt::format("{}: {}: label {} is in both lungs", spec_.origin, spec_.lungs_key, value));
+    }
+  }
+}
+
+const std::filesystem::path& SurfaceSource::input_file(std::size_t i) const {
+  static const std::filesystem::path none;
+  if (is_phantom(i)) return none;
+  return from_labels() ? spec_.labels_file : spec_.lungs[i].file;
+}
+
+std::string SurfaceSource::key_text(std::size_t i) const {
+  const std::vector<int>& values = spec_.lungs[i].label_values;
+  std::string text =
+      fmt::format("{} unit {:.17g} m, repair {}, edge {:.17g} m, labels {}", from_labels() ? "labels" : "file",
+                  spec_.metres_per_unit, spec_.repair, spec_.edge_m, fmt::join(values, ","));
+  if (two_lungs() && !spec_.lungs[1 - i].label_values.empty())
+    text += fmt::format(", apart from {}", fmt::join(spec_.lungs[1 - i].label_values, ","));
+  return text;
+}
+
+std::shared_ptr<const image::LabelMap> SurfaceSource::label_map() const {
+  if (!map_ && from_labels()) map_ = std::make_shared<const image::LabelMap>(image::read_label_map(spec_.labels_file));
+  return map_;
+}
+
+TriangleMesh SurfaceSource::original_surface(std::size_t i) const {
+  ReadOptions read;
+  read.metres_per_unit = spec_.metres_per_unit;
+  read.unit_from_file = spec_.unit_from_file;
+  TriangleMesh surface = read_mesh(spec_.lungs[i].file, read);
+  if (spec_.repair) surface = repair_or_throw(surface, spec_.lungs[i].file.string());
+  return surface;
+}
+
+// A file with a remeshing target is repaired, remeshed, and only then judged: remeshing removes
+// slivers repair left. A label map is extracted at its own resolution (at most 2 mm, finer for a
+// finer target) and remeshed to the target.
+TriangleMesh SurfaceSource::surface(std::size_t i) const {
+  const LungSource& lung = spec_.lungs[i];
+  const double edge_m = spec_.edge_m;
+  if (lung.phantom) {
+    check_surface_size(spec_, surface_area(phantom_surface(*lung.phantom, 0.01)), edge_m);
+    return phantom_surface(*lung.phantom, edge_m);
+  }
+  if (from_labels()) {
+    LabelSurfaceOptions extract;
+    if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
+    const std::shared_ptr<const image::LabelMap> map = label_map();
+    const std::vector<int>& other = two_lungs() ? spec_.lungs[1 - i].label_values : std::vector<int>{};
+    // A lung of two is extracted from the map with the contact band removed (its messages name
+    // the file, where one lung's name the path).
+    TriangleMesh surface = other.empty()
+                               ? surface_from_labels(*map, spec_.labels_file.string(), lung.label_values, extract).mesh
+                               : surface_from_labels(separated_lungs(*map, lung.label_values, other),
+                                                     spec_.labels_file.filename().string(), lung.label_values, extract)
+                                     .mesh;
+    check_surface_size(spec_, surface_area(surface), edge_m);
+    return remeshed(std::move(surface), edge_m);
+  }
+  ReadOptions read;
+  read.metres_per_unit = spec_.metres_per_unit;
+  read.unit_from_file = spec_.unit_from_file;
+  TriangleMesh surface = read_mesh(lung.file, read);
+  check_lung_extent(lung.file, surface);
+  check_surface_size(spec_, surface_area(surface), edge_m);
+  if (!spec_.repair) return remeshed(std::move(surface), edge_m);
+  if (edge_m <= 0.0) return repair_or_throw(surface, lung.file.string());
+  return repair_and_remesh(surface, lung.file.string(), {}, remesh_options(edge_m)).remesh.mesh;
+}
+
+}  // namespace pneuma::mesh

@@ -1,0 +1,99 @@
+#pragma once
+// Voxel outputs (#31; docs/voxels.md, formats.md "Voxel outputs"): at chosen time points, the
+// forward and pull-back DVFs of the whole chest (the lungs' interior field inside them, the body
+// motion below them, 0 elsewhere), the label map and the CT pulled back, and per time point the
+// Jacobian of the forward map inside the lungs and the warped lungs' volume (voxels/voxels.csv).
+//
+//   outputs:
+//     voxels:                          # off by default
+//       at: [end_expiration, end_inspiration, 2.4 s, phases]   # the frames of the lowest and
+//                                      # highest volume, the frame nearest to a time (the default:
+//                                      # the first two), and each bin of outputs.phases (10 phase
+//                                      # bins when that is off) at its mean volume
+//       spacing: 2 mm                  # a grid of this spacing over the label map's extent (default:
+//                                      # the label map's own grid; lungs without one: 2 mm over their box)
+//       image: ct.nii.gz               # a CT on the label map's geometry (or its own) to pull back
+//       format: nii.gz                 # nii.gz | nii | mha
+//
+// Files (voxels/): dvf-forward-<t>, dvf-pullback-<t>, labels-<t> and ct-<t> with <t> the frame's
+// time ("2.400s") or the bin ("bin_03"), and voxels.csv (a bin's frame and time are empty). Label-map lungs warp the
+// label map; other lungs (the phantom, surface files) warp a label map of their rest tetrahedra (1 right or the only
+// lung, 2 left).
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "pneuma/outputs/output.h"
+#include "pneuma/outputs/report.h"
+
+#include "pneuma/voxels/time_point.h"
+
+namespace pneuma::outputs {
+
+// A time point: the frame of the run's lowest or highest volume, or the frame nearest to a time.
+enum class VoxelMoment { end_expiration, end_inspiration };
+using VoxelTime = std::variant<VoxelMoment, double>;
+
+struct VoxelsSpec {
+  std::vector<VoxelTime> at{VoxelMoment::end_expiration, VoxelMoment::end_inspiration};
+  bool phase_bins = false;  // `phases` in `at`: every respiratory bin of outputs.phases at its mean volume
+  double spacing_m = 0.0;   // 0: the label map's grid (2 mm where there is none)
+  std::shared_ptr<const voxels::Image> image;
+  std::filesystem::path image_file;
+  std::string extension = ".nii.gz";
+};
+
+// A run's voxel setting, made once from the compiled model (with the lungs' inside): the grid,
+// the label map to warp (the scenario's, or one of the rest tetrahedra), each lung's rest voxels
+// on it and the body's motion outside the lungs. `pneuma run` (the plugin) and the Python module
+// compute their time points through it, so they give the same arrays.
+class VoxelScene {
+ public:
+  // Throws Error(failure) when the model has no lungs' inside (compiled without it).
+  VoxelScene(const model::Model& model, const scenario::Scenario& scenario, const VoxelsSpec& spec);
+
+  const voxels::Grid& grid() const { return grid_; }
+  const image::LabelMap& labels() const { return *labels_; }  // at rest, on its own grid
+  // The label values that are lung (the scenario's lungs, or 1 and 2 for the rest tets' map).
+  const std::vector<int>& lung_labels() const { return lung_labels_; }
+  // The volume of the lung labels in `map` (m^3).
+  double lung_volume_m3(const image::LabelMap& map) const;
+  // The DVFs, the Jacobian, the warped label map (and CT) at the lungs' scales (one per model lung).
+  void compute(std::span<const double> scales, voxels::TimePoint& point) const;
+  // The same on another grid (a plane for report.html's slices), the CT only if `with_image`.
+  void compute_on(const voxels::Grid& grid, std::span<const double> scales, voxels::TimePoint& point,
+                  bool with_image = true) const;
+
+ private:
+  const model::Model& model_;
+  const VoxelsSpec& spec_;
+  std::shared_ptr<const image::LabelMap> labels_;  // the model's (read once by compile), or made here
+  std::vector<int> lung_labels_;
+  voxels::Grid grid_;
+  std::vector<std::uint8_t> rest_lung_;
+};
+
+// The key of the voxel outputs under `outputs:`.
+inline constexpr const char* kVoxelsKey = "voxels";
+
+// The scenario's `outputs.voxels` settings, or null when that output is off.
+const VoxelsSpec* requested_voxels(const scenario::Scenario& scenario);
+
+// The run's VoxelScene (RunRecord::shared), built on first use from the scenario's
+// `outputs.voxels` settings. Throws Error(failure) when that output is off or the model has no
+// lungs' inside.
+const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& run);
+
+// report.html's slices of the warped label map (voxel outputs on; empty otherwise): a coronal
+// plane through the middle of the lungs and a sagittal one through the middle of the first, with
+// pixels of 2 mm (coarser for a chest wider than 40 cm), at up to `max_times` frames spread
+// evenly over the run. `lung_labels` gets the label values that are lung.
+std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
+                                            std::vector<int>& lung_labels, std::size_t max_times = 32);
+
+OutputPlugin voxels_output();
+
+}  // namespace pneuma::outputs

@@ -1,0 +1,315 @@
+#include "pneuma/outputs/report.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string_view>
+
+#include "pneuma/core/atomic_file.h"
+#include "pneuma/core/error.h"
+#include "pneuma/core/markup.h"
+#include "pneuma/core/units.h"
+#include "report_assets.h"
+
+namespace pneuma::outputs {
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+constexpr double kMl = units::ml_per_m3;
+constexpr double kLitre = units::litres_per_m3;
+constexpr double kCmH2O = units::cmh2o_per_pa;
+
+// x rounded to `decimals` decimals: the page needs no more, and JSON then prints it short.
+double rounded(double x, int decimals) {
+  const double f = std::pow(10.0, decimals);
+  const double r = std::round(x * f) / f;
+  return r == 0.0 ? 0.0 : r;  // no "-0.0"
+}
+
+std::string base64(std::string_view bytes) {
+  static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  std::size_t i = 0;
+  auto byte = [&](std::size_t k) { return static_cast<unsigned>(static_cast<unsigned char>(bytes[k])); };
+  for (; i + 3 <= bytes.size(); i += 3) {
+    const unsigned v = byte(i) << 16 | byte(i + 1) << 8 | byte(i + 2);
+    for (int shift : {18, 12, 6, 0}) out += kAlphabet[(v >> shift) & 63];
+  }
+  if (const std::size_t rest = bytes.size() - i; rest > 0) {
+    const unsigned v = byte(i) << 16 | (rest == 2 ? byte(i + 1) << 8 : 0u);
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += rest == 2 ? kAlphabet[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+// JSON inside <script>: no '<' at all (strings are the only place one can be), so neither
+// "</script>" nor "<!--" can end or bend the element.
+std::string script_json(const Json& j) {
+  const std::string text = j.dump(-1, ' ', false, Json::error_handler_t::replace);
+  std::string out;
+  out.reserve(text.size());
+  for (char c : text) {
+    if (c == '<') {
+      out += "\\u003c";
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+// A script inlined as is: it must not contain its own end tag.
+std::string_view inline_script(std::string_view name, std::string_view text) {
+  for (std::size_t at = text.find("</"); at != std::string_view::npos; at = text.find("</", at + 2)) {
+    std::string tag(text.substr(at + 2, 6));
+    for (char& c : tag) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (tag == "script") throw Error(ExitCode::failure, std::string(name) + ": contains </script>; cannot inline it");
+  }
+  return text;
+}
+
+// The physiology columns of physiology.csv, every stride-th sample and the last, and the plots.
+void add_series(Json& data, const physiology::SimulationResult& result, std::size_t stride) {
+  const auto& s = result.series;
+  std::vector<std::size_t> keep;
+  for (std::size_t k = 0; k < s.size(); k += stride) keep.push_back(k);
+  if (keep.back() != s.size() - 1) keep.push_back(s.size() - 1);
+  auto column = [&](const std::vector<double>& values, double factor, int decimals) {
+    Json a = Json::array();
+    for (std::size_t k : keep) a.push_back(rounded(values[k] * factor, decimals));
+    return a;
+  };
+  Json columns = Json::object();
+  Json labels = Json::object();
+  columns["time_s"] = column(s.time_s, 1.0, 6);
+  columns["volume_mL"] = column(s.volume_m3, kMl, 3);
+  labels["volume_mL"] = "lung";
+  const bool regional = result.compartment_names.size() > 1;
+  std::vector<std::string> volumes{"volume_mL"};
+  if (regional) {
+    for (std::size_t c = 0; c < result.compartment_names.size(); ++c) {
+      const std::string key = "volume_" + result.compartment_names[c] + "_mL";
+      columns[key] = column(s.compartment_volume_m3[c], kMl, 3);
+      labels[key] = result.compartment_names[c];
+      volumes.push_back(key);
+    }
+  }
+  columns["flow_L_per_s"] = column(s.flow_m3_per_s, kLitre, 5);
+  labels["flow_L_per_s"] = "flow";
+  const std::array<std::pair<const char*, const std::vector<double>*>, 4> pressures{{
+      {"airway", &s.airway_pressure_pa},
+      {"alveolar", &s.alveolar_pressure_pa},
+      {"pleural", &s.pleural_pressure_pa},
+      {"muscle", &s.muscle_pressure_pa},
+  }};
+  std::vector<std::string> pressure_keys;
+  for (const auto& [name, values] : pressures) {
+    // A measured trace knows no pressures but the airway's (NaN): no curve rather than a false one.
+    if (std::none_of(values->begin(), values->end(), [](double p) { return std::isfinite(p); })) continue;
+    const std::string key = std::string(name) + "_pressure_cmH2O";
+    columns[key] = column(*values, kCmH2O, 4);
+    labels[key] = name;
+    pressure_keys.push_back(key);
+  }
+  data["series"] =
+      Json{{"rows", s.size()}, {"stride", stride}, {"samples", keep.size()}, {"labels", labels}, {"columns", columns}};
+  data["plots"] = Json::array({
+      Json{{"title", "Volume above FRC"}, {"unit", "mL"}, {"columns", volumes}},
+      Json{{"title", "Flow"}, {"unit", "L/s"}, {"columns", {"flow_L_per_s"}}},
+      Json{{"title", "Pressures"}, {"unit", "cmH2O"}, {"columns", pressure_keys}},
+  });
+  // Ventilated runs: the pressure-volume and flow-volume loops of the breath under the cursor.
+  const bool ventilated = std::any_of(result.breaths.begin(), result.breaths.end(),
+                                      [](const physiology::BreathMetrics& b) { return *b.trigger != '\0'; });
+  if (ventilated) {
+    Json starts = Json::array();
+    for (const auto& b : result.breaths) starts.push_back(rounded(b.start_s, 6));
+    const auto& last = result.breaths.back();
+    starts.push_back(rounded(last.start_s + last.duration_s, 6));  // the end of the last complete breath
+    data["loops"] = Json{{"breath_starts", starts}};
+  }
+}
+
+// The motion table: each region's motion, averaged over the completed breaths.
+Json motion_json(const std::vector<BreathMotion>& motion) {
+  Json regions = Json::array();
+  const double n = static_cast<double>(motion.size());
+  double dome = 0.0;
+  for (const BreathMotion& b : motion) dome += b.summary.dome_top_caudal_m / n;
+  for (mesh::Region region : mesh::kRegions) {
+    const auto i = static_cast<std::size_t>(region);
+    auto mean = [&](double mesh::RegionMotion::*field, double factor, int decimals) {
+      double sum = 0.0;
+      for (const BreathMotion& b : motion) sum += b.summary.region[i].*field;
+      return motion.empty() ? 0.0 : rounded(sum / n * factor, decimals);
+    };
+    regions.push_back(Json{{"name", std::string(mesh::region_name(region))},
+                           {"area_cm2", mean(&mesh::RegionMotion::area_m2, 1e4, 3)},
+                           {"caudal_mean_mm", mean(&mesh::RegionMotion::caudal_mean_m, 1e3, 4)},
+                           {"caudal_max_mm", mean(&mesh::RegionMotion::caudal_max_m, 1e3, 4)},
+                           {"anterior_mean_mm", mean(&mesh::RegionMotion::anterior_mean_m, 1e3, 4)},
+                           {"lateral_mean_mm", mean(&mesh::RegionMotion::lateral_mean_m, 1e3, 4)},
+                           {"magnitude_mean_mm", mean(&mesh::RegionMotion::magnitude_mean_m, 1e3, 4)},
+                           {"magnitude_max_mm", mean(&mesh::RegionMotion::magnitude_max_m, 1e3, 4)},
+                           {"volume_share_pct", mean(&mesh::RegionMotion::volume_share, 100.0, 3)}});
+  }
+  return Json{{"breaths", motion.size()}, {"dome_top_caudal_mm", rounded(dome * 1e3, 4)}, {"regions", regions}};
+}
+
+// The bins: per bin its phase, frames and mean volume; per frame its bin.
+Json bins_json(const ReportBins& bins) {
+  Json rows = Json::array();
+  for (std::size_t b = 0; b < bins.centre_percent.size(); ++b) {
+    const double mean = bins.mean_volume_m3[b];
+    rows.push_back(Json{{"percent", rounded(bins.centre_percent[b], 3)},
+                        {"frames", bins.frames[b]},
+                        {"mean_volume_mL", std::isfinite(mean) ? Json(rounded(mean * kMl, 2)) : Json(nullptr)}});
+  }
+  return Json{{"method", bins.method}, {"bins", rows}, {"bin_of_frame", bins.bin_of_frame}};
+}
+
+// A slice's labels run-length encoded, row by row as stored: [label, count, label, count, ...]
+// (a lung plane is a few runs a row: tens of kB instead of megabytes).
+Json run_lengths(const std::vector<std::int32_t>& labels) {
+  Json out = Json::array();
+  for (std::size_t i = 0; i < labels.size();) {
+    std::size_t j = i;
+    while (j < labels.size() && labels[j] == labels[i]) ++j;
+    out.push_back(labels[i]);
+    out.push_back(j - i);
+    i = j;
+  }
+  return out;
+}
+
+Json slices_json(const std::vector<LabelSlice>& slices, const std::vector<int>& lung_labels) {
+  Json planes = Json::array();
+  for (const LabelSlice& slice : slices) {
+    Json times = Json::array(), images = Json::array();
+    for (std::size_t t = 0; t < slice.times_s.size(); ++t) {
+      times.push_back(rounded(slice.times_s[t], 6));
+      images.push_back(run_lengths(slice.labels[t]));
+    }
+    planes.push_back(Json{{"name", slice.name},
+                          {"fixed", slice.fixed},
+                          {"width", slice.width},
+                          {"height", slice.height},
+                          {"pixel_mm", rounded(slice.pixel_mm, 4)},
+                          {"times_s", times},
+                          {"labels", images}});
+  }
+  return Json{{"lung_labels", lung_labels}, {"planes", planes}};
+}
+
+// Fills `@NAME@` placeholders of the template in one pass over the template only (what is
+// substituted, three.js among it, is never scanned). Every placeholder must be known.
+std::string fill(std::string_view page, const std::map<std::string, std::string_view>& values) {
+  std::string out;
+  std::size_t total = page.size();
+  for (const auto& [name, value] : values) total += value.size();
+  out.reserve(total);
+  std::size_t i = 0;
+  while (i < page.size()) {
+    const std::size_t at = page.find('@', i);
+    if (at == std::string_view::npos) break;
+    std::size_t end = at + 1;
+    auto name_char = [](char c) { return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_'; };
+    while (end < page.size() && name_char(page[end])) ++end;
+    if (end < page.size() && page[end] == '@' && end > at + 1) {
+      const auto found = values.find(std::string(page.substr(at + 1, end - at - 1)));
+      if (found == values.end()) {
+        throw Error(ExitCode::failure,
+                    "report template: unknown placeholder " + std::string(page.substr(at, end - at + 1)));
+      }
+      out.append(page.substr(i, at - i));
+      out.append(found->second);
+      i = end + 1;
+    } else {
+      out.append(page.substr(i, at + 1 - i));
+      i = at + 1;
+    }
+  }
+  out.append(page.substr(i));
+  return out;
+}
+
+}  // namespace
+
+std::size_t report_stride(std::size_t samples, std::size_t max_samples) {
+  if (max_samples < 2 || samples <= max_samples) return 1;
+  return (samples + max_samples - 2) / (max_samples - 1);  // ceil(samples / (max - 1)): room for the last
+}
+
+std::string report_html(const ReportInput& input) {
+  if (input.physiology == nullptr || input.physiology->series.size() == 0) {
+    throw ValueError("report: no physiology series to plot");
+  }
+  const auto& assets = detail::report_assets();
+  const std::size_t stride = report_stride(input.physiology->series.size());
+  Json data;
+  data["name"] = input.scenario_name;
+  data["description"] = input.description;
+  data["generator"] = "pneuma " PNEUMA_VERSION;
+  data["duration_s"] = input.duration_s;
+  data["frame_rate_hz"] = input.frame_rate_hz;
+  data["frame_count"] = input.frame_count;
+  Json facts = Json::array();
+  for (const auto& [label, value] : input.facts) facts.push_back(Json::array({label, value}));
+  data["facts"] = facts;
+  add_series(data, *input.physiology, stride);
+  if (input.lung_names.empty()) {
+    data["motion"] = motion_json(input.motion);
+  } else {
+    // Two lungs: one table, each row a lung's region (report.js adds a `lung` column).
+    Json regions = Json::array();
+    Json dome = Json::object();
+    std::size_t breaths = 0;
+    for (std::size_t i = 0; i < input.lung_names.size(); ++i) {
+      std::vector<BreathMotion> lung;
+      for (const BreathMotion& b : input.motion) {
+        if (b.lung == i) lung.push_back(b);
+      }
+      Json one = motion_json(lung);
+      breaths = std::max(breaths, lung.size());
+      dome[input.lung_names[i]] = one["dome_top_caudal_mm"];
+      for (Json& r : one["regions"]) {
+        r["lung"] = input.lung_names[i];
+        regions.push_back(std::move(r));
+      }
+    }
+    data["motion"] = Json{{"breaths", breaths}, {"dome_top_caudal_mm_by_lung", dome}, {"regions", regions}};
+  }
+
+  if (input.bins) data["bins"] = bins_json(*input.bins);
+  if (!input.slices.empty()) data["slices"] = slices_json(input.slices, input.lung_labels);
+
+  const std::string json = script_json(data);
+  const std::string glb = base64(input.glb);
+  const std::string title = escape_markup(input.scenario_name);
+  const std::string generator = "pneuma " PNEUMA_VERSION;
+  return fill(assets.page, {
+                               {"TITLE", title},
+                               {"GENERATOR", generator},
+                               {"DATA_JSON", json},
+                               {"GLB_BASE64", glb},
+                               {"THREE_JS", inline_script("three.min.js", assets.three)},
+                               {"GLTF_LOADER_JS", inline_script("GLTFLoader.js", assets.gltf_loader)},
+                               {"ORBIT_CONTROLS_JS", inline_script("OrbitControls.js", assets.orbit_controls)},
+                               {"REPORT_JS", inline_script("report.js", assets.script)},
+                           });
+}
+
+void write_report(const std::filesystem::path& path, const ReportInput& input) {
+  const std::string page = report_html(input);
+  write_stream_atomically(
+      path, true, [&](std::ostream& out) { out.write(page.data(), static_cast<std::streamsize>(page.size())); });
+}
+
+}  // namespace pneuma::outputs

@@ -1,0 +1,442 @@
+// The voxel outputs (voxels_output.h): a plugin over voxels/ at the run's end.
+#include "pneuma/outputs/voxels_output.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include "pneuma/core/atomic_file.h"
+#include "pneuma/core/error.h"
+#include "pneuma/image/label_map.h"
+#include "pneuma/mesh/volume/tetrahedralize.h"
+#include "pneuma/model/body_motion.h"
+#include "pneuma/model/compile.h"
+#include "pneuma/outputs/phases.h"
+#include "pneuma/voxels/grid.h"
+#include "pneuma/voxels/time_point.h"
+#include "pneuma/voxels/voxel_io.h"
+
+namespace pneuma::outputs {
+namespace {
+
+namespace kind = units::kind;
+
+constexpr const char* kAtExpected =
+    "expected end_expiration, end_inspiration, phases or a time >= 0 with its unit, such as '2.4 s'";
+
+std::any read_spec(const scenario::Node* options) {
+  VoxelsSpec spec;
+  if (!options) return spec;
+  if (options->has("at")) {
+    spec.at.clear();
+    for (const scenario::Node& item : options->sequence("at")) {
+      const std::string text = item.as_scalar(kAtExpected);
+      if (text == "end_expiration") {
+        spec.at.emplace_back(VoxelMoment::end_expiration);
+      } else if (text == "end_inspiration") {
+        spec.at.emplace_back(VoxelMoment::end_inspiration);
+      } else if (text == "phases") {
+        spec.phase_bins = true;
+      } else {
+        double t = -1.0;
+        try {
+          t = units::parse(text, kind::duration);
+        } catch (const Error&) {
+          item.fail(kAtExpected);
+        }
+        if (!(t >= 0.0) || !std::isfinite(t)) item.fail(kAtExpected);
+        spec.at.emplace_back(t);
+      }
+    }
+    if (spec.at.empty() && !spec.phase_bins)
+      options->fail_at("at", "expected at least one time point, such as '[end_inspiration]'");
+  }
+  if (options->has("spacing")) {
+    spec.spacing_m = options->positive_quantity("spacing", kind::length);
+    if (spec.spacing_m < 0.25e-3 || spec.spacing_m > 20e-3) {
+      options->fail_at("spacing", "expected a voxel size between 0.25 mm and 20 mm, such as '2 mm'");
+    }
+  }
+  if (options->has("format")) spec.extension = fmt::format(".{}", options->choice("format", {"nii.gz", "nii", "mha"}));
+  if (options->has("image")) {
+    spec.image_file = options->directory("image") / options->string("image");
+    try {
+      spec.image = std::make_shared<const voxels::Image>(voxels::read_image(spec.image_file));
+    } catch (const Error& e) {
+      options->fail_at("image", e.what());
+    }
+  }
+  options->finish();
+  return spec;
+}
+
+// The grid of the run: the label map's (or a coarser one over its extent), else a box around
+// the lungs and the body below them.
+voxels::Grid run_grid(const model::Model& model, const image::LabelMap* labels, double spacing_m) {
+  if (labels) {
+    const voxels::Grid grid = voxels::grid_of(*labels);
+    return spacing_m > 0.0 ? voxels::grid_with_spacing(grid, spacing_m) : grid;
+  }
+  const double h = spacing_m > 0.0 ? spacing_m : 2e-3;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const model::LungModel& lung : model.lungs) {
+    for (const auto& v : lung.rest.vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+  }
+  lo -= Eigen::Vector3d(0.03, 0.03, 0.08);  // room below the diaphragm for the abdomen's motion
+  hi += Eigen::Vector3d::Constant(0.03);
+  voxels::Grid grid;
+  for (int a = 0; a < 3; ++a)
+    grid.size[static_cast<std::size_t>(a)] = static_cast<std::size_t>(std::ceil((hi[a] - lo[a]) / h)) + 1;
+  grid.ijk_to_lps = Eigen::Matrix4d::Identity();
+  grid.ijk_to_lps.block<3, 3>(0, 0) *= h;
+  grid.ijk_to_lps.block<3, 1>(0, 3) = lo;
+  return grid;
+}
+
+// The rest tetrahedra on the grid as labels: lung i + 1 where its rest tets hold the voxel.
+image::LabelMap rest_label_map(const model::Model& model, const voxels::Grid& grid) {
+  std::vector<voxels::LungMotion> lungs;
+  for (const model::LungModel& lung : model.lungs)
+    lungs.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
+  const std::vector<std::uint8_t> rest = voxels::rest_lungs(grid, lungs);
+  image::LabelMap map;
+  map.size = grid.size;
+  map.ijk_to_lps = grid.ijk_to_lps;
+  map.labels.assign(rest.begin(), rest.end());
+  map.transform_source = "pneuma";
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    map.segments.push_back({std::string(scenario::lung_name(model.lungs[i].side)), static_cast<std::int32_t>(i) + 1});
+  }
+  return map;
+}
+// The volume of the voxels holding any of `values` (m^3).
+double lung_volume(const image::LabelMap& map, const std::vector<int>& values) {
+  std::size_t count = 0;
+  for (const std::int32_t v : map.labels) count += std::find(values.begin(), values.end(), v) != values.end();
+  return static_cast<double>(count) * map.voxel_volume_m3();
+}
+
+class VoxelsOutput final : public Output {
+ public:
+  VoxelsOutput(std::filesystem::path dir, VoxelsSpec spec) : dir_(std::move(dir)), spec_(std::move(spec)) {}
+  std::string name() const override { return kVoxelsKey; }
+
+  std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {
+    const auto& series = run.drive->series;
+    const VoxelScene& scene = run_voxel_scene(model, run);
+    const double rest_lung_m3 = scene.lung_volume_m3(scene.labels());
+    const voxels::Grid& grid = scene.grid();
+
+    std::filesystem::create_directories(dir_ / "voxels");
+    std::vector<std::filesystem::path> files;
+    std::vector<std::string> rows;
+    voxels::TimePoint point;
+    double worst_volume_error = 0.0, min_jacobian = std::numeric_limits<double>::infinity(), folded = 0.0;
+    std::size_t folded_tets = 0;
+    for (const VoxelPoint& at : points(model, run)) {
+      scene.compute(at.scales, point);
+      const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension);
+      for (const auto& f : {written.forward, written.pullback, written.labels, written.ct}) {
+        if (!f.empty()) files.push_back(f);
+      }
+      // The warped lungs' volume against the rest label map's plus each lung's share of the
+      // physiology's change (the volume the surface frames follow).
+      const double expected = rest_lung_m3 + at.lung_change_m3;
+      const double warped = scene.lung_volume_m3(*point.labels);
+      const double error = (warped - expected) / expected;
+      worst_volume_error = std::max(worst_volume_error, std::abs(error));
+      min_jacobian = std::min(min_jacobian, point.jacobian.min);
+      folded = std::max(folded, point.jacobian.folded_volume_fraction);
+      std::string scale_text;
+      for (const double sc : at.scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
+      rows.push_back(fmt::format(
+          "{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
+          at.frame ? std::to_string(*at.frame) : "", at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "",
+          scale_text, at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
+          point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
+      folded_tets = std::max(folded_tets, point.jacobian.folded_tets);
+    }
+    const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
+    write_stream_atomically(csv, false, [&](std::ostream& out) {
+      out << "time_point,frame,time_s,scales,physiology_volume_mL,expected_lung_volume_mL,warped_lung_volume_mL,"
+             "volume_error_percent,min_jacobian,max_jacobian,folded_tets,folded_volume_fraction\n";
+      for (const std::string& row : rows) out << row;
+    });
+    files.push_back(csv);
+    facts_ = {{"voxels.time_points", std::to_string(rows.size())},
+              {"voxels.grid", fmt::format("{} x {} x {}", grid.size[0], grid.size[1], grid.size[2])},
+              {"voxels.spacing_mm", fmt::format("{:.6g}", grid.spacing_m().x() * 1e3)},
+              {"voxels.min_jacobian", fmt::format("{:.6g}", min_jacobian)},
+              {"voxels.folded_volume_fraction", fmt::format("{:.6g}", folded)},
+              {"voxels.folded_tets", std::to_string(folded_tets)},
+              {"voxels.max_lung_volume_error_percent", fmt::format("{:.6g}", worst_volume_error * 100.0)},
+              {"voxels.interior_model", field::interior_model_name(model.lungs.front().interior->options.model)},
+              {"voxels.interior_mesher", mesh::tet_mesher_name(model.lungs.front().interior->mesher)},
+              {"voxels.interior_tets", std::to_string(tet_count(model))}};
+    // What the unfolding did (docs/voxels.md, "No folded tetrahedron"), over the lungs.
+    std::size_t unfolded = 0, dropped = 0;
+    double dropped_m3 = 0.0;
+    for (const model::LungModel& lung : model.lungs) {
+      unfolded += lung.interior->report.unfolded_nodes;
+      dropped += lung.interior->report.dropped_tets;
+      dropped_m3 += lung.interior->report.dropped_volume_m3;
+    }
+    facts_.emplace_back("voxels.unfolded_nodes", std::to_string(unfolded));
+    facts_.emplace_back("voxels.dropped_tets", std::to_string(dropped));
+    facts_.emplace_back("voxels.dropped_volume_mm3", fmt::format("{:.6g}", dropped_m3 * 1e9));
+    return files;
+  }
+  std::vector<std::pair<std::string, std::string>> facts() const override { return facts_; }
+
+ private:
+  static std::size_t tet_count(const model::Model& model) {
+    std::size_t n = 0;
+    for (const model::LungModel& lung : model.lungs) n += lung.interior->mesh.tet_count();
+    return n;
+  }
+
+  // The frame of the run's lowest volume: end-expiration, and the volume the rest label map stands for.
+  static std::size_t lowest_volume_frame(const std::vector<double>& volume_m3) {
+    return static_cast<std::size_t>(std::min_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
+  }
+  // A time point to write: a frame, or a respiratory bin at its mean volume.
+  struct VoxelPoint {
+    std::string tag;                   // in the file names: "2.400s", "bin_03"
+    std::optional<std::size_t> frame;  // none for a bin
+    std::vector<double> scales;        // per model lung
+    double volume_m3 = 0.0;            // the physiology's volume above FRC
+    double lung_change_m3 = 0.0;       // the lungs' volume change from end-expiration (their shares of it)
+  };
+
+  // The frames asked for, then (with `phases` in `at`) the non-empty bins of the run's binning.
+  std::vector<VoxelPoint> points(const model::Model& model, const RunRecord& run) const {
+    const auto& series = run.drive->series;
+    const std::size_t rest_frame = lowest_volume_frame(series.volume_m3);
+    // Lung i's volume change from the rest frame, averaged over `frames`.
+    auto lung_change = [&](const std::vector<std::size_t>& frames) {
+      double change = 0.0;
+      for (const model::LungModel& lung : model.lungs) {
+        const std::vector<double>& volume = lung.volumes(*run.drive);
+        double mean = 0.0;
+        for (const std::size_t k : frames) mean += volume[k];
+        mean /= static_cast<double>(frames.size());
+        change += lung.share * (mean - volume[rest_frame]);
+      }
+      return change;
+    };
+    std::vector<VoxelPoint> out;
+    for (const std::size_t k : frames_of(series.time_s, series.volume_m3)) {
+      VoxelPoint p{fmt::format("{:.3f}s", series.time_s[k]), k, {}, series.volume_m3[k], lung_change({k})};
+      for (std::size_t i = 0; i < model.lungs.size(); ++i) p.scales.push_back(run.scales[i][k]);
+      out.push_back(std::move(p));
+    }
+    if (spec_.phase_bins) {
+      const physiology::PhaseBinning binning = run_phase_bins(run);
+      for (std::size_t b = 0; b < binning.bins.size(); ++b) {
+        const physiology::PhaseBin& bin = binning.bins[b];
+        if (bin.samples.empty()) continue;
+        out.push_back({fmt::format("bin_{:02}", b), std::nullopt, phase_bin_scales(model, *run.drive, bin),
+                       bin.mean_volume_m3, lung_change(bin.samples)});
+      }
+    }
+    return out;
+  }
+
+  // The frames of the time points, in the order asked (repeats dropped).
+  std::vector<std::size_t> frames_of(const std::vector<double>& time_s, const std::vector<double>& volume_m3) const {
+    const std::size_t low = lowest_volume_frame(volume_m3);
+    const auto high =
+        static_cast<std::size_t>(std::max_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
+    std::vector<std::size_t> frames;
+    for (const VoxelTime& at : spec_.at) {
+      std::size_t k = 0;
+      if (const auto* moment = std::get_if<VoxelMoment>(&at)) {
+        k = *moment == VoxelMoment::end_expiration ? low : high;
+      } else {
+        const double t = std::get<double>(at);
+        k = static_cast<std::size_t>(
+            std::min_element(time_s.begin(), time_s.end(),
+                             [t](double a, double b) { return std::abs(a - t) < std::abs(b - t); }) -
+            time_s.begin());
+      }
+      if (std::find(frames.begin(), frames.end(), k) == frames.end()) frames.push_back(k);
+    }
+    return frames;
+  }
+
+  std::filesystem::path dir_;
+  VoxelsSpec spec_;
+  std::vector<std::pair<std::string, std::string>> facts_;
+};
+
+}  // namespace
+
+VoxelScene::VoxelScene(const model::Model& model, const scenario::Scenario& scenario, const VoxelsSpec& spec)
+    : model_(model), spec_(spec) {
+  for (const model::LungModel& lung : model.lungs) {
+    if (!lung.interior) throw Error(ExitCode::failure, "voxels: the model was compiled without the lungs' inside");
+  }
+  // The label map the lungs came from (compile read it once and kept it for this), else one of the
+  // rest tetrahedra: 1 for the right lung (or the only one), 2 for the left.
+  const bool from_labels = !scenario.mesh.labels_file.empty();
+  if (from_labels) {
+    if (!model.label_map) throw Error(ExitCode::failure, "voxels: the model was compiled without its label map");
+    labels_ = model.label_map;
+    for (const model::LungModel& lung : model.lungs) {
+      lung_labels_.insert(lung_labels_.end(), lung.label_values.begin(), lung.label_values.end());
+    }
+  }
+  grid_ = run_grid(model, labels_.get(), spec.spacing_m);
+  if (!from_labels) {
+    labels_ = std::make_shared<const image::LabelMap>(rest_label_map(model, grid_));
+    for (std::size_t i = 0; i < model.lungs.size(); ++i) lung_labels_.push_back(static_cast<int>(i) + 1);
+  }
+  // Which voxels of the label map each lung's rest mesh holds (warp_labels keeps its rim).
+  std::vector<voxels::LungMotion> at_rest;
+  for (const model::LungModel& lung : model.lungs) {
+    at_rest.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
+  }
+  rest_lung_ = voxels::rest_lungs(voxels::grid_of(*labels_), at_rest);
+}
+
+double VoxelScene::lung_volume_m3(const image::LabelMap& map) const { return lung_volume(map, lung_labels_); }
+
+void VoxelScene::compute(std::span<const double> scales, voxels::TimePoint& point) const {
+  compute_on(grid_, scales, point);
+}
+
+void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> scales_in, voxels::TimePoint& point,
+                            bool with_image) const {
+  if (scales_in.size() != model_.lungs.size()) {
+    throw ValueError(fmt::format("voxels: {} scales for {} lungs", scales_in.size(), model_.lungs.size()));
+  }
+  const std::vector<double> scales(scales_in.begin(), scales_in.end());
+  std::vector<voxels::LungMotion> lungs;
+  for (std::size_t i = 0; i < model_.lungs.size(); ++i) {
+    const model::LungInterior& inside = *model_.lungs[i].interior;
+    lungs.push_back({inside.mesh, inside.unit_displacement, scales[i]});
+  }
+  const model::BodyMotion* body = model_.body.get();
+  voxels::TimePointInputs inputs;
+  inputs.labels = labels_.get();
+  inputs.rest_lung = &rest_lung_;
+  inputs.ct = with_image ? spec_.image.get() : nullptr;
+  if (body) {
+    inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
+    // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L).
+    inputs.pullback_outside = [body, scales](const Eigen::Vector3d& x) {
+      Eigen::Vector3d v = -body->displacement(x, scales);
+      for (int it = 0; it < 50; ++it) {
+        const Eigen::Vector3d next = -body->displacement(x + v, scales);
+        const double change = (next - v).norm();
+        v = next;
+        if (change < 1e-9) break;
+      }
+      return v;
+    };
+  }
+  voxels::compute_time_point(grid, lungs, inputs, point);
+}
+
+const VoxelsSpec* requested_voxels(const scenario::Scenario& scenario) {
+  const scenario::OutputRequest* request = scenario.output(kVoxelsKey);
+  return request ? &std::any_cast<const VoxelsSpec&>(request->settings) : nullptr;
+}
+
+const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& run) {
+  return run.shared.get<VoxelScene>([&] {
+    const VoxelsSpec* spec = requested_voxels(*run.scenario);
+    if (spec == nullptr) throw Error(ExitCode::failure, "voxels: the scenario has no voxel output");
+    return std::make_shared<const VoxelScene>(model, *run.scenario, *spec);
+  });
+}
+
+std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
+                                            std::vector<int>& lung_labels, std::size_t max_times) {
+  if (requested_voxels(*run.scenario) == nullptr || max_times == 0) return {};
+  for (const model::LungModel& lung : model.lungs) {
+    if (!lung.interior) return {};
+  }
+  const VoxelScene& scene = run_voxel_scene(model, run);
+  lung_labels = scene.lung_labels();
+  // The lungs' box at rest, and the first lung's middle.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  Eigen::Vector3d first_lo = lo, first_hi = hi;
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    for (const auto& v : model.lungs[i].rest.vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+      if (i == 0) {
+        first_lo = first_lo.cwiseMin(v);
+        first_hi = first_hi.cwiseMax(v);
+      }
+    }
+  }
+  // Margins: 2 cm around, 8 cm below (the abdomen moving with the diaphragm).
+  lo -= Eigen::Vector3d(0.02, 0.02, 0.08);
+  hi += Eigen::Vector3d::Constant(0.02);
+  const Eigen::Vector3d extent = hi - lo;
+  const double h = std::max(2e-3, extent.maxCoeff() / 200.0);
+  const auto count = [h](double length) { return static_cast<std::size_t>(std::ceil(length / h)) + 1; };
+  // A plane's grid: i along `across` (x or y), k along z (S), one voxel thick at `fixed`.
+  auto plane = [&](bool coronal) {
+    voxels::Grid grid;
+    grid.size = coronal ? std::array<std::size_t, 3>{count(extent.x()), 1, count(extent.z())}
+                        : std::array<std::size_t, 3>{1, count(extent.y()), count(extent.z())};
+    grid.ijk_to_lps = Eigen::Matrix4d::Identity();
+    grid.ijk_to_lps.block<3, 3>(0, 0) *= h;
+    grid.ijk_to_lps.block<3, 1>(0, 3) = coronal ? Eigen::Vector3d(lo.x(), 0.5 * (lo.y() + hi.y()), lo.z())
+                                                : Eigen::Vector3d(0.5 * (first_lo.x() + first_hi.x()), lo.y(), lo.z());
+    return grid;
+  };
+  const std::vector<double>& time_s = run.drive->series.time_s;
+  const std::size_t frames = time_s.size(), n = std::min(frames, max_times);
+  std::vector<LabelSlice> slices;
+  voxels::TimePoint point;
+  for (const bool coronal : {true, false}) {
+    const voxels::Grid grid = plane(coronal);
+    LabelSlice slice;
+    slice.name = coronal ? "coronal" : "sagittal";
+    const Eigen::Vector3d origin = grid.ijk_to_lps.block<3, 1>(0, 3);
+    slice.fixed =
+        coronal ? fmt::format("y = {:.1f} mm", origin.y() * 1e3) : fmt::format("x = {:.1f} mm", origin.x() * 1e3);
+    slice.width = coronal ? grid.size[0] : grid.size[1];
+    slice.height = grid.size[2];
+    slice.pixel_mm = h * 1e3;
+    for (std::size_t t = 0; t < n; ++t) {
+      // Frames spread evenly, the first and the last included.
+      const std::size_t k = n == 1 ? 0 : (t * (frames - 1) + (n - 1) / 2) / (n - 1);
+      std::vector<double> scales;
+      for (std::size_t i = 0; i < model.lungs.size(); ++i) scales.push_back(run.scales[i][k]);
+      scene.compute_on(grid, scales, point, false);
+      std::vector<std::int32_t> image;
+      image.reserve(slice.width * slice.height);
+      for (std::size_t row = 0; row < slice.height; ++row) {
+        const std::size_t z = slice.height - 1 - row;  // row 0 is the most superior
+        for (std::size_t c = 0; c < slice.width; ++c)
+          image.push_back(point.labels->labels[coronal ? grid.index(c, 0, z) : grid.index(0, c, z)]);
+      }
+      slice.times_s.push_back(time_s[k]);
+      slice.labels.push_back(std::move(image));
+    }
+    slices.push_back(std::move(slice));
+  }
+  return slices;
+}
+
+OutputPlugin voxels_output() {
+  OutputNeeds needs;
+  needs.interior = true;
+  return {{kVoxelsKey, false, read_spec}, needs, [](const std::any& settings, const std::filesystem::path& out) {
+            return std::make_unique<VoxelsOutput>(out, std::any_cast<VoxelsSpec>(settings));
+          }};
+}
+
+}  // namespace pneuma::outputs

@@ -1,0 +1,250 @@
+// pneuma.Animation: a scenario's frames in memory, through the same stages as `pneuma run`
+// (runner::prepare), and its voxel outputs.
+#include <fmt/format.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <optional>
+#include <type_traits>
+
+#include "bindings.h"
+#include "pneuma/core/error.h"
+#include "pneuma/core/units.h"
+#include "pneuma/model/frame.h"
+#include "pneuma/outputs/voxels_output.h"
+#include "pneuma/runner/output_registry.h"
+#include "pneuma/runner/runner.h"
+#include "scenario_handle.h"
+
+namespace pneuma::python {
+namespace {
+
+constexpr double kMl = units::ml_per_m3;
+
+// A scenario's frames in memory: its model (mesh, field, volume map) and the scale of every
+// frame, as `pneuma run` computes them, without writing outputs. Two lungs: every per-surface
+// value is a dict by side ('right', 'left'); one lung: the value itself, as always.
+struct Animation {
+  scenario::Scenario scenario;
+  std::shared_ptr<const model::Model> model;
+  std::vector<double> time_s, lung_volume_m3;
+  std::vector<std::vector<double>> scales;  // [lung][frame]
+  bool field_reused = false;
+  // The voxel outputs' setting (outputs.voxels), made at the first voxels() call.
+  std::shared_ptr<const outputs::VoxelsSpec> voxels_spec;
+  mutable std::shared_ptr<const outputs::VoxelScene> voxel_scene;
+
+  std::size_t frame_count() const { return time_s.size(); }
+
+  // f(lung index) for the one lung, or {side: f(i)} for two.
+  template <class F>
+  py::object by_lung(F f) const {
+    if (!model->two_lungs()) {
+      auto value = f(std::size_t{0});
+      if constexpr (std::is_base_of_v<py::handle, decltype(value)>) {
+        return py::object(std::move(value));
+      } else {
+        return py::cast(value);
+      }
+    }
+    py::dict out;
+    for (std::size_t i = 0; i < model->lungs.size(); ++i) out[scenario::lung_name(model->lungs[i].side)] = f(i);
+    return out;
+  }
+
+  py::object frame(std::size_t index) const {
+    if (index >= frame_count()) {
+      throw ValueError(fmt::format("index: expected a frame index from 0 to {}, got {}", frame_count() - 1, index));
+    }
+    model::Frame frame(*model);
+    {
+      py::gil_scoped_release release;
+      model::FrameInput input{index, time_s[index], lung_volume_m3[index], {}};
+      for (std::size_t i = 0; i < scales.size(); ++i) input.scale[i] = scales[i][index];
+      model::advance(*model, input, frame);
+    }
+    return by_lung([&](std::size_t i) { return points_to_array(frame.lungs[i].positions); });
+  }
+  // The voxel outputs of frame `index`, as `pneuma run` writes them (outputs.voxels).
+  py::dict voxels(std::size_t index) const {
+    if (!voxels_spec) {
+      throw ValueError("voxels: the scenario has no `outputs: voxels` (the lungs' inside is made only for it)");
+    }
+    if (index >= frame_count()) {
+      throw ValueError(fmt::format("index: expected a frame index from 0 to {}, got {}", frame_count() - 1, index));
+    }
+    voxels::TimePoint point;
+    {
+      py::gil_scoped_release release;
+      if (!voxel_scene) voxel_scene = std::make_shared<const outputs::VoxelScene>(*model, scenario, *voxels_spec);
+      std::vector<double> at;
+      for (const auto& lung : scales) at.push_back(lung[index]);
+      voxel_scene->compute(at, point);
+    }
+    const voxels::Grid& grid = voxel_scene->grid();
+    const auto nx = static_cast<py::ssize_t>(grid.size[0]), ny = static_cast<py::ssize_t>(grid.size[1]),
+               nz = static_cast<py::ssize_t>(grid.size[2]);
+    // Indexed [i, j, k(, component)] like the NIfTI files (i fastest in memory).
+    auto field = [&](const voxels::DisplacementField& f) {
+      constexpr auto d = static_cast<py::ssize_t>(sizeof(double));
+      py::array_t<double> out({nx, ny, nz, py::ssize_t{3}}, {3 * d, 3 * d * nx, 3 * d * nx * ny, d});
+      std::copy_n(f.displacement_m.front().data(), 3 * f.displacement_m.size(), out.mutable_data());
+      return out;
+    };
+    constexpr auto w = static_cast<py::ssize_t>(sizeof(std::int32_t));
+    py::array_t<std::int32_t> labels({nx, ny, nz}, {w, w * nx, w * nx * ny});
+    std::copy(point.labels->labels.begin(), point.labels->labels.end(), labels.mutable_data());
+    py::dict out;
+    out["forward_m"] = field(point.forward);
+    out["pullback_m"] = field(point.pullback);
+    out["labels"] = labels;
+    if (point.ct) {
+      constexpr auto f = static_cast<py::ssize_t>(sizeof(float));
+      py::array_t<float> ct({nx, ny, nz}, {f, f * nx, f * nx * ny});
+      std::copy(point.ct->values.begin(), point.ct->values.end(), ct.mutable_data());
+      out["ct"] = ct;
+    }
+    py::array_t<double> affine({4, 4});
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) affine.mutable_at(r, c) = grid.ijk_to_lps(r, c);
+    out["ijk_to_lps"] = affine;
+    out["min_jacobian"] = point.jacobian.min;
+    out["max_jacobian"] = point.jacobian.max;
+    out["folded_tets"] = point.jacobian.folded_tets;
+    out["lung_volume_m3"] = voxel_scene->lung_volume_m3(*point.labels);
+    return out;
+  }
+  // The frame whose time is nearest to t (frames are 1 / frame_rate apart).
+  std::size_t index_at(double t) const {
+    if (!(t >= time_s.front() - 1e-9 && t <= time_s.back() + 1e-9)) {
+      throw ValueError(
+          fmt::format("time_s: expected a time from {:g} to {:g} s, got {:g}", time_s.front(), time_s.back(), t));
+    }
+    const auto it = std::lower_bound(time_s.begin(), time_s.end(), t);
+    std::size_t k = static_cast<std::size_t>(it - time_s.begin());
+    if (k == time_s.size() || (k > 0 && t - time_s[k - 1] <= time_s[k] - t)) --k;
+    return k;
+  }
+};
+
+Animation make_animation(const scenario::Scenario& given, const std::optional<std::filesystem::path>& output_dir,
+                         std::optional<double> edge_m) {
+  Animation a;
+  a.scenario = given;
+  // No output folder: the field is computed (or read from an explicit cache file), not cached in one.
+  if (!output_dir && a.scenario.field.cache == scenario::FieldCache::automatic)
+    a.scenario.field.cache = scenario::FieldCache::off;
+  if (const outputs::VoxelsSpec* voxels = outputs::requested_voxels(a.scenario))
+    a.voxels_spec = std::make_shared<const outputs::VoxelsSpec>(*voxels);
+  model::CompileOptions options;
+  if (output_dir) options.auto_cache_file = *output_dir / "field.h5";
+  options.edge_override_m = edge_m;
+  options.interior = runner::requested_needs(a.scenario).interior;
+  py::gil_scoped_release release;
+  // The drive and the stages of `pneuma run`, so the frames are the ones it animates.
+  const physiology::SimulationResult drive = scenario::simulate_physiology(a.scenario, a.scenario.frame_rate_hz);
+  runner::Prepared prepared = runner::prepare(a.scenario, drive, options);
+  a.field_reused = prepared.model.report.field_reused;
+  a.model = std::make_shared<const model::Model>(std::move(prepared.model));
+  a.time_s = drive.series.time_s;
+  a.lung_volume_m3 = drive.series.volume_m3;
+  for (model::LungScales& lung : prepared.scales) a.scales.push_back(std::move(lung.scales));
+  return a;
+}
+
+}  // namespace
+
+void register_animation(py::module_& m) {
+  py::class_<Animation>(m, "Animation",
+                        "A scenario's frames in memory, as `pneuma run` makes them (physiology at the frame rate, "
+                        "the field, the volume-to-scale map), without writing outputs.")
+      .def(py::init([](const py::handle& scenario, const std::optional<std::filesystem::path>& output_dir,
+                       std::optional<double> edge_m) {
+             if (edge_m && !(*edge_m > 0.0)) {
+               throw ValueError(fmt::format("edge_m: expected a positive length, got {}", *edge_m));
+             }
+             return make_animation(to_scenario(scenario).scenario, output_dir, edge_m);
+           }),
+           py::arg("scenario"), py::arg("output_dir") = py::none(), py::kw_only(), py::arg("edge_m") = py::none(),
+           "Animation(scenario, output_dir=None, *, edge_m=None)\n\n"
+           "scenario: a Scenario, dict or path. output_dir: where the field cache (field.h5) is looked up and "
+           "written as in run(); None computes the field without caching it (unless the scenario names a cache "
+           "file). edge_m overrides the mesh edge length (metres).")
+      .def_property_readonly(
+          "time_s", [](const Animation& a) { return column(a.time_s); }, "(N,) frame times, s.")
+      .def_property_readonly(
+          "volume_mL", [](const Animation& a) { return column(a.lung_volume_m3, kMl); },
+          "(N,) lung volume above FRC at each frame (physiology), mL.")
+      .def_property_readonly(
+          "lungs",
+          [](const Animation& a) {
+            std::vector<std::string> names;
+            for (const model::LungModel& lung : a.model->lungs) names.emplace_back(scenario::lung_name(lung.side));
+            return names;
+          },
+          "The lungs: ['right', 'left'] for two (then every per-surface value below is a dict by side), else "
+          "one name ('right', 'left' for a phantom, 'lung' for a file or label map).")
+      .def_property_readonly(
+          "scales", [](const Animation& a) { return a.by_lung([&](std::size_t i) { return column(a.scales[i]); }); },
+          "(N,) the scale s of each frame.")
+      .def_property_readonly(
+          "frame_count", [](const Animation& a) { return a.frame_count(); }, "N.")
+      .def_property_readonly(
+          "vertices",
+          [](const Animation& a) {
+            return a.by_lung([&](std::size_t i) { return points_to_array(a.model->lungs[i].rest.vertices); });
+          },
+          "Rest vertices (V, 3), metres.")
+      .def_property_readonly(
+          "triangles",
+          [](const Animation& a) {
+            return a.by_lung([&](std::size_t i) { return triangles_to_array(a.model->lungs[i].rest.triangles); });
+          },
+          "Triangles (F, 3) uint32.")
+      .def_property_readonly(
+          "unit_displacement",
+          [](const Animation& a) {
+            return a.by_lung([&](std::size_t i) { return points_to_array(a.model->lungs[i].unit_displacement); });
+          },
+          "u (V, 3), metres per unit scale.")
+      .def_property_readonly(
+          "rest_volume_m3",
+          [](const Animation& a) {
+            return a.by_lung([&](std::size_t i) { return a.model->lungs[i].volume_map.volume(0.0); });
+          },
+          "Enclosed volume of the rest mesh, m^3.")
+      .def_property_readonly(
+          "share",
+          [](const Animation& a) {
+            if (!a.model->two_lungs()) return py::cast(a.scenario.mesh.share);
+            return a.by_lung([&](std::size_t i) { return a.model->lungs[i].share; });
+          },
+          "The mesh's share of the lung volume change (mesh.share; two lungs: each lung's).")
+      .def_property_readonly(
+          "reference_volume_mL", [](const Animation& a) { return a.scenario.mesh.reference_volume_m3 * kMl; },
+          "The lung volume the rest mesh shows (mesh.reference_volume), mL.")
+      .def_readonly("field_reused", &Animation::field_reused, "True when the field came from the cache.")
+      .def("frame", &Animation::frame, py::arg("index"),
+           "frame(index) -> (V, 3) float64: the positions of frame `index` (0 to N - 1), metres; its enclosed "
+           "volume is rest_volume + share * (volume_mL[index] - reference_volume_mL). Two lungs: a dict by side.")
+      .def(
+          "frame_at_time", [](const Animation& a, double t) { return a.frame(a.index_at(t)); }, py::arg("time_s"),
+          "frame_at_time(time_s) -> (V, 3) float64: the frame nearest to time_s (frames are 1 / frame_rate apart).")
+      .def("index_at_time", &Animation::index_at, py::arg("time_s"), "The index of the frame nearest to time_s.")
+      .def("voxels", &Animation::voxels, py::arg("index"),
+           "voxels(index) -> dict: the voxel outputs of frame `index` as `pneuma run` writes them (the scenario "
+           "needs `outputs: voxels`; docs/voxels.md): 'forward_m' and 'pullback_m' (nx, ny, nz, 3) float64 "
+           "displacement fields in metres, LPS (forward: where each rest point goes; pull-back: out(x) = in(x + "
+           "v(x))), 'labels' (nx, ny, nz) int32 the label map warped to that frame, 'ct' (nx, ny, nz) float32 "
+           "where the scenario names an image, 'ijk_to_lps' (4, 4) the grid (metres), 'min_jacobian', "
+           "'max_jacobian', 'folded_tets', 'lung_volume_m3' (the warped lungs' voxels).")
+      .def("__len__", [](const Animation& a) { return a.frame_count(); })
+      .def("__repr__", [](const Animation& a) {
+        return fmt::format("<pneuma.Animation '{}' {} frames, {} vertices{}>", a.scenario.name, a.frame_count(),
+                           a.model->vertex_count(), a.model->two_lungs() ? " in two lungs" : "");
+      });
+}
+
+}  // namespace pneuma::python

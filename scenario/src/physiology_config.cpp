@@ -1,0 +1,705 @@
+#include "pneuma/scenario/physiology_config.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <optional>
+
+#include "pneuma/core/error.h"
+#include "pneuma/core/paths.h"
+
+namespace pneuma::scenario {
+namespace {
+
+using physiology::Driver;
+using physiology::Mechanics;
+using scenario::Node;
+namespace kind = units::kind;
+
+const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control", "vc_ac",
+                                      "pc_ac",       "cpap_psv",       "vc_simv",          "pc_simv"};
+// Accepted as `driver.mode` beside kModes, at t = 0 only (read_trace_driver).
+const std::vector<std::string> kModesWithTrace{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
+                                               "cpap_psv",    "vc_simv",        "pc_simv",          "trace"};
+const std::vector<std::string> kModels{"single", "two_compartment"};
+
+// Every driver setting by name, so an action can patch any of them and a mode switch can
+// carry over the ones the new mode shares (rate, PEEP, timing).
+struct DriverFields {
+  std::optional<double> rate, ie_ratio, inspiratory_time, tidal_volume, muscle_pressure, pause, peep,
+      inspiratory_pressure;
+  // Assist modes.
+  std::optional<physiology::FlowWaveform> waveform;
+  std::optional<double> rise_time, pressure_limit, volume_limit, pressure_support;
+  std::optional<physiology::TriggerKind> trigger;
+  std::optional<double> trigger_threshold;
+  std::optional<physiology::CycleKind> cycle;
+  std::optional<double> cycle_fraction, cycle_volume;
+  std::optional<double> trigger_window;  // SIMV
+};
+
+bool is_simv(const std::string& mode) { return mode == "vc_simv" || mode == "pc_simv"; }
+bool is_assist(const std::string& mode) {
+  return mode == "vc_ac" || mode == "pc_ac" || mode == "cpap_psv" || is_simv(mode);
+}
+
+DriverFields fields_of(const Driver& driver) {
+  DriverFields f;
+  std::visit(
+      [&](const auto& d) {
+        using T = std::decay_t<decltype(d)>;
+        if (d.rate_hz > 0.0) f.rate = d.rate_hz;
+        if constexpr (std::is_same_v<T, physiology::Assisted>) {
+          f.inspiratory_time = d.inspiratory_time_s;
+          f.peep = d.peep_pa;
+          f.trigger = d.trigger;
+          f.trigger_threshold = d.trigger_threshold;
+          if (physiology::is_simv(d)) {
+            f.pressure_support = d.support_pa;
+            // A default window follows the rate; only a window that was set is carried.
+            if (d.trigger_window_s != physiology::default_trigger_window_s(d.rate_hz))
+              f.trigger_window = d.trigger_window_s;
+          }
+          if (d.mode == physiology::AssistMode::volume || d.mode == physiology::AssistMode::simv_volume) {
+            f.tidal_volume = d.tidal_volume_m3;
+            f.pause = d.pause_time_s;
+            f.waveform = d.waveform;
+            if (d.pressure_limit_pa > 0.0) f.pressure_limit = d.pressure_limit_pa;
+          }
+          if (d.mode != physiology::AssistMode::volume) {
+            if (d.mode == physiology::AssistMode::pressure || d.mode == physiology::AssistMode::simv_pressure)
+              f.inspiratory_pressure = d.inspiratory_pressure_pa;
+            else if (d.mode == physiology::AssistMode::pressure_support) f.pressure_support = d.inspiratory_pressure_pa;
+            f.rise_time = d.rise_time_s;
+            f.cycle = d.cycle;
+            f.cycle_fraction = d.cycle_fraction;
+            if (d.cycle_volume_m3 > 0.0) f.cycle_volume = d.cycle_volume_m3;
+            if (d.volume_limit_m3 > 0.0) f.volume_limit = d.volume_limit_m3;
+          }
+        } else if constexpr (std::is_same_v<T, physiology::Spontaneous>) {
+          f.ie_ratio = d.ie_ratio;
+          if (d.target_tidal_volume_m3 > 0) f.tidal_volume = d.target_tidal_volume_m3;
+          else f.muscle_pressure = d.amplitude_pa;
+        } else {
+          f.inspiratory_time = d.inspiratory_time_s;
+          f.peep = d.peep_pa;
+          if constexpr (std::is_same_v<T, physiology::VolumeControl>) {
+            f.tidal_volume = d.tidal_volume_m3;
+            f.pause = d.pause_time_s;
+          } else {
+            f.inspiratory_pressure = d.inspiratory_pressure_pa;
+          }
+        }
+      },
+      driver);
+  return f;
+}
+
+// Which keys each mode takes ("ie_ratio" and "inspiratory_time" are alternatives). In SIMV the
+// pressure-mode keys (rise time, cycle, volume limit) shape the supported breaths.
+bool mode_takes(const std::string& mode, const std::string& key) {
+  if (key == "rate") return mode != "cpap_psv";
+  if (mode == "spontaneous") return key == "ie_ratio" || key == "tidal_volume" || key == "muscle_pressure";
+  if (key == "inspiratory_time" || key == "peep") return true;
+  if (key == "ie_ratio") return mode != "cpap_psv";
+  if (is_assist(mode) && key == "trigger") return true;
+  const bool volume_key = key == "tidal_volume" || key == "pause" || key == "waveform" || key == "pressure_limit";
+  const bool pressure_mode_key = key == "rise_time" || key == "cycle" || key == "volume_limit";
+  const bool simv_key = key == "pressure_support" || key == "trigger_window" || pressure_mode_key;
+  if (mode == "volume_control") return key == "tidal_volume" || key == "pause";
+  if (mode == "vc_ac") return volume_key;
+  if (mode == "vc_simv") return volume_key || simv_key;
+  if (mode == "pc_simv") return key == "inspiratory_pressure" || simv_key;
+  if (mode == "pressure_control") return key == "inspiratory_pressure";
+  if (mode == "pc_ac") return key == "inspiratory_pressure" || pressure_mode_key;
+  return key == "pressure_support" || pressure_mode_key;  // cpap_psv
+}
+
+const std::vector<std::string> kDriverKeys{
+    "rate",           "ie_ratio",     "inspiratory_time",     "tidal_volume", "muscle_pressure",
+    "pause",          "peep",         "inspiratory_pressure", "waveform",     "rise_time",
+    "pressure_limit", "volume_limit", "pressure_support",     "trigger",      "cycle",
+    "trigger_window"};
+
+// trigger: {flow: 2 L/min} or {pressure: 2 cmH2O}, a positive threshold.
+void read_trigger(const scenario::Node& n, DriverFields& f) {
+  const scenario::Node t = n.map("trigger");
+  const auto keys = t.keys();
+  if (keys.size() != 1) t.fail("expected one of flow (e.g. '2 L/min') or pressure (e.g. '2 cmH2O')");
+  if (keys[0] == "flow") {
+    f.trigger = physiology::TriggerKind::flow;
+    f.trigger_threshold = t.positive_quantity("flow", kind::flow);
+  } else if (keys[0] == "pressure") {
+    f.trigger = physiology::TriggerKind::pressure;
+    f.trigger_threshold = t.positive_quantity("pressure", kind::pressure);
+  } else {
+    t.fail_at(keys[0], "unknown trigger; expected flow (e.g. '2 L/min') or pressure (e.g. '2 cmH2O')");
+  }
+}
+
+// cycle: time, or {flow: 25 %} (a share of the peak inspiratory flow), or {volume: 500 mL}.
+void read_cycle(const scenario::Node& n, DriverFields& f) {
+  if (!n.is_map("cycle")) {
+    n.choice("cycle", {"time"});
+    f.cycle = physiology::CycleKind::time;
+    return;
+  }
+  const scenario::Node c = n.map("cycle");
+  const auto keys = c.keys();
+  if (keys.size() != 1) c.fail("expected time, or one of flow (e.g. '25 %') or volume (e.g. '500 mL')");
+  if (keys[0] == "flow") {
+    const double fraction = c.quantity("flow", kind::fraction);
+    if (!(fraction > 0.0 && fraction < 1.0))
+      c.fail_at("flow", "expected a share of the peak flow above 0 and below 100 %, got '" + c.string("flow") + "'");
+    f.cycle = physiology::CycleKind::flow;
+    f.cycle_fraction = fraction;
+  } else if (keys[0] == "volume") {
+    f.cycle = physiology::CycleKind::volume;
+    f.cycle_volume = c.positive_quantity("volume", kind::volume);
+  } else {
+    c.fail_at(keys[0], "unknown cycle; expected time, flow (e.g. '25 %') or volume (e.g. '500 mL')");
+  }
+}
+
+// The ranges the lung model and its solver take (docs/scenarios.md, limits): far outside them
+// CVODE fails after minutes, or at once, without naming the key. SI bounds; `range` says them in
+// the units users write.
+struct Range {
+  double lo, hi;
+  const char* text;
+};
+constexpr double kLitresPerCmH2O = units::m3_per_l_per_pa_per_cmh2o;
+constexpr double kCmH2OSecondsPerLitre = units::pa_s_per_m3_per_cmh2o_s_per_l;
+constexpr Range kCompliance{1e-3 * kLitresPerCmH2O, 10.0 * kLitresPerCmH2O, "a compliance from 0.001 to 10 L/cmH2O"};
+constexpr Range kResistance{0.1 * kCmH2OSecondsPerLitre, 1000.0 * kCmH2OSecondsPerLitre,
+                            "a resistance from 0.1 to 1000 cmH2O*s/L"};
+constexpr Range kRelativeTolerance{1e-12, 0.1, "a relative tolerance from 1e-12 to 0.1"};
+constexpr Range kAbsoluteTolerance{1e-15, 1e-4, "an absolute tolerance from 1e-12 L to 0.1 L"};
+constexpr Range kMaxStep{1e-6, 10.0, "a maximum step from 1e-6 s to 10 s"};
+// A driver's pressures (PEEP, inspiratory, muscle, support, limit) and volumes (tidal, limit),
+// and a pressure-volume curve's: far beyond any breath, where the lung model's first step fails
+// (peep: 1e308 cmH2O, volume_range: 2e300 L).
+constexpr Range kDriverPressure{-200.0 * units::pa_per_cmh2o, 200.0 * units::pa_per_cmh2o,
+                                "a pressure from -200 to 200 cmH2O"};
+constexpr Range kDriverVolume{-1e-2, 1e-2, "a volume of at most 10 L"};
+// A breathing or ventilator rate: one breath a minute to beyond the fastest conventional
+// ventilation (high-frequency oscillation is not what the lumped model describes). At 1e-5 /min
+// the tidal-volume calibration integrates eight breaths of a year each.
+constexpr Range kBreathingRate{1.0 / 60.0, 200.0 / 60.0, "a rate from 1 /min to 200 /min"};
+constexpr Range kCurveWidth{0.1 * units::pa_per_cmh2o, 200.0 * units::pa_per_cmh2o, "a width from 0.1 to 200 cmH2O"};
+
+// `value` (read from `key`) when it lies in `range`; else the one-line error at the key, in the
+// file that holds it (a preset's own file for a value it gives).
+double in_range(const scenario::Node& n, const std::string& key, double value, const Range& range) {
+  if (!(value >= range.lo && value <= range.hi))
+    n.fail_at(key, std::string("expected ") + range.text + ", got '" + n.string(key) + "'");
+  return value;
+}
+
+// Overlays the driver keys present in `n` on `f`, refusing keys the mode does not take.
+void overlay_driver(const scenario::Node& n, const std::string& mode, DriverFields& f) {
+  for (const std::string& key : kDriverKeys) {
+    if (n.has(key) && !mode_takes(mode, key)) n.fail_at(key, "not a setting of " + mode + " mode");
+  }
+  if (n.has("ie_ratio") && n.has("inspiratory_time"))
+    n.fail_at("inspiratory_time", "give ie_ratio or inspiratory_time, not both");
+  if (n.has("tidal_volume") && n.has("muscle_pressure"))
+    n.fail_at("muscle_pressure", "give tidal_volume or muscle_pressure, not both");
+  if (n.has("rate")) f.rate = in_range(n, "rate", n.quantity("rate", kind::rate), kBreathingRate);
+  if (auto v = n.optional_ratio("ie_ratio")) {
+    f.ie_ratio = v;
+    f.inspiratory_time.reset();
+  }
+  if (auto v = n.optional_quantity("inspiratory_time", kind::duration)) {
+    f.inspiratory_time = v;
+    f.ie_ratio.reset();
+  }
+  if (auto v = n.optional_quantity("tidal_volume", kind::volume)) {
+    f.tidal_volume = in_range(n, "tidal_volume", *v, kDriverVolume);
+    f.muscle_pressure.reset();
+  }
+  if (auto v = n.optional_quantity("muscle_pressure", kind::pressure)) {
+    f.muscle_pressure = in_range(n, "muscle_pressure", *v, kDriverPressure);
+    f.tidal_volume.reset();
+  }
+  if (auto v = n.optional_quantity("pause", kind::duration)) f.pause = v;
+  if (auto v = n.optional_quantity("peep", kind::pressure)) f.peep = in_range(n, "peep", *v, kDriverPressure);
+  if (auto v = n.optional_quantity("inspiratory_pressure", kind::pressure))
+    f.inspiratory_pressure = in_range(n, "inspiratory_pressure", *v, kDriverPressure);
+  if (n.has("waveform")) {
+    f.waveform = n.choice("waveform", {"square", "decelerating"}) == "square" ? physiology::FlowWaveform::square
+                                                                              : physiology::FlowWaveform::decelerating;
+  }
+  if (auto v = n.optional_quantity("rise_time", kind::duration)) {
+    if (!(*v >= 0.0)) n.fail_at("rise_time", "expected a duration >= 0, got '" + n.string("rise_time") + "'");
+    f.rise_time = v;
+  }
+  if (n.has("pressure_limit"))
+    f.pressure_limit =
+        in_range(n, "pressure_limit", n.positive_quantity("pressure_limit", kind::pressure), kDriverPressure);
+  if (n.has("volume_limit"))
+    f.volume_limit = in_range(n, "volume_limit", n.positive_quantity("volume_limit", kind::volume), kDriverVolume);
+  if (auto v = n.optional_quantity("pressure_support", kind::pressure)) {
+    if (!(*v >= 0.0))
+      n.fail_at("pressure_support", "expected a pressure >= 0, got '" + n.string("pressure_support") + "'");
+    f.pressure_support = in_range(n, "pressure_support", *v, kDriverPressure);
+  }
+  if (n.has("trigger")) read_trigger(n, f);
+  if (n.has("cycle")) read_cycle(n, f);
+  if (n.has("trigger_window")) f.trigger_window = n.positive_quantity("trigger_window", kind::duration);
+}
+
+std::string fmt_cmh2o(double pa) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%g", pa / units::pa_per_cmh2o);
+  return buffer;
+}
+
+double require(const scenario::Node& n, const std::optional<double>& value, const std::string& key,
+               const units::Kind& k) {
+  if (!value)
+    n.fail_missing(std::string("missing key '") + key + "' (expected " + k.name + " such as '" + k.example + "')");
+  return *value;
+}
+
+// An assist mode's driver from its fields; defaults: a flow trigger at 2 L/min, a square flow,
+// no rise time; pc_ac cycles on time, cpap_psv on flow at 25 % of the peak, with inspiration
+// at most 3 s.
+physiology::Assisted build_assisted(const scenario::Node& n, const std::string& mode, const DriverFields& f) {
+  physiology::Assisted a;
+  a.mode = mode == "vc_ac"     ? physiology::AssistMode::volume
+           : mode == "pc_ac"   ? physiology::AssistMode::pressure
+           : mode == "vc_simv" ? physiology::AssistMode::simv_volume
+           : mode == "pc_simv" ? physiology::AssistMode::simv_pressure
+                               : physiology::AssistMode::pressure_support;
+  const bool support = a.mode == physiology::AssistMode::pressure_support;
+  const bool simv = physiology::is_simv(a);
+  a.rate_hz = support ? 0.0 : require(n, f.rate, "rate", kind::rate);
+  a.peep_pa = f.peep.value_or(0.0);
+  if (f.inspiratory_time) a.inspiratory_time_s = *f.inspiratory_time;
+  else if (f.ie_ratio && !support) a.inspiratory_time_s = (1.0 / a.rate_hz) * *f.ie_ratio / (1.0 + *f.ie_ratio);
+  else if (support) a.inspiratory_time_s = 3.0;
+  else n.fail_missing("missing key 'inspiratory_time' or 'ie_ratio' (expected a duration such as '1 s')");
+  a.trigger = f.trigger.value_or(physiology::TriggerKind::flow);
+  a.trigger_threshold = f.trigger_threshold.value_or(2.0 * units::m3_per_litre / 60.0);
+  if (simv) {
+    a.support_pa = f.pressure_support.value_or(0.0);
+    a.trigger_window_s = f.trigger_window.value_or(physiology::default_trigger_window_s(a.rate_hz));
+    if (!(a.trigger_window_s <= 1.0 / a.rate_hz)) {
+      const std::string what =
+          fmt::format("expected a trigger window of at most one cycle (60 / rate = {:g} s), got {:g} s",
+                      1.0 / a.rate_hz, a.trigger_window_s);
+      if (n.has("trigger_window")) n.fail_at("trigger_window", what);
+      if (n.has("rate")) n.fail_at("rate", what);
+      n.fail(what);
+    }
+  }
+  if (a.mode == physiology::AssistMode::volume || a.mode == physiology::AssistMode::simv_volume) {
+    a.tidal_volume_m3 = require(n, f.tidal_volume, "tidal_volume", kind::volume);
+    a.pause_time_s = f.pause.value_or(0.0);
+    a.waveform = f.waveform.value_or(physiology::FlowWaveform::square);
+    a.pressure_limit_pa = f.pressure_limit.value_or(0.0);
+    if (a.pressure_limit_pa > 0.0 && !(a.pressure_limit_pa > a.peep_pa)) {
+      const std::string what = "expected a pressure limit above PEEP (" + fmt_cmh2o(a.peep_pa) + " cmH2O), got " +
+                               fmt_cmh2o(a.pressure_limit_pa) + " cmH2O";
+      if (n.has("pressure_limit")) n.fail_at("pressure_limit", what);
+      if (n.has("peep")) n.fail_at("peep", what);
+      n.fail(what);
+    }
+  }
+  if (a.mode != physiology::AssistMode::volume) {
+    if (a.mode != physiology::AssistMode::simv_volume)
+      a.inspiratory_pressure_pa = support ? require(n, f.pressure_support, "pressure_support", kind::pressure)
+                                          : require(n, f.inspiratory_pressure, "inspiratory_pressure", kind::pressure);
+    a.rise_time_s = f.rise_time.value_or(0.0);
+    a.cycle = f.cycle.value_or(support || simv ? physiology::CycleKind::flow : physiology::CycleKind::time);
+    a.cycle_fraction = f.cycle_fraction.value_or(0.25);
+    if (a.cycle == physiology::CycleKind::volume) a.cycle_volume_m3 = require(n, f.cycle_volume, "cycle", kind::volume);
+    a.volume_limit_m3 = f.volume_limit.value_or(0.0);
+  }
+  return a;
+}
+
+Driver build_driver(const scenario::Node& n, const std::string& mode, const DriverFields& f) {
+  Driver driver;
+  if (is_assist(mode)) {
+    driver = build_assisted(n, mode, f);
+    try {
+      physiology::validate(driver);
+    } catch (const ValueError& e) {
+      n.fail(e.what());
+    }
+    return driver;
+  }
+  const double rate = require(n, f.rate, "rate", kind::rate);
+  if (mode == "spontaneous") {
+    physiology::Spontaneous s;
+    s.rate_hz = rate;
+    if (!f.ie_ratio) n.fail_missing("missing key 'ie_ratio' (expected a ratio such as '1:2')");
+    s.ie_ratio = *f.ie_ratio;
+    if (f.tidal_volume) s.target_tidal_volume_m3 = *f.tidal_volume;
+    else s.amplitude_pa = require(n, f.muscle_pressure, "tidal_volume' or 'muscle_pressure", kind::volume);
+    driver = s;
+  } else {
+    double ti = 0.0;
+    if (f.inspiratory_time) ti = *f.inspiratory_time;
+    else if (f.ie_ratio) ti = (1.0 / rate) * *f.ie_ratio / (1.0 + *f.ie_ratio);
+    else n.fail_missing("missing key 'inspiratory_time' or 'ie_ratio' (expected a duration such as '1 s')");
+    const double peep = f.peep.value_or(0.0);
+    if (mode == "volume_control") {
+      driver = physiology::VolumeControl{rate, require(n, f.tidal_volume, "tidal_volume", kind::volume), ti,
+                                         f.pause.value_or(0.0), peep};
+    } else {
+      driver = physiology::PressureControl{
+          rate, require(n, f.inspiratory_pressure, "inspiratory_pressure", kind::pressure), ti, peep};
+    }
+  }
+  try {
+    physiology::validate(driver);
+  } catch (const ValueError& e) {
+    n.fail(e.what());
+  }
+  return driver;
+}
+
+// A compartment's elastic recoil: `compliance` (linear) or `pressure_volume_curve` (sigmoid).
+std::optional<physiology::Elasticity> read_elasticity(const scenario::Node& n) {
+  if (n.has("compliance") && n.has("pressure_volume_curve"))
+    n.fail_at("pressure_volume_curve", "give compliance or pressure_volume_curve, not both");
+  if (n.has("compliance")) {
+    return physiology::LinearCompliance{
+        in_range(n, "compliance", n.positive_quantity("compliance", kind::compliance), kCompliance)};
+  }
+  if (auto curve = n.optional_map("pressure_volume_curve")) {
+    physiology::SigmoidCompliance s;
+    s.lower_volume_m3 = in_range(*curve, "lower_volume", curve->quantity("lower_volume", kind::volume), kDriverVolume);
+    s.volume_range_m3 =
+        in_range(*curve, "volume_range", curve->positive_quantity("volume_range", kind::volume), kDriverVolume);
+    s.inflection_pressure_pa = in_range(*curve, "inflection_pressure",
+                                        curve->quantity("inflection_pressure", kind::pressure), kDriverPressure);
+    s.width_pa = in_range(*curve, "width", curve->positive_quantity("width", kind::pressure), kCurveWidth);
+    s.relaxed_volume_m3 =
+        in_range(*curve, "relaxed_volume", curve->positive_quantity("relaxed_volume", kind::volume), kDriverVolume);
+    curve->finish();
+    if (!(s.relaxed_volume_m3 > s.lower_volume_m3 && s.relaxed_volume_m3 < s.lower_volume_m3 + s.volume_range_m3))
+      curve->fail_at("relaxed_volume", "expected a volume between lower_volume and lower_volume + volume_range");
+    return s;
+  }
+  return std::nullopt;
+}
+
+void overlay_compartment(const scenario::Node& n, physiology::Compartment& c, bool need_resistance) {
+  if (auto e = read_elasticity(n)) c.elasticity = *e;
+  if (auto r = n.optional_quantity("resistance", kind::resistance)) {
+    if (!(*r > 0)) n.fail_at("resistance", "expected a positive resistance");
+    c.resistance_pa_s_per_m3 = in_range(n, "resistance", *r, kResistance);
+  } else if (need_resistance) {
+    n.fail_missing("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
+  }
+}
+
+// Mechanics keys: for `single` the compartment's elasticity and the airway resistance;
+// for `two_compartment` the airway resistance and compartments.upper/lower.
+void overlay_mechanics(const scenario::Node& n, const std::string& model, Mechanics& m, bool initial) {
+  if (model == "single") {
+    if (n.has("compartments")) n.fail_at("compartments", "only a two_compartment model has compartments");
+    physiology::Compartment& lung = m.compartments[0];
+    const bool had = n.has("compliance") || n.has("pressure_volume_curve");
+    if (auto e = read_elasticity(n)) lung.elasticity = *e;
+    if (initial && !had) n.fail_missing("missing key 'compliance' (expected a compliance such as '0.1 L/cmH2O')");
+  } else {
+    for (const char* key : {"compliance", "pressure_volume_curve"}) {
+      if (n.has(key))
+        n.fail_at(key, "a two_compartment model sets this per compartment (compartments.upper, compartments.lower)");
+    }
+    auto compartments = n.optional_map("compartments");
+    if (initial && !compartments) n.fail_missing("missing key 'compartments' (with 'upper' and 'lower')");
+    if (compartments) {
+      for (std::size_t i = 0; i < 2; ++i) {
+        const std::string name = i == 0 ? "upper" : "lower";
+        auto c = compartments->optional_map(name);
+        if (initial && !c) compartments->fail_missing("missing key '" + name + "'");
+        if (!c) continue;
+        const bool had = c->has("compliance") || c->has("pressure_volume_curve");
+        if (initial && !had) c->fail_missing("missing key 'compliance' (expected a compliance such as '0.05 L/cmH2O')");
+        overlay_compartment(*c, m.compartments[i], initial);
+        c->finish();
+      }
+      compartments->finish();
+    }
+  }
+  if (auto r = n.optional_quantity("resistance", kind::resistance)) {
+    if (!(*r > 0) && model == "single") n.fail_at("resistance", "expected a positive resistance");
+    if (!(*r >= 0)) n.fail_at("resistance", "expected a resistance >= 0");
+    m.airway_resistance_pa_s_per_m3 = *r > 0.0 ? in_range(n, "resistance", *r, kResistance) : *r;
+  } else if (initial) {
+    n.fail_missing("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
+  }
+}
+
+// effort: {rate, ie_ratio, muscle_pressure}: the patient's own effort on a ventilated patient,
+// patched key by key over `effort`.
+physiology::PatientEffort overlay_effort(const scenario::Node& n, physiology::PatientEffort effort,
+                                         const physiology::Driver& driver) {
+  auto e = n.optional_map("effort");
+  if (!e) return effort;
+  if (e->has("rate")) effort.rate_hz = in_range(*e, "rate", e->quantity("rate", kind::rate), kBreathingRate);
+  if (auto r = e->optional_ratio("ie_ratio")) {
+    if (!(*r > 0.0)) e->fail_at("ie_ratio", "expected a positive ratio such as '1:2'");
+    effort.ie_ratio = *r;
+  }
+  if (auto p = e->optional_quantity("muscle_pressure", kind::pressure)) {
+    if (!(*p >= 0.0))
+      e->fail_at("muscle_pressure", "expected a pressure >= 0, got '" + e->string("muscle_pressure") + "'");
+    effort.amplitude_pa = *p;
+  }
+  e->finish();
+  if (effort.active() && !(effort.rate_hz > 0.0))
+    e->fail_missing("missing key 'rate' (expected a rate such as '15 /min')");
+  if (effort.active() && !physiology::is_ventilator(driver))
+    n.fail_at("effort",
+              "a patient effort acts on a ventilated patient; spontaneous mode is the patient's own breathing");
+  return effort;
+}
+
+scenario::Node with_preset(const scenario::Node& section, const std::filesystem::path& config_dir) {
+  auto preset = section.optional_string("preset");
+  if (!preset) return section;
+  std::filesystem::path file;
+  if (preset->find('/') != std::string::npos || preset->ends_with(".yaml")) {
+    file = section.directory("preset") / *preset;
+  } else {
+    file = config_dir / "physiology" / (*preset + ".yaml");
+  }
+  if (!path_exists(file)) {
+    section.fail_at("preset", "no preset '" + *preset + "' (looked for " + file.string() + "; shipped presets: " +
+                                  join_names(file_stems(config_dir / "physiology", ".yaml")) + ")");
+  }
+  return section.with_fallback(scenario::Node::load_file(file), "preset");
+}
+
+// The keys of the lumped model, which a trace replaces.
+const std::vector<std::string> kLumpedKeys{"preset",
+                                           "model",
+                                           "compliance",
+                                           "pressure_volume_curve",
+                                           "resistance",
+                                           "compartments",
+                                           "transpulmonary_pressure_at_rest",
+                                           "chest_wall_fraction",
+                                           "actions",
+                                           "solver"};
+
+physiology::TraceSignal signal_from(const std::string& name) {
+  if (name == "flow") return physiology::TraceSignal::flow;
+  if (name == "amplitude") return physiology::TraceSignal::amplitude;
+  return physiology::TraceSignal::volume;
+}
+
+// `calibration: {spirometry: file.csv}`: a volume or flow CSV (trace.h), processed as a volume
+// trace is (FRC at 0, a flow's drift removed).
+physiology::Trace read_spirometry(const scenario::Node& calibration) {
+  const std::filesystem::path file = calibration.directory("spirometry") / calibration.string("spirometry");
+  if (const std::string why = missing_reason(file); !why.empty())
+    calibration.fail_at("spirometry", why + ": " + file.string());
+  physiology::TraceOptions options;
+  const physiology::RawTrace raw = physiology::read_trace_file(file, options);
+  if (raw.signal == physiology::TraceSignal::amplitude)
+    calibration.fail_at(
+        "spirometry", "expected a volume or flow trace (such as 'time_s,volume_mL'), got the amplitude '" + raw.column +
+                          "' of " + file.filename().string());
+  return physiology::process_trace(raw, options);
+}
+
+// `driver: {mode: trace, file: ..., ...}`: the file read and processed here, so that a bad trace
+// fails when the scenario is loaded. Errors in the file name the file and line; errors of the
+// keys name the scenario's key.
+physiology::Trace read_trace_driver(const scenario::Node& n, double duration_s) {
+  physiology::TraceOptions o;
+  const std::filesystem::path file = n.directory("file") / n.string("file");
+  if (const std::string why = missing_reason(file); !why.empty()) n.fail_at("file", why + ": " + file.string());
+  std::string format = n.has("format") ? n.choice("format", {"auto", "csv", "rpm"}) : "auto";
+  if (format == "auto") {
+    std::string ext = file.extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    format = ext == ".vxp" || ext == ".dat" ? "rpm" : "csv";
+  }
+  o.format = format == "rpm" ? physiology::TraceFormat::rpm : physiology::TraceFormat::csv;
+  if (n.has("signal")) {
+    o.signal = signal_from(n.choice("signal", {"volume", "flow", "amplitude"}));
+    if (o.format == physiology::TraceFormat::rpm && o.signal != physiology::TraceSignal::amplitude)
+      n.fail_at("signal", "an RPM file holds an amplitude");
+  }
+  if (n.has("column")) {
+    if (o.format == physiology::TraceFormat::rpm)
+      n.fail_at("column", "an RPM file has one amplitude column; 'column' is for CSV");
+    o.column = n.string("column");
+  }
+  if (n.has("detrend")) o.detrend = n.boolean("detrend", true);
+  o.invert = n.boolean("invert", false);
+  if (auto start = n.optional_quantity("start", kind::duration)) {
+    if (!(*start >= 0.0)) n.fail_at("start", "expected a time >= 0 s");
+    o.start_s = *start;
+  }
+  std::optional<scenario::Node> calibration = n.optional_map("calibration");
+  if (calibration) {
+    const int given = static_cast<int>(calibration->has("tidal_volume")) +
+                      static_cast<int>(calibration->has("volume_per_unit")) +
+                      static_cast<int>(calibration->has("spirometry"));
+    if (given != 1)
+      calibration->fail(
+          "expected one of 'tidal_volume' (such as '500 mL'), 'volume_per_unit' (the volume of one amplitude unit, "
+          "such as '400 mL') or 'spirometry' (a volume or flow CSV recorded at the same time)");
+    if (calibration->has("tidal_volume")) {
+      o.calibration.tidal_volume_m3 = calibration->positive_quantity("tidal_volume", kind::volume);
+    } else if (calibration->has("volume_per_unit")) {
+      o.calibration.volume_per_unit_m3 = calibration->positive_quantity("volume_per_unit", kind::volume);
+    } else {
+      o.calibration.spirometry = std::make_shared<const physiology::Trace>(read_spirometry(*calibration));
+      if (auto offset = calibration->optional_quantity("offset", kind::duration)) {
+        if (!std::isfinite(*offset)) calibration->fail_at("offset", "expected a finite time, such as '2.5 s'");
+        o.calibration.spirometry_offset_s = *offset;
+      }
+    }
+    calibration->finish();
+  } else if (n.has("offset")) {
+    n.fail_at("offset", "the spirometry's 'offset' goes inside 'calibration: {spirometry: ..., offset: ...}'");
+  }
+  n.finish();
+  const physiology::RawTrace raw = physiology::read_trace_file(file, o);
+  if (raw.signal == physiology::TraceSignal::amplitude && !calibration)
+    n.fail("an amplitude trace ('" + raw.column + "' of " + file.filename().string() +
+           ") needs 'calibration: {tidal_volume: 500 mL}', 'calibration: {volume_per_unit: 400 mL}' or "
+           "'calibration: {spirometry: spirometer.csv}'");
+  if (raw.signal != physiology::TraceSignal::amplitude && calibration)
+    n.fail_at("calibration", std::string("only an amplitude trace is calibrated; this one holds a ") +
+                                 physiology::signal_name(raw.signal));
+  if (raw.signal != physiology::TraceSignal::amplitude && n.has("invert"))
+    n.fail_at("invert", "only an amplitude trace can be inverted");
+  physiology::Trace trace = physiology::process_trace(raw, o);
+  const double covered = trace.end_s() - trace.time_s.front() - o.start_s;
+  if (covered < duration_s - 1e-9) {
+    n.fail_at("file", fmt::format("the trace covers {:.6g} s{}, less than the scenario's duration of {:.6g} s",
+                                  std::max(covered, 0.0), o.start_s > 0.0 ? " after 'start'" : "", duration_s));
+  }
+  return trace;
+}
+
+}  // namespace
+
+std::filesystem::path default_config_dir() {
+  if (const char* dir = std::getenv("PNEUMA_CONFIG_DIR"); dir && *dir) return dir;
+  return PNEUMA_SOURCE_CONFIG_DIR;
+}
+
+PhysiologyConfig read_physiology(const scenario::Node& raw_section, double duration_s,
+                                 const std::filesystem::path& config_dir) {
+  PhysiologyConfig out;
+  out.options.duration_s = duration_s;
+  if (auto driver = raw_section.optional_map("driver"); driver && driver->optional_string("mode") == "trace") {
+    for (const std::string& key : kLumpedKeys) {
+      if (raw_section.has(key)) raw_section.fail_at(key, "not used with a trace driver (the trace gives the volume)");
+    }
+    driver->accept("mode");
+    out.trace = read_trace_driver(*driver, duration_s);
+    out.options.output_rate_hz =
+        raw_section.has("output_rate") ? raw_section.positive_quantity("output_rate", kind::rate) : 100.0;
+    raw_section.finish();
+    return out;
+  }
+  const scenario::Node section = with_preset(raw_section, config_dir);
+
+  // Mechanics at t = 0.
+  const std::string model = section.has("model") ? section.choice("model", kModels) : "single";
+  Mechanics mechanics;
+  if (model == "single") {
+    mechanics.compartments = {physiology::Compartment{"lung", physiology::LinearCompliance{}, 0.0}};
+  } else {
+    mechanics.compartments = {physiology::Compartment{"upper", physiology::LinearCompliance{}, 0.0},
+                              physiology::Compartment{"lower", physiology::LinearCompliance{}, 0.0}};
+  }
+  overlay_mechanics(section, model, mechanics, true);
+  if (auto p = section.optional_quantity("transpulmonary_pressure_at_rest", kind::pressure))
+    mechanics.transpulmonary_pressure_at_rest_pa = *p;
+  if (auto f = section.optional_quantity("chest_wall_fraction", kind::fraction)) {
+    if (!(*f >= 0 && *f <= 1)) section.fail_at("chest_wall_fraction", "expected a fraction from 0 to 1");
+    mechanics.chest_wall_fraction = *f;
+  }
+
+  // Driver at t = 0.
+  const scenario::Node driver_node = section.map("driver");
+  const std::string mode = driver_node.choice("mode", kModesWithTrace);
+  if (mode == "trace") driver_node.fail_at("mode", "a trace driver takes no preset");
+  DriverFields fields;
+  overlay_driver(driver_node, mode, fields);
+  const Driver driver = build_driver(driver_node, mode, fields);
+  driver_node.finish();
+  const physiology::PatientEffort effort = overlay_effort(section, {}, driver);
+  out.protocol.settings.push_back(physiology::Setting{0.0, mechanics, driver, effort});
+
+  // Timed actions, each a patch over the setting before it.
+  double previous_time = 0.0;
+  for (const scenario::Node& action : section.sequence("actions")) {
+    const double at = action.quantity("at", kind::duration);
+    if (!(at > previous_time)) action.fail_at("at", "expected a time after the previous action's and after 0 s");
+    if (at >= duration_s) action.fail_at("at", "expected a time within the scenario's duration");
+    previous_time = at;
+    // An expiratory hold is a manoeuvre at the next end of expiration, not a setting.
+    if (action.has("expiratory_hold")) {
+      const double hold = action.positive_quantity("expiratory_hold", kind::duration);
+      if (!physiology::is_ventilator(out.protocol.settings.back().driver) && !action.has("mode"))
+        action.fail_at("expiratory_hold", "an expiratory hold needs a ventilator; the patient breathes spontaneously");
+      out.protocol.holds.push_back({at, hold});
+      const auto keys = action.keys();
+      if (std::all_of(keys.begin(), keys.end(),
+                      [](const std::string& k) { return k == "at" || k == "expiratory_hold"; })) {
+        action.finish();
+        continue;
+      }
+    }
+    physiology::Setting next = out.protocol.settings.back();
+    next.start_time_s = at;
+    std::string next_mode = physiology::mode_name(next.driver);
+    if (action.has("mode")) next_mode = action.choice("mode", kModes);
+    DriverFields f = fields_of(next.driver);
+    bool driver_changed = action.has("mode");
+    for (const auto& key : kDriverKeys) driver_changed = driver_changed || action.has(key);
+    if (driver_changed) {
+      overlay_driver(action, next_mode, f);
+      next.driver = build_driver(action, next_mode, f);
+    }
+    overlay_mechanics(action, model, next.mechanics, false);
+    if (action.has("effort") || driver_changed) next.effort = overlay_effort(action, next.effort, next.driver);
+    if (next.effort.active() && !physiology::is_ventilator(next.driver))
+      action.fail_at(action.has("mode") ? "mode" : "at",
+                     "a patient effort acts on a ventilated patient; set effort: {muscle_pressure: 0 cmH2O} first");
+    if (action.has("expiratory_hold") && !physiology::is_ventilator(next.driver))
+      action.fail_at("expiratory_hold", "an expiratory hold needs a ventilator; the patient breathes spontaneously");
+    action.finish();
+    out.protocol.settings.push_back(next);
+  }
+
+  out.options.output_rate_hz =
+      section.has("output_rate") ? section.positive_quantity("output_rate", kind::rate) : 100.0;
+  if (auto solver = section.optional_map("solver")) {
+    out.options.solver.relative_tolerance =
+        in_range(*solver, "relative_tolerance", solver->positive_quantity("relative_tolerance", kind::number),
+                 kRelativeTolerance);
+    out.options.solver.absolute_tolerance_m3 =
+        in_range(*solver, "absolute_tolerance", solver->positive_quantity("absolute_tolerance", kind::volume),
+                 kAbsoluteTolerance);
+    if (auto h = solver->optional_quantity("max_step", kind::duration))
+      out.options.solver.max_step_s = in_range(*solver, "max_step", *h, kMaxStep);
+    solver->finish();
+  }
+  section.accept("preset");
+  section.finish();
+  return out;
+}
+
+}  // namespace pneuma::scenario

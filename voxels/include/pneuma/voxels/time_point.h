@@ -1,0 +1,49 @@
+#pragma once
+// Everything the voxel outputs give for one time point, and its files, for an output plugin:
+// given the lungs at that time and a grid, the forward and pull-back DVFs, the Jacobian figures,
+// and (when given) the label map and the CT pulled back onto the grid.
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "pneuma/image/label_map.h"
+#include "pneuma/voxels/dvf.h"
+#include "pneuma/voxels/jacobian.h"
+#include "pneuma/voxels/warp.h"
+
+namespace pneuma::voxels {
+
+struct TimePointInputs {
+  const image::LabelMap* labels = nullptr;  // warped when given
+  // Per voxel of `labels`: 1 + the lung whose rest mesh holds it, else 0 (warp_labels); may be null.
+  const std::vector<std::uint8_t>* rest_lung = nullptr;
+  const Image* ct = nullptr;      // warped when given
+  OutsideField forward_outside;   // the forward field outside the lungs (empty: 0)
+  OutsideField pullback_outside;  // the pull-back field outside the deformed lungs (empty: 0)
+};
+
+struct TimePoint {
+  DisplacementField forward, pullback;
+  JacobianStats jacobian;
+  std::optional<image::LabelMap> labels;
+  std::optional<Image> ct;
+};
+
+TimePoint compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs = {});
+// The same into `point`, its buffers reused (a run's later time points: no fresh pages, which
+// cost more than the computation itself; BENCHMARKS.md, "Voxel outputs").
+void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs,
+                        TimePoint& point);
+
+struct TimePointFiles {
+  std::filesystem::path forward, pullback, labels, ct;  // empty when not written
+};
+
+// dvf-forward-<tag>.nii.gz, dvf-pullback-<tag>.nii.gz, labels-<tag>.nii.gz and ct-<tag>.nii.gz
+// in `folder` (the last two when the time point has them); `extension` ".nii.gz", ".nii" or ".mha".
+TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
+                                const std::string& extension = ".nii.gz");
+
+}  // namespace pneuma::voxels

@@ -1,0 +1,107 @@
+// The forward and pull-back DVFs: the lungs' tets rasterised (rasterize.h), then the voxels
+// outside every lung from the OutsideField.
+#include "pneuma/voxels/dvf.h"
+
+#include <algorithm>
+#include <numeric>
+#include <string>
+
+#include "pneuma/core/error.h"
+#include "rasterize.h"
+
+namespace pneuma::voxels {
+namespace {
+
+void check_lungs(std::span<const LungMotion> lungs) {
+  if (lungs.size() > 255) throw ValueError(std::to_string(lungs.size()) + " lungs: expected at most 255");
+  for (const LungMotion& lung : lungs) check_lung_motion(lung);
+}
+
+// The value of a voxel that no tet holds: outside(x), or 0.
+void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i, std::size_t j,
+                 std::size_t k) {
+  field.displacement_m[v] = outside ? outside(field.grid.centre_m(i, j, k)) : Eigen::Vector3d::Zero();
+}
+
+}  // namespace
+
+std::size_t DisplacementField::inside_count() const {
+  return static_cast<std::size_t>(std::count_if(lung.begin(), lung.end(), [](std::uint8_t l) { return l != 0; }));
+}
+
+DisplacementField forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, const OutsideField& outside) {
+  DisplacementField field;
+  forward_dvf(grid, lungs, field, outside);
+  return field;
+}
+
+DisplacementField pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, const OutsideField& outside) {
+  DisplacementField field;
+  pullback_dvf(grid, lungs, field, outside);
+  return field;
+}
+
+std::vector<std::uint8_t> rest_lungs(const Grid& grid, std::span<const LungMotion> lungs) {
+  check_lungs(lungs);
+  std::vector<detail::TetSet> sets;
+  sets.reserve(lungs.size());
+  for (const LungMotion& lung : lungs) sets.push_back({lung.mesh.tets, lung.mesh.nodes});
+  std::vector<std::uint8_t> owner;
+  detail::rasterize(
+      grid, std::span<const detail::TetSet>(sets), owner,
+      [](std::size_t, std::size_t, std::size_t, const Eigen::Vector4d&, std::size_t, std::size_t, std::size_t) {},
+      [](std::size_t, std::size_t, std::size_t, std::size_t) {});
+  return owner;
+}
+
+void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                 const OutsideField& outside) {
+  check_lungs(lungs);
+  std::vector<detail::TetSet> sets;
+  sets.reserve(lungs.size());
+  for (const LungMotion& lung : lungs) sets.push_back({lung.mesh.tets, lung.mesh.nodes});
+  field.grid = grid;
+  field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  detail::rasterize(
+      grid, std::span<const detail::TetSet>(sets), field.lung,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
+          std::size_t) {
+        const LungMotion& lung = lungs[s];
+        const mesh::Tetrahedron& tet = lung.mesh.tets[t];
+        Eigen::Vector3d u = Eigen::Vector3d::Zero();
+        for (std::size_t c = 0; c < 4; ++c) u += l[static_cast<Eigen::Index>(c)] * lung.unit_displacement_m[tet[c]];
+        field.displacement_m[v] = lung.scale * u;
+      },
+      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
+}
+
+void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                  const OutsideField& outside) {
+  check_lungs(lungs);
+  std::vector<std::vector<Eigen::Vector3d>> deformed(lungs.size());
+  std::vector<detail::TetSet> sets;
+  sets.reserve(lungs.size());
+  for (std::size_t s = 0; s < lungs.size(); ++s) {
+    const LungMotion& lung = lungs[s];
+    deformed[s].resize(lung.mesh.node_count());
+    for (std::size_t n = 0; n < deformed[s].size(); ++n) {
+      deformed[s][n] = mesh::moved_node(lung.mesh.nodes[n], lung.unit_displacement_m[n], lung.scale);
+    }
+    sets.push_back({lung.mesh.tets, deformed[s]});
+  }
+  field.grid = grid;
+  field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  detail::rasterize(
+      grid, std::span<const detail::TetSet>(sets), field.lung,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t i, std::size_t j,
+          std::size_t k) {
+        const mesh::TetMesh& mesh = lungs[s].mesh;
+        const mesh::Tetrahedron& tet = mesh.tets[t];
+        Eigen::Vector3d rest = Eigen::Vector3d::Zero();
+        for (std::size_t c = 0; c < 4; ++c) rest += l[static_cast<Eigen::Index>(c)] * mesh.nodes[tet[c]];
+        field.displacement_m[v] = rest - grid.centre_m(i, j, k);
+      },
+      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
+}
+
+}  // namespace pneuma::voxels

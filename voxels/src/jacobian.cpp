@@ -1,0 +1,56 @@
+#include "pneuma/voxels/jacobian.h"
+
+#include <Eigen/Geometry>  // cross(), used by tet_mesh.h's tet_volume6
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace pneuma::voxels {
+
+std::vector<double> tet_jacobians(const LungMotion& lung) {
+  check_lung_motion(lung);
+  const mesh::TetMesh& m = lung.mesh;
+  std::vector<double> out(m.tet_count());
+  const auto moved = [&](std::uint32_t n) {
+    return mesh::moved_node(m.nodes[n], lung.unit_displacement_m[n], lung.scale);
+  };
+  for (std::size_t t = 0; t < out.size(); ++t) {
+    const mesh::Tetrahedron& tet = m.tets[t];
+    const double rest6 = mesh::tet_volume6(m.nodes[tet[0]], m.nodes[tet[1]], m.nodes[tet[2]], m.nodes[tet[3]]);
+    const double deformed6 = mesh::tet_volume6(moved(tet[0]), moved(tet[1]), moved(tet[2]), moved(tet[3]));
+    out[t] = deformed6 / rest6;
+  }
+  return out;
+}
+
+JacobianStats jacobian_stats(std::span<const LungMotion> lungs) {
+  JacobianStats stats;
+  stats.min = std::numeric_limits<double>::infinity();
+  stats.max = -std::numeric_limits<double>::infinity();
+  double folded_volume_m3 = 0.0;
+  for (const LungMotion& lung : lungs) {
+    const std::vector<double> jacobians = tet_jacobians(lung);
+    const mesh::TetMesh& m = lung.mesh;
+    for (std::size_t t = 0; t < jacobians.size(); ++t) {
+      const mesh::Tetrahedron& tet = m.tets[t];
+      const double rest_m3 =
+          mesh::tet_volume6(m.nodes[tet[0]], m.nodes[tet[1]], m.nodes[tet[2]], m.nodes[tet[3]]) / 6.0;
+      const double j = jacobians[t];
+      stats.min = std::min(stats.min, j);
+      stats.max = std::max(stats.max, j);
+      stats.rest_volume_m3 += rest_m3;
+      stats.deformed_volume_m3 += j * rest_m3;
+      if (!(j > 0.0)) ++stats.folded_tets, folded_volume_m3 += rest_m3;
+    }
+    stats.tets += jacobians.size();
+  }
+  if (stats.tets == 0) {
+    stats.min = stats.max = 0.0;
+    return stats;
+  }
+  stats.folded_count_fraction = static_cast<double>(stats.folded_tets) / static_cast<double>(stats.tets);
+  stats.folded_volume_fraction = stats.rest_volume_m3 > 0.0 ? folded_volume_m3 / stats.rest_volume_m3 : 0.0;
+  return stats;
+}
+
+}  // namespace pneuma::voxels

@@ -1,0 +1,157 @@
+#pragma once
+// Private to voxels/: tets onto a voxel grid, each voxel to one tet by a fixed rule.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "pneuma/core/tsan.h"
+#include "pneuma/mesh/geometry/tet_mesh.h"
+#include "pneuma/voxels/dvf.h"
+#include "pneuma/voxels/grid.h"
+
+namespace pneuma::voxels::detail {
+
+// One lung's tets with the node positions to rasterise them at (rest or deformed), LPS metres.
+struct TetSet {
+  std::span<const mesh::Tetrahedron> tets;
+  std::span<const Eigen::Vector3d> nodes;
+};
+
+inline constexpr std::size_t kSlabVoxels = 4;  // k-slices per parallel task
+
+// Calls visit(voxel, set, tet, l, i, j, k) once for every voxel whose centre lies in the closed
+// simplex of some tet (barycentric coordinates l >= -kBarycentricTolerance), for the first set
+// and in it the lowest tet holding it, and empty(voxel, i, j, k) once for every other voxel (from
+// the same task, after its slab's tets: the outputs are first touched in parallel). Sets `owner`
+// per voxel to 0 (no tet) or 1 + the set's index (its storage reused).
+// Parallel over slabs of k, each slab's tets in increasing order: the same result at any thread
+// count. Degenerate tets (|6V| below 1e-12 of their bounding box's volume, in index space) hold
+// no voxel.
+template <typename Visit, typename Empty>
+void rasterize(const Grid& grid, std::span<const TetSet> sets, std::vector<std::uint8_t>& owner, const Visit& visit,
+               const Empty& empty) {
+  const std::size_t nx = grid.size[0], ny = grid.size[1], nz = grid.size[2];
+  owner.assign(grid.voxel_count(), 0);
+  if (owner.empty()) return;
+  const Eigen::Matrix4d to_ijk = grid.lps_to_ijk();
+  const Eigen::Matrix3d linear = to_ijk.block<3, 3>(0, 0);
+  const Eigen::Vector3d offset = to_ijk.block<3, 1>(0, 3);
+  constexpr double kPad = 1e-6;  // index units: the boxes are a little larger than the tets
+
+  const auto corners = [&](const TetSet& set, std::size_t t) {
+    std::array<Eigen::Vector3d, 4> p;
+    for (std::size_t c = 0; c < 4; ++c) p[c] = linear * set.nodes[set.tets[t][c]] + offset;
+    return p;
+  };
+
+  // Tets by slab, in increasing (set, tet) order.
+  std::vector<std::size_t> first_tet(sets.size() + 1, 0);
+  for (std::size_t s = 0; s < sets.size(); ++s) first_tet[s + 1] = first_tet[s] + sets[s].tets.size();
+  const std::size_t tet_count = first_tet.back();
+  std::vector<std::array<std::int64_t, 2>> slab_range(tet_count, {1, 0});
+  for (std::size_t s = 0; s < sets.size(); ++s) {
+    const tsan::Region region;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, sets[s].tets.size(), 4096), region.wrap([&](const auto& r) {
+      for (std::size_t t = r.begin(); t != r.end(); ++t) {
+        const auto p = corners(sets[s], t);
+        double lo = p[0].z(), hi = p[0].z();
+        for (const auto& q : p) lo = std::min(lo, q.z()), hi = std::max(hi, q.z());
+        const double k0 = std::max(0.0, std::ceil(lo - kPad));
+        const double k1 = std::min(static_cast<double>(nz - 1), std::floor(hi + kPad));
+        if (!(k0 <= k1)) continue;  // outside the grid (or not finite)
+        const auto slab = static_cast<double>(kSlabVoxels);
+        slab_range[first_tet[s] + t] = {static_cast<std::int64_t>(std::floor(k0 / slab)),
+                                        static_cast<std::int64_t>(std::floor(k1 / slab))};
+      }
+    }));
+    region.join();
+  }
+  const std::size_t slabs = (nz + kSlabVoxels - 1) / kSlabVoxels;
+  std::vector<std::size_t> slab_start(slabs + 1, 0);
+  for (const auto& r : slab_range)
+    for (std::int64_t b = r[0]; b <= r[1]; ++b) ++slab_start[static_cast<std::size_t>(b) + 1];
+  for (std::size_t b = 0; b < slabs; ++b) slab_start[b + 1] += slab_start[b];
+  std::vector<std::uint32_t> slab_tets(slab_start.back());
+  {
+    std::vector<std::size_t> fill(slab_start.begin(), slab_start.end() - 1);
+    for (std::size_t g = 0; g < tet_count; ++g)
+      for (std::int64_t b = slab_range[g][0]; b <= slab_range[g][1]; ++b)
+        slab_tets[fill[static_cast<std::size_t>(b)]++] = static_cast<std::uint32_t>(g);
+  }
+
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, slabs, 1), region.wrap([&](const auto& r) {
+    for (std::size_t b = r.begin(); b != r.end(); ++b) {
+      const double slab_k0 = static_cast<double>(b * kSlabVoxels);
+      const double slab_k1 = static_cast<double>(std::min(nz, (b + 1) * kSlabVoxels) - 1);
+      std::size_t s = 0;
+      for (std::size_t e = slab_start[b]; e < slab_start[b + 1]; ++e) {
+        const std::size_t g = slab_tets[e];
+        while (g >= first_tet[s + 1]) ++s;
+        const std::size_t t = g - first_tet[s];
+        const auto p = corners(sets[s], t);
+        Eigen::Vector3d lo = p[0], hi = p[0];
+        for (const auto& q : p) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
+        Eigen::Matrix3d edges;
+        edges << p[1] - p[0], p[2] - p[0], p[3] - p[0];
+        const double det = edges.determinant();
+        const Eigen::Vector3d box = hi - lo;
+        if (!(std::abs(det) > 1e-12 * box.prod()) || !std::isfinite(det)) continue;
+        const Eigen::Matrix3d to_bary = edges.inverse();
+        const double k_lo = std::max(slab_k0, std::ceil(lo.z() - kPad));
+        const double k_hi = std::min(slab_k1, std::floor(hi.z() + kPad));
+        const double j_lo = std::max(0.0, std::ceil(lo.y() - kPad));
+        const double j_hi = std::min(static_cast<double>(ny - 1), std::floor(hi.y() + kPad));
+        const double i_box_lo = std::max(0.0, std::ceil(lo.x() - kPad));
+        const double i_box_hi = std::min(static_cast<double>(nx - 1), std::floor(hi.x() + kPad));
+        for (double kd = k_lo; kd <= k_hi; kd += 1.0) {
+          for (double jd = j_lo; jd <= j_hi; jd += 1.0) {
+            // l123(i) = to_bary ((0, j, k) - p0) + i to_bary.col(0); l0 = 1 - sum: the i
+            // where all four are >= -tol, widened a little; each voxel is then tested itself.
+            const Eigen::Vector3d base = to_bary * (Eigen::Vector3d(0.0, jd, kd) - p[0]);
+            const Eigen::Vector4d c(1.0 - base.sum(), base.x(), base.y(), base.z());
+            const Eigen::Vector4d slope(-to_bary.col(0).sum(), to_bary(0, 0), to_bary(1, 0), to_bary(2, 0));
+            double i_lo = i_box_lo, i_hi = i_box_hi;
+            for (int m = 0; m < 4; ++m) {
+              if (slope[m] > 0.0) {
+                i_lo = std::max(i_lo, std::ceil((-kBarycentricTolerance - c[m]) / slope[m] - kPad));
+              } else if (slope[m] < 0.0) {
+                i_hi = std::min(i_hi, std::floor((-kBarycentricTolerance - c[m]) / slope[m] + kPad));
+              } else if (c[m] < -kBarycentricTolerance) {
+                i_hi = i_lo - 1.0;
+              }
+            }
+            const auto j = static_cast<std::size_t>(jd), k = static_cast<std::size_t>(kd);
+            for (double id = i_lo; id <= i_hi; id += 1.0) {
+              const auto i = static_cast<std::size_t>(id);
+              const std::size_t v = i + nx * (j + ny * k);
+              if (owner[v] != 0) continue;
+              const Eigen::Vector3d l123 = to_bary * (Eigen::Vector3d(id, jd, kd) - p[0]);
+              const Eigen::Vector4d l(1.0 - l123.sum(), l123.x(), l123.y(), l123.z());
+              if (!(l.minCoeff() >= -kBarycentricTolerance)) continue;
+              owner[v] = static_cast<std::uint8_t>(s + 1);
+              visit(v, s, t, l, i, j, k);
+            }
+          }
+        }
+      }
+      for (auto k = static_cast<std::size_t>(slab_k0); k <= static_cast<std::size_t>(slab_k1); ++k)
+        for (std::size_t j = 0; j < ny; ++j)
+          for (std::size_t i = 0; i < nx; ++i) {
+            const std::size_t v = i + nx * (j + ny * k);
+            if (owner[v] == 0) empty(v, i, j, k);
+          }
+    }
+  }));
+  region.join();
+}
+
+}  // namespace pneuma::voxels::detail

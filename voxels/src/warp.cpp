@@ -1,0 +1,139 @@
+// Pulling label maps and images back through a pull-back DVF, in parallel over k (each output
+// voxel computed on its own: the same bytes at any thread count).
+#include "pneuma/voxels/warp.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
+
+namespace pneuma::voxels {
+namespace {
+
+// Calls f(out voxel, continuous index of x + v(x) in `source`) for every voxel of the field.
+template <typename F>
+void for_each_sample(const DisplacementField& field, const Grid& source, const F& f) {
+  const Grid& grid = field.grid;
+  const Eigen::Matrix4d to_source = source.lps_to_ijk();
+  const Eigen::Matrix3d linear = to_source.block<3, 3>(0, 0);
+  const Eigen::Vector3d offset = to_source.block<3, 1>(0, 3);
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, grid.size[2]), region.wrap([&](const auto& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k)
+      for (std::size_t j = 0; j < grid.size[1]; ++j)
+        for (std::size_t i = 0; i < grid.size[0]; ++i) {
+          const std::size_t v = grid.index(i, j, k);
+          const Eigen::Vector3d y = grid.centre_m(i, j, k) + field.displacement_m[v];
+          f(v, Eigen::Vector3d(linear * y + offset));
+        }
+  }));
+  region.join();
+}
+
+}  // namespace
+
+image::LabelMap warp_labels(const image::LabelMap& labels, const DisplacementField& pullback,
+                            const std::vector<std::uint8_t>* rest_lung) {
+  image::LabelMap out;
+  warp_labels(labels, pullback, out, rest_lung);
+  return out;
+}
+
+void warp_labels(const image::LabelMap& labels, const DisplacementField& pullback, image::LabelMap& out,
+                 const std::vector<std::uint8_t>* rest_lung) {
+  if (rest_lung && rest_lung->size() != labels.labels.size()) {
+    throw ValueError("warp_labels: the rest lungs' voxels are not those of the label map");
+  }
+  out.size = pullback.grid.size;
+  out.ijk_to_lps = pullback.grid.ijk_to_lps;
+  out.transform_source = labels.transform_source;
+  out.segments = labels.segments;
+  out.labels.resize(pullback.grid.voxel_count());
+  const Grid source = grid_of(labels);
+  const std::array<double, 3> n{static_cast<double>(labels.size[0]), static_cast<double>(labels.size[1]),
+                                static_cast<double>(labels.size[2])};
+  for_each_sample(pullback, source, [&](std::size_t v, const Eigen::Vector3d& q) {
+    std::array<std::size_t, 3> at{};
+    for (std::size_t a = 0; a < 3; ++a) {
+      const double r = std::floor(q[static_cast<Eigen::Index>(a)] + 0.5);
+      if (!(r >= 0.0 && r < n[a])) {  // outside the label map (or not finite)
+        out.labels[v] = 0;
+        return;
+      }
+      at[a] = static_cast<std::size_t>(r);
+    }
+    std::size_t nearest = at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2]);
+    const std::uint8_t lung = pullback.lung[v];
+    if (rest_lung && lung != 0 && (*rest_lung)[nearest] != lung) {
+      // The nearest of the eight voxels around q inside this lung's rest mesh.
+      double best = std::numeric_limits<double>::infinity();
+      for (int corner = 0; corner < 8; ++corner) {
+        std::array<double, 3> c{};
+        bool inside = true;
+        for (std::size_t a = 0; a < 3; ++a) {
+          c[a] = std::floor(q[static_cast<Eigen::Index>(a)]) + static_cast<double>((corner >> a) & 1);
+          inside = inside && c[a] >= 0.0 && c[a] < n[a];
+        }
+        if (!inside) continue;
+        const std::size_t candidate =
+            static_cast<std::size_t>(c[0]) +
+            labels.size[0] * (static_cast<std::size_t>(c[1]) + labels.size[1] * static_cast<std::size_t>(c[2]));
+        const double d = (Eigen::Vector3d(c[0], c[1], c[2]) - q).squaredNorm();
+        if ((*rest_lung)[candidate] == lung && d < best) {
+          best = d;
+          nearest = candidate;
+        }
+      }
+    }
+    const std::int32_t label = labels.labels[nearest];
+    out.labels[v] = label;
+  });
+}
+
+Image warp_image(const Image& image, const DisplacementField& pullback, float outside) {
+  Image out;
+  warp_image(image, pullback, out, outside);
+  return out;
+}
+
+void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside) {
+  out.grid = pullback.grid;
+  out.values.resize(pullback.grid.voxel_count());
+  const std::array<std::size_t, 3> size = image.grid.size;
+  for_each_sample(pullback, image.grid, [&](std::size_t v, const Eigen::Vector3d& q) {
+    std::array<std::size_t, 3> lo{}, hi{};
+    std::array<double, 3> w{};
+    for (std::size_t a = 0; a < 3; ++a) {
+      const double top = static_cast<double>(size[a] - 1);
+      const double c = q[static_cast<Eigen::Index>(a)];
+      if (!(c >= -0.5 && c <= top + 0.5)) {  // outside the image (or not finite)
+        out.values[v] = outside;
+        return;
+      }
+      const double clamped = std::clamp(c, 0.0, top);
+      const double base = std::min(std::floor(clamped), std::max(top - 1.0, 0.0));
+      lo[a] = static_cast<std::size_t>(base);
+      hi[a] = std::min(lo[a] + 1, size[a] - 1);
+      w[a] = clamped - base;
+    }
+    const auto at = [&](std::size_t i, std::size_t j, std::size_t k) {
+      return static_cast<double>(image.values[i + size[0] * (j + size[1] * k)]);
+    };
+    double value = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const bool bi = (corner & 1) != 0, bj = (corner & 2) != 0, bk = (corner & 4) != 0;
+      const double weight = (bi ? w[0] : 1.0 - w[0]) * (bj ? w[1] : 1.0 - w[1]) * (bk ? w[2] : 1.0 - w[2]);
+      if (weight == 0.0) continue;
+      value += weight * at(bi ? hi[0] : lo[0], bj ? hi[1] : lo[1], bk ? hi[2] : lo[2]);
+    }
+    out.values[v] = static_cast<float>(value);
+  });
+}
+
+}  // namespace pneuma::voxels
