@@ -5,6 +5,8 @@ BUILD  := build/$(PRESET)
 PNEUMA := $(BUILD)/cli/pneuma
 DEMO_SCENARIO ?= scenarios/quiet-breathing.yaml
 DEMO_OUT ?= out/demo
+# ccache keys on paths relative to the checkout, so a second clone reuses the first one's objects.
+export CCACHE_BASEDIR ?= $(CURDIR)
 # CI treats warnings as errors.
 export PNEUMA_WERROR ?= $(if $(CI),ON,OFF)
 

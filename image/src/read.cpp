@@ -8,6 +8,7 @@
 #include <Eigen/LU>  // determinant()
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -646,6 +647,8 @@ LabelMap read_itk_map(const fs::path& path, const std::string& name, detail::Ima
 
 // ---- TotalSegmentator's mask folder ----
 
+LabelMap read_map(const fs::path& path, const LabelMapOptions& options);  // a file or a folder, uncounted
+
 LabelMap read_mask_folder(const fs::path& dir, const std::string& name, const LabelMapOptions& options) {
   const std::vector<Segment> classes = totalsegmentator_classes(2);
   LabelMap map;
@@ -658,7 +661,7 @@ LabelMap read_mask_folder(const fs::path& dir, const std::string& name, const La
     if (!fs::exists(file)) continue;
     LabelMapOptions plain;
     plain.masks.clear();
-    const LabelMap mask = read_label_map(file, plain);
+    const LabelMap mask = read_map(file, plain);
     const auto known = std::find_if(classes.begin(), classes.end(), [&](const Segment& s) { return s.name == stem; });
     const std::int32_t label = known != classes.end() ? known->label : next_free++;
     if (first_file.empty()) {
@@ -715,7 +718,11 @@ Eigen::Vector3d LabelMap::spacing_m() const {
 
 double LabelMap::voxel_volume_m3() const { return std::abs(ijk_to_lps.block<3, 3>(0, 0).determinant()); }
 
-LabelMap read_label_map(const fs::path& path, const LabelMapOptions& options) {
+namespace {
+
+std::atomic<std::size_t> reads{0};
+
+LabelMap read_map(const fs::path& path, const LabelMapOptions& options) {
   const std::string name = path.string();
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
@@ -741,6 +748,16 @@ LabelMap read_label_map(const fs::path& path, const LabelMapOptions& options) {
     const int version = options.names == SegmentNames::totalsegmentator ? 2 : 1;
     map.segments = detail::segments_of_present_labels(totalsegmentator_classes(version), map.labels);
   }
+  return map;
+}
+
+}  // namespace
+
+std::size_t label_map_reads() { return reads.load(); }
+
+LabelMap read_label_map(const fs::path& path, const LabelMapOptions& options) {
+  LabelMap map = read_map(path, options);
+  ++reads;
   return map;
 }
 

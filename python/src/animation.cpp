@@ -162,9 +162,7 @@ void register_animation(py::module_& m) {
                         "the field, the volume-to-scale map), without writing outputs.")
       .def(py::init([](const py::handle& scenario, const std::optional<std::filesystem::path>& output_dir,
                        std::optional<double> edge_m) {
-             if (edge_m && !(*edge_m > 0.0)) {
-               throw ValueError(fmt::format("edge_m: expected a positive length, got {}", *edge_m));
-             }
+             if (edge_m) check_argument("edge_m", parameters::kEdge, *edge_m);
              return make_animation(to_scenario(scenario).scenario, output_dir, edge_m);
            }),
            py::arg("scenario"), py::arg("output_dir") = py::none(), py::kw_only(), py::arg("edge_m") = py::none(),

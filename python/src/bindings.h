@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "pneuma/core/parameters.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::python {
@@ -24,6 +25,10 @@ py::array_t<std::uint32_t> triangles_to_array(const std::vector<mesh::Triangle>&
 std::vector<Eigen::Vector3d> array_to_points(const py::handle& array, const char* what);
 // Triangles from an integer array-like of shape (F, 3), each index below `vertex_count`.
 std::vector<mesh::Triangle> array_to_triangles(const py::handle& array, std::size_t vertex_count);
+
+// Raises pneuma.ValueError "<argument>: expected ..., got ..." where `value` breaks `parameter`'s
+// rule (the rule the scenario reader and the CLI apply too).
+void check_argument(const char* argument, const parameters::Parameter& parameter, double value);
 
 void register_scenario(py::module_& m);    // Scenario, load_scenario, run
 void register_simulation(py::module_& m);  // Simulation, simulate

@@ -25,10 +25,6 @@ namespace {
 constexpr double kMlPerM3 = units::ml_per_m3;
 
 // ValueError "<argument>: <the table's words>", as the CLI and a scenario say it.
-void check_argument(const char* argument, const parameters::Parameter& parameter, double value) {
-  if (const auto why = parameter.check(value)) throw ValueError(std::string(argument) + ": " + *why);
-}
-
 mesh::TriangleMesh make_mesh(const py::handle& vertices, const py::handle& triangles) {
   mesh::TriangleMesh m;
   m.vertices = array_to_points(vertices, "vertices");

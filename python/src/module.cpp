@@ -72,6 +72,10 @@ void register_errors(py::module_& m) {
 
 }  // namespace
 
+void check_argument(const char* argument, const parameters::Parameter& parameter, double value) {
+  if (const auto why = parameter.check(value)) throw ValueError(std::string(argument) + ": " + *why);
+}
+
 py::array_t<double> column(const std::vector<double>& values, double factor) {
   py::array_t<double> out(static_cast<py::ssize_t>(values.size()));
   auto view = out.mutable_unchecked<1>();

@@ -137,8 +137,7 @@ void register_scenario(py::module_& m) {
       [](const py::handle& scenario, const std::filesystem::path& output_dir, bool quiet,
          std::optional<double> edge_m) {
         ScenarioHandle h = to_scenario(scenario);
-        if (edge_m && !(*edge_m > 0.0))
-          throw ValueError(fmt::format("edge_m: expected a positive length, got {}", *edge_m));
+        if (edge_m) check_argument("edge_m", parameters::kEdge, *edge_m);
         py::gil_scoped_release release;
         if (!h.yaml.empty()) {
           // The manifest records and checksums the scenario file: a dict's is its YAML.

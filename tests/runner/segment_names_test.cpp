@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "pneuma/core/error.h"
+#include "pneuma/image/label_map.h"
 #include "pneuma/runner/output_registry.h"
 #include "pneuma/runner/runner.h"
 #include "pneuma/scenario/scenario.h"
@@ -139,6 +140,28 @@ TEST(SegmentNames, ANameResolvingToTheOtherLungsLabelIsRefused) {
   } catch (const pneuma::InputError& e) {
     EXPECT_EQ(std::string(e.what()), scenario.string() + ": mesh.lungs: label 4 is in both lungs");
   }
+}
+
+// A two-lung run by segment names with the voxel outputs and the report's slices: the label map
+// is read once (names resolved, each lung extracted apart from the other, the voxel files and the
+// slices warped), where it used to be read four times.
+TEST(SegmentNames, ATwoLungVoxelRunReadsItsLabelMapOnce) {
+  TempDir dir;
+  write_two_blobs(dir);
+  const auto scenario = dir.write(
+      "voxels.yaml",
+      "name: named\nduration: 2 s\nframes: {rate: 5 Hz}\n"
+      "mesh: {labels: blobs.seg.nrrd, lungs: {right: {values: [lung_right], share: 2 %}, "
+      "left: {values: [lung_left], share: 2 %}}, edge: 6 mm}\n"
+      "field: {interior: {edge: 8 mm}}\nphysiology: {preset: healthy-adult}\n"
+      "outputs: {gltf: false, hdf5: false, report: true, voxels: {spacing: 4 mm}}\n");
+  const auto s = pneuma::runner::load_scenario(scenario);
+  const std::size_t before = pneuma::image::label_map_reads();
+  const auto result =
+      pneuma::runner::run_scenario(s, {.output_dir = dir / "out", .quiet = true, .edge_override_m = std::nullopt});
+  EXPECT_EQ(pneuma::image::label_map_reads() - before, 1u);
+  EXPECT_TRUE(std::filesystem::exists(dir / "out/voxels/voxels.csv"));
+  EXPECT_EQ(result.lungs.size(), 2u);
 }
 
 }  // namespace

@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "pneuma/mesh/geometry/tet_mesh.h"
-#include "pneuma/mesh/labels/labels.h"
+#include "pneuma/image/label_map.h"
 #include "pneuma/voxels/grid.h"
 
 namespace pneuma::voxels::test {

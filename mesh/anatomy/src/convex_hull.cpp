@@ -13,6 +13,7 @@
 #include <cmath>
 #include <limits>
 
+#include "pneuma/core/tsan.h"
 #include "pneuma/mesh/anatomy/regions.h"
 
 namespace pneuma::mesh {
@@ -102,8 +103,9 @@ std::vector<Point> possible_corners(const std::vector<Eigen::Vector3d>& points) 
                      });
   std::vector<char> keep(points.size(), 1);
   if (solid) {
+    const tsan::Region region;  // TBB's own synchronisation, told to ThreadSanitizer (core/tsan.h)
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 4096),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
+                      region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
                         for (std::size_t i = range.begin(); i < range.end(); ++i) {
                           bool inside = true;
                           for (const auto& [n, offset] : planes) {
@@ -114,7 +116,8 @@ std::vector<Point> possible_corners(const std::vector<Eigen::Vector3d>& points) 
                           }
                           keep[i] = inside ? 0 : 1;
                         }
-                      });
+                      }));
+    region.join();
   }
   std::vector<Point> out;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -170,8 +173,10 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
   using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, CGAL::AABB_triangle_primitive<Kernel, Iterator>>>;
   Tree tree(triangles.cbegin(), triangles.cend());
   tree.accelerate_distance_queries();  // built here: queries from several threads only read it
+  const tsan::Region region;
   tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, queries.size(), 256), [&](const tbb::blocked_range<std::size_t>& range) {
+      tbb::blocked_range<std::size_t>(0, queries.size(), 256),
+      region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
         for (std::size_t i = range.begin(); i < range.end(); ++i) {
           const Eigen::Vector3d& q = queries[i];
           if (std::binary_search(corners.begin(), corners.end(), std::array<double, 3>{q.x(), q.y(), q.z()})) continue;
@@ -179,7 +184,8 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
           const auto& [n, offset] = planes[static_cast<std::size_t>(face - triangles.cbegin())];
           depth[i] = std::max(0.0, offset - n.dot(q));
         }
-      });
+      }));
+  region.join();
   return depth;
 }
 

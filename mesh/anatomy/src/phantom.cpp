@@ -11,6 +11,7 @@
 #include <numbers>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
 #include "pneuma/mesh/anatomy/phantom.h"
 
 namespace pneuma::mesh {
@@ -244,10 +245,12 @@ TriangleMesh sample_lung(const LungShape& s, int n, int passes) {
   // positions), so the vertices are solved on every thread, each writing its own slot: the same
   // bits at any thread count.
   auto each_vertex = [&](const auto& body) {
+    const tsan::Region region;  // TBB's own synchronisation, told to ThreadSanitizer (core/tsan.h)
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.vertex_count(), 2048),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
+                      region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
                         for (std::size_t v = range.begin(); v < range.end(); ++v) body(v);
-                      });
+                      }));
+    region.join();
   };
   each_vertex(
       [&](std::size_t v) { m.vertices[v] = c + ray_root(s, c, m.vertices[v], 0.0, kFarOutside) * m.vertices[v]; });

@@ -77,6 +77,10 @@ struct LabelMapOptions {
 // .seg.nrrd layers, or (a folder) masks on different grids, overlapping masks or none at all.
 LabelMap read_label_map(const std::filesystem::path& path, const LabelMapOptions& options = {});
 
+// How many label maps this process has read (read_label_map calls that returned a map; a mask
+// folder counts once): a run reads its label map once, and the tests hold it to that.
+std::size_t label_map_reads();
+
 // The label values of a selection, in its order without repeats: each entry a segment name of
 // `map` ("lung_upper_lobe_left") or a label number ("3"). Throws ValueError naming `name` (the
 // file): `"x" is not a segment of lobes.seg.nrrd (segments: lung_upper_lobe_left = 1, ...)`,
