@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/parameters.h"
 #include "pneuma/core/stopwatch.h"
 
 namespace pneuma::field {
@@ -78,9 +79,9 @@ std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mes
 ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const double> shear_modulus_pa,
                                 const FieldOptions& options) {
   const auto start = Clock::now();
-  if (!(options.tolerance > 0.0 && options.tolerance < 1.0))
-    throw ValueError("field tolerance must lie between 0 and 1");
-  if (!(options.area_unit > 0.0)) throw ValueError("field area unit must be positive");
+  // The rules every door (YAML, CLI, Python) applies, from the one table (core/parameters.h).
+  if (const auto why = parameters::kFieldTolerance.check(options.tolerance)) throw ValueError("field tolerance: " + *why);
+  if (const auto why = parameters::kAreaUnit.check(options.area_unit)) throw ValueError("field area unit: " + *why);
   if (!(options.direction_smoothing > 0.0)) throw ValueError("field direction smoothing must be positive");
   if (!(options.magnitude_smoothing >= 0.0) || !std::isfinite(options.magnitude_smoothing))
     throw ValueError("field magnitude smoothing must be zero or positive");

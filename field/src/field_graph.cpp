@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/parameters.h"
 #include "pneuma/core/tsan.h"
 
 namespace pneuma::field {
@@ -205,8 +206,7 @@ TransferOperator one_hop_operator(const FieldGraph& g) {
 }
 
 TransferOperator clique_operator(const FieldGraph& graph, int hops, CliquePathRule rule) {
-  if (hops < 1 || hops > kMaxCliqueHops)
-    throw ValueError(fmt::format("clique size must be 1 to {} hops, got {}", kMaxCliqueHops, hops));
+  if (const auto why = parameters::kCliqueHops.check(hops)) throw ValueError("clique_operator: " + *why);
   const TransferOperator one = one_hop_operator(graph);
   TransferOperator op;
   op.clique_hops = hops;

@@ -1,4 +1,4 @@
-// report.js: the behaviour of report.html (engine/io/assets/report.html). Plain ES5-style
+// report.js: the behaviour of report.html (outputs/assets/report.html). Plain ES5-style
 // script, no modules (file:// pages cannot import them), three.js r111 globals (THREE).
 //
 // One clock: `state.t` in seconds, set by the player, the slider, a click on a plot or the
