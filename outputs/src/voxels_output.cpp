@@ -70,6 +70,9 @@ std::any read_spec(const scenario::Node* options) {
       options->fail_at("image", e.what());
     }
   }
+  if (options->has("density"))
+    spec.mass_preserving = options->choice("density", {"mass_preserving", "unchanged"}) == "mass_preserving";
+  spec.jacobian = options->boolean("jacobian", spec.jacobian);
   options->finish();
   return spec;
 }
@@ -143,7 +146,7 @@ class VoxelsOutput final : public Output {
     for (const VoxelPoint& at : points(model, run)) {
       scene.compute(at.scales, point);
       const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension);
-      for (const auto& f : {written.forward, written.pullback, written.labels, written.ct}) {
+      for (const auto& f : {written.forward, written.pullback, written.labels, written.ct, written.jacobian}) {
         if (!f.empty()) files.push_back(f);
       }
       // The warped lungs' volume against the rest label map's plus each lung's share of the
@@ -328,6 +331,8 @@ void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> sc
   inputs.labels = labels_.get();
   inputs.rest_lung = &rest_lung_;
   inputs.ct = with_image ? spec_.image.get() : nullptr;
+  inputs.mass_preserving = spec_.mass_preserving;
+  inputs.jacobian_map = spec_.jacobian;
   if (body) {
     inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
     // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L).

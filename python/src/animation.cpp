@@ -100,12 +100,15 @@ struct Animation {
     out["forward_m"] = field(point.forward);
     out["pullback_m"] = field(point.pullback);
     out["labels"] = labels;
-    if (point.ct) {
+    // Float images indexed [i, j, k] like the labels.
+    auto image = [&](const voxels::Image& im) {
       constexpr auto f = static_cast<py::ssize_t>(sizeof(float));
-      py::array_t<float> ct({nx, ny, nz}, {f, f * nx, f * nx * ny});
-      std::copy(point.ct->values.begin(), point.ct->values.end(), ct.mutable_data());
-      out["ct"] = ct;
-    }
+      py::array_t<float> out_image({nx, ny, nz}, {f, f * nx, f * nx * ny});
+      std::copy(im.values.begin(), im.values.end(), out_image.mutable_data());
+      return out_image;
+    };
+    if (point.ct) out["ct"] = image(*point.ct);
+    if (point.jacobian_map) out["jacobian"] = image(*point.jacobian_map);
     py::array_t<double> affine({4, 4});
     for (int r = 0; r < 4; ++r)
       for (int c = 0; c < 4; ++c) affine.mutable_at(r, c) = grid.ijk_to_lps(r, c);
@@ -231,13 +234,15 @@ void register_animation(py::module_& m) {
           "frame_at_time", [](const Animation& a, double t) { return a.frame(a.index_at(t)); }, py::arg("time_s"),
           "frame_at_time(time_s) -> (V, 3) float64: the frame nearest to time_s (frames are 1 / frame_rate apart).")
       .def("index_at_time", &Animation::index_at, py::arg("time_s"), "The index of the frame nearest to time_s.")
-      .def("voxels", &Animation::voxels, py::arg("index"),
-           "voxels(index) -> dict: the voxel outputs of frame `index` as `pneuma run` writes them (the scenario "
-           "needs `outputs: voxels`; docs/voxels.md): 'forward_m' and 'pullback_m' (nx, ny, nz, 3) float64 "
-           "displacement fields in metres, LPS (forward: where each rest point goes; pull-back: out(x) = in(x + "
-           "v(x))), 'labels' (nx, ny, nz) int32 the label map warped to that frame, 'ct' (nx, ny, nz) float32 "
-           "where the scenario names an image, 'ijk_to_lps' (4, 4) the grid (metres), 'min_jacobian', "
-           "'max_jacobian', 'folded_tets', 'lung_volume_m3' (the warped lungs' voxels).")
+      .def(
+          "voxels", &Animation::voxels, py::arg("index"),
+          "voxels(index) -> dict: the voxel outputs of frame `index` as `pneuma run` writes them (the scenario "
+          "needs `outputs: voxels`; docs/voxels.md): 'forward_m' and 'pullback_m' (nx, ny, nz, 3) float64 "
+          "displacement fields in metres, LPS (forward: where each rest point goes; pull-back: out(x) = in(x + "
+          "v(x))), 'labels' (nx, ny, nz) int32 the label map warped to that frame, 'ct' (nx, ny, nz) float32 "
+          "where the scenario names an image (its lung parenchyma keeping its mass unless voxels.density: "
+          "unchanged), 'jacobian' (nx, ny, nz) float32 the forward map's Jacobian (unless voxels.jacobian: false), 'ijk_to_lps' (4, 4) the grid (metres), 'min_jacobian', "
+          "'max_jacobian', 'folded_tets', 'lung_volume_m3' (the warped lungs' voxels).")
       .def("__len__", [](const Animation& a) { return a.frame_count(); })
       .def("__repr__", [](const Animation& a) {
         return fmt::format("<pneuma.Animation '{}' {} frames, {} vertices{}>", a.scenario.name, a.frame_count(),

@@ -20,6 +20,7 @@
 #include "pneuma/runner/output_registry.h"
 #include "pneuma/runner/runner.h"
 #include "pneuma/voxels/dvf.h"
+#include "pneuma/voxels/voxel_io.h"
 #include "test_support.h"
 
 using pneuma::test::run_pneuma;
@@ -118,6 +119,82 @@ TEST_P(VoxelsRunByMesher, ThePhantomsWarpedLungFollowsThePhysiologysVolume) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Meshers, VoxelsRunByMesher, ::testing::Values("delaunay", "lattice"));
+
+// A synthetic CT of the phantom (parenchyma -849.5 HU, soft tissue 40 HU) through a run: at
+// every time point the lung's mass, (HU + 1000) summed over its voxels times their volume, is the
+// rest scan's within 1 %, and the mean lung HU at end-inspiration is the mass-preserving
+// prediction -1000 + 150.5 V0 / V within 2 HU; the soft tissue keeps its HU; the Jacobian image
+// inside the lung averages V / V0. With `density: unchanged` the lung keeps its HU instead.
+TEST(VoxelsRun, TheWarpedCtsLungKeepsItsMass) {
+  TempDir dir;
+  // The rest lung on the run's grid: end-expiration of this breath is the rest shape (s = 0).
+  const auto first = dir.write("s.yaml", kPhantom);
+  ASSERT_EQ(run_pneuma({"run", first.string(), "-o", (dir / "rest").string(), "--quiet"}).exit_code, 0);
+  const auto rest_rows = read_voxels_csv(dir / "rest/voxels/voxels.csv");
+  const auto rest =
+      pneuma::image::read_label_map(dir / "rest/voxels" / ("labels-" + rest_rows[0].time_point + ".nii.gz"));
+  pneuma::voxels::Image ct;
+  ct.grid = pneuma::voxels::grid_of(rest);
+  ct.values.resize(rest.labels.size());
+  std::size_t rest_voxels = 0;
+  for (std::size_t v = 0; v < ct.values.size(); ++v) {
+    const bool lung = rest.labels[v] == 1;
+    ct.values[v] = lung ? -849.5f : 40.0f;
+    rest_voxels += lung;
+  }
+  pneuma::voxels::write_image(dir / "ct.nii.gz", ct);
+  const double voxel_m3 = rest.voxel_volume_m3();
+  const double rest_mass = static_cast<double>(rest_voxels) * 150.5 * voxel_m3;
+
+  for (const bool preserving : {true, false}) {
+    std::string text = kPhantom;
+    const std::string from = "voxels: {at: [end_expiration, end_inspiration, 1 s], spacing: 3 mm}";
+    ASSERT_NE(text.find(from), std::string::npos);
+    text.replace(text.find(from), from.size(),
+                 std::string("voxels: {at: [end_expiration, end_inspiration, 1 s], spacing: 3 mm, image: ct.nii.gz") +
+                     (preserving ? "}" : ", density: unchanged}"));
+    const std::string out = preserving ? "preserving" : "unchanged";
+    const auto scenario = dir.write(out + ".yaml", text);
+    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / out).string(), "--quiet"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto rows = read_voxels_csv(dir / out / "voxels/voxels.csv");
+    ASSERT_EQ(rows.size(), 3u);
+    for (const CsvRow& row : rows) {
+      const auto labels =
+          pneuma::image::read_label_map(dir / out / "voxels" / ("labels-" + row.time_point + ".nii.gz"));
+      const auto warped = pneuma::voxels::read_image(dir / out / "voxels" / ("ct-" + row.time_point + ".nii.gz"));
+      const auto jacobian =
+          pneuma::voxels::read_image(dir / out / "voxels" / ("jacobian-" + row.time_point + ".nii.gz"));
+      ASSERT_EQ(warped.values.size(), labels.labels.size());
+      double mass = 0.0, lung_hu = 0.0, jacobian_sum = 0.0;
+      std::size_t voxels = 0;
+      for (std::size_t v = 0; v < labels.labels.size(); ++v) {
+        if (labels.labels[v] == 1) {
+          mass += (warped.values[v] + 1000.0) * voxel_m3;
+          lung_hu += warped.values[v];
+          ++voxels;
+        } else if (std::abs(warped.values[v] - 40.0f) > 1e-3f &&
+                   warped.values[v] != -1024.0f) {  // -1024: beyond the scan
+          ADD_FAILURE() << out << " " << row.time_point << ": soft tissue at voxel " << v << " is " << warped.values[v]
+                        << " HU";
+          break;
+        }
+        if (rest.labels[v] == 1) jacobian_sum += jacobian.values[v];
+      }
+      const double growth = static_cast<double>(voxels) / static_cast<double>(rest_voxels);  // V / V0
+      if (preserving) {
+        EXPECT_NEAR(mass / rest_mass, 1.0, 0.01) << row.time_point;
+        EXPECT_NEAR(lung_hu / static_cast<double>(voxels), -1000.0 + 150.5 / growth, 2.0) << row.time_point;
+      } else {
+        EXPECT_NEAR(lung_hu / static_cast<double>(voxels), -849.5, 0.1) << row.time_point;
+      }
+      // The mean forward Jacobian over the rest lung is the lung's growth (to its voxelisation).
+      EXPECT_NEAR(jacobian_sum / static_cast<double>(rest_voxels), growth, 0.02 * growth) << row.time_point;
+      std::cout << out << " " << row.time_point << ": lung " << voxels << " voxels (x" << growth << "), mass x"
+                << mass / rest_mass << ", mean " << lung_hu / static_cast<double>(voxels) << " HU\n";
+    }
+  }
+}
 
 // The warped lung's boundary is the surface frame's: the interior's boundary nodes, moved as the
 // DVFs move them (the interior field at scale s), lie on the surface of the same frame, and the

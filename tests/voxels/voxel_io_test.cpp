@@ -126,8 +126,10 @@ TEST(VoxelFiles, LabelMapAndCtReadBackOnTheSameGeometry) {
     EXPECT_EQ(back.grid.size, point.ct->grid.size);
     EXPECT_EQ(back.values, point.ct->values);
     EXPECT_LE((back.grid.ijk_to_lps - point.ct->grid.ijk_to_lps).cwiseAbs().maxCoeff(), 1e-9);
+    EXPECT_EQ(files.jacobian.filename().string(), "jacobian-0.500s" + extension);
+    EXPECT_EQ(read_image(files.jacobian).values, point.jacobian_map->values);
   }
-  EXPECT_EQ(dir.files().size(), 8u);
+  EXPECT_EQ(dir.files().size(), 10u);  // per format: two DVFs, the labels, the CT, the Jacobian
   // Into the buffers of another time point: the same values.
   TimePoint reused = compute_time_point(m.ball.grid, std::vector<LungMotion>{LungMotion{m.ball.mesh, m.u, 0.3}});
   compute_time_point(m.ball.grid, m.lungs(), inputs, reused);
@@ -135,6 +137,7 @@ TEST(VoxelFiles, LabelMapAndCtReadBackOnTheSameGeometry) {
   EXPECT_EQ(reused.forward.lung, point.forward.lung);
   EXPECT_EQ(reused.labels->labels, point.labels->labels);
   EXPECT_EQ(reused.ct->values, point.ct->values);
+  EXPECT_EQ(reused.jacobian_map->values, point.jacobian_map->values);
 }
 
 TEST(VoxelFiles, NotAnImageIsOneLineNamingTheFile) {

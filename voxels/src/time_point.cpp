@@ -24,9 +24,23 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
   }
   if (inputs.ct != nullptr) {
     if (!point.ct) point.ct.emplace();
-    warp_image(*inputs.ct, point.pullback, *point.ct);
+    // Pulled back with the rest lungs on the CT's grid, so that nothing is blended across the
+    // sliding pleura; the mass-preserving rule finds them on its way.
+    if (inputs.mass_preserving) {
+      mass_preserving_ct(*inputs.ct, lungs, point.rest_ct, point.ct_lung);
+      warp_image(point.rest_ct, point.pullback, *point.ct, kOutsideHu, &point.ct_lung);
+    } else {
+      point.ct_lung = rest_lungs(inputs.ct->grid, lungs);
+      warp_image(*inputs.ct, point.pullback, *point.ct, kOutsideHu, &point.ct_lung);
+    }
   } else {
     point.ct.reset();
+  }
+  if (inputs.jacobian_map) {
+    if (!point.jacobian_map) point.jacobian_map.emplace();
+    jacobian_image(lungs, point.forward, *point.jacobian_map);
+  } else {
+    point.jacobian_map.reset();
   }
 }
 
@@ -47,6 +61,10 @@ TimePointFiles write_time_point(const std::filesystem::path& folder, const std::
   if (point.ct) {
     files.ct = folder / ("ct-" + tag + extension);
     write_image(files.ct, *point.ct);
+  }
+  if (point.jacobian_map) {
+    files.jacobian = folder / ("jacobian-" + tag + extension);
+    write_image(files.jacobian, *point.jacobian_map);
   }
   return files;
 }

@@ -70,8 +70,10 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
     }
     std::size_t nearest = at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2]);
     const std::uint8_t lung = pullback.lung[v];
-    if (rest_lung && lung != 0 && (*rest_lung)[nearest] != lung) {
-      // The nearest of the eight voxels around q inside this lung's rest mesh.
+    if (rest_lung && (*rest_lung)[nearest] != lung) {
+      // The nearest of the eight voxels around q on x's side of the pleura: inside this lung's
+      // rest mesh, or (x outside every deformed lung: tissue the body field carries) outside
+      // every rest mesh.
       double best = std::numeric_limits<double>::infinity();
       for (int corner = 0; corner < 8; ++corner) {
         std::array<double, 3> c{};
@@ -96,13 +98,15 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
   });
 }
 
-Image warp_image(const Image& image, const DisplacementField& pullback, float outside) {
+Image warp_image(const Image& image, const DisplacementField& pullback, float outside,
+                 const std::vector<std::uint8_t>* rest_lung) {
   Image out;
-  warp_image(image, pullback, out, outside);
+  warp_image(image, pullback, out, outside, rest_lung);
   return out;
 }
 
-void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside) {
+void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside,
+                const std::vector<std::uint8_t>* rest_lung) {
   out.grid = pullback.grid;
   out.values.resize(pullback.grid.voxel_count());
   const std::array<std::size_t, 3> size = image.grid.size;
@@ -125,14 +129,22 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
     const auto at = [&](std::size_t i, std::size_t j, std::size_t k) {
       return static_cast<double>(image.values[i + size[0] * (j + size[1] * k)]);
     };
-    double value = 0.0;
+    // With the rest lungs, only the corners on x's side of the pleura count (renormalised): the
+    // tissue at x is that side's, and the pleura slides, so nothing is blended across it.
+    const std::uint8_t side = pullback.lung[v];
+    double value = 0.0, same_side_value = 0.0, same_side_weight = 0.0;
     for (int corner = 0; corner < 8; ++corner) {
       const bool bi = (corner & 1) != 0, bj = (corner & 2) != 0, bk = (corner & 4) != 0;
       const double weight = (bi ? w[0] : 1.0 - w[0]) * (bj ? w[1] : 1.0 - w[1]) * (bk ? w[2] : 1.0 - w[2]);
       if (weight == 0.0) continue;
-      value += weight * at(bi ? hi[0] : lo[0], bj ? hi[1] : lo[1], bk ? hi[2] : lo[2]);
+      const std::size_t i = bi ? hi[0] : lo[0], j = bj ? hi[1] : lo[1], k = bk ? hi[2] : lo[2];
+      value += weight * at(i, j, k);
+      if (rest_lung && (*rest_lung)[i + size[0] * (j + size[1] * k)] == side) {
+        same_side_value += weight * at(i, j, k);
+        same_side_weight += weight;
+      }
     }
-    out.values[v] = static_cast<float>(value);
+    out.values[v] = static_cast<float>(same_side_weight > 0.0 ? same_side_value / same_side_weight : value);
   });
 }
 

@@ -43,6 +43,8 @@ struct VoxelsSpec {
   double spacing_m = 0.0;   // 0: the label map's grid (2 mm where there is none)
   std::shared_ptr<const voxels::Image> image;
   std::filesystem::path image_file;
+  bool mass_preserving = true;  // `density: mass_preserving` (default) | `unchanged`: the CT's lung parenchyma
+  bool jacobian = true;         // `jacobian: true|false`: jacobian-<t> files (the forward map's Jacobian)
   std::string extension = ".nii.gz";
 };
 

@@ -1,7 +1,9 @@
 #pragma once
 // Everything the voxel outputs give for one time point, and its files, for an output plugin:
-// given the lungs at that time and a grid, the forward and pull-back DVFs, the Jacobian figures,
-// and (when given) the label map and the CT pulled back onto the grid.
+// given the lungs at that time and a grid, the forward and pull-back DVFs, the Jacobian figures
+// and image, and (when given) the label map and the CT pulled back onto the grid, the CT's lung
+// parenchyma keeping its mass (density.h).
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <span>
@@ -9,6 +11,7 @@
 #include <vector>
 
 #include "pneuma/image/label_map.h"
+#include "pneuma/voxels/density.h"
 #include "pneuma/voxels/dvf.h"
 #include "pneuma/voxels/jacobian.h"
 #include "pneuma/voxels/warp.h"
@@ -20,6 +23,8 @@ struct TimePointInputs {
   // Per voxel of `labels`: 1 + the lung whose rest mesh holds it, else 0 (warp_labels); may be null.
   const std::vector<std::uint8_t>* rest_lung = nullptr;
   const Image* ct = nullptr;      // warped when given
+  bool mass_preserving = true;    // the CT's lung parenchyma keeps its mass (density.h); false: its HU
+  bool jacobian_map = true;       // the Jacobian image of the forward map (TimePoint::jacobian_map)
   OutsideField forward_outside;   // the forward field outside the lungs (empty: 0)
   OutsideField pullback_outside;  // the pull-back field outside the deformed lungs (empty: 0)
 };
@@ -29,6 +34,9 @@ struct TimePoint {
   JacobianStats jacobian;
   std::optional<image::LabelMap> labels;
   std::optional<Image> ct;
+  std::optional<Image> jacobian_map;  // det(I + grad u) of the forward map, on the grid (density.h)
+  Image rest_ct;                      // scratch: the mass-preserving rest CT (reused between time points)
+  std::vector<std::uint8_t> ct_lung;  // scratch: the rest lungs on the CT grid
 };
 
 TimePoint compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs = {});
@@ -38,11 +46,12 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
                         TimePoint& point);
 
 struct TimePointFiles {
-  std::filesystem::path forward, pullback, labels, ct;  // empty when not written
+  std::filesystem::path forward, pullback, labels, ct, jacobian;  // empty when not written
 };
 
-// dvf-forward-<tag>.nii.gz, dvf-pullback-<tag>.nii.gz, labels-<tag>.nii.gz and ct-<tag>.nii.gz
-// in `folder` (the last two when the time point has them); `extension` ".nii.gz", ".nii" or ".mha".
+// dvf-forward-<tag>.nii.gz, dvf-pullback-<tag>.nii.gz, labels-<tag>.nii.gz, ct-<tag>.nii.gz and
+// jacobian-<tag>.nii.gz in `folder` (the last three when the time point has them); `extension`
+// ".nii.gz", ".nii" or ".mha".
 TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
                                 const std::string& extension = ".nii.gz");
 

@@ -1,0 +1,102 @@
+// The Jacobian image and the mass-preserving CT (voxels/density.h). Oracles: the mass-preserving
+// rule's arithmetic, det(I + s A) for an affine field (exact in P1 tets and for central
+// differences), and the mass of a ball-like lung's parenchyma summed over voxels before and
+// after a radial dilation of known Jacobian.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "pneuma/voxels/density.h"
+#include "pneuma/voxels/dvf.h"
+#include "pneuma/voxels/jacobian.h"
+#include "pneuma/voxels/warp.h"
+#include "tet_fixtures.h"
+
+namespace pneuma::voxels {
+namespace {
+
+TEST(MassPreservingHu, ParenchymaScalesByOneOverTheJacobianWithinAirAndWater) {
+  // An inhaling lung at -849.5 HU stretched by J = 1.1: (150.5 / 1.1) - 1000.
+  EXPECT_NEAR(mass_preserving_hu(-849.5f, 1.1), 150.5 / 1.1 - 1000.0, 1e-4);
+  EXPECT_FLOAT_EQ(mass_preserving_hu(-849.5f, 1.0), -849.5f);
+  EXPECT_FLOAT_EQ(mass_preserving_hu(-1000.0f, 1.3), -1000.0f);  // air has no mass
+  EXPECT_FLOAT_EQ(mass_preserving_hu(-100.0f, 0.5), 0.0f);       // 800 HU, held at water
+  EXPECT_FLOAT_EQ(mass_preserving_hu(40.0f, 1.2), 40.0f);        // blood and vessels keep their HU
+  EXPECT_FLOAT_EQ(mass_preserving_hu(-1024.0f, 1.2), -1024.0f);  // outside the scan: as it was
+  EXPECT_FLOAT_EQ(mass_preserving_hu(-500.0f, 0.0), -500.0f);    // a folded tet changes nothing
+}
+
+// u = s (A x + b) everywhere: inside the tets (P1 exact) and outside them (central differences
+// of an affine field are exact), so every voxel's Jacobian is det(I + s A).
+TEST(JacobianImage, AnAffineFieldHasItsDeterminantInsideAndOutsideTheLung) {
+  const test::Ball ball = test::make_ball();
+  Eigen::Matrix3d a;
+  a << 0.10, 0.02, -0.01, 0.00, 0.05, 0.03, 0.01, -0.02, 0.20;
+  const Eigen::Vector3d b(0.001, -0.002, 0.003);
+  const double s = 0.8;
+  const std::vector<Eigen::Vector3d> u = test::affine_field(ball.mesh, a, b);
+  const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, s}};
+  const DisplacementField forward =
+      forward_dvf(ball.grid, lungs, [&](const Eigen::Vector3d& x) { return Eigen::Vector3d(s * (a * x + b)); });
+  Image jacobian;
+  jacobian_image(lungs, forward, jacobian);
+  const double expected = (Eigen::Matrix3d::Identity() + s * a).determinant();
+  ASSERT_EQ(jacobian.values.size(), ball.grid.voxel_count());
+  std::size_t inside = 0;
+  for (std::size_t v = 0; v < jacobian.values.size(); ++v) {
+    EXPECT_NEAR(jacobian.values[v], expected, 1e-5) << v;
+    inside += forward.lung[v] != 0;
+  }
+  EXPECT_GT(inside, 10000u);
+  EXPECT_LT(inside, ball.grid.voxel_count() / 2);
+}
+
+// A ball of parenchyma (-850 HU) in soft tissue (40 HU), dilated radially by (1 + s c)^3: the
+// lung's voxels of the warped mass-preserving CT hold the rest lung's mass, (HU + 1000) summed
+// over voxels times their volume, within 1 %, at the predicted -1000 + 150 / J; without the rule
+// the mass grows by J. Pulled back without the rest lungs, the rim blends in the soft tissue.
+TEST(MassPreservingCt, AWarpedDilatedLungKeepsItsMass) {
+  const test::Ball ball = test::make_ball();
+  const double c = 0.4, s = 0.5;
+  const double j = std::pow(1 + s * c, 3);  // 1.728
+  const std::vector<Eigen::Vector3d> u = ball.radial(c);
+  const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, s}};
+  Image rest;
+  rest.grid = ball.grid;
+  rest.values.assign(ball.grid.voxel_count(), 40.0f);
+  const std::vector<LungMotion> at_rest{LungMotion{ball.mesh, u, 0.0}};
+  const std::vector<std::uint8_t> rest_lung = rest_lungs(ball.grid, at_rest);
+  for (std::size_t v = 0; v < rest.values.size(); ++v)
+    if (rest_lung[v] != 0) rest.values[v] = -850.0f;
+  const DisplacementField pull = pullback_dvf(ball.grid, lungs);
+  auto lung_mass = [&](const Image& image, const std::vector<std::uint8_t>& in_lung) {
+    double mass = 0.0;
+    for (std::size_t v = 0; v < image.values.size(); ++v)
+      if (in_lung[v] != 0) mass += image.values[v] + 1000.0;
+    return mass * ball.grid.voxel_volume_m3();
+  };
+  const double rest_mass = lung_mass(rest, rest_lung);
+
+  Image preserved, warped;
+  std::vector<std::uint8_t> ct_lung;
+  mass_preserving_ct(rest, lungs, preserved, ct_lung);
+  EXPECT_EQ(ct_lung, rest_lung);
+  warp_image(preserved, pull, warped, kOutsideHu, &ct_lung);
+  EXPECT_NEAR(lung_mass(warped, pull.lung) / rest_mass, 1.0, 0.01);
+  // Deep inside the lung every voxel shows the predicted value.
+  const std::size_t centre = ball.grid.index(32, 32, 32);
+  ASSERT_NE(pull.lung[centre], 0);
+  EXPECT_NEAR(warped.values[centre], -1000.0 + 150.0 / j, 1e-3);
+  // Outside the lung the soft tissue keeps its HU.
+  EXPECT_FLOAT_EQ(warped.values[0], 40.0f);
+
+  Image unchanged;
+  warp_image(rest, pull, unchanged, kOutsideHu, &rest_lung);
+  EXPECT_NEAR(lung_mass(unchanged, pull.lung) / rest_mass, j, 0.02 * j);
+  Image blended;
+  warp_image(preserved, pull, blended);
+  EXPECT_GT(lung_mass(blended, pull.lung) / rest_mass, 1.1);
+}
+
+}  // namespace
+}  // namespace pneuma::voxels

@@ -1,0 +1,41 @@
+#pragma once
+// What the lungs' motion does to the tissue on voxel grids: the Jacobian image of the forward map
+// (the CT-ventilation image of 4D-CT studies) and a CT whose lung parenchyma keeps its mass as the
+// lungs breathe. A CT's HU + 1000 is proportional to density (air -1000 HU, water 0 HU), so
+// tissue of rest density rho that the forward map stretches by J has density rho / J: an inhaling
+// lung darkens (-849.5 HU at rest, about -864 HU at J = 1.1).
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "pneuma/voxels/dvf.h"
+#include "pneuma/voxels/lung_motion.h"
+#include "pneuma/voxels/warp.h"
+
+namespace pneuma::voxels {
+
+// The parenchyma the mass-preserving rule applies to lies between air and water; denser voxels
+// (vessels, nodules, bone) keep their HU, and no result leaves this range.
+inline constexpr float kAirHu = -1000.0f;
+inline constexpr float kWaterHu = 0.0f;
+
+// The forward map's Jacobian det(I + grad u) at every voxel centre of `forward`'s grid: in a
+// lung's rest tet its exact P1 value (tet_jacobians), elsewhere from central differences of
+// `forward`'s displacement over the neighbours outside the lungs (one-sided beside a lung or the
+// grid's edge; no derivative along an axis with no such neighbour). `lungs` are those `forward`
+// was made from, at the same scales. Deterministic at any thread count.
+void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& forward, Image& out);
+
+// `rest_ct` with its lung parenchyma made to keep its mass at the lungs' scales: a voxel whose
+// centre lies in a lung's rest tet of Jacobian J and whose value lies between air and water
+// becomes (HU + 1000) / J - 1000, clamped to [air, water]; every other voxel keeps its value.
+// `rest_lung` gets, per voxel of the CT, 0 or 1 + the lung whose rest tets hold it. Pulled back by
+// the pull-back DVF of the same scales with that mask (warp_image), the lungs hold the rest
+// scan's mass. Throws ValueError as check_lung_motion().
+void mass_preserving_ct(const Image& rest_ct, std::span<const LungMotion> lungs, Image& out,
+                        std::vector<std::uint8_t>& rest_lung);
+
+// (HU + 1000) / J - 1000 within [air, water] for parenchyma (rest HU in [air, water]); else `hu`.
+float mass_preserving_hu(float hu, double jacobian);
+
+}  // namespace pneuma::voxels

@@ -1,0 +1,112 @@
+// The Jacobian image and the mass-preserving CT (density.h): the lungs' rest tets rasterised
+// (rasterize.h) with each tet's exact Jacobian; outside them, central differences of the field.
+#include "pneuma/voxels/density.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/LU>  // determinant(), inverse()
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
+#include "pneuma/voxels/jacobian.h"
+#include "rasterize.h"
+
+namespace pneuma::voxels {
+namespace {
+
+// Each lung's tets at rest, and the Jacobian of each tet at the lung's scale.
+struct RestTets {
+  std::vector<detail::TetSet> sets;
+  std::vector<std::vector<double>> jacobians;
+};
+
+RestTets rest_tets(std::span<const LungMotion> lungs) {
+  if (lungs.size() > 255) throw ValueError(std::to_string(lungs.size()) + " lungs: expected at most 255");
+  RestTets out;
+  for (const LungMotion& lung : lungs) {
+    out.jacobians.push_back(tet_jacobians(lung));  // checks the lung
+    out.sets.push_back({lung.mesh.tets, lung.mesh.nodes});
+  }
+  return out;
+}
+
+// d(displacement)/d(index) along `axis` at voxel (i, j, k), from the neighbours outside the lungs.
+Eigen::Vector3d index_derivative(const DisplacementField& f, const std::vector<std::uint8_t>& owner, std::size_t axis,
+                                 std::size_t i, std::size_t j, std::size_t k) {
+  const std::array<std::size_t, 3> at{i, j, k};
+  const std::size_t nx = f.grid.size[0], ny = f.grid.size[1];
+  const auto index = [&](const std::array<std::size_t, 3>& p) { return p[0] + nx * (p[1] + ny * p[2]); };
+  const auto outside = [&](std::size_t v) { return owner[v] == 0; };
+  std::array<std::size_t, 3> lo = at, hi = at;
+  const bool has_lo = at[axis] > 0 && (--lo[axis], outside(index(lo)));
+  const bool has_hi = at[axis] + 1 < f.grid.size[axis] && (++hi[axis], outside(index(hi)));
+  const Eigen::Vector3d& here = f.displacement_m[index(at)];
+  if (has_lo && has_hi) return 0.5 * (f.displacement_m[index(hi)] - f.displacement_m[index(lo)]);
+  if (has_hi) return f.displacement_m[index(hi)] - here;
+  if (has_lo) return here - f.displacement_m[index(lo)];
+  return Eigen::Vector3d::Zero();
+}
+
+}  // namespace
+
+float mass_preserving_hu(float hu, double jacobian) {
+  if (!(hu >= kAirHu && hu <= kWaterHu) || !(jacobian > 0.0)) return hu;
+  const double moved = (static_cast<double>(hu) - kAirHu) / jacobian + kAirHu;
+  return static_cast<float>(std::clamp(moved, static_cast<double>(kAirHu), static_cast<double>(kWaterHu)));
+}
+
+void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& forward, Image& out) {
+  const RestTets tets = rest_tets(lungs);
+  const Grid& grid = forward.grid;
+  if (forward.displacement_m.size() != grid.voxel_count())
+    throw ValueError("jacobian_image: the forward field does not fill its grid");
+  out.grid = grid;
+  out.values.resize(grid.voxel_count());
+  std::vector<std::uint8_t> owner;
+  detail::rasterize(
+      grid, std::span<const detail::TetSet>(tets.sets), owner,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d&, std::size_t, std::size_t, std::size_t) {
+        out.values[v] = static_cast<float>(tets.jacobians[s][t]);
+      },
+      [&](std::size_t, std::size_t, std::size_t, std::size_t) {});
+  // grad u = (du/d index) (d index/dx): the grid's direction and spacing, inverted once.
+  const Eigen::Matrix3d to_index = grid.ijk_to_lps.block<3, 3>(0, 0).inverse();
+  const std::size_t nx = grid.size[0], ny = grid.size[1], nz = grid.size[2];
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nz), region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k) {
+      for (std::size_t j = 0; j < ny; ++j) {
+        for (std::size_t i = 0; i < nx; ++i) {
+          const std::size_t v = i + nx * (j + ny * k);
+          if (owner[v] != 0) continue;
+          Eigen::Matrix3d d;
+          for (std::size_t a = 0; a < 3; ++a)
+            d.col(static_cast<Eigen::Index>(a)) = index_derivative(forward, owner, a, i, j, k);
+          out.values[v] = static_cast<float>((Eigen::Matrix3d::Identity() + d * to_index).determinant());
+        }
+      }
+    }
+  }));
+  region.join();
+}
+
+void mass_preserving_ct(const Image& rest_ct, std::span<const LungMotion> lungs, Image& out,
+                        std::vector<std::uint8_t>& rest_lung) {
+  const RestTets tets = rest_tets(lungs);
+  out.grid = rest_ct.grid;
+  out.values.resize(rest_ct.values.size());
+  detail::rasterize(
+      rest_ct.grid, std::span<const detail::TetSet>(tets.sets), rest_lung,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d&, std::size_t, std::size_t, std::size_t) {
+        out.values[v] = mass_preserving_hu(rest_ct.values[v], tets.jacobians[s][t]);
+      },
+      [&](std::size_t v, std::size_t, std::size_t, std::size_t) { out.values[v] = rest_ct.values[v]; });
+}
+
+}  // namespace pneuma::voxels
