@@ -80,7 +80,8 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
                                 const FieldOptions& options) {
   const auto start = Clock::now();
   // The rules every door (YAML, CLI, Python) applies, from the one table (core/parameters.h).
-  if (const auto why = parameters::kFieldTolerance.check(options.tolerance)) throw ValueError("field tolerance: " + *why);
+  if (const auto why = parameters::kFieldTolerance.check(options.tolerance))
+    throw ValueError("field tolerance: " + *why);
   if (const auto why = parameters::kAreaUnit.check(options.area_unit)) throw ValueError("field area unit: " + *why);
   if (!(options.direction_smoothing > 0.0)) throw ValueError("field direction smoothing must be positive");
   if (!(options.magnitude_smoothing >= 0.0) || !std::isfinite(options.magnitude_smoothing))

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "pneuma/core/atomic_file.h"
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/model/compile.h"
 #include "pneuma/model/frame.h"
@@ -49,7 +50,8 @@ class Phases final : public Output {
 
   std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {
     const auto& series = run.drive->series;
-    const physiology::PhaseBinning binning = run_phase_bins(run);  // the bins the report and voxels use
+    // The bins the report and voxels use.
+    const physiology::PhaseBinning binning = required_phase_bins(run, std::string("outputs.") + kPhasesKey);
     std::vector<std::filesystem::path> files{dir_ / "phases.csv"};
     write_phases_csv(files.front(), series.time_s, binning);
     facts_ = {{"phases.bins", std::to_string(binning.bins.size())},
@@ -129,6 +131,19 @@ std::vector<double> phase_bin_scales(const model::Model& model, const physiology
     scales.push_back(lung.scales({0.0}, {volume}).front());
   }
   return scales;
+}
+
+physiology::PhaseBinning required_phase_bins(const RunRecord& run, const std::string& key) {
+  physiology::PhaseBinning binning = run_phase_bins(run);
+  if (binning.cycles > 0) return binning;
+  const auto& t = run.drive->series.time_s;
+  const double length_s = t.empty() ? 0.0 : t.back() - t.front();
+  const std::string irregular =
+      binning.irregular_cycles > 0 ? fmt::format(" ({} irregular ones left out)", binning.irregular_cycles) : "";
+  throw InputError(fmt::format(
+      "{}: {}: the {:.3g} s run holds no whole breathing cycle, end-inspiration to end-inspiration{}, to bin into "
+      "phases; expected a longer duration, two breaths at least",
+      run.scenario->file.string(), key, length_s, irregular));
 }
 
 physiology::PhaseBinning run_phase_bins(const RunRecord& run) {

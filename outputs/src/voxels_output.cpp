@@ -241,7 +241,7 @@ class VoxelsOutput final : public Output {
       out.push_back(std::move(p));
     }
     if (spec_.phase_bins) {
-      const physiology::PhaseBinning binning = run_phase_bins(run);
+      const physiology::PhaseBinning binning = required_phase_bins(run, std::string("outputs.") + kVoxelsKey + ".at");
       for (std::size_t b = 0; b < binning.bins.size(); ++b) {
         const physiology::PhaseBin& bin = binning.bins[b];
         if (bin.samples.empty()) continue;

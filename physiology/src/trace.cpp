@@ -143,6 +143,13 @@ std::vector<TurningPoint> find_turning_points(const std::vector<double>& volume)
     }
     if ((state == State::below && v < volume[extreme]) || (state == State::above && v > volume[extreme])) extreme = k;
   }
+  // The stretch the signal ends in counts where the signal has since turned back by the band: its
+  // extreme is behind it (an 8 s run of 12 /min breaths ends 1.1 s after its second peak, which
+  // closes its one whole cycle).
+  const double last = volume.back();
+  if (entered && ((state == State::above && last < volume[extreme] - band) ||
+                  (state == State::below && last > volume[extreme] + band)))
+    turns.push_back({extreme, state == State::above});
   return turns;
 }
 

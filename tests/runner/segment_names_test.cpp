@@ -148,13 +148,12 @@ TEST(SegmentNames, ANameResolvingToTheOtherLungsLabelIsRefused) {
 TEST(SegmentNames, ATwoLungVoxelRunReadsItsLabelMapOnce) {
   TempDir dir;
   write_two_blobs(dir);
-  const auto scenario = dir.write(
-      "voxels.yaml",
-      "name: named\nduration: 2 s\nframes: {rate: 5 Hz}\n"
-      "mesh: {labels: blobs.seg.nrrd, lungs: {right: {values: [lung_right], share: 2 %}, "
-      "left: {values: [lung_left], share: 2 %}}, edge: 6 mm}\n"
-      "field: {interior: {edge: 8 mm}}\nphysiology: {preset: healthy-adult}\n"
-      "outputs: {gltf: false, hdf5: false, report: true, voxels: {spacing: 4 mm}}\n");
+  const auto scenario =
+      dir.write("voxels.yaml", "name: named\nduration: 2 s\nframes: {rate: 5 Hz}\n"
+                               "mesh: {labels: blobs.seg.nrrd, lungs: {right: {values: [lung_right], share: 2 %}, "
+                               "left: {values: [lung_left], share: 2 %}}, edge: 6 mm}\n"
+                               "field: {interior: {edge: 8 mm}}\nphysiology: {preset: healthy-adult}\n"
+                               "outputs: {gltf: false, hdf5: false, report: true, voxels: {spacing: 4 mm}}\n");
   const auto s = pneuma::runner::load_scenario(scenario);
   const std::size_t before = pneuma::image::label_map_reads();
   const auto result =

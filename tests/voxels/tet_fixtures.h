@@ -4,8 +4,8 @@
 #include <functional>
 #include <vector>
 
-#include "pneuma/mesh/geometry/tet_mesh.h"
 #include "pneuma/image/label_map.h"
+#include "pneuma/mesh/geometry/tet_mesh.h"
 #include "pneuma/voxels/grid.h"
 
 namespace pneuma::voxels::test {

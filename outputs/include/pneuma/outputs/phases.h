@@ -44,6 +44,11 @@ std::vector<double> phase_bin_scales(const model::Model& model, const physiology
 // The bins of a run's frames as `outputs.phases` sets them (its defaults when it is off).
 physiology::PhaseBinning run_phase_bins(const RunRecord& run);
 
+// The same for an output that writes the bins (`key`: where the scenario asked for them): a run
+// that holds no whole cycle (end-inspiration to end-inspiration) is an InputError naming the
+// scenario, the key, the run's length and the cycle it needs, not an empty set of bins.
+physiology::PhaseBinning required_phase_bins(const RunRecord& run, const std::string& key);
+
 // The trace's processing report as manifest facts ("trace.invalid_samples", ...).
 std::vector<std::pair<std::string, std::string>> trace_facts(const physiology::Trace& trace);
 

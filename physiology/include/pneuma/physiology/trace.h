@@ -117,7 +117,8 @@ struct BreathCycle {
 };
 // The turning points of a sampled volume signal, peaks and troughs alternating, in order: the
 // extreme of each stretch beyond +-25 % of the half swing (5th to 95th percentile) around the
-// median, for the stretches entered by a crossing (the first and an unfinished last one are cut).
+// median, for the stretches entered by a crossing (the first is cut; the last counts once the signal
+// has turned back from its extreme by that band, else it may be unfinished).
 struct TurningPoint {
   std::size_t index = 0;
   bool peak = false;
