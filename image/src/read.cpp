@@ -115,7 +115,7 @@ Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enoug
 // A file that a header or a folder brings in (NRRD's `data file`, MetaImage's ElementDataFile):
 // there and a regular file, or a pipe would block the read for ever (#49).
 fs::path data_file_path(const fs::path& header, const std::string& name, const std::string& file, const char* key) {
-  const fs::path path = header.parent_path() / file;
+  fs::path path = header.parent_path() / file;
   std::error_code ec;
   if (!fs::exists(path, ec)) throw InputError(name + ": its data file '" + file + "' (" + key + ") is missing");
   require_readable_file(path);

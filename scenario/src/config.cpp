@@ -44,7 +44,9 @@ void refuse_duplicate_keys(const YAML::Node& node, const std::string& file, cons
   for (auto it = node.begin(); it != node.end(); ++it) {
     if (!it->first.IsScalar()) continue;
     const std::string& key = it->first.Scalar();
-    const std::string key_path = path.empty() ? key : path + "." + key;
+    std::string key_path = path;
+    if (!key_path.empty()) key_path += '.';
+    key_path += key;
     const auto [first, inserted] = seen.emplace(key, it->first.Mark());
     if (!inserted) {
       throw InputError(at(file, it->first.Mark()) + ": " + key_path + ": given twice (first at line " +
