@@ -9,6 +9,7 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
+#include "pneuma/core/text.h"
 #include "pneuma/field/field_solver.h"
 #include "pneuma/runner/output_registry.h"
 #include "pneuma/scenario/config.h"
@@ -48,7 +49,7 @@ void refuse_cache(const scenario::Node& node, const std::string& where) {
 
 YAML::Node parse(const std::string& text, const std::string& name) {
   try {
-    return YAML::Load(text);
+    return YAML::Load(std::string(without_bom(text)));
   } catch (const YAML::Exception& e) {
     throw InputError(location(name, e.mark.line, e.mark.column) + ": not valid YAML: " + e.msg);
   }

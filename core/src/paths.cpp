@@ -74,6 +74,9 @@ void require_readable_file(const std::filesystem::path& path) {
   if (ec == std::errc::permission_denied) throw IoError(name + ": cannot read: permission denied");
   if (ec || !std::filesystem::exists(status)) throw IoError(name + ": cannot read: no such file");
   if (std::filesystem::is_directory(status)) throw IoError(name + ": cannot read: is a folder");
+  // Opening a pipe blocks until a writer comes, and a device may never end (#49).
+  if (!std::filesystem::is_regular_file(status))
+    throw InputError(name + ": not a regular file (a device, pipe or socket); expected a file");
   if (!std::ifstream(path, std::ios::binary)) throw IoError(name + ": cannot read: permission denied");
 }
 

@@ -1,5 +1,9 @@
 #include "pneuma/core/text.h"
 
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+
 namespace pneuma {
 namespace {
 
@@ -31,6 +35,23 @@ std::size_t utf8_sequence_length(std::string_view text, std::size_t at) {
   return length;
 }
 
+// Characters that print as nothing (or as a blank that looks like a space) on a terminal.
+bool invisible(std::uint32_t c) {
+  return c == 0x00A0 || c == 0x00AD || c == 0x034F || c == 0x061C || (c >= 0x200B && c <= 0x200F) ||
+         (c >= 0x2028 && c <= 0x202F) || (c >= 0x2060 && c <= 0x206F) || c == 0x3164 || c == 0xFEFF ||
+         (c >= 0xFFF0 && c <= 0xFFF8);
+}
+
+std::uint32_t code_point(std::string_view sequence) {
+  const auto byte = [&](std::size_t i) { return static_cast<std::uint32_t>(static_cast<unsigned char>(sequence[i])); };
+  switch (sequence.size()) {
+    case 2: return ((byte(0) & 0x1F) << 6) | (byte(1) & 0x3F);
+    case 3: return ((byte(0) & 0x0F) << 12) | ((byte(1) & 0x3F) << 6) | (byte(2) & 0x3F);
+    case 4: return ((byte(0) & 0x07) << 18) | ((byte(1) & 0x3F) << 12) | ((byte(2) & 0x3F) << 6) | (byte(3) & 0x3F);
+    default: return byte(0);
+  }
+}
+
 }  // namespace
 
 std::optional<std::size_t> first_invalid_utf8(std::string_view text) {
@@ -51,7 +72,14 @@ std::string quote_bytes(std::string_view text) {
     if (length == 1 && (c >= 0x20 || c == '\t') && c != 0x7F) {
       out += static_cast<char>(c);
     } else if (length > 1) {
-      out.append(text.substr(at, length));
+      const std::string_view sequence = text.substr(at, length);
+      if (invisible(code_point(sequence))) {
+        char hex[16];
+        std::snprintf(hex, sizeof hex, "\\u{%04X}", static_cast<unsigned>(code_point(sequence)));
+        out += hex;
+      } else {
+        out.append(sequence);
+      }
       at += length;
       continue;
     } else {
@@ -64,5 +92,20 @@ std::string quote_bytes(std::string_view text) {
   }
   return out;
 }
+
+std::string quote_input(std::string_view text) {
+  // Appended piece by piece (GCC 12 warns, wrongly, on `"'" + std::string&&` here).
+  std::string out(1, '\'');
+  if (text.size() <= kQuotedLength) return out.append(text).append("'");
+  std::size_t cut = 0;
+  while (cut < text.size()) {
+    const std::size_t length = std::max<std::size_t>(utf8_sequence_length(text, cut), 1);
+    if (cut + length > kQuotedLength) break;
+    cut += length;
+  }
+  return out.append(text.substr(0, cut)).append("...' (").append(std::to_string(text.size())).append(" bytes)");
+}
+
+std::string_view without_bom(std::string_view text) { return text.starts_with("\xEF\xBB\xBF") ? text.substr(3) : text; }
 
 }  // namespace pneuma

@@ -4,6 +4,8 @@
 #include <charconv>
 #include <cmath>
 
+#include "pneuma/core/text.h"
+
 namespace pneuma::units {
 namespace {
 
@@ -55,8 +57,7 @@ std::string_view trim(std::string_view s) {
 
 [[noreturn]] void fail(const Kind& kind, std::string_view text) {
   std::string article = std::string("aeiou").find(kind.name[0]) != std::string::npos ? "an " : "a ";
-  throw UnitError("expected " + article + kind.name + " such as '" + kind.example + "', got '" + std::string(text) +
-                  "'");
+  throw UnitError("expected " + article + kind.name + " such as '" + kind.example + "', got " + quote_input(text));
 }
 
 // Parses one "atom[^power]" factor; returns false when it is not a known unit.
@@ -121,7 +122,7 @@ double parse(std::string_view text, const Kind& kind) {
 double parse_ratio(std::string_view text) {
   const std::string_view s = trim(text);
   const auto colon = s.find(':');
-  auto bad = [&]() -> double { throw UnitError("expected a ratio such as '1:2', got '" + std::string(text) + "'"); };
+  auto bad = [&]() -> double { throw UnitError("expected a ratio such as '1:2', got " + quote_input(text)); };
   if (colon == std::string_view::npos) return bad();
   const std::string_view a = trim(s.substr(0, colon)), b = trim(s.substr(colon + 1));
   double x = 0, y = 0;

@@ -55,10 +55,23 @@ struct StoredData {
 ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
                         const std::function<StoredData(const ItkImage&)>& stored, VoxelKind kind = VoxelKind::labels);
 
+// "not a NRRD file: expected ...": what a file of `format` must begin with.
+const char* format_expectation(ImageFormat format);
+
 // "truncated or corrupt: expected 48 x 40 x 32 voxels of INT16 (122880 bytes of data after
 // decompression)", shared by the checks on either side of ITK.
 std::string truncated_message(const std::string& name, const std::array<std::size_t, 3>& size, std::size_t components,
                               const std::string& type_name, double data_bytes, bool compressed);
+
+// read.cpp: the rules every format's header passes before its voxels are allocated. At most
+// kMaxVoxelValues values (8 GiB as int32; a header alone claimed 7.5e9 voxels, #49):
+// "<file>: 50000 x 50000 x 3 voxels: expected at most 2.14748e+09 voxel values".
+constexpr double kMaxVoxelValues = 2147483648.0;
+void check_voxel_count(const std::string& name, const std::array<std::size_t, 3>& size, std::size_t components);
+// The voxel -> LPS transform (`source`: "sform", "space directions", "TransformMatrix", ...):
+// finite numbers of magnitude at most 1e6 mm, voxels of at least 1 um along each axis, axes
+// not in one plane. Each failure is one InputError line naming the file and `source`.
+void check_grid(const std::string& name, const std::string& source, const Eigen::Matrix4d& ijk_to_lps);
 
 // segments.cpp: the entries of `classes` whose label value occurs in `labels`; the
 // label table of TotalSegmentator's NIfTI header extension (empty when the text holds none).

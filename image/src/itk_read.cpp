@@ -37,21 +37,6 @@ itk::ImageIOBase::Pointer make_io(ImageFormat format) {
   return nullptr;
 }
 
-const char* format_expectation(ImageFormat format) {
-  switch (format) {
-    case ImageFormat::nifti:
-      return "not a NIfTI file: expected a NIfTI-1 or NIfTI-2 header (348 or 540 bytes, magic 'n+1' or 'n+2'), "
-             "gzip-compressed for .nii.gz";
-    case ImageFormat::nrrd:
-      return "not a NRRD file: expected the magic line 'NRRD0001'..'NRRD0005' and a header with type, dimension, "
-             "sizes and encoding";
-    case ImageFormat::meta:
-      return "not a MetaImage file: expected 'Key = Value' header lines with NDims, DimSize, ElementType and "
-             "ElementDataFile";
-  }
-  return "";
-}
-
 // NIfTI's names for the types (niftilib's nifti_datatype_string), whatever the format.
 const char* type_name(Component c) {
   switch (c) {
@@ -96,6 +81,21 @@ void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& i
 }
 
 }  // namespace
+
+const char* format_expectation(ImageFormat format) {
+  switch (format) {
+    case ImageFormat::nifti:
+      return "not a NIfTI file: expected a NIfTI-1 or NIfTI-2 header (348 or 540 bytes, magic 'n+1' or 'n+2'), "
+             "gzip-compressed for .nii.gz";
+    case ImageFormat::nrrd:
+      return "not a NRRD file: expected the magic line 'NRRD0001'..'NRRD0005' and a header with type, dimension, "
+             "sizes and encoding";
+    case ImageFormat::meta:
+      return "not a MetaImage file: expected 'Key = Value' header lines with NDims, DimSize, ElementType and "
+             "ElementDataFile";
+  }
+  return "";
+}
 
 std::string truncated_message(const std::string& name, const std::array<std::size_t, 3>& size, std::size_t components,
                               const std::string& type_name, double data_bytes, bool compressed) {

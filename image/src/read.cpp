@@ -16,11 +16,13 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include "itk_image.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
+#include "pneuma/core/text.h"
 #include "pneuma/image/label_map.h"
 #include "pneuma/image/scalar_image.h"
 
@@ -54,14 +56,16 @@ double file_bytes(const fs::path& path) {
 }
 
 // What a zlib or gzip stream (gzip members one after another, as pigz writes, included)
-// inflates to from byte `offset` of the file, counted without keeping it; stops once `enough`
-// bytes have come out. `complete` is false when the stream ends early or is damaged.
+// inflates to from byte `offset` of the file, counted without keeping it. The stream is read to
+// its end, so that zlib checks its CRC-32 or Adler-32 (200 zeroed bytes in a gzip stream inflated
+// to other labels without a word, #49), up to twice `enough` bytes. `complete` is false when
+// fewer than `enough` bytes come out; a damaged stream throws "<name>: the gzip data is damaged".
 struct Inflated {
   double bytes = 0.0;
   bool complete = false;
 };
 
-Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enough) {
+Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enough, const std::string& name) {
   Inflated result;
   std::ifstream in(path, std::ios::binary);
   in.seekg(static_cast<std::streamoff>(offset));
@@ -69,37 +73,95 @@ Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enoug
   z_stream z{};
   if (inflateInit2(&z, 15 + 32) != Z_OK) return result;  // 32: zlib or gzip header, detected
   std::vector<unsigned char> input(1 << 16), output(1 << 18);
-  bool more_input = true;
-  while (result.bytes < enough) {
-    if (z.avail_in == 0 && more_input) {
-      in.read(reinterpret_cast<char*>(input.data()), static_cast<std::streamsize>(input.size()));
-      z.next_in = input.data();
-      z.avail_in = static_cast<unsigned>(in.gcount());
-      more_input = in.gcount() > 0;
-    }
+  bool more_input = true, gzip = false;
+  std::string damage;
+  auto refill = [&] {
+    in.read(reinterpret_cast<char*>(input.data()), static_cast<std::streamsize>(input.size()));
+    z.next_in = input.data();
+    z.avail_in = static_cast<unsigned>(in.gcount());
+    more_input = in.gcount() > 0;
+  };
+  const double cap = 2.0 * enough + 1e6;
+  while (result.bytes < cap) {
+    if (z.avail_in == 0 && more_input) refill();
+    if (z.total_in == 0 && z.avail_in > 0) gzip = z.next_in[0] == 0x1f;
     z.next_out = output.data();
     z.avail_out = static_cast<unsigned>(output.size());
     const int status = inflate(&z, Z_NO_FLUSH);
     result.bytes += static_cast<double>(output.size() - z.avail_out);
     if (status == Z_STREAM_END) {
       // Another gzip member may follow.
-      if (z.avail_in == 0 && more_input) {
-        in.read(reinterpret_cast<char*>(input.data()), static_cast<std::streamsize>(input.size()));
-        z.next_in = input.data();
-        z.avail_in = static_cast<unsigned>(in.gcount());
-        more_input = in.gcount() > 0;
-      }
+      if (z.avail_in == 0 && more_input) refill();
       if (z.avail_in < 2 || z.next_in[0] != 0x1f || z.next_in[1] != 0x8b) break;
       inflateReset(&z);
       continue;
+    }
+    if (status == Z_DATA_ERROR || status == Z_NEED_DICT || status == Z_STREAM_ERROR) {
+      damage = z.msg != nullptr ? z.msg : "invalid data";
+      break;
     }
     if (status != Z_OK && !(status == Z_BUF_ERROR && z.avail_in == 0 && more_input)) break;
     if (status == Z_BUF_ERROR && !more_input) break;
   }
   inflateEnd(&z);
+  if (!damage.empty()) {
+    throw InputError(fmt::format("{}: the {} data is damaged ({}): expected an intact compressed stream", name,
+                                 gzip ? "gzip" : "zlib", damage));
+  }
   result.complete = result.bytes >= enough;
   return result;
 }
+
+// A file that a header or a folder brings in (NRRD's `data file`, MetaImage's ElementDataFile):
+// there and a regular file, or a pipe would block the read for ever (#49).
+fs::path data_file_path(const fs::path& header, const std::string& name, const std::string& file, const char* key) {
+  fs::path path = header.parent_path() / file;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw InputError(name + ": its data file '" + file + "' (" + key + ") is missing");
+  require_readable_file(path);
+  return path;
+}
+
+}  // namespace
+
+namespace detail {
+
+void check_voxel_count(const std::string& name, const std::array<std::size_t, 3>& size, std::size_t components) {
+  const double values = static_cast<double>(size[0]) * static_cast<double>(size[1]) * static_cast<double>(size[2]) *
+                        static_cast<double>(components);
+  if (values > kMaxVoxelValues) {
+    throw InputError(fmt::format("{}: {} x {} x {} voxels{}: expected at most {:g} voxel values", name, size[0],
+                                 size[1], size[2], components > 1 ? fmt::format(" in {} layers", components) : "",
+                                 kMaxVoxelValues));
+  }
+}
+
+void check_grid(const std::string& name, const std::string& source, const Eigen::Matrix4d& ijk_to_lps) {
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) {
+      const double mm = ijk_to_lps(r, c) * 1e3;
+      if (!(std::abs(mm) <= 1e6))
+        throw InputError(fmt::format("{}: the {} holds {:g} mm: expected finite numbers of magnitude at most 1e6 mm",
+                                     name, source, mm));
+    }
+  }
+  Eigen::Matrix3d directions = ijk_to_lps.block<3, 3>(0, 0);
+  for (int axis = 0; axis < 3; ++axis) {
+    const double size_m = directions.col(axis).norm();
+    if (!(size_m >= 1e-6))
+      throw InputError(fmt::format("{}: the voxel size along axis {} ({}) is {:g} mm: expected at least 0.001 mm", name,
+                                   axis + 1, source, size_m * 1e3));
+    directions.col(axis) /= size_m;
+  }
+  // Axes (nearly) in one plane: a volume of nothing, and the inverse map meaningless.
+  if (!(std::abs(directions.determinant()) >= 1e-6))
+    throw InputError(
+        fmt::format("{}: the {} gives voxel axes in one plane: expected three independent directions", name, source));
+}
+
+}  // namespace detail
+
+namespace {
 
 // ---- NIfTI: the header's own bytes (NIfTI-1: 348, NIfTI-2: 540, either byte order) ----
 
@@ -355,16 +417,11 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
   }
   for (std::size_t d = 0; d <= 3; ++d) require_finite(fmt::format("pixdim[{}]", d).c_str(), n.pixdim[d]);
   // A voxel thinner than a micrometre is a damaged header (srow_z 4e-19 made the smoothing kernel
-  // 1e18 voxels wide; found by scripts/mutate).
+  // 1e18 voxels wide; found by scripts/mutate): the rule of every format.
   {
     std::string source;
     const Eigen::Matrix4d m = nifti_ijk_to_lps(n, source);
-    for (int axis = 0; axis < 3; ++axis) {
-      const double size_m = m.block<3, 1>(0, axis).norm();
-      if (!(size_m >= 1e-6))
-        throw InputError(fmt::format("{}: the voxel size along axis {} ({}) is {:g} mm: expected at least 0.001 mm",
-                                     name, axis + 1, source, size_m * 1e3));
-    }
+    detail::check_grid(name, source, m);
   }
   const char* type = nifti_type_name(n.datatype);
   const int type_bytes = nifti_type_bytes(n.datatype);
@@ -379,10 +436,10 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
   const double data_bytes = static_cast<double>(size[0]) * static_cast<double>(size[1]) * static_cast<double>(size[2]) *
                             static_cast<double>(type_bytes);
   const double needed = std::max(n.vox_offset, 0.0) + data_bytes;
-  const bool complete = gzipped
-                            ? 1032.0 * file_bytes(path) + 4096.0 >= needed && inflated_bytes(path, 0, needed).complete
-                            : file_bytes(path) >= needed;
-  if (!complete) throw InputError(detail::truncated_message(name, size, 1, type, data_bytes, gzipped));
+  const std::string truncated = detail::truncated_message(name, size, 1, type, data_bytes, gzipped);
+  if (!((gzipped ? 1032.0 * file_bytes(path) + 4096.0 : file_bytes(path)) >= needed)) throw InputError(truncated);
+  detail::check_voxel_count(name, size, 1);  // before the stream is inflated to count it
+  if (gzipped && !inflated_bytes(path, 0, needed, name).complete) throw InputError(truncated);
 
   // Checked above: what ITK finds in the header is there.
   NiftiVoxels read{n, detail::read_itk_image(
@@ -438,14 +495,11 @@ detail::StoredData meta_stored_data(const fs::path& path, const std::string& nam
     if (data_file.empty() || data_file == "LIST" || data_file.find('%') != std::string::npos) {
       throw InputError(name + ": ElementDataFile '" + data_file + "': expected LOCAL or one data file");
     }
-    data_path = path.parent_path() / data_file;
-    if (!fs::is_regular_file(data_path)) {
-      throw InputError(name + ": its data file '" + data_file + "' (ElementDataFile) is missing");
-    }
+    data_path = data_file_path(path, name, data_file, "ElementDataFile");
     offset = header_size > 0 ? static_cast<std::uint64_t>(header_size) : 0;
   }
   if (compressed) {
-    return {.compressed = true, .exact = true, .bytes = inflated_bytes(data_path, offset, claimed).bytes};
+    return {.compressed = true, .exact = true, .bytes = inflated_bytes(data_path, offset, claimed, name).bytes};
   }
   const double available =
       header_size < 0 ? file_bytes(data_path) : file_bytes(data_path) - static_cast<double>(offset);
@@ -454,36 +508,6 @@ detail::StoredData meta_stored_data(const fs::path& path, const std::string& nam
 
 // ---- NRRD: where the data is (NrrdIO checks its length itself), and .seg.nrrd segments ----
 
-detail::StoredData nrrd_stored_data(const fs::path& path, const std::string& name) {
-  std::ifstream in(path, std::ios::binary);
-  std::string line, encoding = "raw", data_file;
-  for (int n = 0; std::getline(in, line) && n < 10000; ++n) {
-    if (trim(line).empty()) break;
-    const auto colon = line.find(':');
-    if (colon == std::string::npos || line.compare(colon, 2, ":=") == 0) continue;
-    const std::string key = lower(trim(line.substr(0, colon))), value = trim(line.substr(colon + 1));
-    if (key == "encoding") encoding = lower(value);
-    if (key == "data file" || key == "datafile") data_file = value;
-  }
-  fs::path data_path = path;
-  if (!data_file.empty()) {
-    if (data_file.starts_with("LIST") || data_file.find('%') != std::string::npos) {
-      return {.compressed = false, .exact = false, .bytes = 1e300};  // several files: NrrdIO checks each
-    }
-    data_path = path.parent_path() / data_file;
-    if (!fs::is_regular_file(data_path)) {
-      throw InputError(name + ": its data file '" + data_file + "' (data file:) is missing");
-    }
-  }
-  const double bytes = file_bytes(data_path);
-  if (encoding == "gzip" || encoding == "gz" || encoding == "bzip2" || encoding == "bz2") {
-    return {.compressed = true, .exact = false, .bytes = bytes};
-  }
-  // Text: each voxel takes at least one character, and a voxel at most 8 bytes.
-  const bool text = encoding == "ascii" || encoding == "text" || encoding == "txt" || encoding == "hex";
-  return {.compressed = false, .exact = false, .bytes = text ? 8.0 * bytes : bytes};
-}
-
 std::optional<long long> parse_integer(const std::string& text) {
   const std::string t = trim(text);
   if (t.empty()) return std::nullopt;
@@ -491,6 +515,136 @@ std::optional<long long> parse_integer(const std::string& text) {
   const long long v = std::strtoll(t.c_str(), &end, 10);
   if (end != t.c_str() + t.size()) return std::nullopt;
   return v;
+}
+
+// The files of NRRD's `data file: LIST` (the header's remaining lines) or `data file: <pattern>
+// <min> <max> <step> [<subdim>]` (one %d, possibly zero-padded: "slice%03d.raw").
+std::vector<std::string> nrrd_data_files(const std::string& value, std::istream& rest, const std::string& name) {
+  constexpr std::size_t kMaxFiles = 100000;
+  std::vector<std::string> files;
+  if (value.starts_with("LIST")) {
+    std::string line;
+    while (std::getline(rest, line) && files.size() <= kMaxFiles) {
+      if (!trim(line).empty()) files.push_back(trim(line));
+    }
+  } else if (value.find('%') != std::string::npos) {
+    std::istringstream words(value);
+    std::string pattern;
+    long long min = 0, max = 0, step = 0;
+    words >> pattern >> min >> max >> step;
+    const std::size_t at = pattern.find('%');
+    std::size_t end = at + 1;
+    while (end < pattern.size() && std::isdigit(static_cast<unsigned char>(pattern[end]))) ++end;
+    const bool one_integer = words && step != 0 && end < pattern.size() && std::strchr("diu", pattern[end]) &&
+                             pattern.find('%', end) == std::string::npos && end - at <= 4;
+    const long long count = one_integer ? (max - min) / step + 1 : 0;
+    if (!one_integer || count < 1 || count > static_cast<long long>(kMaxFiles)) {
+      throw InputError(fmt::format("{}: data file '{}': expected a file name, LIST, or a pattern with one %d and its "
+                                   "first, last and step (at most {} files)",
+                                   name, value, kMaxFiles));
+    }
+    const bool zeros = end > at + 1 && pattern[at + 1] == '0';
+    const int width = end > at + 1 ? std::atoi(pattern.substr(at + 1, end - at - 1).c_str()) : 0;
+    for (long long i = 0; i < count; ++i) {
+      const std::string number = fmt::format(fmt::runtime(zeros ? "{:0{}d}" : "{:{}d}"), min + i * step, width);
+      files.push_back(pattern.substr(0, at) + number + pattern.substr(end + 1));
+    }
+  } else {
+    files.push_back(value);
+  }
+  if (files.empty() || files.size() > kMaxFiles) {
+    throw InputError(fmt::format("{}: data file '{}': expected from 1 to {} files", name, value, kMaxFiles));
+  }
+  return files;
+}
+
+// A NRRD header's own lines, read before ITK: teem opens a detached data file while it reads the
+// header (a pipe there never returned, #49) and turns a NaN, negative or 1e308 spacing into
+// another one without a word, so those are refused here.
+struct NrrdHeader {
+  std::string encoding = "raw";
+  bool skips = false;          // line skip or byte skip: the data's start is not the header's end
+  std::uint64_t offset = 0;    // where attached data starts
+  std::vector<fs::path> data;  // the files holding the data (the file itself when attached)
+};
+
+NrrdHeader read_nrrd_header(const fs::path& path, const std::string& name) {
+  std::ifstream in(path, std::ios::binary);
+  NrrdHeader h;
+  std::string line, data_file;
+  long long dimension = 3;
+  for (int number = 1; std::getline(in, line) && number < 10000; ++number) {
+    h.offset += line.size() + 1;
+    if (trim(line).empty()) break;
+    const auto colon = line.find(':');
+    if (colon == std::string::npos || line.compare(colon, 2, ":=") == 0 || line[0] == '#') continue;
+    const std::string key = lower(trim(line.substr(0, colon))), value = trim(line.substr(colon + 1));
+    const std::string where = fmt::format("{}:{}:{}: {}: ", name, number, colon + 3, key);
+    // Finite numbers of magnitude at most 1e6 (positive for spacings), "none" or "nan" (a
+    // non-spatial axis) where the axis may have none.
+    auto check_numbers = [&](bool positive) {
+      std::string numbers = value;
+      std::replace_if(
+          numbers.begin(), numbers.end(), [](char c) { return c == '(' || c == ')' || c == ','; }, ' ');
+      std::istringstream words(numbers);
+      std::string word;
+      int missing = 0;
+      while (words >> word) {
+        if (lower(word) == "none" || lower(word) == "nan") {
+          ++missing;
+          continue;
+        }
+        char* end = nullptr;
+        const double v = std::strtod(word.c_str(), &end);
+        if (end != word.c_str() + word.size() || !(std::abs(v) <= 1e6) || (positive && !(v > 0.0))) {
+          throw InputError(where + (positive ? "expected positive" : "expected finite") +
+                           " numbers of magnitude at most 1e6 (millimetres), got " + quote_input(word));
+        }
+      }
+      if (missing > dimension - 3)
+        throw InputError(where + "expected a number for each of the three spatial axes, got " + quote_input(value));
+    };
+    if (key == "dimension") {
+      if (const auto d = parse_integer(value)) dimension = *d;
+    } else if (key == "encoding") {
+      h.encoding = lower(value);
+    } else if (key == "line skip" || key == "lineskip" || key == "byte skip" || key == "byteskip") {
+      h.skips = true;
+    } else if (key == "spacings") {
+      check_numbers(true);
+    } else if (key == "space directions" || key == "space origin") {
+      check_numbers(false);
+    } else if (key == "data file" || key == "datafile") {
+      data_file = value;
+      break;  // LIST: the file names follow
+    }
+  }
+  if (data_file.empty()) {
+    h.data.push_back(path);
+  } else {
+    for (const std::string& file : nrrd_data_files(data_file, in, name))
+      h.data.push_back(data_file_path(path, name, file, "data file:"));
+    h.offset = 0;
+  }
+  return h;
+}
+
+detail::StoredData nrrd_stored_data(const NrrdHeader& h, const std::string& name, const detail::ItkImage& image) {
+  const bool gzip = h.encoding == "gzip" || h.encoding == "gz";
+  double bytes = 0.0;
+  for (const fs::path& data_path : h.data) {
+    // Inflated whole to check its CRC, where the skips do not make the data's start uncertain.
+    if (gzip && !h.skips) {
+      bytes += inflated_bytes(data_path, h.offset, image.data_bytes(), name).bytes;
+    } else {
+      bytes += file_bytes(data_path) - static_cast<double>(h.offset);
+    }
+  }
+  if (gzip && !h.skips) return {.compressed = true, .exact = true, .bytes = bytes};
+  if (gzip || h.encoding == "bzip2" || h.encoding == "bz2") return {.compressed = true, .exact = false, .bytes = bytes};
+  // Text: each voxel takes at least one character, and a voxel at most 8 bytes.
+  const bool text = h.encoding == "ascii" || h.encoding == "text" || h.encoding == "txt" || h.encoding == "hex";
+  return {.compressed = false, .exact = false, .bytes = text ? 8.0 * bytes : bytes};
 }
 
 struct SegNrrdSegment {
@@ -601,31 +755,104 @@ LabelMap flatten_layers(detail::ItkImage& image, const std::vector<SegNrrdSegmen
   return map;
 }
 
-// MetaIO reads NDims x NDims matrices before it checks anything (NDims = 99997 ran for minutes,
-// found by a mutated seed): the count is checked here first.
-void check_meta_dimensions(const fs::path& path, const std::string& name) {
+// MetaIO reads its header with >>: a value it cannot read leaves the stream failed, and its next
+// read of a key then never ends (a 115-byte header with NDims and no value hung, found by
+// fuzz_labels_mha); NDims = 99997 sized matrices for minutes. So every line MetaIO parses is
+// checked here first, up to ElementDataFile: "<file>:<line>:1: <Key>: expected ..., got '...'".
+void check_meta_header(const fs::path& path, const std::string& name) {
+  static const std::set<std::string> kTypes{
+      "MET_CHAR", "MET_UCHAR", "MET_SHORT",     "MET_USHORT",     "MET_INT",   "MET_UINT",
+      "MET_LONG", "MET_ULONG", "MET_LONG_LONG", "MET_ULONG_LONG", "MET_FLOAT", "MET_DOUBLE",
+  };
   std::ifstream in(path, std::ios::binary);
   std::string line;
-  for (int n = 0; std::getline(in, line) && n < 200; ++n) {
+  std::size_t ndims = 0;
+  bool dim_size = false, element_type = false;
+  std::uint64_t read = 0;
+  for (int number = 1; std::getline(in, line) && read < (1u << 20); ++number) {
+    read += line.size() + 1;
+    if (trim(line).empty()) continue;
     const auto eq = line.find('=');
-    if (eq == std::string::npos || trim(line.substr(0, eq)) != "NDims") continue;
-    const std::string value = trim(line.substr(eq + 1));
-    if (value != "2" && value != "3" && value != "4") {
-      throw InputError(fmt::format("{}: NDims is '{}': expected a 3D label volume (NDims = 3)", name, value));
+    if (eq == std::string::npos && read == line.size() + 1) break;  // not a MetaImage at all
+    const std::string where = fmt::format("{}:{}:1: ", name, number);
+    if (eq == std::string::npos)
+      throw InputError(where + "expected 'Key = Value' (a MetaImage header line), got " + quote_input(line));
+    const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
+    auto numbers = [&](std::size_t count, bool whole, double low, double high) {
+      std::istringstream words(value);
+      std::string word;
+      std::size_t n = 0;
+      for (; words >> word; ++n) {
+        char* end = nullptr;
+        const double v = std::strtod(word.c_str(), &end);
+        if (end != word.c_str() + word.size() || !(v >= low && v <= high) || (whole && v != std::floor(v))) break;
+      }
+      if (n != count || words >> word) {
+        throw InputError(fmt::format("{}{}: expected {} {} from {:g} to {:g}, got {}", where, key, count,
+                                     whole ? "whole numbers" : "numbers", low, high, quote_input(value)));
+      }
+    };
+    const bool array = key == "DimSize" || key == "ElementSpacing" || key == "ElementSize" || key == "Position" ||
+                       key == "Origin" || key == "Offset" || key == "CenterOfRotation" || key == "TransformMatrix" ||
+                       key == "Rotation" || key == "Orientation";
+    if (array && ndims == 0) throw InputError(where + key + ": expected after NDims (its length)");
+    if (key == "NDims") {
+      numbers(1, true, 2, 4);
+      ndims = static_cast<std::size_t>(std::stoi(value));
+    } else if (key == "DimSize") {
+      numbers(ndims, true, 1, 1e9);
+      dim_size = true;
+    } else if (key == "ElementSpacing" || key == "ElementSize") {
+      // A negative spacing mirrored the lung left-right without a word (#49).
+      numbers(ndims, false, 1e-3, 1e6);
+    } else if (key == "Position" || key == "Origin" || key == "Offset" || key == "CenterOfRotation") {
+      numbers(ndims, false, -1e6, 1e6);
+    } else if (key == "TransformMatrix" || key == "Rotation" || key == "Orientation") {
+      numbers(ndims * ndims, false, -1e6, 1e6);
+    } else if (key == "ID" || key == "ParentID" || key == "HeaderSize") {
+      numbers(1, true, -1, 1e15);
+    } else if (key == "ElementNumberOfChannels") {
+      numbers(1, true, 1, 1e6);
+    } else if (key == "CompressedDataSize" || key == "ElementMin" || key == "ElementMax") {
+      numbers(1, false, -1e300, 1e300);
+    } else if (key == "Color" || key == "SequenceID") {
+      numbers(4, false, -1e300, 1e300);
+    } else if (key == "CompressedData" || key == "BinaryData" || key == "BinaryDataByteOrderMSB" ||
+               key == "ElementByteOrderMSB") {
+      if (lower(value) != "true" && lower(value) != "false")
+        throw InputError(where + key + ": expected True or False, got " + quote_input(value));
+    } else if (key == "ElementType") {
+      std::string base = value;
+      if (base.ends_with("_ARRAY")) base.resize(base.size() - 6);
+      if (!kTypes.count(base))
+        throw InputError(where + key +
+                         ": expected MET_UCHAR, MET_SHORT, MET_INT, MET_FLOAT, ... (a MetaIO type), got " +
+                         quote_input(value));
+      element_type = true;
+    } else if (key == "ElementDataFile") {
+      if (!dim_size || !element_type)
+        throw InputError(where + key + ": expected NDims, DimSize and ElementType before it");
+      return;
     }
-    return;
   }
+  throw InputError(name + ": " + detail::format_expectation(detail::ImageFormat::meta));
 }
 
 // A NRRD or MetaImage file through ITK, its data checked against the file first.
 detail::ItkImage read_itk_voxels(const fs::path& path, const std::string& name, detail::ImageFormat format,
                                  detail::VoxelKind kind) {
-  if (format == detail::ImageFormat::meta) check_meta_dimensions(path, name);
+  NrrdHeader nrrd;
+  if (format == detail::ImageFormat::meta) check_meta_header(path, name);
+  if (format == detail::ImageFormat::nrrd) nrrd = read_nrrd_header(path, name);
   return detail::read_itk_image(
       path, format,
       [&](const detail::ItkImage& header) {
+        // Before the voxels are allocated: the rules of every format.
+        detail::check_grid(name, format == detail::ImageFormat::meta ? "TransformMatrix" : "space directions",
+                           header.ijk_to_lps);
+        detail::check_voxel_count(name, header.size, header.components);
         return format == detail::ImageFormat::meta ? meta_stored_data(path, name, header)
-                                                   : nrrd_stored_data(path, name);
+                                                   : nrrd_stored_data(nrrd, name, header);
       },
       kind);
 }

@@ -295,6 +295,21 @@ Trace process_trace(const RawTrace& raw, const TraceOptions& options) {
   return out;
 }
 
+void check_gaps_in_run(const Trace& trace, double duration_s) {
+  const double t0 = trace.time_s.front() + trace.start_s, t1 = t0 + duration_s;
+  for (std::size_t k = 1; k < trace.time_s.size(); ++k) {
+    const double gap = trace.time_s[k] - trace.time_s[k - 1];
+    if (trace.time_s[k] > t0 && trace.time_s[k - 1] < t1 && gap > kMaxGapInRunS) {
+      char buffer[240];
+      std::snprintf(buffer, sizeof buffer,
+                    "no sample for %.6g s before this one, inside the run (trace time %.6g to %.6g s): expected gaps "
+                    "of at most %g s (a few breaths); start the run after it with the trace's 'start'",
+                    gap, t0 - trace.time_s.front(), t1 - trace.time_s.front(), kMaxGapInRunS);
+      throw InputError(where(trace.file, trace.line[k]) + buffer);
+    }
+  }
+}
+
 SimulationResult trace_result(const Trace& trace, double duration_s, double rate_hz) {
   if (!(rate_hz > 0.0)) throw ValueError("the trace's output rate must be positive");
   const double t0 = trace.time_s.front() + trace.start_s;

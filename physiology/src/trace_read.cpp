@@ -11,6 +11,7 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
+#include "pneuma/core/text.h"
 #include "pneuma/core/units.h"
 #include "pneuma/physiology/trace.h"
 
@@ -245,11 +246,10 @@ RawTrace read_csv(const std::filesystem::path& file, std::string_view text, cons
                        std::to_string(cells.size()));
     const auto t = number(cells[time_column]);
     if (!t)
-      throw InputError(at + "column '" + headers[time_column].text + "': expected a number, got '" +
-                       std::string(cells[time_column]) + "'");
+      throw InputError(at + "column '" + headers[time_column].text + "': expected a number, got " +
+                       quote_input(cells[time_column]));
     const auto v = number(cells[column]);
-    if (!v)
-      throw InputError(at + "column '" + h.text + "': expected a number, got '" + std::string(cells[column]) + "'");
+    if (!v) throw InputError(at + "column '" + h.text + "': expected a number, got " + quote_input(cells[column]));
     const double time = *t * *seconds_per_unit;
     if (!raw.time_s.empty() && !(time > raw.time_s.back()))
       throw InputError(at + "time " + number_text(*t) + " is not after the previous sample's " +
@@ -282,13 +282,13 @@ struct RpmFields {
 void add_rpm_sample(RawTrace& raw, const std::vector<std::string_view>& cells, const RpmFields& f, double cm_per_value,
                     const std::string& at, std::size_t line, double& first_ms) {
   const auto a = number(cells[f.amplitude]);
-  if (!a) throw InputError(at + "amplitude: expected a number, got '" + std::string(cells[f.amplitude]) + "'");
+  if (!a) throw InputError(at + "amplitude: expected a number, got " + quote_input(cells[f.amplitude]));
   const auto ms = number(cells[f.timestamp]);
-  if (!ms) throw InputError(at + "timestamp: expected a number (ms), got '" + std::string(cells[f.timestamp]) + "'");
+  if (!ms) throw InputError(at + "timestamp: expected a number (ms), got " + quote_input(cells[f.timestamp]));
   bool valid = true;
   if (f.validflag != kNoField) {
     const auto flag = number(cells[f.validflag]);
-    if (!flag) throw InputError(at + "validflag: expected a number, got '" + std::string(cells[f.validflag]) + "'");
+    if (!flag) throw InputError(at + "validflag: expected a number, got " + quote_input(cells[f.validflag]));
     valid = *flag >= 0.0;
   }
   if (raw.time_s.empty()) first_ms = *ms;
@@ -314,8 +314,8 @@ RawTrace read_vxp(const std::filesystem::path& file, std::string_view text) {
   while (l < lines.size() && trim(lines[l]).empty()) ++l;
   if (l == lines.size()) throw InputError(file.string() + ": empty RPM file (expected '[Header]', then '[Data]')");
   if (trim(lines[l]) != "[Header]")
-    throw InputError(where(file, l + 1) + "expected '[Header]' (a Varian RPM .vxp file), got '" +
-                     std::string(trim(lines[l])) + "'");
+    throw InputError(where(file, l + 1) + "expected '[Header]' (a Varian RPM .vxp file), got " +
+                     quote_input(trim(lines[l])));
   const std::size_t header_line = l + 1;
   std::map<std::string, std::pair<std::string, std::size_t>> fields;
   for (++l; l < lines.size() && trim(lines[l]) != "[Data]"; ++l) {
@@ -323,7 +323,7 @@ RawTrace read_vxp(const std::filesystem::path& file, std::string_view text) {
     if (line.empty()) continue;
     const auto eq = line.find('=');
     if (eq == std::string_view::npos)
-      throw InputError(where(file, l + 1) + "expected 'key=value' in the RPM header, got '" + std::string(line) + "'");
+      throw InputError(where(file, l + 1) + "expected 'key=value' in the RPM header, got " + quote_input(line));
     fields[std::string(trim(line.substr(0, eq)))] = {std::string(trim(line.substr(eq + 1))), l + 1};
   }
   if (l == lines.size()) throw InputError(where(file, header_line) + "no '[Data]' section after the RPM header");
@@ -343,11 +343,12 @@ RawTrace read_vxp(const std::filesystem::path& file, std::string_view text) {
   const auto& scale = field("Scale_factor");
   const auto samples_per_second = number(rate.first);
   if (!samples_per_second || !(*samples_per_second > 0.0))
-    throw InputError(where(file, rate.second) + "Samples_per_second: expected a positive number, got '" + rate.first +
-                     "'");
+    throw InputError(where(file, rate.second) + "Samples_per_second: expected a positive number, got " +
+                     quote_input(rate.first));
   const auto scale_factor = number(scale.first);
   if (!scale_factor || !(*scale_factor > 0.0))
-    throw InputError(where(file, scale.second) + "Scale_factor: expected a positive number, got '" + scale.first + "'");
+    throw InputError(where(file, scale.second) + "Scale_factor: expected a positive number, got " +
+                     quote_input(scale.first));
   const std::vector<std::string_view> columns = split(layout.first, ',');
   auto column_of = [&](std::string_view name) {
     for (std::size_t c = 0; c < columns.size(); ++c) {
@@ -445,7 +446,8 @@ const char* signal_name(TraceSignal signal) {
 }
 
 RawTrace read_trace_file(const std::filesystem::path& file, const TraceOptions& options) {
-  const std::string text = read_file_bytes(file);
+  const std::string bytes = read_file_bytes(file);
+  const std::string_view text = without_bom(bytes);
   if (options.format == TraceFormat::rpm) {
     // Both RPM formats: the .dat's first line starts with "CRC", the .vxp's is "[Header]".
     const std::vector<std::string_view> lines = lines_of(text);

@@ -12,6 +12,7 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
+#include "pneuma/core/text.h"
 
 namespace pneuma::scenario {
 namespace {
@@ -197,7 +198,7 @@ constexpr Range kCurveWidth{0.1 * units::pa_per_cmh2o, 200.0 * units::pa_per_cmh
 // file that holds it (a preset's own file for a value it gives).
 double in_range(const scenario::Node& n, const std::string& key, double value, const Range& range) {
   if (!(value >= range.lo && value <= range.hi))
-    n.fail_at(key, std::string("expected ") + range.text + ", got '" + n.string(key) + "'");
+    n.fail_at(key, std::string("expected ") + range.text + ", got " + quote_input(n.string(key)));
   return value;
 }
 
@@ -587,6 +588,7 @@ physiology::Trace read_trace_driver(const scenario::Node& n, double duration_s) 
     n.fail_at("file", fmt::format("the trace covers {:.6g} s{}, less than the scenario's duration of {:.6g} s",
                                   std::max(covered, 0.0), o.start_s > 0.0 ? " after 'start'" : "", duration_s));
   }
+  physiology::check_gaps_in_run(trace, duration_s);
   return trace;
 }
 

@@ -10,6 +10,7 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
+#include "pneuma/core/text.h"
 #include "pneuma/core/units.h"
 
 namespace pneuma::scenario {
@@ -52,7 +53,7 @@ constexpr const char* kShearModulusRange = "a shear modulus from 1 Pa to 1 GPa";
 double shear_modulus(const scenario::Node& n, const std::string& key) {
   const double pa = n.positive_quantity(key, kind::shear_modulus);
   if (!(pa >= kMinShearModulusPa && pa <= kMaxShearModulusPa))
-    n.fail_at(key, std::string("expected ") + kShearModulusRange + ", got '" + n.string(key) + "'");
+    n.fail_at(key, std::string("expected ") + kShearModulusRange + ", got " + quote_input(n.string(key)));
   return pa;
 }
 

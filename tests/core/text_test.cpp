@@ -23,3 +23,22 @@ TEST(Text, QuoteBytesWritesUnprintableBytesAsHexAndKeepsUtf8) {
   EXPECT_EQ(pneuma::quote_bytes("bad \xff\xfe end"), "bad \\xff\\xfe end");
   EXPECT_EQ(pneuma::quote_bytes("caf\xc3\xa9\ttab"), "caf\xc3\xa9\ttab");
 }
+
+// #49: a byte-order mark and other invisible characters are written out in messages, and what a
+// message quotes is cut to 80 bytes with the total (never inside a UTF-8 sequence).
+TEST(Text, InvisibleCharactersAreWrittenOutAndLongQuotesAreCut) {
+  EXPECT_EQ(pneuma::quote_bytes("\xEF\xBB\xBF[Header]"), "\\u{FEFF}[Header]");
+  EXPECT_EQ(pneuma::quote_bytes("a\xE2\x80\x8B"
+                                "b\xC2\xA0"
+                                "c"),
+            "a\\u{200B}b\\u{00A0}c");
+  EXPECT_EQ(pneuma::quote_bytes("\xC3\xA9t\xC3\xA9"), "\xC3\xA9t\xC3\xA9");  // été stays
+  EXPECT_EQ(pneuma::quote_input("2 s"), "'2 s'");
+  EXPECT_EQ(pneuma::quote_input(std::string(80, 'a')), "'" + std::string(80, 'a') + "'");
+  EXPECT_EQ(pneuma::quote_input(std::string(10000000, 'a')), "'" + std::string(80, 'a') + "...' (10000000 bytes)");
+  // 79 ASCII bytes, then a two-byte letter that would end at byte 81: cut before it.
+  EXPECT_EQ(pneuma::quote_input(std::string(79, 'a') + "\xC3\xA9\xC3\xA9"),
+            "'" + std::string(79, 'a') + "...' (83 bytes)");
+  EXPECT_EQ(pneuma::without_bom("\xEF\xBB\xBFx"), "x");
+  EXPECT_EQ(pneuma::without_bom("x\xEF\xBB\xBF"), "x\xEF\xBB\xBF");
+}

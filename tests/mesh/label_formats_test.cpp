@@ -4,6 +4,7 @@
 // transform the test wrote, and the surface of the NIfTI CT case (../shared/data/ct-lobes).
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <map>
 
@@ -469,4 +470,98 @@ TEST(LabelFormats, DamagedFilesAreOneLineErrors) {
   expect_error("empty", "a folder without TotalSegmentator masks: expected lung_upper_lobe_left.nii.gz, "
                         "lung_lower_lobe_left.nii.gz, lung_upper_lobe_right.nii.gz, lung_middle_lobe_right.nii.gz, "
                         "lung_lower_lobe_right.nii.gz");
+}
+
+namespace {
+
+// `text` with its line that starts with `key` replaced by `line`.
+std::string with_line(const std::string& text, const std::string& key, const std::string& line) {
+  const std::size_t at = text.find("\n" + key) + 1;
+  return text.substr(0, at) + line + text.substr(text.find('\n', at));
+}
+
+}  // namespace
+
+// Every format's header passes one set of rules before ITK reads it and before any voxel is
+// allocated (#49): the files a header brings in are regular files, the claimed voxels fit the
+// data and a cap, the geometry is finite, positive and not flat, a compressed stream is intact.
+TEST(LabelFormats, HeadersAreCheckedBeforeItkAndBeforeAllocation) {
+  TempDir dir;
+  const std::vector<std::int16_t> boxes = two_boxes();
+  auto expect_error = [&](const std::string& file, const std::string& what) {
+    const std::string f = (dir / file).string();
+    EXPECT_EQ(error_of<pneuma::InputError>([&] { read_label_map(f); }), f + what);
+  };
+  const std::string nrrd_head = "NRRD0004\ntype: short\ndimension: 3\nsizes: 12 10 8\nencoding: raw\nendian: little\n";
+
+  // A pipe as a detached data file or as a mask: refused before it is opened (it blocked).
+  ASSERT_EQ(mkfifo((dir / "pipe.raw").c_str(), 0600), 0);
+  write_bytes(dir / "pipe.nhdr", nrrd_head + "data file: pipe.raw\n");
+  EXPECT_EQ(error_of<pneuma::InputError>([&] { read_label_map(dir / "pipe.nhdr"); }),
+            (dir / "pipe.raw").string() + ": not a regular file (a device, pipe or socket); expected a file");
+  std::filesystem::create_directory(dir / "masks");
+  ASSERT_EQ(mkfifo((dir / "masks/lung_upper_lobe_left.nii.gz").c_str(), 0600), 0);
+  EXPECT_EQ(error_of<pneuma::InputError>([&] { read_label_map(dir / "masks"); }),
+            (dir / "masks/lung_upper_lobe_left.nii.gz").string() +
+                ": not a regular file (a device, pipe or socket); expected a file");
+
+  // A LIST of three 100-byte files claiming 75e6 voxels, and 7.5e9 voxels: refused at once.
+  for (const char* f : {"a.raw", "b.raw", "c.raw"}) write_bytes(dir / f, std::string(100, '\1'));
+  write_bytes(dir / "list.nhdr", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 5000 5000 3\nencoding: raw\n"
+                                 "data file: LIST\na.raw\nb.raw\nc.raw\n");
+  expect_error("list.nhdr",
+               ": truncated or corrupt: expected 5000 x 5000 x 3 voxels of UINT8 (75000000 bytes of data)");
+  write_bytes(dir / "huge.nhdr", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 50000 50000 3\nencoding: raw\n"
+                                 "data file: LIST\na.raw\nb.raw\nc.raw\n");
+  expect_error("huge.nhdr", ": 50000 x 50000 x 3 voxels: expected at most 2.14748e+09 voxel values");
+  write_bytes(dir / "pattern.nhdr", nrrd_head + "data file: s%s.raw 1 3 1\n");
+  expect_error("pattern.nhdr",
+               ": data file 's%s.raw 1 3 1': expected a file name, LIST, or a pattern with one %d and its first, "
+               "last and step (at most 100000 files)");
+
+  // NRRD geometry: NaN and negative spacings, 1e308 directions, 1e-9 mm voxels, flat axes.
+  const std::string data = raw_bytes(boxes);
+  write_bytes(dir / "nan.nrrd", nrrd_head + "spacings: nan 1 1\n\n" + data);
+  expect_error("nan.nrrd", ":7:11: spacings: expected a number for each of the three spatial axes, got 'nan 1 1'");
+  write_bytes(dir / "negative.nrrd", nrrd_head + "spacings: 1 -1 1\n\n" + data);
+  expect_error("negative.nrrd",
+               ":7:11: spacings: expected positive numbers of magnitude at most 1e6 (millimetres), got '-1'");
+  const std::string lps = "space: left-posterior-superior\nspace directions: ";
+  write_bytes(dir / "far.nrrd", nrrd_head + lps + "(1e308,0,0) (0,1,0) (0,0,1)\n\n" + data);
+  expect_error("far.nrrd",
+               ":8:19: space directions: expected finite numbers of magnitude at most 1e6 (millimetres), got '1e308'");
+  write_bytes(dir / "thin.nrrd", nrrd_head + lps + "(1e-9,0,0) (0,1,0) (0,0,1)\n\n" + data);
+  expect_error("thin.nrrd", ": the voxel size along axis 1 (space directions) is 1e-09 mm: expected at least 0.001 mm");
+  write_bytes(dir / "flat.nrrd", nrrd_head + lps + "(1,0,0) (2,0,0) (0,0,1)\n\n" + data);
+  expect_error("flat.nrrd",
+               ": the space directions gives voxel axes in one plane: expected three independent directions");
+
+  // MetaImage: a header MetaIO would hang on (NDims without a value), a damaged ElementType, a
+  // negative or 1e-9 mm ElementSpacing.
+  write_mha(dir / "a.mha", kBoxes, data, "MET_SHORT", box_transform());
+  const std::string mha = pneuma::test::read_text(dir / "a.mha");
+  write_bytes(dir / "ndims.mha", with_line(mha, "NDims", "NDims"));
+  expect_error("ndims.mha", ":2:1: expected 'Key = Value' (a MetaImage header line), got 'NDims'");
+  write_bytes(dir / "ndims-empty.mha", with_line(mha, "NDims", "NDims ="));
+  expect_error("ndims-empty.mha", ":2:1: NDims: expected 1 whole numbers from 2 to 4, got ''");
+  write_bytes(dir / "type.mha", with_line(mha, "ElementType", "ElementType = MET_SH\x01ORT"));
+  expect_error("type.mha",
+               ":11:1: ElementType: expected MET_UCHAR, MET_SHORT, MET_INT, MET_FLOAT, ... (a MetaIO type), got "
+               "'MET_SH\x01ORT'");
+  write_bytes(dir / "mirrored.mha", with_line(mha, "ElementSpacing", "ElementSpacing = -0.8 0.9 2"));
+  expect_error("mirrored.mha", ":9:1: ElementSpacing: expected 3 numbers from 0.001 to 1e+06, got '-0.8 0.9 2'");
+  write_bytes(dir / "thin.mha", with_line(mha, "ElementSpacing", "ElementSpacing = 1e-9 0.9 2"));
+  expect_error("thin.mha", ":9:1: ElementSpacing: expected 3 numbers from 0.001 to 1e+06, got '1e-9 0.9 2'");
+
+  // A compressed stream whose check fails: gzip's CRC-32 (NRRD), zlib's Adler-32 (MetaImage).
+  write_nrrd(dir / "g.nrrd", kBoxes, boxes, box_transform(), {.gzip = true});
+  std::string bytes = pneuma::test::read_text(dir / "g.nrrd");
+  bytes[bytes.size() - 8] = static_cast<char>(bytes[bytes.size() - 8] ^ 0x55);  // the CRC's first byte
+  write_bytes(dir / "crc.nrrd", bytes);
+  expect_error("crc.nrrd", ": the gzip data is damaged (incorrect data check): expected an intact compressed stream");
+  write_mha(dir / "z.mha", kBoxes, data, "MET_SHORT", box_transform(), true);
+  bytes = pneuma::test::read_text(dir / "z.mha");
+  bytes.back() = static_cast<char>(bytes.back() ^ 0x55);  // Adler-32's last byte
+  write_bytes(dir / "adler.mha", bytes);
+  expect_error("adler.mha", ": the zlib data is damaged (incorrect data check): expected an intact compressed stream");
 }

@@ -434,3 +434,48 @@ TEST(PhaseBins, IrregularBreathsAreLeftOutAndCounted) {
 }
 
 }  // namespace
+
+namespace {
+
+// The run's trace as the scenario reader makes it, then its window checked for gaps.
+std::string gap_message(const std::filesystem::path& file, const TraceOptions& options, double duration_s) {
+  try {
+    check_gaps_in_run(load(file, options), duration_s);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+}  // namespace
+
+// #49: Excel's "CSV UTF-8" writes a byte-order mark, read as nothing in every trace format; a
+// first sample 1000 s before the rest made a 30 s run one straight line, now refused at the line
+// after the gap unless the run starts after it.
+TEST(Trace, ByteOrderMarkIsReadAsNothingAndALongGapInTheRunIsRefused) {
+  TempDir dir;
+  TraceOptions rpm;
+  rpm.format = TraceFormat::rpm;
+  rpm.calibration.tidal_volume_m3 = kTidal;
+  const std::string text = vxp(40, 30.0, false);
+  const RawTrace plain = read_trace_file(dir.write("p.vxp", text), rpm);
+  const RawTrace bom = read_trace_file(dir.write("bom.vxp", "\xEF\xBB\xBF" + text), rpm);
+  EXPECT_EQ(bom.time_s, plain.time_s);
+  EXPECT_EQ(bom.value, plain.value);
+  const std::string csv = "time_s,volume_mL\n0,2400\n1,2700\n2,2400\n";
+  const RawTrace csv_bom = read_trace_file(dir.write("bom.csv", "\xEF\xBB\xBF" + csv), {});
+  EXPECT_EQ(csv_bom.value, read_trace_file(dir.write("plain.csv", csv), {}).value);
+
+  std::string early = text;
+  const std::size_t first_row = early.find("[Data]\n") + 7;
+  early.replace(early.find(",5000,", first_row), 6, ",-995000,");  // line 11: 1000 s before line 12
+  const auto file = dir.write("early.vxp", early);
+  EXPECT_EQ(gap_message(file, rpm, 30.0),
+            file.string() +
+                ":12: no sample for 1000.03 s before this one, inside the run (trace time 0 to 30 s): expected gaps of "
+                "at most 15 s (a few breaths); start the run after it with the trace's 'start'");
+  TraceOptions later = rpm;
+  later.start_s = 1001.0;
+  EXPECT_EQ(gap_message(file, later, 30.0), "no error");
+  EXPECT_EQ(gap_message(dir.write("whole.vxp", text), rpm, 30.0), "no error");
+}

@@ -537,3 +537,31 @@ TEST(BadInputs, AFileThatFailsToReadIsAnIoError) {
   EXPECT_EQ(r.err, "/proc/self/mem: cannot read file (an input/output error)\n");
   EXPECT_EQ(dir.files(), std::vector<std::string>{"s.yaml"});
 }
+
+// #49: a key given twice is refused at the second (yaml-cpp answered with the first, and a
+// cohort's second subject of one id vanished), in every YAML input; a byte-order mark is read as
+// nothing; a value of 10 MB is quoted as its first 80 bytes with the total.
+TEST(BadInputs, DuplicateKeysByteOrderMarksAndLongValues) {
+  TempDir dir;
+  const auto twice = dir.write("twice.yaml", std::string(kScenario) + "duration: 3 s\n");
+  auto r = run_pneuma({"run", twice.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, twice.string() + ":9:1: duration: given twice (first at line 1): expected each key once\n");
+  const auto nested = dir.write("nested.yaml", "duration: 2 s\nphysiology: {preset: healthy-adult, preset: x}\n");
+  r = run_pneuma({"run", nested.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err,
+            nested.string() + ":2:37: physiology.preset: given twice (first at line 2): expected each key once\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+
+  const auto bom = dir.write("bom.yaml", "\xEF\xBB\xBF" + std::string(kScenario));
+  r = run_pneuma({"run", bom.string(), "-o", (dir / "bom").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+
+  const auto long_value = dir.write("long.yaml", "duration: " + std::string(10000000, '7') + "x\n");
+  r = run_pneuma({"run", long_value.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, long_value.string() + ":1:11: duration: expected a duration such as '2 s', got '" +
+                       std::string(80, '7') + "...' (10000001 bytes)\n");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}

@@ -30,7 +30,8 @@ std::string read_file_bytes(const std::filesystem::path& path,
                             std::uintmax_t max_bytes = std::numeric_limits<std::uintmax_t>::max());
 
 // The check every reader makes before it opens an input file, with the one-line IoErrors they
-// share: "<file>: cannot read: no such file | is a folder | permission denied".
+// share: "<file>: cannot read: no such file | is a folder | permission denied"; InputError for
+// something that is not a regular file (a pipe would block the open, a device never ends).
 void require_readable_file(const std::filesystem::path& path);
 
 // The names, without extension and sorted, of the regular files in `folder` whose name ends in

@@ -128,6 +128,15 @@ std::vector<TurningPoint> find_turning_points(const std::vector<double>& volume)
 // three turning points give none.
 std::vector<BreathCycle> find_breaths(const std::vector<double>& volume);
 
+// The longest gap between samples a run may hold: beyond a few breaths the straight bridge over
+// it is no breathing at all (a .vxp's first sample 1000 s early made a 30 s run one straight
+// line 2.2 L above FRC, #49).
+inline constexpr double kMaxGapInRunS = 15.0;
+// Throws InputError ("<file>:<line>: ...", the sample after the gap) for the first gap longer
+// than kMaxGapInRunS between samples within the run's window (trace time start_s from the first
+// sample, for duration_s).
+void check_gaps_in_run(const Trace& trace, double duration_s);
+
 // The run's physiology from a trace: `duration_s` sampled at `rate_hz` from the trace's
 // start_s (linear interpolation of the processed volume), flow the central difference of the
 // interpolant over one sample interval, pressures NaN (a trace says nothing about them; the
