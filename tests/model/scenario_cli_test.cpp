@@ -35,7 +35,7 @@ TEST(SimulateCli, ShippedVentilatorScenariosArePatientTriggered) {
     const std::string breaths = pneuma::test::read_text(dir / "phys-breaths.csv");
     EXPECT_NE(breaths.find(",trigger,trigger_delay_s,cycle,inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,"
                            "intrinsic_peep_cmH2O,missed_triggers,double_trigger,breath_type,expiratory_hold_s,"
-                           "total_peep_cmH2O\n"),
+                           "total_peep_cmH2O,vti_mL,vte_mL,leak_percent,inspiratory_pressure_cmH2O,alarms\n"),
               std::string::npos)
         << name;
     EXPECT_NE(breaths.find(",patient_flow,"), std::string::npos) << name;
@@ -168,8 +168,8 @@ INSTANTIATE_TEST_SUITE_P(
                     "1:11: duration: expected a positive duration, got '-5 s'"},
         BadScenario{"unknown_key", "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  complience: 0.1 L/cmH2O\n",
                     "4:3: physiology.complience: unknown key; expected one of: actions, chest_wall_fraction, "
-                    "compartments, compliance, driver, effort, model, output_rate, preset, pressure_volume_curve, "
-                    "resistance, solver, transpulmonary_pressure_at_rest"},
+                    "compartments, compliance, driver, effort, expiratory_resistance, flow_limitation, model, "
+                    "output_rate, preset, pressure_volume_curve, resistance, solver, transpulmonary_pressure_at_rest"},
         BadScenario{
             "unknown_preset", "duration: 20 s\nphysiology:\n  preset: healthy-martian\n",
             "3:11: physiology.preset: no preset 'healthy-martian' (looked for " PNEUMA_SOURCE_DIR
