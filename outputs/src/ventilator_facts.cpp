@@ -6,9 +6,9 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <string>
 #include <string_view>
-#include <limits>
 #include <variant>
 
 #include "pneuma/core/units.h"

@@ -48,7 +48,7 @@ struct ComplianceOf {
 // `capped` tells which bound holds.
 double expiratory_flow(const Mechanics& m, double pd, double pel, bool* capped = nullptr) {
   const double raw = m.expiratory_airway_resistance_pa_s_per_m3 > 0.0 ? m.expiratory_airway_resistance_pa_s_per_m3
-                                                                       : m.airway_resistance_pa_s_per_m3;
+                                                                      : m.airway_resistance_pa_s_per_m3;
   const double free_flow = (pd - pel) / (raw + m.compartments[0].resistance_pa_s_per_m3);
   const double cap = m.flow_limited() ? -std::max(pel - m.critical_pressure_pa, 0.0) / m.upstream_resistance_pa_s_per_m3
                                       : -std::numeric_limits<double>::infinity();
@@ -141,7 +141,7 @@ double flow_rate_of_change(const Mechanics& m, double dpd_dt, const double* v, c
       expiratory_flow(m, pd, pel, &capped);
       if (capped) return -elastic_rate / m.upstream_resistance_pa_s_per_m3;
       const double raw = m.expiratory_airway_resistance_pa_s_per_m3 > 0.0 ? m.expiratory_airway_resistance_pa_s_per_m3
-                                                                           : m.airway_resistance_pa_s_per_m3;
+                                                                          : m.airway_resistance_pa_s_per_m3;
       return (dpd_dt - elastic_rate) / (raw + m.compartments[0].resistance_pa_s_per_m3);
     }
     return (dpd_dt - elastic_rate) / r;
@@ -162,7 +162,8 @@ double driving_pressure_for_flow(const Mechanics& m, double total_flow, const do
     const double raw = total_flow < 0.0 && m.expiratory_airway_resistance_pa_s_per_m3 > 0.0
                            ? m.expiratory_airway_resistance_pa_s_per_m3
                            : m.airway_resistance_pa_s_per_m3;
-    return elastic_pressure(m.compartments[0].elasticity, v[0]) + (raw + m.compartments[0].resistance_pa_s_per_m3) * total_flow;
+    return elastic_pressure(m.compartments[0].elasticity, v[0]) +
+           (raw + m.compartments[0].resistance_pa_s_per_m3) * total_flow;
   }
   double g = 0.0, weighted = 0.0;
   for (std::size_t i = 0; i < n; ++i) {

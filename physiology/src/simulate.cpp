@@ -47,9 +47,9 @@ struct SegmentContext {
   // Root finding (assisted breaths only).
   std::array<RootKind, kMaxRoots> roots{};
   int root_count = 0;
-  double flow_peak = 0.0;     // highest inspiratory flow of the breath so far
-  double start_volume = 0.0;  // total volume at the start of inspiration
-  bool occluded = false;      // an expiratory hold: both valves closed, whatever the driver
+  double flow_peak = 0.0;            // highest inspiratory flow of the breath so far
+  double start_volume = 0.0;         // total volume at the start of inspiration
+  bool occluded = false;             // an expiratory hold: both valves closed, whatever the driver
   const Circuit* circuit = nullptr;  // the circuit in force; null when the run has none (no extra states)
   int states = 0;                    // the state's size
 };
@@ -764,8 +764,9 @@ class Simulation {
     const Instant now = evaluate(context_, t, y, q.data());
     const Mechanics& m = *context_.mechanics;
     // A flow limitation's choke point takes the drop beyond R Q: the alveolar pressure is Pel - Pmus.
-    const double alveolar = m.flow_limited() ? elastic_pressure(m.compartments[0].elasticity, y[0]) - now.muscle_pressure
-                                             : alveolar_pressure(m, now.airway_pressure, now.flow);
+    const double alveolar = m.flow_limited()
+                                ? elastic_pressure(m.compartments[0].elasticity, y[0]) - now.muscle_pressure
+                                : alveolar_pressure(m, now.airway_pressure, now.flow);
     TimeSeries& s = *series_;
     s.time_s.push_back(t);
     s.volume_m3.push_back(total(y, n_));
@@ -886,12 +887,12 @@ class Simulation {
   std::size_t next_output_ = 0;
   std::size_t output_count_ = 0;
   std::map<std::size_t, Driver> calibrated_;
-  std::vector<double> effort_anchor_;                           // per setting: when its effort's breaths began
-  std::optional<Start> pending_;                                // the next assisted breath's start, when found
-  double simv_due_ = std::numeric_limits<double>::quiet_NaN();  // SIMV: the next scheduled mandatory breath
-  std::size_t next_hold_ = 0;                                   // the first expiratory hold not yet made
-  std::vector<double> patient_triggers_;                        // times of every patient trigger
-  double start_delivered_ = 0.0, end_inspiration_delivered_ = 0.0;  // ventilator_volume at those times
+  std::vector<double> effort_anchor_;                                // per setting: when its effort's breaths began
+  std::optional<Start> pending_;                                     // the next assisted breath's start, when found
+  double simv_due_ = std::numeric_limits<double>::quiet_NaN();       // SIMV: the next scheduled mandatory breath
+  std::size_t next_hold_ = 0;                                        // the first expiratory hold not yet made
+  std::vector<double> patient_triggers_;                             // times of every patient trigger
+  double start_delivered_ = 0.0, end_inspiration_delivered_ = 0.0;   // ventilator_volume at those times
   double prvc_pressure_ = std::numeric_limits<double>::quiet_NaN();  // PRVC: the next breath's pressure
   bool apnea_ = false;        // cpap_psv: backup breaths until the patient triggers
   bool apnea_alarm_ = false;  // the next breath is the first of a backup

@@ -24,10 +24,8 @@ namespace kind = units::kind;
 const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
                                       "cpap_psv",    "vc_simv",        "pc_simv",          "prvc"};
 // Accepted as `driver.mode` beside kModes, at t = 0 only (read_trace_driver).
-const std::vector<std::string> kModesWithTrace{"spontaneous", "volume_control", "pressure_control",
-                                               "vc_ac",       "pc_ac",          "cpap_psv",
-                                               "vc_simv",     "pc_simv",        "prvc",
-                                               "trace"};
+const std::vector<std::string> kModesWithTrace{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
+                                               "cpap_psv",    "vc_simv",        "pc_simv",          "prvc",  "trace"};
 const std::vector<std::string> kModels{"single", "two_compartment"};
 
 // Every driver setting by name, so an action can patch any of them and a mode switch can
@@ -42,8 +40,8 @@ struct DriverFields {
   std::optional<double> trigger_threshold;
   std::optional<physiology::CycleKind> cycle;
   std::optional<double> cycle_fraction, cycle_volume;
-  std::optional<double> trigger_window;  // SIMV
-  std::optional<double> pressure_step;   // PRVC
+  std::optional<double> trigger_window;                                                     // SIMV
+  std::optional<double> pressure_step;                                                      // PRVC
   std::optional<double> apnea_time, backup_rate, backup_pressure, backup_inspiratory_time;  // cpap_psv
 };
 
@@ -140,11 +138,24 @@ bool mode_takes(const std::string& mode, const std::string& key) {
   return key == "pressure_support" || pressure_mode_key;  // cpap_psv
 }
 
-const std::vector<std::string> kDriverKeys{
-    "rate",           "ie_ratio",     "inspiratory_time",     "tidal_volume", "muscle_pressure",
-    "pause",          "peep",         "inspiratory_pressure", "waveform",     "rise_time",
-    "pressure_limit", "volume_limit", "pressure_support",     "trigger",      "cycle",
-    "trigger_window", "pressure_step", "apnea"};
+const std::vector<std::string> kDriverKeys{"rate",
+                                           "ie_ratio",
+                                           "inspiratory_time",
+                                           "tidal_volume",
+                                           "muscle_pressure",
+                                           "pause",
+                                           "peep",
+                                           "inspiratory_pressure",
+                                           "waveform",
+                                           "rise_time",
+                                           "pressure_limit",
+                                           "volume_limit",
+                                           "pressure_support",
+                                           "trigger",
+                                           "cycle",
+                                           "trigger_window",
+                                           "pressure_step",
+                                           "apnea"};
 
 // trigger: {flow: 2 L/min} or {pressure: 2 cmH2O}, a positive threshold.
 void read_trigger(const scenario::Node& n, DriverFields& f) {
@@ -297,10 +308,12 @@ void overlay_driver(const scenario::Node& n, const std::string& mode, DriverFiel
 physiology::Leak read_leak(const scenario::Node& n) {
   physiology::Leak leak;
   const double flow = n.quantity("flow", kind::flow);
-  if (!(flow >= 0.0 && flow <= 1.0)) n.fail_at("flow", "expected a flow from 0 to 60000 L/min, got '" + n.string("flow") + "'");
+  if (!(flow >= 0.0 && flow <= 1.0))
+    n.fail_at("flow", "expected a flow from 0 to 60000 L/min, got '" + n.string("flow") + "'");
   const double at = in_range(n, "at", n.positive_quantity("at", kind::pressure), kDriverPressure);
-  if (n.has("law")) leak.law = n.choice("law", {"orifice", "linear"}) == "linear" ? physiology::LeakLaw::linear
-                                                                                  : physiology::LeakLaw::orifice;
+  if (n.has("law"))
+    leak.law =
+        n.choice("law", {"orifice", "linear"}) == "linear" ? physiology::LeakLaw::linear : physiology::LeakLaw::orifice;
   n.finish();
   leak.coefficient = physiology::leak_coefficient(leak.law, flow, at);
   return leak;
@@ -313,12 +326,14 @@ physiology::Circuit overlay_circuit(const scenario::Node& n, physiology::Circuit
   if (!c) return circuit;
   if (auto v = c->optional_quantity("compliance", kind::compliance)) {
     if (!(*v >= 0.0 && *v <= 0.1 * kLitresPerCmH2O))
-      c->fail_at("compliance", "expected a tubing compliance from 0 to 100 mL/cmH2O, got '" + c->string("compliance") + "'");
+      c->fail_at("compliance",
+                 "expected a tubing compliance from 0 to 100 mL/cmH2O, got '" + c->string("compliance") + "'");
     circuit.tubing_compliance_m3_per_pa = *v;
   }
   if (auto v = c->optional_quantity("resistance", kind::resistance)) {
     if (!(*v >= 0.0 && *v <= kResistance.hi))
-      c->fail_at("resistance", "expected a tubing resistance from 0 to 1000 cmH2O*s/L, got '" + c->string("resistance") + "'");
+      c->fail_at("resistance",
+                 "expected a tubing resistance from 0 to 1000 cmH2O*s/L, got '" + c->string("resistance") + "'");
     circuit.tubing_resistance_pa_s_per_m3 = *v;
   }
   if (auto l = c->optional_map("leak")) circuit.port = read_leak(*l);
@@ -344,11 +359,13 @@ physiology::Alarms overlay_alarms(const scenario::Node& n, physiology::Alarms al
   if (a->has("low_tidal_volume"))
     alarms.low_tidal_volume_m3 =
         in_range(*a, "low_tidal_volume", a->positive_quantity("low_tidal_volume", kind::volume), kDriverVolume);
-  if (a->has("low_minute_volume")) alarms.low_minute_volume_m3_per_s = a->positive_quantity("low_minute_volume", kind::flow);
+  if (a->has("low_minute_volume"))
+    alarms.low_minute_volume_m3_per_s = a->positive_quantity("low_minute_volume", kind::flow);
   if (a->has("disconnection")) {
     const double f = a->quantity("disconnection", kind::fraction);
     if (!(f > 0.0 && f <= 1.0))
-      a->fail_at("disconnection", "expected a leak share above 0 and at most 100 %, got '" + a->string("disconnection") + "'");
+      a->fail_at("disconnection",
+                 "expected a leak share above 0 and at most 100 %, got '" + a->string("disconnection") + "'");
     alarms.disconnection_leak_fraction = f;
   }
   a->finish();
@@ -567,14 +584,15 @@ void overlay_mechanics(const scenario::Node& n, const std::string& model, Mechan
     if (n.has(key) && model != "single") n.fail_at(key, "only the single model takes this");
   }
   if (n.has("expiratory_resistance"))
-    m.expiratory_airway_resistance_pa_s_per_m3 =
-        in_range(n, "expiratory_resistance", n.positive_quantity("expiratory_resistance", kind::resistance), kResistance);
+    m.expiratory_airway_resistance_pa_s_per_m3 = in_range(
+        n, "expiratory_resistance", n.positive_quantity("expiratory_resistance", kind::resistance), kResistance);
   if (auto f = n.optional_map("flow_limitation")) {
     m.critical_pressure_pa =
         in_range(*f, "critical_pressure", f->quantity("critical_pressure", kind::pressure), kDriverPressure);
     // Upstream of the choke point: by default the whole expiratory resistance.
-    const double expiratory = m.expiratory_airway_resistance_pa_s_per_m3 > 0.0 ? m.expiratory_airway_resistance_pa_s_per_m3
-                                                                              : m.airway_resistance_pa_s_per_m3;
+    const double expiratory = m.expiratory_airway_resistance_pa_s_per_m3 > 0.0
+                                  ? m.expiratory_airway_resistance_pa_s_per_m3
+                                  : m.airway_resistance_pa_s_per_m3;
     m.upstream_resistance_pa_s_per_m3 =
         f->has("upstream_resistance")
             ? in_range(*f, "upstream_resistance", f->positive_quantity("upstream_resistance", kind::resistance),

@@ -167,27 +167,44 @@ INSTANTIATE_TEST_SUITE_P(
         BadScenario{"negative_duration", "duration: -5 s\nphysiology:\n  preset: healthy-adult\n",
                     "1:11: duration: expected a positive duration, got '-5 s'"},
         // The ventilator at the bedside (#47): circuit, PRVC, apnea backup, alarms, flow limitation.
-        BadScenario{"tubing_without_resistance", "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n" "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n" "    circuit: {compliance: 2 mL/cmH2O}\n",
-                    "10:27: physiology.driver.circuit.compliance: a tubing compliance fills through the tubing: give "
-                    "the tubing resistance too (such as '1 cmH2O*s/L')"},
-        BadScenario{"prvc_limit_below_first_breath", "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+        BadScenario{
+            "tubing_without_resistance",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+            "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n"
+            "    circuit: {compliance: 2 mL/cmH2O}\n",
+            "10:27: physiology.driver.circuit.compliance: a tubing compliance fills through the tubing: give "
+            "the tubing resistance too (such as '1 cmH2O*s/L')"},
+        BadScenario{"prvc_limit_below_first_breath",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
                     "    mode: prvc\n    rate: 12 /min\n    inspiratory_time: 1 s\n    peep: 5 cmH2O\n"
                     "    tidal_volume: 450 mL\n    inspiratory_pressure: 10 cmH2O\n    pressure_limit: 12 cmH2O\n",
                     "12:21: physiology.driver.pressure_limit: expected a pressure limit above PEEP + "
                     "inspiratory_pressure (15 cmH2O), got 12 cmH2O"},
-        BadScenario{"apnea_backup_too_long", "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+        BadScenario{"apnea_backup_too_long",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
                     "    mode: cpap_psv\n    pressure_support: 8 cmH2O\n    apnea: {time: 20 s, rate: 12 /min, "
                     "inspiratory_pressure: 10 cmH2O, inspiratory_time: 6 s}\n",
                     "8:90: physiology.driver.apnea.inspiratory_time: expected less than one backup breath (60 / rate "
                     "= 5 s), got '6 s'"},
-        BadScenario{"apnea_outside_cpap", "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n" "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n"
-                    "    apnea: {time: 20 s, rate: 12 /min, inspiratory_pressure: 10 cmH2O, inspiratory_time: 1 s}\n",
-                    "10:12: physiology.driver.apnea: not a setting of pc_ac mode"},
-        BadScenario{"disconnection_share", "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n" "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n" "    alarms: {disconnection: 120 %}\n",
-                    "10:29: physiology.driver.alarms.disconnection: expected a leak share above 0 and at most 100 %, "
-                    "got '120 %'"},
-        BadScenario{"leak_law", "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n" "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n" "    circuit: {leak: {flow: 10 L/min, at: 10 cmH2O, law: turbulent}}\n",
-                    "10:57: physiology.driver.circuit.leak.law: expected one of: orifice, linear; got 'turbulent'"},
+        BadScenario{
+            "apnea_outside_cpap",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+            "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n"
+            "    apnea: {time: 20 s, rate: 12 /min, inspiratory_pressure: 10 cmH2O, inspiratory_time: 1 s}\n",
+            "10:12: physiology.driver.apnea: not a setting of pc_ac mode"},
+        BadScenario{
+            "disconnection_share",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+            "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n"
+            "    alarms: {disconnection: 120 %}\n",
+            "10:29: physiology.driver.alarms.disconnection: expected a leak share above 0 and at most 100 %, "
+            "got '120 %'"},
+        BadScenario{
+            "leak_law",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+            "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n"
+            "    circuit: {leak: {flow: 10 L/min, at: 10 cmH2O, law: turbulent}}\n",
+            "10:57: physiology.driver.circuit.leak.law: expected one of: orifice, linear; got 'turbulent'"},
         BadScenario{"flow_limitation_two_compartments",
                     "duration: 20 s\nphysiology:\n  model: two_compartment\n  resistance: 1 cmH2O*s/L\n"
                     "  compartments:\n    upper: {compliance: 0.02 L/cmH2O, resistance: 5 cmH2O*s/L}\n"

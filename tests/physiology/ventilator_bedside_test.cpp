@@ -124,14 +124,16 @@ TEST(VentilatorAlarms, LimitsRaiseTheirAlarmOnTheBreathThatCrossesThem) {
   alarms.high_pressure_pa = 19.9 * kCmH2O;
   alarms.low_tidal_volume_m3 = 0.501 * kLitre;
   alarms.low_minute_volume_m3_per_s = 6.1 * kLitre / 60;  // above 0.5 L * 12 /min
-  const auto r = simulate(with_circuit(single_linear(0.05, 10), vc_ac(0.2, vt, 1.0, 0.0, peep), {}, alarms), tight(10.0));
+  const auto r =
+      simulate(with_circuit(single_linear(0.05, 10), vc_ac(0.2, vt, 1.0, 0.0, peep), {}, alarms), tight(10.0));
   ASSERT_EQ(r.breaths.size(), 2u);
   EXPECT_EQ(r.breaths[0].alarms, "high_pressure;low_tidal_volume;low_minute_volume");
   alarms = {};
   alarms.high_pressure_pa = 20.1 * kCmH2O;
   alarms.low_pressure_pa = 20.05 * kCmH2O;
   alarms.low_minute_volume_m3_per_s = 5.9 * kLitre / 60;
-  const auto quiet = simulate(with_circuit(single_linear(0.05, 10), vc_ac(0.2, vt, 1.0, 0.0, peep), {}, alarms), tight(10.0));
+  const auto quiet =
+      simulate(with_circuit(single_linear(0.05, 10), vc_ac(0.2, vt, 1.0, 0.0, peep), {}, alarms), tight(10.0));
   EXPECT_EQ(quiet.breaths[0].alarms, "low_pressure");
 }
 

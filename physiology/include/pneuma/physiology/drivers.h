@@ -124,8 +124,8 @@ struct Leak {
 struct Circuit {
   double tubing_compliance_m3_per_pa = 0.0;
   double tubing_resistance_pa_s_per_m3 = 0.0;  // needed with a tubing compliance (it fills through it)
-  Leak port;     // the circuit's fixed leak (an exhalation port, a vented mask)
-  Leak patient;  // the mask's or the tube's (ETT cuff) leak
+  Leak port;                                   // the circuit's fixed leak (an exhalation port, a vented mask)
+  Leak patient;                                // the mask's or the tube's (ETT cuff) leak
   bool active() const {
     return tubing_compliance_m3_per_pa > 0.0 || tubing_resistance_pa_s_per_m3 > 0.0 || port.coefficient > 0.0 ||
            patient.coefficient > 0.0;
@@ -139,10 +139,10 @@ double leak_coefficient(LeakLaw law, double flow_m3_per_s, double pressure_pa);
 
 // The ventilator's alarm limits (0: off), checked on each completed ventilator breath.
 struct Alarms {
-  double high_pressure_pa = 0.0;            // peak airway pressure above
-  double low_pressure_pa = 0.0;             // peak airway pressure below
-  double low_tidal_volume_m3 = 0.0;         // VTe below
-  double low_minute_volume_m3_per_s = 0.0;  // expired volume over the last minute below
+  double high_pressure_pa = 0.0;             // peak airway pressure above
+  double low_pressure_pa = 0.0;              // peak airway pressure below
+  double low_tidal_volume_m3 = 0.0;          // VTe below
+  double low_minute_volume_m3_per_s = 0.0;   // expired volume over the last minute below
   double disconnection_leak_fraction = 0.0;  // (VTi - VTe) / VTi at or above: the circuit is open
   bool operator==(const Alarms&) const = default;
 };
