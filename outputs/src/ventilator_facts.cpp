@@ -7,6 +7,8 @@
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <string>
+#include <string_view>
 #include <variant>
 
 #include "pneuma/core/units.h"
@@ -98,6 +100,16 @@ void summary(const std::string& name, const std::vector<const physiology::Breath
   out.emplace_back("ventilator." + name + ".max", number(high));
 }
 
+// Whether a breath's ';'-separated alarms name `alarm`.
+bool raises(const std::string& alarms, std::string_view alarm) {
+  for (std::size_t from = 0; from <= alarms.size();) {
+    const std::size_t end = std::min(alarms.find(';', from), alarms.size());
+    if (std::string_view(alarms).substr(from, end - from) == alarm) return true;
+    from = end + 1;
+  }
+  return false;
+}
+
 }  // namespace
 
 Facts ventilator_facts(const physiology::Protocol& protocol, const physiology::SimulationResult& result) {
@@ -159,6 +171,19 @@ Facts ventilator_facts(const physiology::Protocol& protocol, const physiology::S
   summary(
       "total_peep_cmH2O", ventilated,
       [](const auto& b) { return b.expiratory_hold_s > 0.0 ? b.total_peep_pa * kCmH2O : NAN; }, out);
+  // Each alarm raised: how many breaths raised it and when first (breath start), absent when none.
+  for (const char* alarm :
+       {"high_pressure", "low_pressure", "low_tidal_volume", "low_minute_volume", "apnea", "disconnection"}) {
+    std::size_t raised = 0;
+    double first = 0.0;
+    for (const auto* b : ventilated) {
+      if (!raises(b->alarms, alarm)) continue;
+      if (raised++ == 0) first = b->start_s;
+    }
+    if (raised > 0)
+      out.emplace_back(std::string("ventilator.alarms.") + alarm,
+                       fmt::format("{} breaths, the first at {:.6g} s", raised, first));
+  }
   return out;
 }
 

@@ -24,7 +24,7 @@ Number if_ventilated(const Breath& b, double value) {
 
 // Each value in its column's unit, converted as the CSV always has (the same operations in the
 // same order, so the same digits).
-constexpr std::array<BreathColumn, 26> kBreathColumns{{
+constexpr std::array<BreathColumn, 31> kBreathColumns{{
     {"breath", "", CellFormat::whole, [](const Breath&, std::size_t i) -> Number { return static_cast<double>(i + 1); },
      nullptr},
     {"start_s", "s", CellFormat::fixed6, [](const Breath& b, std::size_t) -> Number { return b.start_s; }, nullptr},
@@ -89,6 +89,20 @@ constexpr std::array<BreathColumn, 26> kBreathColumns{{
        return b.total_peep_pa * kCmH2O;
      },
      nullptr},
+    // What the ventilator measures at its ports (the circuit's leaks and tubing included).
+    {"vti_mL", "mL", CellFormat::significant9,
+     [](const Breath& b, std::size_t) { return if_ventilated(b, b.vti_m3 * kMl); }, nullptr},
+    {"vte_mL", "mL", CellFormat::significant9,
+     [](const Breath& b, std::size_t) { return if_ventilated(b, b.vte_m3 * kMl); }, nullptr},
+    {"leak_percent", "%", CellFormat::significant9,
+     [](const Breath& b, std::size_t) -> Number {
+       if (!(b.vti_m3 > 0.0)) return std::nullopt;
+       return if_ventilated(b, (b.vti_m3 - b.vte_m3) / b.vti_m3 * 100.0);
+     },
+     nullptr},
+    {"inspiratory_pressure_cmH2O", "cmH2O", CellFormat::significant9,
+     [](const Breath& b, std::size_t) { return if_ventilated(b, b.set_inspiratory_pressure_pa * kCmH2O); }, nullptr},
+    {"alarms", "", CellFormat::text, nullptr, [](const Breath& b) { return b.alarms.c_str(); }},
 }};
 
 }  // namespace

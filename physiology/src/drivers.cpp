@@ -180,9 +180,40 @@ Assisted simv_breath(const Assisted& a, bool mandatory) {
   return b;
 }
 
+Assisted apnea_backup(const Assisted& a) {
+  Assisted b = a;
+  b.mode = AssistMode::pressure;
+  b.rate_hz = a.backup_rate_hz;
+  b.inspiratory_pressure_pa = a.backup_pressure_pa;
+  b.inspiratory_time_s = a.backup_inspiratory_time_s;
+  b.cycle = CycleKind::time;
+  b.apnea_time_s = 0.0;
+  return b;
+}
+
+double leak_flow(const Leak& leak, double pressure_pa) {
+  if (leak.law == LeakLaw::linear) return leak.coefficient * pressure_pa;
+  return std::copysign(leak.coefficient * std::sqrt(std::abs(pressure_pa)), pressure_pa);
+}
+
+double leak_coefficient(LeakLaw law, double flow_m3_per_s, double pressure_pa) {
+  return law == LeakLaw::linear ? flow_m3_per_s / pressure_pa : flow_m3_per_s / std::sqrt(pressure_pa);
+}
+
+void validate(const Circuit& c) {
+  require(c.tubing_compliance_m3_per_pa >= 0.0 && std::isfinite(c.tubing_compliance_m3_per_pa),
+          "the tubing compliance must not be negative");
+  require(c.tubing_resistance_pa_s_per_m3 >= 0.0 && std::isfinite(c.tubing_resistance_pa_s_per_m3),
+          "the tubing resistance must not be negative");
+  require(c.tubing_compliance_m3_per_pa == 0.0 || c.tubing_resistance_pa_s_per_m3 > 0.0,
+          "a tubing compliance fills through the tubing: give the tubing resistance too");
+  for (const Leak* l : {&c.port, &c.patient})
+    require(l->coefficient >= 0.0 && std::isfinite(l->coefficient), "a leak must not be negative");
+}
+
 const char* mode_name(const Driver& driver) {
   if (const auto* a = std::get_if<Assisted>(&driver)) {
-    static constexpr const char* kAssisted[] = {"vc_ac", "pc_ac", "cpap_psv", "vc_simv", "pc_simv"};
+    static constexpr const char* kAssisted[] = {"vc_ac", "pc_ac", "cpap_psv", "vc_simv", "pc_simv", "prvc"};
     return kAssisted[static_cast<int>(a->mode)];
   }
   static constexpr const char* kNames[] = {"spontaneous", "volume_control", "pressure_control"};
@@ -204,6 +235,20 @@ void validate(const Driver& driver) {
     const bool simv = is_simv(*a);
     if (support) require(a->rate_hz == 0.0, "pressure support has no backup rate");
     else require(a->rate_hz > 0.0 && std::isfinite(a->rate_hz), "the rate must be positive");
+    require(a->apnea_time_s == 0.0 || support, "only cpap_psv has an apnea backup");
+    if (a->apnea_time_s > 0.0) {
+      require(std::isfinite(a->apnea_time_s), "the apnea time must be finite");
+      require(a->backup_rate_hz > 0.0 && std::isfinite(a->backup_rate_hz), "the backup rate must be positive");
+      require(a->backup_inspiratory_time_s > 0.0 && a->backup_inspiratory_time_s < 1.0 / a->backup_rate_hz,
+              "the backup inspiratory time must be positive and shorter than one backup breath (60 / rate)");
+      require(a->backup_pressure_pa >= 0.0, "the backup pressure must not be negative");
+    }
+    if (a->mode == AssistMode::prvc) {
+      require(a->tidal_volume_m3 > 0.0, "the target tidal volume must be positive");
+      require(a->prvc_step_pa > 0.0 && std::isfinite(a->prvc_step_pa), "the pressure step must be positive");
+      require(a->pressure_limit_pa == 0.0 || a->pressure_limit_pa > a->peep_pa + a->inspiratory_pressure_pa,
+              "the pressure limit must be above PEEP plus the first breath's inspiratory pressure");
+    }
     require(a->peep_pa >= 0.0, "PEEP must not be negative");
     require(a->inspiratory_time_s > 0.0 && (support || a->inspiratory_time_s < 1.0 / a->rate_hz),
             "the inspiratory time must be positive and shorter than one breath (60 / rate)");

@@ -44,6 +44,18 @@ struct ComplianceOf {
   }
 };
 
+// One compartment's flow out: through the expiratory resistance, capped by the Starling resistor.
+// `capped` tells which bound holds.
+double expiratory_flow(const Mechanics& m, double pd, double pel, bool* capped = nullptr) {
+  const double raw = m.expiratory_airway_resistance_pa_s_per_m3 > 0.0 ? m.expiratory_airway_resistance_pa_s_per_m3
+                                                                      : m.airway_resistance_pa_s_per_m3;
+  const double free_flow = (pd - pel) / (raw + m.compartments[0].resistance_pa_s_per_m3);
+  const double cap = m.flow_limited() ? -std::max(pel - m.critical_pressure_pa, 0.0) / m.upstream_resistance_pa_s_per_m3
+                                      : -std::numeric_limits<double>::infinity();
+  if (capped) *capped = cap > free_flow;
+  return std::max(free_flow, cap);
+}
+
 }  // namespace
 
 double elastic_pressure(const Elasticity& elasticity, double volume_m3) {
@@ -67,6 +79,11 @@ void validate(const Mechanics& m) {
   if (!(m.airway_resistance_pa_s_per_m3 >= 0.0)) throw ValueError("airway resistance must be >= 0");
   if (!(m.chest_wall_fraction >= 0.0 && m.chest_wall_fraction <= 1.0))
     throw ValueError("chest wall fraction must lie in [0, 1]");
+  if (!(m.expiratory_airway_resistance_pa_s_per_m3 >= 0.0) || !(m.upstream_resistance_pa_s_per_m3 >= 0.0) ||
+      !std::isfinite(m.critical_pressure_pa))
+    throw ValueError("expiratory and upstream resistances must be >= 0, the critical pressure finite");
+  if (m.expiration_differs() && m.compartments.size() != 1)
+    throw ValueError("an expiratory resistance or flow limitation needs the single model");
   for (const Compartment& c : m.compartments) {
     if (m.compartments.size() > 1 && !(c.resistance_pa_s_per_m3 > 0.0))
       throw ValueError("compartment '" + c.name + "': a parallel compartment needs a positive resistance");
@@ -90,7 +107,9 @@ double compartment_flows(const Mechanics& m, double pd, const double* v, double*
   const std::size_t n = m.compartments.size();
   if (n == 1) {
     const double r = m.airway_resistance_pa_s_per_m3 + m.compartments[0].resistance_pa_s_per_m3;
-    q[0] = (pd - elastic_pressure(m.compartments[0].elasticity, v[0])) / r;
+    const double pel = elastic_pressure(m.compartments[0].elasticity, v[0]);
+    q[0] = (pd - pel) / r;
+    if (q[0] < 0.0 && m.expiration_differs()) q[0] = expiratory_flow(m, pd, pel);
     return q[0];
   }
   // Q_i = (Pd - Pel_i - Raw Q) / R_i and Q = sum Q_i  =>  Q = sum((Pd - Pel_i)/R_i) / (1 + Raw G).
@@ -114,7 +133,18 @@ double flow_rate_of_change(const Mechanics& m, double dpd_dt, const double* v, c
   const std::size_t n = m.compartments.size();
   if (n == 1) {
     const double r = m.airway_resistance_pa_s_per_m3 + m.compartments[0].resistance_pa_s_per_m3;
-    return (dpd_dt - q[0] / compliance_at(m.compartments[0].elasticity, v[0])) / r;
+    const double elastic_rate = q[0] / compliance_at(m.compartments[0].elasticity, v[0]);  // dPel/dt
+    if (q[0] < 0.0 && m.expiration_differs()) {
+      bool capped = false;
+      const double pel = elastic_pressure(m.compartments[0].elasticity, v[0]);
+      const double pd = pel + q[0] * r;  // any Pd that gives this flow out picks the same branch
+      expiratory_flow(m, pd, pel, &capped);
+      if (capped) return -elastic_rate / m.upstream_resistance_pa_s_per_m3;
+      const double raw = m.expiratory_airway_resistance_pa_s_per_m3 > 0.0 ? m.expiratory_airway_resistance_pa_s_per_m3
+                                                                          : m.airway_resistance_pa_s_per_m3;
+      return (dpd_dt - elastic_rate) / (raw + m.compartments[0].resistance_pa_s_per_m3);
+    }
+    return (dpd_dt - elastic_rate) / r;
   }
   double g = 0.0, weighted = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -128,8 +158,12 @@ double flow_rate_of_change(const Mechanics& m, double dpd_dt, const double* v, c
 double driving_pressure_for_flow(const Mechanics& m, double total_flow, const double* v) {
   const std::size_t n = m.compartments.size();
   if (n == 1) {
-    const double r = m.airway_resistance_pa_s_per_m3 + m.compartments[0].resistance_pa_s_per_m3;
-    return elastic_pressure(m.compartments[0].elasticity, v[0]) + r * total_flow;
+    // A prescribed flow out (never asked of the modes) goes through the expiratory resistance.
+    const double raw = total_flow < 0.0 && m.expiratory_airway_resistance_pa_s_per_m3 > 0.0
+                           ? m.expiratory_airway_resistance_pa_s_per_m3
+                           : m.airway_resistance_pa_s_per_m3;
+    return elastic_pressure(m.compartments[0].elasticity, v[0]) +
+           (raw + m.compartments[0].resistance_pa_s_per_m3) * total_flow;
   }
   double g = 0.0, weighted = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -141,7 +175,9 @@ double driving_pressure_for_flow(const Mechanics& m, double total_flow, const do
 }
 
 double alveolar_pressure(const Mechanics& m, double airway_pressure_pa, double total_flow) {
-  double r = m.airway_resistance_pa_s_per_m3;
+  double r = total_flow < 0.0 && m.expiratory_airway_resistance_pa_s_per_m3 > 0.0
+                 ? m.expiratory_airway_resistance_pa_s_per_m3
+                 : m.airway_resistance_pa_s_per_m3;
   if (m.compartments.size() == 1) r += m.compartments[0].resistance_pa_s_per_m3;
   return airway_pressure_pa - r * total_flow;
 }

@@ -17,6 +17,9 @@ namespace pneuma::physiology {
 namespace {
 
 constexpr int kMaxCompartments = 8;
+// The state: each compartment's volume, then with a circuit the volume leaked so far and the gas
+// volume the tubing holds (Ct Py).
+constexpr int kMaxStates = kMaxCompartments + 2;
 
 // What the right-hand side needs: the mechanics and the drive of the current segment.
 // The events an assisted breath watches for, each a root of a smooth function of (t, V).
@@ -44,9 +47,11 @@ struct SegmentContext {
   // Root finding (assisted breaths only).
   std::array<RootKind, kMaxRoots> roots{};
   int root_count = 0;
-  double flow_peak = 0.0;     // highest inspiratory flow of the breath so far
-  double start_volume = 0.0;  // total volume at the start of inspiration
-  bool occluded = false;      // an expiratory hold: both valves closed, whatever the driver
+  double flow_peak = 0.0;            // highest inspiratory flow of the breath so far
+  double start_volume = 0.0;         // total volume at the start of inspiration
+  bool occluded = false;             // an expiratory hold: both valves closed, whatever the driver
+  const Circuit* circuit = nullptr;  // the circuit in force; null when the run has none (no extra states)
+  int states = 0;                    // the state's size
 };
 
 struct Instant {
@@ -55,7 +60,61 @@ struct Instant {
   double muscle_pressure = 0.0;
   double peep = 0.0;
   double driving_pressure_rate = 0.0;  // d(Paw + Pmus)/dt where the airway pressure is set
+  double ventilator_flow = 0.0;        // what the machine delivers (the patient's flow without a circuit)
 };
+
+// The root of g, decreasing, near `guess`: bracketed by doubling steps, then bisected to the last bit.
+template <class F>
+double decreasing_root(const F& g, double guess) {
+  double lo = guess, hi = guess, step = 100.0;  // Pa
+  if (g(guess) > 0.0) {
+    for (int i = 0; i < 64 && g(hi) > 0.0; ++i, step *= 2.0) {
+      lo = hi;
+      hi = guess + step;
+    }
+  } else {
+    for (int i = 0; i < 64 && !(g(lo) > 0.0); ++i, step *= 2.0) {
+      hi = lo;
+      lo = guess - step;
+    }
+  }
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    if (mid <= lo || mid >= hi) break;
+    (g(mid) > 0.0 ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+// The drive through the circuit: the Y-piece pressure Py the patient sees, from the tubing's gas
+// volume (a tubing compliance), from the set pressure (none, no tubing resistance), or else where
+// the flows balance: what enters the Y-piece = the patient's flow + the leaks.
+Instant through_circuit(const SegmentContext& c, const Drive& d, const double* y, double* ydot, Instant out) {
+  const Mechanics& m = *c.mechanics;
+  const Circuit& k = *c.circuit;
+  const std::size_t n = m.compartments.size();
+  const double pmus = d.muscle_pressure_pa;
+  const auto patient = [&](double py) { return compartment_flows(m, py + pmus, y, ydot); };
+  const auto leaks = [&](double py) { return leak_flow(k.port, py) + leak_flow(k.patient, py); };
+  const auto inflow = [&](double py) {
+    return d.flow_controlled ? d.flow_m3_per_s : (d.airway_pressure_pa - py) / k.tubing_resistance_pa_s_per_m3;
+  };
+  double py = d.airway_pressure_pa;
+  if (k.tubing_compliance_m3_per_pa > 0.0) {
+    py = y[n + 1] / k.tubing_compliance_m3_per_pa;
+  } else if (d.flow_controlled || k.tubing_resistance_pa_s_per_m3 > 0.0) {
+    const double guess =
+        d.flow_controlled ? driving_pressure_for_flow(m, d.flow_m3_per_s, y) - pmus : d.airway_pressure_pa;
+    py = decreasing_root([&](double p) { return inflow(p) - patient(p) - leaks(p); }, guess);
+  }
+  out.flow = patient(py);
+  const double leak = leaks(py);
+  out.ventilator_flow = k.tubing_compliance_m3_per_pa > 0.0 ? inflow(py) : out.flow + leak;
+  out.airway_pressure = py;
+  ydot[n] = leak;
+  ydot[n + 1] = out.ventilator_flow - out.flow - leak;
+  return out;
+}
 
 // Flows into every compartment at (t, volumes); returns the pressures at that instant.
 Instant evaluate(const SegmentContext& c, double t, const double* volumes, double* flows) {
@@ -72,6 +131,7 @@ Instant evaluate(const SegmentContext& c, double t, const double* volumes, doubl
   out.muscle_pressure = d.muscle_pressure_pa;
   out.peep = d.peep_pa;
   out.driving_pressure_rate = d.airway_pressure_rate_pa_per_s;
+  if (c.circuit) return through_circuit(c, d, volumes, flows, out);
   if (d.flow_controlled) {
     const double pd = driving_pressure_for_flow(*c.mechanics, d.flow_m3_per_s, volumes);
     out.flow = compartment_flows(*c.mechanics, pd, volumes, flows);
@@ -81,6 +141,7 @@ Instant evaluate(const SegmentContext& c, double t, const double* volumes, doubl
     out.flow = compartment_flows(*c.mechanics, pd, volumes, flows);
     out.airway_pressure = d.airway_pressure_pa;
   }
+  out.ventilator_flow = out.flow;
   return out;
 }
 
@@ -101,21 +162,39 @@ double total(const double* v, std::size_t n);
 // CVODE's root functions for the assisted breaths' events (see RootKind). Each is smooth within
 // a segment, so CVODE locates its zero to its root tolerance (~100 ulp of t): trigger and cycle
 // instants are found exactly, not at the next output sample.
+// d(ventilator flow)/dt along the trajectory through (t, y): a central difference (the circuit's
+// flow has no closed-form derivative; without one, flow_rate_of_change gives it exactly).
+double ventilator_flow_rate(const SegmentContext& c, double t, const double* y) {
+  std::array<double, kMaxStates> dy{}, ahead{}, behind{}, scratch{};
+  evaluate(c, t, y, dy.data());
+  constexpr double h = 1e-6;  // s
+  for (int i = 0; i < c.states; ++i) {
+    ahead[static_cast<std::size_t>(i)] = y[i] + h * dy[static_cast<std::size_t>(i)];
+    behind[static_cast<std::size_t>(i)] = y[i] - h * dy[static_cast<std::size_t>(i)];
+  }
+  return (evaluate(c, t + h, ahead.data(), scratch.data()).ventilator_flow -
+          evaluate(c, t - h, behind.data(), scratch.data()).ventilator_flow) /
+         (2.0 * h);
+}
+
 int root_function(double t, N_Vector y, double* g, void* user_data) {
   const auto& c = *static_cast<const SegmentContext*>(user_data);
   const double* v = N_VGetArrayPointer(y);
-  std::array<double, 8> q{};
+  std::array<double, kMaxStates> q{};
   const Instant now = evaluate(c, t, v, q.data());
   const auto& a = std::get<Assisted>(*c.driver);
   const double delivered = total(v, c.mechanics->compartments.size()) - c.start_volume;
   for (int i = 0; i < c.root_count; ++i) {
     switch (c.roots[static_cast<std::size_t>(i)]) {
-      case RootKind::trigger_flow: g[i] = now.flow - a.trigger_threshold; break;
-      case RootKind::occlude: g[i] = now.flow; break;
+      case RootKind::trigger_flow: g[i] = now.ventilator_flow - a.trigger_threshold; break;
+      case RootKind::occlude: g[i] = now.ventilator_flow; break;
       case RootKind::trigger_pressure: g[i] = a.peep_pa - now.airway_pressure - a.trigger_threshold; break;
       case RootKind::reopen: g[i] = now.airway_pressure - a.peep_pa; break;
-      case RootKind::flow_peak: g[i] = flow_rate_of_change(*c.mechanics, now.driving_pressure_rate, v, q.data()); break;
-      case RootKind::flow_cycle: g[i] = now.flow - a.cycle_fraction * c.flow_peak; break;
+      case RootKind::flow_peak:
+        g[i] = c.circuit ? ventilator_flow_rate(c, t, v)
+                         : flow_rate_of_change(*c.mechanics, now.driving_pressure_rate, v, q.data());
+        break;
+      case RootKind::flow_cycle: g[i] = now.ventilator_flow - a.cycle_fraction * c.flow_peak; break;
       case RootKind::volume_cycle: g[i] = delivered - a.cycle_volume_m3; break;
       case RootKind::volume_limit: g[i] = delivered - a.volume_limit_m3; break;
       case RootKind::pressure_limit: g[i] = now.airway_pressure - a.pressure_limit_pa; break;
@@ -144,7 +223,12 @@ class Simulation {
       : protocol_(protocol),
         options_(options),
         n_(protocol.settings.front().mechanics.compartments.size()),
-        integrator_(static_cast<int>(n_), right_hand_side, &context_, options.solver) {
+        extra_(std::any_of(protocol.settings.begin(), protocol.settings.end(),
+                           [](const Setting& s) { return s.circuit.active(); })
+                   ? 2
+                   : 0),
+        integrator_(static_cast<int>(n_ + extra_), right_hand_side, &context_, options.solver) {
+    context_.states = static_cast<int>(n_ + extra_);
     // An effort repeats from the time it was last changed.
     for (std::size_t i = 0; i < protocol_.settings.size(); ++i) {
       const bool same = i > 0 && protocol_.settings[i].effort == protocol_.settings[i - 1].effort;
@@ -160,11 +244,12 @@ class Simulation {
     if (series_) reserve(result.series);
 
     // Start at rest: each compartment at the volume its first PEEP holds.
-    std::array<double, kMaxCompartments> y{};
+    std::array<double, kMaxStates> y{};
     const Setting& first = protocol_.settings.front();
     for (std::size_t i = 0; i < n_; ++i) {
       y[i] = volume_at_pressure(first.mechanics.compartments[i].elasticity, peep_of(first.driver));
     }
+    if (extra_) y[n_ + 1] = first.circuit.tubing_compliance_m3_per_pa * peep_of(first.driver);
     double t = 0.0;
     const double end = options_.duration_s;
     while (t < end) {
@@ -189,7 +274,9 @@ class Simulation {
       }
       if (const auto* s = std::get_if<Spontaneous>(&driver)) breath.muscle_amplitude_pa = s->amplitude_pa;
       const double start_volume = total(y.data(), n_);
-      begin_breath(start_volume);
+      begin_breath(start_volume, y.data());
+      if (const auto* pc = std::get_if<PressureControl>(&driver))
+        breath.set_inspiratory_pressure_pa = pc->inspiratory_pressure_pa;
       if (const auto* sp = std::get_if<Spontaneous>(&protocol_.settings[setting].driver))
         breath.set_tidal_volume_m3 = sp->target_tidal_volume_m3;
       else if (const auto* vc = std::get_if<VolumeControl>(&driver)) breath.set_tidal_volume_m3 = vc->tidal_volume_m3;
@@ -219,6 +306,7 @@ class Simulation {
         if (plan.phases[static_cast<std::size_t>(p)].inspiratory &&
             (p + 1 == plan.count || !plan.phases[static_cast<std::size_t>(p) + 1].inspiratory)) {
           end_inspiration_volume = total(y.data(), n_);
+          end_inspiration(breath, y.data());
           breath.plateau_pressure_pa = alveolar_pressure(*context_.mechanics, last.airway_pressure, last.flow);
           if (is_ventilator(driver)) breath.inspiratory_time_s = plan.phases[static_cast<std::size_t>(p)].end_s;
         }
@@ -283,11 +371,50 @@ class Simulation {
     context_.mechanics = &protocol_.settings[s].mechanics;
     context_.effort = protocol_.settings[s].effort.active() ? &protocol_.settings[s].effort : nullptr;
     context_.effort_anchor_s = effort_anchor_[s];
+    context_.circuit = extra_ ? &protocol_.settings[s].circuit : nullptr;
   }
 
-  void begin_breath(double start_volume) {
+  // The volume the ventilator has delivered since the run began, up to a constant: the patient's,
+  // the leaks' and the tubing's (the patient's alone without a circuit).
+  double ventilator_volume(const double* y) const {
+    const double v = total(y, n_);
+    return extra_ ? v + y[n_] + y[n_ + 1] : v;
+  }
+
+  void begin_breath(double start_volume, const double* y) {
     min_volume_ = max_volume_ = start_volume;
     paw_integral_ = 0.0;
+    start_delivered_ = ventilator_volume(y);
+  }
+
+  // VTi: what the ventilator delivered since the breath began.
+  void end_inspiration(BreathMetrics& breath, const double* y) {
+    end_inspiration_delivered_ = ventilator_volume(y);
+    if (is_ventilator(current_driver_)) breath.vti_m3 = end_inspiration_delivered_ - start_delivered_;
+  }
+
+  // The alarms a completed ventilator breath raises (the limits in force at its start).
+  void check_alarms(BreathMetrics& breath, const SimulationResult& result) const {
+    const Alarms& limits = protocol_.settings[setting_at(breath.start_s)].alarms;
+    const auto raise = [&](const char* name) {
+      if (!breath.alarms.empty()) breath.alarms += ';';
+      breath.alarms += name;
+    };
+    if (limits.high_pressure_pa > 0.0 && breath.peak_pressure_pa > limits.high_pressure_pa) raise("high_pressure");
+    if (limits.low_pressure_pa > 0.0 && breath.peak_pressure_pa < limits.low_pressure_pa) raise("low_pressure");
+    if (limits.low_tidal_volume_m3 > 0.0 && breath.vte_m3 < limits.low_tidal_volume_m3) raise("low_tidal_volume");
+    if (limits.low_minute_volume_m3_per_s > 0.0) {
+      // The volume breathed out over the last minute (over the run so far during its first minute).
+      const double end = breath.start_s + breath.duration_s, from = end - 60.0;
+      double expired = breath.vte_m3;
+      for (auto b = result.breaths.rbegin(); b != result.breaths.rend() && b->start_s + b->duration_s > from; ++b) {
+        if (!std::isnan(b->vte_m3)) expired += b->vte_m3;
+      }
+      if (expired / std::min(60.0, end) < limits.low_minute_volume_m3_per_s) raise("low_minute_volume");
+    }
+    if (limits.disconnection_leak_fraction > 0.0 && breath.vti_m3 > 0.0 &&
+        (breath.vti_m3 - breath.vte_m3) / breath.vti_m3 >= limits.disconnection_leak_fraction)
+      raise("disconnection");
   }
 
   // The metrics every breath has, at its end t with state y.
@@ -300,6 +427,10 @@ class Simulation {
                                               : std::numeric_limits<double>::quiet_NaN();
     breath.end_expiratory_volume_m3 = total(y, n_);
     breath.mean_airway_pressure_pa = paw_integral_ / breath.duration_s;
+    if (is_ventilator(current_driver_)) {
+      breath.vte_m3 = end_inspiration_delivered_ - ventilator_volume(y);
+      check_alarms(breath, result);
+    }
     // An end-expiratory hold: the pressure measured at its end when one was made (expiratory_hold),
     // else the pressure the recoil holds with the airway occluded at once (no redistribution).
     if (!std::isnan(breath.total_peep_pa)) breath.intrinsic_peep_pa = breath.total_peep_pa - breath.peep_pa;
@@ -311,6 +442,7 @@ class Simulation {
   // When an assisted expiration that began a breath at `breath_start` ends on the clock: the
   // backup timer (VC-AC, PC-AC), the next scheduled mandatory breath (SIMV), never (CPAP).
   double deadline(const Assisted& a, double breath_start) {
+    if (a.apnea_time_s > 0.0) return breath_start + a.apnea_time_s;
     if (is_simv(a)) {
       if (std::isnan(simv_due_)) simv_due_ = breath_start + 1.0 / a.rate_hz;  // a switch into SIMV
       return simv_due_;
@@ -361,25 +493,41 @@ class Simulation {
   // One assisted breath from t (its trigger in pending_, or none: the first of its mode). Returns
   // false when the run ends before the breath does (the incomplete breath is not reported).
   bool assisted_breath(double& t, double* y, SimulationResult& result) {
-    const Assisted a = std::get<Assisted>(current_driver_);
+    Assisted a = std::get<Assisted>(current_driver_);
+    if (a.apnea_time_s <= 0.0) apnea_ = false;
+    if (apnea_) {
+      a = apnea_backup(a);  // until the patient triggers
+      current_driver_ = a;
+    }
     context_.driver = &current_driver_;
     if (!is_simv(a)) simv_due_ = std::numeric_limits<double>::quiet_NaN();
+    if (a.mode != AssistMode::prvc) prvc_pressure_ = std::numeric_limits<double>::quiet_NaN();
     if (!pending_) {
       if (a.mode == AssistMode::pressure_support) {
-        // No backup: wait at CPAP for the patient's first trigger (not a breath).
+        // No backup rate: wait at CPAP for the patient's first trigger (not a breath), or the apnea time.
         context_.breath_start_s = t;
         double unused_peak = -std::numeric_limits<double>::infinity(), unused_drive = unused_peak;
         min_volume_ = max_volume_ = total(y, n_);
-        const Stopped s = expiration(t, y, a, std::numeric_limits<double>::infinity(), unused_peak, unused_drive);
+        const Stopped s = expiration(t, y, a, deadline(a, t), unused_peak, unused_drive);
         if (s == Stopped::end_of_run) return false;
         if (s == Stopped::driver_change) return true;
+        if (s == Stopped::time) {
+          apnea_ = apnea_alarm_ = true;
+          pending_ = Start{};
+          return true;
+        }
       } else {
         pending_ = Start{};
       }
     }
     // The breath it gives: SIMV's mandatory or spontaneous one, or the mode's own.
     const bool mandatory = is_simv(a) ? simv_mandatory(a, t, *pending_) : a.mode != AssistMode::pressure_support;
-    const Assisted shape = simv_breath(a, mandatory);
+    Assisted shape = simv_breath(a, mandatory);
+    if (a.mode == AssistMode::prvc) {
+      if (std::isnan(prvc_pressure_)) prvc_pressure_ = a.inspiratory_pressure_pa;  // the test breath
+      shape.mode = AssistMode::pressure;
+      shape.inspiratory_pressure_pa = prvc_pressure_;
+    }
     current_driver_ = shape;
     BreathMetrics breath;
     breath.start_s = t;
@@ -388,10 +536,13 @@ class Simulation {
     breath.peep_pa = a.peep_pa;
     breath.trigger = pending_->trigger;
     breath.trigger_delay_s = pending_->delay_s;
-    if (shape.mode == AssistMode::volume) breath.set_tidal_volume_m3 = shape.tidal_volume_m3;
+    if (apnea_alarm_) breath.alarms = "apnea";
+    apnea_alarm_ = false;
+    if (shape.mode == AssistMode::volume || a.mode == AssistMode::prvc) breath.set_tidal_volume_m3 = a.tidal_volume_m3;
+    if (shape.mode != AssistMode::volume) breath.set_inspiratory_pressure_pa = shape.inspiratory_pressure_pa;
     pending_.reset();
     const double start_volume = total(y, n_);
-    begin_breath(start_volume);
+    begin_breath(start_volume, y);
     context_.breath_start_s = t;
     context_.start_volume = start_volume;
     double peak_airway = -std::numeric_limits<double>::infinity();
@@ -419,10 +570,10 @@ class Simulation {
       if (shape.cycle == CycleKind::flow) roots = {RootKind::flow_peak, RootKind::flow_cycle};
       if (shape.cycle == CycleKind::volume) roots.push_back(RootKind::volume_cycle);
       if (shape.volume_limit_m3 > 0.0) roots.push_back(RootKind::volume_limit);
-      std::array<double, kMaxCompartments> q{};
+      std::array<double, kMaxStates> q{};
       context_.phase = kAssistPressure;
       use_setting_at(t);
-      context_.flow_peak = evaluate(context_, t, y, q.data()).flow;  // the flow just after the step
+      context_.flow_peak = evaluate(context_, t, y, q.data()).ventilator_flow;  // the flow just after the step
       const double time_cycle = breath.start_s + shape.inspiratory_time_s;
       for (;;) {
         int root = -1;
@@ -431,7 +582,7 @@ class Simulation {
         if (s == Stopped::time) break;
         const RootKind k = roots[static_cast<std::size_t>(root)];
         if (k == RootKind::flow_peak) {
-          context_.flow_peak = std::max(context_.flow_peak, last.flow);
+          context_.flow_peak = std::max(context_.flow_peak, last.ventilator_flow);
           continue;
         }
         breath.cycle = k == RootKind::flow_cycle ? "flow" : k == RootKind::volume_cycle ? "volume" : "volume_limit";
@@ -441,12 +592,20 @@ class Simulation {
     breath.inspiratory_time_s = t - breath.start_s;
     breath.inspired_volume_m3 = total(y, n_) - start_volume;
     breath.plateau_pressure_pa = alveolar_pressure(*context_.mechanics, last.airway_pressure, last.flow);
+    end_inspiration(breath, y);
+    if (a.mode == AssistMode::prvc) prvc_pressure_ = next_prvc_pressure(a, breath.vti_m3);
 
     // Expiration, until the next trigger, the backup timer or SIMV's next mandatory breath.
     current_driver_ = a;
     const Stopped s = expiration(t, y, a, deadline(a, breath.start_s), peak_airway, peak_drive, breath.start_s);
     if (s == Stopped::end_of_run) return false;
-    if (s == Stopped::time) pending_ = Start{};
+    if (s == Stopped::time) {
+      pending_ = Start{};
+      // A cpap_psv expiration that outlasts the apnea time: backup breaths from now on.
+      if (const auto* now = std::get_if<Assisted>(&current_driver_); now && now->apnea_time_s > 0.0)
+        apnea_ = apnea_alarm_ = true;
+    }
+    if (s == Stopped::root) apnea_ = false;  // the patient breathes: back to the set mode
     if (next_hold_ < protocol_.holds.size() && protocol_.holds[next_hold_].at_s <= t) {
       if (!expiratory_hold(t, y, breath, peak_airway, peak_drive)) return false;
       // After the hold the machine starts over: a mandatory breath at once (CPAP: the patient's).
@@ -458,6 +617,16 @@ class Simulation {
     breath.peak_pressure_pa = peak_airway;
     finish_breath(breath, t, peak_drive, y, result);
     return true;
+  }
+
+  // PRVC's pressure for the next breath: the step the breath's compliance (VTi / dP) asks for to
+  // reach the target, bounded by the step and the pressure limit.
+  double next_prvc_pressure(const Assisted& a, double vti) const {
+    const double p = prvc_pressure_;
+    const double wanted = vti > 0.0 ? p * (a.tidal_volume_m3 / vti - 1.0) : a.prvc_step_pa;
+    const double highest =
+        a.pressure_limit_pa > 0.0 ? a.pressure_limit_pa - a.peep_pa : std::numeric_limits<double>::infinity();
+    return std::clamp(p + std::clamp(wanted, -a.prvc_step_pa, a.prvc_step_pa), 0.0, highest);
   }
 
   // Expiration at PEEP from t until a patient trigger (pending_ set), `backup` (Stopped::time),
@@ -472,7 +641,7 @@ class Simulation {
     int phase_kind = kAssistExpiration;
     // Pressure trigger: a patient already pulling when expiration begins finds the circuit closed.
     if (!by_flow) {
-      std::array<double, kMaxCompartments> q{};
+      std::array<double, kMaxStates> q{};
       context_.phase = kAssistExpiration;
       use_setting_at(t);
       if (evaluate(context_, t, y, q.data()).flow >= 0.0) phase_kind = kAssistOccluded;
@@ -591,10 +760,13 @@ class Simulation {
   double output_time(std::size_t k) const { return static_cast<double>(k) / options_.output_rate_hz; }
 
   void record(double t, const double* y) {
-    std::array<double, kMaxCompartments> q{};
+    std::array<double, kMaxStates> q{};
     const Instant now = evaluate(context_, t, y, q.data());
     const Mechanics& m = *context_.mechanics;
-    const double alveolar = alveolar_pressure(m, now.airway_pressure, now.flow);
+    // A flow limitation's choke point takes the drop beyond R Q: the alveolar pressure is Pel - Pmus.
+    const double alveolar = m.flow_limited()
+                                ? elastic_pressure(m.compartments[0].elasticity, y[0]) - now.muscle_pressure
+                                : alveolar_pressure(m, now.airway_pressure, now.flow);
     TimeSeries& s = *series_;
     s.time_s.push_back(t);
     s.volume_m3.push_back(total(y, n_));
@@ -623,7 +795,7 @@ class Simulation {
   double integrate_segment(double a, double b, double* y, double& peak_airway, double& peak_drive, Instant& last,
                            int* root = nullptr) {
     if (root) *root = -1;
-    std::array<double, kMaxCompartments> q{};
+    std::array<double, kMaxStates> q{};
     Instant first = evaluate(context_, a, y, q.data());
     peak_airway = std::max(peak_airway, first.airway_pressure);
     peak_drive = std::max(peak_drive, first.airway_pressure + first.muscle_pressure);
@@ -638,7 +810,7 @@ class Simulation {
     for (int i = 0; i < roots; ++i)
       directions[static_cast<std::size_t>(i)] = root_direction(context_.roots[static_cast<std::size_t>(i)]);
     integrator_.set_roots(roots, root_function, directions.data());
-    std::array<double, kMaxCompartments> sample{};
+    std::array<double, kMaxStates> sample{};
     track_volume(total(y, n_));
     // Output samples, and probes every kProbeInterval (interpolated by CVODE, cheap) so that the
     // breath's volume extremes are found whatever the output rate (even with no output at all).
@@ -700,6 +872,7 @@ class Simulation {
   const Protocol& protocol_;
   const SimulationOptions& options_;
   std::size_t n_;
+  std::size_t extra_;  // 2 with a circuit: the volume leaked and the tubing's gas volume
   SegmentContext context_;
   Driver current_driver_;  // the breath in progress; context_ points at it
   detail::CvodeIntegrator integrator_;
@@ -714,11 +887,15 @@ class Simulation {
   std::size_t next_output_ = 0;
   std::size_t output_count_ = 0;
   std::map<std::size_t, Driver> calibrated_;
-  std::vector<double> effort_anchor_;                           // per setting: when its effort's breaths began
-  std::optional<Start> pending_;                                // the next assisted breath's start, when found
-  double simv_due_ = std::numeric_limits<double>::quiet_NaN();  // SIMV: the next scheduled mandatory breath
-  std::size_t next_hold_ = 0;                                   // the first expiratory hold not yet made
-  std::vector<double> patient_triggers_;                        // times of every patient trigger
+  std::vector<double> effort_anchor_;                                // per setting: when its effort's breaths began
+  std::optional<Start> pending_;                                     // the next assisted breath's start, when found
+  double simv_due_ = std::numeric_limits<double>::quiet_NaN();       // SIMV: the next scheduled mandatory breath
+  std::size_t next_hold_ = 0;                                        // the first expiratory hold not yet made
+  std::vector<double> patient_triggers_;                             // times of every patient trigger
+  double start_delivered_ = 0.0, end_inspiration_delivered_ = 0.0;   // ventilator_volume at those times
+  double prvc_pressure_ = std::numeric_limits<double>::quiet_NaN();  // PRVC: the next breath's pressure
+  bool apnea_ = false;        // cpap_psv: backup breaths until the patient triggers
+  bool apnea_alarm_ = false;  // the next breath is the first of a backup
 };
 
 // Periodic steady-state tidal volume of a spontaneous driver with a given amplitude.

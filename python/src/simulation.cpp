@@ -86,8 +86,8 @@ void register_simulation(py::module_& m) {
                     "muscle_amplitude_cmH2O, inspired_volume_mL, set_tidal_volume_mL (NaN: none set), trigger, "
                     "trigger_delay_s, cycle, inspiratory_time_s, ie_ratio, mean_airway_pressure_cmH2O, "
                     "intrinsic_peep_cmH2O, missed_triggers, double_trigger, breath_type, expiratory_hold_s, "
-                    "total_peep_cmH2O (ventilator columns: '' or NaN for spontaneous breaths; the hold's NaN "
-                    "without one).")
+                    "total_peep_cmH2O, vti_mL, vte_mL, leak_percent, inspiratory_pressure_cmH2O, alarms (ventilator "
+                    "columns: '' or NaN for spontaneous breaths; the hold's NaN without one).")
       .def_readonly("compartments", &Simulation::compartments, "Compartment names.")
       .def_property_readonly(
           "solver_stats",

@@ -22,11 +22,11 @@ using physiology::Mechanics;
 using scenario::Node;
 namespace kind = units::kind;
 
-const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control", "vc_ac",
-                                      "pc_ac",       "cpap_psv",       "vc_simv",          "pc_simv"};
+const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
+                                      "cpap_psv",    "vc_simv",        "pc_simv",          "prvc"};
 // Accepted as `driver.mode` beside kModes, at t = 0 only (read_trace_driver).
 const std::vector<std::string> kModesWithTrace{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
-                                               "cpap_psv",    "vc_simv",        "pc_simv",          "trace"};
+                                               "cpap_psv",    "vc_simv",        "pc_simv",          "prvc",  "trace"};
 const std::vector<std::string> kModels{"single", "two_compartment"};
 
 // Every driver setting by name, so an action can patch any of them and a mode switch can
@@ -41,12 +41,14 @@ struct DriverFields {
   std::optional<double> trigger_threshold;
   std::optional<physiology::CycleKind> cycle;
   std::optional<double> cycle_fraction, cycle_volume;
-  std::optional<double> trigger_window;  // SIMV
+  std::optional<double> trigger_window;                                                     // SIMV
+  std::optional<double> pressure_step;                                                      // PRVC
+  std::optional<double> apnea_time, backup_rate, backup_pressure, backup_inspiratory_time;  // cpap_psv
 };
 
 bool is_simv(const std::string& mode) { return mode == "vc_simv" || mode == "pc_simv"; }
 bool is_assist(const std::string& mode) {
-  return mode == "vc_ac" || mode == "pc_ac" || mode == "cpap_psv" || is_simv(mode);
+  return mode == "vc_ac" || mode == "pc_ac" || mode == "cpap_psv" || mode == "prvc" || is_simv(mode);
 }
 
 DriverFields fields_of(const Driver& driver) {
@@ -72,8 +74,20 @@ DriverFields fields_of(const Driver& driver) {
             f.waveform = d.waveform;
             if (d.pressure_limit_pa > 0.0) f.pressure_limit = d.pressure_limit_pa;
           }
+          if (d.mode == physiology::AssistMode::prvc) {
+            f.tidal_volume = d.tidal_volume_m3;
+            f.pressure_step = d.prvc_step_pa;
+            if (d.pressure_limit_pa > 0.0) f.pressure_limit = d.pressure_limit_pa;
+          }
+          if (d.apnea_time_s > 0.0) {
+            f.apnea_time = d.apnea_time_s;
+            f.backup_rate = d.backup_rate_hz;
+            f.backup_pressure = d.backup_pressure_pa;
+            f.backup_inspiratory_time = d.backup_inspiratory_time_s;
+          }
           if (d.mode != physiology::AssistMode::volume) {
-            if (d.mode == physiology::AssistMode::pressure || d.mode == physiology::AssistMode::simv_pressure)
+            if (d.mode == physiology::AssistMode::pressure || d.mode == physiology::AssistMode::simv_pressure ||
+                d.mode == physiology::AssistMode::prvc)
               f.inspiratory_pressure = d.inspiratory_pressure_pa;
             else if (d.mode == physiology::AssistMode::pressure_support) f.pressure_support = d.inspiratory_pressure_pa;
             f.rise_time = d.rise_time_s;
@@ -118,14 +132,31 @@ bool mode_takes(const std::string& mode, const std::string& key) {
   if (mode == "pc_simv") return key == "inspiratory_pressure" || simv_key;
   if (mode == "pressure_control") return key == "inspiratory_pressure";
   if (mode == "pc_ac") return key == "inspiratory_pressure" || pressure_mode_key;
+  if (mode == "prvc")
+    return key == "inspiratory_pressure" || key == "tidal_volume" || key == "pressure_step" ||
+           key == "pressure_limit" || pressure_mode_key;
+  if (key == "apnea") return mode == "cpap_psv";
   return key == "pressure_support" || pressure_mode_key;  // cpap_psv
 }
 
-const std::vector<std::string> kDriverKeys{
-    "rate",           "ie_ratio",     "inspiratory_time",     "tidal_volume", "muscle_pressure",
-    "pause",          "peep",         "inspiratory_pressure", "waveform",     "rise_time",
-    "pressure_limit", "volume_limit", "pressure_support",     "trigger",      "cycle",
-    "trigger_window"};
+const std::vector<std::string> kDriverKeys{"rate",
+                                           "ie_ratio",
+                                           "inspiratory_time",
+                                           "tidal_volume",
+                                           "muscle_pressure",
+                                           "pause",
+                                           "peep",
+                                           "inspiratory_pressure",
+                                           "waveform",
+                                           "rise_time",
+                                           "pressure_limit",
+                                           "volume_limit",
+                                           "pressure_support",
+                                           "trigger",
+                                           "cycle",
+                                           "trigger_window",
+                                           "pressure_step",
+                                           "apnea"};
 
 // trigger: {flow: 2 L/min} or {pressure: 2 cmH2O}, a positive threshold.
 void read_trigger(const scenario::Node& n, DriverFields& f) {
@@ -253,6 +284,96 @@ void overlay_driver(const scenario::Node& n, const std::string& mode, DriverFiel
   if (n.has("trigger")) read_trigger(n, f);
   if (n.has("cycle")) read_cycle(n, f);
   if (n.has("trigger_window")) f.trigger_window = n.positive_quantity("trigger_window", kind::duration);
+  if (n.has("pressure_step"))
+    f.pressure_step =
+        in_range(n, "pressure_step", n.positive_quantity("pressure_step", kind::pressure), kDriverPressure);
+  if (auto apnea = n.optional_map("apnea")) {
+    // apnea: {time, rate, inspiratory_pressure, inspiratory_time}: the backup's PC-AC breaths.
+    f.apnea_time = apnea->positive_quantity("time", kind::duration);
+    f.backup_rate = in_range(*apnea, "rate", apnea->quantity("rate", kind::rate), kBreathingRate);
+    const double p = apnea->quantity("inspiratory_pressure", kind::pressure);
+    if (!(p >= 0.0)) apnea->fail_at("inspiratory_pressure", "expected a pressure >= 0");
+    f.backup_pressure = in_range(*apnea, "inspiratory_pressure", p, kDriverPressure);
+    const double ti = apnea->positive_quantity("inspiratory_time", kind::duration);
+    if (!(ti < 1.0 / *f.backup_rate))
+      apnea->fail_at("inspiratory_time", fmt::format("expected less than one backup breath (60 / rate = {:g} s), got "
+                                                     "'{}'",
+                                                     1.0 / *f.backup_rate, apnea->string("inspiratory_time")));
+    f.backup_inspiratory_time = ti;
+    apnea->finish();
+  }
+}
+
+// A leak: {flow: 20 L/min, at: 10 cmH2O, law: orifice | linear}: the flow it lets out at that
+// pressure (orifice, the default: Q = k sqrt(P); linear: Q = k P).
+physiology::Leak read_leak(const scenario::Node& n) {
+  physiology::Leak leak;
+  const double flow = n.quantity("flow", kind::flow);
+  if (!(flow >= 0.0 && flow <= 1.0))
+    n.fail_at("flow", "expected a flow from 0 to 60000 L/min, got '" + n.string("flow") + "'");
+  const double at = in_range(n, "at", n.positive_quantity("at", kind::pressure), kDriverPressure);
+  if (n.has("law"))
+    leak.law =
+        n.choice("law", {"orifice", "linear"}) == "linear" ? physiology::LeakLaw::linear : physiology::LeakLaw::orifice;
+  n.finish();
+  leak.coefficient = physiology::leak_coefficient(leak.law, flow, at);
+  return leak;
+}
+
+// circuit: {compliance: 2 mL/cmH2O, resistance: 1 cmH2O*s/L, leak: {...}, patient_leak: {...}},
+// patched key by key over `circuit`.
+physiology::Circuit overlay_circuit(const scenario::Node& n, physiology::Circuit circuit) {
+  auto c = n.optional_map("circuit");
+  if (!c) return circuit;
+  if (auto v = c->optional_quantity("compliance", kind::compliance)) {
+    if (!(*v >= 0.0 && *v <= 0.1 * kLitresPerCmH2O))
+      c->fail_at("compliance",
+                 "expected a tubing compliance from 0 to 100 mL/cmH2O, got '" + c->string("compliance") + "'");
+    circuit.tubing_compliance_m3_per_pa = *v;
+  }
+  if (auto v = c->optional_quantity("resistance", kind::resistance)) {
+    if (!(*v >= 0.0 && *v <= kResistance.hi))
+      c->fail_at("resistance",
+                 "expected a tubing resistance from 0 to 1000 cmH2O*s/L, got '" + c->string("resistance") + "'");
+    circuit.tubing_resistance_pa_s_per_m3 = *v;
+  }
+  if (auto l = c->optional_map("leak")) circuit.port = read_leak(*l);
+  if (auto l = c->optional_map("patient_leak")) circuit.patient = read_leak(*l);
+  c->finish();
+  if (circuit.tubing_compliance_m3_per_pa > 0.0 && !(circuit.tubing_resistance_pa_s_per_m3 > 0.0))
+    c->fail_at(c->has("compliance") ? "compliance" : "resistance",
+               "a tubing compliance fills through the tubing: give the tubing resistance too (such as '1 cmH2O*s/L')");
+  return circuit;
+}
+
+// alarms: {high_pressure, low_pressure, low_tidal_volume, low_minute_volume, disconnection},
+// patched key by key over `alarms`.
+physiology::Alarms overlay_alarms(const scenario::Node& n, physiology::Alarms alarms) {
+  auto a = n.optional_map("alarms");
+  if (!a) return alarms;
+  if (a->has("high_pressure"))
+    alarms.high_pressure_pa =
+        in_range(*a, "high_pressure", a->positive_quantity("high_pressure", kind::pressure), kDriverPressure);
+  if (a->has("low_pressure"))
+    alarms.low_pressure_pa =
+        in_range(*a, "low_pressure", a->positive_quantity("low_pressure", kind::pressure), kDriverPressure);
+  if (a->has("low_tidal_volume"))
+    alarms.low_tidal_volume_m3 =
+        in_range(*a, "low_tidal_volume", a->positive_quantity("low_tidal_volume", kind::volume), kDriverVolume);
+  if (a->has("low_minute_volume"))
+    alarms.low_minute_volume_m3_per_s = a->positive_quantity("low_minute_volume", kind::flow);
+  if (a->has("disconnection")) {
+    const double f = a->quantity("disconnection", kind::fraction);
+    if (!(f > 0.0 && f <= 1.0))
+      a->fail_at("disconnection",
+                 "expected a leak share above 0 and at most 100 %, got '" + a->string("disconnection") + "'");
+    alarms.disconnection_leak_fraction = f;
+  }
+  a->finish();
+  if (alarms.high_pressure_pa > 0.0 && !(alarms.high_pressure_pa > alarms.low_pressure_pa))
+    a->fail_at(a->has("high_pressure") ? "high_pressure" : "low_pressure",
+               "expected the high pressure alarm above the low one");
+  return alarms;
 }
 
 std::string fmt_cmh2o(double pa) {
@@ -277,6 +398,7 @@ physiology::Assisted build_assisted(const scenario::Node& n, const std::string& 
            : mode == "pc_ac"   ? physiology::AssistMode::pressure
            : mode == "vc_simv" ? physiology::AssistMode::simv_volume
            : mode == "pc_simv" ? physiology::AssistMode::simv_pressure
+           : mode == "prvc"    ? physiology::AssistMode::prvc
                                : physiology::AssistMode::pressure_support;
   const bool support = a.mode == physiology::AssistMode::pressure_support;
   const bool simv = physiology::is_simv(a);
@@ -322,6 +444,23 @@ physiology::Assisted build_assisted(const scenario::Node& n, const std::string& 
     a.cycle_fraction = f.cycle_fraction.value_or(0.25);
     if (a.cycle == physiology::CycleKind::volume) a.cycle_volume_m3 = require(n, f.cycle_volume, "cycle", kind::volume);
     a.volume_limit_m3 = f.volume_limit.value_or(0.0);
+  }
+  if (a.mode == physiology::AssistMode::prvc) {
+    a.tidal_volume_m3 = require(n, f.tidal_volume, "tidal_volume", kind::volume);
+    a.prvc_step_pa = f.pressure_step.value_or(3.0 * units::pa_per_cmh2o);
+    a.pressure_limit_pa = f.pressure_limit.value_or(0.0);
+    if (a.pressure_limit_pa > 0.0 && !(a.pressure_limit_pa > a.peep_pa + a.inspiratory_pressure_pa)) {
+      const std::string what = "expected a pressure limit above PEEP + inspiratory_pressure (" +
+                               fmt_cmh2o(a.peep_pa + a.inspiratory_pressure_pa) + " cmH2O), got " +
+                               fmt_cmh2o(a.pressure_limit_pa) + " cmH2O";
+      n.fail_at(n.has("pressure_limit") ? "pressure_limit" : n.has("peep") ? "peep" : "inspiratory_pressure", what);
+    }
+  }
+  if (support && f.apnea_time) {
+    a.apnea_time_s = *f.apnea_time;
+    a.backup_rate_hz = *f.backup_rate;
+    a.backup_pressure_pa = *f.backup_pressure;
+    a.backup_inspiratory_time_s = *f.backup_inspiratory_time;
   }
   return a;
 }
@@ -441,6 +580,27 @@ void overlay_mechanics(const scenario::Node& n, const std::string& model, Mechan
   } else if (initial) {
     n.fail_missing("missing key 'resistance' (expected a resistance such as '2 cmH2O*s/L')");
   }
+  // The single model's expiration: its own resistance, a flow limitation (Starling resistor).
+  for (const char* key : {"expiratory_resistance", "flow_limitation"}) {
+    if (n.has(key) && model != "single") n.fail_at(key, "only the single model takes this");
+  }
+  if (n.has("expiratory_resistance"))
+    m.expiratory_airway_resistance_pa_s_per_m3 = in_range(
+        n, "expiratory_resistance", n.positive_quantity("expiratory_resistance", kind::resistance), kResistance);
+  if (auto f = n.optional_map("flow_limitation")) {
+    m.critical_pressure_pa =
+        in_range(*f, "critical_pressure", f->quantity("critical_pressure", kind::pressure), kDriverPressure);
+    // Upstream of the choke point: by default the whole expiratory resistance.
+    const double expiratory = m.expiratory_airway_resistance_pa_s_per_m3 > 0.0
+                                  ? m.expiratory_airway_resistance_pa_s_per_m3
+                                  : m.airway_resistance_pa_s_per_m3;
+    m.upstream_resistance_pa_s_per_m3 =
+        f->has("upstream_resistance")
+            ? in_range(*f, "upstream_resistance", f->positive_quantity("upstream_resistance", kind::resistance),
+                       kResistance)
+            : expiratory;
+    f->finish();
+  }
 }
 
 // effort: {rate, ie_ratio, muscle_pressure}: the patient's own effort on a ventilated patient,
@@ -490,6 +650,8 @@ const std::vector<std::string> kLumpedKeys{"preset",
                                            "compliance",
                                            "pressure_volume_curve",
                                            "resistance",
+                                           "expiratory_resistance",
+                                           "flow_limitation",
                                            "compartments",
                                            "transpulmonary_pressure_at_rest",
                                            "chest_wall_fraction",
@@ -640,9 +802,16 @@ PhysiologyConfig read_physiology(const scenario::Node& raw_section, double durat
   DriverFields fields;
   overlay_driver(driver_node, mode, fields);
   const Driver driver = build_driver(driver_node, mode, fields);
+  if (!physiology::is_ventilator(driver)) {
+    for (const char* key : {"circuit", "alarms"}) {
+      if (driver_node.has(key)) driver_node.fail_at(key, "a ventilator's setting; the patient breathes spontaneously");
+    }
+  }
+  const physiology::Circuit circuit = overlay_circuit(driver_node, {});
+  const physiology::Alarms alarms = overlay_alarms(driver_node, {});
   driver_node.finish();
   const physiology::PatientEffort effort = overlay_effort(section, {}, driver);
-  out.protocol.settings.push_back(physiology::Setting{0.0, mechanics, driver, effort});
+  out.protocol.settings.push_back(physiology::Setting{0.0, mechanics, driver, effort, circuit, alarms});
 
   // Timed actions, each a patch over the setting before it.
   double previous_time = 0.0;
@@ -676,6 +845,15 @@ PhysiologyConfig read_physiology(const scenario::Node& raw_section, double durat
       next.driver = build_driver(action, next_mode, f);
     }
     overlay_mechanics(action, model, next.mechanics, false);
+    next.circuit = overlay_circuit(action, next.circuit);
+    next.alarms = overlay_alarms(action, next.alarms);
+    if (!physiology::is_ventilator(next.driver)) {
+      next.circuit = {};  // the machine is off the patient
+      next.alarms = {};
+      for (const char* key : {"circuit", "alarms"}) {
+        if (action.has(key)) action.fail_at(key, "a ventilator's setting; the patient breathes spontaneously");
+      }
+    }
     if (action.has("effort") || driver_changed) next.effort = overlay_effort(action, next.effort, next.driver);
     if (next.effort.active() && !physiology::is_ventilator(next.driver))
       action.fail_at(action.has("mode") ? "mode" : "at",

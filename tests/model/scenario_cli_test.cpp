@@ -35,7 +35,7 @@ TEST(SimulateCli, ShippedVentilatorScenariosArePatientTriggered) {
     const std::string breaths = pneuma::test::read_text(dir / "phys-breaths.csv");
     EXPECT_NE(breaths.find(",trigger,trigger_delay_s,cycle,inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,"
                            "intrinsic_peep_cmH2O,missed_triggers,double_trigger,breath_type,expiratory_hold_s,"
-                           "total_peep_cmH2O\n"),
+                           "total_peep_cmH2O,vti_mL,vte_mL,leak_percent,inspiratory_pressure_cmH2O,alarms\n"),
               std::string::npos)
         << name;
     EXPECT_NE(breaths.find(",patient_flow,"), std::string::npos) << name;
@@ -166,10 +166,56 @@ INSTANTIATE_TEST_SUITE_P(
                     "4:15: physiology.compliance: expected a compliance such as '0.1 L/cmH2O', got '0.1 L'"},
         BadScenario{"negative_duration", "duration: -5 s\nphysiology:\n  preset: healthy-adult\n",
                     "1:11: duration: expected a positive duration, got '-5 s'"},
+        // The ventilator at the bedside (#47): circuit, PRVC, apnea backup, alarms, flow limitation.
+        BadScenario{
+            "tubing_without_resistance",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+            "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n"
+            "    circuit: {compliance: 2 mL/cmH2O}\n",
+            "10:27: physiology.driver.circuit.compliance: a tubing compliance fills through the tubing: give "
+            "the tubing resistance too (such as '1 cmH2O*s/L')"},
+        BadScenario{"prvc_limit_below_first_breath",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+                    "    mode: prvc\n    rate: 12 /min\n    inspiratory_time: 1 s\n    peep: 5 cmH2O\n"
+                    "    tidal_volume: 450 mL\n    inspiratory_pressure: 10 cmH2O\n    pressure_limit: 12 cmH2O\n",
+                    "12:21: physiology.driver.pressure_limit: expected a pressure limit above PEEP + "
+                    "inspiratory_pressure (15 cmH2O), got 12 cmH2O"},
+        BadScenario{"apnea_backup_too_long",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+                    "    mode: cpap_psv\n    pressure_support: 8 cmH2O\n    apnea: {time: 20 s, rate: 12 /min, "
+                    "inspiratory_pressure: 10 cmH2O, inspiratory_time: 6 s}\n",
+                    "8:90: physiology.driver.apnea.inspiratory_time: expected less than one backup breath (60 / rate "
+                    "= 5 s), got '6 s'"},
+        BadScenario{
+            "apnea_outside_cpap",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+            "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n"
+            "    apnea: {time: 20 s, rate: 12 /min, inspiratory_pressure: 10 cmH2O, inspiratory_time: 1 s}\n",
+            "10:12: physiology.driver.apnea: not a setting of pc_ac mode"},
+        BadScenario{
+            "disconnection_share",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+            "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n"
+            "    alarms: {disconnection: 120 %}\n",
+            "10:29: physiology.driver.alarms.disconnection: expected a leak share above 0 and at most 100 %, "
+            "got '120 %'"},
+        BadScenario{
+            "leak_law",
+            "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"
+            "    mode: pc_ac\n    rate: 12 /min\n    inspiratory_time: 1 s\n    inspiratory_pressure: 10 cmH2O\n"
+            "    circuit: {leak: {flow: 10 L/min, at: 10 cmH2O, law: turbulent}}\n",
+            "10:57: physiology.driver.circuit.leak.law: expected one of: orifice, linear; got 'turbulent'"},
+        BadScenario{"flow_limitation_two_compartments",
+                    "duration: 20 s\nphysiology:\n  model: two_compartment\n  resistance: 1 cmH2O*s/L\n"
+                    "  compartments:\n    upper: {compliance: 0.02 L/cmH2O, resistance: 5 cmH2O*s/L}\n"
+                    "    lower: {compliance: 0.03 L/cmH2O, resistance: 5 cmH2O*s/L}\n"
+                    "  flow_limitation: {critical_pressure: 8 cmH2O}\n  driver: {mode: pc_ac, rate: 12 /min, "
+                    "inspiratory_time: 1 s, inspiratory_pressure: 10 cmH2O}\n",
+                    "8:20: physiology.flow_limitation: only the single model takes this"},
         BadScenario{"unknown_key", "duration: 20 s\nphysiology:\n  preset: healthy-adult\n  complience: 0.1 L/cmH2O\n",
                     "4:3: physiology.complience: unknown key; expected one of: actions, chest_wall_fraction, "
-                    "compartments, compliance, driver, effort, model, output_rate, preset, pressure_volume_curve, "
-                    "resistance, solver, transpulmonary_pressure_at_rest"},
+                    "compartments, compliance, driver, effort, expiratory_resistance, flow_limitation, model, "
+                    "output_rate, preset, pressure_volume_curve, resistance, solver, transpulmonary_pressure_at_rest"},
         BadScenario{
             "unknown_preset", "duration: 20 s\nphysiology:\n  preset: healthy-martian\n",
             "3:11: physiology.preset: no preset 'healthy-martian' (looked for " PNEUMA_SOURCE_DIR

@@ -82,7 +82,8 @@ TEST(BadInputs, ControlBytesFromTheInputAreQuotedInTheMessage) {
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(r.err, file.string() +
                        ":2:37: physiology.\\x1b[31mred\\x0c: unknown key; expected one of: actions, "
-                       "chest_wall_fraction, compartments, compliance, driver, effort, model, output_rate, preset, "
+                       "chest_wall_fraction, compartments, compliance, driver, effort, expiratory_resistance, "
+                       "flow_limitation, model, output_rate, preset, "
                        "pressure_volume_curve, resistance, solver, transpulmonary_pressure_at_rest\n");
   EXPECT_FALSE(fs::exists(dir / "out"));
 }
@@ -323,7 +324,8 @@ TEST(BadInputs, ANulByteIsQuotedAndTheMessageGoesOn) {
   EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(r.err, file.string() +
                        ":2:37: physiology.ab\\x00cd: unknown key; expected one of: actions, "
-                       "chest_wall_fraction, compartments, compliance, driver, effort, model, output_rate, preset, "
+                       "chest_wall_fraction, compartments, compliance, driver, effort, expiratory_resistance, "
+                       "flow_limitation, model, output_rate, preset, "
                        "pressure_volume_curve, resistance, solver, transpulmonary_pressure_at_rest\n");
   EXPECT_FALSE(fs::exists(dir / "out"));
 }

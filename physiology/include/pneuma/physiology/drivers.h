@@ -62,7 +62,9 @@ struct PressureControl {
 // inside it gets the mandatory breath early (synchronised), after which the next one is due a
 // period after the scheduled time. No trigger in the window: the machine starts the breath at
 // the scheduled time. Every other trigger starts a spontaneous, supported breath.
-enum class AssistMode { volume, pressure, pressure_support, simv_volume, simv_pressure };
+// prvc: pressure-regulated volume control (PRVC, VC+): a PC-AC breath whose inspiratory pressure
+// the machine adjusts breath by breath toward a target tidal volume (see Assisted::prvc_step_pa).
+enum class AssistMode { volume, pressure, pressure_support, simv_volume, simv_pressure, prvc };
 enum class TriggerKind { flow, pressure };
 enum class CycleKind { time, flow, volume };
 enum class FlowWaveform { square, decelerating };  // decelerating: linear ramp from peak to 0
@@ -91,7 +93,58 @@ struct Assisted {
   // kLongestSupportedInspiration_s; the mandatory ones on time.
   double support_pa = 0.0;        // pressure support of the spontaneous breaths, above PEEP
   double trigger_window_s = 0.0;  // the window before each scheduled mandatory breath, (0, 60 / rate]
+  // PRVC: `tidal_volume_m3` is the target, `inspiratory_pressure_pa` the first (test) breath's
+  // pressure. After each breath the pressure moves by dP (VT_target / VTi - 1) (the compliance
+  // the breath measured), bounded to +-prvc_step_pa, within [0, pressure_limit_pa - PEEP].
+  double prvc_step_pa = 0.0;
+  // Apnea backup (cpap_psv): no breath within apnea_time_s of the last breath's start (or of the
+  // mode's start) starts PC-AC breaths on the backup settings until the patient triggers.
+  double apnea_time_s = 0.0;  // 0: no apnea backup
+  double backup_rate_hz = 0.0;
+  double backup_pressure_pa = 0.0;  // above PEEP
+  double backup_inspiratory_time_s = 0.0;
   bool operator==(const Assisted&) const = default;
+};
+
+// The backup ventilation of a cpap_psv driver during apnea: PC-AC, time cycled, same PEEP,
+// trigger and rise time.
+Assisted apnea_backup(const Assisted& a);
+
+// The ventilator circuit between the machine and the patient's airway (the Y-piece):
+// ventilator --Rt-- [Y-piece: tubing compliance Ct, leaks to the atmosphere] -- patient.
+// The patient sees the Y-piece pressure Py; the machine sets its own pressure or flow, and
+// measures the flow it delivers Qv = Qpatient + Qleak + Ct dPy/dt (VTi, VTe, leak %, triggers
+// and cycles on flow).
+enum class LeakLaw { orifice, linear };
+struct Leak {
+  LeakLaw law = LeakLaw::orifice;
+  double coefficient = 0.0;  // orifice: Q = k sqrt(P), m^3/s/Pa^0.5; linear: Q = k P, m^3/s/Pa; 0: none
+  bool operator==(const Leak&) const = default;
+};
+struct Circuit {
+  double tubing_compliance_m3_per_pa = 0.0;
+  double tubing_resistance_pa_s_per_m3 = 0.0;  // needed with a tubing compliance (it fills through it)
+  Leak port;                                   // the circuit's fixed leak (an exhalation port, a vented mask)
+  Leak patient;                                // the mask's or the tube's (ETT cuff) leak
+  bool active() const {
+    return tubing_compliance_m3_per_pa > 0.0 || tubing_resistance_pa_s_per_m3 > 0.0 || port.coefficient > 0.0 ||
+           patient.coefficient > 0.0;
+  }
+  bool operator==(const Circuit&) const = default;
+};
+// Flow out through a leak at a pressure P above the atmosphere (into the circuit below it).
+double leak_flow(const Leak& leak, double pressure_pa);
+// The leak's coefficient that lets `flow` out at `pressure`.
+double leak_coefficient(LeakLaw law, double flow_m3_per_s, double pressure_pa);
+
+// The ventilator's alarm limits (0: off), checked on each completed ventilator breath.
+struct Alarms {
+  double high_pressure_pa = 0.0;             // peak airway pressure above
+  double low_pressure_pa = 0.0;              // peak airway pressure below
+  double low_tidal_volume_m3 = 0.0;          // VTe below
+  double low_minute_volume_m3_per_s = 0.0;   // expired volume over the last minute below
+  double disconnection_leak_fraction = 0.0;  // (VTi - VTe) / VTi at or above: the circuit is open
+  bool operator==(const Alarms&) const = default;
 };
 
 // The longest inspiration of a pressure-supported breath in SIMV (cpap_psv sets its own).
@@ -159,6 +212,7 @@ const char* mode_name(const Driver& driver);
 
 // Throws ValueError naming the first setting that cannot work.
 void validate(const Driver& driver);
+void validate(const Circuit& circuit);
 void validate(const PatientEffort& effort);
 
 }  // namespace pneuma::physiology

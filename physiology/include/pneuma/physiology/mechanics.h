@@ -47,6 +47,18 @@ struct Mechanics {
   // chest wall's share of the respiratory system's elastic recoil (the rest is the lung's).
   double transpulmonary_pressure_at_rest_pa = 490.3325;  // 5 cmH2O
   double chest_wall_fraction = 0.5;
+  // One compartment only: the airway resistance while the flow is out (0: the same as in), and
+  // expiratory flow limitation, a Starling resistor: the airway collapses at its choke point when
+  // the pressure downstream falls below the critical pressure, so the expiratory flow is at most
+  // (Pel - Pcrit) / Rs (Rs: the resistance upstream of the choke point; 0: no limitation), and
+  // none once the recoil is below Pcrit. An airway pressure below Pcrit then no longer changes
+  // the flow out (the waterfall), which is why external PEEP below Pcrit does not add to it.
+  double expiratory_airway_resistance_pa_s_per_m3 = 0.0;
+  double critical_pressure_pa = 0.0;
+  double upstream_resistance_pa_s_per_m3 = 0.0;
+  bool flow_limited() const { return upstream_resistance_pa_s_per_m3 > 0.0; }
+  // Whether expiration differs from inspiration (its own resistance or a flow limitation).
+  bool expiration_differs() const { return expiratory_airway_resistance_pa_s_per_m3 > 0.0 || flow_limited(); }
 };
 
 // Elastic recoil pressure at volume V above the relaxed volume (Pel(0) = 0). The sigmoid
@@ -75,6 +87,7 @@ double flow_rate_of_change(const Mechanics& mechanics, double driving_pressure_r
 double driving_pressure_for_flow(const Mechanics& mechanics, double total_flow_m3_per_s, const double* volumes_m3);
 
 // Pressure at the branching point below the airway (the alveolar pressure of a single model).
+// Not while a flow limitation caps the flow out (the drop is then not R Q): Pel - Pmus there.
 double alveolar_pressure(const Mechanics& mechanics, double airway_pressure_pa, double total_flow_m3_per_s);
 
 }  // namespace pneuma::physiology

@@ -20,6 +20,8 @@ struct Setting {
   Mechanics mechanics;
   Driver driver;
   PatientEffort effort{};  // only with a ventilator driver
+  Circuit circuit{};       // the ventilator's circuit and leaks (none: the machine at the airway)
+  Alarms alarms{};         // the ventilator's alarm limits (none set: no alarm)
 };
 
 // An expiratory hold (a manoeuvre, not a setting): at the first end of expiration at or after
@@ -90,6 +92,13 @@ struct BreathMetrics {
   const char* breath_type = "";    // "mandatory" (machine cycled) or "spontaneous" (pressure support); "" unventilated
   double expiratory_hold_s = 0.0;  // the hold made at the end of this breath's expiration; 0: none
   double total_peep_pa = std::numeric_limits<double>::quiet_NaN();  // airway pressure at the hold's end
+  // What the ventilator measures at its own ports (ventilator breaths): the volume it delivered
+  // during inspiration (VTi: into the patient, the leaks and the tubing) and the volume that came
+  // back during expiration (VTe); without a circuit, the patient's inspired and expired volumes.
+  double vti_m3 = std::numeric_limits<double>::quiet_NaN();
+  double vte_m3 = std::numeric_limits<double>::quiet_NaN();
+  double set_inspiratory_pressure_pa = std::numeric_limits<double>::quiet_NaN();  // pressure breaths: above PEEP
+  std::string alarms;  // the alarms this breath raised, ';'-separated ("high_pressure;low_tidal_volume")
 };
 
 struct SolverStats {
