@@ -103,16 +103,16 @@ class Phases final : public Output {
 void write_phases_csv(const std::filesystem::path& path, const std::vector<double>& time_s,
                       const physiology::PhaseBinning& binning) {
   write_stream_atomically(path, false, [&](std::ostream& out) {
-    out << "bin,phase_percent,frames,mean_volume_mL,min_volume_mL,max_volume_mL,cycles,times_s\n";
+    out << "bin,phase_percent,frames,cycle_count,mean_volume_mL,min_volume_mL,max_volume_mL,cycles,times_s\n";
     for (std::size_t b = 0; b < binning.bins.size(); ++b) {
       const physiology::PhaseBin& bin = binning.bins[b];
       std::vector<std::string> cycles, times;
       for (std::size_t c : bin.cycles) cycles.push_back(std::to_string(c + 1));
       for (std::size_t k : bin.samples) times.push_back(fmt::format("{:.6f}", time_s[k]));
       auto ml = [](double m3) { return std::isfinite(m3) ? fmt::format("{:.6g}", m3 * 1e6) : std::string(); };
-      out << fmt::format("{},{:.6g},{},{},{},{},{},{}\n", b, bin.centre_percent, bin.samples.size(),
-                         ml(bin.mean_volume_m3), ml(bin.min_volume_m3), ml(bin.max_volume_m3), joined(cycles),
-                         joined(times));
+      out << fmt::format("{},{:.6g},{},{},{},{},{},{},{}\n", b, bin.centre_percent, bin.samples.size(),
+                         bin.cycles.size(), ml(bin.mean_volume_m3), ml(bin.min_volume_m3), ml(bin.max_volume_m3),
+                         joined(cycles), joined(times));
     }
   });
 }

@@ -231,7 +231,13 @@ TEST(Tissue, SlidingIsReadInUnitsOfTheDiaphragmsDescent) {
   EXPECT_DOUBLE_EQ(slide.sliding.exponent, 0.5);
   EXPECT_DOUBLE_EQ(slide.sliding.anterior, 0.5);
   EXPECT_DOUBLE_EQ(slide.sliding.mediastinal, 0.0);
-  EXPECT_FALSE(preset("healthy-supine").sliding.active());
+  EXPECT_TRUE(slide.sliding.active());
+  EXPECT_FALSE(preset("healthy-upright").sliding.active());
+  // One supine preset (#45): healthy-supine-slide is its former name.
+  const Tissue supine = preset("healthy-supine");
+  EXPECT_EQ(supine.name, "healthy-supine");
+  EXPECT_EQ(slide.name, "healthy-supine");
+  EXPECT_DOUBLE_EQ(supine.sliding.caudal, slide.sliding.caudal);
 }
 
 TEST(Tissue, BadFilesAreOneLine) {

@@ -461,8 +461,8 @@ outputs:
     std::string cell;
     std::vector<std::string> row;
     while (std::getline(cells, cell, ',')) row.push_back(cell);
-    ASSERT_EQ(row.size(), 8u) << line;
-    std::stringstream times(row[7]);
+    ASSERT_EQ(row.size(), 9u) << line;
+    std::stringstream times(row[8]);
     for (double t = 0; times >> t;) expected[static_cast<std::size_t>(std::lround(t * 10.0))] = std::stoi(row[0]);
   }
   for (std::size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(bin_of_frame[k].get<int>(), expected[k]) << k;

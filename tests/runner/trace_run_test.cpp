@@ -91,15 +91,17 @@ TEST(TraceRun, FrameVolumesFollowTheCalibratedAmplitudeWithinHalfAPercent) {
   std::ifstream csv(dir / "out/phases.csv");
   std::string line;
   std::getline(csv, line);
-  EXPECT_EQ(line, "bin,phase_percent,frames,mean_volume_mL,min_volume_mL,max_volume_mL,cycles,times_s");
+  EXPECT_EQ(line, "bin,phase_percent,frames,cycle_count,mean_volume_mL,min_volume_mL,max_volume_mL,cycles,times_s");
   int rows = 0, total_frames = 0;
   while (std::getline(csv, line)) {
     std::istringstream fields(line);
-    std::string bin, percent, frames, mean;
+    std::string bin, percent, frames, cycle_count, mean;
     std::getline(fields, bin, ',');
     std::getline(fields, percent, ',');
     std::getline(fields, frames, ',');
+    std::getline(fields, cycle_count, ',');
     std::getline(fields, mean, ',');
+    EXPECT_EQ(std::stoi(cycle_count), 4) << line;  // every bin from each of the 4 cycles
     EXPECT_EQ(std::stoi(bin), rows);
     EXPECT_NEAR(std::stod(percent), 10.0 * rows, 1e-9);
     // 4 cycles (peaks at 1.85 ... 16.65 s), each 3.7 frames a bin: 3 or 4 frames of each.
@@ -265,7 +267,7 @@ outputs: {phases: {bins: 8, surfaces: false}, report: false, gltf: false, hdf5: 
   while (std::getline(csv, line)) {
     std::istringstream fields(line);
     std::string cell;
-    for (int c = 0; c < 4; ++c) std::getline(fields, cell, ',');
+    for (int c = 0; c < 5; ++c) std::getline(fields, cell, ',');
     means.push_back(std::stod(cell));
   }
   ASSERT_EQ(means.size(), 8u);

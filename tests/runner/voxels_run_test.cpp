@@ -276,8 +276,8 @@ TEST(VoxelsRun, EachPhaseBinGetsItsFieldsAndLabelMapAtItsMeanVolume) {
       std::vector<std::string> cells;
       std::stringstream ss(line);
       for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
-      ASSERT_GE(cells.size(), 4u) << line;
-      mean_mL.push_back(std::stod(cells[3]));
+      ASSERT_GE(cells.size(), 5u) << line;
+      mean_mL.push_back(std::stod(cells[4]));
     }
   }
   ASSERT_EQ(mean_mL.size(), 4u);
@@ -403,3 +403,36 @@ TEST_P(CtVoxels, TheWarpedLobesFollowThePhysiologysVolume) {
 
 INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtVoxels,
                          ::testing::Values("case004", "case005", "case006", "case007", "case008", "case009"));
+
+// A phase set is never silently empty: a run too short for one whole cycle (end-inspiration to
+// end-inspiration; 2 s of 15 /min breathing holds one peak) is one line naming the key that asked
+// for the bins, exit 3, and nothing written. Eight seconds at 12 /min hold one cycle now (the
+// second peak counts once the volume has turned back from it).
+TEST(VoxelsRun, APhaseSetWithoutAWholeCycleIsRefused) {
+  TempDir dir;
+  std::string text = kPhantom;
+  text.replace(text.find("duration: 4 s"), 13, "duration: 2 s");
+  const std::string voxels = "voxels: {at: [end_expiration, end_inspiration, 1 s], spacing: 3 mm}";
+  for (const auto& [outputs, key] : {std::pair<std::string, std::string>{"phases: {bins: 10}", "outputs.phases"},
+                                     {"voxels: {at: [phases], spacing: 3 mm}", "outputs.voxels.at"}}) {
+    std::string with = text;
+    with.replace(with.find(voxels), voxels.size(), outputs);
+    const auto scenario = dir.write("short.yaml", with);
+    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
+    EXPECT_EQ(r.exit_code, 3) << key;
+    EXPECT_EQ(r.err, scenario.string() + ": " + key +
+                         ": the 2 s run holds no whole breathing cycle, end-inspiration to end-inspiration, to bin "
+                         "into phases; expected a longer duration, two breaths at least\n");
+    EXPECT_TRUE(!std::filesystem::exists(dir / "out") || std::filesystem::is_empty(dir / "out")) << key;
+  }
+  // 8 s at 12 /min: one whole cycle, ten bins.
+  const auto eight =
+      dir.write("eight.yaml", std::string("name: eight\nduration: 8 s\nframes: {rate: 10 Hz}\n") +
+                                  "mesh: {phantom: right, edge: 8 mm}\n"
+                                  "physiology: {preset: healthy-adult}\n"
+                                  "outputs: {gltf: false, hdf5: false, report: false, phases: {bins: 10}}\n");
+  const auto r = run_pneuma({"run", eight.string(), "-o", (dir / "eight").string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto manifest = nlohmann::json::parse(pneuma::test::read_text(dir / "eight/manifest.json"));
+  EXPECT_EQ(manifest.at("facts").at("phases.cycles").get<std::string>(), "1");
+}
