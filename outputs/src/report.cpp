@@ -110,9 +110,12 @@ void add_series(Json& data, const physiology::SimulationResult& result, std::siz
       {"muscle", &s.muscle_pressure_pa},
   }};
   std::vector<std::string> pressure_keys;
+  bool pressures_vary = false;
   for (const auto& [name, values] : pressures) {
     // A measured trace knows no pressures but the airway's (NaN): no curve rather than a false one.
     if (std::none_of(values->begin(), values->end(), [](double p) { return std::isfinite(p); })) continue;
+    const auto [lo, hi] = std::minmax_element(values->begin(), values->end());
+    pressures_vary = pressures_vary || *lo != *hi;
     const std::string key = std::string(name) + "_pressure_cmH2O";
     columns[key] = column(*values, kCmH2O, 4);
     labels[key] = name;
@@ -123,8 +126,10 @@ void add_series(Json& data, const physiology::SimulationResult& result, std::siz
   data["plots"] = Json::array({
       Json{{"title", "Volume above FRC"}, {"unit", "mL"}, {"columns", volumes}},
       Json{{"title", "Flow"}, {"unit", "L/s"}, {"columns", {"flow_L_per_s"}}},
-      Json{{"title", "Pressures"}, {"unit", "cmH2O"}, {"columns", pressure_keys}},
   });
+  // No empty or flat panel: a measured trace knows no pressure but the open airway's 0.
+  if (pressures_vary)
+    data["plots"].push_back(Json{{"title", "Pressures"}, {"unit", "cmH2O"}, {"columns", pressure_keys}});
   // Ventilated runs: the pressure-volume and flow-volume loops of the breath under the cursor.
   const bool ventilated = std::any_of(result.breaths.begin(), result.breaths.end(),
                                       [](const physiology::BreathMetrics& b) { return *b.trigger != '\0'; });

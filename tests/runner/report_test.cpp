@@ -3,6 +3,7 @@
 #define TINYGLTF_NO_STB_IMAGE
 #define TINYGLTF_NO_STB_IMAGE_WRITE
 #define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 
@@ -11,6 +12,7 @@
 #include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 
 #include "pneuma/outputs/report.h"
@@ -254,6 +256,36 @@ TEST(Report, EmbedsTheRunsGlbAndEveryPhysiologySample) {
   EXPECT_NEAR(std::stod(manifest["facts"].at("motion.diaphragmatic.volume_share_pct").get<std::string>()),
               table["regions"][2]["volume_share_pct"].get<double>(), 0.006);
   EXPECT_EQ(table["regions"][2]["name"], "diaphragmatic");
+}
+
+// No empty panel: the lumped model's run plots its pressures; a measured trace, which knows none but
+// the open airway's flat 0, gets no pressure panel at all.
+TEST(Report, ATraceRunShowsNoPanelItHasNoDataFor) {
+  TempDir dir;
+  std::string trace = "time_s,amplitude_cm\n";
+  for (int k = 0; k <= 12 * 25; ++k) {
+    const double t = k / 25.0;
+    trace += fmt::format("{:.2f},{:.6f}\n", t, 1.0 + 0.5 * (1.0 - std::cos(std::numbers::pi * t / 2.0)));
+  }
+  dir.write("trace.csv", trace);
+  const auto scenario = dir.write(
+      "trace.yaml", "name: trace\nduration: 10 s\nframes: {rate: 10 Hz}\nmesh: {phantom: right, edge: 12 mm}\n"
+                    "physiology:\n  driver: {mode: trace, file: trace.csv, calibration: {tidal_volume: 500 mL}}\n"
+                    "outputs: {hdf5: false}\n");
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "trace").string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::vector<std::string> titles;
+  const Page trace_page = read_page(dir / "trace/report.html");
+  for (const auto& plot : trace_page.data["plots"]) titles.push_back(plot["title"]);
+  EXPECT_EQ(titles, (std::vector<std::string>{"Volume above FRC", "Flow"}));
+
+  const auto lumped = dir.write("small.yaml", small_scenario("{hdf5: false}"));
+  ASSERT_EQ(run_pneuma({"run", lumped.string(), "-o", (dir / "lumped").string(), "--quiet"}).exit_code, 0);
+  const Page lumped_page = read_page(dir / "lumped/report.html");
+  const auto& plots = lumped_page.data["plots"];
+  ASSERT_EQ(plots.size(), 3u);
+  EXPECT_EQ(plots[2]["title"], "Pressures");
+  EXPECT_EQ(plots[2]["columns"].size(), 4u);  // airway, alveolar, pleural, muscle
 }
 
 TEST(Report, WithoutGltfOutputEmbedsTheSameGlbAndDecimatesLongSeries) {
