@@ -215,14 +215,15 @@ class VoxelsOutput final : public Output {
     std::optional<std::size_t> frame;  // none for a bin
     std::vector<double> scales;        // per model lung
     double volume_m3 = 0.0;            // the physiology's volume above FRC
-    double lung_change_m3 = 0.0;       // the lungs' volume change from end-expiration (their shares of it)
+    double lung_change_m3 = 0.0;       // the lungs' volume change from the scan's (their shares of it)
   };
 
   // The frames asked for, then (with `phases` in `at`) the non-empty bins of the run's binning.
   std::vector<VoxelPoint> points(const model::Model& model, const RunRecord& run) const {
     const auto& series = run.drive->series;
-    const std::size_t rest_frame = lowest_volume_frame(series.volume_m3);
-    // Lung i's volume change from the rest frame, averaged over `frames`.
+    // The lungs' volume change from the scan's (the rest label map shows each lung at its
+    // reference volume, mesh.reference_volume: the volume the rest mesh stands for), averaged
+    // over `frames`: the lungs' shares of it.
     auto lung_change = [&](const std::vector<std::size_t>& frames) {
       double change = 0.0;
       for (const model::LungModel& lung : model.lungs) {
@@ -230,7 +231,7 @@ class VoxelsOutput final : public Output {
         double mean = 0.0;
         for (const std::size_t k : frames) mean += volume[k];
         mean /= static_cast<double>(frames.size());
-        change += lung.share * (mean - volume[rest_frame]);
+        change += lung.share * (mean - lung.reference_volume_m3);
       }
       return change;
     };

@@ -471,3 +471,44 @@ TEST(VoxelsRun, TheShippedPhaseExampleMakesAFullTenPhaseSet) {
       EXPECT_TRUE(std::filesystem::exists(dir / "out/voxels" / (kind + row.time_point + ".nii.gz"))) << kind;
   }
 }
+
+// A scan taken 150 mL above FRC (mesh.reference_volume): the rest label map stands for that
+// volume, so each time point expects the lung's share of 150 mL less lung than the same run with
+// the scan at FRC (the rest shape is the same; only what it stands for moved), and the warped
+// map holds it.
+TEST(VoxelsRun, TheScansVolumeIsTheReferenceOfTheExpectedVolumes) {
+  TempDir dir;
+  auto run = [&](const std::string& name, const std::string& reference) {
+    std::string text = kPhantom;
+    text.replace(text.find("edge: 8 mm}"), 11, "edge: 8 mm" + reference + "}");
+    const auto scenario = dir.write(name + ".yaml", text);
+    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / name).string(), "--quiet"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return read_voxels_csv(dir / name / "voxels/voxels.csv");
+  };
+  const auto at_frc = run("frc", "");
+  const auto above = run("above", ", reference_volume: 150 mL");
+  ASSERT_EQ(at_frc.size(), 3u);
+  ASSERT_EQ(above.size(), 3u);
+  // The lung's share of the breath, from the run at FRC (expected = rest + share V).
+  std::stringstream csv(pneuma::test::read_text(dir / "frc/voxels/voxels.csv"));
+  std::string line;
+  std::getline(csv, line);
+  std::vector<double> physiology_mL;  // the column physiology_volume_mL
+  while (std::getline(csv, line)) {
+    std::stringstream cells(line);
+    std::string cell;
+    for (int c = 0; c <= 4; ++c) std::getline(cells, cell, ',');
+    physiology_mL.push_back(std::stod(cell));
+  }
+  ASSERT_EQ(physiology_mL.size(), 3u);
+  const double share = (at_frc[1].expected_mL - at_frc[0].expected_mL) / (physiology_mL[1] - physiology_mL[0]);
+  EXPECT_GT(share, 0.3);
+  EXPECT_LE(share, 1.0);
+  for (std::size_t k = 0; k < 3; ++k) {
+    EXPECT_EQ(above[k].time_point, at_frc[k].time_point);
+    EXPECT_NEAR(at_frc[k].expected_mL - above[k].expected_mL, share * 150.0, 0.05) << above[k].time_point;  // 6 digits
+    EXPECT_NEAR(above[k].warped_mL / above[k].expected_mL, 1.0, 0.02) << above[k].time_point;
+    EXPECT_GT(above[k].min_jacobian, 0.0) << above[k].time_point;
+  }
+}
