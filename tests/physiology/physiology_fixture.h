@@ -29,4 +29,32 @@ inline physiology::Protocol just(const physiology::Mechanics& m, const physiolog
   return physiology::Protocol{{physiology::Setting{0.0, m, d}}};
 }
 
+// An assisted ventilator in pressure (or pressure-support) `mode`: rate, inspiratory pressure
+// above PEEP, inspiratory time and PEEP; flow trigger at 2 L/min.
+inline physiology::Assisted pressure_mode(physiology::AssistMode mode, double rate_hz, double dp_pa, double ti_s,
+                                          double peep_pa) {
+  physiology::Assisted a;
+  a.mode = mode;
+  a.rate_hz = rate_hz;
+  a.inspiratory_pressure_pa = dp_pa;
+  a.inspiratory_time_s = ti_s;
+  a.peep_pa = peep_pa;
+  a.trigger_threshold = 2 * kLitre / 60;
+  return a;
+}
+
+// Volume control: rate, tidal volume, inspiratory time, end-inspiratory pause and PEEP; flow
+// trigger at 2 L/min.
+inline physiology::Assisted vc_ac(double rate_hz, double vt_m3, double ti_s, double pause_s, double peep_pa) {
+  physiology::Assisted a;
+  a.mode = physiology::AssistMode::volume;
+  a.rate_hz = rate_hz;
+  a.tidal_volume_m3 = vt_m3;
+  a.inspiratory_time_s = ti_s;
+  a.pause_time_s = pause_s;
+  a.peep_pa = peep_pa;
+  a.trigger_threshold = 2 * kLitre / 60;
+  return a;
+}
+
 }  // namespace pneuma::test

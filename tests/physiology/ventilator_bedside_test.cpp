@@ -16,26 +16,7 @@ namespace {
 double relative_error(double actual, double expected) { return std::abs(actual - expected) / std::abs(expected); }
 
 Assisted pc_ac(double rate_hz, double dp_pa, double ti_s, double peep_pa) {
-  Assisted a;
-  a.mode = AssistMode::pressure;
-  a.rate_hz = rate_hz;
-  a.inspiratory_pressure_pa = dp_pa;
-  a.inspiratory_time_s = ti_s;
-  a.peep_pa = peep_pa;
-  a.trigger_threshold = 2 * kLitre / 60;
-  return a;
-}
-
-Assisted vc_ac(double rate_hz, double vt_m3, double ti_s, double pause_s, double peep_pa) {
-  Assisted a;
-  a.mode = AssistMode::volume;
-  a.rate_hz = rate_hz;
-  a.tidal_volume_m3 = vt_m3;
-  a.inspiratory_time_s = ti_s;
-  a.pause_time_s = pause_s;
-  a.peep_pa = peep_pa;
-  a.trigger_threshold = 2 * kLitre / 60;
-  return a;
+  return pressure_mode(AssistMode::pressure, rate_hz, dp_pa, ti_s, peep_pa);
 }
 
 Protocol with_circuit(const Mechanics& m, const Driver& d, const Circuit& c, const Alarms& alarms = {}) {

@@ -27,29 +27,6 @@ double bisect(const std::function<double(double)>& f, double a, double b) {
   return 0.5 * (a + b);
 }
 
-Assisted vc_ac(double rate_hz, double vt_m3, double ti_s, double pause_s, double peep_pa) {
-  Assisted a;
-  a.mode = AssistMode::volume;
-  a.rate_hz = rate_hz;
-  a.tidal_volume_m3 = vt_m3;
-  a.inspiratory_time_s = ti_s;
-  a.pause_time_s = pause_s;
-  a.peep_pa = peep_pa;
-  a.trigger_threshold = 2 * kLitre / 60;
-  return a;
-}
-
-Assisted pressure_mode(AssistMode mode, double rate_hz, double dp_pa, double ti_s, double peep_pa) {
-  Assisted a;
-  a.mode = mode;
-  a.rate_hz = rate_hz;
-  a.inspiratory_pressure_pa = dp_pa;
-  a.inspiratory_time_s = ti_s;
-  a.peep_pa = peep_pa;
-  a.trigger_threshold = 2 * kLitre / 60;
-  return a;
-}
-
 Protocol with_effort(const Mechanics& m, const Driver& d, PatientEffort effort) {
   return Protocol{{Setting{0.0, m, d, effort}}};
 }
