@@ -93,13 +93,16 @@ void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, Displacem
   field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
   detail::rasterize(
       grid, std::span<const detail::TetSet>(sets), field.lung,
-      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t i, std::size_t j,
-          std::size_t k) {
-        const mesh::TetMesh& mesh = lungs[s].mesh;
-        const mesh::Tetrahedron& tet = mesh.tets[t];
-        Eigen::Vector3d rest = Eigen::Vector3d::Zero();
-        for (std::size_t c = 0; c < 4; ++c) rest += l[static_cast<Eigen::Index>(c)] * mesh.nodes[tet[c]];
-        field.displacement_m[v] = rest - grid.centre_m(i, j, k);
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
+          std::size_t) {
+        // x = sum l_c (rest_c + s U_c), so the rest point is x - s sum l_c U_c: v = -s sum l_c U_c,
+        // the same inverse without cancelling coordinates against each other (a time point at rest,
+        // s = 0, is an exact zero field, not rounding noise).
+        const LungMotion& lung = lungs[s];
+        const mesh::Tetrahedron& tet = lung.mesh.tets[t];
+        Eigen::Vector3d u = Eigen::Vector3d::Zero();
+        for (std::size_t c = 0; c < 4; ++c) u += l[static_cast<Eigen::Index>(c)] * lung.unit_displacement_m[tet[c]];
+        field.displacement_m[v] = -(lung.scale * u);
       },
       [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
 }
