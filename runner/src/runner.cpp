@@ -1,6 +1,7 @@
 #include "pneuma/runner/runner.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -68,6 +69,11 @@ std::vector<std::pair<std::string, std::string>> run_facts(const scenario::Scena
     facts.emplace_back(prefix + "rest_volume_m3", fmt::format("{:.9g}", lung.volume_map.volume(0.0)));
     facts.emplace_back(prefix + "rest_area_m2", fmt::format("{:.9g}", lung.rest_area_m2));
     facts.emplace_back(prefix + "scale_range", fmt::format("{:.9g} .. {:.9g}", scales.min_scale, scales.max_scale));
+    if (!lung.label_values.empty()) {
+      facts.emplace_back(
+          prefix + "touches_label_map_edge",
+          lung.label_map_edges.empty() ? "no" : fmt::format("{}", fmt::join(lung.label_map_edges, ", ")));
+    }
     if (model.two_lungs()) {
       facts.emplace_back(prefix + "share", fmt::format("{:.9g}", lung.share));
       if (lung.compartment >= 0) facts.emplace_back(prefix + "compartment", s.mesh.lungs[i].compartment_name);
