@@ -75,6 +75,15 @@ TEST(CohortInput, EveryProblemIsOneLineBeforeAnyWork) {
       {"subjects: {a/b: {mesh: {phantom: right}}}\n" + scenarios,
        "<file>:1:17: subjects.a/b: expected a subject id of letters, digits, '.', '_' and '-' (a folder name), got "
        "'a/b'"},
+      // Snakemake 7.21 refuses a wildcard ending in one piece repeated 20 times (19 pass, tested below).
+      {"subjects: {xaaaaaaaaaaaaaaaaaaaa: {mesh: {phantom: right}}}\n" + scenarios,
+       "<file>:1:35: subjects.xaaaaaaaaaaaaaaaaaaaa: expected a subject id that does not end in one piece repeated 20 "
+       "times or more (Snakemake stops the cohort for it), got 'xaaaaaaaaaaaaaaaaaaaa'"},
+      {"subjects: {a: {mesh: {phantom: right}}}\nscenarios: {q-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab: "
+       "scenarios/quiet.yaml}\n",
+       "<file>:2:76: scenarios.q-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab: expected a scenario id that "
+       "does not end in one piece repeated 20 times or more (Snakemake stops the cohort for it), got "
+       "'q-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab'"},
       {"subjects: {a: {mesh: {phantom: right}}}\nscenarios: {quiet: scenarios/none.yaml}\n",
        "<file>:2:20: scenarios.quiet: no such scenario file: <dir>/scenarios/none.yaml"},
       {"subjects: {a: {mesh: {phantom: middle}}}\n" + scenarios,
@@ -99,6 +108,33 @@ TEST(CohortInput, EveryProblemIsOneLineBeforeAnyWork) {
     EXPECT_EQ(r.err.rfind(file.string() + ":", 0), 0u) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_FALSE(fs::exists(out)) << "nothing is written for a cohort that does not load: " << c.cohort;
+  }
+}
+
+// The id rule against Snakemake itself: each id, as a wildcard of a one-rule workflow, passes
+// `snakemake --dry-run` exactly when the cohort loader accepts it as a subject id.
+TEST(CohortInput, AnIdIsRefusedExactlyWhenSnakemakeWouldStopForIt) {
+  SKIP_WITHOUT_SNAKEMAKE();
+  TempDir dir;
+  write_scenarios(dir);
+  dir.write("Snakefile", "rule all:\n    input: f\"out/{config['id']}.txt\"\n"
+                         "rule one:\n    output: \"out/{id}.txt\"\n    shell: \"touch {output}\"\n");
+  const std::string a19(19, 'a'), a20(20, 'a');
+  std::string ab19 = "q", ab20;
+  for (int i = 0; i < 19; ++i) ab19 += "-ab";
+  ab20 = ab19 + "-ab";
+  for (const std::string& id : {"x" + a19, "x" + a20, a20 + "b", a20 + a20, ab19, ab20, std::string("case004")}) {
+    const auto snakemake =
+        run_program(find_program({"snakemake"}), {"--dry-run", "--quiet", "--snakefile", (dir / "Snakefile").string(),
+                                                  "--directory", dir.path().string(), "--config", "id=" + id});
+    bool loads = true;
+    try {
+      pneuma::cohort::load_cohort(dir.write(
+          "ids.yaml", "subjects: {" + id + ": {mesh: {phantom: right}}}\nscenarios: {quiet: scenarios/quiet.yaml}\n"));
+    } catch (const pneuma::InputError&) {
+      loads = false;
+    }
+    EXPECT_EQ(loads, snakemake.exit_code == 0) << id << ": " << snakemake.err;
   }
 }
 
