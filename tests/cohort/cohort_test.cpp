@@ -14,6 +14,7 @@
 
 #include "cohort_fixture.h"
 #include "pneuma/cohort/cohort.h"
+#include "pneuma/cohort/summary.h"
 #include "pneuma/cohort/workflow.h"
 #include "pneuma/core/markup.h"
 #include "pneuma/core/staged_output.h"
@@ -136,6 +137,48 @@ TEST(CohortInput, AnIdIsRefusedExactlyWhenSnakemakeWouldStopForIt) {
     }
     EXPECT_EQ(loads, snakemake.exit_code == 0) << id << ": " << snakemake.err;
   }
+}
+
+// cohort.html names every dot: each circle carries a <title> with its subject, scenario and value,
+// and a class whose colour the legend gives its subject; the tables scroll in their own box.
+// Oracle: the rows handed in (every value of every row is one dot of its metric's plot).
+TEST(CohortSummary, EveryDotIsNamedAndTheTableScrollsInItsBox) {
+  TempDir dir;
+  const std::vector<std::string> subjects = {"case006", "case<9>", "phantom"};
+  std::vector<pneuma::cohort::Row> rows;
+  const std::size_t columns = pneuma::cohort::summary_columns().size();
+  for (std::size_t i = 0; i < subjects.size(); ++i) {
+    for (const std::string scenario : {"quiet", "deep"}) {
+      pneuma::cohort::Row r{subjects[i], scenario, "ok", 0, "", "", "", {}};
+      r.values.reserve(columns);
+      for (std::size_t c = 0; c < columns; ++c) r.values.emplace_back(100.0 * static_cast<double>(i) + 1.5);
+      rows.push_back(std::move(r));
+    }
+  }
+  pneuma::cohort::write_summary(dir.path(), "dots", rows);
+  const std::string html = read_text(dir / "cohort.html");
+  const auto count = [&](const std::string& what) {
+    std::size_t n = 0;
+    for (auto at = html.find(what); at != std::string::npos; at = html.find(what, at + 1)) ++n;
+    return n;
+  };
+  std::size_t plots = count("<svg");
+  ASSERT_GE(plots, 8u);
+  EXPECT_EQ(count("<circle"), plots * rows.size());
+  EXPECT_EQ(count("<title>"), 1 + plots * rows.size());  // the page's own title, then one per dot
+  for (std::size_t i = 0; i < subjects.size(); ++i) {
+    const std::string name = pneuma::escape_markup(subjects[i]);
+    // Its dots in each scenario (every value of a row is the same), in its colour, and its legend entry.
+    for (const std::string scenario : {"quiet", "deep"}) {
+      EXPECT_NE(html.find(fmt::format("class=\"point s{}\"><title>{} ({}): {}</title>", i, name, scenario,
+                                      100.0 * static_cast<double>(i) + 1.5)),
+                std::string::npos)
+          << name << " " << scenario;
+    }
+    EXPECT_NE(html.find(fmt::format("<span class=\"dot s{}\"></span>{}</span>", i, name)), std::string::npos) << name;
+  }
+  EXPECT_NE(html.find("<div class=\"scroll\"><table>"), std::string::npos);
+  EXPECT_NE(html.find(".scroll{overflow-x:auto"), std::string::npos);
 }
 
 // The plan: one field per subject and tissue, shared by the scenarios that ask for it.
