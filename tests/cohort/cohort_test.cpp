@@ -433,6 +433,28 @@ TEST(CohortLocal, DryRunListsTheJobsAndRunsNone) {
   EXPECT_EQ(read_text(dir / "out/.cohort/Snakefile"), read_text(PNEUMA_SNAKEFILE_SOURCE));
 }
 
+// A workflow Snakemake refuses (here a Snakefile it cannot parse) on a first run: the cohort
+// fails and leaves the folder as it found it, absent or holding only what it held.
+TEST(CohortLocal, AWorkflowSnakemakeRefusesLeavesTheFolderAsItWas) {
+  SKIP_WITHOUT_SNAKEMAKE();
+  TempDir dir;
+  write_scenarios(dir);
+  const fs::path cohort = write_cohort(dir, "refused", {{"a", kPhantom}});
+  const fs::path snakefile = dir.write("Broken", "rule all:\n    input: [\n");
+  for (const bool dry : {true, false}) {
+    std::vector<std::string> extra = {"--snakefile", snakefile.string()};
+    if (dry) extra.emplace_back("--dry-run");
+    const auto r = run_cohort(cohort, dir / "out", extra);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "out")) << r.err;
+    dir.write("kept/notes.txt", "mine");
+    EXPECT_EQ(run_cohort(cohort, dir / "kept", extra).exit_code, 1);
+    std::vector<std::string> left;
+    for (const auto& e : fs::directory_iterator(dir / "kept")) left.push_back(e.path().filename().string());
+    EXPECT_EQ(left, std::vector<std::string>{"notes.txt"});
+  }
+}
+
 // A second cohort into a folder in use stops at once; the first is not disturbed.
 TEST(CohortLocal, TheSameFolderTwiceAtOnceIsRefused) {
   SKIP_WITHOUT_SNAKEMAKE();
