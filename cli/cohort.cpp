@@ -62,7 +62,8 @@ void run_cohort(const CohortCommandOptions& o) {
   const int status = cohort::run_workflow(c, plan, w);
   if (o.dry_run) {
     if (status != 0)
-      throw Error(ExitCode::failure, fmt::format("pneuma: cohort: snakemake --dry-run failed (exit {})", status));
+      throw Error(ExitCode::failure,
+                  fmt::format("pneuma: cohort: snakemake --dry-run failed (exit {}); its lines above say why", status));
     return;
   }
   const std::vector<cohort::Row> rows = cohort::read_rows(o.output, plan);

@@ -27,10 +27,28 @@ bool valid_id(const std::string& id) {
   });
 }
 
+// Snakemake 7.21 stops the whole workflow (PeriodicWildcardError, before any job) for a wildcard
+// value that ends in one piece repeated 20 times or more ("aaaaaaaaaaaaaaaaaaaa", "x-ab-ab-...-ab"):
+// its guard against a rule feeding itself (snakemake/io.py, PeriodicityDetector).
+constexpr std::size_t kSnakemakeRepeats = 20;
+bool ends_in_repeats(const std::string& id) {
+  for (std::size_t period = 1; period * kSnakemakeRepeats <= id.size(); ++period) {
+    bool periodic = true;
+    for (std::size_t i = id.size() - period * kSnakemakeRepeats; i + period < id.size() && periodic; ++i)
+      periodic = id[i] == id[i + period];
+    if (periodic) return true;
+  }
+  return false;
+}
+
 void check_id(const scenario::Node& node, const std::string& key, const char* what) {
   if (!valid_id(key))
     node.fail_at(
         key, fmt::format("expected a {} id of letters, digits, '.', '_' and '-' (a folder name), got '{}'", what, key));
+  if (ends_in_repeats(key))
+    node.fail_at(key, fmt::format("expected a {} id that does not end in one piece repeated {} times or more "
+                                  "(Snakemake stops the cohort for it), got {}",
+                                  what, kSnakemakeRepeats, quote_input(key)));
 }
 
 // The mesh keys that describe the surface: a subject's `mesh:` replaces these of the scenario's
@@ -116,7 +134,7 @@ std::string field_variant_key(const scenario::Scenario& s) {
 
 std::string variant_name(const scenario::Scenario& s) {
   std::string name = s.field.tissue_file.stem().string();
-  if (!valid_id(name)) name = "field";
+  if (!valid_id(name) || ends_in_repeats(name)) name = "field";
   return name;
 }
 

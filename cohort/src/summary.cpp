@@ -221,8 +221,16 @@ struct PlotMetric {
 
 // One metric across subjects: a row per scenario, each subject a point (linking to its run's
 // report.html, its name and value in the tooltip) over the box of its quartiles and median.
+// A subject's colour class ("s0" .. "s9", in the order subjects first appear): the same in every
+// plot and in the legend; beyond ten subjects colours repeat and the hover title tells them apart.
+constexpr std::size_t kSubjectColours = 10;
+std::string subject_class(const std::vector<std::string>& subjects, const std::string& subject) {
+  const auto at = static_cast<std::size_t>(std::find(subjects.begin(), subjects.end(), subject) - subjects.begin());
+  return fmt::format("s{}", at % kSubjectColours);
+}
+
 std::string strip_plot(const std::vector<Row>& rows, const std::vector<std::string>& scenarios,
-                       const PlotMetric& metric) {
+                       const std::vector<std::string>& subjects, const PlotMetric& metric) {
   const std::size_t index = column_index(metric.column);
   double lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity();
   for (const Row& r : rows) {
@@ -274,9 +282,10 @@ std::string strip_plot(const std::vector<Row>& rows, const std::vector<std::stri
     for (const Row& r : rows) {
       if (r.scenario != scenarios[s] || !r.values[index]) continue;
       const double jitter = (static_cast<double>(k++ % 5) - 2.0) * 3.0;
-      const std::string point =
-          fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" class=\"point\"><title>{}: {:.6g}</title></circle>",
-                      x(*r.values[index]), y + jitter, escape_markup(r.subject), *r.values[index]);
+      const std::string point = fmt::format(
+          "<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" class=\"point {}\"><title>{} ({}): {:.6g}</title></circle>",
+          x(*r.values[index]), y + jitter, subject_class(subjects, r.subject), escape_markup(r.subject),
+          escape_markup(r.scenario), *r.values[index]);
       svg += r.report.empty() ? point + "\n" : fmt::format("<a href=\"{}\">{}</a>\n", escape_markup(r.report), point);
     }
   }
@@ -310,13 +319,19 @@ std::string html_page(const std::string& name, const std::vector<Row>& rows) {
   std::string page = fmt::format(
       "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{0} - pneuma cohort</title>\n"
       "<style>body{{font-family:sans-serif;margin:1.5em;color:#222}}table{{border-collapse:collapse;font-size:13px}}"
-      "td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}td.t,th.t{{text-align:left}}"
+      "td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}td.t,th.t{{text-align:left;white-space:nowrap}}"
       "tr.failed td{{background:#fde8e8}}figure{{margin:1em 0}}figcaption{{font-weight:bold}}"
       ".axis{{stroke:#444}}.grid{{stroke:#ddd}}.tick{{font-size:11px;text-anchor:middle;fill:#444}}"
       ".label{{font-size:12px;text-anchor:end}}.box{{fill:#cfe0f3;stroke:#3a6ea5}}.median{{stroke:#1d3d63;"
-      "stroke-width:2}}.whisker{{stroke:#3a6ea5}}.point{{fill:#d9534f;fill-opacity:.8;stroke:#fff}}</style>\n"
+      "stroke-width:2}}.whisker{{stroke:#3a6ea5}}.point{{fill-opacity:.85;stroke:#fff}}"
+      ".s0{{fill:#1f77b4;background:#1f77b4}}.s1{{fill:#ff7f0e;background:#ff7f0e}}.s2{{fill:#2ca02c;"
+      "background:#2ca02c}}.s3{{fill:#d62728;background:#d62728}}.s4{{fill:#9467bd;background:#9467bd}}"
+      ".s5{{fill:#8c564b;background:#8c564b}}.s6{{fill:#e377c2;background:#e377c2}}.s7{{fill:#7f7f7f;"
+      "background:#7f7f7f}}.s8{{fill:#bcbd22;background:#bcbd22}}.s9{{fill:#17becf;background:#17becf}}"
+      ".legend span{{margin-right:1em;white-space:nowrap}}.dot{{display:inline-block;width:10px;height:10px;"
+      "border-radius:50%;margin-right:4px}}.scroll{{overflow-x:auto;max-width:100%}}</style>\n"
       "</head><body>\n<h1>Cohort {0}</h1>\n<p>{1} subjects &times; {2} scenarios: {3} runs ({4}). Each point is a "
-      "subject (hover for its name, click for its run's report.html); the box spans the quartiles, the bar is the "
+      "subject, coloured as in the legend (hover for its name, click for its run's report.html); the box spans the quartiles, the bar is the "
       "median, the line the range.</p>\n",
       escape_markup(name), subjects.size(), scenarios.size(), rows.size(), escape_markup(counts));
   std::string failures;
@@ -330,14 +345,22 @@ std::string html_page(const std::string& name, const std::vector<Row>& rows) {
         r.log.empty() ? "" : fmt::format("<a href=\"{0}\">{0}</a>", escape_markup(r.log)));
   }
   if (!failures.empty()) {
-    page += "<h2>Runs that did not complete</h2>\n<table><tr><th class=\"t\">subject</th><th class=\"t\">scenario</th>"
-            "<th class=\"t\">status</th><th>exit</th><th class=\"t\">error</th><th class=\"t\">log</th></tr>\n" +
-            failures + "</table>\n";
+    page +=
+        "<h2>Runs that did not complete</h2>\n<div class=\"scroll\"><table><tr><th class=\"t\">subject</th><th class=\"t\">scenario</th>"
+        "<th class=\"t\">status</th><th>exit</th><th class=\"t\">error</th><th class=\"t\">log</th></tr>\n" +
+        failures + "</table></div>\n";
   }
-  page += "<h2>Distributions across subjects</h2>\n";
-  for (const PlotMetric& metric : kPlots) page += strip_plot(rows, scenarios, metric);
-  page += "<h2>Every run</h2>\n<table><tr><th class=\"t\">subject</th><th class=\"t\">scenario</th>"
-          "<th class=\"t\">status</th>";
+  page += "<h2>Distributions across subjects</h2>\n<p class=\"legend\">";
+  for (const std::string& subject : subjects) {
+    page += fmt::format("<span><span class=\"dot {}\"></span>{}</span>", subject_class(subjects, subject),
+                        escape_markup(subject));
+  }
+  page += "</p>\n";
+  for (const PlotMetric& metric : kPlots) page += strip_plot(rows, scenarios, subjects, metric);
+  // The tables scroll inside their own box: a column per metric is wider than most windows.
+  page +=
+      "<h2>Every run</h2>\n<div class=\"scroll\"><table><tr><th class=\"t\">subject</th><th class=\"t\">scenario</th>"
+      "<th class=\"t\">status</th>";
   for (const PlotMetric& metric : kPlots) page += fmt::format("<th>{}</th>", escape_markup(metric.column));
   page += "<th class=\"t\">report</th></tr>\n";
   for (const Row& r : rows) {
@@ -351,7 +374,7 @@ std::string html_page(const std::string& name, const std::vector<Row>& rows) {
     page += fmt::format("<td class=\"t\">{}</td></tr>\n",
                         r.report.empty() ? "" : fmt::format("<a href=\"{0}\">{0}</a>", escape_markup(r.report)));
   }
-  return page + "</table>\n<p>Data: cohort.csv beside this page. Written by pneuma " PNEUMA_VERSION
+  return page + "</table></div>\n<p>Data: cohort.csv beside this page. Written by pneuma " PNEUMA_VERSION
                 ".</p>\n</body></html>\n";
 }
 

@@ -194,6 +194,10 @@ std::vector<std::string> snakemake_command(const WorkflowOptions& o) {
 
 int run_workflow(const Cohort& cohort, const Plan& plan, const WorkflowOptions& o) {
   const std::filesystem::path dir = std::filesystem::absolute(o.output_dir).lexically_normal();
+  // A first run that Snakemake stops before any job (a workflow it refuses) leaves the folder as
+  // it found it: no .cohort/ or .snakemake/ standing for a cohort that never started.
+  const bool dir_existed = path_exists(dir);
+  const bool first_run = !path_exists(dir / kStateDir) && !path_exists(dir / ".snakemake");
   std::error_code ec;
   std::filesystem::create_directories(dir / kStateDir, ec);
   if (ec) throw IoError((dir / kStateDir).string() + ": cannot create folder: " + ec.message());
@@ -239,7 +243,14 @@ int run_workflow(const Cohort& cohort, const Plan& plan, const WorkflowOptions& 
   ::sigaction(SIGTERM, &old_term, nullptr);
   if (g_signal.load() != 0) return 128 + g_signal.load();
   if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+  const int code = WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+  // Every job writes its log under logs/ (the Snakefile): none there, none started.
+  if (code != 0 && first_run && !path_exists(dir / "logs")) {
+    std::filesystem::remove_all(dir / kStateDir, ec);
+    std::filesystem::remove_all(dir / ".snakemake", ec);
+    if (!dir_existed) std::filesystem::remove(dir, ec);  // only when empty
+  }
+  return code;
 }
 
 }  // namespace pneuma::cohort

@@ -1,6 +1,7 @@
 #include "pneuma/model/compile.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <cstddef>
 #include <memory>
@@ -176,8 +177,19 @@ Model compile(const Scenario& s, const CompileOptions& options) {
   model.scenario_file = s.file;
   model.report.field_reused = true;
   const mesh::SurfaceSource surfaces(source_spec(s, options));
-  for (std::size_t i = 0; i < surfaces.lung_count(); ++i)
+  for (std::size_t i = 0; i < surfaces.lung_count(); ++i) {
     model.lungs.push_back(lung_model(s, surfaces, i, options, model.report));
+    // Where the scan cut a lung flat, its surface is not the pleura: said also on a cached field
+    // (the label map is read for it then).
+    LungModel& lung = model.lungs.back();
+    lung.label_map_edges = surfaces.edges_touched(i);
+    if (!lung.label_map_edges.empty()) {
+      model.report.warnings.push_back(fmt::format(
+          "{}: the {}lung touches the label map's edge at its {} (the scan cuts it flat there, not anatomy)",
+          surfaces.input_file(i).string(), lung.side ? scenario::lung_name(lung.side) + std::string(" ") : "",
+          fmt::join(lung.label_map_edges, ", ")));
+    }
+  }
   if (options.interior) {
     model.label_map = surfaces.label_map();  // the rest label map, for the voxel outputs (read once)
     model.body = std::make_shared<const BodyMotion>(model);

@@ -259,7 +259,7 @@ OutputPlugin hdf5_output() {
     PositionPrecision positions = PositionPrecision::float32;
     PositionCompression compression = PositionCompression::none;
   };
-  const auto read = [](const scenario::Node* options) -> std::any {
+  const auto read = [](const scenario::Node* options, const scenario::Scenario& /*run*/) -> std::any {
     Settings settings;
     PositionPrecision& positions = settings.positions;
     if (options && options->has("compression") && options->choice("compression", {"none", "gzip"}) == "gzip")

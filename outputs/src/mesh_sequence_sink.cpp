@@ -72,7 +72,7 @@ std::unique_ptr<Output> make_mesh_sequence_output(const std::filesystem::path& d
 }
 
 OutputPlugin mesh_sequence_output() {
-  const auto read = [](const scenario::Node* options) -> std::any {
+  const auto read = [](const scenario::Node* options, const scenario::Scenario& /*run*/) -> std::any {
     MeshSequenceSpec spec;
     if (options) {
       if (options->has("format")) spec.format = options->choice("format", {"ply", "obj", "stl"});

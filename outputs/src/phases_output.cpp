@@ -23,7 +23,7 @@ std::string joined(const std::vector<std::string>& items) {
   return out;
 }
 
-std::any read_spec(const scenario::Node* options) {
+std::any read_spec(const scenario::Node* options, const scenario::Scenario& /*run*/) {
   PhasesSpec spec;
   if (!options) return spec;
   spec.binning.bins = static_cast<int>(options->integer("bins", 10, 2, 100));

@@ -28,7 +28,7 @@ namespace kind = units::kind;
 constexpr const char* kAtExpected =
     "expected end_expiration, end_inspiration, phases or a time >= 0 with its unit, such as '2.4 s'";
 
-std::any read_spec(const scenario::Node* options) {
+std::any read_spec(const scenario::Node* options, const scenario::Scenario& run) {
   VoxelsSpec spec;
   if (!options) return spec;
   if (options->has("at")) {
@@ -49,6 +49,10 @@ std::any read_spec(const scenario::Node* options) {
           item.fail(kAtExpected);
         }
         if (!(t >= 0.0) || !std::isfinite(t)) item.fail(kAtExpected);
+        // A time after the end would silently become the last frame.
+        if (t > run.duration_s)
+          item.fail(fmt::format("{:.6g} s is after the run's end ({:.6g} s); expected a time from 0 to {:.6g} s", t,
+                                run.duration_s, run.duration_s));
         spec.at.emplace_back(t);
       }
     }
@@ -69,6 +73,13 @@ std::any read_spec(const scenario::Node* options) {
     } catch (const Error& e) {
       options->fail_at("image", e.what());
     }
+    // A slice (a 2D image read as one voxel thick) cannot hold a chest: every voxel would be air.
+    const auto& size = spec.image->grid.size;
+    if (std::min({size[0], size[1], size[2]}) < 2) {
+      options->fail_at("image", fmt::format("{}: {} x {} x {} voxels; expected a 3D CT around the lungs",
+                                            spec.image_file.string(), size[0], size[1], size[2]));
+    }
+    spec.image_where = options->value_where("image");
   }
   if (options->has("density"))
     spec.mass_preserving = options->choice("density", {"mass_preserving", "unchanged"}) == "mass_preserving";
@@ -103,6 +114,47 @@ voxels::Grid run_grid(const model::Model& model, const image::LabelMap* labels, 
   return grid;
 }
 
+// Refuses a CT (`voxels.image`) that leaves part of a lung at rest outside it: the warped CT
+// would show air (kOutsideHu) there, and nothing would say so. Checked before any voxel work.
+void check_image_covers_lungs(const model::Model& model, const VoxelsSpec& spec) {
+  if (!spec.image) return;
+  const voxels::Grid& grid = spec.image->grid;
+  const Eigen::Matrix4d to_ijk = grid.lps_to_ijk();
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  bool inside = true;
+  for (const model::LungModel& lung : model.lungs) {
+    for (const auto& v : lung.rest.vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+      const Eigen::Vector3d ijk = (to_ijk * v.homogeneous()).head<3>();
+      for (int a = 0; a < 3; ++a) {
+        // Inside the voxels' outer faces (centres at integers), to a thousandth of a voxel.
+        const double n = static_cast<double>(grid.size[static_cast<std::size_t>(a)]);
+        inside = inside && ijk[a] >= -0.501 && ijk[a] <= n - 0.499;
+      }
+    }
+  }
+  if (inside) return;
+  // The image's box in LPS, from its eight outer corners.
+  Eigen::Vector3d image_lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), image_hi = -image_lo;
+  for (int c = 0; c < 8; ++c) {
+    Eigen::Vector4d corner(-0.5, -0.5, -0.5, 1.0);
+    for (int a = 0; a < 3; ++a) {
+      if ((c >> a) & 1) corner[a] = static_cast<double>(grid.size[static_cast<std::size_t>(a)]) - 0.5;
+    }
+    const Eigen::Vector3d x = (grid.ijk_to_lps * corner).head<3>();
+    image_lo = image_lo.cwiseMin(x);
+    image_hi = image_hi.cwiseMax(x);
+  }
+  const auto box = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return fmt::format("x {:.1f}..{:.1f}, y {:.1f}..{:.1f}, z {:.1f}..{:.1f} mm", a.x() * 1e3, b.x() * 1e3, a.y() * 1e3,
+                       b.y() * 1e3, a.z() * 1e3, b.z() * 1e3);
+  };
+  throw InputError(
+      fmt::format("{}: {} covers {} (LPS), not all of the lungs at rest ({}); expected a CT around the lungs",
+                  spec.image_where, spec.image_file.string(), box(image_lo, image_hi), box(lo, hi)));
+}
+
 // The rest tetrahedra on the grid as labels: lung i + 1 where its rest tets hold the voxel.
 image::LabelMap rest_label_map(const model::Model& model, const voxels::Grid& grid) {
   std::vector<voxels::LungMotion> lungs;
@@ -130,6 +182,7 @@ class VoxelsOutput final : public Output {
  public:
   VoxelsOutput(std::filesystem::path dir, VoxelsSpec spec) : dir_(std::move(dir)), spec_(std::move(spec)) {}
   std::string name() const override { return kVoxelsKey; }
+  void begin(const model::Model& model, const RunInfo& /*run*/) override { check_image_covers_lungs(model, spec_); }
 
   std::vector<std::filesystem::path> finish(const model::Model& model, const RunRecord& run) override {
     const auto& series = run.drive->series;
@@ -287,6 +340,7 @@ VoxelScene::VoxelScene(const model::Model& model, const scenario::Scenario& scen
   for (const model::LungModel& lung : model.lungs) {
     if (!lung.interior) throw Error(ExitCode::failure, "voxels: the model was compiled without the lungs' inside");
   }
+  check_image_covers_lungs(model, spec);
   // The label map the lungs came from (compile read it once and kept it for this), else one of the
   // rest tetrahedra: 1 for the right lung (or the only one), 2 for the left.
   const bool from_labels = !scenario.mesh.labels_file.empty();

@@ -120,7 +120,7 @@ std::vector<std::filesystem::path> PngFrameSink::finish(const model::Model&, con
 }
 
 outputs::OutputPlugin png_output() {
-  const auto read = [](const scenario::Node* png) -> std::any {
+  const auto read = [](const scenario::Node* png, const scenario::Scenario& /*run*/) -> std::any {
     PngSinkOptions spec;
     if (png) {
       RenderOptions& r = spec.render;

@@ -1,10 +1,12 @@
 #include "pneuma/runner/runner.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <span>
 
 #include "pneuma/core/interrupt.h"
@@ -68,6 +70,11 @@ std::vector<std::pair<std::string, std::string>> run_facts(const scenario::Scena
     facts.emplace_back(prefix + "rest_volume_m3", fmt::format("{:.9g}", lung.volume_map.volume(0.0)));
     facts.emplace_back(prefix + "rest_area_m2", fmt::format("{:.9g}", lung.rest_area_m2));
     facts.emplace_back(prefix + "scale_range", fmt::format("{:.9g} .. {:.9g}", scales.min_scale, scales.max_scale));
+    if (!lung.label_values.empty()) {
+      facts.emplace_back(
+          prefix + "touches_label_map_edge",
+          lung.label_map_edges.empty() ? "no" : fmt::format("{}", fmt::join(lung.label_map_edges, ", ")));
+    }
     if (model.two_lungs()) {
       facts.emplace_back(prefix + "share", fmt::format("{:.9g}", lung.share));
       if (lung.compartment >= 0) facts.emplace_back(prefix + "compartment", s.mesh.lungs[i].compartment_name);
@@ -77,16 +84,60 @@ std::vector<std::pair<std::string, std::string>> run_facts(const scenario::Scena
   return facts;
 }
 
+// For a run driven by a trace that the lungs cannot follow (V -> s or the fold check failed): the
+// sample to blame, named by its line (a damaged value, 4e-320 in an RPM trace, #49). Of the samples
+// the run's window interpolates, the lowest and then the highest volume are each tried alone as a
+// whole run: the interpolated frames never go beyond them, so one of them fails as the run did.
+std::optional<std::string> unfollowable_trace_sample(const model::Model& model, const physiology::Trace& trace,
+                                                     double duration_s) {
+  const std::vector<double>& t = trace.time_s;
+  const std::vector<double>& v = trace.volume_m3;
+  if (t.empty()) return std::nullopt;
+  // The window's samples with the one before its start and the one after its end.
+  auto first = static_cast<std::size_t>(std::upper_bound(t.begin(), t.end(), trace.start_s) - t.begin());
+  auto last = static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), trace.start_s + duration_s) - t.begin());
+  first = first > 0 ? first - 1 : 0;
+  last = std::min(last, t.size() - 1);
+  const auto [lowest, highest] = std::minmax_element(v.begin() + static_cast<std::ptrdiff_t>(first),
+                                                     v.begin() + static_cast<std::ptrdiff_t>(last) + 1);
+  for (const auto sample : {lowest, highest}) {
+    const auto k = static_cast<std::size_t>(sample - v.begin());
+    try {
+      std::vector<model::LungScales> scales;
+      for (const model::LungModel& lung : model.lungs) {
+        model::LungScales one;
+        one.scales = lung.scales({t[k]}, {v[k]});
+        one.min_scale = one.max_scale = one.scales.front();
+        scales.push_back(std::move(one));
+      }
+      model::check_no_fold(model, scales);
+    } catch (const UnsupportedError& e) {
+      return fmt::format("{}:{}: the lungs cannot follow this sample ({:.4g} mL from FRC, the run's {}): {}",
+                         trace.file.string(), trace.line[k], v[k] * 1e6, sample == lowest ? "lowest" : "highest",
+                         e.what());
+    }
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 Prepared prepare(const scenario::Scenario& s, const physiology::SimulationResult& drive,
                  const model::CompileOptions& options) {
   Prepared prepared{model::compile(s, options), {}, {}};
   prepared.timings_s = prepared.model.report.timings_s;
-  prepared.scales = prepared.model.scales(drive);
-  const auto start = Clock::now();
-  model::check_no_fold(prepared.model, prepared.scales);
-  prepared.timings_s.emplace_back("self-intersection check", seconds_since(start));
+  try {
+    prepared.scales = prepared.model.scales(drive);
+    const auto start = Clock::now();
+    model::check_no_fold(prepared.model, prepared.scales);
+    prepared.timings_s.emplace_back("self-intersection check", seconds_since(start));
+  } catch (const UnsupportedError&) {
+    if (s.physiology.trace) {
+      if (auto sample = unfollowable_trace_sample(prepared.model, *s.physiology.trace, s.duration_s))
+        throw InputError(*sample);
+    }
+    throw;
+  }
   return prepared;
 }
 

@@ -312,13 +312,14 @@ std::optional<scenario::Node> sink_section(const scenario::Node& outputs, const 
 
 // The outputs on, each with the settings its key read. A section's options are read (and
 // checked) whenever they are given, also for an output they turn off.
-std::vector<OutputRequest> read_outputs(const std::optional<Node>& n, std::span<const OutputKey> keys) {
+std::vector<OutputRequest> read_outputs(const std::optional<Node>& n, std::span<const OutputKey> keys,
+                                        const Scenario& run) {
   std::vector<OutputRequest> requests;
   for (const OutputKey& output : keys) {
     bool on = output.on_by_default;
     const std::optional<Node> options = n ? sink_section(*n, output.key, output.on_by_default, on) : std::nullopt;
     if (on || options) {
-      std::any settings = output.read(options ? &*options : nullptr);
+      std::any settings = output.read(options ? &*options : nullptr, run);
       if (on) requests.push_back({output.key, std::move(settings)});
     }
     if (options) options->finish();
@@ -419,7 +420,7 @@ Scenario read_scenario(const scenario::Node& root, const std::filesystem::path& 
   s.physiology = read_physiology(root.map("physiology"), s.duration_s, config_dir);
   check_run_size(root, s);
   resolve_compartments(root, s);
-  s.outputs = read_outputs(root.optional_map("outputs"), outputs);
+  s.outputs = read_outputs(root.optional_map("outputs"), outputs, s);
   root.finish();
   return s;
 }

@@ -14,6 +14,7 @@
 
 #include "cohort_fixture.h"
 #include "pneuma/cohort/cohort.h"
+#include "pneuma/cohort/summary.h"
 #include "pneuma/cohort/workflow.h"
 #include "pneuma/core/markup.h"
 #include "pneuma/core/staged_output.h"
@@ -75,6 +76,15 @@ TEST(CohortInput, EveryProblemIsOneLineBeforeAnyWork) {
       {"subjects: {a/b: {mesh: {phantom: right}}}\n" + scenarios,
        "<file>:1:17: subjects.a/b: expected a subject id of letters, digits, '.', '_' and '-' (a folder name), got "
        "'a/b'"},
+      // Snakemake 7.21 refuses a wildcard ending in one piece repeated 20 times (19 pass, tested below).
+      {"subjects: {xaaaaaaaaaaaaaaaaaaaa: {mesh: {phantom: right}}}\n" + scenarios,
+       "<file>:1:35: subjects.xaaaaaaaaaaaaaaaaaaaa: expected a subject id that does not end in one piece repeated 20 "
+       "times or more (Snakemake stops the cohort for it), got 'xaaaaaaaaaaaaaaaaaaaa'"},
+      {"subjects: {a: {mesh: {phantom: right}}}\nscenarios: {q-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab: "
+       "scenarios/quiet.yaml}\n",
+       "<file>:2:76: scenarios.q-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab: expected a scenario id that "
+       "does not end in one piece repeated 20 times or more (Snakemake stops the cohort for it), got "
+       "'q-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab-ab'"},
       {"subjects: {a: {mesh: {phantom: right}}}\nscenarios: {quiet: scenarios/none.yaml}\n",
        "<file>:2:20: scenarios.quiet: no such scenario file: <dir>/scenarios/none.yaml"},
       {"subjects: {a: {mesh: {phantom: middle}}}\n" + scenarios,
@@ -100,6 +110,75 @@ TEST(CohortInput, EveryProblemIsOneLineBeforeAnyWork) {
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_FALSE(fs::exists(out)) << "nothing is written for a cohort that does not load: " << c.cohort;
   }
+}
+
+// The id rule against Snakemake itself: each id, as a wildcard of a one-rule workflow, passes
+// `snakemake --dry-run` exactly when the cohort loader accepts it as a subject id.
+TEST(CohortInput, AnIdIsRefusedExactlyWhenSnakemakeWouldStopForIt) {
+  SKIP_WITHOUT_SNAKEMAKE();
+  TempDir dir;
+  write_scenarios(dir);
+  dir.write("Snakefile", "rule all:\n    input: f\"out/{config['id']}.txt\"\n"
+                         "rule one:\n    output: \"out/{id}.txt\"\n    shell: \"touch {output}\"\n");
+  const std::string a19(19, 'a'), a20(20, 'a');
+  std::string ab19 = "q", ab20;
+  for (int i = 0; i < 19; ++i) ab19 += "-ab";
+  ab20 = ab19 + "-ab";
+  for (const std::string& id : {"x" + a19, "x" + a20, a20 + "b", a20 + a20, ab19, ab20, std::string("case004")}) {
+    const auto snakemake =
+        run_program(find_program({"snakemake"}), {"--dry-run", "--quiet", "--snakefile", (dir / "Snakefile").string(),
+                                                  "--directory", dir.path().string(), "--config", "id=" + id});
+    bool loads = true;
+    try {
+      pneuma::cohort::load_cohort(dir.write(
+          "ids.yaml", "subjects: {" + id + ": {mesh: {phantom: right}}}\nscenarios: {quiet: scenarios/quiet.yaml}\n"));
+    } catch (const pneuma::InputError&) {
+      loads = false;
+    }
+    EXPECT_EQ(loads, snakemake.exit_code == 0) << id << ": " << snakemake.err;
+  }
+}
+
+// cohort.html names every dot: each circle carries a <title> with its subject, scenario and value,
+// and a class whose colour the legend gives its subject; the tables scroll in their own box.
+// Oracle: the rows handed in (every value of every row is one dot of its metric's plot).
+TEST(CohortSummary, EveryDotIsNamedAndTheTableScrollsInItsBox) {
+  TempDir dir;
+  const std::vector<std::string> subjects = {"case006", "case<9>", "phantom"};
+  std::vector<pneuma::cohort::Row> rows;
+  const std::size_t columns = pneuma::cohort::summary_columns().size();
+  for (std::size_t i = 0; i < subjects.size(); ++i) {
+    for (const std::string scenario : {"quiet", "deep"}) {
+      pneuma::cohort::Row r{subjects[i], scenario, "ok", 0, "", "", "", {}};
+      r.values.reserve(columns);
+      for (std::size_t c = 0; c < columns; ++c) r.values.emplace_back(100.0 * static_cast<double>(i) + 1.5);
+      rows.push_back(std::move(r));
+    }
+  }
+  pneuma::cohort::write_summary(dir.path(), "dots", rows);
+  const std::string html = read_text(dir / "cohort.html");
+  const auto count = [&](const std::string& what) {
+    std::size_t n = 0;
+    for (auto at = html.find(what); at != std::string::npos; at = html.find(what, at + 1)) ++n;
+    return n;
+  };
+  std::size_t plots = count("<svg");
+  ASSERT_GE(plots, 8u);
+  EXPECT_EQ(count("<circle"), plots * rows.size());
+  EXPECT_EQ(count("<title>"), 1 + plots * rows.size());  // the page's own title, then one per dot
+  for (std::size_t i = 0; i < subjects.size(); ++i) {
+    const std::string name = pneuma::escape_markup(subjects[i]);
+    // Its dots in each scenario (every value of a row is the same), in its colour, and its legend entry.
+    for (const std::string scenario : {"quiet", "deep"}) {
+      EXPECT_NE(html.find(fmt::format("class=\"point s{}\"><title>{} ({}): {}</title>", i, name, scenario,
+                                      100.0 * static_cast<double>(i) + 1.5)),
+                std::string::npos)
+          << name << " " << scenario;
+    }
+    EXPECT_NE(html.find(fmt::format("<span class=\"dot s{}\"></span>{}</span>", i, name)), std::string::npos) << name;
+  }
+  EXPECT_NE(html.find("<div class=\"scroll\"><table>"), std::string::npos);
+  EXPECT_NE(html.find(".scroll{overflow-x:auto"), std::string::npos);
 }
 
 // The plan: one field per subject and tissue, shared by the scenarios that ask for it.
@@ -352,6 +431,28 @@ TEST(CohortLocal, DryRunListsTheJobsAndRunsNone) {
   EXPECT_FALSE(fs::exists(dir / "out/fields"));
   EXPECT_FALSE(fs::exists(dir / "out/cohort.csv"));
   EXPECT_EQ(read_text(dir / "out/.cohort/Snakefile"), read_text(PNEUMA_SNAKEFILE_SOURCE));
+}
+
+// A workflow Snakemake refuses (here a Snakefile it cannot parse) on a first run: the cohort
+// fails and leaves the folder as it found it, absent or holding only what it held.
+TEST(CohortLocal, AWorkflowSnakemakeRefusesLeavesTheFolderAsItWas) {
+  SKIP_WITHOUT_SNAKEMAKE();
+  TempDir dir;
+  write_scenarios(dir);
+  const fs::path cohort = write_cohort(dir, "refused", {{"a", kPhantom}});
+  const fs::path snakefile = dir.write("Broken", "rule all:\n    input: [\n");
+  for (const bool dry : {true, false}) {
+    std::vector<std::string> extra = {"--snakefile", snakefile.string()};
+    if (dry) extra.emplace_back("--dry-run");
+    const auto r = run_cohort(cohort, dir / "out", extra);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "out")) << r.err;
+    dir.write("kept/notes.txt", "mine");
+    EXPECT_EQ(run_cohort(cohort, dir / "kept", extra).exit_code, 1);
+    std::vector<std::string> left;
+    for (const auto& e : fs::directory_iterator(dir / "kept")) left.push_back(e.path().filename().string());
+    EXPECT_EQ(left, std::vector<std::string>{"notes.txt"});
+  }
 }
 
 // A second cohort into a folder in use stops at once; the first is not disturbed.

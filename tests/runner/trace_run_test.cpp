@@ -133,6 +133,27 @@ TEST(TraceRun, BadTraceIsOneLineExit3AndNothingIsWritten) {
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
 }
 
+// One damaged sample (-1 cm where the marker sits near 1.2 cm: about 620 mL below FRC) the
+// phantom cannot follow used to end in exit 5 "the surface self-intersects at scale -113", naming
+// neither the trace nor the sample (#49): the sample's line is named, and nothing is written.
+TEST(TraceRun, ASampleTheLungsCannotFollowIsNamedByItsLine) {
+  TempDir dir;
+  std::string text = amplitude_csv();
+  const auto at = text.find("\n8.00,") + 1;  // line 202: the sample at 8 s
+  text.replace(at, text.find('\n', at) - at, "8.00,-1.0");
+  dir.write("trace.csv", text);
+  const auto yaml = dir.write("trace.yaml", scenario("trace.csv"));
+  const auto r = run_pneuma({"run", yaml.string(), "-o", (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  const std::string begin = (dir / "trace.csv").string() + ":202: the lungs cannot follow this sample (";
+  EXPECT_EQ(r.err.substr(0, begin.size()), begin) << r.err;
+  EXPECT_NE(r.err.find(" mL from FRC, the run's lowest): " + yaml.string() + ": the surface self-intersects at scale "),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_TRUE(!std::filesystem::exists(dir / "out") || std::filesystem::is_empty(dir / "out"));
+}
+
 TEST(TraceRun, ScenarioKeysOfATraceAreCheckedWhereTheyAre) {
   TempDir dir;
   dir.write("trace.csv", amplitude_csv());

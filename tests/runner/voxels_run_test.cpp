@@ -337,6 +337,54 @@ TEST(VoxelsRun, BadOptionsAreOneLineErrorsAndWriteNothing) {
   }
 }
 
+// A time after the run's end used to become the last frame, and a CT that is a slice or misses the
+// lungs gave -1024 HU everywhere (#49): each is one line at its key, and nothing is written.
+TEST(VoxelsRun, ATimeAfterTheEndOrACtThatMissesTheLungsIsRefusedAtItsKey) {
+  TempDir dir;
+  // A slice, and a 3D block of 4 mm at the origin's corner far from the phantom (the voxels' outer
+  // faces from x = 100 mm on, the lungs within 20 cm of the origin).
+  pneuma::voxels::Image slice, block;
+  slice.grid.size = {8, 8, 1};
+  slice.values.assign(64, 0.0f);
+  pneuma::voxels::write_image(dir / "slice.nii.gz", slice);
+  block.grid.size = {4, 4, 4};
+  block.grid.ijk_to_lps.block<3, 1>(0, 3) = Eigen::Vector3d(0.1005, 0.1005, 0.1005);
+  block.grid.ijk_to_lps.block<3, 3>(0, 0) *= 1e-3;
+  block.values.assign(64, 0.0f);
+  pneuma::voxels::write_image(dir / "block.nii.gz", block);
+  const std::string from = "{at: [end_expiration, end_inspiration, 1 s], spacing: 3 mm}";
+  const auto write = [&](const std::string& voxels) {
+    std::string text = kPhantom;
+    text.replace(text.find(from), from.size(), voxels);
+    return dir.write("bad.yaml", text).string();
+  };
+  struct Case {
+    std::string voxels, expected_begin, expected_end;
+  };
+  const std::vector<Case> cases{
+      {"{at: [1 s, 100 s]}",
+       ":13:22: outputs.voxels.at[1]: 100 s is after the run's end (4 s); expected a time from 0 to 4 s\n", ""},
+      {"{image: slice.nii.gz}",
+       ":13:19: outputs.voxels.image: " + (dir / "slice.nii.gz").string() +
+           ": 8 x 8 x 1 voxels; expected a 3D CT around the lungs\n",
+       ""},
+      {"{image: block.nii.gz}",
+       ":13:19: outputs.voxels.image: " + (dir / "block.nii.gz").string() +
+           " covers x 100.0..104.0, y 100.0..104.0, z 100.0..104.0 mm (LPS), not all of the lungs at rest (",
+       "); expected a CT around the lungs\n"},
+  };
+  for (const Case& c : cases) {
+    const std::string scenario = write(c.voxels);
+    const auto r = run_pneuma({"run", scenario, "-o", (dir / "out").string(), "--quiet"});
+    EXPECT_EQ(r.exit_code, 3) << c.voxels << ": " << r.err;
+    EXPECT_EQ(r.err.substr(0, scenario.size() + c.expected_begin.size()), scenario + c.expected_begin) << r.err;
+    EXPECT_TRUE(r.err.ends_with(c.expected_end)) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    // The CT's reach is known after compile, once the run's (empty) folder exists.
+    EXPECT_TRUE(!std::filesystem::exists(dir / "out") || std::filesystem::is_empty(dir / "out")) << c.voxels;
+  }
+}
+
 TEST(VoxelsRun, AnUnfoldingVolumeOutOfRangeOrAnUnknownMesherIsRefusedAtItsKey) {
   struct Case {
     std::string interior, expected;

@@ -4,6 +4,7 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 
@@ -161,6 +162,43 @@ std::string SurfaceSource::key_text(std::size_t i) const {
 std::shared_ptr<const image::LabelMap> SurfaceSource::label_map() const {
   if (!map_ && from_labels()) map_ = std::make_shared<const image::LabelMap>(image::read_label_map(spec_.labels_file));
   return map_;
+}
+
+std::vector<std::string> SurfaceSource::edges_touched(std::size_t i) const {
+  if (!from_labels()) return {};
+  const image::LabelMap& map = *label_map();
+  const std::vector<int>& values = spec_.lungs[i].label_values;
+  const auto& n = map.size;
+  std::vector<std::string> faces;
+  for (std::size_t axis = 0; axis < 3; ++axis) {
+    // The LPS direction of index axis `axis`, named by its largest component: +x left, +y
+    // posterior, +z superior.
+    const Eigen::Vector3d along = map.ijk_to_lps.block<3, 1>(0, static_cast<Eigen::Index>(axis));
+    Eigen::Index major = 0;
+    along.cwiseAbs().maxCoeff(&major);
+    static constexpr std::array<std::array<const char*, 2>, 3> kSides{
+        {{"right", "left"}, {"anterior", "posterior"}, {"inferior", "superior"}}};
+    const std::size_t a = (axis + 1) % 3, b = (axis + 2) % 3;
+    for (const bool last : {false, true}) {
+      const std::size_t at = last ? n[axis] - 1 : 0;
+      bool touches = false;
+      for (std::size_t u = 0; u < n[a] && !touches; ++u) {
+        for (std::size_t v = 0; v < n[b] && !touches; ++v) {
+          std::array<std::size_t, 3> ijk{};
+          ijk[axis] = at;
+          ijk[a] = u;
+          ijk[b] = v;
+          touches = contains(values, map.labels[ijk[0] + n[0] * (ijk[1] + n[1] * ijk[2])]);
+        }
+      }
+      // The first slice faces away from the axis' direction, the last along it.
+      const bool positive = (along[major] > 0.0) == last;
+      if (touches)
+        faces.push_back(fmt::format("{} face ({} = {})", kSides[static_cast<std::size_t>(major)][positive ? 1 : 0],
+                                    "ijk"[axis], at));
+    }
+  }
+  return faces;
 }
 
 TriangleMesh SurfaceSource::original_surface(std::size_t i) const {

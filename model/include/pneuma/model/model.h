@@ -66,6 +66,8 @@ struct LungModel {
   double reference_volume_m3 = 0.0;
   int compartment = -1;                // V is this physiology compartment's volume; -1: the total
   std::vector<int> label_values = {};  // the label map's values of this lung (names resolved); empty: no label map
+  // The label map's faces this lung's labels reach ("inferior face (k = 0)"): cut flat by the scan there.
+  std::vector<std::string> label_map_edges = {};
 
   // ---- The inside (compile with CompileOptions::interior; else null) -------------------------------
   std::shared_ptr<const LungInterior> interior = nullptr;

@@ -92,6 +92,6 @@ struct OutputPlugin {
 };
 
 // For plugins whose options are `key: true|false` only: reads nothing, returns no settings.
-inline std::any no_settings(const scenario::Node* /*options*/) { return {}; }
+inline std::any no_settings(const scenario::Node* /*options*/, const scenario::Scenario& /*run*/) { return {}; }
 
 }  // namespace pneuma::outputs

@@ -43,6 +43,7 @@ struct VoxelsSpec {
   double spacing_m = 0.0;   // 0: the label map's grid (2 mm where there is none)
   std::shared_ptr<const voxels::Image> image;
   std::filesystem::path image_file;
+  std::string image_where;      // "file:l:c: outputs.voxels.image", for the check against the lungs
   bool mass_preserving = true;  // `density: mass_preserving` (default) | `unchanged`: the CT's lung parenchyma
   bool jacobian = true;         // `jacobian: true|false`: jacobian-<t> files (the forward map's Jacobian)
   std::string extension = ".nii.gz";
@@ -54,7 +55,8 @@ struct VoxelsSpec {
 // compute their time points through it, so they give the same arrays.
 class VoxelScene {
  public:
-  // Throws Error(failure) when the model has no lungs' inside (compiled without it).
+  // Throws Error(failure) when the model has no lungs' inside (compiled without it), InputError
+  // when the spec's CT does not cover the lungs at rest.
   VoxelScene(const model::Model& model, const scenario::Scenario& scenario, const VoxelsSpec& spec);
 
   const voxels::Grid& grid() const { return grid_; }

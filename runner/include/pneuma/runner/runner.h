@@ -25,7 +25,8 @@ struct Prepared {
   std::vector<std::pair<std::string, double>> timings_s;  // compile's steps and the fold check
 };
 
-// Throws pneuma::Error (one line) as model::compile, Model::scales and model::check_no_fold.
+// Throws pneuma::Error (one line) as model::compile, Model::scales and model::check_no_fold; for a
+// trace-driven run the lungs cannot follow, InputError "<trace>:<line>: ..." naming the sample.
 Prepared prepare(const scenario::Scenario& scenario, const physiology::SimulationResult& drive,
                  const model::CompileOptions& options);
 

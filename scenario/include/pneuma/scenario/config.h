@@ -72,6 +72,9 @@ class Node {
   [[noreturn]] void fail(const std::string& message) const;
   // A one-line error at the value of `key`.
   [[noreturn]] void fail_at(const std::string& key, const std::string& message) const;
+  // Where the value of `key` is ("file:l:c: path.key"), for an error found after loading (a check
+  // that needs the compiled model) that must still name the key.
+  std::string value_where(const std::string& key) const;
   // A key this node needs and neither it nor its fallback gives (`message`: "missing key 'x'
   // (expected ...)"): for a node made by with_fallback(fallback, via), at the key `via` that named
   // the fallback (a scenario's `preset:`), naming the fallback's file; else as fail().
@@ -109,7 +112,6 @@ class Node {
   const Layer* layer_with(const std::string& key) const;
   YAML::Node child(const std::string& key, const Layer** layer = nullptr) const;
   std::string child_path(const std::string& key) const;
-  std::string value_where(const std::string& key) const;
   std::string scalar(const std::string& key, const char* expected) const;
 
   std::vector<Layer> layers_;  // front: the node itself; back: its deepest fallback

@@ -88,13 +88,17 @@ struct FieldSpec {
 };
 
 // One key under `outputs:`, declared by the output that owns it (runner/output_registry.h).
+struct Scenario;
+
 struct OutputKey {
   std::string key;
   bool on_by_default = true;
   // Reads the output's options from `options`, its mapping (`key: {...}`), or from nothing
   // (`key: true`, or on by default), and returns its settings; only the output opens them
-  // (std::any_cast). Every bad value is a one-line InputError from `options`.
-  std::function<std::any(const scenario::Node* options)> read;
+  // (std::any_cast). Every bad value is a one-line InputError from `options`. `run` is the
+  // scenario read so far (all but its outputs: duration, frames, mesh, physiology), for options
+  // that only make sense within the run (a time point after its end).
+  std::function<std::any(const scenario::Node* options, const Scenario& run)> read;
 };
 
 // An output the scenario asks for, with the settings its OutputKey read.

@@ -70,6 +70,10 @@ class SurfaceSource {
 
   // The label map, read on the first call and then shared (null without one).
   std::shared_ptr<const image::LabelMap> label_map() const;
+  // The label map's outer faces that lung i's labels reach, each named by the side of the body it
+  // faces and its slice ("inferior face (k = 0)"), in the order i, j, k and first then last; empty
+  // without a label map. There the scan, not anatomy, cut the lung flat.
+  std::vector<std::string> edges_touched(std::size_t i) const;
 
  private:
   SurfaceSourceSpec spec_;
