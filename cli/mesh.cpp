@@ -116,6 +116,7 @@ void run_remesh(const MeshOptions& o) {
   mesh::format_for_path(o.output, o.ascii);
   const mesh::TriangleMesh m = mesh::read_mesh(o.input, {.metres_per_unit = unit, .unit_from_file = !o.unit_given});
   // What cannot finish is refused before any of it is made.
+  mesh::require_lung_sized(o.input, m, "--unit");
   const double area_m2 = mesh::surface_area(m);
   if (const double vertices = mesh::vertex_count_at_edge(area_m2, o.edge_m); !(vertices <= mesh::kMaxSurfaceVertices)) {
     throw UsageError(fmt::format("pneuma: --edge: {}: a surface of {:.4g} cm2 at an edge of {:.4g} mm would have about "

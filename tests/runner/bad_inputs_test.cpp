@@ -460,6 +460,14 @@ TEST(BadInputs, ASurfaceFarLargerThanALungIsRefusedBeforeRemeshing) {
                         "across (is mesh.unit right, or a vertex damaged?)\n",
                         (dir / "far.obj").string()));
   EXPECT_EQ(dir.files(), (std::vector<std::string>{"far.obj", "s.yaml"}));
+  // `mesh remesh` too (a damaged STL like it took 21.7 GB there; found by scripts/mutate).
+  const auto remesh = run_pneuma(
+      {"mesh", "remesh", obj.string(), "--unit", "m", "--edge", "12mm", "-o", (dir / "remeshed.ply").string()});
+  EXPECT_EQ(remesh.exit_code, 3);
+  EXPECT_EQ(remesh.err, fmt::format("{}: the surface spans 2000 m along z (0.2 x 0.2 x 2000 m); expected a lung, at "
+                                    "most 1 m across (is --unit right, or a vertex damaged?)\n",
+                                    obj.string()));
+  EXPECT_EQ(dir.files(), (std::vector<std::string>{"far.obj", "s.yaml"}));
   // The usual cause: a file in millimetres declared in metres (the phantom, 243 mm tall).
   const auto ply = dir / "mm.ply";
   ASSERT_EQ(run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", ply.string()}).exit_code, 0);

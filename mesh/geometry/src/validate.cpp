@@ -8,6 +8,7 @@
 #include <numbers>
 #include <numeric>
 
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/cgal/cgal_internal.h"
 #include "pneuma/mesh/geometry/validate.h"
 
@@ -372,6 +373,18 @@ MeshQuality measure_quality(const TriangleMesh& mesh) {
   q.mean_min_angle_deg = sum_min / static_cast<double>(mesh.triangles.size());
   q.fraction_below_30_deg = static_cast<double>(below) / static_cast<double>(mesh.triangles.size());
   return q;
+}
+
+void require_lung_sized(const std::string& name, const TriangleMesh& surface, const std::string& unit_key) {
+  if (surface.vertices.empty()) return;
+  const auto [lo, hi] = bounding_box(surface.vertices);
+  const Eigen::Vector3d size = hi - lo;
+  Eigen::Index axis = 0;
+  const double largest = size.maxCoeff(&axis);
+  if (largest <= 1.0) return;
+  throw InputError(fmt::format("{}: the surface spans {:.4g} m along {} ({:.4g} x {:.4g} x {:.4g} m); expected a lung, "
+                               "at most 1 m across (is {} right, or a vertex damaged?)",
+                               name, largest, "xyz"[axis], size.x(), size.y(), size.z(), unit_key));
 }
 
 }  // namespace pneuma::mesh

@@ -35,21 +35,6 @@ void check_surface_size(const SurfaceSourceSpec& where, double area_m2, double e
                   where.origin, where.edge_key, area_m2, edge_m * 1e3, vertices, kMaxSurfaceVertices, unit_hint));
 }
 
-// Refuses a surface more than a metre across: not a lung (an adult's is about 0.3 m tall), but a
-// file in millimetres read as metres or a damaged vertex far away, whose needle triangles
-// remeshing would split for hours (a vertex of a damaged STL at z = 11 km; found by scripts/mutate).
-void check_lung_extent(const std::filesystem::path& file, const mesh::TriangleMesh& surface) {
-  if (surface.vertices.empty()) return;
-  const auto [lo, hi] = bounding_box(surface.vertices);
-  const Eigen::Vector3d size = hi - lo;
-  Eigen::Index axis = 0;
-  const double largest = size.maxCoeff(&axis);
-  if (largest <= 1.0) return;
-  throw InputError(fmt::format("{}: the surface spans {:.4g} m along {} ({:.4g} x {:.4g} x {:.4g} m); expected a lung, "
-                               "at most 1 m across (is mesh.unit right, or a vertex damaged?)",
-                               file.string(), largest, "xyz"[axis], size.x(), size.y(), size.z()));
-}
-
 TriangleMesh phantom_surface(Lung side, double edge_m) {
   PhantomOptions phantom;
   phantom.lung = side;
@@ -239,7 +224,7 @@ TriangleMesh SurfaceSource::surface(std::size_t i) const {
   read.metres_per_unit = spec_.metres_per_unit;
   read.unit_from_file = spec_.unit_from_file;
   TriangleMesh surface = read_mesh(lung.file, read);
-  check_lung_extent(lung.file, surface);
+  require_lung_sized(lung.file.string(), surface, "mesh.unit");
   check_surface_size(spec_, surface_area(surface), edge_m);
   if (!spec_.repair) return remeshed(std::move(surface), edge_m);
   if (edge_m <= 0.0) return repair_or_throw(surface, lung.file.string());

@@ -57,6 +57,13 @@ struct ValidationReport {
 
 ValidationReport validate(const TriangleMesh& mesh, const ValidateOptions& options = {});
 
+// Refuses a surface more than a metre across: not a lung (an adult's is about 0.3 m tall), but a
+// file in millimetres read as metres or a damaged vertex far away, whose needle triangles
+// remeshing would split for hours or until memory runs out (a damaged STL's vertex at z = 11 km;
+// found twice by scripts/mutate, through `run` and `mesh remesh`). Throws InputError "<name>: the
+// surface spans ... (is <unit_key> right, or a vertex damaged?)".
+void require_lung_sized(const std::string& name, const TriangleMesh& surface, const std::string& unit_key);
+
 // Edge length and angle quality, the figures remeshing reports before and after.
 struct MeshQuality {
   double min_edge_m = 0.0, mean_edge_m = 0.0, max_edge_m = 0.0;
