@@ -440,36 +440,49 @@ print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoi
   EXPECT_EQ(text, expected);
 }
 
-// Mesh sequences record their unit (metres) in every format, and read_mesh() with its default
-// (millimetres) then reads metres: the oracle is the frame's positions in the run; an explicit
-// unit (unit_from_file = false) still wins.
+// Mesh sequences are in millimetres by default (`unit: m` for metres) and record their unit in
+// every format; read_mesh() reads the recorded unit: the oracle is the frame's positions in the
+// run, in metres; an explicit unit (unit_from_file = false) still wins.
 TEST(MeshSequenceSink, RecordsTheUnitAndReadMeshUsesIt) {
   const model::Model model = sphere_model();
-  for (const auto& [format, ascii, header] : {std::tuple{"ply", false, "comment unit m\n"},
-                                              {"ply", true, "comment unit m\n"},
-                                              {"obj", false, "# unit m\n"},
-                                              {"stl", false, "binary STL written by pneuma, unit m"},
-                                              {"stl", true, "solid pneuma unit m\n"}}) {
+  struct Case {
+    const char* format;
+    bool ascii;
+    double metres_per_unit;
+    const char* header;
+  };
+  for (const Case& c : {Case{"ply", false, 1e-3, "comment unit mm\n"},
+                        {"ply", true, 1e-3, "comment unit mm\n"},
+                        {"obj", false, 1e-3, "# unit mm\n"},
+                        {"stl", false, 1e-3, "binary STL written by pneuma, unit mm"},
+                        {"stl", true, 1e-3, "solid pneuma unit mm\n"},
+                        {"ply", false, 1.0, "comment unit m\n"},
+                        {"obj", false, 1.0, "# unit m\n"},
+                        {"stl", true, 1.0, "solid pneuma unit m\n"}}) {
+    const std::string what = fmt::format("{}{} in {} m", c.format, c.ascii ? " ascii" : "", c.metres_per_unit);
     TempDir dir;
-    auto sink = make_mesh_sequence_output(dir / "frames", MeshSequenceSpec{format, ascii, 2});
+    auto sink = make_mesh_sequence_output(dir / "frames", MeshSequenceSpec{c.format, c.ascii, 2, c.metres_per_unit});
     const auto scales = drive(*sink, model, 3, 30.0);
-    const auto file = dir / "frames" / (std::string("frame_00002.") + format);
+    const auto file = dir / "frames" / (std::string("frame_00002.") + c.format);
     const std::string bytes = pneuma::test::read_text(file);
-    EXPECT_NE(bytes.substr(0, 200).find(header), std::string::npos) << format << (ascii ? " ascii" : "");
-    EXPECT_EQ(pneuma::mesh::recorded_unit(file), 1.0);
-    const auto frame = pneuma::mesh::read_mesh(file);  // default: 1 unit = 1 mm, unless recorded
+    EXPECT_NE(bytes.substr(0, 200).find(c.header), std::string::npos) << what;
+    EXPECT_EQ(pneuma::mesh::recorded_unit(file), c.metres_per_unit) << what;
+    const auto frame = pneuma::mesh::read_mesh(file);  // the recorded unit
     // The frame in metres, numbered as read_mesh() numbers OBJ and STL (by first use).
     pneuma::mesh::TriangleMesh expected = model.lungs[0].rest;
     for (std::size_t i = 0; i < expected.vertices.size(); ++i)
       expected.vertices[i] += scales[2] * model.lungs[0].unit_displacement[i];
-    if (std::string(format) != "ply") pneuma::mesh::renumber_vertices_by_first_use(expected);
+    if (std::string(c.format) != "ply") pneuma::mesh::renumber_vertices_by_first_use(expected);
     ASSERT_EQ(frame.vertex_count(), expected.vertex_count());
     double worst = 0.0;
     for (std::size_t i = 0; i < frame.vertex_count(); ++i)
       worst = std::max(worst, (frame.vertices[i] - expected.vertices[i]).cwiseAbs().maxCoeff());
-    EXPECT_LT(worst, 1e-7) << format << ": float32 of coordinates around 0.1 m";
-    const auto as_mm = pneuma::mesh::read_mesh(file, {.metres_per_unit = 1e-3, .unit_from_file = false});
-    EXPECT_NEAR(as_mm.vertices[0].norm(), 1e-3 * frame.vertices[0].norm(), 1e-12) << "explicit unit wins";
+    EXPECT_LT(worst, 1e-7) << what << ": float32 of coordinates around 0.1 m";
+    // The file's numbers are the positions in its unit: read as plain numbers (1 unit = 1 m).
+    const auto numbers = pneuma::mesh::read_mesh(file, {.metres_per_unit = 1.0, .unit_from_file = false});
+    EXPECT_NEAR(numbers.vertices[0].norm(), frame.vertices[0].norm() / c.metres_per_unit,
+                1e-6 * numbers.vertices[0].norm())
+        << what << ": explicit unit wins";
   }
 }
 
