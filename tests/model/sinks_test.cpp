@@ -2,6 +2,7 @@
 #define TINYGLTF_NO_STB_IMAGE
 #define TINYGLTF_NO_STB_IMAGE_WRITE
 #define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <gtest/gtest-spi.h>
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <tiny_gltf.h>
@@ -11,8 +12,10 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fmt/format.h>
+#include <optional>
 #include <pugixml.hpp>
 #include <tuple>
 
@@ -147,13 +150,61 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   }
 }
 
-// Blender (when installed; not in install-deps, it is large) opens the glb with
+namespace {
+
+// Sets (or with nullptr unsets) an environment variable for one scope, then restores it.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old;
+    set(value);
+  }
+  ~ScopedEnv() { set(old_ ? old_->c_str() : nullptr); }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  void set(const char* value) const {
+    if (value) {
+      setenv(name_, value, 1);
+    } else {
+      unsetenv(name_);
+    }
+  }
+  const char* name_;
+  std::optional<std::string> old_;
+};
+
+void require_a_missing_client() { PNEUMA_REQUIRE_CLIENT(std::filesystem::path(), "no-such-client"); }
+
+}  // namespace
+
+// The client tests below (Blender, ParaView) skip a missing client outside CI only: in CI it is a
+// failure unless PNEUMA_ALLOW_MISSING_CLIENTS=1. The oracle is that rule, case by case.
+TEST(ClientTests, AMissingClientFailsInCiUnlessAllowed) {
+  const ScopedEnv no_allow("PNEUMA_ALLOW_MISSING_CLIENTS", nullptr);
+  for (const auto& [ci, may_skip] : {std::pair<const char*, bool>{nullptr, true},
+                                     {"", true},
+                                     {"0", true},
+                                     {"false", true},
+                                     {"true", false},
+                                     {"1", false}}) {
+    const ScopedEnv env("CI", ci);
+    EXPECT_EQ(pneuma::test::missing_client_may_skip(), may_skip) << "CI=" << (ci ? ci : "(unset)");
+  }
+  const ScopedEnv ci("CI", "true");
+  EXPECT_FATAL_FAILURE(require_a_missing_client(), "no-such-client not found, and CI requires it");
+  const ScopedEnv allow("PNEUMA_ALLOW_MISSING_CLIENTS", "1");
+  EXPECT_TRUE(pneuma::test::missing_client_may_skip());
+}
+
+// Blender (Debian's, from scripts/install-deps; a missing one fails in CI) opens the glb with
 // scripts/blender-open.py: the timeline is the whole animation at the run's rate, and the shape
 // key's value at Blender frame k is the glb's morph weight k, read by tinygltf (negative weights,
 // a breath below the rest shape, included).
 TEST(GltfSink, BlenderOpensTheWholeAnimationWithBlenderOpenWhenInstalled) {
-  if (std::system("command -v blender >/dev/null 2>&1") != 0)
-    GTEST_SKIP() << "blender not found (apt-get install blender to run this check)";
+  const auto program = pneuma::test::find_program({"blender"});
+  PNEUMA_REQUIRE_CLIENT(program, "blender (Debian: apt-get install blender)");
   TempDir dir;
   const model::Model model = sphere_model();
   auto sink = make_gltf_output(dir / "breathing.glb");
@@ -173,7 +224,7 @@ for k in range(s.frame_start, s.frame_end + 1):
     print('weight', k, repr(key.value))
 )");
   const std::string out = (dir / "out.txt").string();
-  const std::string blender = "blender -b --factory-startup --python-exit-code 1 ";
+  const std::string blender = program.string() + " -b --factory-startup --python-exit-code 1 ";
   const int status = std::system((blender + "--python " + PNEUMA_SOURCE_DIR + "/scripts/blender-open.py -- " +
                                   (dir / "breathing.glb").string() + " --save " + (dir / "b.blend").string() + " >" +
                                   out + " 2>&1 && " + blender + (dir / "b.blend").string() + " --python " +
@@ -407,13 +458,13 @@ print("steps", r.num_steps, "points", len(points), "worst", worst)
   EXPECT_EQ(text, expected);
 }
 
-// ParaView (when installed: Debian's paraview + python3-paraview; not in install-deps, it is
-// large): its default reader for .xdmf (Xdmf3ReaderS) and the legacy XDMFReader see every frame
+// ParaView (Debian's paraview + python3-paraview, from scripts/install-deps; a missing one fails
+// in CI): its default reader for .xdmf (Xdmf3ReaderS) and the legacy XDMFReader see every frame
 // with all its points, and print nothing else (the Function items of old made them show 0 points
 // or log "Cannot find DataItem element in geometry xml").
 TEST(Hdf5Sink, ParaViewReadsEveryFrameWhenInstalled) {
-  if (std::system("command -v pvbatch >/dev/null 2>&1") != 0)
-    GTEST_SKIP() << "pvbatch not found (apt-get install paraview python3-paraview to run this check)";
+  const auto pvbatch = pneuma::test::find_program({"pvbatch"});
+  PNEUMA_REQUIRE_CLIENT(pvbatch, "pvbatch (Debian: apt-get install paraview python3-paraview)");
   TempDir dir;
   const model::Model model = sphere_model();
   auto sink = make_hdf5_output(dir / "series.h5", dir / "series.xdmf");
@@ -429,9 +480,9 @@ l.UpdatePipeline(l.TimestepValues[-1])
 print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoints())
 )");
   const std::string out = (dir / "out.txt").string();
-  const int status = std::system(
-      ("env -u DISPLAY pvbatch " + script.string() + " " + (dir / "series.xdmf").string() + " >" + out + " 2>&1")
-          .c_str());
+  const int status = std::system(("env -u DISPLAY " + pvbatch.string() + " " + script.string() + " " +
+                                  (dir / "series.xdmf").string() + " >" + out + " 2>&1")
+                                     .c_str());
   const std::string text = pneuma::test::read_text(out);
   ASSERT_EQ(status, 0) << text;
   std::string expected;
