@@ -50,13 +50,13 @@ bool missing_client_may_skip();
 
 // Skips the test (outside CI) or fails it (in CI) when `program` (a path from find_program) is
 // empty. The caller includes <gtest/gtest.h>.
-#define PNEUMA_REQUIRE_CLIENT(program, what)                                                       \
-  do {                                                                                             \
-    if ((program).empty()) {                                                                       \
-      if (::pneuma::test::missing_client_may_skip()) GTEST_SKIP() << what << " not found";         \
-      GTEST_FAIL() << what << " not found, and CI requires it (scripts/install-deps installs it; " \
-                   << "PNEUMA_ALLOW_MISSING_CLIENTS=1 skips instead)";                             \
-    }                                                                                              \
+#define PNEUMA_REQUIRE_CLIENT(program, what)                                                         \
+  do {                                                                                               \
+    if ((program).empty()) {                                                                         \
+      if (::pneuma::test::missing_client_may_skip()) GTEST_SKIP() << (what) << " not found";         \
+      GTEST_FAIL() << (what) << " not found, and CI requires it (scripts/install-deps installs it; " \
+                   << "PNEUMA_ALLOW_MISSING_CLIENTS=1 skips instead)";                               \
+    }                                                                                                \
   } while (false)
 
 // Starts pneuma with `args`, sends SIGINT after `delay_ms` milliseconds, and returns its exit
