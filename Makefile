@@ -13,7 +13,10 @@ export PNEUMA_WERROR ?= $(if $(CI),ON,OFF)
 # The benchmarks are built with the release preset only (the presets say so for the others).
 BUILD_BENCH ?= $(if $(filter release,$(PRESET)),ON,OFF)
 
-.PHONY: all deps deps-demo configure configure-demo build demo test bench clean format check-format
+# make install PREFIX=...: the CLI, its presets and the Python module (cmake --install).
+PREFIX ?= /usr/local
+
+.PHONY: all deps deps-demo configure configure-demo build demo test bench install deb clean format check-format
 
 all: build
 
@@ -40,6 +43,18 @@ demo: configure-demo
 
 test: build
 	@ctest --preset $(PRESET)
+
+# Builds only what is installed (the CLI and the Python module) in the configured build folder.
+install:
+	@test -f $(BUILD)/build.ninja || $(MAKE) configure-demo
+	@cmake --build --preset $(PRESET) --target installables
+	@cmake --install $(BUILD) --prefix $(PREFIX)
+
+# build/<preset>/pneuma_<version>_<arch>.deb (installs into /usr; apt-get install ./that.deb).
+deb:
+	@test -f $(BUILD)/build.ninja || $(MAKE) configure-demo
+	@cmake --build --preset $(PRESET) --target installables
+	@cd $(BUILD) && cpack -G DEB
 
 bench: build
 	@scripts/run-benchmarks $(BUILD)

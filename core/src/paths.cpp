@@ -1,5 +1,6 @@
 #include "pneuma/core/paths.h"
 
+#include <link.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -78,6 +79,37 @@ void require_readable_file(const std::filesystem::path& path) {
   if (!std::filesystem::is_regular_file(status))
     throw InputError(name + ": not a regular file (a device, pipe or socket); expected a file");
   if (!std::ifstream(path, std::ios::binary)) throw IoError(name + ": cannot read: permission denied");
+}
+
+std::filesystem::path running_binary() {
+  // The loaded object whose segments hold this function: the executable itself (dlpi_name "")
+  // or a shared object such as the Python extension (dlpi_name its path).
+  struct Search {
+    std::uintptr_t address = 0;
+    bool found = false;
+    std::string name;
+  } search;
+  search.address = reinterpret_cast<std::uintptr_t>(&running_binary);
+  dl_iterate_phdr(
+      [](dl_phdr_info* info, std::size_t, void* data) -> int {
+        auto& s = *static_cast<Search*>(data);
+        for (ElfW(Half) i = 0; i < info->dlpi_phnum; ++i) {
+          const ElfW(Phdr)& segment = info->dlpi_phdr[i];
+          if (segment.p_type != PT_LOAD) continue;
+          const std::uintptr_t begin = info->dlpi_addr + segment.p_vaddr;
+          if (s.address >= begin && s.address < begin + segment.p_memsz) {
+            s.found = true;
+            s.name = info->dlpi_name ? info->dlpi_name : "";
+            return 1;
+          }
+        }
+        return 0;
+      },
+      &search);
+  const std::filesystem::path file = search.found && !search.name.empty() ? search.name : "/proc/self/exe";
+  std::error_code ec;
+  std::filesystem::path canonical = std::filesystem::canonical(file, ec);
+  return ec ? std::filesystem::path() : canonical;
 }
 
 }  // namespace pneuma

@@ -3,7 +3,8 @@
 // lungs: one file per lung per frame, right_00000.ply and left_00000.ply (two sequences).
 // Beside each sequence, ParaView's file-series index (frame.ply.series: every file with its time
 // in seconds), so that ParaView plays it in seconds rather than by file index (a .pvd collection
-// would not do: ParaView's PVD reader takes VTK XML files only).
+// would not do: ParaView's PVD reader takes VTK XML files only). In LPS millimetres by default, as
+// the CT, 3D Slicer and planning systems beside them; the unit is recorded in every file's header.
 #include <fmt/format.h>
 
 #include <nlohmann/json.hpp>
@@ -37,7 +38,7 @@ class MeshSequenceSink final : public Output {
       frame_meshes_[i].vertices = f.lungs[i].positions;  // same size: no reallocation
       const auto path = dir_ / fmt::format("{}_{:0{}}.{}", prefixes_[i], f.index, digits_, spec_.format);
       mesh::WriteOptions options;
-      options.metres_per_unit = 1.0;  // frames in metres, as everything pneuma writes
+      options.metres_per_unit = spec_.metres_per_unit;
       options.ascii = spec_.ascii;
       mesh::write_mesh(path, frame_meshes_[i], options);
       files_.push_back(path);
@@ -67,6 +68,11 @@ class MeshSequenceSink final : public Output {
 
 }  // namespace
 
+double read_mesh_file_unit(const scenario::Node& options) {
+  if (!options.has("unit")) return mesh::kMetresPerMillimetre;
+  return options.choice("unit", {"mm", "m"}) == "m" ? 1.0 : mesh::kMetresPerMillimetre;
+}
+
 std::unique_ptr<Output> make_mesh_sequence_output(const std::filesystem::path& dir, const MeshSequenceSpec& spec) {
   return std::make_unique<MeshSequenceSink>(dir, spec);
 }
@@ -78,6 +84,7 @@ OutputPlugin mesh_sequence_output() {
       if (options->has("format")) spec.format = options->choice("format", {"ply", "obj", "stl"});
       spec.ascii = options->boolean("ascii", false);
       spec.every = static_cast<std::size_t>(options->integer("every", 1, 1, 1000000));
+      spec.metres_per_unit = read_mesh_file_unit(*options);
     }
     return spec;
   };

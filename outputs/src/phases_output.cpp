@@ -7,6 +7,7 @@
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/model/compile.h"
 #include "pneuma/model/frame.h"
+#include "pneuma/outputs/frame_outputs.h"
 #include "pneuma/outputs/phases.h"
 
 namespace pneuma::outputs {
@@ -40,6 +41,7 @@ std::any read_spec(const scenario::Node* options, const scenario::Scenario& /*ru
     band->finish();
   }
   spec.surfaces = options->boolean("surfaces", true);
+  spec.metres_per_unit = read_mesh_file_unit(*options);
   return spec;
 }
 
@@ -70,7 +72,7 @@ class Phases final : public Output {
       std::vector<mesh::TriangleMesh> surfaces;
       for (const model::LungModel& lung : model.lungs) surfaces.push_back(lung.rest);
       mesh::WriteOptions options;
-      options.metres_per_unit = 1.0;
+      options.metres_per_unit = spec_.metres_per_unit;
       for (std::size_t b = 0; b < binning.bins.size(); ++b) {
         const physiology::PhaseBin& bin = binning.bins[b];
         if (bin.samples.empty()) continue;

@@ -264,7 +264,7 @@ class VoxelsOutput final : public Output {
   }
   // A time point to write: a frame, or a respiratory bin at its mean volume.
   struct VoxelPoint {
-    std::string tag;                   // in the file names: "2.400s", "bin_03"
+    std::string tag;                   // in the file names: "end_inspiration", "2.400s", "bin_03"
     std::optional<std::size_t> frame;  // none for a bin
     std::vector<double> scales;        // per model lung
     double volume_m3 = 0.0;            // the physiology's volume above FRC
@@ -289,8 +289,8 @@ class VoxelsOutput final : public Output {
       return change;
     };
     std::vector<VoxelPoint> out;
-    for (const std::size_t k : frames_of(series.time_s, series.volume_m3)) {
-      VoxelPoint p{fmt::format("{:.3f}s", series.time_s[k]), k, {}, series.volume_m3[k], lung_change({k})};
+    for (const auto& [k, tag] : frames_of(series.time_s, series.volume_m3)) {
+      VoxelPoint p{tag, k, {}, series.volume_m3[k], lung_change({k})};
       for (std::size_t i = 0; i < model.lungs.size(); ++i) p.scales.push_back(run.scales[i][k]);
       out.push_back(std::move(p));
     }
@@ -306,24 +306,32 @@ class VoxelsOutput final : public Output {
     return out;
   }
 
-  // The frames of the time points, in the order asked (repeats dropped).
-  std::vector<std::size_t> frames_of(const std::vector<double>& time_s, const std::vector<double>& volume_m3) const {
+  // The frames of the time points with their tags, in the order asked (a frame asked twice: the
+  // first). A moment is named as asked (`end_inspiration`), so a script finds its file without the
+  // run's times; a time by its frame's time in seconds (`2.400s`).
+  std::vector<std::pair<std::size_t, std::string>> frames_of(const std::vector<double>& time_s,
+                                                             const std::vector<double>& volume_m3) const {
     const std::size_t low = lowest_volume_frame(volume_m3);
     const auto high =
         static_cast<std::size_t>(std::max_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
-    std::vector<std::size_t> frames;
+    std::vector<std::pair<std::size_t, std::string>> frames;
     for (const VoxelTime& at : spec_.at) {
       std::size_t k = 0;
+      std::string tag;
       if (const auto* moment = std::get_if<VoxelMoment>(&at)) {
-        k = *moment == VoxelMoment::end_expiration ? low : high;
+        const bool expiration = *moment == VoxelMoment::end_expiration;
+        k = expiration ? low : high;
+        tag = expiration ? "end_expiration" : "end_inspiration";
       } else {
         const double t = std::get<double>(at);
         k = static_cast<std::size_t>(
             std::min_element(time_s.begin(), time_s.end(),
                              [t](double a, double b) { return std::abs(a - t) < std::abs(b - t); }) -
             time_s.begin());
+        tag = fmt::format("{:.3f}s", time_s[k]);
       }
-      if (std::find(frames.begin(), frames.end(), k) == frames.end()) frames.push_back(k);
+      const auto same = [k](const auto& frame) { return frame.first == k; };
+      if (std::none_of(frames.begin(), frames.end(), same)) frames.emplace_back(k, std::move(tag));
     }
     return frames;
   }

@@ -9,6 +9,8 @@
 #include <cstdlib>
 #include <memory>
 #include <optional>
+#include <system_error>
+#include <vector>
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
@@ -758,7 +760,25 @@ physiology::Trace read_trace_driver(const scenario::Node& n, double duration_s) 
 
 std::filesystem::path default_config_dir() {
   if (const char* dir = std::getenv("PNEUMA_CONFIG_DIR"); dir && *dir) return dir;
-  return PNEUMA_SOURCE_CONFIG_DIR;
+  const std::filesystem::path binary = running_binary();
+  if (binary.empty()) return PNEUMA_SOURCE_CONFIG_DIR;
+  // An installed pneuma: <prefix>/share/pneuma/configs, reached from bin/pneuma or from the Python
+  // module's folder (the relative paths come from the install rules).
+  std::vector<std::filesystem::path> installed;
+  for (const char* relative : {PNEUMA_CONFIGS_FROM_BIN, PNEUMA_CONFIGS_FROM_PYTHON}) {
+    installed.push_back((binary.parent_path() / relative).lexically_normal());
+    if (path_exists(installed.back() / "physiology")) return installed.back();
+  }
+  // A binary in the build tree it was built in (tests, `make demo`) reads the source tree's
+  // presets; a binary anywhere else never does, so a copied or installed one without its presets
+  // names the installed folder in its messages instead of silently using a checkout.
+  std::error_code ec;
+  const std::filesystem::path build = std::filesystem::weakly_canonical(PNEUMA_BUILD_DIR, ec);
+  if (!ec && std::mismatch(build.begin(), build.end(), binary.begin(), binary.end()).first == build.end())
+    return PNEUMA_SOURCE_CONFIG_DIR;
+  // Not found: where this binary's install would have put them (the executable's, else the module's).
+  const bool executable = std::filesystem::equivalent(binary, "/proc/self/exe", ec) && !ec;
+  return executable ? installed[0] : installed[1];
 }
 
 PhysiologyConfig read_physiology(const scenario::Node& raw_section, double duration_s,

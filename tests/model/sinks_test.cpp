@@ -2,6 +2,7 @@
 #define TINYGLTF_NO_STB_IMAGE
 #define TINYGLTF_NO_STB_IMAGE_WRITE
 #define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <gtest/gtest-spi.h>
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <tiny_gltf.h>
@@ -11,8 +12,10 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fmt/format.h>
+#include <optional>
 #include <pugixml.hpp>
 #include <tuple>
 
@@ -147,13 +150,61 @@ TEST(GltfSink, StructureIsValidAndEachKeyframeEqualsTheDisplacedMesh) {
   }
 }
 
-// Blender (when installed; not in install-deps, it is large) opens the glb with
+namespace {
+
+// Sets (or with nullptr unsets) an environment variable for one scope, then restores it.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old;
+    set(value);
+  }
+  ~ScopedEnv() { set(old_ ? old_->c_str() : nullptr); }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  void set(const char* value) const {
+    if (value) {
+      setenv(name_, value, 1);
+    } else {
+      unsetenv(name_);
+    }
+  }
+  const char* name_;
+  std::optional<std::string> old_;
+};
+
+void require_a_missing_client() { PNEUMA_REQUIRE_CLIENT(std::filesystem::path(), "no-such-client"); }
+
+}  // namespace
+
+// The client tests below (Blender, ParaView) skip a missing client outside CI only: in CI it is a
+// failure unless PNEUMA_ALLOW_MISSING_CLIENTS=1. The oracle is that rule, case by case.
+TEST(ClientTests, AMissingClientFailsInCiUnlessAllowed) {
+  const ScopedEnv no_allow("PNEUMA_ALLOW_MISSING_CLIENTS", nullptr);
+  for (const auto& [ci, may_skip] : {std::pair<const char*, bool>{nullptr, true},
+                                     {"", true},
+                                     {"0", true},
+                                     {"false", true},
+                                     {"true", false},
+                                     {"1", false}}) {
+    const ScopedEnv env("CI", ci);
+    EXPECT_EQ(pneuma::test::missing_client_may_skip(), may_skip) << "CI=" << (ci ? ci : "(unset)");
+  }
+  const ScopedEnv ci("CI", "true");
+  EXPECT_FATAL_FAILURE(require_a_missing_client(), "no-such-client not found, and CI requires it");
+  const ScopedEnv allow("PNEUMA_ALLOW_MISSING_CLIENTS", "1");
+  EXPECT_TRUE(pneuma::test::missing_client_may_skip());
+}
+
+// Blender (Debian's, from scripts/install-deps; a missing one fails in CI) opens the glb with
 // scripts/blender-open.py: the timeline is the whole animation at the run's rate, and the shape
 // key's value at Blender frame k is the glb's morph weight k, read by tinygltf (negative weights,
 // a breath below the rest shape, included).
 TEST(GltfSink, BlenderOpensTheWholeAnimationWithBlenderOpenWhenInstalled) {
-  if (std::system("command -v blender >/dev/null 2>&1") != 0)
-    GTEST_SKIP() << "blender not found (apt-get install blender to run this check)";
+  const auto program = pneuma::test::find_program({"blender"});
+  PNEUMA_REQUIRE_CLIENT(program, "blender (Debian: apt-get install blender)");
   TempDir dir;
   const model::Model model = sphere_model();
   auto sink = make_gltf_output(dir / "breathing.glb");
@@ -173,7 +224,7 @@ for k in range(s.frame_start, s.frame_end + 1):
     print('weight', k, repr(key.value))
 )");
   const std::string out = (dir / "out.txt").string();
-  const std::string blender = "blender -b --factory-startup --python-exit-code 1 ";
+  const std::string blender = program.string() + " -b --factory-startup --python-exit-code 1 ";
   const int status = std::system((blender + "--python " + PNEUMA_SOURCE_DIR + "/scripts/blender-open.py -- " +
                                   (dir / "breathing.glb").string() + " --save " + (dir / "b.blend").string() + " >" +
                                   out + " 2>&1 && " + blender + (dir / "b.blend").string() + " --python " +
@@ -407,13 +458,13 @@ print("steps", r.num_steps, "points", len(points), "worst", worst)
   EXPECT_EQ(text, expected);
 }
 
-// ParaView (when installed: Debian's paraview + python3-paraview; not in install-deps, it is
-// large): its default reader for .xdmf (Xdmf3ReaderS) and the legacy XDMFReader see every frame
+// ParaView (Debian's paraview + python3-paraview, from scripts/install-deps; a missing one fails
+// in CI): its default reader for .xdmf (Xdmf3ReaderS) and the legacy XDMFReader see every frame
 // with all its points, and print nothing else (the Function items of old made them show 0 points
 // or log "Cannot find DataItem element in geometry xml").
 TEST(Hdf5Sink, ParaViewReadsEveryFrameWhenInstalled) {
-  if (std::system("command -v pvbatch >/dev/null 2>&1") != 0)
-    GTEST_SKIP() << "pvbatch not found (apt-get install paraview python3-paraview to run this check)";
+  const auto pvbatch = pneuma::test::find_program({"pvbatch"});
+  PNEUMA_REQUIRE_CLIENT(pvbatch, "pvbatch (Debian: apt-get install paraview python3-paraview)");
   TempDir dir;
   const model::Model model = sphere_model();
   auto sink = make_hdf5_output(dir / "series.h5", dir / "series.xdmf");
@@ -429,9 +480,9 @@ l.UpdatePipeline(l.TimestepValues[-1])
 print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoints())
 )");
   const std::string out = (dir / "out.txt").string();
-  const int status = std::system(
-      ("env -u DISPLAY pvbatch " + script.string() + " " + (dir / "series.xdmf").string() + " >" + out + " 2>&1")
-          .c_str());
+  const int status = std::system(("env -u DISPLAY " + pvbatch.string() + " " + script.string() + " " +
+                                  (dir / "series.xdmf").string() + " >" + out + " 2>&1")
+                                     .c_str());
   const std::string text = pneuma::test::read_text(out);
   ASSERT_EQ(status, 0) << text;
   std::string expected;
@@ -440,36 +491,49 @@ print("XDMFReader", len(l.TimestepValues), l.GetDataInformation().GetNumberOfPoi
   EXPECT_EQ(text, expected);
 }
 
-// Mesh sequences record their unit (metres) in every format, and read_mesh() with its default
-// (millimetres) then reads metres: the oracle is the frame's positions in the run; an explicit
-// unit (unit_from_file = false) still wins.
+// Mesh sequences are in millimetres by default (`unit: m` for metres) and record their unit in
+// every format; read_mesh() reads the recorded unit: the oracle is the frame's positions in the
+// run, in metres; an explicit unit (unit_from_file = false) still wins.
 TEST(MeshSequenceSink, RecordsTheUnitAndReadMeshUsesIt) {
   const model::Model model = sphere_model();
-  for (const auto& [format, ascii, header] : {std::tuple{"ply", false, "comment unit m\n"},
-                                              {"ply", true, "comment unit m\n"},
-                                              {"obj", false, "# unit m\n"},
-                                              {"stl", false, "binary STL written by pneuma, unit m"},
-                                              {"stl", true, "solid pneuma unit m\n"}}) {
+  struct Case {
+    const char* format;
+    bool ascii;
+    double metres_per_unit;
+    const char* header;
+  };
+  for (const Case& c : {Case{"ply", false, 1e-3, "comment unit mm\n"},
+                        {"ply", true, 1e-3, "comment unit mm\n"},
+                        {"obj", false, 1e-3, "# unit mm\n"},
+                        {"stl", false, 1e-3, "binary STL written by pneuma, unit mm"},
+                        {"stl", true, 1e-3, "solid pneuma unit mm\n"},
+                        {"ply", false, 1.0, "comment unit m\n"},
+                        {"obj", false, 1.0, "# unit m\n"},
+                        {"stl", true, 1.0, "solid pneuma unit m\n"}}) {
+    const std::string what = fmt::format("{}{} in {} m", c.format, c.ascii ? " ascii" : "", c.metres_per_unit);
     TempDir dir;
-    auto sink = make_mesh_sequence_output(dir / "frames", MeshSequenceSpec{format, ascii, 2});
+    auto sink = make_mesh_sequence_output(dir / "frames", MeshSequenceSpec{c.format, c.ascii, 2, c.metres_per_unit});
     const auto scales = drive(*sink, model, 3, 30.0);
-    const auto file = dir / "frames" / (std::string("frame_00002.") + format);
+    const auto file = dir / "frames" / (std::string("frame_00002.") + c.format);
     const std::string bytes = pneuma::test::read_text(file);
-    EXPECT_NE(bytes.substr(0, 200).find(header), std::string::npos) << format << (ascii ? " ascii" : "");
-    EXPECT_EQ(pneuma::mesh::recorded_unit(file), 1.0);
-    const auto frame = pneuma::mesh::read_mesh(file);  // default: 1 unit = 1 mm, unless recorded
+    EXPECT_NE(bytes.substr(0, 200).find(c.header), std::string::npos) << what;
+    EXPECT_EQ(pneuma::mesh::recorded_unit(file), c.metres_per_unit) << what;
+    const auto frame = pneuma::mesh::read_mesh(file);  // the recorded unit
     // The frame in metres, numbered as read_mesh() numbers OBJ and STL (by first use).
     pneuma::mesh::TriangleMesh expected = model.lungs[0].rest;
     for (std::size_t i = 0; i < expected.vertices.size(); ++i)
       expected.vertices[i] += scales[2] * model.lungs[0].unit_displacement[i];
-    if (std::string(format) != "ply") pneuma::mesh::renumber_vertices_by_first_use(expected);
+    if (std::string(c.format) != "ply") pneuma::mesh::renumber_vertices_by_first_use(expected);
     ASSERT_EQ(frame.vertex_count(), expected.vertex_count());
     double worst = 0.0;
     for (std::size_t i = 0; i < frame.vertex_count(); ++i)
       worst = std::max(worst, (frame.vertices[i] - expected.vertices[i]).cwiseAbs().maxCoeff());
-    EXPECT_LT(worst, 1e-7) << format << ": float32 of coordinates around 0.1 m";
-    const auto as_mm = pneuma::mesh::read_mesh(file, {.metres_per_unit = 1e-3, .unit_from_file = false});
-    EXPECT_NEAR(as_mm.vertices[0].norm(), 1e-3 * frame.vertices[0].norm(), 1e-12) << "explicit unit wins";
+    EXPECT_LT(worst, 1e-7) << what << ": float32 of coordinates around 0.1 m";
+    // The file's numbers are the positions in its unit: read as plain numbers (1 unit = 1 m).
+    const auto numbers = pneuma::mesh::read_mesh(file, {.metres_per_unit = 1.0, .unit_from_file = false});
+    EXPECT_NEAR(numbers.vertices[0].norm(), frame.vertices[0].norm() / c.metres_per_unit,
+                1e-6 * numbers.vertices[0].norm())
+        << what << ": explicit unit wins";
   }
 }
 

@@ -20,7 +20,8 @@ def test_voxels_are_the_cli_files(tmp_path):
     assert code == 0, err
     animation = pneuma.Animation(scenario)
     k = int(np.argmax(animation.volume_mL))
-    tag = f"{animation.time_s[k]:.3f}s"
+    tag = "end_inspiration"  # named as asked in `at`, not by its time
+    assert not (tmp_path / "cli" / "voxels" / f"labels-{animation.time_s[k]:.3f}s.nii.gz").exists()
     out = animation.voxels(k)
     folder = tmp_path / "cli" / "voxels"
     for key, name in (("forward_m", "dvf-forward"), ("pullback_m", "dvf-pullback")):

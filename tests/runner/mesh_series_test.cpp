@@ -9,6 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "pneuma/mesh/io/mesh_io.h"
+
 #include "test_support.h"
 
 using pneuma::test::read_text;
@@ -75,10 +77,11 @@ TEST(MeshSeries, TwoLungsHaveOneIndexEach) {
   expect_series(dir / "out/frames", "left", "ply");
 }
 
-// ParaView itself (where pvpython is installed) opens the index with its times in seconds.
+// ParaView itself (pvpython, from scripts/install-deps; a missing one fails in CI) opens the index
+// with its times in seconds.
 TEST(MeshSeries, ParaViewReadsTheIndexWithTimesInSeconds) {
   const fs::path pvpython = pneuma::test::find_program({"pvpython"});
-  if (pvpython.empty()) GTEST_SKIP() << "pvpython not found";
+  PNEUMA_REQUIRE_CLIENT(pvpython, "pvpython (Debian: apt-get install paraview python3-paraview)");
   TempDir dir;
   const auto file = dir.write("s.yaml", scenario("ply", "mesh: {phantom: right, edge: 12 mm}"));
   ASSERT_EQ(run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"}).exit_code, 0);
@@ -91,4 +94,32 @@ TEST(MeshSeries, ParaViewReadsTheIndexWithTimesInSeconds) {
   const auto r = pneuma::test::run_program(pvpython, {script.string(), (dir / "out/frames/frame.ply.series").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.out, "0 0.5 1 1.5 2 642\n");
+}
+
+// Frames are in millimetres by default and `unit: m` writes metres: the same lung either way
+// (each read back in the unit it records), its numbers 1000 times apart.
+TEST(MeshSeries, UnitChoosesMillimetresOrMetres) {
+  TempDir dir;
+  const std::string mesh = "mesh: {phantom: right, edge: 12 mm}";
+  const auto mm = dir.write("mm.yaml", scenario("ply", mesh));
+  std::string in_m = scenario("ply", mesh);
+  in_m.replace(in_m.find("every: 5}"), 9, "every: 5, unit: m}");
+  const auto m = dir.write("m.yaml", in_m);
+  ASSERT_EQ(run_pneuma({"run", mm.string(), "-o", (dir / "mm").string(), "-q"}).exit_code, 0);
+  ASSERT_EQ(run_pneuma({"run", m.string(), "-o", (dir / "m").string(), "-q"}).exit_code, 0);
+  const auto a = dir / "mm/frames/frame_00010.ply", b = dir / "m/frames/frame_00010.ply";
+  EXPECT_EQ(pneuma::mesh::recorded_unit(a), 1e-3);
+  EXPECT_EQ(pneuma::mesh::recorded_unit(b), 1.0);
+  const auto from_mm = pneuma::mesh::read_mesh(a), from_m = pneuma::mesh::read_mesh(b);
+  const auto numbers = pneuma::mesh::read_mesh(a, {.metres_per_unit = 1.0, .unit_from_file = false});
+  ASSERT_EQ(from_mm.vertex_count(), from_m.vertex_count());
+  for (std::size_t i = 0; i < from_mm.vertex_count(); ++i) {
+    EXPECT_LT((from_mm.vertices[i] - from_m.vertices[i]).norm(), 1e-7) << i;  // float32 of 0.1 m
+    EXPECT_NEAR(numbers.vertices[i].norm(), 1e3 * from_m.vertices[i].norm(), 1e-4) << i;
+  }
+  std::string bad = scenario("ply", mesh);
+  bad.replace(bad.find("every: 5}"), 9, "every: 5, unit: cm}");
+  const auto r = run_pneuma({"run", dir.write("bad.yaml", bad).string(), "-o", (dir / "bad").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("outputs.mesh_sequence.unit"), std::string::npos) << r.err;
 }

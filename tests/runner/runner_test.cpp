@@ -107,8 +107,7 @@ TEST(Runner, GltfKeyframeEqualsTheExportedMeshAtTheSameTime) {
   const float* rest = floats(primitive.attributes.at("POSITION"));
   const float* delta = floats(primitive.targets.at(0).at("POSITION"));
   const float* weights = floats(m.animations.at(0).samplers.at(0).output);
-  pneuma::mesh::ReadOptions o;
-  o.metres_per_unit = 1.0;
+  const pneuma::mesh::ReadOptions o;  // the unit each frame records (mm)
   for (std::size_t k : {5u, 17u, 33u}) {
     const auto frame = pneuma::mesh::read_mesh(frame_file(dir / "out/frames", k), o);
     ASSERT_EQ(frame.vertex_count(),
@@ -354,8 +353,8 @@ print("ok", len(s["frames/positions"]), s["frames/positions/000040"].attrs["unit
   EXPECT_EQ(text, "ok 41 m\n");
 }
 
-// `pneuma mesh info` on a frame of the sequence (written in metres, saying so) reports the lung
-// at its real size without --unit; an explicit --unit still wins.
+// `pneuma mesh info` on a frame of the sequence (written in millimetres, saying so) reports the
+// lung at its real size without --unit; an explicit --unit still wins.
 TEST(Runner, MeshInfoReadsTheUnitAFrameRecords) {
   TempDir dir;
   const auto scenario = dir.write("small.yaml", kSmall);
@@ -366,14 +365,14 @@ TEST(Runner, MeshInfoReadsTheUnitAFrameRecords) {
     return out.substr(at, out.find('\n', at) - at);
   };
   const auto recorded = run_pneuma({"mesh", "info", frame, "--no-self-intersections"});
-  const auto metres = run_pneuma({"mesh", "info", frame, "--no-self-intersections", "--unit", "m"});
   const auto forced_mm = run_pneuma({"mesh", "info", frame, "--no-self-intersections", "--unit", "mm"});
+  const auto forced_m = run_pneuma({"mesh", "info", frame, "--no-self-intersections", "--unit", "m"});
   ASSERT_EQ(recorded.exit_code, 0) << recorded.err;
-  EXPECT_EQ(bounding_box(recorded.out), bounding_box(metres.out));
-  EXPECT_NE(bounding_box(recorded.out), bounding_box(forced_mm.out));
-  // The oracle for the size: the frame read with an explicit unit of 1 m.
+  EXPECT_EQ(bounding_box(recorded.out), bounding_box(forced_mm.out));
+  EXPECT_NE(bounding_box(recorded.out), bounding_box(forced_m.out));
+  // The oracle for the size: the frame read with an explicit unit of 1 mm.
   pneuma::mesh::ReadOptions m;
-  m.metres_per_unit = 1.0;
+  m.metres_per_unit = 1e-3;
   m.unit_from_file = false;
   const auto mesh = pneuma::mesh::read_mesh(frame, m);
   double z_min = 1e9, z_max = -1e9;
@@ -411,9 +410,7 @@ TEST(Runner, OriginalMeshIsExportedWithTheFieldOfItsRemeshedSurface) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   pneuma::mesh::ReadOptions mm;
   const auto original = pneuma::mesh::read_mesh(dir / "lung.ply", mm);
-  pneuma::mesh::ReadOptions metres;
-  metres.metres_per_unit = 1.0;
-  const auto frame = pneuma::mesh::read_mesh(frame_file(dir / "out/frames", 20), metres);
+  const auto frame = pneuma::mesh::read_mesh(frame_file(dir / "out/frames", 20));  // its recorded unit (mm)
   EXPECT_EQ(frame.vertex_count(), original.vertex_count());
   const auto s = pneuma::runner::load_scenario(scenario);
   auto options = s.physiology.options;

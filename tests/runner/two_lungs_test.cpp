@@ -145,8 +145,7 @@ TEST(TwoLungs, TheGlbHoldsTwoMeshesEachWithItsOwnWeightTrack) {
     const auto& v = m.bufferViews.at(static_cast<std::size_t>(a.bufferView));
     return reinterpret_cast<const float*>(m.buffers[0].data.data() + v.byteOffset + a.byteOffset);
   };
-  pneuma::mesh::ReadOptions o;
-  o.metres_per_unit = 1.0;
+  const pneuma::mesh::ReadOptions o;  // the unit each frame records (mm)
   for (std::size_t i = 0; i < 2; ++i) {
     const char* lung = i == 0 ? "right" : "left";
     const auto& channel = m.animations[0].channels[i];
@@ -239,8 +238,7 @@ TEST_P(CtBothLungs, OneScenarioBreathesBothLungs) {
       std::max_element(phys.series.volume_m3.begin(), phys.series.volume_m3.end()) - phys.series.volume_m3.begin());
   EXPECT_GT(phys.series.volume_m3[end_inspiration], 1.4e-3);
   pneuma::mesh::TriangleMesh both;
-  pneuma::mesh::ReadOptions o;
-  o.metres_per_unit = 1.0;
+  const pneuma::mesh::ReadOptions o;  // the unit each frame records (mm)
   for (const auto& [lung, share, labels] :
        {std::tuple{"right", 0.55, std::vector<int>{3, 4, 5}}, std::tuple{"left", 0.45, std::vector<int>{1, 2}}}) {
     std::size_t voxels = 0;

@@ -31,6 +31,7 @@ namespace {
 
 struct CsvRow {
   std::string time_point;
+  std::string frame;
   double expected_mL = 0, warped_mL = 0, error_percent = 0, min_jacobian = 0;
   std::size_t folded_tets = 0;
   double folded_volume_fraction = 0;
@@ -49,8 +50,8 @@ std::vector<CsvRow> read_voxels_csv(const std::filesystem::path& path) {
     for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
     EXPECT_EQ(cells.size(), 12u) << line;
     if (cells.size() != 12) continue;
-    rows.push_back({cells[0], std::stod(cells[5]), std::stod(cells[6]), std::stod(cells[7]), std::stod(cells[8]),
-                    std::stoul(cells[10]), std::stod(cells[11])});
+    rows.push_back({cells[0], cells[1], std::stod(cells[5]), std::stod(cells[6]), std::stod(cells[7]),
+                    std::stod(cells[8]), std::stoul(cells[10]), std::stod(cells[11])});
   }
   return rows;
 }
@@ -92,7 +93,17 @@ TEST_P(VoxelsRunByMesher, ThePhantomsWarpedLungFollowsThePhysiologysVolume) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto rows = read_voxels_csv(dir / "out/voxels/voxels.csv");
   ASSERT_EQ(rows.size(), 3u);
-  const auto rest = pneuma::image::read_label_map(dir / "out/voxels" / ("labels-" + rows[0].time_point + ".nii.gz"));
+  // Tags as asked: the moments by name, a time by its frame's time; the moments' frames are the
+  // extremes of the physiology's volume at the frame rate, simulated here apart from the run.
+  EXPECT_EQ(rows[0].time_point, "end_expiration");
+  EXPECT_EQ(rows[1].time_point, "end_inspiration");
+  EXPECT_EQ(rows[2].time_point, "1.000s");
+  EXPECT_EQ(rows[2].frame, "5");
+  const auto s = pneuma::runner::load_scenario(scenario);
+  const auto volume = pneuma::scenario::simulate_physiology(s, s.frame_rate_hz).series.volume_m3;
+  EXPECT_EQ(rows[0].frame, std::to_string(std::min_element(volume.begin(), volume.end()) - volume.begin()));
+  EXPECT_EQ(rows[1].frame, std::to_string(std::max_element(volume.begin(), volume.end()) - volume.begin()));
+  const auto rest = pneuma::image::read_label_map(dir / "out/voxels/labels-end_expiration.nii.gz");
   const double rest_m3 = lung_voxels_volume_m3(rest, {1});
   for (const CsvRow& row : rows) {
     for (const char* kind : {"dvf-forward-", "dvf-pullback-", "labels-"}) {

@@ -42,6 +42,23 @@ CommandResult run_program(const std::filesystem::path& program, const std::vecto
 // The first of `names` found on PATH, as a path; empty when none is there.
 std::filesystem::path find_program(const std::vector<std::string>& names);
 
+// Whether a test may skip when a client it checks the outputs with (ParaView, Blender) is not
+// installed: yes outside CI; in CI (the environment variable CI set, as .ci/run and CI services set
+// it, to anything but "" "0" "false") no, so that scripts/install-deps' clients are really
+// exercised; PNEUMA_ALLOW_MISSING_CLIENTS=1 allows it anywhere.
+bool missing_client_may_skip();
+
+// Skips the test (outside CI) or fails it (in CI) when `program` (a path from find_program) is
+// empty. The caller includes <gtest/gtest.h>.
+#define PNEUMA_REQUIRE_CLIENT(program, what)                                                         \
+  do {                                                                                               \
+    if ((program).empty()) {                                                                         \
+      if (::pneuma::test::missing_client_may_skip()) GTEST_SKIP() << (what) << " not found";         \
+      GTEST_FAIL() << (what) << " not found, and CI requires it (scripts/install-deps installs it; " \
+                   << "PNEUMA_ALLOW_MISSING_CLIENTS=1 skips instead)";                               \
+    }                                                                                                \
+  } while (false)
+
 // Starts pneuma with `args`, sends SIGINT after `delay_ms` milliseconds, and returns its exit
 // status (128 + signal when it died of one, as a shell reports it).
 int interrupt_pneuma(const std::vector<std::string>& args, int delay_ms);

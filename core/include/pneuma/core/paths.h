@@ -39,6 +39,11 @@ void require_readable_file(const std::filesystem::path& path);
 // name what is available (the shipped presets), so that they cannot drift from the folder.
 std::vector<std::string> file_stems(const std::filesystem::path& folder, const std::string& extension);
 
+// The file of the program or shared object that holds this function's code, canonical: the
+// `pneuma` executable, or the Python module's extension when pneuma runs inside Python. Empty
+// where it cannot be found. For the files a binary finds relative to itself (its presets).
+std::filesystem::path running_binary();
+
 // "a, b, c" (or "none" for an empty list).
 std::string join_names(const std::vector<std::string>& names);
 

@@ -43,14 +43,19 @@ std::unique_ptr<Output> make_hdf5_output(const std::filesystem::path& h5_file, c
                                          PositionPrecision positions = PositionPrecision::float32,
                                          PositionCompression compression = PositionCompression::none);
 
-// ---- frames/frame_NNNNN.<format> (`outputs: {mesh_sequence: {format: ply, ascii: false, every: 1}}`)
+// ---- frames/frame_NNNNN.<format> (`outputs: {mesh_sequence: {format: ply, ascii: false, every: 1, unit: mm}}`)
 struct MeshSequenceSpec {
   std::string format = "ply";  // ply | obj | stl
   bool ascii = false;
-  std::size_t every = 1;  // every n-th frame
+  std::size_t every = 1;          // every n-th frame
+  double metres_per_unit = 1e-3;  // mm (`unit: m` for metres), as the CT and planning tools beside them
 };
 
-// One mesh file per frame (every `spec.every`-th), frame_00000.<format>, in metres; two lungs:
+// The `unit` option of the mesh files pneuma writes for medical tools (`mm`, the default, or `m`),
+// in metres per unit.
+double read_mesh_file_unit(const scenario::Node& options);
+
+// One mesh file per frame (every `spec.every`-th), frame_00000.<format>, in `spec`'s unit (LPS); two lungs:
 // right_00000.<format> and left_00000.<format>. Off by default.
 OutputPlugin mesh_sequence_output();
 std::unique_ptr<Output> make_mesh_sequence_output(const std::filesystem::path& dir, const MeshSequenceSpec& spec);

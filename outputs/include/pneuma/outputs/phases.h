@@ -29,6 +29,7 @@ inline constexpr const char* kPhasesKey = "phases";
 struct PhasesSpec {
   physiology::PhaseBinningOptions binning;
   bool surfaces = true;
+  double metres_per_unit = 1e-3;  // phases/bin_NN.ply in mm (`unit: m` for metres), as the frames
 };
 
 // Writes phases.csv atomically: the bins of `binning`, made from samples at `time_s`.

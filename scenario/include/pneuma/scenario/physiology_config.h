@@ -51,7 +51,10 @@ struct PhysiologyConfig {
 PhysiologyConfig read_physiology(const scenario::Node& section, double duration_s,
                                  const std::filesystem::path& config_dir);
 
-// The folder of shipped presets: $PNEUMA_CONFIG_DIR if set, else the source tree's configs/.
+// The folder of shipped presets (configs/: physiology/, tissue/), the first of: $PNEUMA_CONFIG_DIR
+// if set; <prefix>/share/pneuma/configs beside the installed binary (bin/pneuma, or the Python
+// module under <prefix>/lib/python3/dist-packages/pneuma); the source tree's configs/ when the
+// binary lies in the build tree it was built in. Else the installed path (which is missing).
 std::filesystem::path default_config_dir();
 
 }  // namespace pneuma::scenario
