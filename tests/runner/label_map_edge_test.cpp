@@ -39,7 +39,7 @@ std::filesystem::path write_blob(const TempDir& dir, const std::string& name, do
                              "space directions: (3,0,0) (0,3,0) (0,0," +
                              std::to_string(k_direction) +
                              ")\nkinds: domain domain domain\nendian: little\nencoding: raw\nspace origin: (0,0,0)\n\n";
-  const auto path = dir / name;
+  auto path = dir / name;
   std::ofstream out(path, std::ios::binary);
   out << header;
   out.write(reinterpret_cast<const char*>(labels.data()), static_cast<std::streamsize>(labels.size() * 2));
