@@ -27,12 +27,8 @@ struct RestTets {
 };
 
 RestTets rest_tets(std::span<const LungMotion> lungs) {
-  if (lungs.size() > 255) throw ValueError(std::to_string(lungs.size()) + " lungs: expected at most 255");
-  RestTets out;
-  for (const LungMotion& lung : lungs) {
-    out.jacobians.push_back(tet_jacobians(lung));  // checks the lung
-    out.sets.push_back({lung.mesh.tets, lung.mesh.nodes});
-  }
+  RestTets out{detail::rest_tet_sets(lungs), {}};
+  for (const LungMotion& lung : lungs) out.jacobians.push_back(tet_jacobians(lung));
   return out;
 }
 

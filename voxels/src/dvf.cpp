@@ -12,11 +12,6 @@
 namespace pneuma::voxels {
 namespace {
 
-void check_lungs(std::span<const LungMotion> lungs) {
-  if (lungs.size() > 255) throw ValueError(std::to_string(lungs.size()) + " lungs: expected at most 255");
-  for (const LungMotion& lung : lungs) check_lung_motion(lung);
-}
-
 // The value of a voxel that no tet holds: outside(x), or 0.
 void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i, std::size_t j,
                  std::size_t k) {
@@ -42,10 +37,7 @@ DisplacementField pullback_dvf(const Grid& grid, std::span<const LungMotion> lun
 }
 
 std::vector<std::uint8_t> rest_lungs(const Grid& grid, std::span<const LungMotion> lungs) {
-  check_lungs(lungs);
-  std::vector<detail::TetSet> sets;
-  sets.reserve(lungs.size());
-  for (const LungMotion& lung : lungs) sets.push_back({lung.mesh.tets, lung.mesh.nodes});
+  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
   std::vector<std::uint8_t> owner;
   detail::rasterize(
       grid, std::span<const detail::TetSet>(sets), owner,
@@ -56,38 +48,27 @@ std::vector<std::uint8_t> rest_lungs(const Grid& grid, std::span<const LungMotio
 
 void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
                  const OutsideField& outside) {
-  check_lungs(lungs);
-  std::vector<detail::TetSet> sets;
-  sets.reserve(lungs.size());
-  for (const LungMotion& lung : lungs) sets.push_back({lung.mesh.tets, lung.mesh.nodes});
+  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
   field.grid = grid;
   field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
   detail::rasterize(
       grid, std::span<const detail::TetSet>(sets), field.lung,
       [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
-          std::size_t) {
-        const LungMotion& lung = lungs[s];
-        const mesh::Tetrahedron& tet = lung.mesh.tets[t];
-        Eigen::Vector3d u = Eigen::Vector3d::Zero();
-        for (std::size_t c = 0; c < 4; ++c) u += l[static_cast<Eigen::Index>(c)] * lung.unit_displacement_m[tet[c]];
-        field.displacement_m[v] = lung.scale * u;
-      },
+          std::size_t) { field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l); },
       [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
 }
 
 void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
                   const OutsideField& outside) {
-  check_lungs(lungs);
+  std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);  // checked; their nodes moved below
   std::vector<std::vector<Eigen::Vector3d>> deformed(lungs.size());
-  std::vector<detail::TetSet> sets;
-  sets.reserve(lungs.size());
   for (std::size_t s = 0; s < lungs.size(); ++s) {
     const LungMotion& lung = lungs[s];
     deformed[s].resize(lung.mesh.node_count());
     for (std::size_t n = 0; n < deformed[s].size(); ++n) {
       deformed[s][n] = mesh::moved_node(lung.mesh.nodes[n], lung.unit_displacement_m[n], lung.scale);
     }
-    sets.push_back({lung.mesh.tets, deformed[s]});
+    sets[s].nodes = deformed[s];
   }
   field.grid = grid;
   field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
@@ -98,11 +79,7 @@ void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, Displacem
         // x = sum l_c (rest_c + s U_c), so the rest point is x - s sum l_c U_c: v = -s sum l_c U_c,
         // the same inverse without cancelling coordinates against each other (a time point at rest,
         // s = 0, is an exact zero field, not rounding noise).
-        const LungMotion& lung = lungs[s];
-        const mesh::Tetrahedron& tet = lung.mesh.tets[t];
-        Eigen::Vector3d u = Eigen::Vector3d::Zero();
-        for (std::size_t c = 0; c < 4; ++c) u += l[static_cast<Eigen::Index>(c)] * lung.unit_displacement_m[tet[c]];
-        field.displacement_m[v] = -(lung.scale * u);
+        field.displacement_m[v] = -detail::tet_displacement(lungs[s], t, l);
       },
       [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
 }

@@ -10,8 +10,10 @@
 #include <cmath>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
+#include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
 #include "pneuma/mesh/geometry/tet_mesh.h"
 #include "pneuma/voxels/dvf.h"
@@ -26,6 +28,28 @@ struct TetSet {
 };
 
 inline constexpr std::size_t kSlabVoxels = 4;  // k-slices per parallel task
+
+// The lungs' tets at rest, each lung checked (check_lung_motion), at most 255 of them (a voxel's
+// owner is a byte). Throws ValueError.
+inline std::vector<TetSet> rest_tet_sets(std::span<const LungMotion> lungs) {
+  if (lungs.size() > 255) throw ValueError(std::to_string(lungs.size()) + " lungs: expected at most 255");
+  std::vector<TetSet> sets;
+  sets.reserve(lungs.size());
+  for (const LungMotion& lung : lungs) {
+    check_lung_motion(lung);
+    sets.push_back({lung.mesh.tets, lung.mesh.nodes});
+  }
+  return sets;
+}
+
+// s sum l_c U_c: the lung's displacement at barycentric coordinates `l` of its tet `t` (the
+// forward field there; the pull-back field of the deformed tet is its negative).
+inline Eigen::Vector3d tet_displacement(const LungMotion& lung, std::size_t t, const Eigen::Vector4d& l) {
+  const mesh::Tetrahedron& tet = lung.mesh.tets[t];
+  Eigen::Vector3d u = Eigen::Vector3d::Zero();
+  for (std::size_t c = 0; c < 4; ++c) u += l[static_cast<Eigen::Index>(c)] * lung.unit_displacement_m[tet[c]];
+  return lung.scale * u;
+}
 
 // Calls visit(voxel, set, tet, l, i, j, k) once for every voxel whose centre lies in the closed
 // simplex of some tet (barycentric coordinates l >= -kBarycentricTolerance), for the first set
