@@ -15,6 +15,7 @@
 #include "pneuma/cohort/summary.h"
 #include "pneuma/cohort/workflow.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/text.h"
 
 namespace pneuma::cli {
 namespace {
@@ -59,13 +60,18 @@ void run_cohort(const CohortCommandOptions& o) {
   w.extra_args = o.snakemake_args;
   if (!o.snakefile.empty()) w.snakefile = o.snakefile;
   w.pneuma = this_executable();
-  const int status = cohort::run_workflow(c, plan, w);
+  const cohort::WorkflowResult result = cohort::run_workflow(c, plan, w);
+  const int status = result.status;
   if (o.dry_run) {
     if (status != 0)
-      throw Error(ExitCode::failure,
-                  fmt::format("pneuma: cohort: snakemake --dry-run failed (exit {}); its lines above say why", status));
+      throw Error(ExitCode::failure, fmt::format("pneuma: cohort: snakemake --dry-run failed (exit {}): {}", status,
+                                                 quote_bytes(result.failure)));
     return;
   }
+  // Stopped before any job (a workflow Snakemake refuses): its reason, not a line per run.
+  if (status != 0 && status <= 128 && !std::filesystem::exists(std::filesystem::path(o.output) / "logs"))
+    throw Error(ExitCode::failure, fmt::format("pneuma: cohort: snakemake stopped before any job (exit {}): {}", status,
+                                               quote_bytes(result.failure)));
   const std::vector<cohort::Row> rows = cohort::read_rows(o.output, plan);
   std::size_t done = 0;
   for (const cohort::Row& r : rows) {
@@ -83,9 +89,10 @@ void run_cohort(const CohortCommandOptions& o) {
   if (status > 128) std::exit(status);
   if (done != rows.size() || status != 0) {
     throw Error(ExitCode::failure,
-                fmt::format("pneuma: cohort: {} of {} runs did not complete (snakemake exit {}); the lines above say "
-                            "why; run the same command again to run only those",
-                            rows.size() - done, rows.size(), status));
+                fmt::format("pneuma: cohort: {} of {} runs did not complete (snakemake exit {}{}); run the same "
+                            "command again to run only those",
+                            rows.size() - done, rows.size(), status,
+                            result.failure.empty() ? "" : ": first " + quote_bytes(result.failure)));
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <poll.h>
 #include <pwd.h>
 #include <signal.h>
 #include <spawn.h>
@@ -10,10 +11,16 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <sstream>
 #include <thread>
 
 #include "pneuma/core/atomic_file.h"
@@ -192,7 +199,127 @@ std::vector<std::string> snakemake_command(const WorkflowOptions& o) {
   return argv;
 }
 
-int run_workflow(const Cohort& cohort, const Plan& plan, const WorkflowOptions& o) {
+namespace {
+
+std::string trimmed(const std::string& line) {
+  const auto first = line.find_first_not_of(" \t\r");
+  if (first == std::string::npos) return {};
+  const auto last = line.find_last_not_of(" \t\r");
+  return line.substr(first, last - first + 1);
+}
+
+// Snakemake keeps what it forwards to the terminal, at most this much: the first failure is
+// near the top of a failed run's output, and its last lines say why it stopped.
+constexpr std::size_t kKeptLog = 1u << 20;
+
+// Copies what arrives on `out` and `err` to this process's stdout and stderr until both close
+// (Snakemake and every job holding them ended), and returns it (at most kKeptLog bytes). Reads
+// on whatever happens to this process's own streams, so that Snakemake never blocks on a pipe.
+std::string pass_on_and_keep(int out, int err) {
+  std::string kept;
+  std::array<pollfd, 2> fds{pollfd{out, POLLIN, 0}, pollfd{err, POLLIN, 0}};
+  const std::array<int, 2> targets{STDOUT_FILENO, STDERR_FILENO};
+  std::array<char, 4096> buffer{};
+  int open = 2;
+  while (open > 0) {
+    if (::poll(fds.data(), fds.size(), -1) < 0) {
+      if (errno == EINTR) continue;
+      break;
+    }
+    for (std::size_t k = 0; k < fds.size(); ++k) {
+      if (fds[k].fd < 0 || fds[k].revents == 0) continue;
+      const ssize_t n = ::read(fds[k].fd, buffer.data(), buffer.size());
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        ::close(fds[k].fd);
+        fds[k].fd = -1;
+        --open;
+        continue;
+      }
+      const auto bytes = static_cast<std::size_t>(n);
+      for (std::size_t written = 0; written < bytes;) {
+        const ssize_t w = ::write(targets[k], buffer.data() + written, bytes - written);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) break;
+        written += static_cast<std::size_t>(w);
+      }
+      if (kept.size() < kKeptLog) kept.append(buffer.data(), std::min(bytes, kKeptLog - kept.size()));
+    }
+  }
+  for (const pollfd& f : fds)
+    if (f.fd >= 0) ::close(f.fd);
+  return kept;
+}
+
+}  // namespace
+
+std::string diagnose_snakemake(const std::string& log, const std::filesystem::path& dir) {
+  std::vector<std::string> lines;
+  {
+    std::istringstream in(log);
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+  }
+  // A job's facts: the indented "key: value" lines under a "rule NAME:" or "Error in rule NAME:".
+  const auto facts_after = [&](std::size_t i) {
+    std::map<std::string, std::string> facts;
+    for (std::size_t j = i + 1; j < lines.size() && !lines[j].empty() && (lines[j][0] == ' ' || lines[j][0] == '\t');
+         ++j) {
+      const std::string fact = trimmed(lines[j]);
+      const auto colon = fact.find(": ");
+      if (colon != std::string::npos) facts.emplace(fact.substr(0, colon), fact.substr(colon + 2));
+    }
+    return facts;
+  };
+  // Snakemake 7.21 names a job's wildcards where it starts it, and only its jobid where it fails.
+  static const std::regex job_start(R"(^(local)?rule (\S+):\s*$)");
+  static const std::regex job_error(R"(^Error in rule (\S+):\s*$)");
+  static const std::regex exit_note(R"(^exit status (\d+)$)");  // the Snakefile's ON_FAILURE line
+  static const std::regex error_line(R"(^\S*(Error|Exception)\b.*)");
+  std::map<std::string, std::string> wildcards_of_job;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (!std::regex_match(lines[i], job_start)) continue;
+    auto facts = facts_after(i);
+    if (facts.count("jobid") && facts.count("wildcards")) wildcards_of_job[facts["jobid"]] = facts["wildcards"];
+  }
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    std::smatch m;
+    if (!std::regex_match(lines[i], m, job_error)) continue;
+    auto facts = facts_after(i);
+    const std::string wildcards = wildcards_of_job.count(facts["jobid"]) ? wildcards_of_job[facts["jobid"]] : "";
+    const std::string job_log = facts["log"].substr(0, facts["log"].find(" (check log"));
+    // The job's own last word (pneuma's one-line error), and the exit status the Snakefile noted.
+    std::string why, status;
+    if (!job_log.empty()) {
+      std::ifstream in(dir / job_log);
+      for (std::string line; std::getline(in, line);) {
+        line = trimmed(line);
+        std::smatch e;
+        if (std::regex_match(line, e, exit_note)) {
+          status = e[1].str();
+        } else if (!line.empty()) {
+          why = line;
+        }
+      }
+    }
+    if (why.empty()) why = "its command failed";
+    std::string text = "rule " + m[1].str() + (wildcards.empty() ? "" : " (" + wildcards + ")") + " failed" +
+                       (status.empty() ? "" : " (exit " + status + ")") + ": " + why;
+    if (!job_log.empty()) text += " (log: " + job_log + ")";
+    return text;
+  }
+  // Snakemake stopped before any job: its first error line, with the next when it ends in ':'.
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (!std::regex_match(lines[i], error_line)) continue;
+    std::string text = trimmed(lines[i]);
+    if (!text.empty() && text.back() == ':' && i + 1 < lines.size()) text += " " + trimmed(lines[i + 1]);
+    return text;
+  }
+  for (auto it = lines.rbegin(); it != lines.rend(); ++it)
+    if (!trimmed(*it).empty()) return trimmed(*it);
+  return "no output";
+}
+
+WorkflowResult run_workflow(const Cohort& cohort, const Plan& plan, const WorkflowOptions& o) {
   const std::filesystem::path dir = std::filesystem::absolute(o.output_dir).lexically_normal();
   // A first run that Snakemake stops before any job (a workflow it refuses) leaves the folder as
   // it found it: no .cohort/ or .snakemake/ standing for a cohort that never started.
@@ -225,9 +352,22 @@ int run_workflow(const Cohort& cohort, const Plan& plan, const WorkflowOptions& 
   g_signal.store(0);
   ::sigaction(SIGINT, &forward, &old_int);
   ::sigaction(SIGTERM, &forward, &old_term);
+  // Snakemake's stdout and stderr through pipes: passed on as they come, and kept to say why it
+  // failed (7.21 writes a Snakefile's syntax error to stdout, a job's failure to stderr).
+  std::array<std::array<int, 2>, 2> pipes{};
+  for (auto& p : pipes)
+    if (::pipe2(p.data(), O_CLOEXEC) != 0)
+      throw IoError(std::string("cohort: cannot make a pipe: ") + std::strerror(errno));
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, pipes[0][1], STDOUT_FILENO);
+  posix_spawn_file_actions_adddup2(&actions, pipes[1][1], STDERR_FILENO);
   pid_t pid = 0;
-  const int spawned = ::posix_spawnp(&pid, argv[0], nullptr, nullptr, argv.data(), environ);
+  const int spawned = ::posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  for (auto& p : pipes) ::close(p[1]);
   if (spawned != 0) {
+    for (auto& p : pipes) ::close(p[0]);
     ::sigaction(SIGINT, &old_int, nullptr);
     ::sigaction(SIGTERM, &old_term, nullptr);
     throw UnsupportedError(
@@ -235,22 +375,31 @@ int run_workflow(const Cohort& cohort, const Plan& plan, const WorkflowOptions& 
                     std::strerror(spawned)));
   }
   g_snakemake.store(pid);
+  const std::string kept = pass_on_and_keep(pipes[0][0], pipes[1][0]);
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
   g_snakemake.store(0);
   ::sigaction(SIGINT, &old_int, nullptr);
   ::sigaction(SIGTERM, &old_term, nullptr);
-  if (g_signal.load() != 0) return 128 + g_signal.load();
-  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
-  const int code = WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+  WorkflowResult result;
+  if (g_signal.load() != 0) {
+    result.status = 128 + g_signal.load();
+  } else if (WIFSIGNALED(status)) {
+    result.status = 128 + WTERMSIG(status);
+  } else {
+    result.status = WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+  }
+  if (result.status != 0) result.failure = diagnose_snakemake(kept, dir);
+  if (result.status > 128) return result;
+  const int code = result.status;
   // Every job writes its log under logs/ (the Snakefile): none there, none started.
   if (code != 0 && first_run && !path_exists(dir / "logs")) {
     std::filesystem::remove_all(dir / kStateDir, ec);
     std::filesystem::remove_all(dir / ".snakemake", ec);
     if (!dir_existed) std::filesystem::remove(dir, ec);  // only when empty
   }
-  return code;
+  return result;
 }
 
 }  // namespace pneuma::cohort

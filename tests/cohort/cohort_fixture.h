@@ -107,6 +107,15 @@ inline std::map<std::string, std::string> output_digests(const fs::path& run_dir
 }
 
 // How many jobs of `rule` Snakemake said it would run ("Job stats:" table; 0 when none).
+// The last non-empty line of a program's output.
+inline std::string last_line(const std::string& text) {
+  std::string line, last;
+  std::istringstream in(text);
+  while (std::getline(in, line))
+    if (!line.empty()) last = line;
+  return last;
+}
+
 inline int jobs_of_rule(const std::string& snakemake_output, const std::string& rule) {
   std::istringstream in(snakemake_output);
   int count = 0;

@@ -407,6 +407,11 @@ TEST(CohortLocal, BadLabelMapFailsThatSubjectOnlyWithItsOneLineError) {
   EXPECT_FALSE(fs::exists(out / "runs/broken/quiet"));
   EXPECT_NE(r.err.find("pneuma: cohort: broken/quiet: field failed (exit 3): " + error_line + "\n"), std::string::npos)
       << r.err;
+  // The last line names the first failed job, its wildcards and why (its log's last line).
+  const std::string last = last_line(r.err);
+  EXPECT_NE(last.find("rule field (subject=broken"), std::string::npos) << last;
+  EXPECT_NE(last.find("failed (exit 3): " + error_line), std::string::npos) << last;
+  EXPECT_NE(last.find("(log: logs/fields/broken/healthy-upright.log)"), std::string::npos) << last;
   const std::string html = read_text(out / "cohort.html");
   EXPECT_NE(html.find(pneuma::escape_markup(error_line)), std::string::npos);
 
@@ -447,6 +452,12 @@ TEST(CohortLocal, AWorkflowSnakemakeRefusesLeavesTheFolderAsItWas) {
     const auto r = run_cohort(cohort, dir / "out", extra);
     EXPECT_EQ(r.exit_code, 1) << r.err;
     EXPECT_FALSE(fs::exists(dir / "out")) << r.err;
+    // One line says why, naming Snakemake's own place of the error: the Snakefile (as pneuma
+    // copied it into the folder) and its line.
+    const std::string last = last_line(r.err);
+    EXPECT_EQ(last.rfind("pneuma: cohort: snakemake ", 0), 0u) << r.err;
+    EXPECT_NE(last.find(": SyntaxError in file "), std::string::npos) << last;
+    EXPECT_NE(last.find("Snakefile, line 2"), std::string::npos) << last;
     dir.write("kept/notes.txt", "mine");
     EXPECT_EQ(run_cohort(cohort, dir / "kept", extra).exit_code, 1);
     std::vector<std::string> left;

@@ -49,12 +49,23 @@ PlanFile read_plan(const std::filesystem::path& output_dir);
 // The snakemake command line (argv, the program first) for `options`.
 std::vector<std::string> snakemake_command(const WorkflowOptions& options);
 
+// What a Snakemake run ended with.
+struct WorkflowResult {
+  int status = 0;  // Snakemake's exit status (0: every job done; 128 + N when it died of signal N)
+  // When status != 0: which job failed and why, or why Snakemake stopped before any job, in one
+  // line (diagnose_snakemake); empty when it succeeded.
+  std::string failure;
+};
 // Locks DIR, writes the plan and the Snakefile (atomically, only where they changed, so that
-// Snakemake's code trigger does not fire for nothing), runs Snakemake with stdout and stderr
-// inherited, and returns its exit status (0: every job done; 128 + N when it died of signal N).
-// SIGINT and SIGTERM are passed on to Snakemake (which stops or cancels its jobs) and waited
-// for. Throws IoError when DIR cannot be written or is in use by another cohort, and
-// Error(unsupported) when snakemake cannot be started.
-int run_workflow(const Cohort& cohort, const Plan& plan, const WorkflowOptions& options);
+// Snakemake's code trigger does not fire for nothing), runs Snakemake with stdout inherited and
+// stderr passed through (and kept, to say in one line why it failed). SIGINT and SIGTERM are
+// passed on to Snakemake (which stops or cancels its jobs) and waited for. Throws IoError when
+// DIR cannot be written or is in use by another cohort, and Error(unsupported) when snakemake
+// cannot be started.
+WorkflowResult run_workflow(const Cohort& cohort, const Plan& plan, const WorkflowOptions& options);
+// Snakemake's stderr (`log`) to one line: the first failed job ("rule run (subject=a, scenario=b):
+// " and the last line of its log file under `dir`, where pneuma's job wrote its one-line error),
+// else the error Snakemake stopped with ("SyntaxError in file F, line 2: ..."), else its last line.
+std::string diagnose_snakemake(const std::string& log, const std::filesystem::path& dir);
 
 }  // namespace pneuma::cohort
