@@ -471,33 +471,48 @@ LabelMap read_nifti(const fs::path& path, const std::string& name, const LabelMa
 
 // ---- MetaImage: where the data is, from the header's own lines ----
 
-detail::StoredData meta_stored_data(const fs::path& path, const std::string& name, const detail::ItkImage& image) {
-  std::ifstream in(path, std::ios::binary);
-  std::string line, data_file;
+// A MetaImage header's own lines up to ElementDataFile: where its data is.
+struct MetaHeader {
   bool compressed = false;
   double header_size = 0.0;
-  std::uint64_t offset = 0;
-  while (std::getline(in, line) && offset < (1u << 20)) {
-    offset += line.size() + 1;
+  std::uint64_t offset = 0;  // where local data starts, or the data file's HeaderSize
+  fs::path data;             // the file holding the data (the file itself when LOCAL)
+};
+
+MetaHeader read_meta_header(const fs::path& path, const std::string& name) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line, data_file;
+  MetaHeader h;
+  while (std::getline(in, line) && h.offset < (1u << 20)) {
+    h.offset += line.size() + 1;
     const auto eq = line.find('=');
     if (eq == std::string::npos) continue;
     const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
-    if (key == "CompressedData") compressed = lower(value) == "true";
-    if (key == "HeaderSize") header_size = std::atof(value.c_str());
+    if (key == "CompressedData") h.compressed = lower(value) == "true";
+    if (key == "HeaderSize") h.header_size = std::atof(value.c_str());
     if (key == "ElementDataFile") {
       data_file = value;
       break;
     }
   }
-  const double claimed = image.data_bytes();
-  fs::path data_path = path;
+  h.data = path;
   if (data_file != "LOCAL" && data_file != "Local" && data_file != "local") {
     if (data_file.empty() || data_file == "LIST" || data_file.find('%') != std::string::npos) {
       throw InputError(name + ": ElementDataFile '" + data_file + "': expected LOCAL or one data file");
     }
-    data_path = data_file_path(path, name, data_file, "ElementDataFile");
-    offset = header_size > 0 ? static_cast<std::uint64_t>(header_size) : 0;
+    h.data = data_file_path(path, name, data_file, "ElementDataFile");
+    h.offset = h.header_size > 0 ? static_cast<std::uint64_t>(h.header_size) : 0;
   }
+  return h;
+}
+
+detail::StoredData meta_stored_data(const fs::path& path, const std::string& name, const detail::ItkImage& image) {
+  const MetaHeader h = read_meta_header(path, name);
+  const bool compressed = h.compressed;
+  const double header_size = h.header_size;
+  const std::uint64_t offset = h.offset;
+  const fs::path& data_path = h.data;
+  const double claimed = image.data_bytes();
   if (compressed) {
     return {.compressed = true, .exact = true, .bytes = inflated_bytes(data_path, offset, claimed, name).bytes};
   }
@@ -937,6 +952,33 @@ LabelMap read_mask_folder(const fs::path& dir, const std::string& name, const La
 }
 
 }  // namespace
+
+std::vector<fs::path> label_map_files(const fs::path& path, const LabelMapOptions& options) {
+  const std::string name = path.string();
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    std::vector<fs::path> files;
+    for (const std::string& stem : options.masks) {
+      for (const char* ending : {".nii.gz", ".nii"}) {
+        const fs::path file = path / (stem + ending);
+        if (!fs::exists(file, ec)) continue;
+        files.push_back(file);
+        break;
+      }
+    }
+    return files;
+  }
+  std::vector<fs::path> files{path};
+  const std::string n = lower(name);
+  if (n.ends_with(".nhdr") || n.ends_with(".nrrd")) {
+    for (const fs::path& data : read_nrrd_header(path, name).data)
+      if (data != path) files.push_back(data);
+  } else if (n.ends_with(".mhd") || n.ends_with(".mha")) {
+    const MetaHeader h = read_meta_header(path, name);
+    if (h.data != path) files.push_back(h.data);
+  }
+  return files;
+}
 
 Eigen::Vector3d LabelMap::spacing_m() const {
   return {ijk_to_lps.block<3, 1>(0, 0).norm(), ijk_to_lps.block<3, 1>(0, 1).norm(),

@@ -12,6 +12,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/stopwatch.h"
 #include "pneuma/field/tissue.h"
+#include "pneuma/image/label_map.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
 #include "pneuma/mesh/source/surface_source.h"
 #include "pneuma/model/field_cache.h"
@@ -58,7 +59,11 @@ CacheLookup surface_field(const Scenario& s, const mesh::SurfaceSource& source, 
     return {compute_field_record(surface, inputs), false, {}, inputs.options.regions};
   }
   if (source.is_phantom(i)) return load_or_compute(cache, source.surface(i), tissue, given, save_to);
-  const std::string key = source_key({source.input_file(i), s.field.tissue_file}, source.key_text(i));
+  // A label map's every file (a mask folder's masks, a detached header's data), else the file.
+  std::vector<std::filesystem::path> input_files =
+      source.from_labels() ? image::label_map_files(source.input_file(i)) : std::vector{source.input_file(i)};
+  input_files.push_back(s.field.tissue_file);
+  const std::string key = source_key(input_files, source.key_text(i));
   std::shared_ptr<const mesh::SurfaceRegions> regions;
   CacheLookup lookup = load_or_compute(
       cache, source_field_key(key, tissue.name, given),

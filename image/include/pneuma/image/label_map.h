@@ -77,6 +77,13 @@ struct LabelMapOptions {
 // .seg.nrrd layers, or (a folder) masks on different grids, overlapping masks or none at all.
 LabelMap read_label_map(const std::filesystem::path& path, const LabelMapOptions& options = {});
 
+// Every file a label map at `path` is read from, in a fixed order: a folder's mask files, a
+// detached header (.nhdr, .mhd) with its data files, else the file itself. What a digest of the
+// input must cover (a field cache keyed by it is stale when any of them changes). Throws as
+// read_label_map does for a header that names its data files wrongly.
+std::vector<std::filesystem::path> label_map_files(const std::filesystem::path& path,
+                                                   const LabelMapOptions& options = {});
+
 // How many label maps this process has read (read_label_map calls that returned a map; a mask
 // folder counts once): a run reads its label map once, and the tests hold it to that.
 std::size_t label_map_reads();
