@@ -386,8 +386,29 @@
       var canvas = el('canvas', { width: String(plane.width), height: String(plane.height), 'aria-label': plane.name + ' slice' });
       canvas.style.aspectRatio = plane.width + ' / ' + plane.height;
       root.appendChild(headEl);
-      root.appendChild(canvas);
+      var row = el('div', { 'class': 'slice-row' });
+      row.appendChild(canvas);
+      root.appendChild(row);
       slicesRoot.appendChild(root);
+      // Beside the labels: the warped CT (when given), |forward DVF| and the Jacobian, as bytes
+      // on each channel's scale (report.h: LabelSlice::Channel).
+      var channels = (plane.channels || []).map(function (c) {
+        var box = el('figure', { 'class': 'channel' });
+        var cv = el('canvas', { width: String(plane.width), height: String(plane.height), 'aria-label': plane.name + ' ' + c.name });
+        cv.style.aspectRatio = plane.width + ' / ' + plane.height;
+        box.appendChild(cv);
+        box.appendChild(el('figcaption', null, channelCaption(c)));
+        row.appendChild(box);
+        var decodedImages = c.images.map(function (b64) {
+          var bytes = base64ToBytes(b64), img = new ImageData(plane.width, plane.height), px = img.data;
+          for (var k = 0; k < bytes.length; ++k) {
+            var rgb = channelColor(c, bytes[k]);
+            px[4 * k] = rgb[0]; px[4 * k + 1] = rgb[1]; px[4 * k + 2] = rgb[2]; px[4 * k + 3] = 255;
+          }
+          return img;
+        });
+        return { channel: c, canvas: cv, images: decodedImages, shown: -1 };
+      });
       // Decoded once each: RGBA pixels, the lung pixel count and the lowest row with lung.
       var decoded = plane.labels.map(function (runs) {
         var img = new ImageData(plane.width, plane.height), px = img.data, at = 0, lung = 0, lowest = -1;
@@ -405,9 +426,49 @@
       var least = 0;
       decoded.forEach(function (d, i) { if (d.lung < decoded[least].lung) least = i; });
       slicePlanes.push({ plane: plane, canvas: canvas, info: info, decoded: decoded, reference: decoded[least].lowest,
-                         reference_time: plane.times_s[least], shown: -1 });
+                         reference_time: plane.times_s[least], shown: -1, channels: channels });
     });
     listeners.push(function (t) { slicePlanes.forEach(function (s) { drawSlice(s, t); }); });
+    // The voxel time points' figures (voxels.csv), the one nearest the cursor marked.
+    var points = data.voxel_points || [];
+    if (points.length) {
+      var table = el('table', { 'class': 'voxel-points' });
+      table.appendChild(el('caption', null, 'Voxel time points (voxels/voxels.csv): the warped lungs\' volume against ' +
+        'the physiology\'s, and the forward map\'s smallest Jacobian inside the lungs'));
+      var head = el('tr');
+      ['time point', 't (s)', 'volume error', 'smallest J', 'folded tets'].forEach(function (h) { head.appendChild(el('th', null, h)); });
+      table.appendChild(head);
+      var pointRows = points.map(function (p) {
+        var tr = el('tr');
+        [p.tag, p.time_s === null ? 'bin' : fmt(p.time_s, 2), fmt(p.volume_error_percent, 2) + ' %', fmt(p.min_jacobian, 3),
+         String(p.folded_tets)].forEach(function (v) { tr.appendChild(el('td', null, v)); });
+        table.appendChild(tr);
+        return tr;
+      });
+      slicesRoot.appendChild(table);
+      listeners.push(function (t) {
+        var best = -1;
+        points.forEach(function (p, i) {
+          if (p.time_s !== null && (best < 0 || Math.abs(p.time_s - t) < Math.abs(points[best].time_s - t))) best = i;
+        });
+        pointRows.forEach(function (tr, i) { tr.className = i === best ? 'current' : ''; });
+      });
+    }
+  }
+  function channelCaption(c) {
+    if (c.name === 'ct') return 'warped CT, ' + c.lo + ' to ' + c.hi + ' HU';
+    if (c.name === 'displacement') return '|forward DVF|, 0 (dark) to ' + c.hi + ' mm (bright)';
+    return 'Jacobian of the forward map, ' + c.lo + ' (blue, compressed) to ' + c.hi + ' (red, expanded), log scale';
+  }
+  function channelColor(c, b) {
+    var f = b / 255;
+    if (c.name === 'ct') return [b, b, b];
+    if (c.name === 'displacement') {  // dark blue through teal to yellow
+      return [Math.round(255 * Math.min(1, Math.max(0, 2 * f - 0.6))), Math.round(40 + 200 * f), Math.round(120 + 80 * Math.sin(Math.PI * f) - 100 * f)];
+    }
+    // Diverging about J = 1 (the byte 127.5 on the log scale): blue below, white at 1, red above.
+    var d = (b - 127.5) / 127.5;
+    return d < 0 ? [Math.round(255 * (1 + d)), Math.round(255 * (1 + d)), 255] : [255, Math.round(255 * (1 - d)), Math.round(255 * (1 - d))];
   }
   var LUNG_RGB = {};  // the lung colours as "r,g,b", for the self-test's count
   LUNG_COLORS.forEach(function (h) { LUNG_RGB[hexRgb(h).join(',')] = true; });
@@ -427,6 +488,12 @@
       g.beginPath(); g.moveTo(0, s.reference + 1); g.lineTo(s.plane.width, s.reference + 1); g.stroke();
       g.setLineDash([]);
     }
+    s.channels.forEach(function (c) {
+      var j = nearestIndex(s.plane.channel_times_s, t);
+      if (j === c.shown) return;
+      c.shown = j;
+      c.canvas.getContext('2d').putImageData(c.images[j], 0, 0);
+    });
     s.info.textContent = 't = ' + fmt(s.plane.times_s[i], 2) + ' s; dashed: the lowest lung at ' +
       fmt(s.reference_time, 2) + ' s; the lungs ' + fmt((d.lowest - s.reference) * s.plane.pixel_mm, 0) + ' mm lower';
   }
@@ -602,7 +669,12 @@
       result.slices.push(slicePlanes.map(function (s) {  // what the canvas shows, read back
         var p = s.canvas.getContext('2d').getImageData(0, 0, s.plane.width, s.plane.height).data, lungPixels = 0;
         for (var i = 0; i < p.length; i += 4) if (LUNG_RGB[p[i] + ',' + p[i + 1] + ',' + p[i + 2]]) ++lungPixels;
-        return { time_s: s.plane.times_s[s.shown], lung_pixels: lungPixels };
+        var channelPixels = s.channels.map(function (c) {  // each channel canvas: pixels that are not background
+          var q = c.canvas.getContext('2d').getImageData(0, 0, s.plane.width, s.plane.height).data, n = 0, sum = 0;
+          for (var k = 0; k < q.length; k += 4) { sum += q[k] + q[k + 1] + q[k + 2]; if (q[k + 3] > 0) ++n; }
+          return { name: c.channel.name, time_s: s.plane.channel_times_s[c.shown], drawn: n, mean_rgb: sum / (3 * Math.max(1, n)) };
+        });
+        return { time_s: s.plane.times_s[s.shown], lung_pixels: lungPixels, channels: channelPixels };
       }));
       result.pixels = shot.w * shot.h;
       return shot;

@@ -202,15 +202,42 @@ Json slices_json(const std::vector<LabelSlice>& slices, const std::vector<int>& 
       times.push_back(rounded(slice.times_s[t], 6));
       images.push_back(run_lengths(slice.labels[t]));
     }
+    Json channels = Json::array(), channel_times = Json::array();
+    for (const double t : slice.channel_times_s) channel_times.push_back(rounded(t, 6));
+    for (const LabelSlice::Channel& c : slice.channels) {
+      Json encoded = Json::array();  // one base64 string of bytes per channel time
+      for (const auto& image : c.images)
+        encoded.push_back(base64(std::string_view(reinterpret_cast<const char*>(image.data()), image.size())));
+      channels.push_back(Json{{"name", c.name},
+                              {"unit", c.unit},
+                              {"lo", rounded(c.lo, 6)},
+                              {"hi", rounded(c.hi, 6)},
+                              {"log", c.log},
+                              {"images", encoded}});
+    }
     planes.push_back(Json{{"name", slice.name},
                           {"fixed", slice.fixed},
                           {"width", slice.width},
                           {"height", slice.height},
                           {"pixel_mm", rounded(slice.pixel_mm, 4)},
                           {"times_s", times},
-                          {"labels", images}});
+                          {"labels", images},
+                          {"channel_times_s", channel_times},
+                          {"channels", channels}});
   }
   return Json{{"lung_labels", lung_labels}, {"planes", planes}};
+}
+
+Json voxel_points_json(const std::vector<VoxelPointFigures>& points) {
+  Json out = Json::array();
+  for (const VoxelPointFigures& p : points) {
+    out.push_back(Json{{"tag", p.tag},
+                       {"time_s", p.time_s ? Json(rounded(*p.time_s, 6)) : Json()},
+                       {"volume_error_percent", rounded(p.volume_error_percent, 4)},
+                       {"min_jacobian", rounded(p.min_jacobian, 4)},
+                       {"folded_tets", p.folded_tets}});
+  }
+  return out;
 }
 
 // Fills `@NAME@` placeholders of the template in one pass over the template only (what is
@@ -294,6 +321,7 @@ std::string report_html(const ReportInput& input) {
 
   if (input.bins) data["bins"] = bins_json(*input.bins);
   if (!input.slices.empty()) data["slices"] = slices_json(input.slices, input.lung_labels);
+  if (!input.voxel_points.empty()) data["voxel_points"] = voxel_points_json(input.voxel_points);
 
   const std::string json = script_json(data);
   const std::string glb = base64(input.glb);

@@ -120,6 +120,7 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
     r.bins = std::move(bins);
   }
   r.slices = report_label_slices(model, run, r.lung_labels);
+  if (const VoxelFigures* figures = run.shared.find<VoxelFigures>()) r.voxel_points = figures->points;
   return r;
 }
 

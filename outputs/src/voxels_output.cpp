@@ -193,6 +193,7 @@ class VoxelsOutput final : public Output {
     std::filesystem::create_directories(dir_ / "voxels");
     std::vector<std::filesystem::path> files;
     std::vector<std::string> rows;
+    std::vector<VoxelPointFigures> figures;
     voxels::TimePoint point;
     double worst_volume_error = 0.0, min_jacobian = std::numeric_limits<double>::infinity(), folded = 0.0;
     std::size_t folded_tets = 0;
@@ -218,7 +219,10 @@ class VoxelsOutput final : public Output {
           scale_text, at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
           point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
       folded_tets = std::max(folded_tets, point.jacobian.folded_tets);
+      figures.push_back({at.tag, at.frame ? std::optional<double>(series.time_s[*at.frame]) : std::nullopt,
+                         error * 100.0, point.jacobian.min, point.jacobian.folded_tets});
     }
+    run.shared.get<VoxelFigures>([&] { return std::make_shared<const VoxelFigures>(VoxelFigures{figures}); });
     const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
     write_stream_atomically(csv, false, [&](std::ostream& out) {
       out << "time_point,frame,time_s,scales,physiology_volume_mL,expected_lung_volume_mL,warped_lung_volume_mL,"
@@ -379,7 +383,7 @@ void VoxelScene::compute(std::span<const double> scales, voxels::TimePoint& poin
 }
 
 void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> scales_in, voxels::TimePoint& point,
-                            bool with_image) const {
+                            bool with_image, bool with_jacobian) const {
   if (scales_in.size() != model_.lungs.size()) {
     throw ValueError(fmt::format("voxels: {} scales for {} lungs", scales_in.size(), model_.lungs.size()));
   }
@@ -395,7 +399,7 @@ void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> sc
   inputs.rest_lung = &rest_lung_;
   inputs.ct = with_image ? spec_.image.get() : nullptr;
   inputs.mass_preserving = spec_.mass_preserving;
-  inputs.jacobian_map = spec_.jacobian;
+  inputs.jacobian_map = spec_.jacobian || with_jacobian;
   if (body) {
     inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
     // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L).
@@ -426,8 +430,26 @@ const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& ru
   });
 }
 
+namespace {
+
+// The report's fixed scales: a lung window for the CT, and the Jacobian from halving to doubling
+// (log scale, 1 in the middle).
+constexpr std::array<double, 2> kCtWindowHu{-1000.0, 200.0};
+constexpr std::array<double, 2> kJacobianRange{0.5, 2.0};
+
+std::uint8_t channel_byte(double value, const LabelSlice::Channel& channel) {
+  const double lo = channel.log ? std::log(channel.lo) : channel.lo;
+  const double hi = channel.log ? std::log(channel.hi) : channel.hi;
+  const double v = channel.log ? std::log(std::max(value, 1e-12)) : value;
+  const double byte = std::round(255.0 * (v - lo) / (hi - lo));
+  return static_cast<std::uint8_t>(std::clamp(std::isfinite(byte) ? byte : 0.0, 0.0, 255.0));
+}
+
+}  // namespace
+
 std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
-                                            std::vector<int>& lung_labels, std::size_t max_times) {
+                                            std::vector<int>& lung_labels, std::size_t max_times,
+                                            std::size_t max_channel_times) {
   if (requested_voxels(*run.scenario) == nullptr || max_times == 0) return {};
   for (const model::LungModel& lung : model.lungs) {
     if (!lung.interior) return {};
@@ -468,6 +490,19 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
   const std::size_t frames = time_s.size(), n = std::min(frames, max_times);
   std::vector<LabelSlice> slices;
   voxels::TimePoint point;
+  const VoxelsSpec& spec = *requested_voxels(*run.scenario);
+  const bool scene_has_image = spec.image != nullptr;
+  // |DVF|'s scale: the largest displacement of any lung's surface over the run, rounded up to a
+  // whole millimetre (the field's largest value is on the surface, where the lung moves most).
+  double max_displacement_mm = 1.0;
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    const auto& u = model.lungs[i].unit_displacement;
+    double largest_u = 0.0;
+    for (const auto& d : u) largest_u = std::max(largest_u, d.norm());
+    double largest_s = 0.0;
+    for (const double sc : run.scales[i]) largest_s = std::max(largest_s, std::abs(sc));
+    max_displacement_mm = std::max(max_displacement_mm, std::ceil(largest_u * largest_s * 1e3));
+  }
   for (const bool coronal : {true, false}) {
     const voxels::Grid grid = plane(coronal);
     LabelSlice slice;
@@ -478,21 +513,48 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
     slice.width = coronal ? grid.size[0] : grid.size[1];
     slice.height = grid.size[2];
     slice.pixel_mm = h * 1e3;
+    // The channels at every `stride`-th slice time (the first and the last among them).
+    const std::size_t stride = max_channel_times == 0 ? n + 1 : (n + max_channel_times - 1) / max_channel_times;
+    const bool with_ct = scene_has_image;
+    if (max_channel_times > 0) {
+      if (with_ct) slice.channels.push_back({"ct", "HU", kCtWindowHu[0], kCtWindowHu[1], false, {}});
+      slice.channels.push_back({"displacement", "mm", 0.0, max_displacement_mm, false, {}});
+      slice.channels.push_back({"jacobian", "", kJacobianRange[0], kJacobianRange[1], true, {}});
+    }
     for (std::size_t t = 0; t < n; ++t) {
       // Frames spread evenly, the first and the last included.
       const std::size_t k = n == 1 ? 0 : (t * (frames - 1) + (n - 1) / 2) / (n - 1);
       std::vector<double> scales;
       for (std::size_t i = 0; i < model.lungs.size(); ++i) scales.push_back(run.scales[i][k]);
-      scene.compute_on(grid, scales, point, false);
+      const bool channels = max_channel_times > 0 && (t % stride == 0 || t + 1 == n);
+      scene.compute_on(grid, scales, point, channels && with_ct, channels);
+      // Pixel (row, c) of the plane: row 0 is the most superior.
+      const auto voxel = [&](std::size_t row, std::size_t c) {
+        const std::size_t z = slice.height - 1 - row;
+        return coronal ? grid.index(c, 0, z) : grid.index(0, c, z);
+      };
       std::vector<std::int32_t> image;
       image.reserve(slice.width * slice.height);
-      for (std::size_t row = 0; row < slice.height; ++row) {
-        const std::size_t z = slice.height - 1 - row;  // row 0 is the most superior
-        for (std::size_t c = 0; c < slice.width; ++c)
-          image.push_back(point.labels->labels[coronal ? grid.index(c, 0, z) : grid.index(0, c, z)]);
-      }
+      for (std::size_t row = 0; row < slice.height; ++row)
+        for (std::size_t c = 0; c < slice.width; ++c) image.push_back(point.labels->labels[voxel(row, c)]);
       slice.times_s.push_back(time_s[k]);
       slice.labels.push_back(std::move(image));
+      if (!channels) continue;
+      slice.channel_times_s.push_back(time_s[k]);
+      for (LabelSlice::Channel& channel : slice.channels) {
+        std::vector<std::uint8_t> bytes;
+        bytes.reserve(slice.width * slice.height);
+        for (std::size_t row = 0; row < slice.height; ++row) {
+          for (std::size_t c = 0; c < slice.width; ++c) {
+            const std::size_t v = voxel(row, c);
+            const double value = channel.name == "ct"             ? point.ct->values[v]
+                                 : channel.name == "displacement" ? point.forward.displacement_m[v].norm() * 1e3
+                                                                  : point.jacobian_map->values[v];
+            bytes.push_back(channel_byte(value, channel));
+          }
+        }
+        channel.images.push_back(std::move(bytes));
+      }
     }
     slices.push_back(std::move(slice));
   }

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -15,7 +16,10 @@
 #include <numbers>
 #include <sstream>
 
+#include "pneuma/image/label_map.h"
 #include "pneuma/outputs/report.h"
+#include "pneuma/voxels/grid.h"
+#include "pneuma/voxels/voxel_io.h"
 #include "test_support.h"
 
 using pneuma::test::read_text;
@@ -561,5 +565,171 @@ outputs:
     }
     EXPECT_NEAR(shown_rest, lung_pixels[p][0], width) << p;
     EXPECT_NEAR(shown_peak, lung_pixels[p][peak_index], width) << p;
+  }
+}
+
+// With a CT given, each slice plane shows beside its labels the warped CT, |forward DVF| and the
+// forward map's Jacobian (#45), and the page lists the voxel time points' figures. Oracles: at
+// the first frame the lungs are at rest (s = 0): no displacement, J = 1 everywhere, and the CT is
+// the synthetic scan (lung -849.5 HU, tissue 40 HU) exactly where the labels say; at
+// end-inspiration the lung has moved, the Jacobian over the rest lung's pixels averages about the
+// physiology's V / V0, and the lung is darker (its mass in a larger volume). The figures are
+// voxels.csv's; Chromium draws every channel.
+TEST(Report, SlicesShowTheWarpedCtDisplacementAndJacobian) {
+  TempDir dir;
+  const std::string scenario_text = R"(duration: 4 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 8 mm}
+field: {tissue: healthy-upright, interior: {edge: 8 mm}}
+physiology:
+  preset: healthy-adult
+  output_rate: 10 Hz
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}
+outputs:
+  hdf5: false
+  voxels: {at: [end_expiration, end_inspiration], spacing: 4 mm{image}}
+)";
+  auto with_image = [&](const std::string& image) {
+    std::string text = scenario_text;
+    return text.replace(text.find("{image}"), 7, image);
+  };
+  // The synthetic CT on the rest label map's grid: lung -849.5 HU, tissue 40 HU.
+  const auto first = dir.write("rest.yaml", with_image(""));
+  ASSERT_EQ(run_pneuma({"run", first.string(), "-o", (dir / "rest").string(), "--quiet"}).exit_code, 0);
+  const auto rest = pneuma::image::read_label_map(dir / "rest/voxels/labels-end_expiration.nii.gz");
+  pneuma::voxels::Image ct;
+  ct.grid = pneuma::voxels::grid_of(rest);
+  for (const std::int32_t label : rest.labels) ct.values.push_back(label == 1 ? -849.5f : 40.0f);
+  pneuma::voxels::write_image(dir / "ct.nii.gz", ct);
+
+  const auto out = dir / "out";
+  const auto scenario = dir.write("ct.yaml", with_image(", image: ct.nii.gz"));
+  const auto run = run_pneuma({"run", scenario.string(), "-o", out.string(), "--quiet"});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const Page page = read_page(out / "report.html");
+  const Csv physiology = read_csv(out / "physiology.csv");
+  const std::size_t time_column = physiology.column("time_s"), volume_column = physiology.column("volume_mL");
+
+  // Bytes to values, as the page's scale says (report.h: LabelSlice::Channel).
+  auto value_of = [](const nlohmann::json& channel, unsigned char byte) {
+    const double lo = channel["lo"].get<double>(), hi = channel["hi"].get<double>(), f = byte / 255.0;
+    return channel["log"].get<bool>() ? std::exp(std::log(lo) + f * (std::log(hi) - std::log(lo))) : lo + f * (hi - lo);
+  };
+  auto pixel_labels = [](const nlohmann::json& runs) {
+    std::vector<int> labels;
+    for (std::size_t r = 0; r + 1 < runs.size(); r += 2)
+      labels.insert(labels.end(), runs[r + 1].get<std::size_t>(), runs[r].get<int>());
+    return labels;
+  };
+  const auto& planes = page.data["slices"]["planes"];
+  ASSERT_EQ(planes.size(), 2u);
+  for (const auto& plane : planes) {
+    const auto& times_s = plane["times_s"];
+    const auto& channel_times = plane["channel_times_s"];
+    ASSERT_GE(channel_times.size(), 2u);
+    ASSERT_LE(channel_times.size(), 9u);
+    EXPECT_EQ(channel_times.front(), times_s.front());
+    EXPECT_EQ(channel_times.back(), times_s.back());
+    const auto& channels = plane["channels"];
+    ASSERT_EQ(channels.size(), 3u);
+    EXPECT_EQ(channels[0]["name"], "ct");
+    EXPECT_EQ(channels[1]["name"], "displacement");
+    EXPECT_EQ(channels[2]["name"], "jacobian");
+    const std::size_t pixels = plane["width"].get<std::size_t>() * plane["height"].get<std::size_t>();
+    auto bytes = [&](std::size_t channel, std::size_t t) {
+      const std::string b = decode_base64(channels[channel]["images"][t].get<std::string>());
+      EXPECT_EQ(b.size(), pixels);
+      return std::vector<unsigned char>(b.begin(), b.end());
+    };
+    auto labels_at = [&](double t) {
+      for (std::size_t k = 0; k < times_s.size(); ++k)
+        if (times_s[k].get<double>() == t) return pixel_labels(plane["labels"][k]);
+      ADD_FAILURE() << "no label slice at " << t;
+      return std::vector<int>(pixels, 0);
+    };
+
+    // At rest: no motion, J = 1 (byte 128 of the log scale), the CT as scanned where the labels say.
+    ASSERT_EQ(channel_times.front().get<double>(), 0.0);
+    const std::vector<int> rest_labels = labels_at(0.0);
+    const auto ct0 = bytes(0, 0), u0 = bytes(1, 0), j0 = bytes(2, 0);
+    std::size_t lung_ok = 0, lung = 0, tissue_ok = 0, tissue = 0;
+    for (std::size_t k = 0; k < pixels; ++k) {
+      EXPECT_EQ(u0[k], 0) << plane["name"] << " pixel " << k;
+      EXPECT_EQ(j0[k], 128) << plane["name"] << " pixel " << k;
+      if (u0[k] != 0 || j0[k] != 128) break;
+      const double hu = value_of(channels[0], ct0[k]);
+      if (rest_labels[k] == 1) {
+        ++lung;
+        lung_ok += std::abs(hu - -849.5) <= 2.4;  // half a byte of the 1200 HU window
+      } else if (ct0[k] > 0) {                    // 0: beyond the scan
+        ++tissue;
+        tissue_ok += std::abs(hu - 40.0) <= 2.4;
+      }
+    }
+    ASSERT_GT(lung, 100u);
+    EXPECT_GE(static_cast<double>(lung_ok), 0.99 * static_cast<double>(lung)) << plane["name"];
+    EXPECT_GE(static_cast<double>(tissue_ok), 0.99 * static_cast<double>(tissue)) << plane["name"];
+
+    // The channel time of the largest volume.
+    std::size_t peak = 0;
+    double peak_volume = -1.0;
+    for (std::size_t c = 0; c < channel_times.size(); ++c) {
+      for (const auto& row : physiology.rows) {
+        if (std::abs(row[time_column] - channel_times[c].get<double>()) < 1e-6 && row[volume_column] > peak_volume) {
+          peak_volume = row[volume_column];
+          peak = c;
+        }
+      }
+    }
+    ASSERT_GT(peak_volume, 300.0) << "a channel time well into the breath";
+    const auto ct1 = bytes(0, peak), u1 = bytes(1, peak), j1 = bytes(2, peak);
+    const std::vector<int> peak_labels = labels_at(channel_times[peak].get<double>());
+    double largest_mm = 0.0, j_sum = 0.0, hu_sum = 0.0;
+    std::size_t j_count = 0, hu_count = 0;
+    for (std::size_t k = 0; k < pixels; ++k) {
+      largest_mm = std::max(largest_mm, value_of(channels[1], u1[k]));
+      if (rest_labels[k] == 1) j_sum += value_of(channels[2], j1[k]), ++j_count;
+      if (peak_labels[k] == 1) hu_sum += value_of(channels[0], ct1[k]), ++hu_count;
+    }
+    EXPECT_GT(largest_mm, 5.0) << plane["name"];
+    EXPECT_LE(largest_mm, channels[1]["hi"].get<double>());
+    // V / V0: the lung's volume at rest (the phantom's) and the physiology's change.
+    const double rest_volume_ml =
+        static_cast<double>(std::count(rest.labels.begin(), rest.labels.end(), 1)) * rest.voxel_volume_m3() * 1e6;
+    const double growth = (rest_volume_ml + 0.55 * peak_volume) / rest_volume_ml;
+    EXPECT_NEAR(j_sum / static_cast<double>(j_count), growth, 0.15 * (growth - 1.0) + 0.02) << plane["name"];
+    EXPECT_LT(hu_sum / static_cast<double>(hu_count), -849.5 - 0.5 * (150.5 - 150.5 / growth)) << plane["name"];
+  }
+
+  // The voxel time points' figures, as voxels.csv has them.
+  const Csv voxels_csv = read_csv(out / "voxels/voxels.csv");
+  const auto& points = page.data["voxel_points"];
+  ASSERT_EQ(points.size(), voxels_csv.rows.size());
+  const std::size_t error_column = voxels_csv.column("volume_error_percent"),
+                    min_j_column = voxels_csv.column("min_jacobian");
+  for (std::size_t r = 0; r < points.size(); ++r) {
+    EXPECT_NEAR(points[r]["volume_error_percent"].get<double>(), voxels_csv.rows[r][error_column], 1e-4);
+    EXPECT_NEAR(points[r]["min_jacobian"].get<double>(), voxels_csv.rows[r][min_j_column], 1e-4);
+  }
+  EXPECT_EQ(points[0]["tag"], "end_expiration");
+  EXPECT_EQ(points[1]["tag"], "end_inspiration");
+
+  // Chromium draws every channel, each filling its canvas.
+  const Chromium c = open_in_chromium(dir, out / "report.html", fmt_times(0.0, 2.0));
+  if (c.run.out.empty() && c.run.err.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
+  ASSERT_EQ(c.run.exit_code, 0) << c.run.err;
+  ASSERT_FALSE(c.selftest.empty() || c.selftest == "pending") << c.run.err;
+  const auto result = nlohmann::json::parse(c.selftest);
+  EXPECT_EQ(result["errors"], 0) << result["messages"].dump();
+  for (std::size_t p = 0; p < 2; ++p) {
+    const std::size_t pixels = planes[p]["width"].get<std::size_t>() * planes[p]["height"].get<std::size_t>();
+    for (std::size_t shot = 0; shot < 2; ++shot) {
+      const auto& shown = result["slices"][shot][p]["channels"];
+      ASSERT_EQ(shown.size(), 3u);
+      for (const auto& channel : shown) EXPECT_EQ(channel["drawn"].get<std::size_t>(), pixels) << channel.dump();
+    }
+    // |DVF| at rest is the scale's zero (dark); at 2 s brighter.
+    EXPECT_LT(result["slices"][0][p]["channels"][1]["mean_rgb"].get<double>(),
+              result["slices"][1][p]["channels"][1]["mean_rgb"].get<double>());
   }
 }

@@ -47,6 +47,13 @@ class RunShared {
     if (!slot) slot = std::shared_ptr<const T>(make());
     return *static_cast<const T*>(slot.get());
   }
+  // What an earlier output shared, or null (an output finished before another reads it: the
+  // registry's order, runner/output_registry.cpp).
+  template <class T>
+  const T* find() const {
+    const auto it = items_.find(std::type_index(typeid(T)));
+    return it == items_.end() ? nullptr : static_cast<const T*>(it->second.get());
+  }
 
  private:
   mutable std::map<std::type_index, std::shared_ptr<const void>> items_;

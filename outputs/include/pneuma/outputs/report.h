@@ -45,6 +45,26 @@ struct LabelSlice {
   double pixel_mm = 0.0;
   std::vector<double> times_s;
   std::vector<std::vector<std::int32_t>> labels;  // per time: width * height, row by row
+  // Beside the labels, at `channel_times_s` (some of `times_s`): 8-bit images of the same pixels,
+  // each byte b standing for lo + (hi - lo) b / 255 (log: exp of that in log space).
+  struct Channel {
+    std::string name;  // "ct" (the warped CT, when given), "displacement" (|forward DVF|), "jacobian"
+    std::string unit;  // "HU", "mm", ""
+    double lo = 0.0, hi = 1.0;
+    bool log = false;
+    std::vector<std::vector<std::uint8_t>> images;  // per channel time: width * height, row by row
+  };
+  std::vector<double> channel_times_s;
+  std::vector<Channel> channels;
+};
+
+// One voxel time point's quality figures (voxels.csv), for the page under the cursor.
+struct VoxelPointFigures {
+  std::string tag;               // "end_inspiration", "2.400s", "bin_03"
+  std::optional<double> time_s;  // none for a bin
+  double volume_error_percent = 0.0;
+  double min_jacobian = 0.0;
+  std::size_t folded_tets = 0;
 };
 
 struct ReportInput {
@@ -62,6 +82,7 @@ struct ReportInput {
   std::optional<ReportBins> bins;                          // with outputs.phases or a trace
   std::vector<LabelSlice> slices;                          // with voxel outputs
   std::vector<int> lung_labels;                            // the slices' lung label values
+  std::vector<VoxelPointFigures> voxel_points;             // voxels.csv's figures (voxel outputs)
 };
 
 // The whole page. Throws ValueError when `physiology` is null or empty.

@@ -68,8 +68,9 @@ class VoxelScene {
   // The DVFs, the Jacobian, the warped label map (and CT) at the lungs' scales (one per model lung).
   void compute(std::span<const double> scales, voxels::TimePoint& point) const;
   // The same on another grid (a plane for report.html's slices), the CT only if `with_image`.
+  // The Jacobian image is made when the spec asks for it or `with_jacobian`.
   void compute_on(const voxels::Grid& grid, std::span<const double> scales, voxels::TimePoint& point,
-                  bool with_image = true) const;
+                  bool with_image = true, bool with_jacobian = false) const;
 
  private:
   const model::Model& model_;
@@ -91,12 +92,21 @@ const VoxelsSpec* requested_voxels(const scenario::Scenario& scenario);
 // lungs' inside.
 const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& run);
 
+// The voxel time points' quality figures, shared by the voxel output (RunRecord::shared) for
+// report.html, which finishes after it.
+struct VoxelFigures {
+  std::vector<VoxelPointFigures> points;
+};
+
 // report.html's slices of the warped label map (voxel outputs on; empty otherwise): a coronal
 // plane through the middle of the lungs and a sagittal one through the middle of the first, with
 // pixels of 2 mm (coarser for a chest wider than 40 cm), at up to `max_times` frames spread
-// evenly over the run. `lung_labels` gets the label values that are lung.
+// evenly over the run; beside them, at up to `max_channel_times` of those frames, the warped CT
+// (when given), |forward DVF| and the forward map's Jacobian. `lung_labels` gets the label values
+// that are lung.
 std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
-                                            std::vector<int>& lung_labels, std::size_t max_times = 32);
+                                            std::vector<int>& lung_labels, std::size_t max_times = 32,
+                                            std::size_t max_channel_times = 8);
 
 OutputPlugin voxels_output();
 
