@@ -116,6 +116,34 @@ Instant through_circuit(const SegmentContext& c, const Drive& d, const double* y
   return out;
 }
 
+double total(const double* v, std::size_t n);
+
+// PAV's airway pressure: the p with p = PEEP + gain (R_set Q(p) + E_set dV), dV the volume since
+// the breath's start. Q rises with p at the slope 1 / R (the patient's inspiratory resistance), so
+// p - PEEP - gain (...) rises at 1 - gain R_set / R > 0 (validated): secant steps, the first exact
+// for linear mechanics; NaN (CVODE retries) if the assist would run away.
+double proportional_assist_pressure(const SegmentContext& c, const Drive& d, const double* volumes, double* flows) {
+  const Mechanics& m = *c.mechanics;
+  const double dv = total(volumes, m.compartments.size()) - c.start_volume;
+  const auto excess = [&](double p) {
+    const double q = compartment_flows(m, p + d.muscle_pressure_pa, volumes, flows);
+    return p - d.peep_pa - d.assist_gain * (d.assist_resistance_pa_s_per_m3 * q + d.assist_elastance_pa_per_m3 * dv);
+  };
+  double p0 = d.peep_pa, f0 = excess(p0);
+  double p1 = p0 + 100.0, f1 = excess(p1);  // 100 Pa: about 1 cmH2O
+  for (int i = 0; i < 8 && f1 != 0.0; ++i) {
+    const double slope = (f1 - f0) / (p1 - p0);
+    if (!(slope > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    const double p2 = p1 - f1 / slope;
+    p0 = p1;
+    f0 = f1;
+    p1 = p2;
+    f1 = excess(p1);
+    if (std::abs(p1 - p0) <= 1e-12 * std::max(1.0, std::abs(p1))) break;
+  }
+  return p1;
+}
+
 // Flows into every compartment at (t, volumes); returns the pressures at that instant.
 Instant evaluate(const SegmentContext& c, double t, const double* volumes, double* flows) {
   Drive d = drive_at(*c.driver, c.phase, t - c.breath_start_s);
@@ -131,6 +159,8 @@ Instant evaluate(const SegmentContext& c, double t, const double* volumes, doubl
   out.muscle_pressure = d.muscle_pressure_pa;
   out.peep = d.peep_pa;
   out.driving_pressure_rate = d.airway_pressure_rate_pa_per_s;
+  if (d.assist_gain > 0.0 && !d.flow_controlled)
+    d.airway_pressure_pa = proportional_assist_pressure(c, d, volumes, flows);
   if (c.circuit) return through_circuit(c, d, volumes, flows, out);
   if (d.flow_controlled) {
     const double pd = driving_pressure_for_flow(*c.mechanics, d.flow_m3_per_s, volumes);
@@ -156,8 +186,6 @@ int right_hand_side(double t, N_Vector y, N_Vector ydot, void* user_data) {
   }
   return 0;
 }
-
-double total(const double* v, std::size_t n);
 
 // CVODE's root functions for the assisted breaths' events (see RootKind). Each is smooth within
 // a segment, so CVODE locates its zero to its root tolerance (~100 ulp of t): trigger and cycle
@@ -191,8 +219,9 @@ int root_function(double t, N_Vector y, double* g, void* user_data) {
       case RootKind::trigger_pressure: g[i] = a.peep_pa - now.airway_pressure - a.trigger_threshold; break;
       case RootKind::reopen: g[i] = now.airway_pressure - a.peep_pa; break;
       case RootKind::flow_peak:
-        g[i] = c.circuit ? ventilator_flow_rate(c, t, v)
-                         : flow_rate_of_change(*c.mechanics, now.driving_pressure_rate, v, q.data());
+        g[i] = c.circuit || a.mode == AssistMode::pav
+                   ? ventilator_flow_rate(c, t, v)
+                   : flow_rate_of_change(*c.mechanics, now.driving_pressure_rate, v, q.data());
         break;
       case RootKind::flow_cycle: g[i] = now.ventilator_flow - a.cycle_fraction * c.flow_peak; break;
       case RootKind::volume_cycle: g[i] = delivered - a.cycle_volume_m3; break;
@@ -503,7 +532,7 @@ class Simulation {
     if (!is_simv(a)) simv_due_ = std::numeric_limits<double>::quiet_NaN();
     if (a.mode != AssistMode::prvc) prvc_pressure_ = std::numeric_limits<double>::quiet_NaN();
     if (!pending_) {
-      if (a.mode == AssistMode::pressure_support) {
+      if (a.mode == AssistMode::pressure_support || a.mode == AssistMode::pav) {
         // No backup rate: wait at CPAP for the patient's first trigger (not a breath), or the apnea time.
         context_.breath_start_s = t;
         double unused_peak = -std::numeric_limits<double>::infinity(), unused_drive = unused_peak;
@@ -521,8 +550,10 @@ class Simulation {
       }
     }
     // The breath it gives: SIMV's mandatory or spontaneous one, or the mode's own.
-    const bool mandatory = is_simv(a) ? simv_mandatory(a, t, *pending_) : a.mode != AssistMode::pressure_support;
+    const bool mandatory = is_simv(a) ? simv_mandatory(a, t, *pending_)
+                                      : a.mode != AssistMode::pressure_support && a.mode != AssistMode::pav;
     Assisted shape = simv_breath(a, mandatory);
+    if (a.mode == AssistMode::aprv) shape.mode = AssistMode::pressure;  // P_high for T_high, on the clock
     if (a.mode == AssistMode::prvc) {
       if (std::isnan(prvc_pressure_)) prvc_pressure_ = a.inspiratory_pressure_pa;  // the test breath
       shape.mode = AssistMode::pressure;
@@ -539,7 +570,8 @@ class Simulation {
     if (apnea_alarm_) breath.alarms = "apnea";
     apnea_alarm_ = false;
     if (shape.mode == AssistMode::volume || a.mode == AssistMode::prvc) breath.set_tidal_volume_m3 = a.tidal_volume_m3;
-    if (shape.mode != AssistMode::volume) breath.set_inspiratory_pressure_pa = shape.inspiratory_pressure_pa;
+    if (shape.mode != AssistMode::volume && shape.mode != AssistMode::pav)
+      breath.set_inspiratory_pressure_pa = shape.inspiratory_pressure_pa;
     pending_.reset();
     const double start_volume = total(y, n_);
     begin_breath(start_volume, y);
@@ -570,6 +602,7 @@ class Simulation {
       if (shape.cycle == CycleKind::flow) roots = {RootKind::flow_peak, RootKind::flow_cycle};
       if (shape.cycle == CycleKind::volume) roots.push_back(RootKind::volume_cycle);
       if (shape.volume_limit_m3 > 0.0) roots.push_back(RootKind::volume_limit);
+      if (shape.mode == AssistMode::pav && shape.pressure_limit_pa > 0.0) roots.push_back(RootKind::pressure_limit);
       std::array<double, kMaxStates> q{};
       context_.phase = kAssistPressure;
       use_setting_at(t);
@@ -585,7 +618,10 @@ class Simulation {
           context_.flow_peak = std::max(context_.flow_peak, last.ventilator_flow);
           continue;
         }
-        breath.cycle = k == RootKind::flow_cycle ? "flow" : k == RootKind::volume_cycle ? "volume" : "volume_limit";
+        breath.cycle = k == RootKind::flow_cycle     ? "flow"
+                       : k == RootKind::volume_cycle ? "volume"
+                       : k == RootKind::volume_limit ? "volume_limit"
+                                                     : "pressure_limit";
         break;
       }
     }
@@ -637,10 +673,12 @@ class Simulation {
   Stopped expiration(double& t, double* y, Assisted a, double backup, double& peak_airway, double& peak_drive,
                      std::optional<double> breath_start = std::nullopt) {
     Instant last;
+    // APRV's release is on the clock: the patient breathes at P_low through the demand valve.
+    const auto watches = [](const Assisted& x) { return x.mode != AssistMode::aprv; };
     bool by_flow = a.trigger == TriggerKind::flow;
     int phase_kind = kAssistExpiration;
     // Pressure trigger: a patient already pulling when expiration begins finds the circuit closed.
-    if (!by_flow) {
+    if (!by_flow && watches(a)) {
       std::array<double, kMaxStates> q{};
       context_.phase = kAssistExpiration;
       use_setting_at(t);
@@ -648,7 +686,8 @@ class Simulation {
     }
     for (;;) {
       std::vector<RootKind> roots;
-      if (by_flow) roots = {RootKind::trigger_flow};
+      if (!watches(a)) roots = {};
+      else if (by_flow) roots = {RootKind::trigger_flow};
       else if (phase_kind == kAssistExpiration) roots = {RootKind::occlude};
       else roots = {RootKind::trigger_pressure, RootKind::reopen};
       int root = -1;
@@ -659,7 +698,7 @@ class Simulation {
           current_driver_ = next;
           a = *assisted;
           by_flow = a.trigger == TriggerKind::flow;
-          if (by_flow) phase_kind = kAssistExpiration;
+          if (by_flow || !watches(a)) phase_kind = kAssistExpiration;
           backup = deadline(a, *breath_start);
           if (backup <= t) return Stopped::time;
           continue;
@@ -729,6 +768,9 @@ class Simulation {
     for (std::size_t s = 0; s < protocol_.settings.size(); ++s) {
       const PatientEffort& e = protocol_.settings[s].effort;
       if (!e.active()) continue;
+      // APRV: the patient breathes at either level through the demand valve; nothing is missed.
+      if (const auto* a = std::get_if<Assisted>(&protocol_.settings[s].driver); a && a->mode == AssistMode::aprv)
+        continue;
       const double from = protocol_.settings[s].start_time_s;
       const double to = s + 1 < protocol_.settings.size() ? protocol_.settings[s + 1].start_time_s : end;
       const double period = 1.0 / e.rate_hz, anchor = effort_anchor_[s];
@@ -964,7 +1006,7 @@ void validate(const Protocol& protocol, const SimulationOptions& options) {
     if (s.mechanics.compartments.size() != n)
       throw ValueError("every setting must keep the same number of compartments");
     validate(s.mechanics);
-    validate(s.driver);
+    validate(s);
   }
   double previous_hold = -1.0;
   for (const ExpiratoryHold& h : protocol.holds) {
@@ -982,6 +1024,26 @@ void validate(const Protocol& protocol, const SimulationOptions& options) {
 }
 
 }  // namespace
+
+void validate(const Setting& s) {
+  validate(s.driver);
+  const auto* a = std::get_if<Assisted>(&s.driver);
+  if (!a || a->mode != AssistMode::pav) return;
+  if (s.circuit.active()) throw ValueError("PAV assists the patient's own flow: it takes no circuit");
+  // The smallest resistance the inspiratory flow meets: the airway's, then the branches in parallel.
+  double conductance = 0.0;
+  bool open_branch = false;
+  for (const auto& c : s.mechanics.compartments) {
+    if (c.resistance_pa_s_per_m3 > 0.0) conductance += 1.0 / c.resistance_pa_s_per_m3;
+    else open_branch = true;
+  }
+  const double resistance =
+      s.mechanics.airway_resistance_pa_s_per_m3 + (open_branch || conductance == 0.0 ? 0.0 : 1.0 / conductance);
+  if (!(a->pav_gain * a->pav_resistance_pa_s_per_m3 < resistance))
+    throw ValueError("the assist gain times the assisted resistance must stay below the patient's resistance (" +
+                     fmt_seconds(resistance / units::pa_s_per_m3_per_cmh2o_s_per_l) +
+                     " cmH2O*s/L): the assist would run away");
+}
 
 SimulationResult simulate(const Protocol& protocol, const SimulationOptions& options) {
   validate(protocol, options);

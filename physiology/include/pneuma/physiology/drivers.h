@@ -64,7 +64,14 @@ struct PressureControl {
 // the scheduled time. Every other trigger starts a spontaneous, supported breath.
 // prvc: pressure-regulated volume control (PRVC, VC+): a PC-AC breath whose inspiratory pressure
 // the machine adjusts breath by breath toward a target tidal volume (see Assisted::prvc_step_pa).
-enum class AssistMode { volume, pressure, pressure_support, simv_volume, simv_pressure, prvc };
+// aprv: airway pressure release ventilation (APRV, BiLevel): the airway held at P_high
+// (PEEP + inspiratory_pressure_pa) for T_high (inspiratory_time_s), released to P_low (peep_pa)
+// for T_low (60 / rate - T_high), on the clock; the patient breathes at either level through the
+// demand valve (the pressure stays set whatever the effort), so no trigger starts anything.
+// pav: proportional assist ventilation: a patient-triggered breath during which the machine adds
+// Paw - PEEP = gain (R_set Q + E_set dV) (Q the patient's flow, dV the volume since the trigger),
+// a share of the pressure the patient's own effort needs against the set (known) R and E.
+enum class AssistMode { volume, pressure, pressure_support, simv_volume, simv_pressure, prvc, aprv, pav };
 enum class TriggerKind { flow, pressure };
 enum class CycleKind { time, flow, volume };
 enum class FlowWaveform { square, decelerating };  // decelerating: linear ramp from peak to 0
@@ -97,6 +104,11 @@ struct Assisted {
   // pressure. After each breath the pressure moves by dP (VT_target / VTi - 1) (the compliance
   // the breath measured), bounded to +-prvc_step_pa, within [0, pressure_limit_pa - PEEP].
   double prvc_step_pa = 0.0;
+  // PAV: the assist's gain (0 < gain < 1) and the patient's resistance and elastance it assumes.
+  // Cycled by `cycle` (flow at 25 % by default), at most inspiratory_time_s; no backup rate.
+  double pav_gain = 0.0;
+  double pav_resistance_pa_s_per_m3 = 0.0;
+  double pav_elastance_pa_per_m3 = 0.0;
   // Apnea backup (cpap_psv): no breath within apnea_time_s of the last breath's start (or of the
   // mode's start) starts PC-AC breaths on the backup settings until the patient triggers.
   double apnea_time_s = 0.0;  // 0: no apnea backup
@@ -197,6 +209,11 @@ struct Drive {
   double airway_pressure_rate_pa_per_s = 0.0;  // its time derivative (pressure controlled)
   double muscle_pressure_pa = 0.0;
   double peep_pa = 0.0;
+  // Proportional assist (PAV's inspiration): the airway pressure is PEEP + gain (R Q + E dV),
+  // a function of the state the simulator solves for; airway_pressure_pa is PEEP until then.
+  double assist_gain = 0.0;
+  double assist_resistance_pa_s_per_m3 = 0.0;
+  double assist_elastance_pa_per_m3 = 0.0;
 };
 
 // The phases of an assisted breath (the `phase` of drive_at for an Assisted driver). Their ends

@@ -24,6 +24,10 @@ struct Setting {
   Alarms alarms{};         // the ventilator's alarm limits (none set: no alarm)
 };
 
+// Throws ValueError when the setting's driver cannot work with its mechanics or circuit (PAV: no
+// circuit, and gain * assisted resistance below the patient's inspiratory resistance).
+void validate(const Setting& setting);
+
 // An expiratory hold (a manoeuvre, not a setting): at the first end of expiration at or after
 // at_s (when the next breath would start), the ventilator closes both valves for duration_s and
 // reads the airway pressure at the end: the total PEEP (set PEEP + intrinsic PEEP, once the
