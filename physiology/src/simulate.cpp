@@ -321,6 +321,8 @@ class Simulation {
         context_.phase = p;
         const double phase_end = breath.start_s + plan.phases[static_cast<std::size_t>(p)].end_s;
         Instant last;
+        // Flow starvation: the patient pulling against the set flow (volume control's flow phase).
+        starvation_ = p == 0 && std::holds_alternative<VolumeControl>(driver);
         while (t < phase_end) {
           const double segment_end = std::min({phase_end, next_change_after(t), end, next_effort_break(t)});
           use_setting_at(t);
@@ -331,6 +333,7 @@ class Simulation {
             break;
           }
         }
+        starvation_ = false;
         if (!complete) break;
         if (plan.phases[static_cast<std::size_t>(p)].inspiratory &&
             (p + 1 == plan.count || !plan.phases[static_cast<std::size_t>(p) + 1].inspiratory)) {
@@ -412,6 +415,7 @@ class Simulation {
 
   void begin_breath(double start_volume, const double* y) {
     min_volume_ = max_volume_ = start_volume;
+    starvation_dip_ = std::numeric_limits<double>::quiet_NaN();
     paw_integral_ = 0.0;
     start_delivered_ = ventilator_volume(y);
   }
@@ -459,6 +463,9 @@ class Simulation {
     if (is_ventilator(current_driver_)) {
       breath.vte_m3 = end_inspiration_delivered_ - ventilator_volume(y);
       check_alarms(breath, result);
+      cycling(breath);
+      breath.flow_starvation_pa = starvation_dip_;
+      breath.flow_starvation = starvation_dip_ > kFlowStarvation_pa;
     }
     // An end-expiratory hold: the pressure measured at its end when one was made (expiratory_hold),
     // else the pressure the recoil holds with the airway occluded at once (no redistribution).
@@ -466,6 +473,34 @@ class Simulation {
     else if (is_ventilator(current_driver_))
       breath.intrinsic_peep_pa = driving_pressure_for_flow(*context_.mechanics, 0.0, y) - breath.peep_pa;
     result.breaths.push_back(breath);
+  }
+
+  // Cycling against the effort in progress at the end of inspiration (the latest onset at or
+  // before it), when its neural inspiration (the effort's rise) overlaps the breath's inspiration.
+  // APRV has no cycle to judge: its levels change on the clock, the patient breathes at both.
+  void cycling(BreathMetrics& breath) const {
+    if (const auto* a = std::get_if<Assisted>(&current_driver_); a && a->mode == AssistMode::aprv) return;
+    const double cycle = breath.start_s + breath.inspiratory_time_s;
+    const std::size_t s = setting_at(cycle);
+    const PatientEffort& e = protocol_.settings[s].effort;
+    if (!e.active() || cycle < effort_anchor_[s]) return;
+    const double period = 1.0 / e.rate_hz, neural = period * e.ie_ratio / (1.0 + e.ie_ratio);
+    const double onset = effort_anchor_[s] + period * std::floor((cycle - effort_anchor_[s]) / period);
+    if (onset + neural <= breath.start_s) return;  // it ended before the breath began
+    breath.cycle_delay_s = cycle - (onset + neural);
+    breath.early_cycling = breath.cycle_delay_s < 0.0;
+    breath.late_cycling = breath.cycle_delay_s > kLateCyclingShare * neural;
+  }
+
+  // Flow starvation: how far the airway pressure at (t, y) lies below the passive lung's (the
+  // same state and drive, the effort removed); tracked only while starvation_ is set.
+  void track_starvation(double t, const double* y, double airway_pressure) {
+    if (!starvation_ || !context_.effort) return;
+    SegmentContext passive = context_;
+    passive.effort = nullptr;
+    std::array<double, kMaxStates> q{};
+    const double dip = evaluate(passive, t, y, q.data()).airway_pressure - airway_pressure;
+    starvation_dip_ = std::isnan(starvation_dip_) ? dip : std::max(starvation_dip_, dip);
   }
 
   // When an assisted expiration that began a breath at `breath_start` ends on the clock: the
@@ -588,7 +623,9 @@ class Simulation {
       std::vector<RootKind> roots;
       if (shape.pressure_limit_pa > 0.0) roots.push_back(RootKind::pressure_limit);
       int root = -1;
+      starvation_ = true;
       const Stopped s = phase(kAssistFlow, t, flow_end, y, roots, false, peak_airway, peak_drive, last, root);
+      starvation_ = false;
       if (s == Stopped::end_of_run) return false;
       if (s == Stopped::root) {
         breath.cycle = "pressure_limit";
@@ -842,6 +879,7 @@ class Simulation {
     peak_airway = std::max(peak_airway, first.airway_pressure);
     peak_drive = std::max(peak_drive, first.airway_pressure + first.muscle_pressure);
     accumulate_paw(a, first.airway_pressure, true);
+    track_starvation(a, y, first.airway_pressure);
     if (b - a <= 1e-12 * std::max(1.0, b)) {
       last = first;
       return b;
@@ -881,6 +919,7 @@ class Simulation {
         peak_airway = std::max(peak_airway, now.airway_pressure);
         peak_drive = std::max(peak_drive, now.airway_pressure + now.muscle_pressure);
         accumulate_paw(t, now.airway_pressure, false);
+        track_starvation(t, sample.data(), now.airway_pressure);
       } else if (probe < b) {
         const double at = integrator_.advance(probe, sample.data(), &found);
         if (found >= 0) {
@@ -888,7 +927,9 @@ class Simulation {
           break;
         }
         track_volume(total(sample.data(), n_));
-        accumulate_paw(probe, evaluate(context_, probe, sample.data(), q.data()).airway_pressure, false);
+        const double paw = evaluate(context_, probe, sample.data(), q.data()).airway_pressure;
+        accumulate_paw(probe, paw, false);
+        track_starvation(probe, sample.data(), paw);
         ++probes;
       } else {
         break;
@@ -905,6 +946,7 @@ class Simulation {
     peak_airway = std::max(peak_airway, last.airway_pressure);
     peak_drive = std::max(peak_drive, last.airway_pressure + last.muscle_pressure);
     accumulate_paw(reached, last.airway_pressure, false);
+    track_starvation(reached, y, last.airway_pressure);
     return reached;
   }
 
@@ -926,6 +968,8 @@ class Simulation {
   static constexpr double kProbeInterval = 1e-3;  // s: the volume extremes to ~1e-6 of the swing
   double min_volume_ = 0.0, max_volume_ = 0.0;    // over the current breath
   double paw_integral_ = 0.0, last_paw_t_ = 0.0, last_paw_ = 0.0;
+  bool starvation_ = false;  // in a flow-controlled inspiration: track the airway pressure's dip
+  double starvation_dip_ = std::numeric_limits<double>::quiet_NaN();  // the largest this breath, NaN: none
   std::size_t next_output_ = 0;
   std::size_t output_count_ = 0;
   std::map<std::size_t, Driver> calibrated_;

@@ -34,10 +34,12 @@ TEST(SimulateCli, ShippedVentilatorScenariosArePatientTriggered) {
     EXPECT_TRUE(r.err.empty()) << r.err;
     EXPECT_GT(count_lines(dir / "phys.csv"), 6000);
     const std::string breaths = pneuma::test::read_text(dir / "phys-breaths.csv");
-    EXPECT_NE(breaths.find(",trigger,trigger_delay_s,cycle,inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,"
-                           "intrinsic_peep_cmH2O,missed_triggers,double_trigger,breath_type,expiratory_hold_s,"
-                           "total_peep_cmH2O,vti_mL,vte_mL,leak_percent,inspiratory_pressure_cmH2O,alarms\n"),
-              std::string::npos)
+    EXPECT_NE(
+        breaths.find(",trigger,trigger_delay_s,cycle,inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,"
+                     "intrinsic_peep_cmH2O,missed_triggers,double_trigger,breath_type,expiratory_hold_s,"
+                     "total_peep_cmH2O,vti_mL,vte_mL,leak_percent,inspiratory_pressure_cmH2O,alarms,cycle_delay_s,"
+                     "early_cycling,late_cycling,flow_starvation_cmH2O,flow_starvation\n"),
+        std::string::npos)
         << name;
     EXPECT_NE(breaths.find(",patient_flow,"), std::string::npos) << name;
   }

@@ -151,3 +151,75 @@ TEST(VentilatorPav, AssistedInspirationIsTheLungWithRAndEScaledByOneMinusGain) {
   // The assisted volume at Ti is larger than the unassisted (g = 0) one: about 1 / (1 - g) of it.
   EXPECT_GT(after(ti), 2.0 * before(ti));
 }
+
+TEST(VentilatorFlags, CyclingIsEarlyOrLateAgainstTheNeuralInspirationOnlyBeyondItsBounds) {
+  // Volume control on the clock and an effort at the same rate from t = 0: every breath starts at
+  // an effort's onset, so the cycle delay is Ti - neural Ti exactly (neural Ti = 5 s / 3 at 1:2).
+  // Early: Ti 1.0 s (-0.667 s); neither: 1.8 s (+0.133 s, under 20 % of 1.667 s); late: 2.2 s.
+  const Mechanics m = single_linear(0.05, 10);
+  const PatientEffort effort{0.2, 0.5, 3 * kCmH2O};
+  const double neural = 5.0 / 3.0;
+  struct Case {
+    double ti;
+    bool early, late;
+  };
+  for (const Case c : {Case{1.0, true, false}, Case{1.8, false, false}, Case{2.2, false, true}}) {
+    Setting s{0.0, m, VolumeControl{0.2, 0.5 * kLitre, c.ti, 0.0, 5 * kCmH2O}, effort};
+    const auto r = simulate(Protocol{{s}}, tight(15.0, 0.0));
+    ASSERT_EQ(r.breaths.size(), 3u);
+    for (const auto& b : r.breaths) {
+      EXPECT_NEAR(b.cycle_delay_s, c.ti - neural, 1e-12) << c.ti;
+      EXPECT_EQ(b.early_cycling, c.early) << c.ti;
+      EXPECT_EQ(b.late_cycling, c.late) << c.ti;
+    }
+  }
+  // An effort whose neural inspiration falls in the machine's expiration (onsets at 2.5 s + 5 k,
+  // ending 4.17 s + 5 k) overlaps no inspiration: no delay, no flag.
+  Setting first{0.0, m, VolumeControl{0.2, 0.5 * kLitre, 1.0, 0.0, 5 * kCmH2O}};
+  Setting later = first;
+  later.start_time_s = 2.5;
+  later.effort = effort;
+  const auto r = simulate(Protocol{{first, later}}, tight(15.0, 0.0));
+  ASSERT_EQ(r.breaths.size(), 3u);
+  for (const auto& b : r.breaths) {
+    EXPECT_TRUE(std::isnan(b.cycle_delay_s));
+    EXPECT_FALSE(b.early_cycling || b.late_cycling);
+  }
+}
+
+TEST(VentilatorFlags, FlowStarvationIsTheEffortsPullAgainstTheSetFlow) {
+  // Volume control sets the flow, so the passive lung's airway pressure at the same state is
+  // Paw + Pmus: the dip is the muscle pressure, largest at the end of the flow (the effort still
+  // rising): A/2 (1 - cos(pi Ti / neural Ti)). A = 6 cmH2O: 3.93 cmH2O, above 2: starved;
+  // A = 1.5 cmH2O: 0.98, not; a passive patient: nothing to measure. Pressure control: the
+  // flow follows the patient, never starved.
+  const Mechanics m = single_linear(0.05, 10);
+  const double neural = 5.0 / 3.0, ti = 1.0;
+  for (double a_cmh2o : {6.0, 1.5}) {
+    const double a = a_cmh2o * kCmH2O;
+    Setting s{0.0, m, VolumeControl{0.2, 0.5 * kLitre, ti, 0.0, 5 * kCmH2O}, PatientEffort{0.2, 0.5, a}};
+    const auto r = simulate(Protocol{{s}}, tight(15.0, 0.0));
+    ASSERT_EQ(r.breaths.size(), 3u);
+    const double dip = a / 2 * (1 - std::cos(std::numbers::pi * ti / neural));
+    for (const auto& b : r.breaths) {
+      EXPECT_NEAR(b.flow_starvation_pa, dip, 1e-9 * kCmH2O) << a_cmh2o;
+      EXPECT_EQ(b.flow_starvation, dip > 2 * kCmH2O) << a_cmh2o;
+    }
+  }
+  // The same through VC-AC (patient triggered): the dip is the largest Pmus over the flow phase.
+  Setting assisted{0.0, m, vc_ac(0.1, 0.5 * kLitre, ti, 0.0, 5 * kCmH2O), PatientEffort{0.2, 0.5, 6 * kCmH2O}};
+  const auto v = simulate(Protocol{{assisted}}, tight(15.0, 0.0));
+  ASSERT_GE(v.breaths.size(), 2u);
+  const auto& b = v.breaths[1];  // the first patient-triggered one
+  ASSERT_STREQ(b.trigger, "patient_flow");
+  const double end_of_flow = b.trigger_delay_s + ti;  // since the effort's onset
+  EXPECT_NEAR(b.flow_starvation_pa, 3 * kCmH2O * (1 - std::cos(std::numbers::pi * end_of_flow / neural)),
+              1e-9 * kCmH2O);
+  EXPECT_TRUE(b.flow_starvation);
+  const auto passive = simulate(just(m, VolumeControl{0.2, 0.5 * kLitre, ti, 0.0, 5 * kCmH2O}), tight(10.0, 0.0));
+  EXPECT_TRUE(std::isnan(passive.breaths[0].flow_starvation_pa));
+  EXPECT_FALSE(passive.breaths[0].flow_starvation);
+  Setting pc{0.0, m, PressureControl{0.2, 10 * kCmH2O, ti, 5 * kCmH2O}, PatientEffort{0.2, 0.5, 6 * kCmH2O}};
+  const auto p = simulate(Protocol{{pc}}, tight(10.0, 0.0));
+  EXPECT_TRUE(std::isnan(p.breaths[0].flow_starvation_pa));
+}
