@@ -84,7 +84,11 @@ void driver_facts(const std::string& prefix, const physiology::Driver& driver, F
     add("rise_time_s", number(a->rise_time_s));
     switch (a->cycle) {
       case physiology::CycleKind::time: add("cycle", "time"); break;
-      case physiology::CycleKind::flow: add("cycle", fmt::format("flow {:.6g} %", a->cycle_fraction * 100.0)); break;
+      case physiology::CycleKind::flow:
+        add("cycle", a->cycle_flow_m3_per_s > 0.0
+                         ? fmt::format("flow {:.6g} L/min", a->cycle_flow_m3_per_s * kLitre * 60.0)
+                         : fmt::format("flow {:.6g} %", a->cycle_fraction * 100.0));
+        break;
       case physiology::CycleKind::volume:
         add("cycle", fmt::format("volume {:.6g} mL", a->cycle_volume_m3 * kMl));
         break;

@@ -275,8 +275,9 @@ void validate(const Driver& driver) {
       require(a->trigger_window_s > 0.0 && a->trigger_window_s <= 1.0 / a->rate_hz,
               "the trigger window must be positive and at most one cycle (60 / rate)");
       require(a->support_pa >= 0.0, "the pressure support must not be negative");
-      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0),
-              "the flow cycle fraction must lie between 0 and 1");
+      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0) ||
+                  (a->cycle_fraction == 0.0 && a->cycle_flow_m3_per_s > 0.0),
+              "the flow cycle fraction must lie between 0 and 1 (or the cycle flow be positive)");
       require(a->cycle != CycleKind::volume || a->cycle_volume_m3 > 0.0, "the cycle volume must be positive");
       require(a->rise_time_s < kLongestSupportedInspiration_s,
               "the rise time must be shorter than the longest supported inspiration (3 s)");
@@ -294,8 +295,9 @@ void validate(const Driver& driver) {
       require(a->inspiratory_pressure_pa >= 0.0, "the inspiratory pressure must not be negative");
       require(a->rise_time_s >= 0.0, "the rise time must not be negative");
       require(a->rise_time_s < a->inspiratory_time_s, "the rise time must be shorter than the inspiratory time");
-      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0),
-              "the flow cycle fraction must lie between 0 and 1");
+      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0) ||
+                  (a->cycle_fraction == 0.0 && a->cycle_flow_m3_per_s > 0.0),
+              "the flow cycle fraction must lie between 0 and 1 (or the cycle flow be positive)");
       require(a->cycle != CycleKind::volume || a->cycle_volume_m3 > 0.0, "the cycle volume must be positive");
       require(a->volume_limit_m3 >= 0.0, "the volume limit must not be negative");
     }

@@ -223,7 +223,9 @@ int root_function(double t, N_Vector y, double* g, void* user_data) {
                    ? ventilator_flow_rate(c, t, v)
                    : flow_rate_of_change(*c.mechanics, now.driving_pressure_rate, v, q.data());
         break;
-      case RootKind::flow_cycle: g[i] = now.ventilator_flow - a.cycle_fraction * c.flow_peak; break;
+      case RootKind::flow_cycle:
+        g[i] = now.ventilator_flow - a.cycle_fraction * c.flow_peak - a.cycle_flow_m3_per_s;
+        break;
       case RootKind::volume_cycle: g[i] = delivered - a.cycle_volume_m3; break;
       case RootKind::volume_limit: g[i] = delivered - a.volume_limit_m3; break;
       case RootKind::pressure_limit: g[i] = now.airway_pressure - a.pressure_limit_pa; break;

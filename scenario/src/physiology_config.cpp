@@ -44,7 +44,7 @@ struct DriverFields {
   std::optional<physiology::TriggerKind> trigger;
   std::optional<double> trigger_threshold;
   std::optional<physiology::CycleKind> cycle;
-  std::optional<double> cycle_fraction, cycle_volume;
+  std::optional<double> cycle_fraction, cycle_volume, cycle_flow;
   std::optional<double> trigger_window;                                                     // SIMV
   std::optional<double> pressure_step;                                                      // PRVC
   std::optional<double> apnea_time, backup_rate, backup_pressure, backup_inspiratory_time;  // cpap_psv
@@ -112,6 +112,7 @@ DriverFields fields_of(const Driver& driver) {
             f.rise_time = d.rise_time_s;
             f.cycle = d.cycle;
             f.cycle_fraction = d.cycle_fraction;
+            if (d.cycle_flow_m3_per_s > 0.0) f.cycle_flow = d.cycle_flow_m3_per_s;
             if (d.cycle_volume_m3 > 0.0) f.cycle_volume = d.cycle_volume_m3;
             if (d.volume_limit_m3 > 0.0) f.volume_limit = d.volume_limit_m3;
           }
@@ -218,12 +219,18 @@ void read_cycle(const scenario::Node& n, DriverFields& f) {
   const scenario::Node c = n.map("cycle");
   const auto keys = c.keys();
   if (keys.size() != 1) c.fail("expected time, or one of flow (e.g. '25 %') or volume (e.g. '500 mL')");
-  if (keys[0] == "flow") {
+  if (keys[0] == "flow" && c.string("flow").find('/') != std::string::npos) {
+    // An absolute flow ('5 L/min'): the cycle when the flow falls to it, as Drager's and Pulse's.
+    f.cycle = physiology::CycleKind::flow;
+    f.cycle_fraction = 0.0;
+    f.cycle_flow = c.positive_quantity("flow", kind::flow);
+  } else if (keys[0] == "flow") {
     const double fraction = c.quantity("flow", kind::fraction);
     if (!(fraction > 0.0 && fraction < 1.0))
       c.fail_at("flow", "expected a share of the peak flow above 0 and below 100 %, got '" + c.string("flow") + "'");
     f.cycle = physiology::CycleKind::flow;
     f.cycle_fraction = fraction;
+    f.cycle_flow.reset();
   } else if (keys[0] == "volume") {
     f.cycle = physiology::CycleKind::volume;
     f.cycle_volume = c.positive_quantity("volume", kind::volume);
@@ -531,6 +538,7 @@ physiology::Assisted build_assisted(const scenario::Node& n, const std::string& 
     a.rise_time_s = f.rise_time.value_or(0.0);
     a.cycle = f.cycle.value_or(support || simv ? physiology::CycleKind::flow : physiology::CycleKind::time);
     a.cycle_fraction = f.cycle_fraction.value_or(0.25);
+    a.cycle_flow_m3_per_s = f.cycle_flow.value_or(0.0);
     if (a.cycle == physiology::CycleKind::volume) a.cycle_volume_m3 = require(n, f.cycle_volume, "cycle", kind::volume);
     a.volume_limit_m3 = f.volume_limit.value_or(0.0);
   }

@@ -223,3 +223,20 @@ TEST(VentilatorFlags, FlowStarvationIsTheEffortsPullAgainstTheSetFlow) {
   const auto p = simulate(Protocol{{pc}}, tight(10.0, 0.0));
   EXPECT_TRUE(std::isnan(p.breaths[0].flow_starvation_pa));
 }
+
+TEST(VentilatorFlowCycle, AnAbsoluteCycleFlowEndsAStepBreathWhereTheFlowFallsToIt) {
+  // A pressure step dP on a passive RC lung: Q = (dP / R) e^(-t/tau), so a cycle at the flow F
+  // (cycle: {flow: 5 L/min}, as Pulse's emulation of the bench) comes at tau ln(dP / (R F)).
+  const double R = 10 * kCmH2OsPerL, tau = R * 0.05 * kLPerCmH2O, dp = 10 * kCmH2O, flow = 5 * kLitre / 60;
+  Assisted a = pav(0.5, R, 1.0, 0.0);  // any assisted pressure breath; made a PC-AC one below
+  a.mode = AssistMode::pressure;
+  a.rate_hz = 0.2;
+  a.inspiratory_pressure_pa = dp;
+  a.inspiratory_time_s = 3.0;
+  a.cycle_fraction = 0.0;
+  a.cycle_flow_m3_per_s = flow;
+  const auto r = simulate(just(single_linear(0.05, 10), a), tight(6.0, 0.0));
+  ASSERT_GE(r.breaths.size(), 1u);
+  EXPECT_STREQ(r.breaths[0].cycle, "flow");
+  EXPECT_NEAR(r.breaths[0].inspiratory_time_s, tau * std::log(dp / (R * flow)), 1e-9);
+}

@@ -90,9 +90,10 @@ struct Assisted {
   double inspiratory_pressure_pa = 0.0;  // above PEEP (the support pressure in pressure support)
   double rise_time_s = 0.0;              // Paw = PEEP + P (1 - exp(-3 t / rise)): 95 % of P at the rise time; 0: a step
   CycleKind cycle = CycleKind::time;
-  double cycle_fraction = 0.25;  // flow cycle: end inspiration when flow falls to this share of its peak
-  double cycle_volume_m3 = 0.0;  // volume cycle: end inspiration when this volume is delivered
-  double volume_limit_m3 = 0.0;  // delivered volume that ends inspiration; 0: none
+  double cycle_fraction = 0.25;      // flow cycle: end inspiration when flow falls to this share of its peak
+  double cycle_flow_m3_per_s = 0.0;  // flow cycle at an absolute flow instead (cycle_fraction 0): Pulse's, Drager's
+  double cycle_volume_m3 = 0.0;      // volume cycle: end inspiration when this volume is delivered
+  double volume_limit_m3 = 0.0;      // delivered volume that ends inspiration; 0: none
   // Trigger.
   TriggerKind trigger = TriggerKind::flow;
   double trigger_threshold = 0.0;  // m^3/s into the patient (flow) or Pa below PEEP (pressure)
