@@ -103,7 +103,8 @@ constexpr std::array<BreathColumn, 36> kBreathColumns{{
     {"inspiratory_pressure_cmH2O", "cmH2O", CellFormat::significant9,
      [](const Breath& b, std::size_t) { return if_ventilated(b, b.set_inspiratory_pressure_pa * kCmH2O); }, nullptr},
     {"alarms", "", CellFormat::text, nullptr, [](const Breath& b) { return b.alarms.c_str(); }},
-    // Cycling and flow asynchrony against the patient's effort: empty without one.
+    // Cycling and flow asynchrony against the patient's effort: the delay and the dip empty without
+    // one, the flags (counts, like double_trigger) 0.
     {"cycle_delay_s", "s", CellFormat::significant9,
      [](const Breath& b, std::size_t) -> Number {
        if (std::isnan(b.cycle_delay_s)) return std::nullopt;
@@ -111,9 +112,9 @@ constexpr std::array<BreathColumn, 36> kBreathColumns{{
      },
      nullptr},
     {"early_cycling", "", CellFormat::whole,
-     [](const Breath& b, std::size_t) { return if_ventilated(b, b.early_cycling ? 1.0 : 0.0); }, nullptr},
+     [](const Breath& b, std::size_t) -> Number { return b.early_cycling ? 1.0 : 0.0; }, nullptr},
     {"late_cycling", "", CellFormat::whole,
-     [](const Breath& b, std::size_t) { return if_ventilated(b, b.late_cycling ? 1.0 : 0.0); }, nullptr},
+     [](const Breath& b, std::size_t) -> Number { return b.late_cycling ? 1.0 : 0.0; }, nullptr},
     {"flow_starvation_cmH2O", "cmH2O", CellFormat::significant9,
      [](const Breath& b, std::size_t) -> Number {
        if (std::isnan(b.flow_starvation_pa)) return std::nullopt;
@@ -121,7 +122,7 @@ constexpr std::array<BreathColumn, 36> kBreathColumns{{
      },
      nullptr},
     {"flow_starvation", "", CellFormat::whole,
-     [](const Breath& b, std::size_t) { return if_ventilated(b, b.flow_starvation ? 1.0 : 0.0); }, nullptr},
+     [](const Breath& b, std::size_t) -> Number { return b.flow_starvation ? 1.0 : 0.0; }, nullptr},
 }};
 
 }  // namespace
