@@ -6,9 +6,10 @@
 
 Pulse Physiology Engine validated its ventilator against an IngMar ASL 5000 lung simulator
 ventilated by a Drager Evita Infinity V500 (docs/Methodology/MechanicalVentilatorMethodology.md in
-Pulse's sources). The patients' settings are Pulse's (src/python/pulse/study/ventilator_analysis/
-baseline.py, and the same in Pulse's own emulation of the cases, src/cpp/engine/human_adult/
-ventilation_mechanics/test/EngineTest.cpp::GenerateScenarios); the ventilator's settings and the
+Pulse's sources). The patients' settings are Pulse's (src/python/pulse/engine/validation/
+mechanical_ventilator_validation.py, and the same in Pulse's own emulation of the cases,
+src/cpp/engine/human_adult/ventilation_mechanics/test/EngineTest.cpp::GenerateScenarios); the
+ventilator's settings and the
 bench's numbers are read off the ventilator's screen in the bench photos,
 docs/Images/MechanicalVentilator/<case>.jpg (Kitware, Apache-2.0).
 
@@ -26,7 +27,7 @@ import pathlib
 import subprocess
 import sys
 
-# Patient settings (baseline.py "patientSettings", EngineTest.cpp): R cmH2O*s/L, C mL/cmH2O,
+# Patient settings (mechanical_ventilator_validation.py "patientSettings", EngineTest.cpp): R cmH2O*s/L, C mL/cmH2O,
 # muscle pressure cmH2O, spontaneous rate /min, neural inspiratory time s.
 PATIENTS = {
     "Healthy": dict(R=13, C=50, Pmus=13, rate=15, Ti=0.9),
