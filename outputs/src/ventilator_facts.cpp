@@ -67,6 +67,7 @@ void driver_facts(const std::string& prefix, const physiology::Driver& driver, F
     add("low_pressure_cmH2O", number(a->peep_pa * kCmH2O));
     add("high_time_s", number(a->inspiratory_time_s));
     add("low_time_s", number(1.0 / a->rate_hz - a->inspiratory_time_s));
+    if (a->support_pa > 0.0) add("pressure_support_cmH2O", number(a->support_pa * kCmH2O));  // BiLevel
   }
   if (a->mode == AssistMode::pav) {
     add("gain_percent", number(a->pav_gain * 100.0));

@@ -168,10 +168,12 @@ bool is_ventilator(const Driver& driver) { return !std::holds_alternative<Sponta
 
 bool is_simv(const Assisted& a) { return a.mode == AssistMode::simv_volume || a.mode == AssistMode::simv_pressure; }
 
+bool is_bilevel(const Assisted& a) { return a.mode == AssistMode::aprv && a.support_pa > 0.0; }
+
 double default_trigger_window_s(double rate_hz) { return std::min(0.6 / rate_hz, 10.0); }
 
 Assisted simv_breath(const Assisted& a, bool mandatory) {
-  if (!is_simv(a)) return a;
+  if (!is_simv(a) && !is_bilevel(a)) return a;
   Assisted b = a;
   if (mandatory) {
     b.mode = a.mode == AssistMode::simv_volume ? AssistMode::volume : AssistMode::pressure;
@@ -240,7 +242,11 @@ void validate(const Driver& driver) {
     const bool support = a->mode == AssistMode::pressure_support || a->mode == AssistMode::pav;
     const bool simv = is_simv(*a);
     if (a->mode == AssistMode::aprv) {
-      require(a->cycle == CycleKind::time && a->volume_limit_m3 == 0.0, "APRV changes levels on time only");
+      require((a->cycle == CycleKind::time || a->support_pa > 0.0) && a->volume_limit_m3 == 0.0,
+              "APRV changes levels on time only");
+      require(a->support_pa >= 0.0, "the pressure support must not be negative");
+      require(a->trigger_window_s == 0.0, "APRV's high phases are on the clock: no trigger window");
+      if (a->support_pa > 0.0) validate(Driver{simv_breath(*a, false)});
       require(a->inspiratory_pressure_pa > 0.0, "the high pressure must be above the low pressure");
     }
     if (a->mode == AssistMode::pav) {

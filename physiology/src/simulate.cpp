@@ -7,6 +7,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "cvode_integrator.h"
@@ -479,9 +480,12 @@ class Simulation {
 
   // Cycling against the effort in progress at the end of inspiration (the latest onset at or
   // before it), when its neural inspiration (the effort's rise) overlaps the breath's inspiration.
-  // APRV has no cycle to judge: its levels change on the clock, the patient breathes at both.
+  // APRV's high phases have no cycle to judge: its levels change on the clock, the patient
+  // breathes at both (BiLevel's supported breaths at P_low are judged).
   void cycling(BreathMetrics& breath) const {
-    if (const auto* a = std::get_if<Assisted>(&current_driver_); a && a->mode == AssistMode::aprv) return;
+    if (const auto* a = std::get_if<Assisted>(&current_driver_);
+        a && a->mode == AssistMode::aprv && std::string_view(breath.breath_type) == "mandatory")
+      return;
     const double cycle = breath.start_s + breath.inspiratory_time_s;
     const std::size_t s = setting_at(cycle);
     const PatientEffort& e = protocol_.settings[s].effort;
@@ -509,7 +513,7 @@ class Simulation {
   // backup timer (VC-AC, PC-AC), the next scheduled mandatory breath (SIMV), never (CPAP).
   double deadline(const Assisted& a, double breath_start) {
     if (a.apnea_time_s > 0.0) return breath_start + a.apnea_time_s;
-    if (is_simv(a)) {
+    if (is_simv(a) || is_bilevel(a)) {
       if (std::isnan(simv_due_)) simv_due_ = breath_start + 1.0 / a.rate_hz;  // a switch into SIMV
       return simv_due_;
     }
@@ -566,7 +570,7 @@ class Simulation {
       current_driver_ = a;
     }
     context_.driver = &current_driver_;
-    if (!is_simv(a)) simv_due_ = std::numeric_limits<double>::quiet_NaN();
+    if (!is_simv(a) && !is_bilevel(a)) simv_due_ = std::numeric_limits<double>::quiet_NaN();
     if (a.mode != AssistMode::prvc) prvc_pressure_ = std::numeric_limits<double>::quiet_NaN();
     if (!pending_) {
       if (a.mode == AssistMode::pressure_support || a.mode == AssistMode::pav) {
@@ -587,10 +591,11 @@ class Simulation {
       }
     }
     // The breath it gives: SIMV's mandatory or spontaneous one, or the mode's own.
-    const bool mandatory = is_simv(a) ? simv_mandatory(a, t, *pending_)
-                                      : a.mode != AssistMode::pressure_support && a.mode != AssistMode::pav;
+    const bool mandatory = is_simv(a) || is_bilevel(a)
+                               ? simv_mandatory(a, t, *pending_)
+                               : a.mode != AssistMode::pressure_support && a.mode != AssistMode::pav;
     Assisted shape = simv_breath(a, mandatory);
-    if (a.mode == AssistMode::aprv) shape.mode = AssistMode::pressure;  // P_high for T_high, on the clock
+    if (a.mode == AssistMode::aprv && mandatory) shape.mode = AssistMode::pressure;  // P_high for T_high, on the clock
     if (a.mode == AssistMode::prvc) {
       if (std::isnan(prvc_pressure_)) prvc_pressure_ = a.inspiratory_pressure_pa;  // the test breath
       shape.mode = AssistMode::pressure;
@@ -713,7 +718,8 @@ class Simulation {
                      std::optional<double> breath_start = std::nullopt) {
     Instant last;
     // APRV's release is on the clock: the patient breathes at P_low through the demand valve.
-    const auto watches = [](const Assisted& x) { return x.mode != AssistMode::aprv; };
+    // BiLevel watches for the patient's triggers at P_low, to support them.
+    const auto watches = [](const Assisted& x) { return x.mode != AssistMode::aprv || is_bilevel(x); };
     bool by_flow = a.trigger == TriggerKind::flow;
     int phase_kind = kAssistExpiration;
     // Pressure trigger: a patient already pulling when expiration begins finds the circuit closed.

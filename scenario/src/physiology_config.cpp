@@ -87,6 +87,7 @@ DriverFields fields_of(const Driver& driver) {
             if (d.pressure_limit_pa > 0.0) f.pressure_limit = d.pressure_limit_pa;
           }
           if (d.mode == physiology::AssistMode::aprv) {
+            if (d.support_pa > 0.0) f.pressure_support = d.support_pa;
             f.high_pressure = d.peep_pa + d.inspiratory_pressure_pa;
             f.low_pressure = d.peep_pa;
             f.high_time = d.inspiratory_time_s;
@@ -116,6 +117,11 @@ DriverFields fields_of(const Driver& driver) {
             if (d.cycle_volume_m3 > 0.0) f.cycle_volume = d.cycle_volume_m3;
             if (d.volume_limit_m3 > 0.0) f.volume_limit = d.volume_limit_m3;
           }
+          // APRV without support cycles nothing: BiLevel's support added later takes its own default.
+          if (d.mode == physiology::AssistMode::aprv && d.support_pa == 0.0) {
+            f.cycle.reset();
+            f.cycle_fraction.reset();
+          }
         } else if constexpr (std::is_same_v<T, physiology::Spontaneous>) {
           f.ie_ratio = d.ie_ratio;
           if (d.target_tidal_volume_m3 > 0) f.tidal_volume = d.target_tidal_volume_m3;
@@ -139,7 +145,9 @@ DriverFields fields_of(const Driver& driver) {
 // pressure-mode keys (rise time, cycle, volume limit) shape the supported breaths.
 bool mode_takes(const std::string& mode, const std::string& key) {
   const bool aprv_key = key == "high_pressure" || key == "low_pressure" || key == "high_time" || key == "low_time";
-  if (mode == "aprv") return aprv_key || key == "rise_time";  // levels and times only: no trigger, no rate
+  // Levels and times, no rate; BiLevel: pressure support of the breaths at P_low, their trigger and cycle.
+  if (mode == "aprv")
+    return aprv_key || key == "rise_time" || key == "pressure_support" || key == "trigger" || key == "cycle";
   if (aprv_key) return false;
   const bool pav_key = key == "gain" || key == "assisted_resistance" || key == "assisted_compliance";
   if (mode == "pav")
@@ -481,7 +489,19 @@ physiology::Assisted build_aprv(const scenario::Node& n, const DriverFields& f) 
     n.fail_at(n.has("rise_time") ? "rise_time" : "high_time",
               fmt::format("expected a rise time shorter than high_time ({:g} s), got {:g} s", th, a.rise_time_s));
   a.cycle = physiology::CycleKind::time;
-  a.trigger_threshold = 2.0 * units::m3_per_litre / 60.0;  // unused: nothing triggers in APRV
+  a.trigger_threshold = f.trigger_threshold.value_or(2.0 * units::m3_per_litre / 60.0);
+  a.trigger = f.trigger.value_or(physiology::TriggerKind::flow);
+  // BiLevel: the breaths at P_low supported, cycled on flow (25 % of the peak by default).
+  a.support_pa = f.pressure_support.value_or(0.0);
+  if (a.support_pa > 0.0) {
+    a.cycle = f.cycle.value_or(physiology::CycleKind::flow);
+    a.cycle_fraction = f.cycle_fraction.value_or(0.25);
+    a.cycle_flow_m3_per_s = f.cycle_flow.value_or(0.0);
+    if (a.cycle == physiology::CycleKind::volume) a.cycle_volume_m3 = require(n, f.cycle_volume, "cycle", kind::volume);
+  } else if (n.has("trigger") || n.has("cycle")) {
+    n.fail_at(n.has("trigger") ? "trigger" : "cycle",
+              "APRV triggers and cycles nothing; set pressure_support for BiLevel's supported breaths");
+  }
   return a;
 }
 

@@ -177,11 +177,12 @@ INSTANTIATE_TEST_SUITE_P(
                     "0.5 s}\n",
                     "5:39: physiology.driver.high_pressure: expected high_pressure above low_pressure (8 cmH2O), got 5 "
                     "cmH2O"},
-        BadScenario{"aprv_takes_no_trigger",
+        BadScenario{"aprv_trigger_without_support",
                     "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
                     "  driver: {mode: aprv, high_pressure: 25 cmH2O, low_pressure: 8 cmH2O, high_time: 4 s, low_time: "
                     "0.5 s, trigger: {flow: 2 L/min}}\n",
-                    "5:114: physiology.driver.trigger: not a setting of aprv mode"},
+                    "5:114: physiology.driver.trigger: APRV triggers and cycles nothing; set pressure_support for "
+                    "BiLevel's supported breaths"},
         BadScenario{"pav_full_gain",
                     "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
                     "  driver: {mode: pav, gain: 100 %, assisted_resistance: 10 cmH2O*s/L, assisted_compliance: 50 "

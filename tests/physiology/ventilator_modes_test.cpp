@@ -240,3 +240,42 @@ TEST(VentilatorFlowCycle, AnAbsoluteCycleFlowEndsAStepBreathWhereTheFlowFallsToI
   EXPECT_STREQ(r.breaths[0].cycle, "flow");
   EXPECT_NEAR(r.breaths[0].inspiratory_time_s, tau * std::log(dp / (R * flow)), 1e-9);
 }
+
+TEST(VentilatorAprv, BiLevelSupportsTheTriggersAtPLowAndKeepsTheClock) {
+  // BiLevel (APRV with pressure support): 20/5 cmH2O, 2 s / 8 s, support 8 cmH2O, on an RC lung
+  // (tau 0.5 s). An effort from 7 s (every 10 s, Ti 2 s) starts in the low phase: the flow is the
+  // release's decay, -(dV / tau) e^(-(t - 2)/tau) with dV = C (Ph - Pl)(1 - e^(-2/tau)), plus the
+  // effort's own response from its onset; the trigger is where their sum reaches 2 L/min. That
+  // breath is supported (8 cmH2O above P_low); the next high phase still comes at 10 s.
+  const double C = 0.05 * kLPerCmH2O, E = 1 / C, tau = 10 * kCmH2OsPerL * C, threshold = 2 * kLitre / 60;
+  const double ph = 20 * kCmH2O, pl = 5 * kCmH2O, amplitude = 5 * kCmH2O, ti = 2.0;
+  Assisted bilevel = aprv(ph, pl, 2.0, 8.0);
+  bilevel.support_pa = 8 * kCmH2O;
+  bilevel.cycle = CycleKind::flow;
+  const Mechanics m = single_linear(0.05, 10);
+  Setting breathing{7.0, m, bilevel, PatientEffort{0.1, 0.25, amplitude}};
+  const auto r = simulate(Protocol{{Setting{0.0, m, bilevel}, breathing}}, tight(12.0, 0.0));
+  ASSERT_GE(r.breaths.size(), 2u);
+
+  const CosineResponse y{std::numbers::pi / ti, tau};
+  const double h = amplitude / (2 * E), y0 = 1 / (1 + y.w * y.w * tau * tau);
+  const double dv = C * (ph - pl) * (1 - std::exp(-2.0 / tau));
+  const auto flow = [&](double t) {
+    const double s = t - 7.0;
+    return h * (std::exp(-s / tau) / tau - (y.rate(s) + y0 * std::exp(-s / tau) / tau)) -
+           dv / tau * std::exp(-(t - 2.0) / tau);
+  };
+  double lo = 7.0, hi = 7.0 + ti / 2;
+  for (int i = 0; i < 200; ++i) (flow(0.5 * (lo + hi)) < threshold ? lo : hi) = 0.5 * (lo + hi);
+  const auto& high = r.breaths[0];
+  const auto& supported = r.breaths[1];
+  EXPECT_STREQ(high.breath_type, "mandatory");
+  EXPECT_NEAR(high.inspiratory_time_s, 2.0, 1e-12);
+  EXPECT_STREQ(supported.mode, "aprv");
+  EXPECT_STREQ(supported.breath_type, "spontaneous");
+  EXPECT_STREQ(supported.trigger, "patient_flow");
+  EXPECT_NEAR(supported.start_s, 0.5 * (lo + hi), 1e-9);
+  EXPECT_NEAR(supported.set_inspiratory_pressure_pa, 8 * kCmH2O, 1e-9);
+  EXPECT_NEAR(supported.start_s + supported.duration_s, 10.0, 1e-12);  // the clock's next high phase
+  EXPECT_FALSE(std::isnan(supported.cycle_delay_s));                   // a supported breath is judged
+}

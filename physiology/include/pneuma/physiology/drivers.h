@@ -99,7 +99,7 @@ struct Assisted {
   double trigger_threshold = 0.0;  // m^3/s into the patient (flow) or Pa below PEEP (pressure)
   // SIMV: the spontaneous breaths are cycled by `cycle` (flow at 25 % by default), at most
   // kLongestSupportedInspiration_s; the mandatory ones on time.
-  double support_pa = 0.0;        // pressure support of the spontaneous breaths, above PEEP
+  double support_pa = 0.0;        // pressure support of the spontaneous breaths, above PEEP (also BiLevel's)
   double trigger_window_s = 0.0;  // the window before each scheduled mandatory breath, (0, 60 / rate]
   // PRVC: `tidal_volume_m3` is the target, `inspiratory_pressure_pa` the first (test) breath's
   // pressure. After each breath the pressure moves by dP (VT_target / VTi - 1) (the compliance
@@ -164,11 +164,15 @@ struct Alarms {
 constexpr double kLongestSupportedInspiration_s = 3.0;
 
 bool is_simv(const Assisted& a);
+// BiLevel: APRV whose patient breaths at P_low are pressure supported (support_pa > 0). Scheduled
+// as SIMV with no trigger window: the high phases on the clock, every trigger at P_low a
+// supported breath (cycled by `cycle`, at most kLongestSupportedInspiration_s).
+bool is_bilevel(const Assisted& a);
 // SIMV's default trigger window: 60 % of the cycle, at most 10 s.
 double default_trigger_window_s(double rate_hz);
-// The breath an assisted driver gives: for AC modes and CPAP, the driver itself; for SIMV, the
-// mandatory breath (a VC-AC or PC-AC breath cycled on time) or the spontaneous one (a
-// pressure-support breath with the driver's support, cycle and rise time).
+// The breath an assisted driver gives: for AC modes and CPAP, the driver itself; for SIMV and
+// BiLevel, the mandatory breath (a VC-AC or PC-AC breath cycled on time) or the spontaneous one
+// (a pressure-support breath with the driver's support, cycle and rise time).
 Assisted simv_breath(const Assisted& a, bool mandatory);
 
 // The patient's own breathing effort on a ventilated patient: the spontaneous driver's muscle
