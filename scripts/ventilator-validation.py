@@ -2,63 +2,89 @@
 """Run the nine bench cases of Pulse's mechanical ventilator validation with pneuma.
 
     python3 scripts/ventilator-validation.py [--pneuma build/release/cli/pneuma] [--out out/ventilator-validation]
+    python3 scripts/ventilator-validation.py --check docs/ventilator-validation.md   # exit 1 if the tables differ
 
 Pulse Physiology Engine validated its ventilator against an IngMar ASL 5000 lung simulator
 ventilated by a Drager Evita Infinity V500 (docs/Methodology/MechanicalVentilatorMethodology.md in
-Pulse's sources). The lung and ventilator settings and the bench's ground truth below are copied
-from Pulse's own data file, src/python/pulse/study/ventilator_analysis/baseline.py (Kitware,
-Apache-2.0; the same numbers as .../gt/gt.json), which generates the methodology's tables.
+Pulse's sources). The patients' settings are Pulse's (src/python/pulse/engine/validation/
+mechanical_ventilator_validation.py, and the same in Pulse's own emulation of the cases,
+src/cpp/engine/human_adult/ventilation_mechanics/test/EngineTest.cpp::GenerateScenarios); the
+ventilator's settings and the
+bench's numbers are read off the ventilator's screen in the bench photos,
+docs/Images/MechanicalVentilator/<case>.jpg (Kitware, Apache-2.0).
 
 For each case this writes a scenario (one-compartment lung with the published R and C, the
 patient's effort at the published rate, muscle pressure and neural inspiratory time, the
-ventilator as published), runs `pneuma simulate`, averages the breaths that start after
---settle seconds (the periodic state) and prints a Markdown table of pneuma's numbers next to
-the bench's. docs/ventilator-validation.md holds its output and the differences explained.
+ventilator with every setting the photo shows), runs `pneuma simulate`, averages the breaths that
+start after --settle seconds (the periodic state) and prints the Markdown tables of
+docs/ventilator-validation.md: the scored comparison (what the bench measured that the inputs do
+not fix), the context (echoes of the inputs), and the circuit sensitivity of the VC-AC peaks.
 """
 import argparse
 import csv
-import math
+import difflib
 import pathlib
 import subprocess
 import sys
 
-# Patient settings (baseline.py "patientSettings"): R cmH2O*s/L, C mL/cmH2O, muscle pressure
-# cmH2O, spontaneous rate /min, neural inspiratory time s.
+# Patient settings (mechanical_ventilator_validation.py "patientSettings", EngineTest.cpp): R cmH2O*s/L, C mL/cmH2O,
+# muscle pressure cmH2O, spontaneous rate /min, neural inspiratory time s.
 PATIENTS = {
     "Healthy": dict(R=13, C=50, Pmus=13, rate=15, Ti=0.9),
     "Restrictive": dict(R=20, C=30, Pmus=8, rate=25, Ti=0.6),
     "Obstructive": dict(R=21, C=53, Pmus=14, rate=18, Ti=1.0),
 }
-# Ventilator settings ("ventilatorSettings"); PIP is absolute (Pulse's PeakInspiratoryPressure),
-# the flow of VC-AC is the constant inspiratory flow in L/min. Pulse's LeakSeverity (a leak added
-# to match the bench's measured leak) has no counterpart in pneuma and is not used.
+# Ventilator settings as the photos show them (the dials under the waveforms): PIP (the Drager's
+# Pinsp) is absolute, `slope` the pressure rise time, `flow` VC-AC's constant flow in L/min.
 VENTILATOR = {
     "Healthy_VC_AC": dict(mode="vc_ac", VT=900, Ti=1.0, rate=12, PEEP=5, flow=60),
-    "Healthy_PC_AC": dict(mode="pc_ac", Ti=1.0, rate=12, PEEP=5, PIP=19),
+    "Healthy_PC_AC": dict(mode="pc_ac", Ti=1.0, rate=12, PEEP=5, PIP=19, slope=0.2),
     "Healthy_CPAP": dict(mode="cpap_psv", dP=10, PEEP=5, slope=0.2),
     "Restrictive_VC_AC": dict(mode="vc_ac", VT=550, Ti=1.1, rate=12, PEEP=5, flow=40),
-    "Restrictive_PC_AC": dict(mode="pc_ac", Ti=1.1, rate=12, PEEP=5, PIP=23),
+    "Restrictive_PC_AC": dict(mode="pc_ac", Ti=1.1, rate=12, PEEP=5, PIP=23, slope=0.2),
     "Restrictive_CPAP": dict(mode="cpap_psv", dP=10, PEEP=5, slope=0.2),
     "Obstructive_VC_AC": dict(mode="vc_ac", VT=500, Ti=1.1, rate=12, PEEP=5, flow=40),
-    "Obstructive_PC_AC": dict(mode="pc_ac", Ti=1.2, rate=12, PEEP=5, PIP=12),
+    "Obstructive_PC_AC": dict(mode="pc_ac", Ti=1.2, rate=12, PEEP=5, PIP=12, slope=0.2),
     "Obstructive_CPAP": dict(mode="cpap_psv", dP=10, PEEP=5, slope=0.2),
 }
-# The bench's ground truth ("validationData"): rate /min, mean airway pressure cmH2O, tidal
-# volume, inspiratory and expiratory tidal volume mL, leak fraction.
+# Where the bench is silent, Pulse's emulation (EngineTest.cpp): a flow trigger of 5 L/min, and
+# CPAP cycled when the flow falls to 5 L/min.
+TRIGGER_L_PER_MIN = 5
+CPAP_CYCLE_L_PER_MIN = 5
+# The bench's numerics, read off each photo's screen: PIP and Pmean cmH2O, VT, VTi, VTe mL, RR /min,
+# MVe L/min, % leak, and the E of I:E 1:E (None where the screen shows none; Restrictive_CPAP's is
+# cut at the photo's edge, its upper half reads 1.0:1.2).
 BENCH = {
-    "Healthy_VC_AC": (15, 7.9, 900, 960, 829, 0.13),
-    "Healthy_PC_AC": (15, 8.6, 1047, 1116, 985, 0.12),
-    "Healthy_CPAP": (15, 6.9, 905, 941, 827, 0.11),
-    "Restrictive_VC_AC": (25, 13, 550, 596, 526, 0.11),
-    "Restrictive_PC_AC": (25, 12, 528, 579, 509, 0.13),
-    "Restrictive_CPAP": (25, 10, 387, 410, 365, 0.08),
-    "Obstructive_VC_AC": (18, 7.3, 493, 518, 462, 0.11),
-    "Obstructive_PC_AC": (18, 7.8, 571, 604, 543, 0.11),
-    "Obstructive_CPAP": (18, 8.5, 657, 714, 635, 0.15),
+    "Healthy_VC_AC": dict(PIP=19, Pmean=7.9, VT=900, VTi=960, VTe=829, RR=15, MVe=12.4, leak=13, E=3.0),
+    "Healthy_PC_AC": dict(PIP=20, Pmean=8.6, VT=1047, VTi=1116, VTe=985, RR=15, MVe=14.3, leak=12, E=3.0),
+    "Healthy_CPAP": dict(PIP=15, Pmean=6.9, VT=905, VTi=941, VTe=827, RR=15, MVe=8.41, leak=11, E=None),
+    "Restrictive_VC_AC": dict(PIP=31, Pmean=13, VT=550, VTi=596, VTe=526, RR=25, MVe=13.2, leak=11, E=1.2),
+    "Restrictive_PC_AC": dict(PIP=24, Pmean=12, VT=528, VTi=579, VTe=509, RR=25, MVe=11.3, leak=13, E=1.2),
+    "Restrictive_CPAP": dict(PIP=15, Pmean=10, VT=387, VTi=410, VTe=365, RR=25, MVe=12.2, leak=8, E=1.2),
+    "Obstructive_VC_AC": dict(PIP=13, Pmean=7.3, VT=493, VTi=518, VTe=462, RR=18, MVe=8.37, leak=11, E=2.0),
+    "Obstructive_PC_AC": dict(PIP=12, Pmean=7.8, VT=571, VTi=604, VTe=543, RR=18, MVe=9.24, leak=11, E=1.8),
+    "Obstructive_CPAP": dict(PIP=15, Pmean=8.5, VT=657, VTi=714, VTe=635, RR=17, MVe=11.4, leak=15, E=None),
 }
+# The circuit sensitivity of the VC-AC peaks: a tubing compliance (mL/cmH2O, through 1 cmH2O*s/L)
+# and a leak at the Y-piece (an orifice, L/min at 10 cmH2O: below the trigger at PEEP).
+CIRCUITS = (("none", None), ("tubing 2 mL/cmH2O", "{compliance: 2 mL/cmH2O, resistance: 1 cmH2O*s/L}"),
+            ("tubing 4 mL/cmH2O", "{compliance: 4 mL/cmH2O, resistance: 1 cmH2O*s/L}"),
+            ("tubing 8 mL/cmH2O", "{compliance: 8 mL/cmH2O, resistance: 1 cmH2O*s/L}"),
+            ("leak 3 L/min", "{patient_leak: {flow: 3 L/min, at: 10 cmH2O}}"),
+            ("tubing 4 mL/cmH2O, leak 3 L/min",
+             "{compliance: 4 mL/cmH2O, resistance: 1 cmH2O*s/L, patient_leak: {flow: 3 L/min, at: 10 cmH2O}}"))
+GREEN = 0.10  # Pulse's "green": within 10 % of the bench
 
 
-def scenario(case, duration_s):
+def whole(x, signed=False):
+    """x rounded to a whole number, never '-0'."""
+    text = f"{x:+.0f}" if signed else f"{x:.0f}"
+    if text == "-0":
+        text = "+0" if signed else "0"
+    return text
+
+
+def scenario(case, duration_s, circuit=None):
     p = PATIENTS[case.split("_")[0]]
     v = VENTILATOR[case]
     te = 60.0 / p["rate"] - p["Ti"]
@@ -73,6 +99,7 @@ def scenario(case, duration_s):
         "  driver:",
         f"    mode: {v['mode']}",
         f"    peep: {v['PEEP']} cmH2O",
+        f"    trigger: {{flow: {TRIGGER_L_PER_MIN} L/min}}",
     ]
     if v["mode"] == "vc_ac":
         flow_time = v["VT"] / 1000.0 / (v["flow"] / 60.0)  # s at the set constant flow
@@ -80,33 +107,97 @@ def scenario(case, duration_s):
                   f"    inspiratory_time: {v['Ti']} s", f"    pause: {v['Ti'] - flow_time:.6g} s"]
     elif v["mode"] == "pc_ac":
         lines += [f"    rate: {v['rate']} /min", f"    inspiratory_pressure: {v['PIP'] - v['PEEP']} cmH2O",
-                  f"    inspiratory_time: {v['Ti']} s"]
+                  f"    inspiratory_time: {v['Ti']} s", f"    rise_time: {v['slope']} s"]
     else:
-        lines += [f"    pressure_support: {v['dP']} cmH2O", f"    rise_time: {v['slope']} s"]
-    lines += ["  output_rate: 100 Hz", ""]
+        lines += [f"    pressure_support: {v['dP']} cmH2O", f"    rise_time: {v['slope']} s",
+                  f"    cycle: {{flow: {CPAP_CYCLE_L_PER_MIN} L/min}}"]
+    if circuit:
+        lines += [f"    circuit: {circuit}"]
+    lines += ["  output_rate: 10 Hz", ""]
     return "\n".join(lines)
 
 
-def passive_vt_ml(case):
-    """Tidal volume of a passive one-compartment lung under the case's ventilator (closed form)."""
-    p = PATIENTS[case.split("_")[0]]
-    v = VENTILATOR[case]
-    if v["mode"] == "vc_ac":
-        return float(v["VT"])
-    if v["mode"] == "pc_ac":
-        tau = p["R"] * p["C"] / 1000.0
-        return p["C"] * (v["PIP"] - v["PEEP"]) * (1 - math.exp(-v["Ti"] / tau))
-    return float("nan")  # CPAP: a passive patient triggers nothing
-
-
-def summarise(breaths_csv, settle_s):
-    with open(breaths_csv, newline="") as f:
+def run(pneuma, out, name, text, settle_s):
+    yaml = out / f"{name}.yaml"
+    yaml.write_text(text)
+    subprocess.run([pneuma, "simulate", str(yaml), "-o", str(out / f"{name}.csv")], check=True,
+                   stdout=subprocess.DEVNULL)
+    with open(out / f"{name}-breaths.csv", newline="") as f:
         rows = [r for r in csv.DictReader(f) if float(r["start_s"]) >= settle_s]
     duration = sum(float(r["duration_s"]) for r in rows)
-    paw = sum(float(r["mean_airway_pressure_cmH2O"]) * float(r["duration_s"]) for r in rows) / duration
-    vt = sum(float(r["inspired_volume_mL"]) for r in rows) / len(rows)
-    patient = sum(r["trigger"].startswith("patient") for r in rows)
-    return dict(rate=60.0 * len(rows) / duration, paw=paw, vt=vt, breaths=len(rows), patient=patient)
+    mean = lambda key: sum(float(r[key]) for r in rows) / len(rows)  # noqa: E731
+    vti, vte = mean("vti_mL"), mean("vte_mL")
+    return dict(
+        rate=60.0 * len(rows) / duration,
+        pip=mean("peak_pressure_cmH2O"),
+        paw=sum(float(r["mean_airway_pressure_cmH2O"]) * float(r["duration_s"]) for r in rows) / duration,
+        vt=mean("inspired_volume_mL"),
+        ti=mean("inspiratory_time_s"),
+        mve=sum(float(r["vte_mL"]) for r in rows) / 1000.0 / (duration / 60.0),
+        leak=100.0 * (vti - vte) / vti,
+        breaths=len(rows),
+        patient=sum(r["trigger"].startswith("patient") for r in rows),
+    )
+
+
+def scored(bench, model, digits):
+    """A scored cell: pneuma's value, its error against the bench, and whether it is green."""
+    error = (model - bench) / bench
+    mark = "" if abs(error) <= GREEN else " **x**"
+    return f"{model:.{digits}f} ({whole(100 * error, True)} %){mark}", abs(error) <= GREEN
+
+
+def tables(pneuma, out, duration_s, settle_s):
+    lines = ["| case | PIP bench | PIP pneuma | Pmean bench | Pmean pneuma | VT bench | VT pneuma "
+             "| Ti bench (s) | Ti pneuma (s) | green |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    context = ["| case | RR bench | RR pneuma | patient-triggered | MVe bench | MVe pneuma | VTi / VTe bench "
+               "| leak % bench |",
+               "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    total = green = 0
+    for case in VENTILATOR:
+        b, v = BENCH[case], VENTILATOR[case]
+        s = run(pneuma, out, case, scenario(case, duration_s), settle_s)
+        cells, greens = [], []
+        for key, model, digits in (("PIP", s["pip"], 1), ("Pmean", s["paw"], 1)):
+            text, ok = scored(b[key], model, digits)
+            cells += [f"{b[key]:g}", text]
+            greens.append(ok)
+        if v["mode"] == "vc_ac":  # the set volume: an echo, not scored
+            cells += [f"({b['VT']})", f"({s['vt']:.0f})"]
+        else:
+            text, ok = scored(b["VT"], s["vt"], 0)
+            cells += [f"{b['VT']}", text]
+            greens.append(ok)
+        # Ti from the bench's I:E where the breath's end is the patient's (CPAP); elsewhere it is set.
+        if v["mode"] == "cpap_psv" and b["E"] is not None:
+            bench_ti = 60.0 / b["RR"] / (1.0 + b["E"])
+            text, ok = scored(bench_ti, s["ti"], 2)
+            cells += [f"{bench_ti:.2f}", text]
+            greens.append(ok)
+        else:
+            cells += ["-", f"({s['ti']:.2f})"]
+        total += len(greens)
+        green += sum(greens)
+        lines.append(f"| {case} | " + " | ".join(cells) + f" | {sum(greens)} of {len(greens)} |")
+        context.append(f"| {case} | {b['RR']} | {s['rate']:.1f} | {s['patient']} of {s['breaths']} | {b['MVe']:g} "
+                       f"| {s['mve']:.1f} | {b['VTi']} / {b['VTe']} | {b['leak']} |")
+    lines.append("")
+    lines.append(f"{green} of {total} scored cells within 10 % of the bench.")
+
+    sensitivity = ["| case (bench PIP, leak %) | " + " | ".join(name for name, _ in CIRCUITS) + " |",
+                   "| --- | " + " | ".join("---" for _ in CIRCUITS) + " |"]
+    for case in [c for c in VENTILATOR if VENTILATOR[c]["mode"] == "vc_ac"]:
+        cells = []
+        for k, (_, circuit) in enumerate(CIRCUITS):
+            s = run(pneuma, out, f"{case}-circuit{k}", scenario(case, duration_s, circuit), settle_s)
+            cells.append(f"{s['pip']:.1f}, {whole(s['leak'])} %")
+        b = BENCH[case]
+        sensitivity.append(f"| {case} ({b['PIP']}, {b['leak']} %) | " + " | ".join(cells) + " |")
+    return "\n".join(lines + [""] + context + [""] + sensitivity) + "\n"
+
+
+BEGIN, END = "<!-- ventilator-validation.py: begin -->\n", "<!-- ventilator-validation.py: end -->\n"
 
 
 def main():
@@ -115,24 +206,24 @@ def main():
     parser.add_argument("--out", default="out/ventilator-validation")
     parser.add_argument("--duration", type=float, default=80.0)
     parser.add_argument("--settle", type=float, default=20.0)
+    parser.add_argument("--check", help="the Markdown file whose tables must equal the generated ones")
     args = parser.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    print("| case | RR bench | RR pneuma | MAP bench | MAP pneuma | VT bench | VTi / VTe bench | VT pneuma "
-          "| VT passive (closed form) | leak bench | patient-triggered |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
-    for case in VENTILATOR:
-        yaml = out / f"{case}.yaml"
-        yaml.write_text(scenario(case, args.duration))
-        csv_path = out / f"{case}.csv"
-        subprocess.run([args.pneuma, "simulate", str(yaml), "-o", str(csv_path)], check=True,
-                       stdout=subprocess.DEVNULL)
-        s = summarise(out / f"{case}-breaths.csv", args.settle)
-        rr, paw, vt, vti, vte, leak = BENCH[case]
-        passive = passive_vt_ml(case)
-        print(f"| {case} | {rr} | {s['rate']:.1f} | {paw} | {s['paw']:.1f} | {vt} | {vti} / {vte} | {s['vt']:.0f} "
-              f"| {'-' if math.isnan(passive) else f'{passive:.0f}'} | {leak} | {s['patient']} of {s['breaths']} |")
-    return 0
+    text = tables(args.pneuma, out, args.duration, args.settle)
+    if not args.check:
+        sys.stdout.write(text)
+        return 0
+    doc = pathlib.Path(args.check).read_text()
+    if BEGIN not in doc or END not in doc:
+        print(f"{args.check}: no '{BEGIN.strip()}' ... '{END.strip()}' block", file=sys.stderr)
+        return 1
+    documented = doc.split(BEGIN, 1)[1].split(END, 1)[0]
+    if documented == text:
+        return 0
+    sys.stderr.writelines(difflib.unified_diff(documented.splitlines(True), text.splitlines(True), args.check,
+                                               "generated"))
+    return 1
 
 
 if __name__ == "__main__":

@@ -209,6 +209,7 @@
       g.fillText(+t.toPrecision(6) + ' s', Math.min(x, this.right), this.bottom + 3 * dpr);
     }
     if (this.bands) this.bands(g);
+    if (this.marks) this.marks(g);
     g.lineWidth = 1.5 * dpr; g.lineJoin = 'round';
     this.lines.forEach(function (l) {
       g.strokeStyle = l.color;
@@ -241,6 +242,51 @@
     plotsRoot.appendChild(p.root);
     return p;
   });
+  // ---- the ventilator screen (ventilated runs): the numerics of the breath under the cursor ----
+  var SCREEN = [['pip', 'PIP', 'cmH2O', 1], ['pplat', 'Pplat', 'cmH2O', 1], ['pmean', 'Pmean', 'cmH2O', 1],
+                ['peep', 'PEEP', 'cmH2O', 1], ['peepi', 'PEEPi', 'cmH2O', 1], ['vti', 'VTi', 'mL', 0],
+                ['vte', 'VTe', 'mL', 0], ['mve', 'MVe', 'L/min', 2], ['rr', 'RR', '/min', 1],
+                ['rr_spont', 'RRspon', '/min', 1], ['ie', 'I:E', '', 2], ['cdyn', 'Cdyn', 'mL/cmH2O', 1],
+                ['leak', '% leak', '%', 0]];
+  var screen = null;
+  function Screen(breaths, starts) {
+    var self = this;
+    this.breaths = breaths; this.starts = starts;
+    this.root = el('div', { 'class': 'screen', 'id': 'ventilator-screen' });
+    this.title = el('div', { 'class': 'head' }, 'Ventilator');
+    this.root.appendChild(this.title);
+    var grid = el('div', { 'class': 'cells' });
+    this.root.appendChild(grid);
+    this.cells = {};
+    SCREEN.forEach(function (c) {
+      var cell = el('div', { 'class': 'cell' });
+      cell.appendChild(el('span', { 'class': 'name' }, c[1] + (c[2] ? ' ' + c[2] : '')));
+      var value = el('b', { 'data-key': c[0] }, '-');
+      cell.appendChild(value);
+      grid.appendChild(cell);
+      self.cells[c[0]] = value;
+    });
+    this.alarms = el('div', { 'class': 'alarms' }, '');
+    this.root.appendChild(this.alarms);
+    this.shown = null;
+  }
+  // The breath holding t: [starts[b], starts[b + 1]); -1 before the first or after the last.
+  Screen.prototype.show = function (t) {
+    var b = -1, self = this;
+    for (var i = 0; i + 1 < this.starts.length; ++i) if (this.starts[i] <= t && t < this.starts[i + 1]) b = i;
+    var breath = b >= 0 ? this.breaths[b] : null;
+    this.title.textContent = breath ? 'Ventilator: breath ' + (b + 1) : 'Ventilator';
+    var shown = { breath: b + 1, values: {}, alarms: breath ? breath.alarms : '' };
+    SCREEN.forEach(function (c) {
+      var v = breath ? breath[c[0]] : null;
+      var text = v === null || v === undefined ? '-' : (c[0] === 'ie' ? '1:' + fmt(v, c[3]) : fmt(v, c[3]));
+      self.cells[c[0]].textContent = text;
+      shown.values[c[0]] = text;
+    });
+    this.alarms.textContent = breath && breath.alarms ? 'Alarms: ' + breath.alarms.split(';').join(', ') : '';
+    this.shown = shown;
+  };
+
   // ---- loops (ventilated runs): pressure-volume and flow-volume of the breath under the cursor ----
   function Loop(title, xKey, xUnit, yKey, yUnit, starts) {
     var self = this;
@@ -315,6 +361,24 @@
                  new Loop('Flow-volume loop: flow (L/s) against volume', 'volume_mL', 'mL', 'flow_L_per_s', 'L/s', starts)];
     loops.forEach(function (l) { loopsRoot.appendChild(l.root); plots.push({
       layout: function () { l.layout(); }, drawCursor: function (t) { l.draw(t); } }); });
+    if (data.loops.screen) {
+      screen = new Screen(data.loops.screen, starts);
+      plotsRoot.appendChild(screen.root);  // a row under the loops
+      plots.push({ layout: function () {}, drawCursor: function (t) { screen.show(t); } });
+      // Alarms on the time line: a red tick at the end of each breath that raised one (when the
+      // ventilator checks it), over every waveform.
+      plots.forEach(function (p) {
+        if (!p.lines) return;
+        p.marks = function (g) {
+          g.fillStyle = '#d62728';
+          data.loops.screen.forEach(function (b, i) {
+            if (!b.alarms) return;
+            var x = p.xAt(starts[i + 1]);
+            g.fillRect(x - 1.5 * p.dpr, p.top, 3 * p.dpr, 7 * p.dpr);
+          });
+        };
+      });
+    }
   }
   // ---- respiratory bins: bands on the volume plot, the table, the bin under the cursor ----
   var bins = data.bins || null;
@@ -683,6 +747,7 @@
       for (var i = 0; i < shots[0].p.length; i += 4) if (differs(shots[0].p, i, shots[k].p, i)) ++result.changed;
     }
     result.glb_bytes = base64ToBytes(document.getElementById('pneuma-glb').textContent).length;
+    result.ventilator = screen ? screen.shown : null;  // the screen at the last time
     result.ms = Math.round(performance.now());  // since navigation started: load, parse, both renders
     result.errors = errors.length;
     result.messages = errors.slice(0, 5);

@@ -29,6 +29,47 @@ double rounded(double x, int decimals) {
   return r == 0.0 ? 0.0 : r;  // no "-0.0"
 }
 
+// A number for the page, or null where the breath has none (NaN: no hold, no effort, no circuit).
+Json number_or_null(double x, int decimals) { return std::isfinite(x) ? Json(rounded(x, decimals)) : Json(nullptr); }
+
+// The ventilator screen's numerics of each breath (report.js shows the one under the cursor), as a
+// ventilator shows them: the breath's own pressures and volumes, and the rates and expired minute
+// volume over the minute before the breath's end (the run so far during its first minute).
+Json ventilator_screen(const std::vector<physiology::BreathMetrics>& breaths) {
+  Json screen = Json::array();
+  for (std::size_t i = 0; i < breaths.size(); ++i) {
+    const auto& b = breaths[i];
+    const double end = b.start_s + b.duration_s, window = std::min(60.0, end);
+    double expired = 0.0;
+    int total = 0, spontaneous = 0;
+    for (std::size_t j = 0; j <= i; ++j) {
+      const auto& o = breaths[j];
+      if (!(o.start_s + o.duration_s > end - window)) continue;
+      ++total;
+      if (std::string_view(o.breath_type) == "spontaneous") ++spontaneous;
+      if (std::isfinite(o.vte_m3)) expired += o.vte_m3;
+    }
+    const double te = b.duration_s - b.inspiratory_time_s;
+    screen.push_back(Json{
+        {"pip", number_or_null(b.peak_pressure_pa * kCmH2O, 1)},
+        {"pplat", number_or_null(b.plateau_pressure_pa * kCmH2O, 1)},
+        {"pmean", number_or_null(b.mean_airway_pressure_pa * kCmH2O, 1)},
+        {"peep", number_or_null(b.peep_pa * kCmH2O, 1)},
+        {"peepi", number_or_null(b.intrinsic_peep_pa * kCmH2O, 1)},
+        {"vti", number_or_null(b.vti_m3 * kMl, 0)},
+        {"vte", number_or_null(b.vte_m3 * kMl, 0)},
+        {"mve", number_or_null(expired * kLitre / window * 60.0, 2)},
+        {"rr", number_or_null(total * 60.0 / window, 1)},
+        {"rr_spont", number_or_null(spontaneous * 60.0 / window, 1)},
+        {"ie", number_or_null(b.inspiratory_time_s > 0.0 ? te / b.inspiratory_time_s : NAN, 2)},  // 1 : this
+        {"cdyn", number_or_null(b.dynamic_compliance_m3_per_pa * kMl / kCmH2O, 1)},
+        {"leak", number_or_null(b.vti_m3 > 0.0 ? (b.vti_m3 - b.vte_m3) / b.vti_m3 * 100.0 : NAN, 0)},
+        {"alarms", b.alarms},
+    });
+  }
+  return screen;
+}
+
 std::string base64(std::string_view bytes) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
@@ -138,7 +179,7 @@ void add_series(Json& data, const physiology::SimulationResult& result, std::siz
     for (const auto& b : result.breaths) starts.push_back(rounded(b.start_s, 6));
     const auto& last = result.breaths.back();
     starts.push_back(rounded(last.start_s + last.duration_s, 6));  // the end of the last complete breath
-    data["loops"] = Json{{"breath_starts", starts}};
+    data["loops"] = Json{{"breath_starts", starts}, {"screen", ventilator_screen(result.breaths)}};
   }
 }
 

@@ -49,8 +49,9 @@ void driver_facts(const std::string& prefix, const physiology::Driver& driver, F
   if (!a) return;
   const bool support = a->mode == AssistMode::pressure_support, simv = physiology::is_simv(*a);
   const bool volume = a->mode == AssistMode::volume || a->mode == AssistMode::simv_volume;
-  if (!support) add("rate_per_min", number(a->rate_hz * 60.0));
-  add(support ? "longest_inspiratory_time_s" : "inspiratory_time_s", number(a->inspiratory_time_s));
+  const bool no_backup = support || a->mode == AssistMode::pav;  // every breath is the patient's
+  if (!no_backup) add("rate_per_min", number(a->rate_hz * 60.0));
+  add(no_backup ? "longest_inspiratory_time_s" : "inspiratory_time_s", number(a->inspiratory_time_s));
   add("peep_cmH2O", number(a->peep_pa * kCmH2O));
   add("trigger", a->trigger == physiology::TriggerKind::flow
                      ? fmt::format("flow {:.6g} L/min", a->trigger_threshold * kLitre * 60.0)
@@ -60,6 +61,18 @@ void driver_facts(const std::string& prefix, const physiology::Driver& driver, F
     add("pause_s", number(a->pause_time_s));
     add("waveform", a->waveform == physiology::FlowWaveform::square ? "square" : "decelerating");
     if (a->pressure_limit_pa > 0.0) add("pressure_limit_cmH2O", number(a->pressure_limit_pa * kCmH2O));
+  }
+  if (a->mode == AssistMode::aprv) {
+    add("high_pressure_cmH2O", number((a->peep_pa + a->inspiratory_pressure_pa) * kCmH2O));
+    add("low_pressure_cmH2O", number(a->peep_pa * kCmH2O));
+    add("high_time_s", number(a->inspiratory_time_s));
+    add("low_time_s", number(1.0 / a->rate_hz - a->inspiratory_time_s));
+    if (a->support_pa > 0.0) add("pressure_support_cmH2O", number(a->support_pa * kCmH2O));  // BiLevel
+  }
+  if (a->mode == AssistMode::pav) {
+    add("gain_percent", number(a->pav_gain * 100.0));
+    add("assisted_resistance_cmH2O_s_per_L", number(a->pav_resistance_pa_s_per_m3 * kCmH2O / kLitre));
+    add("assisted_compliance_mL_per_cmH2O", number(kMl / (a->pav_elastance_pa_per_m3 * kCmH2O)));
   }
   if (a->mode == AssistMode::pressure || a->mode == AssistMode::simv_pressure)
     add("inspiratory_pressure_cmH2O", number(a->inspiratory_pressure_pa * kCmH2O));
@@ -72,7 +85,11 @@ void driver_facts(const std::string& prefix, const physiology::Driver& driver, F
     add("rise_time_s", number(a->rise_time_s));
     switch (a->cycle) {
       case physiology::CycleKind::time: add("cycle", "time"); break;
-      case physiology::CycleKind::flow: add("cycle", fmt::format("flow {:.6g} %", a->cycle_fraction * 100.0)); break;
+      case physiology::CycleKind::flow:
+        add("cycle", a->cycle_flow_m3_per_s > 0.0
+                         ? fmt::format("flow {:.6g} L/min", a->cycle_flow_m3_per_s * kLitre * 60.0)
+                         : fmt::format("flow {:.6g} %", a->cycle_fraction * 100.0));
+        break;
       case physiology::CycleKind::volume:
         add("cycle", fmt::format("volume {:.6g} mL", a->cycle_volume_m3 * kMl));
         break;
@@ -154,6 +171,9 @@ Facts ventilator_facts(const physiology::Protocol& protocol, const physiology::S
   for (const auto* b : ventilated) missed += b->missed_triggers;
   out.emplace_back("ventilator.missed_triggers", std::to_string(missed));
   out.emplace_back("ventilator.double_triggers", count([](const auto& b) { return b.double_triggered; }));
+  out.emplace_back("ventilator.early_cycling", count([](const auto& b) { return b.early_cycling; }));
+  out.emplace_back("ventilator.late_cycling", count([](const auto& b) { return b.late_cycling; }));
+  out.emplace_back("ventilator.flow_starvation", count([](const auto& b) { return b.flow_starvation; }));
   summary(
       "peak_pressure_cmH2O", ventilated, [](const auto& b) { return b.peak_pressure_pa * kCmH2O; }, out);
   summary(

@@ -24,7 +24,7 @@ Number if_ventilated(const Breath& b, double value) {
 
 // Each value in its column's unit, converted as the CSV always has (the same operations in the
 // same order, so the same digits).
-constexpr std::array<BreathColumn, 31> kBreathColumns{{
+constexpr std::array<BreathColumn, 36> kBreathColumns{{
     {"breath", "", CellFormat::whole, [](const Breath&, std::size_t i) -> Number { return static_cast<double>(i + 1); },
      nullptr},
     {"start_s", "s", CellFormat::fixed6, [](const Breath& b, std::size_t) -> Number { return b.start_s; }, nullptr},
@@ -103,6 +103,26 @@ constexpr std::array<BreathColumn, 31> kBreathColumns{{
     {"inspiratory_pressure_cmH2O", "cmH2O", CellFormat::significant9,
      [](const Breath& b, std::size_t) { return if_ventilated(b, b.set_inspiratory_pressure_pa * kCmH2O); }, nullptr},
     {"alarms", "", CellFormat::text, nullptr, [](const Breath& b) { return b.alarms.c_str(); }},
+    // Cycling and flow asynchrony against the patient's effort: the delay and the dip empty without
+    // one, the flags (counts, like double_trigger) 0.
+    {"cycle_delay_s", "s", CellFormat::significant9,
+     [](const Breath& b, std::size_t) -> Number {
+       if (std::isnan(b.cycle_delay_s)) return std::nullopt;
+       return b.cycle_delay_s;
+     },
+     nullptr},
+    {"early_cycling", "", CellFormat::whole,
+     [](const Breath& b, std::size_t) -> Number { return b.early_cycling ? 1.0 : 0.0; }, nullptr},
+    {"late_cycling", "", CellFormat::whole,
+     [](const Breath& b, std::size_t) -> Number { return b.late_cycling ? 1.0 : 0.0; }, nullptr},
+    {"flow_starvation_cmH2O", "cmH2O", CellFormat::significant9,
+     [](const Breath& b, std::size_t) -> Number {
+       if (std::isnan(b.flow_starvation_pa)) return std::nullopt;
+       return b.flow_starvation_pa * kCmH2O;
+     },
+     nullptr},
+    {"flow_starvation", "", CellFormat::whole,
+     [](const Breath& b, std::size_t) -> Number { return b.flow_starvation ? 1.0 : 0.0; }, nullptr},
 }};
 
 }  // namespace

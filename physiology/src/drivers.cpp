@@ -86,7 +86,12 @@ struct DriveOf {
         d.flow_controlled = true;  // valves closed: no flow at the airway opening
         break;
       case kAssistPressure:
-        if (a.rise_time_s > 0.0) {
+        if (a.mode == AssistMode::pav) {
+          d.airway_pressure_pa = a.peep_pa;
+          d.assist_gain = a.pav_gain;
+          d.assist_resistance_pa_s_per_m3 = a.pav_resistance_pa_s_per_m3;
+          d.assist_elastance_pa_per_m3 = a.pav_elastance_pa_per_m3;
+        } else if (a.rise_time_s > 0.0) {
           const double k = 3.0 / a.rise_time_s;
           d.airway_pressure_pa = a.peep_pa + a.inspiratory_pressure_pa * (1.0 - std::exp(-k * t));
           d.airway_pressure_rate_pa_per_s = a.inspiratory_pressure_pa * k * std::exp(-k * t);
@@ -163,10 +168,12 @@ bool is_ventilator(const Driver& driver) { return !std::holds_alternative<Sponta
 
 bool is_simv(const Assisted& a) { return a.mode == AssistMode::simv_volume || a.mode == AssistMode::simv_pressure; }
 
+bool is_bilevel(const Assisted& a) { return a.mode == AssistMode::aprv && a.support_pa > 0.0; }
+
 double default_trigger_window_s(double rate_hz) { return std::min(0.6 / rate_hz, 10.0); }
 
 Assisted simv_breath(const Assisted& a, bool mandatory) {
-  if (!is_simv(a)) return a;
+  if (!is_simv(a) && !is_bilevel(a)) return a;
   Assisted b = a;
   if (mandatory) {
     b.mode = a.mode == AssistMode::simv_volume ? AssistMode::volume : AssistMode::pressure;
@@ -213,7 +220,8 @@ void validate(const Circuit& c) {
 
 const char* mode_name(const Driver& driver) {
   if (const auto* a = std::get_if<Assisted>(&driver)) {
-    static constexpr const char* kAssisted[] = {"vc_ac", "pc_ac", "cpap_psv", "vc_simv", "pc_simv", "prvc"};
+    static constexpr const char* kAssisted[] = {"vc_ac",   "pc_ac", "cpap_psv", "vc_simv",
+                                                "pc_simv", "prvc",  "aprv",     "pav"};
     return kAssisted[static_cast<int>(a->mode)];
   }
   static constexpr const char* kNames[] = {"spontaneous", "volume_control", "pressure_control"};
@@ -231,11 +239,26 @@ void validate(const PatientEffort& e) {
 
 void validate(const Driver& driver) {
   if (const auto* a = std::get_if<Assisted>(&driver)) {
-    const bool support = a->mode == AssistMode::pressure_support;
+    const bool support = a->mode == AssistMode::pressure_support || a->mode == AssistMode::pav;
     const bool simv = is_simv(*a);
-    if (support) require(a->rate_hz == 0.0, "pressure support has no backup rate");
+    if (a->mode == AssistMode::aprv) {
+      require((a->cycle == CycleKind::time || a->support_pa > 0.0) && a->volume_limit_m3 == 0.0,
+              "APRV changes levels on time only");
+      require(a->support_pa >= 0.0, "the pressure support must not be negative");
+      require(a->trigger_window_s == 0.0, "APRV's high phases are on the clock: no trigger window");
+      if (a->support_pa > 0.0) validate(Driver{simv_breath(*a, false)});
+      require(a->inspiratory_pressure_pa > 0.0, "the high pressure must be above the low pressure");
+    }
+    if (a->mode == AssistMode::pav) {
+      require(a->pav_gain > 0.0 && a->pav_gain < 1.0, "the assist gain must lie between 0 and 100 %");
+      require(a->pav_resistance_pa_s_per_m3 > 0.0 && std::isfinite(a->pav_resistance_pa_s_per_m3),
+              "the assisted resistance must be positive");
+      require(a->pav_elastance_pa_per_m3 > 0.0 && std::isfinite(a->pav_elastance_pa_per_m3),
+              "the assisted compliance must be positive");
+    }
+    if (support) require(a->rate_hz == 0.0, "pressure support and PAV have no backup rate");
     else require(a->rate_hz > 0.0 && std::isfinite(a->rate_hz), "the rate must be positive");
-    require(a->apnea_time_s == 0.0 || support, "only cpap_psv has an apnea backup");
+    require(a->apnea_time_s == 0.0 || a->mode == AssistMode::pressure_support, "only cpap_psv has an apnea backup");
     if (a->apnea_time_s > 0.0) {
       require(std::isfinite(a->apnea_time_s), "the apnea time must be finite");
       require(a->backup_rate_hz > 0.0 && std::isfinite(a->backup_rate_hz), "the backup rate must be positive");
@@ -258,8 +281,9 @@ void validate(const Driver& driver) {
       require(a->trigger_window_s > 0.0 && a->trigger_window_s <= 1.0 / a->rate_hz,
               "the trigger window must be positive and at most one cycle (60 / rate)");
       require(a->support_pa >= 0.0, "the pressure support must not be negative");
-      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0),
-              "the flow cycle fraction must lie between 0 and 1");
+      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0) ||
+                  (a->cycle_fraction == 0.0 && a->cycle_flow_m3_per_s > 0.0),
+              "the flow cycle fraction must lie between 0 and 1 (or the cycle flow be positive)");
       require(a->cycle != CycleKind::volume || a->cycle_volume_m3 > 0.0, "the cycle volume must be positive");
       require(a->rise_time_s < kLongestSupportedInspiration_s,
               "the rise time must be shorter than the longest supported inspiration (3 s)");
@@ -277,8 +301,9 @@ void validate(const Driver& driver) {
       require(a->inspiratory_pressure_pa >= 0.0, "the inspiratory pressure must not be negative");
       require(a->rise_time_s >= 0.0, "the rise time must not be negative");
       require(a->rise_time_s < a->inspiratory_time_s, "the rise time must be shorter than the inspiratory time");
-      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0),
-              "the flow cycle fraction must lie between 0 and 1");
+      require(a->cycle != CycleKind::flow || (a->cycle_fraction > 0.0 && a->cycle_fraction < 1.0) ||
+                  (a->cycle_fraction == 0.0 && a->cycle_flow_m3_per_s > 0.0),
+              "the flow cycle fraction must lie between 0 and 1 (or the cycle flow be positive)");
       require(a->cycle != CycleKind::volume || a->cycle_volume_m3 > 0.0, "the cycle volume must be positive");
       require(a->volume_limit_m3 >= 0.0, "the volume limit must not be negative");
     }

@@ -7,6 +7,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "cvode_integrator.h"
@@ -116,6 +117,34 @@ Instant through_circuit(const SegmentContext& c, const Drive& d, const double* y
   return out;
 }
 
+double total(const double* v, std::size_t n);
+
+// PAV's airway pressure: the p with p = PEEP + gain (R_set Q(p) + E_set dV), dV the volume since
+// the breath's start. Q rises with p at the slope 1 / R (the patient's inspiratory resistance), so
+// p - PEEP - gain (...) rises at 1 - gain R_set / R > 0 (validated): secant steps, the first exact
+// for linear mechanics; NaN (CVODE retries) if the assist would run away.
+double proportional_assist_pressure(const SegmentContext& c, const Drive& d, const double* volumes, double* flows) {
+  const Mechanics& m = *c.mechanics;
+  const double dv = total(volumes, m.compartments.size()) - c.start_volume;
+  const auto excess = [&](double p) {
+    const double q = compartment_flows(m, p + d.muscle_pressure_pa, volumes, flows);
+    return p - d.peep_pa - d.assist_gain * (d.assist_resistance_pa_s_per_m3 * q + d.assist_elastance_pa_per_m3 * dv);
+  };
+  double p0 = d.peep_pa, f0 = excess(p0);
+  double p1 = p0 + 100.0, f1 = excess(p1);  // 100 Pa: about 1 cmH2O
+  for (int i = 0; i < 8 && f1 != 0.0; ++i) {
+    const double slope = (f1 - f0) / (p1 - p0);
+    if (!(slope > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    const double p2 = p1 - f1 / slope;
+    p0 = p1;
+    f0 = f1;
+    p1 = p2;
+    f1 = excess(p1);
+    if (std::abs(p1 - p0) <= 1e-12 * std::max(1.0, std::abs(p1))) break;
+  }
+  return p1;
+}
+
 // Flows into every compartment at (t, volumes); returns the pressures at that instant.
 Instant evaluate(const SegmentContext& c, double t, const double* volumes, double* flows) {
   Drive d = drive_at(*c.driver, c.phase, t - c.breath_start_s);
@@ -131,6 +160,8 @@ Instant evaluate(const SegmentContext& c, double t, const double* volumes, doubl
   out.muscle_pressure = d.muscle_pressure_pa;
   out.peep = d.peep_pa;
   out.driving_pressure_rate = d.airway_pressure_rate_pa_per_s;
+  if (d.assist_gain > 0.0 && !d.flow_controlled)
+    d.airway_pressure_pa = proportional_assist_pressure(c, d, volumes, flows);
   if (c.circuit) return through_circuit(c, d, volumes, flows, out);
   if (d.flow_controlled) {
     const double pd = driving_pressure_for_flow(*c.mechanics, d.flow_m3_per_s, volumes);
@@ -156,8 +187,6 @@ int right_hand_side(double t, N_Vector y, N_Vector ydot, void* user_data) {
   }
   return 0;
 }
-
-double total(const double* v, std::size_t n);
 
 // CVODE's root functions for the assisted breaths' events (see RootKind). Each is smooth within
 // a segment, so CVODE locates its zero to its root tolerance (~100 ulp of t): trigger and cycle
@@ -191,10 +220,13 @@ int root_function(double t, N_Vector y, double* g, void* user_data) {
       case RootKind::trigger_pressure: g[i] = a.peep_pa - now.airway_pressure - a.trigger_threshold; break;
       case RootKind::reopen: g[i] = now.airway_pressure - a.peep_pa; break;
       case RootKind::flow_peak:
-        g[i] = c.circuit ? ventilator_flow_rate(c, t, v)
-                         : flow_rate_of_change(*c.mechanics, now.driving_pressure_rate, v, q.data());
+        g[i] = c.circuit || a.mode == AssistMode::pav
+                   ? ventilator_flow_rate(c, t, v)
+                   : flow_rate_of_change(*c.mechanics, now.driving_pressure_rate, v, q.data());
         break;
-      case RootKind::flow_cycle: g[i] = now.ventilator_flow - a.cycle_fraction * c.flow_peak; break;
+      case RootKind::flow_cycle:
+        g[i] = now.ventilator_flow - a.cycle_fraction * c.flow_peak - a.cycle_flow_m3_per_s;
+        break;
       case RootKind::volume_cycle: g[i] = delivered - a.cycle_volume_m3; break;
       case RootKind::volume_limit: g[i] = delivered - a.volume_limit_m3; break;
       case RootKind::pressure_limit: g[i] = now.airway_pressure - a.pressure_limit_pa; break;
@@ -292,6 +324,8 @@ class Simulation {
         context_.phase = p;
         const double phase_end = breath.start_s + plan.phases[static_cast<std::size_t>(p)].end_s;
         Instant last;
+        // Flow starvation: the patient pulling against the set flow (volume control's flow phase).
+        starvation_ = p == 0 && std::holds_alternative<VolumeControl>(driver);
         while (t < phase_end) {
           const double segment_end = std::min({phase_end, next_change_after(t), end, next_effort_break(t)});
           use_setting_at(t);
@@ -302,6 +336,7 @@ class Simulation {
             break;
           }
         }
+        starvation_ = false;
         if (!complete) break;
         if (plan.phases[static_cast<std::size_t>(p)].inspiratory &&
             (p + 1 == plan.count || !plan.phases[static_cast<std::size_t>(p) + 1].inspiratory)) {
@@ -383,6 +418,7 @@ class Simulation {
 
   void begin_breath(double start_volume, const double* y) {
     min_volume_ = max_volume_ = start_volume;
+    starvation_dip_ = std::numeric_limits<double>::quiet_NaN();
     paw_integral_ = 0.0;
     start_delivered_ = ventilator_volume(y);
   }
@@ -430,6 +466,9 @@ class Simulation {
     if (is_ventilator(current_driver_)) {
       breath.vte_m3 = end_inspiration_delivered_ - ventilator_volume(y);
       check_alarms(breath, result);
+      cycling(breath);
+      breath.flow_starvation_pa = starvation_dip_;
+      breath.flow_starvation = starvation_dip_ > kFlowStarvation_pa;
     }
     // An end-expiratory hold: the pressure measured at its end when one was made (expiratory_hold),
     // else the pressure the recoil holds with the airway occluded at once (no redistribution).
@@ -439,11 +478,42 @@ class Simulation {
     result.breaths.push_back(breath);
   }
 
+  // Cycling against the effort in progress at the end of inspiration (the latest onset at or
+  // before it), when its neural inspiration (the effort's rise) overlaps the breath's inspiration.
+  // APRV's high phases have no cycle to judge: its levels change on the clock, the patient
+  // breathes at both (BiLevel's supported breaths at P_low are judged).
+  void cycling(BreathMetrics& breath) const {
+    if (const auto* a = std::get_if<Assisted>(&current_driver_);
+        a && a->mode == AssistMode::aprv && std::string_view(breath.breath_type) == "mandatory")
+      return;
+    const double cycle = breath.start_s + breath.inspiratory_time_s;
+    const std::size_t s = setting_at(cycle);
+    const PatientEffort& e = protocol_.settings[s].effort;
+    if (!e.active() || cycle < effort_anchor_[s]) return;
+    const double period = 1.0 / e.rate_hz, neural = period * e.ie_ratio / (1.0 + e.ie_ratio);
+    const double onset = effort_anchor_[s] + period * std::floor((cycle - effort_anchor_[s]) / period);
+    if (onset + neural <= breath.start_s) return;  // it ended before the breath began
+    breath.cycle_delay_s = cycle - (onset + neural);
+    breath.early_cycling = breath.cycle_delay_s < 0.0;
+    breath.late_cycling = breath.cycle_delay_s > kLateCyclingShare * neural;
+  }
+
+  // Flow starvation: how far the airway pressure at (t, y) lies below the passive lung's (the
+  // same state and drive, the effort removed); tracked only while starvation_ is set.
+  void track_starvation(double t, const double* y, double airway_pressure) {
+    if (!starvation_ || !context_.effort) return;
+    SegmentContext passive = context_;
+    passive.effort = nullptr;
+    std::array<double, kMaxStates> q{};
+    const double dip = evaluate(passive, t, y, q.data()).airway_pressure - airway_pressure;
+    starvation_dip_ = std::isnan(starvation_dip_) ? dip : std::max(starvation_dip_, dip);
+  }
+
   // When an assisted expiration that began a breath at `breath_start` ends on the clock: the
   // backup timer (VC-AC, PC-AC), the next scheduled mandatory breath (SIMV), never (CPAP).
   double deadline(const Assisted& a, double breath_start) {
     if (a.apnea_time_s > 0.0) return breath_start + a.apnea_time_s;
-    if (is_simv(a)) {
+    if (is_simv(a) || is_bilevel(a)) {
       if (std::isnan(simv_due_)) simv_due_ = breath_start + 1.0 / a.rate_hz;  // a switch into SIMV
       return simv_due_;
     }
@@ -500,10 +570,10 @@ class Simulation {
       current_driver_ = a;
     }
     context_.driver = &current_driver_;
-    if (!is_simv(a)) simv_due_ = std::numeric_limits<double>::quiet_NaN();
+    if (!is_simv(a) && !is_bilevel(a)) simv_due_ = std::numeric_limits<double>::quiet_NaN();
     if (a.mode != AssistMode::prvc) prvc_pressure_ = std::numeric_limits<double>::quiet_NaN();
     if (!pending_) {
-      if (a.mode == AssistMode::pressure_support) {
+      if (a.mode == AssistMode::pressure_support || a.mode == AssistMode::pav) {
         // No backup rate: wait at CPAP for the patient's first trigger (not a breath), or the apnea time.
         context_.breath_start_s = t;
         double unused_peak = -std::numeric_limits<double>::infinity(), unused_drive = unused_peak;
@@ -521,8 +591,11 @@ class Simulation {
       }
     }
     // The breath it gives: SIMV's mandatory or spontaneous one, or the mode's own.
-    const bool mandatory = is_simv(a) ? simv_mandatory(a, t, *pending_) : a.mode != AssistMode::pressure_support;
+    const bool mandatory = is_simv(a) || is_bilevel(a)
+                               ? simv_mandatory(a, t, *pending_)
+                               : a.mode != AssistMode::pressure_support && a.mode != AssistMode::pav;
     Assisted shape = simv_breath(a, mandatory);
+    if (a.mode == AssistMode::aprv && mandatory) shape.mode = AssistMode::pressure;  // P_high for T_high, on the clock
     if (a.mode == AssistMode::prvc) {
       if (std::isnan(prvc_pressure_)) prvc_pressure_ = a.inspiratory_pressure_pa;  // the test breath
       shape.mode = AssistMode::pressure;
@@ -539,7 +612,8 @@ class Simulation {
     if (apnea_alarm_) breath.alarms = "apnea";
     apnea_alarm_ = false;
     if (shape.mode == AssistMode::volume || a.mode == AssistMode::prvc) breath.set_tidal_volume_m3 = a.tidal_volume_m3;
-    if (shape.mode != AssistMode::volume) breath.set_inspiratory_pressure_pa = shape.inspiratory_pressure_pa;
+    if (shape.mode != AssistMode::volume && shape.mode != AssistMode::pav)
+      breath.set_inspiratory_pressure_pa = shape.inspiratory_pressure_pa;
     pending_.reset();
     const double start_volume = total(y, n_);
     begin_breath(start_volume, y);
@@ -556,7 +630,9 @@ class Simulation {
       std::vector<RootKind> roots;
       if (shape.pressure_limit_pa > 0.0) roots.push_back(RootKind::pressure_limit);
       int root = -1;
+      starvation_ = true;
       const Stopped s = phase(kAssistFlow, t, flow_end, y, roots, false, peak_airway, peak_drive, last, root);
+      starvation_ = false;
       if (s == Stopped::end_of_run) return false;
       if (s == Stopped::root) {
         breath.cycle = "pressure_limit";
@@ -570,6 +646,7 @@ class Simulation {
       if (shape.cycle == CycleKind::flow) roots = {RootKind::flow_peak, RootKind::flow_cycle};
       if (shape.cycle == CycleKind::volume) roots.push_back(RootKind::volume_cycle);
       if (shape.volume_limit_m3 > 0.0) roots.push_back(RootKind::volume_limit);
+      if (shape.mode == AssistMode::pav && shape.pressure_limit_pa > 0.0) roots.push_back(RootKind::pressure_limit);
       std::array<double, kMaxStates> q{};
       context_.phase = kAssistPressure;
       use_setting_at(t);
@@ -585,7 +662,10 @@ class Simulation {
           context_.flow_peak = std::max(context_.flow_peak, last.ventilator_flow);
           continue;
         }
-        breath.cycle = k == RootKind::flow_cycle ? "flow" : k == RootKind::volume_cycle ? "volume" : "volume_limit";
+        breath.cycle = k == RootKind::flow_cycle     ? "flow"
+                       : k == RootKind::volume_cycle ? "volume"
+                       : k == RootKind::volume_limit ? "volume_limit"
+                                                     : "pressure_limit";
         break;
       }
     }
@@ -637,10 +717,13 @@ class Simulation {
   Stopped expiration(double& t, double* y, Assisted a, double backup, double& peak_airway, double& peak_drive,
                      std::optional<double> breath_start = std::nullopt) {
     Instant last;
+    // APRV's release is on the clock: the patient breathes at P_low through the demand valve.
+    // BiLevel watches for the patient's triggers at P_low, to support them.
+    const auto watches = [](const Assisted& x) { return x.mode != AssistMode::aprv || is_bilevel(x); };
     bool by_flow = a.trigger == TriggerKind::flow;
     int phase_kind = kAssistExpiration;
     // Pressure trigger: a patient already pulling when expiration begins finds the circuit closed.
-    if (!by_flow) {
+    if (!by_flow && watches(a)) {
       std::array<double, kMaxStates> q{};
       context_.phase = kAssistExpiration;
       use_setting_at(t);
@@ -648,7 +731,8 @@ class Simulation {
     }
     for (;;) {
       std::vector<RootKind> roots;
-      if (by_flow) roots = {RootKind::trigger_flow};
+      if (!watches(a)) roots = {};
+      else if (by_flow) roots = {RootKind::trigger_flow};
       else if (phase_kind == kAssistExpiration) roots = {RootKind::occlude};
       else roots = {RootKind::trigger_pressure, RootKind::reopen};
       int root = -1;
@@ -659,7 +743,7 @@ class Simulation {
           current_driver_ = next;
           a = *assisted;
           by_flow = a.trigger == TriggerKind::flow;
-          if (by_flow) phase_kind = kAssistExpiration;
+          if (by_flow || !watches(a)) phase_kind = kAssistExpiration;
           backup = deadline(a, *breath_start);
           if (backup <= t) return Stopped::time;
           continue;
@@ -729,6 +813,9 @@ class Simulation {
     for (std::size_t s = 0; s < protocol_.settings.size(); ++s) {
       const PatientEffort& e = protocol_.settings[s].effort;
       if (!e.active()) continue;
+      // APRV: the patient breathes at either level through the demand valve; nothing is missed.
+      if (const auto* a = std::get_if<Assisted>(&protocol_.settings[s].driver); a && a->mode == AssistMode::aprv)
+        continue;
       const double from = protocol_.settings[s].start_time_s;
       const double to = s + 1 < protocol_.settings.size() ? protocol_.settings[s + 1].start_time_s : end;
       const double period = 1.0 / e.rate_hz, anchor = effort_anchor_[s];
@@ -800,6 +887,7 @@ class Simulation {
     peak_airway = std::max(peak_airway, first.airway_pressure);
     peak_drive = std::max(peak_drive, first.airway_pressure + first.muscle_pressure);
     accumulate_paw(a, first.airway_pressure, true);
+    track_starvation(a, y, first.airway_pressure);
     if (b - a <= 1e-12 * std::max(1.0, b)) {
       last = first;
       return b;
@@ -839,6 +927,7 @@ class Simulation {
         peak_airway = std::max(peak_airway, now.airway_pressure);
         peak_drive = std::max(peak_drive, now.airway_pressure + now.muscle_pressure);
         accumulate_paw(t, now.airway_pressure, false);
+        track_starvation(t, sample.data(), now.airway_pressure);
       } else if (probe < b) {
         const double at = integrator_.advance(probe, sample.data(), &found);
         if (found >= 0) {
@@ -846,7 +935,9 @@ class Simulation {
           break;
         }
         track_volume(total(sample.data(), n_));
-        accumulate_paw(probe, evaluate(context_, probe, sample.data(), q.data()).airway_pressure, false);
+        const double paw = evaluate(context_, probe, sample.data(), q.data()).airway_pressure;
+        accumulate_paw(probe, paw, false);
+        track_starvation(probe, sample.data(), paw);
         ++probes;
       } else {
         break;
@@ -863,6 +954,7 @@ class Simulation {
     peak_airway = std::max(peak_airway, last.airway_pressure);
     peak_drive = std::max(peak_drive, last.airway_pressure + last.muscle_pressure);
     accumulate_paw(reached, last.airway_pressure, false);
+    track_starvation(reached, y, last.airway_pressure);
     return reached;
   }
 
@@ -884,6 +976,8 @@ class Simulation {
   static constexpr double kProbeInterval = 1e-3;  // s: the volume extremes to ~1e-6 of the swing
   double min_volume_ = 0.0, max_volume_ = 0.0;    // over the current breath
   double paw_integral_ = 0.0, last_paw_t_ = 0.0, last_paw_ = 0.0;
+  bool starvation_ = false;  // in a flow-controlled inspiration: track the airway pressure's dip
+  double starvation_dip_ = std::numeric_limits<double>::quiet_NaN();  // the largest this breath, NaN: none
   std::size_t next_output_ = 0;
   std::size_t output_count_ = 0;
   std::map<std::size_t, Driver> calibrated_;
@@ -964,7 +1058,7 @@ void validate(const Protocol& protocol, const SimulationOptions& options) {
     if (s.mechanics.compartments.size() != n)
       throw ValueError("every setting must keep the same number of compartments");
     validate(s.mechanics);
-    validate(s.driver);
+    validate(s);
   }
   double previous_hold = -1.0;
   for (const ExpiratoryHold& h : protocol.holds) {
@@ -982,6 +1076,26 @@ void validate(const Protocol& protocol, const SimulationOptions& options) {
 }
 
 }  // namespace
+
+void validate(const Setting& s) {
+  validate(s.driver);
+  const auto* a = std::get_if<Assisted>(&s.driver);
+  if (!a || a->mode != AssistMode::pav) return;
+  if (s.circuit.active()) throw ValueError("PAV assists the patient's own flow: it takes no circuit");
+  // The smallest resistance the inspiratory flow meets: the airway's, then the branches in parallel.
+  double conductance = 0.0;
+  bool open_branch = false;
+  for (const auto& c : s.mechanics.compartments) {
+    if (c.resistance_pa_s_per_m3 > 0.0) conductance += 1.0 / c.resistance_pa_s_per_m3;
+    else open_branch = true;
+  }
+  const double resistance =
+      s.mechanics.airway_resistance_pa_s_per_m3 + (open_branch || conductance == 0.0 ? 0.0 : 1.0 / conductance);
+  if (!(a->pav_gain * a->pav_resistance_pa_s_per_m3 < resistance))
+    throw ValueError("the assist gain times the assisted resistance must stay below the patient's resistance (" +
+                     fmt_seconds(resistance / units::pa_s_per_m3_per_cmh2o_s_per_l) +
+                     " cmH2O*s/L): the assist would run away");
+}
 
 SimulationResult simulate(const Protocol& protocol, const SimulationOptions& options) {
   validate(protocol, options);

@@ -79,15 +79,17 @@ void register_simulation(py::module_& m) {
                     "dict of every time series by its physiology.csv column name (time_s, volume_mL, flow_L_per_s, "
                     "<airway|alveolar|pleural|muscle>_pressure_cmH2O, and volume_<compartment>_mL for two or more "
                     "compartments), each (n,) float64.")
-      .def_readonly("breaths", &Simulation::breaths,
-                    "dict of per-breath arrays by physiology-breaths.csv column name (completed breaths only): breath, "
-                    "start_s, duration_s, mode, tidal_volume_mL, minute_ventilation_L_per_min, peak_pressure_cmH2O, "
-                    "plateau_pressure_cmH2O, peep_cmH2O, dynamic_compliance_mL_per_cmH2O, end_expiratory_volume_mL, "
-                    "muscle_amplitude_cmH2O, inspired_volume_mL, set_tidal_volume_mL (NaN: none set), trigger, "
-                    "trigger_delay_s, cycle, inspiratory_time_s, ie_ratio, mean_airway_pressure_cmH2O, "
-                    "intrinsic_peep_cmH2O, missed_triggers, double_trigger, breath_type, expiratory_hold_s, "
-                    "total_peep_cmH2O, vti_mL, vte_mL, leak_percent, inspiratory_pressure_cmH2O, alarms (ventilator "
-                    "columns: '' or NaN for spontaneous breaths; the hold's NaN without one).")
+      .def_readonly(
+          "breaths", &Simulation::breaths,
+          "dict of per-breath arrays by physiology-breaths.csv column name (completed breaths only): breath, "
+          "start_s, duration_s, mode, tidal_volume_mL, minute_ventilation_L_per_min, peak_pressure_cmH2O, "
+          "plateau_pressure_cmH2O, peep_cmH2O, dynamic_compliance_mL_per_cmH2O, end_expiratory_volume_mL, "
+          "muscle_amplitude_cmH2O, inspired_volume_mL, set_tidal_volume_mL (NaN: none set), trigger, "
+          "trigger_delay_s, cycle, inspiratory_time_s, ie_ratio, mean_airway_pressure_cmH2O, "
+          "intrinsic_peep_cmH2O, missed_triggers, double_trigger, breath_type, expiratory_hold_s, "
+          "total_peep_cmH2O, vti_mL, vte_mL, leak_percent, inspiratory_pressure_cmH2O, alarms, cycle_delay_s, "
+          "early_cycling, late_cycling, flow_starvation_cmH2O, flow_starvation (ventilator "
+          "columns: '' or NaN for spontaneous breaths; the hold's NaN without one).")
       .def_readonly("compartments", &Simulation::compartments, "Compartment names.")
       .def_property_readonly(
           "solver_stats",

@@ -25,10 +25,12 @@ using scenario::Node;
 namespace kind = units::kind;
 
 const std::vector<std::string> kModes{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
-                                      "cpap_psv",    "vc_simv",        "pc_simv",          "prvc"};
+                                      "cpap_psv",    "vc_simv",        "pc_simv",          "prvc",  "aprv",
+                                      "pav"};
 // Accepted as `driver.mode` beside kModes, at t = 0 only (read_trace_driver).
 const std::vector<std::string> kModesWithTrace{"spontaneous", "volume_control", "pressure_control", "vc_ac", "pc_ac",
-                                               "cpap_psv",    "vc_simv",        "pc_simv",          "prvc",  "trace"};
+                                               "cpap_psv",    "vc_simv",        "pc_simv",          "prvc",  "aprv",
+                                               "pav",         "trace"};
 const std::vector<std::string> kModels{"single", "two_compartment"};
 
 // Every driver setting by name, so an action can patch any of them and a mode switch can
@@ -42,15 +44,18 @@ struct DriverFields {
   std::optional<physiology::TriggerKind> trigger;
   std::optional<double> trigger_threshold;
   std::optional<physiology::CycleKind> cycle;
-  std::optional<double> cycle_fraction, cycle_volume;
+  std::optional<double> cycle_fraction, cycle_volume, cycle_flow;
   std::optional<double> trigger_window;                                                     // SIMV
   std::optional<double> pressure_step;                                                      // PRVC
   std::optional<double> apnea_time, backup_rate, backup_pressure, backup_inspiratory_time;  // cpap_psv
+  std::optional<double> high_pressure, low_pressure, high_time, low_time;                   // APRV
+  std::optional<double> gain, assisted_resistance, assisted_compliance;                     // PAV
 };
 
 bool is_simv(const std::string& mode) { return mode == "vc_simv" || mode == "pc_simv"; }
 bool is_assist(const std::string& mode) {
-  return mode == "vc_ac" || mode == "pc_ac" || mode == "cpap_psv" || mode == "prvc" || is_simv(mode);
+  return mode == "vc_ac" || mode == "pc_ac" || mode == "cpap_psv" || mode == "prvc" || mode == "aprv" ||
+         mode == "pav" || is_simv(mode);
 }
 
 DriverFields fields_of(const Driver& driver) {
@@ -81,6 +86,19 @@ DriverFields fields_of(const Driver& driver) {
             f.pressure_step = d.prvc_step_pa;
             if (d.pressure_limit_pa > 0.0) f.pressure_limit = d.pressure_limit_pa;
           }
+          if (d.mode == physiology::AssistMode::aprv) {
+            if (d.support_pa > 0.0) f.pressure_support = d.support_pa;
+            f.high_pressure = d.peep_pa + d.inspiratory_pressure_pa;
+            f.low_pressure = d.peep_pa;
+            f.high_time = d.inspiratory_time_s;
+            f.low_time = 1.0 / d.rate_hz - d.inspiratory_time_s;
+          }
+          if (d.mode == physiology::AssistMode::pav) {
+            f.gain = d.pav_gain;
+            f.assisted_resistance = d.pav_resistance_pa_s_per_m3;
+            f.assisted_compliance = 1.0 / d.pav_elastance_pa_per_m3;
+            if (d.pressure_limit_pa > 0.0) f.pressure_limit = d.pressure_limit_pa;
+          }
           if (d.apnea_time_s > 0.0) {
             f.apnea_time = d.apnea_time_s;
             f.backup_rate = d.backup_rate_hz;
@@ -95,8 +113,14 @@ DriverFields fields_of(const Driver& driver) {
             f.rise_time = d.rise_time_s;
             f.cycle = d.cycle;
             f.cycle_fraction = d.cycle_fraction;
+            if (d.cycle_flow_m3_per_s > 0.0) f.cycle_flow = d.cycle_flow_m3_per_s;
             if (d.cycle_volume_m3 > 0.0) f.cycle_volume = d.cycle_volume_m3;
             if (d.volume_limit_m3 > 0.0) f.volume_limit = d.volume_limit_m3;
+          }
+          // APRV without support cycles nothing: BiLevel's support added later takes its own default.
+          if (d.mode == physiology::AssistMode::aprv && d.support_pa == 0.0) {
+            f.cycle.reset();
+            f.cycle_fraction.reset();
           }
         } else if constexpr (std::is_same_v<T, physiology::Spontaneous>) {
           f.ie_ratio = d.ie_ratio;
@@ -120,6 +144,16 @@ DriverFields fields_of(const Driver& driver) {
 // Which keys each mode takes ("ie_ratio" and "inspiratory_time" are alternatives). In SIMV the
 // pressure-mode keys (rise time, cycle, volume limit) shape the supported breaths.
 bool mode_takes(const std::string& mode, const std::string& key) {
+  const bool aprv_key = key == "high_pressure" || key == "low_pressure" || key == "high_time" || key == "low_time";
+  // Levels and times, no rate; BiLevel: pressure support of the breaths at P_low, their trigger and cycle.
+  if (mode == "aprv")
+    return aprv_key || key == "rise_time" || key == "pressure_support" || key == "trigger" || key == "cycle";
+  if (aprv_key) return false;
+  const bool pav_key = key == "gain" || key == "assisted_resistance" || key == "assisted_compliance";
+  if (mode == "pav")
+    return pav_key || key == "inspiratory_time" || key == "peep" || key == "trigger" || key == "cycle" ||
+           key == "pressure_limit" || key == "volume_limit";
+  if (pav_key) return false;
   if (key == "rate") return mode != "cpap_psv";
   if (mode == "spontaneous") return key == "ie_ratio" || key == "tidal_volume" || key == "muscle_pressure";
   if (key == "inspiratory_time" || key == "peep") return true;
@@ -158,7 +192,14 @@ const std::vector<std::string> kDriverKeys{"rate",
                                            "cycle",
                                            "trigger_window",
                                            "pressure_step",
-                                           "apnea"};
+                                           "apnea",
+                                           "high_pressure",
+                                           "low_pressure",
+                                           "high_time",
+                                           "low_time",
+                                           "gain",
+                                           "assisted_resistance",
+                                           "assisted_compliance"};
 
 // trigger: {flow: 2 L/min} or {pressure: 2 cmH2O}, a positive threshold.
 void read_trigger(const scenario::Node& n, DriverFields& f) {
@@ -186,12 +227,18 @@ void read_cycle(const scenario::Node& n, DriverFields& f) {
   const scenario::Node c = n.map("cycle");
   const auto keys = c.keys();
   if (keys.size() != 1) c.fail("expected time, or one of flow (e.g. '25 %') or volume (e.g. '500 mL')");
-  if (keys[0] == "flow") {
+  if (keys[0] == "flow" && c.string("flow").find('/') != std::string::npos) {
+    // An absolute flow ('5 L/min'): the cycle when the flow falls to it, as Drager's and Pulse's.
+    f.cycle = physiology::CycleKind::flow;
+    f.cycle_fraction = 0.0;
+    f.cycle_flow = c.positive_quantity("flow", kind::flow);
+  } else if (keys[0] == "flow") {
     const double fraction = c.quantity("flow", kind::fraction);
     if (!(fraction > 0.0 && fraction < 1.0))
       c.fail_at("flow", "expected a share of the peak flow above 0 and below 100 %, got '" + c.string("flow") + "'");
     f.cycle = physiology::CycleKind::flow;
     f.cycle_fraction = fraction;
+    f.cycle_flow.reset();
   } else if (keys[0] == "volume") {
     f.cycle = physiology::CycleKind::volume;
     f.cycle_volume = c.positive_quantity("volume", kind::volume);
@@ -289,6 +336,27 @@ void overlay_driver(const scenario::Node& n, const std::string& mode, DriverFiel
   if (n.has("pressure_step"))
     f.pressure_step =
         in_range(n, "pressure_step", n.positive_quantity("pressure_step", kind::pressure), kDriverPressure);
+  for (const char* key : {"high_pressure", "low_pressure"}) {
+    if (auto v = n.optional_quantity(key, kind::pressure)) {
+      if (!(*v >= 0.0)) n.fail_at(key, std::string("expected a pressure >= 0, got '") + n.string(key) + "'");
+      (std::string(key) == "high_pressure" ? f.high_pressure : f.low_pressure) = in_range(n, key, *v, kDriverPressure);
+    }
+  }
+  if (n.has("high_time")) f.high_time = n.positive_quantity("high_time", kind::duration);
+  if (n.has("low_time")) f.low_time = n.positive_quantity("low_time", kind::duration);
+  if (n.has("gain")) {
+    const double g = n.quantity("gain", kind::fraction);
+    if (!(g > 0.0 && g < 1.0))
+      n.fail_at("gain",
+                "expected a share of the patient's pressure above 0 and below 100 %, got '" + n.string("gain") + "'");
+    f.gain = g;
+  }
+  if (n.has("assisted_resistance"))
+    f.assisted_resistance =
+        in_range(n, "assisted_resistance", n.positive_quantity("assisted_resistance", kind::resistance), kResistance);
+  if (n.has("assisted_compliance"))
+    f.assisted_compliance =
+        in_range(n, "assisted_compliance", n.positive_quantity("assisted_compliance", kind::compliance), kCompliance);
   if (auto apnea = n.optional_map("apnea")) {
     // apnea: {time, rate, inspiratory_pressure, inspiratory_time}: the backup's PC-AC breaths.
     f.apnea_time = apnea->positive_quantity("time", kind::duration);
@@ -394,15 +462,61 @@ double require(const scenario::Node& n, const std::optional<double>& value, cons
 // An assist mode's driver from its fields; defaults: a flow trigger at 2 L/min, a square flow,
 // no rise time; pc_ac cycles on time, cpap_psv on flow at 25 % of the peak, with inspiration
 // at most 3 s.
+// APRV from its levels and times: P_low is PEEP, P_high - P_low the inspiratory pressure, T_high
+// the inspiratory time, one release cycle T_high + T_low.
+physiology::Assisted build_aprv(const scenario::Node& n, const DriverFields& f) {
+  physiology::Assisted a;
+  a.mode = physiology::AssistMode::aprv;
+  const double high = require(n, f.high_pressure, "high_pressure", kind::pressure);
+  const double low = require(n, f.low_pressure, "low_pressure", kind::pressure);
+  const double th = require(n, f.high_time, "high_time", kind::duration);
+  const double tl = require(n, f.low_time, "low_time", kind::duration);
+  if (!(high > low)) {
+    const std::string what =
+        "expected high_pressure above low_pressure (" + fmt_cmh2o(low) + " cmH2O), got " + fmt_cmh2o(high) + " cmH2O";
+    n.fail_at(n.has("high_pressure") ? "high_pressure" : "low_pressure", what);
+  }
+  if (!(1.0 / (th + tl) <= kBreathingRate.hi))
+    n.fail_at(n.has("high_time") ? "high_time" : "low_time",
+              fmt::format("expected a release cycle (high_time + low_time) of at least {:g} s, got {:g} s",
+                          1.0 / kBreathingRate.hi, th + tl));
+  a.peep_pa = low;
+  a.inspiratory_pressure_pa = high - low;
+  a.inspiratory_time_s = th;
+  a.rate_hz = 1.0 / (th + tl);
+  a.rise_time_s = f.rise_time.value_or(0.0);
+  if (!(a.rise_time_s < th))
+    n.fail_at(n.has("rise_time") ? "rise_time" : "high_time",
+              fmt::format("expected a rise time shorter than high_time ({:g} s), got {:g} s", th, a.rise_time_s));
+  a.cycle = physiology::CycleKind::time;
+  a.trigger_threshold = f.trigger_threshold.value_or(2.0 * units::m3_per_litre / 60.0);
+  a.trigger = f.trigger.value_or(physiology::TriggerKind::flow);
+  // BiLevel: the breaths at P_low supported, cycled on flow (25 % of the peak by default).
+  a.support_pa = f.pressure_support.value_or(0.0);
+  if (a.support_pa > 0.0) {
+    a.cycle = f.cycle.value_or(physiology::CycleKind::flow);
+    a.cycle_fraction = f.cycle_fraction.value_or(0.25);
+    a.cycle_flow_m3_per_s = f.cycle_flow.value_or(0.0);
+    if (a.cycle == physiology::CycleKind::volume) a.cycle_volume_m3 = require(n, f.cycle_volume, "cycle", kind::volume);
+  } else if (n.has("trigger") || n.has("cycle")) {
+    n.fail_at(n.has("trigger") ? "trigger" : "cycle",
+              "APRV triggers and cycles nothing; set pressure_support for BiLevel's supported breaths");
+  }
+  return a;
+}
+
 physiology::Assisted build_assisted(const scenario::Node& n, const std::string& mode, const DriverFields& f) {
+  if (mode == "aprv") return build_aprv(n, f);
   physiology::Assisted a;
   a.mode = mode == "vc_ac"     ? physiology::AssistMode::volume
            : mode == "pc_ac"   ? physiology::AssistMode::pressure
            : mode == "vc_simv" ? physiology::AssistMode::simv_volume
            : mode == "pc_simv" ? physiology::AssistMode::simv_pressure
            : mode == "prvc"    ? physiology::AssistMode::prvc
+           : mode == "pav"     ? physiology::AssistMode::pav
                                : physiology::AssistMode::pressure_support;
-  const bool support = a.mode == physiology::AssistMode::pressure_support;
+  const bool pav = a.mode == physiology::AssistMode::pav;
+  const bool support = a.mode == physiology::AssistMode::pressure_support || pav;
   const bool simv = physiology::is_simv(a);
   a.rate_hz = support ? 0.0 : require(n, f.rate, "rate", kind::rate);
   a.peep_pa = f.peep.value_or(0.0);
@@ -438,12 +552,13 @@ physiology::Assisted build_assisted(const scenario::Node& n, const std::string& 
     }
   }
   if (a.mode != physiology::AssistMode::volume) {
-    if (a.mode != physiology::AssistMode::simv_volume)
+    if (a.mode != physiology::AssistMode::simv_volume && !pav)
       a.inspiratory_pressure_pa = support ? require(n, f.pressure_support, "pressure_support", kind::pressure)
                                           : require(n, f.inspiratory_pressure, "inspiratory_pressure", kind::pressure);
     a.rise_time_s = f.rise_time.value_or(0.0);
     a.cycle = f.cycle.value_or(support || simv ? physiology::CycleKind::flow : physiology::CycleKind::time);
     a.cycle_fraction = f.cycle_fraction.value_or(0.25);
+    a.cycle_flow_m3_per_s = f.cycle_flow.value_or(0.0);
     if (a.cycle == physiology::CycleKind::volume) a.cycle_volume_m3 = require(n, f.cycle_volume, "cycle", kind::volume);
     a.volume_limit_m3 = f.volume_limit.value_or(0.0);
   }
@@ -458,7 +573,17 @@ physiology::Assisted build_assisted(const scenario::Node& n, const std::string& 
       n.fail_at(n.has("pressure_limit") ? "pressure_limit" : n.has("peep") ? "peep" : "inspiratory_pressure", what);
     }
   }
-  if (support && f.apnea_time) {
+  if (pav) {
+    a.pav_gain = require(n, f.gain, "gain", kind::fraction);
+    a.pav_resistance_pa_s_per_m3 = require(n, f.assisted_resistance, "assisted_resistance", kind::resistance);
+    a.pav_elastance_pa_per_m3 = 1.0 / require(n, f.assisted_compliance, "assisted_compliance", kind::compliance);
+    a.pressure_limit_pa = f.pressure_limit.value_or(0.0);
+    if (a.pressure_limit_pa > 0.0 && !(a.pressure_limit_pa > a.peep_pa))
+      n.fail_at(n.has("pressure_limit") ? "pressure_limit" : "peep", "expected a pressure limit above PEEP (" +
+                                                                         fmt_cmh2o(a.peep_pa) + " cmH2O), got " +
+                                                                         fmt_cmh2o(a.pressure_limit_pa) + " cmH2O");
+  }
+  if (support && !pav && f.apnea_time) {
     a.apnea_time_s = *f.apnea_time;
     a.backup_rate_hz = *f.backup_rate;
     a.backup_pressure_pa = *f.backup_pressure;
@@ -781,6 +906,18 @@ std::filesystem::path default_config_dir() {
   return executable ? installed[0] : installed[1];
 }
 
+// A setting whose driver cannot work with its mechanics or circuit (PAV), at the key that set it.
+void check_setting(const scenario::Node& n, const physiology::Setting& setting) {
+  try {
+    physiology::validate(setting);
+  } catch (const ValueError& e) {
+    for (const char* key : {"circuit", "gain", "assisted_resistance", "resistance", "mode"}) {
+      if (n.has(key)) n.fail_at(key, e.what());
+    }
+    n.fail(e.what());
+  }
+}
+
 PhysiologyConfig read_physiology(const scenario::Node& raw_section, double duration_s,
                                  const std::filesystem::path& config_dir) {
   PhysiologyConfig out;
@@ -832,6 +969,7 @@ PhysiologyConfig read_physiology(const scenario::Node& raw_section, double durat
   driver_node.finish();
   const physiology::PatientEffort effort = overlay_effort(section, {}, driver);
   out.protocol.settings.push_back(physiology::Setting{0.0, mechanics, driver, effort, circuit, alarms});
+  check_setting(driver_node, out.protocol.settings.back());
 
   // Timed actions, each a patch over the setting before it.
   double previous_time = 0.0;
@@ -881,6 +1019,7 @@ PhysiologyConfig read_physiology(const scenario::Node& raw_section, double durat
     if (action.has("expiratory_hold") && !physiology::is_ventilator(next.driver))
       action.fail_at("expiratory_hold", "an expiratory hold needs a ventilator; the patient breathes spontaneously");
     action.finish();
+    check_setting(action, next);
     out.protocol.settings.push_back(next);
   }
 

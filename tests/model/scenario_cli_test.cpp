@@ -25,7 +25,8 @@ TEST(SimulateCli, ShippedScenariosRunAndWriteCsv) {
 }
 
 TEST(SimulateCli, ShippedVentilatorScenariosArePatientTriggered) {
-  for (const char* name : {"ventilator-vc-ac", "ventilator-pc-ac", "ventilator-cpap-psv", "ventilator-simv"}) {
+  for (const char* name :
+       {"ventilator-vc-ac", "ventilator-pc-ac", "ventilator-cpap-psv", "ventilator-simv", "ventilator-pav"}) {
     TempDir dir;
     const auto scenario = pneuma::test::source_dir() / "scenarios" / (std::string(name) + ".yaml");
     const auto r = run_pneuma({"simulate", scenario.string(), "-o", (dir / "phys.csv").string()});
@@ -33,10 +34,12 @@ TEST(SimulateCli, ShippedVentilatorScenariosArePatientTriggered) {
     EXPECT_TRUE(r.err.empty()) << r.err;
     EXPECT_GT(count_lines(dir / "phys.csv"), 6000);
     const std::string breaths = pneuma::test::read_text(dir / "phys-breaths.csv");
-    EXPECT_NE(breaths.find(",trigger,trigger_delay_s,cycle,inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,"
-                           "intrinsic_peep_cmH2O,missed_triggers,double_trigger,breath_type,expiratory_hold_s,"
-                           "total_peep_cmH2O,vti_mL,vte_mL,leak_percent,inspiratory_pressure_cmH2O,alarms\n"),
-              std::string::npos)
+    EXPECT_NE(
+        breaths.find(",trigger,trigger_delay_s,cycle,inspiratory_time_s,ie_ratio,mean_airway_pressure_cmH2O,"
+                     "intrinsic_peep_cmH2O,missed_triggers,double_trigger,breath_type,expiratory_hold_s,"
+                     "total_peep_cmH2O,vti_mL,vte_mL,leak_percent,inspiratory_pressure_cmH2O,alarms,cycle_delay_s,"
+                     "early_cycling,late_cycling,flow_starvation_cmH2O,flow_starvation\n"),
+        std::string::npos)
         << name;
     EXPECT_NE(breaths.find(",patient_flow,"), std::string::npos) << name;
   }
@@ -167,6 +170,36 @@ INSTANTIATE_TEST_SUITE_P(
         BadScenario{"negative_duration", "duration: -5 s\nphysiology:\n  preset: healthy-adult\n",
                     "1:11: duration: expected a positive duration, got '-5 s'"},
         // The ventilator at the bedside (#47): circuit, PRVC, apnea backup, alarms, flow limitation.
+        // APRV and PAV (#47).
+        BadScenario{"aprv_high_below_low",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+                    "  driver: {mode: aprv, high_pressure: 5 cmH2O, low_pressure: 8 cmH2O, high_time: 4 s, low_time: "
+                    "0.5 s}\n",
+                    "5:39: physiology.driver.high_pressure: expected high_pressure above low_pressure (8 cmH2O), got 5 "
+                    "cmH2O"},
+        BadScenario{"aprv_trigger_without_support",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+                    "  driver: {mode: aprv, high_pressure: 25 cmH2O, low_pressure: 8 cmH2O, high_time: 4 s, low_time: "
+                    "0.5 s, trigger: {flow: 2 L/min}}\n",
+                    "5:114: physiology.driver.trigger: APRV triggers and cycles nothing; set pressure_support for "
+                    "BiLevel's supported breaths"},
+        BadScenario{"pav_full_gain",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+                    "  driver: {mode: pav, gain: 100 %, assisted_resistance: 10 cmH2O*s/L, assisted_compliance: 50 "
+                    "mL/cmH2O}\n",
+                    "5:29: physiology.driver.gain: expected a share of the patient's pressure above 0 and below 100 %, "
+                    "got '100 %'"},
+        BadScenario{"pav_runaway",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+                    "  driver: {mode: pav, gain: 50 %, assisted_resistance: 10 cmH2O*s/L, assisted_compliance: 50 "
+                    "mL/cmH2O}\n  actions:\n    - {at: 5 s, resistance: 4 cmH2O*s/L}\n",
+                    "7:29: physiology.actions[0].resistance: the assist gain times the assisted resistance must stay "
+                    "below the patient's resistance (4 cmH2O*s/L): the assist would run away"},
+        BadScenario{"pav_with_circuit",
+                    "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n"
+                    "  driver: {mode: pav, gain: 80 %, assisted_resistance: 10 cmH2O*s/L, assisted_compliance: 50 "
+                    "mL/cmH2O, circuit: {leak: {flow: 5 L/min, at: 10 cmH2O}}}\n",
+                    "5:113: physiology.driver.circuit: PAV assists the patient's own flow: it takes no circuit"},
         BadScenario{
             "tubing_without_resistance",
             "duration: 20 s\nphysiology:\n  compliance: 0.05 L/cmH2O\n  resistance: 10 cmH2O*s/L\n  driver:\n"

@@ -460,6 +460,69 @@ outputs: {hdf5: false}
   for (std::string l; std::getline(log, l);) EXPECT_EQ(l.find("Uncaught"), std::string::npos) << l;
 }
 
+// The ventilator screen: the numerics of the breath under the cursor, checked against the closed
+// forms of a passive VC-AC breath with a pause on an RC lung (C 50 mL/cmH2O, R 10 cmH2O*s/L, VT
+// 450 mL in 0.8 s then 0.2 s pause, PEEP 5): PIP = PEEP + R q + VT / C = 19.625, Pplat = PEEP +
+// VT / C = 14, I:E 1:3 (Ti 1 s of 4 s), RR 15 /min, Cdyn = VT / (PIP - PEEP) = 30.8 mL/cmH2O,
+// VTi = VT; a high-pressure alarm at 19 cmH2O raised by every breath and shown with it.
+TEST(Report, TheVentilatorScreenShowsTheBreathUnderTheCursor) {
+  TempDir dir;
+  const auto out = dir / "out";
+  const auto scenario = dir.write("v.yaml", R"(duration: 9 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 12 mm, share: 55 %}
+field: {tissue: healthy-upright}
+physiology:
+  compliance: 0.05 L/cmH2O
+  resistance: 10 cmH2O*s/L
+  driver: {mode: vc_ac, rate: 15 /min, tidal_volume: 450 mL, inspiratory_time: 1 s, pause: 0.2 s, peep: 5 cmH2O,
+           alarms: {high_pressure: 19 cmH2O}}
+outputs: {hdf5: false}
+)");
+  ASSERT_EQ(run_pneuma({"run", scenario.string(), "-o", out.string(), "--quiet"}).exit_code, 0);
+  const Page page = read_page(out / "report.html");
+  ASSERT_TRUE(page.data.contains("loops"));
+  const auto& screen = page.data["loops"]["screen"];
+  ASSERT_EQ(screen.size(), 2u);
+  // The second breath starts on what the first left (x = VT e^(-Te / tau) = 450 e^-6 mL): its
+  // pressures are x / C higher. The screen rounds to its digits (0.05 cmH2O, 0.05 mL/cmH2O).
+  for (std::size_t k = 0; k < screen.size(); ++k) {
+    const auto& b = screen[k];
+    const double left = k == 0 ? 0.0 : 450.0 * std::exp(-6.0);
+    const double pip = 5 + 10 * 0.5625 + (450 + left) / 50, plateau = 5 + (450 + left) / 50;
+    EXPECT_NEAR(b["pip"].get<double>(), pip, 0.05 + 1e-9) << k;
+    EXPECT_NEAR(b["pplat"].get<double>(), plateau, 0.05 + 1e-9) << k;
+    EXPECT_DOUBLE_EQ(b["peep"].get<double>(), 5.0);
+    EXPECT_DOUBLE_EQ(b["ie"].get<double>(), 3.0);
+    EXPECT_DOUBLE_EQ(b["rr"].get<double>(), 15.0);
+    EXPECT_DOUBLE_EQ(b["rr_spont"].get<double>(), 0.0);
+    EXPECT_NEAR(b["cdyn"].get<double>(), 450 / (pip - 5), 0.05 + 1e-9) << k;
+    EXPECT_DOUBLE_EQ(b["vti"].get<double>(), 450.0);
+    EXPECT_EQ(b["alarms"], "high_pressure");
+  }
+  // VTe: all but what the 3 s expiration leaves (VT e^(-3 / 0.5)); MVe over the first 4 s, then 8 s.
+  const double vte = 450.0 * (1 - std::exp(-6.0));
+  EXPECT_NEAR(screen[0]["vte"].get<double>(), vte, 0.5);
+  EXPECT_NEAR(screen[0]["mve"].get<double>(), vte * 15 / 1000, 0.005);
+
+  const auto chromium = pneuma::test::find_program({"chromium", "chromium-browser"});
+  if (chromium.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
+  const Chromium c = open_in_chromium(dir, out / "report.html", "1.5,5");
+  ASSERT_EQ(c.run.exit_code, 0) << c.run.err;
+  ASSERT_FALSE(c.selftest.empty()) << c.run.out.substr(0, 2000);
+  ASSERT_NE(c.selftest, "pending") << "the page never finished loading\n" << c.run.err;
+  const auto result = nlohmann::json::parse(c.selftest);
+  EXPECT_EQ(result["errors"], 0) << c.selftest;
+  const auto& shown = result["ventilator"];
+  EXPECT_EQ(shown["breath"], 2);  // 5 s is in the second breath, [4 s, 8 s)
+  EXPECT_EQ(shown["values"]["pip"], "19.6");
+  EXPECT_EQ(shown["values"]["pplat"], "14.0");
+  EXPECT_EQ(shown["values"]["ie"], "1:3.00");
+  EXPECT_EQ(shown["values"]["rr"], "15.0");
+  EXPECT_EQ(shown["alarms"], "high_pressure");
+  EXPECT_NE(c.run.out.find("Alarms: high_pressure"), std::string::npos);
+}
+
 // With phases and voxel outputs the page carries the respiratory bins (checked against
 // phases.csv) and slices of the warped label map (checked against the physiology's volume: the
 // plane holds the most lung near end-inspiration), and draws both under the cursor: the

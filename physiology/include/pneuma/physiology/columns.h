@@ -49,7 +49,7 @@ struct BreathColumn {
   const char* (*text)(const BreathMetrics& breath);
 };
 
-// physiology-breaths.csv's 31 columns, in order.
+// physiology-breaths.csv's 36 columns, in order.
 std::span<const BreathColumn> breath_columns();
 
 }  // namespace pneuma::physiology

@@ -64,7 +64,14 @@ struct PressureControl {
 // the scheduled time. Every other trigger starts a spontaneous, supported breath.
 // prvc: pressure-regulated volume control (PRVC, VC+): a PC-AC breath whose inspiratory pressure
 // the machine adjusts breath by breath toward a target tidal volume (see Assisted::prvc_step_pa).
-enum class AssistMode { volume, pressure, pressure_support, simv_volume, simv_pressure, prvc };
+// aprv: airway pressure release ventilation (APRV, BiLevel): the airway held at P_high
+// (PEEP + inspiratory_pressure_pa) for T_high (inspiratory_time_s), released to P_low (peep_pa)
+// for T_low (60 / rate - T_high), on the clock; the patient breathes at either level through the
+// demand valve (the pressure stays set whatever the effort), so no trigger starts anything.
+// pav: proportional assist ventilation: a patient-triggered breath during which the machine adds
+// Paw - PEEP = gain (R_set Q + E_set dV) (Q the patient's flow, dV the volume since the trigger),
+// a share of the pressure the patient's own effort needs against the set (known) R and E.
+enum class AssistMode { volume, pressure, pressure_support, simv_volume, simv_pressure, prvc, aprv, pav };
 enum class TriggerKind { flow, pressure };
 enum class CycleKind { time, flow, volume };
 enum class FlowWaveform { square, decelerating };  // decelerating: linear ramp from peak to 0
@@ -83,20 +90,26 @@ struct Assisted {
   double inspiratory_pressure_pa = 0.0;  // above PEEP (the support pressure in pressure support)
   double rise_time_s = 0.0;              // Paw = PEEP + P (1 - exp(-3 t / rise)): 95 % of P at the rise time; 0: a step
   CycleKind cycle = CycleKind::time;
-  double cycle_fraction = 0.25;  // flow cycle: end inspiration when flow falls to this share of its peak
-  double cycle_volume_m3 = 0.0;  // volume cycle: end inspiration when this volume is delivered
-  double volume_limit_m3 = 0.0;  // delivered volume that ends inspiration; 0: none
+  double cycle_fraction = 0.25;      // flow cycle: end inspiration when flow falls to this share of its peak
+  double cycle_flow_m3_per_s = 0.0;  // flow cycle at an absolute flow instead (cycle_fraction 0): Pulse's, Drager's
+  double cycle_volume_m3 = 0.0;      // volume cycle: end inspiration when this volume is delivered
+  double volume_limit_m3 = 0.0;      // delivered volume that ends inspiration; 0: none
   // Trigger.
   TriggerKind trigger = TriggerKind::flow;
   double trigger_threshold = 0.0;  // m^3/s into the patient (flow) or Pa below PEEP (pressure)
   // SIMV: the spontaneous breaths are cycled by `cycle` (flow at 25 % by default), at most
   // kLongestSupportedInspiration_s; the mandatory ones on time.
-  double support_pa = 0.0;        // pressure support of the spontaneous breaths, above PEEP
+  double support_pa = 0.0;        // pressure support of the spontaneous breaths, above PEEP (also BiLevel's)
   double trigger_window_s = 0.0;  // the window before each scheduled mandatory breath, (0, 60 / rate]
   // PRVC: `tidal_volume_m3` is the target, `inspiratory_pressure_pa` the first (test) breath's
   // pressure. After each breath the pressure moves by dP (VT_target / VTi - 1) (the compliance
   // the breath measured), bounded to +-prvc_step_pa, within [0, pressure_limit_pa - PEEP].
   double prvc_step_pa = 0.0;
+  // PAV: the assist's gain (0 < gain < 1) and the patient's resistance and elastance it assumes.
+  // Cycled by `cycle` (flow at 25 % by default), at most inspiratory_time_s; no backup rate.
+  double pav_gain = 0.0;
+  double pav_resistance_pa_s_per_m3 = 0.0;
+  double pav_elastance_pa_per_m3 = 0.0;
   // Apnea backup (cpap_psv): no breath within apnea_time_s of the last breath's start (or of the
   // mode's start) starts PC-AC breaths on the backup settings until the patient triggers.
   double apnea_time_s = 0.0;  // 0: no apnea backup
@@ -151,11 +164,15 @@ struct Alarms {
 constexpr double kLongestSupportedInspiration_s = 3.0;
 
 bool is_simv(const Assisted& a);
+// BiLevel: APRV whose patient breaths at P_low are pressure supported (support_pa > 0). Scheduled
+// as SIMV with no trigger window: the high phases on the clock, every trigger at P_low a
+// supported breath (cycled by `cycle`, at most kLongestSupportedInspiration_s).
+bool is_bilevel(const Assisted& a);
 // SIMV's default trigger window: 60 % of the cycle, at most 10 s.
 double default_trigger_window_s(double rate_hz);
-// The breath an assisted driver gives: for AC modes and CPAP, the driver itself; for SIMV, the
-// mandatory breath (a VC-AC or PC-AC breath cycled on time) or the spontaneous one (a
-// pressure-support breath with the driver's support, cycle and rise time).
+// The breath an assisted driver gives: for AC modes and CPAP, the driver itself; for SIMV and
+// BiLevel, the mandatory breath (a VC-AC or PC-AC breath cycled on time) or the spontaneous one
+// (a pressure-support breath with the driver's support, cycle and rise time).
 Assisted simv_breath(const Assisted& a, bool mandatory);
 
 // The patient's own breathing effort on a ventilated patient: the spontaneous driver's muscle
@@ -197,6 +214,11 @@ struct Drive {
   double airway_pressure_rate_pa_per_s = 0.0;  // its time derivative (pressure controlled)
   double muscle_pressure_pa = 0.0;
   double peep_pa = 0.0;
+  // Proportional assist (PAV's inspiration): the airway pressure is PEEP + gain (R Q + E dV),
+  // a function of the state the simulator solves for; airway_pressure_pa is PEEP until then.
+  double assist_gain = 0.0;
+  double assist_resistance_pa_s_per_m3 = 0.0;
+  double assist_elastance_pa_per_m3 = 0.0;
 };
 
 // The phases of an assisted breath (the `phase` of drive_at for an Assisted driver). Their ends

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/units.h"
 #include "pneuma/physiology/drivers.h"
 #include "pneuma/physiology/mechanics.h"
 
@@ -23,6 +24,10 @@ struct Setting {
   Circuit circuit{};       // the ventilator's circuit and leaks (none: the machine at the airway)
   Alarms alarms{};         // the ventilator's alarm limits (none set: no alarm)
 };
+
+// Throws ValueError when the setting's driver cannot work with its mechanics or circuit (PAV: no
+// circuit, and gain * assisted resistance below the patient's inspiratory resistance).
+void validate(const Setting& setting);
 
 // An expiratory hold (a manoeuvre, not a setting): at the first end of expiration at or after
 // at_s (when the next breath would start), the ventilator closes both valves for duration_s and
@@ -99,7 +104,23 @@ struct BreathMetrics {
   double vte_m3 = std::numeric_limits<double>::quiet_NaN();
   double set_inspiratory_pressure_pa = std::numeric_limits<double>::quiet_NaN();  // pressure breaths: above PEEP
   std::string alarms;  // the alarms this breath raised, ';'-separated ("high_pressure;low_tidal_volume")
+  // Cycling asynchrony against the patient's effort (ventilator breaths with an effort, not APRV):
+  // the end of inspiration minus the end of the neural inspiration (the effort's rise) of the
+  // effort in progress; NaN when no effort's neural inspiration overlaps the breath's inspiration.
+  double cycle_delay_s = std::numeric_limits<double>::quiet_NaN();
+  bool early_cycling = false;  // cycle_delay_s < 0: the machine stops while the patient still pulls
+  bool late_cycling = false;   // cycle_delay_s > kLateCyclingShare of the neural inspiratory time
+  // Flow starvation (flow-controlled inspirations with an effort): the largest drop of the airway
+  // pressure below the passive lung's at the same instant and state (the effort removed); NaN
+  // otherwise. Flagged above kFlowStarvation_pa.
+  double flow_starvation_pa = std::numeric_limits<double>::quiet_NaN();
+  bool flow_starvation = false;
 };
+
+// Late cycling: the machine's inspiration outlasts the neural one by more than this share of it.
+constexpr double kLateCyclingShare = 0.2;
+// Flow starvation: the airway pressure more than this below the passive lung's (2 cmH2O).
+constexpr double kFlowStarvation_pa = 2.0 * units::pa_per_cmh2o;
 
 struct SolverStats {
   long steps = 0;
