@@ -65,7 +65,18 @@ std::any read_spec(const scenario::Node* options, const scenario::Scenario& run)
       options->fail_at("spacing", "expected a voxel size between 0.25 mm and 20 mm, such as '2 mm'");
     }
   }
-  if (options->has("format")) spec.extension = fmt::format(".{}", options->choice("format", {"nii.gz", "nii", "mha"}));
+  if (options->has("format"))
+    spec.extension = fmt::format(".{}", options->choice("format", {"nii.gz", "nii", "mha", "nrrd"}));
+  if (options->has("dvf_convention")) {
+    if (options->choice("dvf_convention", {"itk", "nifti"}) == "nifti") {
+      // Only NIfTI has the two conventions: MetaImage and NRRD hold LPS components.
+      if (spec.extension != ".nii.gz" && spec.extension != ".nii")
+        options->fail_at("dvf_convention", fmt::format("nifti is NIfTI's convention, and format is {}; expected "
+                                                       "format nii.gz or nii, or dvf_convention: itk",
+                                                       spec.extension.substr(1)));
+      spec.dvf_convention = voxels::DvfConvention::nifti;
+    }
+  }
   if (options->has("image")) {
     spec.image_file = options->directory("image") / options->string("image");
     try {
@@ -198,7 +209,8 @@ class VoxelsOutput final : public Output {
     std::size_t folded_tets = 0;
     for (const VoxelPoint& at : points(model, run)) {
       scene.compute(at.scales, point);
-      const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension);
+      const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension,
+                                                                                 spec_.dvf_convention);
       for (const auto& f : {written.forward, written.pullback, written.labels, written.ct, written.jacobian}) {
         if (!f.empty()) files.push_back(f);
       }

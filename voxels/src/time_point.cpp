@@ -45,15 +45,15 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
 }
 
 TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
-                                const std::string& extension) {
-  if (extension != ".nii.gz" && extension != ".nii" && extension != ".mha") {
-    throw ValueError("voxel file extension '" + extension + "': expected .nii.gz, .nii or .mha");
+                                const std::string& extension, DvfConvention convention) {
+  if (extension != ".nii.gz" && extension != ".nii" && extension != ".mha" && extension != ".nrrd") {
+    throw ValueError("voxel file extension '" + extension + "': expected .nii.gz, .nii, .mha or .nrrd");
   }
   TimePointFiles files;
   files.forward = folder / ("dvf-forward-" + tag + extension);
   files.pullback = folder / ("dvf-pullback-" + tag + extension);
-  write_dvf(files.forward, point.forward);
-  write_dvf(files.pullback, point.pullback);
+  write_dvf(files.forward, point.forward, DvfDirection::forward, convention);
+  write_dvf(files.pullback, point.pullback, DvfDirection::pullback, convention);
   if (point.labels) {
     files.labels = folder / ("labels-" + tag + extension);
     write_label_map(files.labels, *point.labels);

@@ -13,7 +13,9 @@
 //       spacing: 2 mm                  # a grid of this spacing over the label map's extent (default:
 //                                      # the label map's own grid; lungs without one: 2 mm over their box)
 //       image: ct.nii.gz               # a CT on the label map's geometry (or its own) to pull back
-//       format: nii.gz                 # nii.gz | nii | mha
+//       format: nii.gz                 # nii.gz | nii | mha | nrrd (NRRD DVFs as 3D Slicer reads them)
+//       dvf_convention: itk            # NIfTI DVFs: itk (LPS components, intent 1007: ITK <= 5.2,
+//                                      # plastimatch, elastix) | nifti (RAS, intent 1006: ITK >= 5.3, nibabel)
 //
 // Files (voxels/): dvf-forward-<t>, dvf-pullback-<t>, labels-<t> and ct-<t> with <t> the frame's
 // time ("2.400s") or the bin ("bin_03"), and voxels.csv (a bin's frame and time are empty). Label-map lungs warp the
@@ -47,6 +49,7 @@ struct VoxelsSpec {
   bool mass_preserving = true;  // `density: mass_preserving` (default) | `unchanged`: the CT's lung parenchyma
   bool jacobian = true;         // `jacobian: true|false`: jacobian-<t> files (the forward map's Jacobian)
   std::string extension = ".nii.gz";
+  voxels::DvfConvention dvf_convention = voxels::DvfConvention::itk;
 };
 
 // A run's voxel setting, made once from the compiled model (with the lungs' inside): the grid,

@@ -14,6 +14,7 @@
 #include "pneuma/voxels/density.h"
 #include "pneuma/voxels/dvf.h"
 #include "pneuma/voxels/jacobian.h"
+#include "pneuma/voxels/voxel_io.h"
 #include "pneuma/voxels/warp.h"
 
 namespace pneuma::voxels {
@@ -51,8 +52,9 @@ struct TimePointFiles {
 
 // dvf-forward-<tag>.nii.gz, dvf-pullback-<tag>.nii.gz, labels-<tag>.nii.gz, ct-<tag>.nii.gz and
 // jacobian-<tag>.nii.gz in `folder` (the last three when the time point has them); `extension`
-// ".nii.gz", ".nii" or ".mha".
+// ".nii.gz", ".nii", ".mha" or ".nrrd"; `convention` the NIfTI DVFs' (voxel_io.h).
 TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
-                                const std::string& extension = ".nii.gz");
+                                const std::string& extension = ".nii.gz",
+                                DvfConvention convention = DvfConvention::itk);
 
 }  // namespace pneuma::voxels
