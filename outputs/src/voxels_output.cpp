@@ -209,8 +209,8 @@ class VoxelsOutput final : public Output {
     std::size_t folded_tets = 0;
     for (const VoxelPoint& at : points(model, run)) {
       scene.compute(at.scales, point);
-      const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension,
-                                                                                 spec_.dvf_convention);
+      const voxels::TimePointFiles written =
+          voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension, spec_.dvf_convention);
       for (const auto& f : {written.forward, written.pullback, written.labels, written.ct, written.jacobian}) {
         if (!f.empty()) files.push_back(f);
       }

@@ -140,7 +140,8 @@ void write_itk(const fs::path& path, const Grid& grid, itk::IOPixelEnum pixel, C
       }
       itk::MetaDataDictionary& dictionary = io->GetMetaDataDictionary();
       if (extension == ".nrrd") {
-        for (const auto& [key, value] : notes.nrrd_fields) itk::EncapsulateMetaData<std::string>(dictionary, key, value);
+        for (const auto& [key, value] : notes.nrrd_fields)
+          itk::EncapsulateMetaData<std::string>(dictionary, key, value);
         if (notes.nrrd_measurement_frame) {
           const std::vector<std::vector<double>> identity{{1.0, 0.0, 0.0}, {0.0, 1.0, 0.0}, {0.0, 0.0, 1.0}};
           itk::EncapsulateMetaData<std::vector<std::vector<double>>>(dictionary, "NRRD_measurement frame", identity);
@@ -205,23 +206,23 @@ std::string dvf_description(DvfDirection direction, DvfConvention convention) {
          ", jumps at pleura";
 }
 
-void write_dvf(const fs::path& path, const DisplacementField& field, DvfDirection direction,
-               DvfConvention convention) {
+void write_dvf(const fs::path& path, const DisplacementField& field, DvfDirection direction, DvfConvention convention) {
   const std::string extension = written_extension(path);
   const bool nifti = extension == ".nii.gz" || extension == ".nii";
   if (convention == DvfConvention::nifti && !nifti) {
     throw ValueError(path.string() + ": the NIfTI standard's DVF convention needs a .nii.gz or .nii name");
   }
   // RAS components: x and y negated (the NIfTI standard's vectors live in the file's RAS world).
-  const std::array<double, 3> sign =
-      convention == DvfConvention::nifti ? std::array<double, 3>{-1e3, -1e3, 1e3} : std::array<double, 3>{1e3, 1e3, 1e3};
+  const std::array<double, 3> sign = convention == DvfConvention::nifti ? std::array<double, 3>{-1e3, -1e3, 1e3}
+                                                                        : std::array<double, 3>{1e3, 1e3, 1e3};
   std::vector<float> mm(3 * field.displacement_m.size());
   for (std::size_t v = 0; v < field.displacement_m.size(); ++v)
     for (std::size_t c = 0; c < 3; ++c)
       mm[3 * v + c] = static_cast<float>(field.displacement_m[v][static_cast<Eigen::Index>(c)] * sign[c]);
   FileNotes notes;
   notes.nifti_description = dvf_description(direction, convention);
-  notes.nifti_intent = convention == DvfConvention::nifti ? std::int16_t{1006} : std::int16_t{0};  // NIFTI_INTENT_DISPVECT
+  notes.nifti_intent =
+      convention == DvfConvention::nifti ? std::int16_t{1006} : std::int16_t{0};  // NIFTI_INTENT_DISPVECT
   notes.nrrd_fields = {{"displacement field type", direction == DvfDirection::pullback ? "resampling" : "modeling"}};
   notes.nrrd_measurement_frame = true;
   write_itk(path, field.grid, itk::IOPixelEnum::VECTOR, Component::FLOAT, 3, mm.data(), notes);
