@@ -232,6 +232,7 @@ TEST_F(DvfReaders, TheNrrdDvfsCarrySlicersDisplacementFieldFields) {
     EXPECT_EQ(fields.at("sizes"), fmt::format("3 {} {} {}", labels.size[0], labels.size[1], labels.size[2]));
     EXPECT_EQ(fields.at("measurement frame"), "(1,0,0) (0,1,0) (0,0,1)");
     EXPECT_EQ(fields.at("kv:displacement field type"), type) << kind;
+    EXPECT_EQ(fields.at("kv:intent_code"), "1006") << kind;
     EXPECT_EQ(fields.at("encoding"), "gzip");
     // space directions: none, then one vector per domain axis (mm, LPS); the origin likewise.
     std::string directions = fields.at("space directions");

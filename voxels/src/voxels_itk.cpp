@@ -223,7 +223,10 @@ void write_dvf(const fs::path& path, const DisplacementField& field, DvfDirectio
   notes.nifti_description = dvf_description(direction, convention);
   notes.nifti_intent =
       convention == DvfConvention::nifti ? std::int16_t{1006} : std::int16_t{0};  // NIFTI_INTENT_DISPVECT
-  notes.nrrd_fields = {{"displacement field type", direction == DvfDirection::pullback ? "resampling" : "modeling"}};
+  // Slicer's displacement-field NRRD (its Transforms docs): the direction, and intent_code 1006 so
+  // that ITK-based readers see a displacement field.
+  notes.nrrd_fields = {{"displacement field type", direction == DvfDirection::pullback ? "resampling" : "modeling"},
+                       {"intent_code", "1006"}};
   notes.nrrd_measurement_frame = true;
   write_itk(path, field.grid, itk::IOPixelEnum::VECTOR, Component::FLOAT, 3, mm.data(), notes);
 }

@@ -15,7 +15,7 @@
 //   sform are the grid's in NIfTI's RAS+ world (diag(-1, -1, 1) * ijk_to_lps, in mm).
 // - NRRD: as 3D Slicer reads a displacement field: kinds `vector domain domain domain`, space
 //   left-posterior-superior, the identity measurement frame (components in LPS), and
-//   `displacement field type:=resampling` (pull-back) or `modeling` (forward).
+//   `displacement field type:=resampling` (pull-back) or `modeling` (forward), `intent_code:=1006`.
 // - MetaImage: LPS components, as ITK writes vector images.
 // Label maps: the smallest of uint8, int16 or int32 holding every label. Images: float32.
 #include <filesystem>
