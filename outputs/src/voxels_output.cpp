@@ -77,6 +77,17 @@ std::any read_spec(const scenario::Node* options, const scenario::Scenario& run)
       spec.dvf_convention = voxels::DvfConvention::nifti;
     }
   }
+  if (options->has("sequences")) {
+    constexpr const char* kExpected = "expected seq.nrrd (a 3D Slicer sequence) or nii.gz (a 4D NIfTI)";
+    for (const scenario::Node& item : options->sequence("sequences")) {
+      const std::string text = item.as_scalar(kExpected);
+      const voxels::SequenceFormat format = text == "seq.nrrd" ? voxels::SequenceFormat::slicer_nrrd
+                                            : text == "nii.gz" ? voxels::SequenceFormat::nifti_4d
+                                                               : (item.fail(kExpected), voxels::SequenceFormat{});
+      if (std::find(spec.sequences.begin(), spec.sequences.end(), format) == spec.sequences.end())
+        spec.sequences.push_back(format);
+    }
+  }
   if (options->has("image")) {
     spec.image_file = options->directory("image") / options->string("image");
     try {
@@ -203,12 +214,41 @@ class VoxelsOutput final : public Output {
 
     std::filesystem::create_directories(dir_ / "voxels");
     std::vector<std::filesystem::path> files;
-    std::vector<std::string> rows;
     voxels::TimePoint point;
     double worst_volume_error = 0.0, min_jacobian = std::numeric_limits<double>::infinity(), folded = 0.0;
     std::size_t folded_tets = 0;
-    for (const VoxelPoint& at : points(model, run)) {
+    const std::vector<VoxelPoint> time_points = points(model, run);
+    // The sequences hold the phase bins when asked (a 4D-CT's phases, by their percentage), else
+    // every time point by its time.
+    const auto in_sequence = [this](const VoxelPoint& at) { return !spec_.phase_bins || !at.frame.has_value(); };
+    std::optional<voxels::TimePointSequences> sequences;
+    if (!spec_.sequences.empty()) {
+      std::vector<double> index;
+      for (const VoxelPoint& at : time_points) {
+        if (in_sequence(at)) index.push_back(at.frame ? series.time_s[*at.frame] : at.phase_percent);
+      }
+      std::sort(index.begin(), index.end());
+      const std::vector<std::int32_t>& rest = scene.labels().labels;
+      const auto [lo, hi] = std::minmax_element(rest.begin(), rest.end());
+      sequences.emplace(dir_ / "voxels", spec_.sequences, spec_.phase_bins ? "phase" : "time",
+                        spec_.phase_bins ? "%" : "s", index,
+                        voxels::label_voxel(lo == rest.end() ? 0 : *lo, hi == rest.end() ? 0 : *hi));
+    }
+    // Computed in the sequences' order (by time, the bins by phase) so that a sequence plays
+    // forward; voxels.csv keeps the order asked.
+    const auto key = [&](const VoxelPoint& at) { return at.frame ? series.time_s[*at.frame] : at.phase_percent; };
+    std::vector<std::size_t> order(time_points.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      const bool in_a = in_sequence(time_points[a]), in_b = in_sequence(time_points[b]);
+      if (in_a != in_b) return in_a;
+      return in_a && key(time_points[a]) < key(time_points[b]);
+    });
+    std::vector<std::string> row_of(time_points.size());
+    for (const std::size_t i : order) {
+      const VoxelPoint& at = time_points[i];
       scene.compute(at.scales, point);
+      if (sequences && in_sequence(at)) sequences->append(point);
       const voxels::TimePointFiles written =
           voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension, spec_.dvf_convention);
       for (const auto& f : {written.forward, written.pullback, written.labels, written.ct, written.jacobian}) {
@@ -224,21 +264,24 @@ class VoxelsOutput final : public Output {
       folded = std::max(folded, point.jacobian.folded_volume_fraction);
       std::string scale_text;
       for (const double sc : at.scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
-      rows.push_back(fmt::format(
-          "{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
-          at.frame ? std::to_string(*at.frame) : "", at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "",
-          scale_text, at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
-          point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
+      row_of[i] = fmt::format("{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
+                              at.frame ? std::to_string(*at.frame) : "",
+                              at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "", scale_text,
+                              at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
+                              point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction);
       folded_tets = std::max(folded_tets, point.jacobian.folded_tets);
+    }
+    if (sequences) {
+      for (const auto& f : sequences->finish()) files.push_back(f);
     }
     const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
     write_stream_atomically(csv, false, [&](std::ostream& out) {
       out << "time_point,frame,time_s,scales,physiology_volume_mL,expected_lung_volume_mL,warped_lung_volume_mL,"
              "volume_error_percent,min_jacobian,max_jacobian,folded_tets,folded_volume_fraction\n";
-      for (const std::string& row : rows) out << row;
+      for (const std::string& row : row_of) out << row;
     });
     files.push_back(csv);
-    facts_ = {{"voxels.time_points", std::to_string(rows.size())},
+    facts_ = {{"voxels.time_points", std::to_string(row_of.size())},
               {"voxels.grid", fmt::format("{} x {} x {}", grid.size[0], grid.size[1], grid.size[2])},
               {"voxels.spacing_mm", fmt::format("{:.6g}", grid.spacing_m().x() * 1e3)},
               {"voxels.min_jacobian", fmt::format("{:.6g}", min_jacobian)},
@@ -281,6 +324,7 @@ class VoxelsOutput final : public Output {
     std::vector<double> scales;        // per model lung
     double volume_m3 = 0.0;            // the physiology's volume above FRC
     double lung_change_m3 = 0.0;       // the lungs' volume change from the scan's (their shares of it)
+    double phase_percent = 0.0;        // a bin's centre (phases.csv), for the sequences' index
   };
 
   // The frames asked for, then (with `phases` in `at`) the non-empty bins of the run's binning.
@@ -312,7 +356,7 @@ class VoxelsOutput final : public Output {
         const physiology::PhaseBin& bin = binning.bins[b];
         if (bin.samples.empty()) continue;
         out.push_back({fmt::format("bin_{:02}", b), std::nullopt, phase_bin_scales(model, *run.drive, bin),
-                       bin.mean_volume_m3, lung_change(bin.samples)});
+                       bin.mean_volume_m3, lung_change(bin.samples), bin.centre_percent});
       }
     }
     return out;

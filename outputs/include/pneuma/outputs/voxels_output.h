@@ -14,6 +14,8 @@
 //                                      # the label map's own grid; lungs without one: 2 mm over their box)
 //       image: ct.nii.gz               # a CT on the label map's geometry (or its own) to pull back
 //       format: nii.gz                 # nii.gz | nii | mha | nrrd (NRRD DVFs as 3D Slicer reads them)
+//       sequences: [seq.nrrd, nii.gz]  # the time points (the phase bins when `phases` is in `at`) as one
+//                                      # 3D Slicer sequence and one 4D NIfTI per kind (default: none)
 //       dvf_convention: itk            # NIfTI DVFs: itk (LPS components, intent 1007: ITK <= 5.2,
 //                                      # plastimatch, elastix) | nifti (RAS, intent 1006: ITK >= 5.3, nibabel)
 //
@@ -50,6 +52,7 @@ struct VoxelsSpec {
   bool jacobian = true;         // `jacobian: true|false`: jacobian-<t> files (the forward map's Jacobian)
   std::string extension = ".nii.gz";
   voxels::DvfConvention dvf_convention = voxels::DvfConvention::itk;
+  std::vector<voxels::SequenceFormat> sequences;  // `sequences`: none by default
 };
 
 // A run's voxel setting, made once from the compiled model (with the lungs' inside): the grid,
