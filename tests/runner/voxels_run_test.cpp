@@ -338,6 +338,8 @@ TEST(VoxelsRun, BadOptionsAreOneLineErrorsAndWriteNothing) {
        "outputs.voxels.dvf_convention: nifti is NIfTI's convention, and format is mha; expected format nii.gz or nii, "
        "or dvf_convention: itk"},
       {"{dvf_convention: ras}", "outputs.voxels.dvf_convention:"},
+      {"{sequences: [mp4]}",
+       "outputs.voxels.sequences[0]: expected seq.nrrd (a 3D Slicer sequence) or nii.gz (a 4D NIfTI)"},
   };
   for (const Case& c : cases) {
     std::string text = kPhantom;
