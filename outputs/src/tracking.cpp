@@ -174,8 +174,7 @@ Eigen::Vector3d moved_point(const model::Model& model, const Eigen::Vector3d& re
       for (std::size_t c = 0; c < 4; ++c) u += motion.weights[c] * inside.unit_displacement[motion.corners[c]];
       return rest_m + scales[motion.lung] * u;
     }
-    case PointMotion::With::body:
-      break;
+    case PointMotion::With::body: break;
   }
   return model.body ? Eigen::Vector3d(rest_m + model.body->displacement(rest_m, scales)) : rest_m;
 }
@@ -193,7 +192,8 @@ void StructureTracker::add(const std::string& tag, const voxels::TimePoint& poin
     scratch_.size = point.labels->size;
     scratch_.ijk_to_lps = point.labels->ijk_to_lps;
     scratch_.labels.resize(point.labels->labels.size());
-    for (std::size_t v = 0; v < scratch_.labels.size(); ++v) scratch_.labels[v] = point.labels->labels[v] == spec_.label;
+    for (std::size_t v = 0; v < scratch_.labels.size(); ++v)
+      scratch_.labels[v] = point.labels->labels[v] == spec_.label;
   }
   scratch_.segments = {{spec_.name, 1}};
   scratch_.transform_source = "pneuma";

@@ -377,13 +377,14 @@ class VoxelsOutput final : public Output {
         rows += fmt::format("{},{},{:.6g},{},{:.6g}\n", structure.spec().name, row.tag, row.volume_m3 * 1e6,
                             mm(row.centroid_m), row.weight);
       const std::optional<std::size_t> mid = structure.midventilation();
-      summary += fmt::format("{},{:.6g},{},{},{}\n", structure.spec().name, structure.itv_volume_m3() * 1e6,
-                             mid ? structure.rows()[*mid].tag : "",
-                             mid ? mm(structure.rows()[*mid].centroid_m) : std::string(",,"),
-                             mm(structure.mean_position_m()));
+      summary +=
+          fmt::format("{},{:.6g},{},{},{}\n", structure.spec().name, structure.itv_volume_m3() * 1e6,
+                      mid ? structure.rows()[*mid].tag : "",
+                      mid ? mm(structure.rows()[*mid].centroid_m) : std::string(",,"), mm(structure.mean_position_m()));
       facts_.emplace_back("structures." + structure.spec().name + ".itv_mL",
                           fmt::format("{:.6g}", structure.itv_volume_m3() * 1e6));
-      if (mid) facts_.emplace_back("structures." + structure.spec().name + ".midventilation", structure.rows()[*mid].tag);
+      if (mid)
+        facts_.emplace_back("structures." + structure.spec().name + ".midventilation", structure.rows()[*mid].tag);
     }
     const std::filesystem::path csv = dir_ / "voxels" / "structures.csv";
     write_stream_atomically(csv, false, [&](std::ostream& out) {

@@ -38,9 +38,9 @@ std::vector<Fiducial> read_fiducials(const std::filesystem::path& csv);
 // Where a point sits and how it moves.
 struct PointMotion {
   enum class With { surface, interior, body } with = With::body;
-  std::size_t lung = 0;                     // surface, interior: the model's lung
-  std::array<std::uint32_t, 4> corners{};   // the triangle's vertices (3) or the tet's nodes (4)
-  std::array<double, 4> weights{};          // barycentric
+  std::size_t lung = 0;                    // surface, interior: the model's lung
+  std::array<std::uint32_t, 4> corners{};  // the triangle's vertices (3) or the tet's nodes (4)
+  std::array<double, 4> weights{};         // barycentric
 };
 // "right surface", "left interior", "body" (a lung of a one-surface run: "lung").
 std::string moves_with(const model::Model& model, const PointMotion& motion);
@@ -53,8 +53,8 @@ Eigen::Vector3d moved_point(const model::Model& model, const Eigen::Vector3d& re
 // A structure: a label of the scenario's label map, or a mask file (any nonzero voxel).
 struct StructureSpec {
   std::string name;
-  std::int32_t label = 0;                             // when no mask
-  std::shared_ptr<const image::LabelMap> mask;        // a file's
+  std::int32_t label = 0;                       // when no mask
+  std::shared_ptr<const image::LabelMap> mask;  // a file's
   std::filesystem::path mask_file;
 };
 
