@@ -267,3 +267,58 @@ TEST(Tracking, ABadFiducialsFileIsOneLineNamingItsLine) {
 }
 
 }  // namespace
+
+namespace {
+
+// The shipped example (scenarios/4d-slicer.yaml, coarser surfaces here): ten phases as Slicer
+// sequences of ten items each, the NRRD DVFs as Slicer's displacement fields, every fiducial at
+// every frame and phase, and the target's ITV holding each phase's target. Its inputs are the
+// script's: scripts/make-4d-slicer-inputs.py writes the same bytes.
+TEST(Tracking, TheShippedSlicerExampleWritesSequencesTrajectoriesAndTheItv) {
+  const auto data = pneuma::test::ct_lobes_dir() / "case004_lobes.nii.gz";
+  if (!fs::exists(data)) GTEST_SKIP() << "no CT lobe maps at " << data.parent_path();
+  TempDir dir;
+  const fs::path scenarios = fs::path(PNEUMA_SOURCE_DIR) / "scenarios";
+  const fs::path python = "/usr/bin/python3";
+  if (fs::exists(python) && pneuma::test::run_program(python, {"-c", "import nibabel"}).exit_code == 0) {
+    const CommandResult made =
+        pneuma::test::run_program(python, {(fs::path(PNEUMA_SOURCE_DIR) / "scripts/make-4d-slicer-inputs.py").string(),
+                                           data.string(), dir.path().string()});
+    ASSERT_EQ(made.exit_code, 0) << made.err;
+    for (const char* name : {"4d-slicer-target.nii.gz", "4d-slicer-fiducials.csv"})
+      EXPECT_EQ(pneuma::test::read_text(dir / name), pneuma::test::read_text(scenarios / name)) << name;
+  }
+  const CommandResult r = run_pneuma(
+      {"run", (scenarios / "4d-slicer.yaml").string(), "-o", (dir / "out").string(), "--quiet", "--edge", "8mm"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const fs::path voxels = dir / "out/voxels";
+  for (const char* kind : {"labels", "jacobian", "dvf-pullback", "dvf-forward"}) {
+    std::ifstream in(voxels / (std::string(kind) + ".seq.nrrd"), std::ios::binary);
+    std::map<std::string, std::string> fields;
+    for (std::string line; std::getline(in, line) && !line.empty();) {
+      const std::size_t kv = line.find(":=");
+      if (kv != std::string::npos) fields[line.substr(0, kv)] = line.substr(kv + 2);
+    }
+    EXPECT_EQ(fields["axis 3 index values"], "0 10 20 30 40 50 60 70 80 90") << kind;
+    EXPECT_TRUE(fs::exists(voxels / (std::string(kind) + "-4d.nii.gz"))) << kind;
+  }
+  const auto trajectories = read_csv(voxels / "trajectories.csv");
+  EXPECT_EQ(trajectories.size(), 1u + 4u * (241u + 10u));  // 4 points; 24 s at 10 Hz: 241 frames, and 10 bins
+  std::set<std::string> moves;
+  for (std::size_t i = 1; i < trajectories.size(); ++i) moves.insert(trajectories[i][0] + " " + trajectories[i][1]);
+  EXPECT_EQ(moves, (std::set<std::string>{"abdomen body", "left_lower_lobe left interior",
+                                          "right_lung_lowest_voxel body", "target_centre right interior"}));
+  const pneuma::image::LabelMap itv = pneuma::image::read_label_map(voxels / "itv-target.nrrd");
+  for (int b = 0; b < 10; ++b) {
+    const auto phase = pneuma::image::read_label_map(voxels / fmt::format("structure-target-bin_{:02}.nrrd", b));
+    std::size_t outside = 0;
+    for (std::size_t v = 0; v < phase.labels.size(); ++v) outside += phase.labels[v] != 0 && itv.labels[v] == 0;
+    EXPECT_EQ(outside, 0u) << b;
+  }
+  const auto summary = read_csv(voxels / "structures-summary.csv");
+  ASSERT_EQ(summary.size(), 2u);
+  std::printf("4d-slicer: ITV %s mL, mid-ventilation %s at (%s, %s, %s) mm\n", summary[1][1].c_str(),
+              summary[1][2].c_str(), summary[1][3].c_str(), summary[1][4].c_str(), summary[1][5].c_str());
+}
+
+}  // namespace
