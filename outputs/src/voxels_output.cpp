@@ -406,7 +406,7 @@ class VoxelsOutput final : public Output {
     const auto& series = run.drive->series;
     std::vector<PointMotion> motions;
     for (const Fiducial& f : spec_.points) motions.push_back(locate(model, f.rest_m));
-    const std::filesystem::path csv = dir_ / "voxels" / "trajectories.csv";
+    std::filesystem::path csv = dir_ / "voxels" / "trajectories.csv";
     write_stream_atomically(csv, false, [&](std::ostream& out) {
       out << "point,moves_with,frame,time_s,bin,x_mm,y_mm,z_mm\n";
       std::vector<double> scales(model.lungs.size());

@@ -272,7 +272,7 @@ TEST_F(DvfReaders, TheNrrdDvfsCarrySlicersDisplacementFieldFields) {
     }
     inflateEnd(&z);
     EXPECT_EQ(status, Z_STREAM_END);
-    EXPECT_EQ(total, 3 * 4 * labels.labels.size()) << kind;
+    EXPECT_EQ(total, std::size_t{12} * labels.labels.size()) << kind;
   }
 }
 

@@ -87,7 +87,8 @@ NrrdField read_nrrd_dvf(const fs::path& path) {
     } else if (line.starts_with("space directions: ")) {
       const auto v = numbers(line.substr(18));
       for (int a = 0; a < 3; ++a)
-        for (int r = 0; r < 3; ++r) f.directions(r, a) = v[static_cast<std::size_t>(3 * a + r)];
+        for (int r = 0; r < 3; ++r)
+          f.directions(r, a) = v[3 * static_cast<std::size_t>(a) + static_cast<std::size_t>(r)];
     } else if (line.starts_with("space origin: ")) {
       const auto v = numbers(line.substr(14));
       f.origin = Eigen::Vector3d(v[0], v[1], v[2]);

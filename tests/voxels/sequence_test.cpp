@@ -142,6 +142,7 @@ TEST(Sequences, EveryItemReadsBackAndTheHeadersHaveSlicersFields) {
   }
   const std::vector<fs::path> files = sequences.finish();
   std::vector<std::string> names;
+  names.reserve(files.size());
   for (const fs::path& f : files) names.push_back(f.filename().string());
   EXPECT_EQ(names, (std::vector<std::string>{"labels.seq.nrrd", "ct.seq.nrrd", "jacobian.seq.nrrd",
                                              "dvf-pullback.seq.nrrd", "dvf-forward.seq.nrrd"}));

@@ -182,13 +182,13 @@ struct SequenceWriter::State {
   std::vector<std::unique_ptr<PendingFile>> components;  // a 4D NIfTI DVF's, one raw file each
   std::vector<std::ofstream> component_streams;
 
-  State(fs::path p, SequenceFormat f, SequenceSpec s) : path(p), format(f), spec(std::move(s)), file(p) {}
+  State(const fs::path& p, SequenceFormat f, SequenceSpec s) : path(p), format(f), spec(std::move(s)), file(p) {}
   ~State() {
     if (gz != nullptr) gzclose(gz);
   }
 };
 
-SequenceWriter::SequenceWriter(fs::path path, SequenceFormat format, SequenceSpec spec) {
+SequenceWriter::SequenceWriter(const fs::path& path, SequenceFormat format, SequenceSpec spec) {
   if (spec.index_values.empty()) throw ValueError(path.string() + ": a sequence needs at least one item");
   if (spec.index_values.size() > 32767) throw ValueError(path.string() + ": more than 32767 items");
   if (spec.voxel == SequenceVoxel::vector3 && spec.displacement_field_type.empty())

@@ -48,7 +48,7 @@ class SequenceWriter {
  public:
   // Throws ValueError for an empty index or a DVF without its direction, IoError when the
   // temporary cannot be created.
-  SequenceWriter(std::filesystem::path path, SequenceFormat format, SequenceSpec spec);
+  SequenceWriter(const std::filesystem::path& path, SequenceFormat format, SequenceSpec spec);
   ~SequenceWriter();
   SequenceWriter(const SequenceWriter&) = delete;
   SequenceWriter& operator=(const SequenceWriter&) = delete;
