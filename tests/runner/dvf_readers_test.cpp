@@ -50,7 +50,7 @@ double worst_lobe_dice(const pneuma::image::LabelMap& ours, const fs::path& thei
   return worst;
 }
 
-// The three runs, once for all tests (about 12 s each on 2 cores).
+// The three runs, once for all tests, sharing one field cache (the field and the inside once).
 class DvfReaders : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -62,7 +62,7 @@ class DvfReaders : public ::testing::Test {
       const fs::path scenario = dir_->write(
           name + ".yaml", "duration: 4 s\nframes: {rate: 5 Hz}\nmesh: {labels: " + rest_.string() +
                               ", lungs: {right: [3, 4, 5], left: [1, 2]}, edge: 8 mm}\n"
-                              "field: {tissue: healthy-supine, interior: {edge: 8 mm}}\n"
+                              "field: {tissue: healthy-supine, interior: {edge: 8 mm}, cache: field.h5}\n"
                               "physiology:\n  preset: healthy-adult\n"
                               "  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}\n"
                               "outputs: {gltf: false, report: false, hdf5: false, voxels: {at: [end_inspiration], "

@@ -34,7 +34,7 @@ constexpr const char* kPhantom = R"(name: tracking
 duration: 8 s
 frames: {rate: 5 Hz}
 mesh: {phantom: right, edge: 8 mm}
-field: {tissue: healthy-upright, interior: {edge: 8 mm}}
+field: {tissue: healthy-upright, interior: {edge: 8 mm}, cache: field.h5}
 physiology:
   preset: healthy-adult
   driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}
