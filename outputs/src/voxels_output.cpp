@@ -263,9 +263,9 @@ class VoxelsOutput final : public Output {
       std::sort(index.begin(), index.end());
       const std::vector<std::int32_t>& rest = scene.labels().labels;
       const auto [lo, hi] = std::minmax_element(rest.begin(), rest.end());
-      sequences.emplace(dir_ / "voxels", spec_.sequences, spec_.phase_bins ? "phase" : "time",
-                        spec_.phase_bins ? "%" : "s", index,
-                        voxels::label_voxel(lo == rest.end() ? 0 : *lo, hi == rest.end() ? 0 : *hi));
+      sequences.emplace(
+          dir_ / "voxels", spec_.sequences, spec_.phase_bins ? "phase" : "time", spec_.phase_bins ? "%" : "s", index,
+          voxels::label_voxel(lo == rest.end() ? 0 : *lo, hi == rest.end() ? 0 : *hi), spec_.dvf_convention);
     }
     // Computed in the sequences' order (by time, the bins by phase) so that a sequence plays
     // forward; voxels.csv keeps the order asked.

@@ -247,6 +247,33 @@ for kind in ["labels", "ct", "jacobian", "dvf-pullback", "dvf-forward"]:
   EXPECT_EQ(files.size(), 5u + 15u) << ::testing::PrintToString(files);
 }
 
+// With the NIfTI standard's convention the 4D DVF is intent 1006 with RAS components: nibabel's
+// volumes are the 3D DISPVECT files' (voxel_io.h, DvfConvention::nifti).
+TEST(Sequences, The4dNiftiDvfKeepsTheStandardsConvention) {
+  const fs::path python = "/usr/bin/python3";
+  if (!fs::exists(python) || run_program(python, {"-c", "import nibabel"}).exit_code != 0)
+    GTEST_SKIP() << "nibabel is not importable by /usr/bin/python3 (install-deps: python3-nibabel)";
+  const Breathing run;
+  const TempDir dir;
+  TimePointSequences sequences(dir.path(), {SequenceFormat::nifti_4d}, "time", "s", run.times, SequenceVoxel::uint8,
+                               DvfConvention::nifti);
+  for (std::size_t i = 0; i < run.points.size(); ++i) {
+    sequences.append(run.points[i]);
+    write_time_point(dir.path(), run.tag(i), run.points[i], ".nii.gz", DvfConvention::nifti);
+  }
+  sequences.finish();
+  const std::string script = R"(import nibabel as nib, numpy as np
+seq = nib.load("dvf-forward-4d.nii.gz")
+d = np.asarray(seq.dataobj)
+worst = max(float(np.max(np.abs(d[..., i, :] - np.asarray(nib.load(f"dvf-forward-{i}.nii.gz").dataobj)[..., 0, :])))
+            for i in range(3))
+print(int(seq.header["intent_code"]), int(nib.load("dvf-forward-0.nii.gz").header["intent_code"]), worst)
+)";
+  const CommandResult r = run_program(python, {"-c", script}, dir.path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "1006 1006 0.0\n");
+}
+
 TEST(Sequences, ASequenceMissingAnItemIsNotWritten) {
   const Breathing run;
   const TempDir dir;

@@ -112,7 +112,8 @@ std::array<char, 352> nifti_header(const SequenceSpec& spec) {
                                         1,
                                         1};
   for (std::size_t i = 0; i < 8; ++i) put<std::int16_t>(h, 40 + 2 * i, dim[i]);
-  if (vector) put<std::int16_t>(h, 68, 1007);  // NIFTI_INTENT_VECTOR, LPS components (ITK 5.2's layout)
+  // NIFTI_INTENT_VECTOR with LPS components (ITK 5.2's layout), or the standard's DISPVECT in RAS.
+  if (vector) put<std::int16_t>(h, 68, spec.nifti_ras ? std::int16_t{1006} : std::int16_t{1007});
   const auto [datatype, bits] = nifti_type(spec.voxel);
   put<std::int16_t>(h, 70, datatype);
   put<std::int16_t>(h, 72, bits);
@@ -234,7 +235,8 @@ void SequenceWriter::append(const void* values, std::size_t bytes) {
     const std::size_t n = s.spec.grid.voxel_count();
     std::vector<float> component(n);
     for (std::size_t c = 0; c < 3; ++c) {
-      for (std::size_t i = 0; i < n; ++i) component[i] = v[3 * i + c];
+      const float sign = s.spec.nifti_ras && c < 2 ? -1.0f : 1.0f;  // RAS: x and y negated
+      for (std::size_t i = 0; i < n; ++i) component[i] = sign * v[3 * i + c];
       s.component_streams[c].write(reinterpret_cast<const char*>(component.data()),
                                    static_cast<std::streamsize>(n * sizeof(float)));
       if (!s.component_streams[c]) throw IoError(s.path.string() + ": cannot write (disk full?)");

@@ -75,8 +75,9 @@ TimePointFiles write_time_point(const std::filesystem::path& folder, const std::
 
 TimePointSequences::TimePointSequences(std::filesystem::path folder, std::vector<SequenceFormat> formats,
                                        std::string index_name, std::string index_unit, std::vector<double> index_values,
-                                       SequenceVoxel labels)
+                                       SequenceVoxel labels, DvfConvention convention)
     : folder_(std::move(folder)), formats_(std::move(formats)), labels_(labels) {
+  base_.nifti_ras = convention == DvfConvention::nifti;
   base_.index_name = std::move(index_name);
   base_.index_unit = std::move(index_unit);
   base_.index_values = std::move(index_values);

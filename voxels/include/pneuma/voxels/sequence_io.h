@@ -10,7 +10,8 @@
 //   vtkMRMLScalarVolumeNode for images. The header is written first (the item count and index
 //   values are known before the first item), then each item is appended to the gzip stream.
 // - A 4D NIfTI-1 (`.nii.gz`): dim = (4, nx, ny, nz, nt) for scalars; DVFs dim = (5, nx, ny, nz, nt,
-//   3) with intent 1007 and LPS components (ITK 5.2's vector layout, voxel_io.h). NIfTI puts the
+//   3) with intent 1007 and LPS components (ITK 5.2's vector layout, voxel_io.h; with `nifti_ras`
+//   intent 1006 and RAS components, the standard's, as DvfConvention::nifti). NIfTI puts the
 //   vector component slowest, so a DVF's three components go to three temporary files as the
 //   items come and are joined at finish(); scalars stream straight into the gzip stream. The
 //   geometry is the grid's in the sform (RAS+, mm; qform_code 0), pixdim[4] the index step when
@@ -39,6 +40,7 @@ struct SequenceSpec {
   std::vector<double> index_values;     // one per item
   bool label_map = false;               // Slicer's vtkMRMLLabelMapVolumeNode (else scalar volume)
   std::string displacement_field_type;  // DVFs: "resampling" (pull-back) or "modeling" (forward)
+  bool nifti_ras = false;               // a 4D NIfTI DVF: RAS components, intent 1006 (the NIfTI standard)
 };
 
 // The smallest voxel type holding every value from `min` to `max` (label maps).

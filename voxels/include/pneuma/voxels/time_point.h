@@ -65,9 +65,11 @@ TimePointFiles write_time_point(const std::filesystem::path& folder, const std::
 // at the first time point, on that time point's grid.
 class TimePointSequences {
  public:
-  // `index_values` one per time point to come; `labels` the voxel type of the warped label maps.
+  // `index_values` one per time point to come; `labels` the voxel type of the warped label maps;
+  // `convention` the 4D NIfTI DVFs' (the .seq.nrrd DVFs are LPS with the identity measurement frame).
   TimePointSequences(std::filesystem::path folder, std::vector<SequenceFormat> formats, std::string index_name,
-                     std::string index_unit, std::vector<double> index_values, SequenceVoxel labels);
+                     std::string index_unit, std::vector<double> index_values, SequenceVoxel labels,
+                     DvfConvention convention = DvfConvention::itk);
   void append(const TimePoint& point);
   // The files, after the last time point.
   std::vector<std::filesystem::path> finish();
