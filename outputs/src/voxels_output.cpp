@@ -65,7 +65,60 @@ std::any read_spec(const scenario::Node* options, const scenario::Scenario& run)
       options->fail_at("spacing", "expected a voxel size between 0.25 mm and 20 mm, such as '2 mm'");
     }
   }
-  if (options->has("format")) spec.extension = fmt::format(".{}", options->choice("format", {"nii.gz", "nii", "mha"}));
+  if (options->has("format"))
+    spec.extension = fmt::format(".{}", options->choice("format", {"nii.gz", "nii", "mha", "nrrd"}));
+  if (options->has("dvf_convention")) {
+    if (options->choice("dvf_convention", {"itk", "nifti"}) == "nifti") {
+      // Only NIfTI has the two conventions: MetaImage and NRRD hold LPS components.
+      if (spec.extension != ".nii.gz" && spec.extension != ".nii")
+        options->fail_at("dvf_convention", fmt::format("nifti is NIfTI's convention, and format is {}; expected "
+                                                       "format nii.gz or nii, or dvf_convention: itk",
+                                                       spec.extension.substr(1)));
+      spec.dvf_convention = voxels::DvfConvention::nifti;
+    }
+  }
+  if (options->has("sequences")) {
+    constexpr const char* kExpected = "expected seq.nrrd (a 3D Slicer sequence) or nii.gz (a 4D NIfTI)";
+    for (const scenario::Node& item : options->sequence("sequences")) {
+      const std::string text = item.as_scalar(kExpected);
+      const voxels::SequenceFormat format = text == "seq.nrrd" ? voxels::SequenceFormat::slicer_nrrd
+                                            : text == "nii.gz" ? voxels::SequenceFormat::nifti_4d
+                                                               : (item.fail(kExpected), voxels::SequenceFormat{});
+      if (std::find(spec.sequences.begin(), spec.sequences.end(), format) == spec.sequences.end())
+        spec.sequences.push_back(format);
+    }
+  }
+  if (options->has("points")) {
+    const std::filesystem::path file = options->directory("points") / options->string("points");
+    try {
+      spec.points = read_fiducials(file);
+    } catch (const Error& e) {
+      options->fail_at("points", e.what());
+    }
+  }
+  if (options->has("structures")) {
+    const scenario::Node structures = options->map("structures");
+    for (const std::string& name : structures.keys()) {
+      StructureSpec structure{name, 0, nullptr, {}};
+      const std::string text = structures.string(name);
+      constexpr const char* kExpected = "expected a label of the label map (1 to 65535) or a mask file";
+      if (!name.empty() && text.find_first_not_of("0123456789") == std::string::npos) {
+        structure.label = static_cast<std::int32_t>(structures.integer(name, 0, 1, 65535));
+        if (run.mesh.labels_file.empty())
+          structures.fail_at(name, "a label needs the scenario's label map (mesh.labels); expected a mask file");
+      } else {
+        structure.mask_file = structures.directory(name) / text;
+        try {
+          structure.mask = std::make_shared<const image::LabelMap>(image::read_label_map(structure.mask_file));
+        } catch (const Error& e) {
+          structures.fail_at(name, std::string(e.what()) + "; " + kExpected);
+        }
+      }
+      if (name.find_first_of("/\\ ") != std::string::npos || name.empty())
+        structures.fail_at(name, "expected a name without spaces or slashes (it names files)");
+      spec.structures.push_back(std::move(structure));
+    }
+  }
   if (options->has("image")) {
     spec.image_file = options->directory("image") / options->string("image");
     try {
@@ -179,6 +232,8 @@ double lung_volume(const image::LabelMap& map, const std::vector<int>& values) {
 }
 
 class VoxelsOutput final : public Output {
+  struct VoxelPoint;  // below
+
  public:
   VoxelsOutput(std::filesystem::path dir, VoxelsSpec spec) : dir_(std::move(dir)), spec_(std::move(spec)) {}
   std::string name() const override { return kVoxelsKey; }
@@ -192,14 +247,59 @@ class VoxelsOutput final : public Output {
 
     std::filesystem::create_directories(dir_ / "voxels");
     std::vector<std::filesystem::path> files;
-    std::vector<std::string> rows;
-    std::vector<VoxelPointFigures> figures;
     voxels::TimePoint point;
     double worst_volume_error = 0.0, min_jacobian = std::numeric_limits<double>::infinity(), folded = 0.0;
     std::size_t folded_tets = 0;
-    for (const VoxelPoint& at : points(model, run)) {
+    const std::vector<VoxelPoint> time_points = points(model, run);
+    // The sequences hold the phase bins when asked (a 4D-CT's phases, by their percentage), else
+    // every time point by its time.
+    const auto in_sequence = [this](const VoxelPoint& at) { return !spec_.phase_bins || !at.frame.has_value(); };
+    std::optional<voxels::TimePointSequences> sequences;
+    if (!spec_.sequences.empty()) {
+      std::vector<double> index;
+      for (const VoxelPoint& at : time_points) {
+        if (in_sequence(at)) index.push_back(at.frame ? series.time_s[*at.frame] : at.phase_percent);
+      }
+      std::sort(index.begin(), index.end());
+      const std::vector<std::int32_t>& rest = scene.labels().labels;
+      const auto [lo, hi] = std::minmax_element(rest.begin(), rest.end());
+      sequences.emplace(
+          dir_ / "voxels", spec_.sequences, spec_.phase_bins ? "phase" : "time", spec_.phase_bins ? "%" : "s", index,
+          voxels::label_voxel(lo == rest.end() ? 0 : *lo, hi == rest.end() ? 0 : *hi), spec_.dvf_convention);
+    }
+    // Computed in the sequences' order (by time, the bins by phase) so that a sequence plays
+    // forward; voxels.csv keeps the order asked.
+    const auto key = [&](const VoxelPoint& at) { return at.frame ? series.time_s[*at.frame] : at.phase_percent; };
+    std::vector<std::size_t> order(time_points.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      const bool in_a = in_sequence(time_points[a]), in_b = in_sequence(time_points[b]);
+      if (in_a != in_b) return in_a;
+      return in_a && key(time_points[a]) < key(time_points[b]);
+    });
+    std::vector<std::string> row_of(time_points.size());
+    std::vector<VoxelPointFigures> figures(time_points.size());  // voxels.csv's, for report.html
+    // Structures: weighted (ITV, mid-ventilation) over the phase bins when asked, else over every time point.
+    std::vector<StructureTracker> structures;
+    for (const StructureSpec& structure : spec_.structures)
+      structures.emplace_back(dir_ / "voxels", spec_.extension, structure);
+    const double total_samples = [&] {
+      double n = 0.0;
+      for (const VoxelPoint& at : time_points) n += at.frame ? 0.0 : static_cast<double>(at.bin_samples);
+      return n;
+    }();
+    for (const std::size_t i : order) {
+      const VoxelPoint& at = time_points[i];
       scene.compute(at.scales, point);
-      const voxels::TimePointFiles written = voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension);
+      if (sequences && in_sequence(at)) sequences->append(point);
+      for (StructureTracker& structure : structures) {
+        const double weight = !spec_.phase_bins ? 1.0
+                              : at.frame        ? 0.0
+                                                : static_cast<double>(at.bin_samples) / total_samples;
+        structure.add(at.tag, point, weight);
+      }
+      const voxels::TimePointFiles written =
+          voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension, spec_.dvf_convention);
       for (const auto& f : {written.forward, written.pullback, written.labels, written.ct, written.jacobian}) {
         if (!f.empty()) files.push_back(f);
       }
@@ -213,24 +313,29 @@ class VoxelsOutput final : public Output {
       folded = std::max(folded, point.jacobian.folded_volume_fraction);
       std::string scale_text;
       for (const double sc : at.scales) scale_text += fmt::format("{}{:.9g}", scale_text.empty() ? "" : " ", sc);
-      rows.push_back(fmt::format(
-          "{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
-          at.frame ? std::to_string(*at.frame) : "", at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "",
-          scale_text, at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
-          point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction));
+      row_of[i] = fmt::format("{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{:.6g}\n", at.tag,
+                              at.frame ? std::to_string(*at.frame) : "",
+                              at.frame ? fmt::format("{:.6f}", series.time_s[*at.frame]) : "", scale_text,
+                              at.volume_m3 * 1e6, expected * 1e6, warped * 1e6, error * 100.0, point.jacobian.min,
+                              point.jacobian.max, point.jacobian.folded_tets, point.jacobian.folded_volume_fraction);
       folded_tets = std::max(folded_tets, point.jacobian.folded_tets);
-      figures.push_back({at.tag, at.frame ? std::optional<double>(series.time_s[*at.frame]) : std::nullopt,
-                         error * 100.0, point.jacobian.min, point.jacobian.folded_tets});
+      figures[i] = {at.tag, at.frame ? std::optional<double>(series.time_s[*at.frame]) : std::nullopt, error * 100.0,
+                    point.jacobian.min, point.jacobian.folded_tets};
     }
     run.shared.get<VoxelFigures>([&] { return std::make_shared<const VoxelFigures>(VoxelFigures{figures}); });
+    if (sequences) {
+      for (const auto& f : sequences->finish()) files.push_back(f);
+    }
+    if (!structures.empty()) write_structures(structures, files);
+    if (!spec_.points.empty()) files.push_back(write_trajectories(model, run, time_points));
     const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
     write_stream_atomically(csv, false, [&](std::ostream& out) {
       out << "time_point,frame,time_s,scales,physiology_volume_mL,expected_lung_volume_mL,warped_lung_volume_mL,"
              "volume_error_percent,min_jacobian,max_jacobian,folded_tets,folded_volume_fraction\n";
-      for (const std::string& row : rows) out << row;
+      for (const std::string& row : row_of) out << row;
     });
     files.push_back(csv);
-    facts_ = {{"voxels.time_points", std::to_string(rows.size())},
+    facts_ = {{"voxels.time_points", std::to_string(row_of.size())},
               {"voxels.grid", fmt::format("{} x {} x {}", grid.size[0], grid.size[1], grid.size[2])},
               {"voxels.spacing_mm", fmt::format("{:.6g}", grid.spacing_m().x() * 1e3)},
               {"voxels.min_jacobian", fmt::format("{:.6g}", min_jacobian)},
@@ -262,6 +367,73 @@ class VoxelsOutput final : public Output {
     return n;
   }
 
+  // structures.csv (each structure at each time point) and structures-summary.csv (its ITV and
+  // mid-ventilation), beside each structure's files.
+  void write_structures(std::vector<StructureTracker>& structures, std::vector<std::filesystem::path>& files) {
+    const auto mm = [](const Eigen::Vector3d& x) {
+      return std::isfinite(x.x()) ? fmt::format("{:.4f},{:.4f},{:.4f}", x.x() * 1e3, x.y() * 1e3, x.z() * 1e3)
+                                  : std::string(",,");
+    };
+    std::string rows, summary;
+    for (StructureTracker& structure : structures) {
+      for (const auto& f : structure.finish()) files.push_back(f);
+      for (const StructureTracker::Row& row : structure.rows())
+        rows += fmt::format("{},{},{:.6g},{},{:.6g}\n", structure.spec().name, row.tag, row.volume_m3 * 1e6,
+                            mm(row.centroid_m), row.weight);
+      const std::optional<std::size_t> mid = structure.midventilation();
+      summary +=
+          fmt::format("{},{:.6g},{},{},{}\n", structure.spec().name, structure.itv_volume_m3() * 1e6,
+                      mid ? structure.rows()[*mid].tag : "",
+                      mid ? mm(structure.rows()[*mid].centroid_m) : std::string(",,"), mm(structure.mean_position_m()));
+      facts_.emplace_back("structures." + structure.spec().name + ".itv_mL",
+                          fmt::format("{:.6g}", structure.itv_volume_m3() * 1e6));
+      if (mid)
+        facts_.emplace_back("structures." + structure.spec().name + ".midventilation", structure.rows()[*mid].tag);
+    }
+    const std::filesystem::path csv = dir_ / "voxels" / "structures.csv";
+    write_stream_atomically(csv, false, [&](std::ostream& out) {
+      out << "structure,time_point,volume_mL,centroid_x_mm,centroid_y_mm,centroid_z_mm,weight\n" << rows;
+    });
+    const std::filesystem::path summary_csv = dir_ / "voxels" / "structures-summary.csv";
+    write_stream_atomically(summary_csv, false, [&](std::ostream& out) {
+      out << "structure,itv_mL,midventilation,midventilation_x_mm,midventilation_y_mm,midventilation_z_mm,"
+             "mean_x_mm,mean_y_mm,mean_z_mm\n"
+          << summary;
+    });
+    files.push_back(csv);
+    files.push_back(summary_csv);
+  }
+
+  // trajectories.csv: every point at every frame, then at each phase bin (when `phases` is in `at`).
+  std::filesystem::path write_trajectories(const model::Model& model, const RunRecord& run,
+                                           const std::vector<VoxelPoint>& time_points) const {
+    const auto& series = run.drive->series;
+    std::vector<PointMotion> motions;
+    for (const Fiducial& f : spec_.points) motions.push_back(locate(model, f.rest_m));
+    std::filesystem::path csv = dir_ / "voxels" / "trajectories.csv";
+    write_stream_atomically(csv, false, [&](std::ostream& out) {
+      out << "point,moves_with,frame,time_s,bin,x_mm,y_mm,z_mm\n";
+      std::vector<double> scales(model.lungs.size());
+      const auto row = [&](const std::string& when) {
+        for (std::size_t p = 0; p < spec_.points.size(); ++p) {
+          const Eigen::Vector3d x = moved_point(model, spec_.points[p].rest_m, motions[p], scales) * 1e3;
+          out << fmt::format("{},{},{},{:.4f},{:.4f},{:.4f}\n", spec_.points[p].name, moves_with(model, motions[p]),
+                             when, x.x(), x.y(), x.z());
+        }
+      };
+      for (std::size_t k = 0; k < series.time_s.size(); ++k) {
+        for (std::size_t i = 0; i < model.lungs.size(); ++i) scales[i] = run.scales[i][k];
+        row(fmt::format("{},{:.6f},", k, series.time_s[k]));
+      }
+      for (const VoxelPoint& at : time_points) {
+        if (at.frame) continue;
+        scales = at.scales;
+        row(",," + at.tag);
+      }
+    });
+    return csv;
+  }
+
   // The frame of the run's lowest volume: end-expiration, and the volume the rest label map stands for.
   static std::size_t lowest_volume_frame(const std::vector<double>& volume_m3) {
     return static_cast<std::size_t>(std::min_element(volume_m3.begin(), volume_m3.end()) - volume_m3.begin());
@@ -273,6 +445,8 @@ class VoxelsOutput final : public Output {
     std::vector<double> scales;        // per model lung
     double volume_m3 = 0.0;            // the physiology's volume above FRC
     double lung_change_m3 = 0.0;       // the lungs' volume change from the scan's (their shares of it)
+    double phase_percent = 0.0;        // a bin's centre (phases.csv), for the sequences' index
+    std::size_t bin_samples = 0;       // a bin's frames: its share of the breathing time
   };
 
   // The frames asked for, then (with `phases` in `at`) the non-empty bins of the run's binning.
@@ -304,7 +478,7 @@ class VoxelsOutput final : public Output {
         const physiology::PhaseBin& bin = binning.bins[b];
         if (bin.samples.empty()) continue;
         out.push_back({fmt::format("bin_{:02}", b), std::nullopt, phase_bin_scales(model, *run.drive, bin),
-                       bin.mean_volume_m3, lung_change(bin.samples)});
+                       bin.mean_volume_m3, lung_change(bin.samples), bin.centre_percent, bin.samples.size()});
       }
     }
     return out;

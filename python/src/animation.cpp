@@ -13,6 +13,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/units.h"
 #include "pneuma/model/frame.h"
+#include "pneuma/outputs/tracking.h"
 #include "pneuma/outputs/voxels_output.h"
 #include "pneuma/runner/output_registry.h"
 #include "pneuma/runner/runner.h"
@@ -118,6 +119,37 @@ struct Animation {
     out["folded_tets"] = point.jacobian.folded_tets;
     out["lung_volume_m3"] = voxel_scene->lung_volume_m3(*point.labels);
     return out;
+  }
+  // Points that follow the breath (outputs/tracking.h: the rule of voxels/trajectories.csv).
+  py::dict trajectories(const py::array_t<double, py::array::c_style | py::array::forcecast>& points) const {
+    if (points.ndim() != 2 || points.shape(1) != 3)
+      throw ValueError("points: expected an (N, 3) array of positions (LPS, metres)");
+    const auto n = static_cast<std::size_t>(points.shape(0));
+    std::vector<Eigen::Vector3d> rest(n);
+    for (std::size_t p = 0; p < n; ++p)
+      rest[p] = Eigen::Vector3d(points.at(static_cast<py::ssize_t>(p), 0), points.at(static_cast<py::ssize_t>(p), 1),
+                                points.at(static_cast<py::ssize_t>(p), 2));
+    std::vector<outputs::PointMotion> motions(n);
+    py::array_t<double> out({static_cast<py::ssize_t>(frame_count()), static_cast<py::ssize_t>(n), py::ssize_t{3}});
+    {
+      py::gil_scoped_release release;
+      for (std::size_t p = 0; p < n; ++p) motions[p] = outputs::locate(*model, rest[p]);
+      std::vector<double> at(scales.size());
+      double* data = out.mutable_data();
+      for (std::size_t k = 0; k < frame_count(); ++k) {
+        for (std::size_t i = 0; i < scales.size(); ++i) at[i] = scales[i][k];
+        for (std::size_t p = 0; p < n; ++p) {
+          const Eigen::Vector3d x = outputs::moved_point(*model, rest[p], motions[p], at);
+          std::copy_n(x.data(), 3, data + 3 * (k * n + p));
+        }
+      }
+    }
+    py::list moves;
+    for (const auto& m : motions) moves.append(outputs::moves_with(*model, m));
+    py::dict result;
+    result["positions_m"] = out;
+    result["moves_with"] = moves;
+    return result;
   }
   // The frame whose time is nearest to t (frames are 1 / frame_rate apart).
   std::size_t index_at(double t) const {
@@ -243,6 +275,12 @@ void register_animation(py::module_& m) {
           "where the scenario names an image (its lung parenchyma keeping its mass unless voxels.density: "
           "unchanged), 'jacobian' (nx, ny, nz) float32 the forward map's Jacobian (unless voxels.jacobian: false), 'ijk_to_lps' (4, 4) the grid (metres), 'min_jacobian', "
           "'max_jacobian', 'folded_tets', 'lung_volume_m3' (the warped lungs' voxels).")
+      .def("trajectories", &Animation::trajectories, py::arg("points"),
+           "trajectories(points) -> dict: points (N, 3) at rest (LPS, metres) followed through every frame, as "
+           "voxels/trajectories.csv: 'positions_m' (frames, N, 3) float64, 'moves_with' a list of N ('right "
+           "surface', 'left interior', 'body', ...): a point within 0.01 mm of a rest surface moves with the "
+           "surface frames, one inside a lung's tetrahedra (the scenario needs `outputs: voxels`) with its "
+           "inside, any other with the body's motion (docs/formats.md, \"Points and structures\").")
       .def("__len__", [](const Animation& a) { return a.frame_count(); })
       .def("__repr__", [](const Animation& a) {
         return fmt::format("<pneuma.Animation '{}' {} frames, {} vertices{}>", a.scenario.name, a.frame_count(),

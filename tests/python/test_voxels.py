@@ -51,3 +51,39 @@ def test_voxels_need_the_output(tmp_path):
     scenario.write_text(SMALL_SCENARIO)
     with pytest.raises(ValueError, match="outputs: voxels"):
         pneuma.Animation(scenario).voxels(0)
+
+
+def test_trajectories_follow_the_frames_and_the_cli(tmp_path):
+    """Animation.trajectories: a point at a rest vertex follows that vertex in every frame (the
+    surface frames, an independent path: Frame/advance), and every point's positions are the CLI's
+    voxels/trajectories.csv (4 decimals of a mm)."""
+    animation = pneuma.Animation(VOXELS_SCENARIO(tmp_path, None))
+    rest = animation.vertices
+    k = int(np.argmax(animation.volume_mL))
+    vertex = len(rest) // 3
+    points = np.array([rest[vertex], rest[:, :].mean(axis=0), rest[vertex] - [0, 0, 0.3]])
+    out = animation.trajectories(points)
+    assert out["positions_m"].shape == (len(animation), 3, 3)
+    assert out["moves_with"][0].endswith("surface"), out["moves_with"]
+    assert out["moves_with"][2] == "body"
+    for i in (0, k, len(animation) - 1):
+        np.testing.assert_allclose(out["positions_m"][i, 0], animation.frame(i)[vertex], atol=1e-9)
+    assert np.linalg.norm(out["positions_m"][k, 0] - rest[vertex]) > 1e-3  # it moved millimetres
+    csv = tmp_path / "points.csv"
+    csv.write_text("name,x_mm,y_mm,z_mm\n" + "".join(
+        f"p{i},{p[0] * 1e3:.7f},{p[1] * 1e3:.7f},{p[2] * 1e3:.7f}\n" for i, p in enumerate(points)))
+    scenario = VOXELS_SCENARIO(tmp_path, csv)
+    code, _, err = run_cli("run", scenario, "-o", tmp_path / "cli", "--quiet")
+    assert code == 0, err
+    rows = [line.split(",") for line in (tmp_path / "cli/voxels/trajectories.csv").read_text().splitlines()[1:]]
+    assert len(rows) == 3 * len(animation)
+    for row in rows:
+        p, frame = int(row[0][1:]), int(row[2])
+        np.testing.assert_allclose([float(v) for v in row[5:8]], out["positions_m"][frame, p] * 1e3, atol=2e-4)
+
+
+def VOXELS_SCENARIO(tmp_path, points):
+    text = VOXELS if points is None else VOXELS.replace("spacing: 4 mm}", f"spacing: 4 mm, points: {points}}}")
+    path = tmp_path / ("voxels.yaml" if points is None else "voxels-points.yaml")
+    path.write_text(text)
+    return path

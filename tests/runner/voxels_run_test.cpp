@@ -334,6 +334,12 @@ TEST(VoxelsRun, BadOptionsAreOneLineErrorsAndWriteNothing) {
       {"{spacing: 0.1 mm}", "outputs.voxels.spacing: expected a voxel size between 0.25 mm and 20 mm, such as '2 mm'"},
       {"{image: missing.nii.gz}", "outputs.voxels.image:"},
       {"{format: png}", "outputs.voxels.format:"},
+      {"{format: mha, dvf_convention: nifti}",
+       "outputs.voxels.dvf_convention: nifti is NIfTI's convention, and format is mha; expected format nii.gz or nii, "
+       "or dvf_convention: itk"},
+      {"{dvf_convention: ras}", "outputs.voxels.dvf_convention:"},
+      {"{sequences: [mp4]}",
+       "outputs.voxels.sequences[0]: expected seq.nrrd (a 3D Slicer sequence) or nii.gz (a 4D NIfTI)"},
   };
   for (const Case& c : cases) {
     std::string text = kPhantom;

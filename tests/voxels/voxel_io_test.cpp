@@ -3,6 +3,7 @@
 // DVF (Dice against pneuma's warp).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -103,6 +104,56 @@ TEST(VoxelFiles, NibabelReadsTheDvfAsAVectorImageInLpsMillimetres) {
   EXPECT_LE(worst, 1e-5);  // float32 of a few mm
 }
 
+// The NIfTI standard's DVF (DvfConvention::nifti): intent 1006 (NIFTI_INTENT_DISPVECT), the
+// components in RAS (x and y negated), the same geometry; each file's descrip says which it is, and
+// the patched, gzipped file is the same bytes each time.
+TEST(VoxelFiles, NibabelReadsTheNiftiStandardsDvfInRasWithItsDescription) {
+  if (!have_nibabel()) GTEST_SKIP() << "nibabel is not importable by /usr/bin/python3 (install-deps: python3-nibabel)";
+  const Moved m;
+  const DisplacementField forward = forward_dvf(m.ball.grid, m.lungs());
+  const TempDir dir;
+  for (const std::string name : {"ras.nii.gz", "ras.nii"})
+    write_dvf(dir / name, forward, DvfDirection::forward, DvfConvention::nifti);
+  write_dvf(dir / "again.nii.gz", forward, DvfDirection::forward, DvfConvention::nifti);
+  EXPECT_EQ(pneuma::test::read_text(dir / "again.nii.gz"), pneuma::test::read_text(dir / "ras.nii.gz"));
+  std::vector<std::string> files = dir.files();
+  std::sort(files.begin(), files.end());
+  EXPECT_EQ(files, (std::vector<std::string>{"again.nii.gz", "ras.nii", "ras.nii.gz"}));  // no temporary left
+  for (const std::string name : {"ras.nii.gz", "ras.nii"}) {
+    const CommandResult r = nibabel_dump(dir / name, dir / "raw");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    std::istringstream lines(r.out);
+    std::string line;
+    std::getline(lines, line);
+    std::getline(lines, line);
+    EXPECT_EQ(line.substr(0, 5), "1006 ") << line;  // NIFTI_INTENT_DISPVECT
+    expect_affine(lines, forward.grid);
+    const std::vector<double> mm = read_raw(dir / "raw");
+    ASSERT_EQ(mm.size(), 3 * forward.displacement_m.size());
+    double worst = 0.0;
+    for (std::size_t v = 0; v < forward.displacement_m.size(); ++v)
+      for (std::size_t c = 0; c < 3; ++c) {
+        const double ras = (c < 2 ? -1e3 : 1e3) * forward.displacement_m[v][static_cast<Eigen::Index>(c)];
+        worst = std::max(worst, std::abs(mm[3 * v + c] - ras));
+      }
+    EXPECT_LE(worst, 1e-5) << name;
+  }
+  const std::string script =
+      "import sys, nibabel\n"
+      "for f in sys.argv[1:]: print(nibabel.load(f).header['descrip'].tobytes().rstrip(b'\\0').decode())";
+  write_dvf(dir / "lps.nii.gz", forward, DvfDirection::forward);
+  write_dvf(dir / "pull.nii", pullback_dvf(m.ball.grid, m.lungs()));
+  const CommandResult r = run_program(kPython, {"-c", script, (dir / "ras.nii.gz").string(),
+                                                (dir / "lps.nii.gz").string(), (dir / "pull.nii").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "pneuma forward DVF x->x+u(x), RAS mm, NIfTI DISPVECT, jumps at pleura\n"
+                   "pneuma forward DVF x->x+u(x), LPS mm, ITK<=5.2 layout, jumps at pleura\n"
+                   "pneuma pull-back DVF out(x)=in(x+v), LPS mm, ITK<=5.2 layout, jumps at pleura\n");
+  // Only NIfTI has the two conventions.
+  EXPECT_THROW(write_dvf(dir / "ras.mha", forward, DvfDirection::forward, DvfConvention::nifti), ValueError);
+  EXPECT_THROW(write_dvf(dir / "ras.nrrd", forward, DvfDirection::forward, DvfConvention::nifti), ValueError);
+}
+
 TEST(VoxelFiles, LabelMapAndCtReadBackOnTheSameGeometry) {
   const Moved m;
   TimePointInputs inputs;
@@ -114,7 +165,7 @@ TEST(VoxelFiles, LabelMapAndCtReadBackOnTheSameGeometry) {
   inputs.ct = &ct;
   const TimePoint point = compute_time_point(m.ball.grid, m.lungs(), inputs);
   const TempDir dir;
-  for (const std::string extension : {".nii.gz", ".mha"}) {
+  for (const std::string extension : {".nii.gz", ".mha", ".nrrd"}) {
     const TimePointFiles files = write_time_point(dir.path(), "0.500s", point, extension);
     EXPECT_EQ(files.forward.filename().string(), "dvf-forward-0.500s" + extension);
     EXPECT_EQ(files.pullback.filename().string(), "dvf-pullback-0.500s" + extension);
@@ -129,7 +180,7 @@ TEST(VoxelFiles, LabelMapAndCtReadBackOnTheSameGeometry) {
     EXPECT_EQ(files.jacobian.filename().string(), "jacobian-0.500s" + extension);
     EXPECT_EQ(read_image(files.jacobian).values, point.jacobian_map->values);
   }
-  EXPECT_EQ(dir.files().size(), 10u);  // per format: two DVFs, the labels, the CT, the Jacobian
+  EXPECT_EQ(dir.files().size(), 15u);  // per format: two DVFs, the labels, the CT, the Jacobian
   // Into the buffers of another time point: the same values.
   TimePoint reused = compute_time_point(m.ball.grid, std::vector<LungMotion>{LungMotion{m.ball.mesh, m.u, 0.3}});
   compute_time_point(m.ball.grid, m.lungs(), inputs, reused);

@@ -1,5 +1,9 @@
 #include "pneuma/voxels/time_point.h"
 
+#include <algorithm>
+#include <cstring>
+#include <tuple>
+
 #include "pneuma/core/error.h"
 #include "pneuma/voxels/voxel_io.h"
 
@@ -45,15 +49,15 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
 }
 
 TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
-                                const std::string& extension) {
-  if (extension != ".nii.gz" && extension != ".nii" && extension != ".mha") {
-    throw ValueError("voxel file extension '" + extension + "': expected .nii.gz, .nii or .mha");
+                                const std::string& extension, DvfConvention convention) {
+  if (extension != ".nii.gz" && extension != ".nii" && extension != ".mha" && extension != ".nrrd") {
+    throw ValueError("voxel file extension '" + extension + "': expected .nii.gz, .nii, .mha or .nrrd");
   }
   TimePointFiles files;
   files.forward = folder / ("dvf-forward-" + tag + extension);
   files.pullback = folder / ("dvf-pullback-" + tag + extension);
-  write_dvf(files.forward, point.forward);
-  write_dvf(files.pullback, point.pullback);
+  write_dvf(files.forward, point.forward, DvfDirection::forward, convention);
+  write_dvf(files.pullback, point.pullback, DvfDirection::pullback, convention);
   if (point.labels) {
     files.labels = folder / ("labels-" + tag + extension);
     write_label_map(files.labels, *point.labels);
@@ -66,6 +70,75 @@ TimePointFiles write_time_point(const std::filesystem::path& folder, const std::
     files.jacobian = folder / ("jacobian-" + tag + extension);
     write_image(files.jacobian, *point.jacobian_map);
   }
+  return files;
+}
+
+TimePointSequences::TimePointSequences(std::filesystem::path folder, std::vector<SequenceFormat> formats,
+                                       std::string index_name, std::string index_unit, std::vector<double> index_values,
+                                       SequenceVoxel labels, DvfConvention convention)
+    : folder_(std::move(folder)), formats_(std::move(formats)), labels_(labels) {
+  base_.nifti_ras = convention == DvfConvention::nifti;
+  base_.index_name = std::move(index_name);
+  base_.index_unit = std::move(index_unit);
+  base_.index_values = std::move(index_values);
+}
+
+void TimePointSequences::append_item(const std::string& kind, const Grid& grid, SequenceVoxel voxel, const void* values,
+                                     std::size_t bytes, const std::string& field_type) {
+  for (const SequenceFormat format : formats_) {
+    const std::string name = kind + (format == SequenceFormat::slicer_nrrd ? ".seq.nrrd" : "-4d.nii.gz");
+    auto it = std::find_if(writers_.begin(), writers_.end(), [&](const auto& w) { return w.first == name; });
+    if (it == writers_.end()) {
+      SequenceSpec spec = base_;
+      spec.grid = grid;
+      spec.voxel = voxel;
+      spec.label_map = kind == "labels";
+      spec.displacement_field_type = field_type;
+      writers_.emplace_back(name, std::make_unique<SequenceWriter>(folder_ / name, format, spec));
+      it = writers_.end() - 1;
+    }
+    it->second->append(values, bytes);
+  }
+}
+
+void TimePointSequences::append(const TimePoint& point) {
+  if (point.labels) {
+    const std::vector<std::int32_t>& labels = point.labels->labels;
+    const std::size_t size = labels_ == SequenceVoxel::uint8 ? 1 : labels_ == SequenceVoxel::int16 ? 2 : 4;
+    label_scratch_.resize(labels.size() * size);
+    for (std::size_t v = 0; v < labels.size(); ++v) {
+      if (size == 1) {
+        label_scratch_[v] = static_cast<char>(static_cast<std::uint8_t>(labels[v]));
+      } else if (size == 2) {
+        const auto x = static_cast<std::int16_t>(labels[v]);
+        std::memcpy(label_scratch_.data() + 2 * v, &x, 2);
+      } else {
+        std::memcpy(label_scratch_.data() + 4 * v, &labels[v], 4);
+      }
+    }
+    append_item("labels", grid_of(*point.labels), labels_, label_scratch_.data(), label_scratch_.size());
+  }
+  if (point.ct) {
+    append_item("ct", point.ct->grid, SequenceVoxel::float32, point.ct->values.data(),
+                point.ct->values.size() * sizeof(float));
+  }
+  if (point.jacobian_map) {
+    append_item("jacobian", point.jacobian_map->grid, SequenceVoxel::float32, point.jacobian_map->values.data(),
+                point.jacobian_map->values.size() * sizeof(float));
+  }
+  for (const auto& [kind, field, type] : {std::tuple{"dvf-pullback", &point.pullback, "resampling"},
+                                          std::tuple{"dvf-forward", &point.forward, "modeling"}}) {
+    scratch_.resize(3 * field->displacement_m.size());
+    for (std::size_t v = 0; v < field->displacement_m.size(); ++v)
+      for (std::size_t c = 0; c < 3; ++c)
+        scratch_[3 * v + c] = static_cast<float>(field->displacement_m[v][static_cast<Eigen::Index>(c)] * 1e3);
+    append_item(kind, field->grid, SequenceVoxel::vector3, scratch_.data(), scratch_.size() * sizeof(float), type);
+  }
+}
+
+std::vector<std::filesystem::path> TimePointSequences::finish() {
+  std::vector<std::filesystem::path> files;
+  for (auto& [name, writer] : writers_) files.push_back(writer->finish());
   return files;
 }
 

@@ -13,7 +13,14 @@
 //       spacing: 2 mm                  # a grid of this spacing over the label map's extent (default:
 //                                      # the label map's own grid; lungs without one: 2 mm over their box)
 //       image: ct.nii.gz               # a CT on the label map's geometry (or its own) to pull back
-//       format: nii.gz                 # nii.gz | nii | mha
+//       format: nii.gz                 # nii.gz | nii | mha | nrrd (NRRD DVFs as 3D Slicer reads them)
+//       sequences: [seq.nrrd, nii.gz]  # the time points (the phase bins when `phases` is in `at`) as one
+//                                      # 3D Slicer sequence and one 4D NIfTI per kind (default: none)
+//       points: fiducials.csv          # name,x_mm,y_mm,z_mm (LPS) -> voxels/trajectories.csv
+//       structures: {gtv: 7, target: target.nii.gz}   # a label or a mask -> structure-<name>-<t>,
+//                                      # itv-<name>, structures.csv, structures-summary.csv
+//       dvf_convention: itk            # NIfTI DVFs: itk (LPS components, intent 1007: ITK <= 5.2,
+//                                      # plastimatch, elastix) | nifti (RAS, intent 1006: ITK >= 5.3, nibabel)
 //
 // Files (voxels/): dvf-forward-<t>, dvf-pullback-<t>, labels-<t> and ct-<t> with <t> the frame's
 // time ("2.400s") or the bin ("bin_03"), and voxels.csv (a bin's frame and time are empty). Label-map lungs warp the
@@ -28,6 +35,7 @@
 
 #include "pneuma/outputs/output.h"
 #include "pneuma/outputs/report.h"
+#include "pneuma/outputs/tracking.h"
 
 #include "pneuma/voxels/time_point.h"
 
@@ -47,6 +55,10 @@ struct VoxelsSpec {
   bool mass_preserving = true;  // `density: mass_preserving` (default) | `unchanged`: the CT's lung parenchyma
   bool jacobian = true;         // `jacobian: true|false`: jacobian-<t> files (the forward map's Jacobian)
   std::string extension = ".nii.gz";
+  voxels::DvfConvention dvf_convention = voxels::DvfConvention::itk;
+  std::vector<voxels::SequenceFormat> sequences;  // `sequences`: none by default
+  std::vector<Fiducial> points;                   // `points: fiducials.csv` -> trajectories.csv
+  std::vector<StructureSpec> structures;          // `structures: {gtv: 7, target: mask.nii.gz}`
 };
 
 // A run's voxel setting, made once from the compiled model (with the lungs' inside): the grid,

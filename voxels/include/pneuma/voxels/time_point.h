@@ -5,6 +5,7 @@
 // parenchyma keeping its mass (density.h).
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -14,6 +15,8 @@
 #include "pneuma/voxels/density.h"
 #include "pneuma/voxels/dvf.h"
 #include "pneuma/voxels/jacobian.h"
+#include "pneuma/voxels/sequence_io.h"
+#include "pneuma/voxels/voxel_io.h"
 #include "pneuma/voxels/warp.h"
 
 namespace pneuma::voxels {
@@ -51,8 +54,36 @@ struct TimePointFiles {
 
 // dvf-forward-<tag>.nii.gz, dvf-pullback-<tag>.nii.gz, labels-<tag>.nii.gz, ct-<tag>.nii.gz and
 // jacobian-<tag>.nii.gz in `folder` (the last three when the time point has them); `extension`
-// ".nii.gz", ".nii" or ".mha".
+// ".nii.gz", ".nii", ".mha" or ".nrrd"; `convention` the NIfTI DVFs' (voxel_io.h).
 TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
-                                const std::string& extension = ".nii.gz");
+                                const std::string& extension = ".nii.gz",
+                                DvfConvention convention = DvfConvention::itk);
+
+// A run's time points as sequences (sequence_io.h), appended one time point at a time: per format,
+// labels, ct, jacobian (those the time points have), dvf-pullback and dvf-forward, named
+// `<kind>.seq.nrrd` (3D Slicer) and `<kind>-4d.nii.gz` (4D NIfTI) in `folder`. Each writer is made
+// at the first time point, on that time point's grid.
+class TimePointSequences {
+ public:
+  // `index_values` one per time point to come; `labels` the voxel type of the warped label maps;
+  // `convention` the 4D NIfTI DVFs' (the .seq.nrrd DVFs are LPS with the identity measurement frame).
+  TimePointSequences(std::filesystem::path folder, std::vector<SequenceFormat> formats, std::string index_name,
+                     std::string index_unit, std::vector<double> index_values, SequenceVoxel labels,
+                     DvfConvention convention = DvfConvention::itk);
+  void append(const TimePoint& point);
+  // The files, after the last time point.
+  std::vector<std::filesystem::path> finish();
+
+ private:
+  void append_item(const std::string& kind, const Grid& grid, SequenceVoxel voxel, const void* values,
+                   std::size_t bytes, const std::string& field_type = {});
+  std::filesystem::path folder_;
+  std::vector<SequenceFormat> formats_;
+  SequenceSpec base_;
+  SequenceVoxel labels_;
+  std::vector<std::pair<std::string, std::unique_ptr<SequenceWriter>>> writers_;  // kind + format, in order made
+  std::vector<float> scratch_;
+  std::vector<char> label_scratch_;
+};
 
 }  // namespace pneuma::voxels
