@@ -1,43 +1,140 @@
-// The diaphragm's height map per lung, extended and faded beyond the footprint (body_motion.h).
+// The lungs' normal surface motion extended smoothly into the body, faded with the distance from
+// them (body_motion.h).
 #include "pneuma/model/body_motion.h"
 
-#include <Eigen/Geometry>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
+#include "pneuma/core/tsan.h"
 #include "pneuma/model/model.h"
 
 namespace pneuma::model {
 namespace {
 
-// A separable Gaussian blur of a nx x ny map (i fastest), truncated at 4 sigma, zero outside.
-std::vector<double> blur(const std::vector<double>& in, std::size_t nx, std::size_t ny, double sigma_cells) {
-  const auto radius = static_cast<std::ptrdiff_t>(std::ceil(4.0 * sigma_cells));
-  std::vector<double> kernel;
-  for (std::ptrdiff_t k = -radius; k <= radius; ++k) {
-    kernel.push_back(std::exp(-0.5 * static_cast<double>(k * k) / (sigma_cells * sigma_cells)));
+// A regular axis-aligned grid of nodes (LPS), i fastest.
+struct Lattice {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  double h = 1.0;
+  std::array<std::size_t, 3> n{0, 0, 0};
+
+  Lattice(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, double spacing) : origin(lo), h(spacing) {
+    for (int a = 0; a < 3; ++a)
+      n[static_cast<std::size_t>(a)] = static_cast<std::size_t>(std::ceil((hi[a] - lo[a]) / h)) + 1;
   }
-  double total = 0.0;
-  for (const double w : kernel) total += w;
-  for (double& w : kernel) w /= total;
-  auto pass = [&](const std::vector<double>& src, bool along_x) {
-    std::vector<double> dst(src.size(), 0.0);
-    const auto sx = static_cast<std::ptrdiff_t>(nx), sy = static_cast<std::ptrdiff_t>(ny);
-    for (std::ptrdiff_t j = 0; j < sy; ++j) {
-      for (std::ptrdiff_t i = 0; i < sx; ++i) {
+  std::size_t count() const { return n[0] * n[1] * n[2]; }
+  std::size_t at(std::size_t i, std::size_t j, std::size_t k) const { return i + n[0] * (j + n[1] * k); }
+  Eigen::Vector3d node(std::size_t i, std::size_t j, std::size_t k) const {
+    return origin + h * Eigen::Vector3d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
+  }
+  // The cell holding `x` and the fractions within it; false outside the lattice.
+  bool cell(const Eigen::Vector3d& x, std::array<std::size_t, 3>& base, Eigen::Vector3d& t) const {
+    const Eigen::Vector3d f = (x - origin) / h;
+    for (std::size_t a = 0; a < 3; ++a) {
+      const double fa = f[static_cast<Eigen::Index>(a)];
+      if (!(fa >= 0.0) || !(fa <= static_cast<double>(n[a] - 1))) return false;
+      base[a] = std::min(static_cast<std::size_t>(fa), n[a] - 2);
+      t[static_cast<Eigen::Index>(a)] = fa - static_cast<double>(base[a]);
+    }
+    return true;
+  }
+  // Calls visit(node index, trilinear weight) for the 8 nodes around `x` (none outside).
+  template <typename Visit>
+  void corners(const Eigen::Vector3d& x, Visit visit) const {
+    std::array<std::size_t, 3> b{};
+    Eigen::Vector3d t;
+    if (!cell(x, b, t)) return;
+    for (std::size_t c = 0; c < 8; ++c) {
+      const std::size_t di = c & 1u, dj = (c >> 1) & 1u, dk = (c >> 2) & 1u;
+      const double w = (di ? t.x() : 1.0 - t.x()) * (dj ? t.y() : 1.0 - t.y()) * (dk ? t.z() : 1.0 - t.z());
+      visit(at(b[0] + di, b[1] + dj, b[2] + dk), w);
+    }
+  }
+  double sample(const std::vector<double>& v, const Eigen::Vector3d& x) const {
+    double sum = 0.0;
+    corners(x, [&](std::size_t node, double w) { sum += w * v[node]; });
+    return sum;
+  }
+};
+
+// An unnormalised Gaussian blur (peak 1, truncated at 3 sigma) of a lattice's values, along each
+// axis in turn: every node gets the sum of its neighbours' values times exp(-r^2 / 2 sigma^2).
+void blur(std::vector<double>& v, const Lattice& g, double sigma_cells) {
+  const auto radius = static_cast<std::ptrdiff_t>(std::ceil(3.0 * sigma_cells));
+  std::vector<double> kernel;
+  for (std::ptrdiff_t r = -radius; r <= radius; ++r)
+    kernel.push_back(std::exp(-0.5 * static_cast<double>(r * r) / (sigma_cells * sigma_cells)));
+  std::vector<double> line;
+  for (std::size_t axis = 0; axis < 3; ++axis) {
+    const std::size_t stride = axis == 0 ? 1 : axis == 1 ? g.n[0] : g.n[0] * g.n[1];
+    const auto length = static_cast<std::ptrdiff_t>(g.n[axis]);
+    line.resize(g.n[axis]);
+    for (std::size_t start = 0; start < v.size(); ++start) {
+      // One line per node whose coordinate along `axis` is 0.
+      if ((start / stride) % g.n[axis] != 0) continue;
+      for (std::ptrdiff_t i = 0; i < length; ++i)
+        line[static_cast<std::size_t>(i)] = v[start + static_cast<std::size_t>(i) * stride];
+      for (std::ptrdiff_t i = 0; i < length; ++i) {
         double sum = 0.0;
-        for (std::ptrdiff_t k = -radius; k <= radius; ++k) {
-          const std::ptrdiff_t ii = along_x ? i + k : i, jj = along_x ? j : j + k;
-          if (ii < 0 || jj < 0 || ii >= sx || jj >= sy) continue;
-          sum += kernel[static_cast<std::size_t>(k + radius)] * src[static_cast<std::size_t>(ii + sx * jj)];
-        }
-        dst[static_cast<std::size_t>(i + sx * j)] = sum;
+        for (std::ptrdiff_t r = std::max(-radius, -i); r <= radius && i + r < length; ++r)
+          sum += kernel[static_cast<std::size_t>(r + radius)] * line[static_cast<std::size_t>(i + r)];
+        v[start + static_cast<std::size_t>(i) * stride] = sum;
       }
     }
-    return dst;
-  };
-  return pass(pass(in, true), false);
+  }
+}
+
+// The squared Euclidean distance transform of f (Felzenszwalb and Huttenlocher): per node, the
+// least |p - q|^2 + f(q) over nodes q, in squared lattice units; f is infinite where no seed is.
+void distance_transform(std::vector<double>& f, const Lattice& g) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::vector<double> line, out, z;
+  std::vector<std::ptrdiff_t> root;  // the parabolas of the lower envelope, left to right
+  for (std::size_t axis = 0; axis < 3; ++axis) {
+    const std::size_t stride = axis == 0 ? 1 : axis == 1 ? g.n[0] : g.n[0] * g.n[1];
+    const std::size_t length = g.n[axis];
+    line.resize(length);
+    out.resize(length);
+    z.resize(length + 1);
+    root.resize(length);
+    for (std::size_t start = 0; start < f.size(); ++start) {
+      if ((start / stride) % length != 0) continue;  // one line per node at coordinate 0 along `axis`
+      for (std::size_t i = 0; i < length; ++i) line[i] = f[start + i * stride];
+      std::ptrdiff_t k = -1;
+      for (std::size_t q = 0; q < length; ++q) {
+        if (line[q] == kInf) continue;
+        const auto qd = static_cast<double>(q);
+        double s = -kInf;
+        while (k >= 0) {
+          const auto p = root[static_cast<std::size_t>(k)];
+          const auto pd = static_cast<double>(p);
+          s = ((line[q] + qd * qd) - (line[static_cast<std::size_t>(p)] + pd * pd)) / (2.0 * qd - 2.0 * pd);
+          if (s > z[static_cast<std::size_t>(k)]) break;
+          --k;
+        }
+        ++k;
+        root[static_cast<std::size_t>(k)] = static_cast<std::ptrdiff_t>(q);
+        z[static_cast<std::size_t>(k)] = k == 0 ? -kInf : s;
+        z[static_cast<std::size_t>(k) + 1] = kInf;
+      }
+      if (k < 0) continue;  // no seed on this line
+      std::size_t at = 0;
+      for (std::size_t q = 0; q < length; ++q) {
+        while (z[at + 1] < static_cast<double>(q)) ++at;
+        const double d = static_cast<double>(q) - static_cast<double>(root[at]);
+        out[q] = d * d + line[static_cast<std::size_t>(root[at])];
+      }
+      for (std::size_t i = 0; i < length; ++i) f[start + i * stride] = out[i];
+    }
+  }
+}
+
+double smoothstep(double x) {
+  const double t = std::clamp(x, 0.0, 1.0);
+  return t * t * (3.0 - 2.0 * t);
 }
 
 }  // namespace
@@ -45,112 +142,129 @@ std::vector<double> blur(const std::vector<double>& in, std::size_t nx, std::siz
 BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : options_(options) {
   if (model.lungs.empty()) return;
   const mesh::BodyAxes& axes = model.lungs.front().regions.axes;
-  up_ = axes.up.normalized();
-  across1_ = axes.left();
-  across2_ = up_.cross(across1_).normalized();
-  const double h = options.cell_m;
-  const double margin = 4.0 * options.lateral_sigma_m + 2.0 * h;
+  const Eigen::Vector3d up = axes.up.normalized();
+  // The box: the lungs with a margin, and further below them (the abdomen).
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (const LungModel& lung : model.lungs) {
-    LungMap map;
-    // The footprint's bounds across the body, with room for the fade.
-    double lo1 = std::numeric_limits<double>::infinity(), hi1 = -lo1, lo2 = lo1, hi2 = -lo1;
     for (const auto& v : lung.rest.vertices) {
-      lo1 = std::min(lo1, v.dot(across1_));
-      hi1 = std::max(hi1, v.dot(across1_));
-      lo2 = std::min(lo2, v.dot(across2_));
-      hi2 = std::max(hi2, v.dot(across2_));
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
     }
-    lo1 -= margin;
-    lo2 -= margin;
-    map.nx = static_cast<std::size_t>(std::ceil((hi1 + margin - lo1) / h)) + 1;
-    map.ny = static_cast<std::size_t>(std::ceil((hi2 + margin - lo2) / h)) + 1;
-    map.origin = lo1 * across1_ + lo2 * across2_;
-    const std::size_t cells = map.nx * map.ny;
-    // The lowest downward-facing surface point over each cell centre, and its displacement along up.
-    std::vector<double> lowest(cells, std::numeric_limits<double>::infinity()), amplitude(cells, 0.0);
-    for (const auto& t : lung.rest.triangles) {
-      const Eigen::Vector3d& a = lung.rest.vertices[t[0]];
-      const Eigen::Vector3d& b = lung.rest.vertices[t[1]];
-      const Eigen::Vector3d& c = lung.rest.vertices[t[2]];
-      if ((b - a).cross(c - a).dot(up_) >= 0.0) continue;  // faces up or sideways
-      const Eigen::Vector2d pa((a.dot(across1_) - lo1) / h, (a.dot(across2_) - lo2) / h);
-      const Eigen::Vector2d pb((b.dot(across1_) - lo1) / h, (b.dot(across2_) - lo2) / h);
-      const Eigen::Vector2d pc((c.dot(across1_) - lo1) / h, (c.dot(across2_) - lo2) / h);
-      const double area = (pb - pa).x() * (pc - pa).y() - (pb - pa).y() * (pc - pa).x();
-      if (std::abs(area) < 1e-12) continue;
-      const auto i0 = static_cast<std::size_t>(std::max(0.0, std::floor(std::min({pa.x(), pb.x(), pc.x()}))));
-      const auto j0 = static_cast<std::size_t>(std::max(0.0, std::floor(std::min({pa.y(), pb.y(), pc.y()}))));
-      const auto i1 = std::min(map.nx - 1, static_cast<std::size_t>(std::ceil(std::max({pa.x(), pb.x(), pc.x()}))));
-      const auto j1 = std::min(map.ny - 1, static_cast<std::size_t>(std::ceil(std::max({pa.y(), pb.y(), pc.y()}))));
-      for (std::size_t j = j0; j <= j1; ++j) {
-        for (std::size_t i = i0; i <= i1; ++i) {
-          const Eigen::Vector2d p(static_cast<double>(i), static_cast<double>(j));
-          const double wa = ((pb - p).x() * (pc - p).y() - (pb - p).y() * (pc - p).x()) / area;
-          const double wb = ((pc - p).x() * (pa - p).y() - (pc - p).y() * (pa - p).x()) / area;
-          const double wc = 1.0 - wa - wb;
-          if (wa < 0.0 || wb < 0.0 || wc < 0.0) continue;
-          const double z = wa * a.dot(up_) + wb * b.dot(up_) + wc * c.dot(up_);
-          const std::size_t cell = i + map.nx * j;
-          if (z < lowest[cell]) {
-            lowest[cell] = z;
-            amplitude[cell] = (wa * lung.unit_displacement[t[0]] + wb * lung.unit_displacement[t[1]] +
-                               wc * lung.unit_displacement[t[2]])
-                                  .dot(up_);
-          }
+  }
+  lo -= Eigen::Vector3d::Constant(options.margin_m);
+  hi += Eigen::Vector3d::Constant(options.margin_m);
+  lo = lo.cwiseMin(lo - options.below_m * up);
+  hi = hi.cwiseMax(hi - options.below_m * up);
+  const Lattice fine(lo, hi, options.cell_m);
+  origin_ = fine.origin;
+  size_ = fine.n;
+  const std::size_t nodes = fine.count(), lungs = model.lungs.size();
+
+  // The surface samples: area, the normal part of the unit motion, on the diaphragm or not.
+  struct Sample {
+    Eigen::Vector3d at, normal_motion;
+    double area = 0.0, diaphragm = 0.0;
+    std::size_t lung = 0;
+  };
+  std::vector<Sample> samples;
+  for (std::size_t l = 0; l < lungs; ++l) {
+    const LungModel& lung = model.lungs[l];
+    const std::vector<double> area = mesh::vertex_areas(lung.rest);
+    for (std::size_t v = 0; v < lung.rest.vertices.size(); ++v) {
+      const Eigen::Vector3d n = lung.normals[v].normalized();
+      const double on_diaphragm = lung.regions.weight.size() == lung.rest.vertices.size()
+                                      ? lung.regions.weight[v][static_cast<std::size_t>(mesh::Region::diaphragmatic)]
+                                      : std::clamp(-n.dot(up), 0.0, 1.0);
+      // Beside the chest wall and the mediastinum the tissue follows the pleura across it (the
+      // lung slides along); under the diaphragm it follows the diaphragm (the liver in its dome).
+      const Eigen::Vector3d& u = lung.unit_displacement[v];
+      const Eigen::Vector3d followed = on_diaphragm * u + (1.0 - on_diaphragm) * n.dot(u) * n;
+      samples.push_back({lung.rest.vertices[v], followed, area[v], on_diaphragm, l});
+    }
+  }
+
+  // E and the diaphragm's share at every fine node: normalised convolutions with K, one Gaussian
+  // at a time on a lattice of half its sigma, sampled back onto the fine nodes.
+  std::vector<Eigen::Vector3d> numerator(lungs * nodes, Eigen::Vector3d::Zero());
+  std::vector<double> weight(nodes, 0.0), diaphragm(nodes, 0.0);
+  for (int scale = 0; scale < 4; ++scale) {
+    const double sigma = options.smallest_sigma_m * std::ldexp(1.0, scale);
+    const double factor = std::pow(options.smallest_sigma_m / sigma, 5.0);
+    const Lattice g(lo, hi, 0.5 * sigma);
+    std::vector<std::vector<double>> arrays(3 * lungs + 2, std::vector<double>(g.count(), 0.0));
+    for (const Sample& s : samples) {
+      g.corners(s.at, [&](std::size_t node, double w) {
+        for (std::size_t c = 0; c < 3; ++c)
+          arrays[3 * s.lung + c][node] += w * s.area * s.normal_motion[static_cast<Eigen::Index>(c)];
+        arrays[3 * lungs][node] += w * s.area;
+        arrays[3 * lungs + 1][node] += w * s.area * s.diaphragm;
+      });
+    }
+    for (auto& a : arrays) blur(a, g, 2.0);
+    const tsan::Region region;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, fine.n[2]),
+                      region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+                        for (std::size_t k = r.begin(); k != r.end(); ++k)
+                          for (std::size_t j = 0; j < fine.n[1]; ++j)
+                            for (std::size_t i = 0; i < fine.n[0]; ++i) {
+                              const Eigen::Vector3d x = fine.node(i, j, k);
+                              const std::size_t node = fine.at(i, j, k);
+                              for (std::size_t l = 0; l < lungs; ++l)
+                                for (std::size_t c = 0; c < 3; ++c)
+                                  numerator[l * nodes + node][static_cast<Eigen::Index>(c)] +=
+                                      factor * g.sample(arrays[3 * l + c], x);
+                              weight[node] += factor * g.sample(arrays[3 * lungs], x);
+                              diaphragm[node] += factor * g.sample(arrays[3 * lungs + 1], x);
+                            }
+                      }));
+    region.join();
+  }
+
+  // The distance to the nearest surface vertex: exact at the nodes around each vertex, then the
+  // distance transform (in lattice units) carries it everywhere.
+  std::vector<double> distance(nodes, std::numeric_limits<double>::infinity());
+  for (const Sample& s : samples) {
+    fine.corners(s.at, [&](std::size_t node, double) {
+      const std::size_t i = node % fine.n[0], j = (node / fine.n[0]) % fine.n[1], k = node / (fine.n[0] * fine.n[1]);
+      distance[node] = std::min(distance[node], (fine.node(i, j, k) - s.at).squaredNorm() / (fine.h * fine.h));
+    });
+  }
+  distance_transform(distance, fine);
+
+  unit_.assign(lungs, std::vector<Eigen::Vector3d>(nodes, Eigen::Vector3d::Zero()));
+  const double tiny = 1e-12 * weight[0] + std::numeric_limits<double>::min();
+  for (std::size_t k = 0; k < fine.n[2]; ++k) {
+    for (std::size_t j = 0; j < fine.n[1]; ++j) {
+      for (std::size_t i = 0; i < fine.n[0]; ++i) {
+        const std::size_t node = fine.at(i, j, k);
+        if (!(weight[node] > tiny)) continue;
+        // A node within half a cell of the surface counts as on it (the distance's kink at the
+        // pleura is between nodes; trilinear sampling would otherwise fade the pleura itself).
+        const double d = std::max(0.0, std::sqrt(distance[node]) * fine.h - 0.5 * fine.h);
+        const double share = diaphragm[node] / weight[node];
+        const double decay = options.wall_decay_m + (options.abdomen_decay_m - options.wall_decay_m) * share;
+        double taper = 1.0;
+        const std::array<std::size_t, 3> ijk{i, j, k};
+        for (std::size_t a = 0; a < 3; ++a) {
+          const double from_face = static_cast<double>(std::min(ijk[a], fine.n[a] - 1 - ijk[a])) * fine.h;
+          taper *= smoothstep(from_face / options.taper_m);
         }
+        const double fade = std::exp(-d / decay) * taper;
+        for (std::size_t l = 0; l < lungs; ++l) unit_[l][node] = numerator[l * nodes + node] / weight[node] * fade;
       }
     }
-    // Beyond the footprint: normalised Gaussian averages of a and z, faded by the Gaussian's reach
-    // (the footprint's blurred indicator, 1/2 at a straight edge: doubled and capped at 1).
-    std::vector<double> mask(cells, 0.0), masked_a(cells, 0.0), masked_z(cells, 0.0);
-    for (std::size_t k = 0; k < cells; ++k) {
-      if (std::isfinite(lowest[k])) {
-        mask[k] = 1.0;
-        masked_a[k] = amplitude[k];
-        masked_z[k] = lowest[k];
-      }
-    }
-    const double sigma_cells = options.lateral_sigma_m / h;
-    const std::vector<double> weight = blur(mask, map.nx, map.ny, sigma_cells);
-    const std::vector<double> sum_a = blur(masked_a, map.nx, map.ny, sigma_cells);
-    const std::vector<double> sum_z = blur(masked_z, map.nx, map.ny, sigma_cells);
-    map.amplitude.assign(cells, 0.0);
-    map.height.assign(cells, 0.0);
-    for (std::size_t k = 0; k < cells; ++k) {
-      if (mask[k] > 0.0) {
-        map.amplitude[k] = amplitude[k];
-        map.height[k] = lowest[k];
-      } else if (weight[k] > 1e-12) {
-        map.amplitude[k] = sum_a[k] / weight[k] * std::min(1.0, 2.0 * weight[k]);
-        map.height[k] = sum_z[k] / weight[k];
-      }
-    }
-    lungs_.push_back(std::move(map));
   }
 }
 
 Eigen::Vector3d BodyMotion::displacement(const Eigen::Vector3d& x, std::span<const double> scales) const {
-  double along_up = 0.0;
-  const double h = options_.cell_m;
-  for (std::size_t l = 0; l < lungs_.size() && l < scales.size(); ++l) {
-    const LungMap& m = lungs_[l];
-    const Eigen::Vector3d d = x - m.origin;
-    const double fi = d.dot(across1_) / h, fj = d.dot(across2_) / h;
-    if (!(fi >= 0.0 && fj >= 0.0)) continue;
-    const auto i = static_cast<std::size_t>(fi), j = static_cast<std::size_t>(fj);
-    if (i + 1 >= m.nx || j + 1 >= m.ny) continue;
-    const double ti = fi - static_cast<double>(i), tj = fj - static_cast<double>(j);
-    // Bilinear in both maps: continuous across cells.
-    auto at = [&](const std::vector<double>& v) {
-      const std::size_t k = i + m.nx * j;
-      return (1 - ti) * (1 - tj) * v[k] + ti * (1 - tj) * v[k + 1] + (1 - ti) * tj * v[k + m.nx] +
-             ti * tj * v[k + m.nx + 1];
-    };
-    const double a = at(m.amplitude);
-    if (a == 0.0) continue;
-    along_up += scales[l] * a * std::exp(-std::abs(x.dot(up_) - at(m.height)) / options_.decay_length_m);
-  }
-  return along_up * up_;
+  Eigen::Vector3d u = Eigen::Vector3d::Zero();
+  if (unit_.empty()) return u;
+  Lattice fine(origin_, origin_, options_.cell_m);
+  fine.n = size_;
+  fine.corners(x, [&](std::size_t node, double w) {
+    for (std::size_t l = 0; l < unit_.size() && l < scales.size(); ++l) u += (w * scales[l]) * unit_[l][node];
+  });
+  return u;
 }
 
 }  // namespace pneuma::model

@@ -1,22 +1,32 @@
 #pragma once
-// How the body outside the lungs moves (#31; docs/voxels.md, "Around the lungs").
+// How the body outside the lungs moves (#31, #45; docs/voxels.md, "Around the lungs").
 //
-// The lungs slide along the chest wall: the tissue beside them (ribs, muscle, mediastinum) stays
-// where it is, and the displacement is discontinuous at the pleura. Below the diaphragm the
-// abdomen moves with it (the liver dome descends with the diaphragm in 4D-CT). pneuma models that
-// as a decaying extension of the diaphragm's motion along the body's long axis:
+// The lungs slide along the pleura, and nothing else tears: the tissue around them (chest wall,
+// mediastinum and heart, the abdomen under the diaphragm) follows the pleura's motion *across*
+// it, so that nothing opens or overlaps there, and lets the lung slide *along* it: the only
+// discontinuity is the tangential slide at the pleura. pneuma extends the normal part of each
+// lung's surface motion smoothly into the body and fades it with the distance from the lungs:
 //
-//   u(x) = sum over lungs of  s_lung * a_lung(p) * exp(-|h - z_lung(p)| / L) * up
+//   u(x) = sum over lungs of  s_lung * E_lung(x) * exp(-d(x) / L(x)) * taper(x)
 //
-// with p the point's position across the body (the plane perpendicular to `up`), h its height
-// along `up`, z_lung(p) the height of the lung's lowest surface point above or below p (its
-// diaphragm) and a_lung(p) that point's unit displacement along `up` (negative: it descends).
-// Outside the lung's footprint, a and z are extended by normalised Gaussian averaging (sigma
-// `lateral_sigma_m`) and faded out by the Gaussian's reach, so the field is continuous everywhere
-// off the lungs and matches the diaphragm's descent just below it. The motion is along `up` only,
-// so its Jacobian determinant is 1 + du/dh >= 1 - max|s a| / L: with L = 120 mm and a 25 mm
-// descent, at least 0.79; it cannot fold.
+//   E_lung(x) = sum_v K(x - y_v) A_v (n_v . u_v) n_v  /  sum over all lungs' v of K(x - y_v) A_v
+//
+// with y_v, n_v, A_v and u_v a rest surface vertex, its outward normal, its area and its unit
+// displacement; K a sum of Gaussians of sigma 12, 24, 48 and 96 mm weighted 1/sigma^3 (near the
+// pleura the narrowest decides, so E is the local normal motion, blurred over about 12 mm; far
+// away the wider ones take over, so E is defined and smooth everywhere); d(x) the distance to the
+// nearest lung surface; L(x) blended from 40 mm (chest wall, mediastinum and heart) to 120 mm
+// (the abdomen: the liver dome follows the diaphragm, the kidneys about 10 cm below move about
+// half as far) by the diaphragm's share of the weights at x; and a taper to zero over the last
+// 48 mm of the field's box (80 mm around the lungs, 200 mm below them). Between two lungs each
+// point follows the nearer lung's face most: the heart and mediastinum move with the medial
+// faces and, near it, the diaphragm. E, L and the fade are smooth on the scale of 12 mm, so the
+// field has no bands and no tears; its Jacobian is measured (docs/voxels.md), not bounded.
+//
+// The field is precomputed per lung for s = 1 on a grid of `cell_m` (6 mm) and interpolated
+// trilinearly; a frame's field is the lungs' scales times theirs.
 #include <Eigen/Core>
+#include <array>
 #include <span>
 #include <vector>
 
@@ -25,35 +35,32 @@ namespace pneuma::model {
 struct Model;
 
 struct BodyMotionOptions {
-  // L: how fast the motion fades with distance from the diaphragm along the body. The liver dome
-  // follows the diaphragm; kidneys about 10 cm below it move about half as far (hence ~120 mm).
-  double decay_length_m = 0.12;
-  double lateral_sigma_m = 0.02;  // fade beyond the lung's footprint
-  double cell_m = 2e-3;           // the maps' resolution across the body
+  double wall_decay_m = 0.04;       // L beside the chest wall, the mediastinum and the heart
+  double abdomen_decay_m = 0.12;    // L under the diaphragm
+  double smallest_sigma_m = 0.012;  // the narrowest of K's four Gaussians (then 2x, 4x, 8x)
+  double margin_m = 0.08;           // the field's box around the lungs (below them: `below_m`)
+  double below_m = 0.20;
+  double taper_m = 0.048;  // the field fades to 0 over this much at the box's faces
+  double cell_m = 6e-3;    // the precomputed grid's spacing
 };
 
 class BodyMotion {
  public:
   BodyMotion() = default;  // no lungs: nothing moves
-  // The maps of every lung of `model` (its rest surface, unit displacement and body axes).
+  // The unit fields of every lung of `model` (its rest surface, normals, unit displacement and
+  // body axes).
   BodyMotion(const Model& model, const BodyMotionOptions& options = {});
 
   // The displacement (metres, LPS) of body tissue at `x` (outside the lungs) for the lungs'
-  // scales (one per model lung).
+  // scales (one per model lung); 0 outside the field's box.
   Eigen::Vector3d displacement(const Eigen::Vector3d& x, std::span<const double> scales) const;
   const BodyMotionOptions& options() const { return options_; }
 
  private:
-  struct LungMap {
-    Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // corner of cell (0, 0)
-    std::size_t nx = 0, ny = 0;
-    std::vector<double> amplitude;  // a * fade, per cell (m per unit s)
-    std::vector<double> height;     // z, per cell (m along up)
-  };
   BodyMotionOptions options_;
-  Eigen::Vector3d up_ = Eigen::Vector3d::UnitZ(), across1_ = Eigen::Vector3d::UnitX(),
-                  across2_ = Eigen::Vector3d::UnitY();
-  std::vector<LungMap> lungs_;
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();  // the grid's first node (LPS, axis-aligned)
+  std::array<std::size_t, 3> size_{0, 0, 0};
+  std::vector<std::vector<Eigen::Vector3d>> unit_;  // per lung: u at s = 1 per node, i fastest
 };
 
 }  // namespace pneuma::model
