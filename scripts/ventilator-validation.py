@@ -87,7 +87,8 @@ MISSES = (("Healthy_PC_AC", "vt", "VT", "Healthy PC-AC VT (mL)"),
           ("Restrictive_CPAP", "vt", "VT", "Restrictive CPAP VT (mL)"))
 # The settings the bench does not publish or pneuma cannot know, one changed at a time over a
 # plausible range (the sources in docs/ventilator-validation.md): the effort's amplitude and
-# neural inspiratory time (the rise), the trigger, the CPAP cycle, the rise time, the circuit.
+# neural inspiratory time (the rise), its release, the trigger, the CPAP cycle, the rise time, the
+# circuit.
 # `cycle` applies to CPAP only (PC-AC is time-cycled).
 CHANGES = (("Pulse's settings (the scored run)", {}),
            ("muscle pressure x 0.8", {"Pmus": 0.8}),
@@ -95,6 +96,9 @@ CHANGES = (("Pulse's settings (the scored run)", {}),
            ("neural Ti x 0.75", {"neural_Ti": 0.75}),
            ("neural Ti x 1.25", {"neural_Ti": 1.25}),
            ("neural Ti x 1.5", {"neural_Ti": 1.5}),
+           ("release over 10 % of Te", {"release": 0.1}),
+           ("release over min(Ti, Te / 2) (Pulse)", {"release": "pulse"}),
+           ("release over all of Te", {"release": 1.0}),
            ("trigger flow 2 L/min", {"trigger": "{flow: 2 L/min}"}),
            ("trigger pressure 1 cmH2O", {"trigger": "{pressure: 1 cmH2O}"}),
            ("cycle 50 % of peak flow", {"cycle": "{flow: 50 %}"}),
@@ -120,7 +124,9 @@ def whole(x, signed=False):
 
 def scenario(case, duration_s, circuit=None, change=None):
     """The case's scenario; `change` (a sensitivity run) overrides one unpublished setting: `Pmus` or
-    `neural_Ti` (times the published value), `trigger`, `cycle` (CPAP), `slope` (s), `circuit`."""
+    `neural_Ti` (times the published value), `release` (the effort's relaxation, a share of the
+    expiration, or "pulse": min(Ti, Te / 2) as Pulse's ventilation-mechanics HowTo), `trigger`,
+    `cycle` (CPAP), `slope` (s), `circuit`."""
     change = change or {}
     p = dict(PATIENTS[case.split("_")[0]])
     v = dict(VENTILATOR[case])
@@ -131,6 +137,10 @@ def scenario(case, duration_s, circuit=None, change=None):
     cycle = change.get("cycle", f"{{flow: {CPAP_CYCLE_L_PER_MIN} L/min}}")
     circuit = change.get("circuit", circuit)
     te = 60.0 / p["rate"] - p["Ti"]
+    effort = f"rate: {p['rate']} /min, ie_ratio: '{p['Ti']:.6g}:{te:.6g}', muscle_pressure: {p['Pmus']:.6g} cmH2O"
+    if "release" in change:
+        release = min(p["Ti"], te / 2) / te if change["release"] == "pulse" else change["release"]
+        effort += f", release: {100 * release:.6g} %"
     lines = [
         f"name: pulse-bench-{case.lower()}",
         f"duration: {duration_s} s",
@@ -138,7 +148,7 @@ def scenario(case, duration_s, circuit=None, change=None):
         "  model: single",
         f"  compliance: {p['C']} mL/cmH2O",
         f"  resistance: {p['R']} cmH2O*s/L",
-        f"  effort: {{rate: {p['rate']} /min, ie_ratio: '{p['Ti']:.6g}:{te:.6g}', muscle_pressure: {p['Pmus']:.6g} cmH2O}}",
+        f"  effort: {{{effort}}}",
         "  driver:",
         f"    mode: {v['mode']}",
         f"    peep: {v['PEEP']} cmH2O",
