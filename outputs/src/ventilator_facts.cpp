@@ -141,9 +141,14 @@ Facts ventilator_facts(const physiology::Protocol& protocol, const physiology::S
     const std::string prefix = fmt::format("ventilator.settings[{}].", index++);
     out.emplace_back(prefix + "at_s", number(s.start_time_s));
     driver_facts(prefix, s.driver, out);
-    if (s.effort.active())
-      out.emplace_back(prefix + "effort", fmt::format("{:.6g} /min, I:E {:.6g}, {:.6g} cmH2O", s.effort.rate_hz * 60.0,
-                                                      s.effort.ie_ratio, s.effort.amplitude_pa * kCmH2O));
+    if (s.effort.active()) {
+      std::string effort = fmt::format("{:.6g} /min, I:E {:.6g}, {:.6g} cmH2O", s.effort.rate_hz * 60.0,
+                                       s.effort.ie_ratio, s.effort.amplitude_pa * kCmH2O);
+      // The release only where set, so the manifests of the default effort read as before.
+      if (s.effort.release_share != physiology::PatientEffort{}.release_share)
+        effort += fmt::format(", release {:.6g} %", 100.0 * s.effort.release_share);
+      out.emplace_back(prefix + "effort", effort);
+    }
   }
   if (!protocol.holds.empty()) {
     std::string holds;

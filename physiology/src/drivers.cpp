@@ -109,7 +109,9 @@ struct DriveOf {
 struct EffortShape {
   double period, ti, relax;
   explicit EffortShape(const PatientEffort& e)
-      : period(1.0 / e.rate_hz), ti(period * e.ie_ratio / (1.0 + e.ie_ratio)), relax(ti + 0.5 * (period - ti)) {}
+      : period(1.0 / e.rate_hz),
+        ti(period * e.ie_ratio / (1.0 + e.ie_ratio)),
+        relax(ti + e.release_share * (period - ti)) {}
   double within(double t) const { return t - period * std::floor(t / period); }
 };
 
@@ -235,6 +237,8 @@ void validate(const PatientEffort& e) {
   }
   require(e.rate_hz > 0.0 && std::isfinite(e.rate_hz), "the effort's rate must be positive");
   require(e.ie_ratio > 0.0 && std::isfinite(e.ie_ratio), "the effort's I:E ratio must be positive");
+  require(e.release_share > 0.0 && e.release_share <= 1.0,
+          "the effort's release must be a share of the expiration above 0 and at most 100 %");
 }
 
 void validate(const Driver& driver) {

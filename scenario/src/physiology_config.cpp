@@ -730,8 +730,8 @@ void overlay_mechanics(const scenario::Node& n, const std::string& model, Mechan
   }
 }
 
-// effort: {rate, ie_ratio, muscle_pressure}: the patient's own effort on a ventilated patient,
-// patched key by key over `effort`.
+// effort: {rate, ie_ratio, muscle_pressure, release}: the patient's own effort on a ventilated
+// patient, patched key by key over `effort`.
 physiology::PatientEffort overlay_effort(const scenario::Node& n, physiology::PatientEffort effort,
                                          const physiology::Driver& driver) {
   auto e = n.optional_map("effort");
@@ -745,6 +745,12 @@ physiology::PatientEffort overlay_effort(const scenario::Node& n, physiology::Pa
     if (!(*p >= 0.0))
       e->fail_at("muscle_pressure", "expected a pressure >= 0, got '" + e->string("muscle_pressure") + "'");
     effort.amplitude_pa = *p;
+  }
+  if (auto r = e->optional_quantity("release", kind::fraction)) {
+    if (!(*r > 0.0 && *r <= 1.0))
+      e->fail_at("release",
+                 "expected a share of the expiration above 0 and at most 100 %, got '" + e->string("release") + "'");
+    effort.release_share = *r;
   }
   e->finish();
   if (effort.active() && !(effort.rate_hz > 0.0))

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "pneuma/core/error.h"
+#include "pneuma/outputs/ventilator_facts.h"
 #include "pneuma/scenario/physiology_config.h"
 #include "test_support.h"
 
@@ -129,4 +130,39 @@ TEST(PhysiologyConfig, AssistModesTheirDefaultsAndAModeSwitchMidRun) {
   EXPECT_EQ(dp.cycle, CycleKind::flow);
   EXPECT_DOUBLE_EQ(dp.cycle_fraction, 0.25);
   EXPECT_DOUBLE_EQ(dp.inspiratory_time_s, 3.0);
+}
+
+TEST(PhysiologyConfig, EffortReleaseIsAShareOfTheExpiration) {
+  const std::string head = "model: single\ncompliance: 0.05 L/cmH2O\nresistance: 10 cmH2O*s/L\n"
+                           "driver: {mode: cpap_psv, pressure_support: 8 cmH2O}\n";
+  const auto effort_of = [&](const std::string& effort) {
+    return pneuma::scenario::read_physiology(Node::load_string(head + effort, "r.yaml"), 60.0, "/nonexistent")
+        .protocol.settings[0]
+        .effort;
+  };
+  EXPECT_DOUBLE_EQ(effort_of("effort: {rate: 16 /min, muscle_pressure: 4 cmH2O, release: 20 %}\n").release_share, 0.2);
+  EXPECT_DOUBLE_EQ(effort_of("effort: {rate: 16 /min, muscle_pressure: 4 cmH2O, release: 1}\n").release_share, 1.0);
+  // Default: the spontaneous driver's relaxation over half of the expiration.
+  EXPECT_DOUBLE_EQ(effort_of("effort: {rate: 16 /min, muscle_pressure: 4 cmH2O}\n").release_share, 0.5);
+  EXPECT_EQ(error_of([&] { effort_of("effort: {rate: 16 /min, muscle_pressure: 4 cmH2O, release: 0 %}\n"); }),
+            "r.yaml:5:60: effort.release: expected a share of the expiration above 0 and at most 100 %, got '0 %'");
+  EXPECT_EQ(error_of([&] { effort_of("effort: {rate: 16 /min, muscle_pressure: 4 cmH2O, release: 120 %}\n"); }),
+            "r.yaml:5:60: effort.release: expected a share of the expiration above 0 and at most 100 %, got '120 %'");
+}
+
+TEST(PhysiologyConfig, TheManifestNamesAnEffortsReleaseOnlyWhereSet) {
+  const auto effort_fact = [](const std::string& effort) {
+    const Node n = Node::load_string("model: single\ncompliance: 0.05 L/cmH2O\nresistance: 10 cmH2O*s/L\n"
+                                     "driver: {mode: cpap_psv, pressure_support: 8 cmH2O}\n" +
+                                         effort,
+                                     "m.yaml");
+    const auto cfg = pneuma::scenario::read_physiology(n, 60.0, "/nonexistent");
+    for (const auto& [key, value] : pneuma::outputs::ventilator_facts(cfg.protocol, {}))
+      if (key == "ventilator.settings[0].effort") return value;
+    return std::string("(none)");
+  };
+  EXPECT_EQ(effort_fact("effort: {rate: 16 /min, muscle_pressure: 4 cmH2O, release: 20 %}\n"),
+            "16 /min, I:E 0.5, 4 cmH2O, release 20 %");
+  // The default effort reads as before the release could be set.
+  EXPECT_EQ(effort_fact("effort: {rate: 16 /min, muscle_pressure: 4 cmH2O}\n"), "16 /min, I:E 0.5, 4 cmH2O");
 }

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "physiology_fixture.h"
+#include "pneuma/core/error.h"
 
 using namespace pneuma::physiology;
 using namespace pneuma::test;
@@ -490,4 +491,36 @@ TEST(Ventilator, SwitchingToSimvMidRunTakesOverTheExpiration) {
   EXPECT_STREQ(r.breaths[2].mode, "vc_simv");
   EXPECT_DOUBLE_EQ(r.breaths[2].start_s, 11.0);
   EXPECT_DOUBLE_EQ(r.breaths[3].start_s, 17.0);
+}
+
+TEST(Ventilator, EffortReleasesOverItsShareOfTheExpiration) {
+  // 15 /min, I:E 1:3 (Ti 1 s, Te 3 s), released over 20 % of Te: Pmus = A/2 (1 + cos(pi (t - Ti) /
+  // 0.6 s)) from 1 s to 1.6 s, then 0 until the next onset at 4 s. The default (half of Te) relaxes
+  // over 1.5 s.
+  const double A = 10 * kCmH2O, ti = 1.0, release = 0.2 * 3.0;
+  PatientEffort effort{15.0 / 60, 1.0 / 3, A};
+  effort.release_share = 0.2;
+  for (double t : {1.1, 1.3, 1.45, 1.59}) {
+    const double expected = A / 2 * (1 + std::cos(std::numbers::pi * (t - ti) / release));
+    EXPECT_NEAR(effort_pressure(effort, t), expected, 1e-9 * A) << t;
+    EXPECT_NEAR(effort_pressure(effort, t + 4.0), expected, 1e-9 * A) << t;  // the next period
+    EXPECT_NEAR(effort_pressure_rate(effort, t),
+                -A / 2 * std::numbers::pi / release * std::sin(std::numbers::pi * (t - ti) / release), 1e-9 * A)
+        << t;
+  }
+  EXPECT_EQ(effort_pressure(effort, 1.61), 0.0);
+  EXPECT_EQ(effort_pressure(effort, 3.9), 0.0);
+  EXPECT_NEAR(next_effort_boundary(effort, 1.2), ti + release, 1e-12);
+  EXPECT_NEAR(next_effort_boundary(effort, 1.7), 4.0, 1e-12);
+  const PatientEffort by_default{15.0 / 60, 1.0 / 3, A};
+  EXPECT_NEAR(next_effort_boundary(by_default, 1.2), ti + 1.5, 1e-12);
+  EXPECT_GT(effort_pressure(by_default, 1.61), 0.0);
+  // A whole expiration is a release; none or more than that is refused.
+  effort.release_share = 1.0;
+  EXPECT_NO_THROW(validate(effort));
+  EXPECT_NEAR(next_effort_boundary(effort, 1.2), 4.0, 1e-12);
+  for (double bad : {0.0, -0.1, 1.01}) {
+    effort.release_share = bad;
+    EXPECT_THROW(validate(effort), pneuma::ValueError) << bad;
+  }
 }

@@ -176,12 +176,14 @@ double default_trigger_window_s(double rate_hz);
 Assisted simv_breath(const Assisted& a, bool mandatory);
 
 // The patient's own breathing effort on a ventilated patient: the spontaneous driver's muscle
-// pressure profile (half-cosine rise over Ti, relaxation over half of Te, rest), repeating at
-// its own rate from `anchor` (the time it was set), whatever the ventilator does.
+// pressure profile (half-cosine rise over Ti, relaxation over `release_share` of Te (half, as the
+// spontaneous driver, by default), rest), repeating at its own rate from `anchor` (the time it
+// was set), whatever the ventilator does.
 struct PatientEffort {
   double rate_hz = 0.0;
   double ie_ratio = 0.5;
-  double amplitude_pa = 0.0;  // 0: a passive patient
+  double amplitude_pa = 0.0;   // 0: a passive patient
+  double release_share = 0.5;  // the relaxation's length, a share of the expiration, in (0, 1]
   bool active() const { return amplitude_pa > 0.0; }
   bool operator==(const PatientEffort&) const = default;
 };
