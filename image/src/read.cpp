@@ -19,6 +19,7 @@
 #include <sstream>
 #include <string>
 
+#include "dicom_series.h"
 #include "itk_image.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
@@ -988,8 +989,10 @@ LabelMap read_label_map(const fs::path& path, const LabelMapOptions& options) {
   return map;
 }
 
-ScalarImage read_scalar_image(const fs::path& path) {
+ScalarImage read_scalar_image(const fs::path& path, const ScalarImageOptions& options) {
   const std::string name = path.string();
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) return detail::read_dicom_series(path, options.series_instance_uid);
   require_readable_file(path);
   const std::string n = lower(name);
   ScalarImage out;
@@ -1011,7 +1014,7 @@ ScalarImage read_scalar_image(const fs::path& path) {
     out.ijk_to_lps = image.ijk_to_lps;
     out.transform_source = nrrd ? "space directions" : "TransformMatrix";
   } else {
-    throw InputError(name + ": expected an image: .nii, .nii.gz, .nrrd, .nhdr, .mha or .mhd");
+    throw InputError(name + ": expected an image: .nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd or a DICOM series folder");
   }
   if (!out.ijk_to_lps.allFinite() || !(std::abs(out.ijk_to_lps.block<3, 3>(0, 0).determinant()) > 0.0)) {
     throw InputError(name + ": the " + out.transform_source +
