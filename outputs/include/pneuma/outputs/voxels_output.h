@@ -21,11 +21,13 @@
 // lung, 2 left).
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <variant>
 #include <vector>
 
+#include "pneuma/image/dicom.h"
 #include "pneuma/outputs/output.h"
 #include "pneuma/outputs/report.h"
 
@@ -47,6 +49,11 @@ struct VoxelsSpec {
   bool mass_preserving = true;  // `density: mass_preserving` (default) | `unchanged`: the CT's lung parenchyma
   bool jacobian = true;         // `jacobian: true|false`: jacobian-<t> files (the forward map's Jacobian)
   std::string extension = ".nii.gz";
+  // `dicom: true`: each time point's CT as a DICOM CT series and its structures as an RTSTRUCT
+  // (dicom/; docs/formats.md, "DICOM"); needs `image`. The CT's patient, study and frame of
+  // reference when it was a DICOM series (`image_series`: which one of a folder's).
+  bool dicom = false;
+  std::optional<image::DicomSource> image_dicom;
 };
 
 // A run's voxel setting, made once from the compiled model (with the lungs' inside): the grid,
