@@ -285,6 +285,7 @@ ScalarImage read_dicom_series(const fs::path& folder, const std::string& series_
     source.series_instance_uid = read.text(DCM_SeriesInstanceUID, true);
     source.series_description = read.text(DCM_SeriesDescription, false);
     source.patient_position = read.text(DCM_PatientPosition, false);
+    source.specific_character_set = read.text(DCM_SpecificCharacterSet, false);
     image.dicom = std::move(source);
   }
 

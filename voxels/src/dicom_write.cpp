@@ -63,7 +63,9 @@ std::string ds(double value) {
 
 // Patient, General Study and General Equipment: the same in every file of the run.
 void put_patient_and_study(DcmItem& data, const image::DicomSource& study) {
-  put(data, DCM_SpecificCharacterSet, "ISO_IR 192");  // UTF-8: names as the input had them
+  // The input's character set (its names are copied byte for byte), else UTF-8 (the scenario's).
+  put(data, DCM_SpecificCharacterSet,
+      study.specific_character_set.empty() ? "ISO_IR 192" : study.specific_character_set);
   put(data, DCM_PatientName, study.patient_name);
   put(data, DCM_PatientID, study.patient_id);
   put(data, DCM_PatientBirthDate, study.patient_birth_date);
@@ -205,12 +207,13 @@ namespace {
 std::vector<std::vector<std::array<int, 2>>> outlines(const std::vector<std::uint8_t>& mask, int nx, int ny) {
   const int cx = nx + 1;
   const auto inside = [&](int i, int j) {
-    return i >= 0 && j >= 0 && i < nx && j < ny && mask[static_cast<std::size_t>(i + nx * j)] != 0;
+    return i >= 0 && j >= 0 && i < nx && j < ny &&
+           mask[static_cast<std::size_t>(i) + static_cast<std::size_t>(nx) * static_cast<std::size_t>(j)] != 0;
   };
   // Up to two outgoing boundary edges per corner: the end corner's index, -1 for none.
   std::vector<std::array<int, 2>> next(static_cast<std::size_t>(cx * (ny + 1)), {-1, -1});
   const auto add = [&](int x0, int y0, int x1, int y1) {
-    auto& slot = next[static_cast<std::size_t>(x0 + cx * y0)];
+    auto& slot = next[static_cast<std::size_t>(x0) + static_cast<std::size_t>(cx) * static_cast<std::size_t>(y0)];
     (slot[0] < 0 ? slot[0] : slot[1]) = x1 + cx * y1;
   };
   for (int j = 0; j < ny; ++j) {

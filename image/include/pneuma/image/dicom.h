@@ -15,6 +15,7 @@ struct DicomSource {
       study_description;
   std::string frame_of_reference_uid, position_reference_indicator;
   std::string series_instance_uid, series_description, patient_position;
+  std::string specific_character_set;  // (0008,0005): how the names' bytes are to be read
 };
 
 }  // namespace pneuma::image
