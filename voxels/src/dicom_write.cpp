@@ -200,66 +200,121 @@ WrittenSeries write_ct_series(const fs::path& folder, const Image& ct, const CtS
 
 namespace {
 
-// The outlines of a slice's mask along the pixel edges, as loops of corner indices (x, y on the
-// (nx + 1) x (ny + 1) corner lattice; corner (x, y) is the pixel corner at (x - 1/2, y - 1/2)).
-// Each boundary edge has the mask on its left; at a corner where two pixels touch diagonally
-// the trace turns left, so such pixels give separate loops. Collinear corners are dropped.
+// The outlines of a slice's mask along the pixel edges, as polygons of corner indices (x, y on
+// the (nx + 1) x (ny + 1) corner lattice; corner (x, y) is the pixel corner at (x - 1/2, y - 1/2)).
+// Each boundary edge has the mask on its left. Pixels touching only at a corner are apart (the
+// mask 4-connected, the background 8-connected: at such a corner the trace turns left). A hole
+// is joined to the boundary below it by a keyhole: a cut of zero width down a pixel edge line,
+// walked down and up, so that each outer outline and its holes are one polygon and any reader
+// (even-odd or union of contours alike: plastimatch unites them) fills the mask and no hole.
+// Collinear corners are dropped.
 std::vector<std::vector<std::array<int, 2>>> outlines(const std::vector<std::uint8_t>& mask, int nx, int ny) {
   const int cx = nx + 1;
-  const auto inside = [&](int i, int j) {
-    return i >= 0 && j >= 0 && i < nx && j < ny &&
-           mask[static_cast<std::size_t>(i) + static_cast<std::size_t>(nx) * static_cast<std::size_t>(j)] != 0;
+  const auto at = [nx](int i, int j) {
+    return static_cast<std::size_t>(i) + static_cast<std::size_t>(nx) * static_cast<std::size_t>(j);
   };
-  // Up to two outgoing boundary edges per corner: the end corner's index, -1 for none.
-  std::vector<std::array<int, 2>> next(static_cast<std::size_t>(cx * (ny + 1)), {-1, -1});
-  const auto add = [&](int x0, int y0, int x1, int y1) {
-    auto& slot = next[static_cast<std::size_t>(x0) + static_cast<std::size_t>(cx) * static_cast<std::size_t>(y0)];
-    (slot[0] < 0 ? slot[0] : slot[1]) = x1 + cx * y1;
+  const auto inside = [&](int i, int j) { return i >= 0 && j >= 0 && i < nx && j < ny && mask[at(i, j)] != 0; };
+  // The outgoing edges of each corner: their end corners, -1 for none.
+  std::vector<std::array<int, 4>> next(static_cast<std::size_t>(cx) * static_cast<std::size_t>(ny + 1),
+                                       {-1, -1, -1, -1});
+  const auto corner = [cx](int x, int y) { return x + cx * y; };
+  const auto add = [&](int from, int to) {
+    for (int& slot : next[static_cast<std::size_t>(from)]) {
+      if (slot < 0) {
+        slot = to;
+        return;
+      }
+    }
   };
   for (int j = 0; j < ny; ++j) {
     for (int i = 0; i < nx; ++i) {
       if (!inside(i, j)) continue;
-      if (!inside(i, j - 1)) add(i, j, i + 1, j);
-      if (!inside(i + 1, j)) add(i + 1, j, i + 1, j + 1);
-      if (!inside(i, j + 1)) add(i + 1, j + 1, i, j + 1);
-      if (!inside(i - 1, j)) add(i, j + 1, i, j);
+      if (!inside(i, j - 1)) add(corner(i, j), corner(i + 1, j));
+      if (!inside(i + 1, j)) add(corner(i + 1, j), corner(i + 1, j + 1));
+      if (!inside(i, j + 1)) add(corner(i + 1, j + 1), corner(i, j + 1));
+      if (!inside(i - 1, j)) add(corner(i, j + 1), corner(i, j));
     }
   }
+  // Holes: the background not 8-connected to the slice's border. Each one's lowest, then leftmost
+  // pixel (hx, hy) has mask below it and to its left; its corner (hx, hy) is cut down to the first
+  // corner with background below (a boundary: the outline around it, or another hole's).
+  std::vector<std::uint8_t> outside(mask.size(), 0);
+  std::vector<std::array<int, 2>> stack;
+  const auto flood = [&](std::vector<std::uint8_t>& seen, int i, int j) {
+    if (i < 0 || j < 0 || i >= nx || j >= ny || seen[at(i, j)] || mask[at(i, j)]) return;
+    seen[at(i, j)] = 1;
+    stack.push_back({i, j});
+  };
+  const auto spread = [&](std::vector<std::uint8_t>& seen) {
+    while (!stack.empty()) {
+      const auto [i, j] = stack.back();
+      stack.pop_back();
+      for (int dj = -1; dj <= 1; ++dj) {
+        for (int di = -1; di <= 1; ++di) flood(seen, i + di, j + dj);
+      }
+    }
+  };
+  for (int i = 0; i < nx; ++i) {
+    flood(outside, i, 0);
+    flood(outside, i, ny - 1);
+  }
+  for (int j = 0; j < ny; ++j) {
+    flood(outside, 0, j);
+    flood(outside, nx - 1, j);
+  }
+  spread(outside);
+  for (int hy = 0; hy < ny; ++hy) {
+    for (int hx = 0; hx < nx; ++hx) {
+      if (mask[at(hx, hy)] || outside[at(hx, hy)]) continue;
+      flood(outside, hx, hy);  // this hole, marked so that it is cut once
+      spread(outside);
+      for (int y = hy; y > 0 && inside(hx - 1, y - 1) && inside(hx, y - 1); --y) {
+        add(corner(hx, y), corner(hx, y - 1));
+        add(corner(hx, y - 1), corner(hx, y));
+      }
+    }
+  }
+  // Walk the edges: at a corner with several ways on, the left turn, then straight on, then the
+  // right turn, a U-turn last (the keyholes' ends); a polygon ends when its first edge comes next.
+  const auto score = [cx](int from, int to, int dx, int dy) {
+    const int ax = to % cx - from % cx, ay = to / cx - from / cx;
+    const int cross = dx * ay - dy * ax, dot = dx * ax + dy * ay;
+    return cross > 0 ? 3 : cross < 0 ? 1 : dot > 0 ? 2 : 0;
+  };
   std::vector<std::vector<std::array<int, 2>>> loops;
   for (int start = 0; start < static_cast<int>(next.size()); ++start) {
-    while (next[static_cast<std::size_t>(start)][0] >= 0) {
-      std::vector<std::array<int, 2>> loop;
-      int from = start, dx = 0, dy = 0;
-      bool first = true;
+    while (true) {
+      auto& first_slot = next[static_cast<std::size_t>(start)];
+      const auto first = std::find_if(first_slot.begin(), first_slot.end(), [](int v) { return v >= 0; });
+      if (first == first_slot.end()) break;
+      const int first_to = *first;
+      *first = -1;
+      const int fdx = first_to % cx - start % cx, fdy = first_to / cx - start / cx;
+      std::vector<std::array<int, 2>> loop{{start % cx, start / cx}};
+      int from = first_to, dx = fdx, dy = fdy;
       while (true) {
-        auto& slot = next[static_cast<std::size_t>(from)];
-        int pick = 0;
-        if (slot[1] >= 0 && !first) {
-          // Two ways on: the left turn (cross product of the way in and the way out > 0).
-          const int ax = slot[0] % cx - from % cx, ay = slot[0] / cx - from / cx;
-          pick = dx * ay - dy * ax > 0 ? 0 : 1;
-        } else if (slot[0] < 0) {
-          pick = 1;
+        auto& slots = next[static_cast<std::size_t>(from)];
+        int best = -1, best_score = -1;
+        for (int s = 0; s < 4; ++s) {
+          if (slots[static_cast<std::size_t>(s)] < 0) continue;
+          const int sc = score(from, slots[static_cast<std::size_t>(s)], dx, dy);
+          if (sc > best_score) {
+            best_score = sc;
+            best = s;
+          }
         }
-        const int to = slot[static_cast<std::size_t>(pick)];
-        if (to < 0) break;  // back at the start
-        slot[static_cast<std::size_t>(pick)] = -1;
-        if (pick == 0 && slot[1] >= 0) std::swap(slot[0], slot[1]);
+        if (from == start && (best < 0 || score(from, first_to, dx, dy) > best_score)) break;  // closed
+        if (best < 0) break;  // cannot happen on a closed boundary
+        const int to = slots[static_cast<std::size_t>(best)];
+        slots[static_cast<std::size_t>(best)] = -1;
         const int ndx = to % cx - from % cx, ndy = to / cx - from / cx;
-        if (first || ndx != dx || ndy != dy) loop.push_back({from % cx, from / cx});
+        if (ndx != dx || ndy != dy) loop.push_back({from % cx, from / cx});
         dx = ndx;
         dy = ndy;
-        first = false;
         from = to;
-        if (from == start) break;
       }
-      // The start corner is a corner of the loop only if the last edge turns into the first.
-      if (loop.size() >= 2) {
-        const auto& a = loop.back();
-        const auto& b = loop.front();
-        const auto& c = loop[1];
-        if ((b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]) == 0) loop.erase(loop.begin());
-      }
+      // The start is a corner only if the last edge turns into the first.
+      if (dx == fdx && dy == fdy) loop.erase(loop.begin());
       if (loop.size() >= 3) loops.push_back(std::move(loop));
     }
   }
