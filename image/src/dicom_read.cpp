@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -88,7 +89,11 @@ bool is_hidden(const fs::path& file) { return file.filename().string().starts_wi
 
 }  // namespace
 
-ScalarImage read_dicom_series(const fs::path& folder, const std::string& series_uid) {
+namespace {
+
+// The CT series of `folder` (series_uid: as read_dicom_series); the RT Structure Sets beside it
+// are listed in `structure_sets`, not read.
+ScalarImage read_series(const fs::path& folder, const std::string& series_uid, std::vector<fs::path>& structure_sets) {
   quiet_dcmtk();
   const std::string folder_name = folder.string();
   std::vector<fs::path> files;
@@ -122,6 +127,10 @@ ScalarImage read_dicom_series(const fs::path& folder, const std::string& series_
     }
     DcmDataset& data = *format->getDataset();
     const SliceReader read(file, data);
+    if (read.text(DCM_Modality, false) == "RTSTRUCT") {
+      structure_sets.push_back(file);
+      continue;
+    }
     Slice slice;
     slice.file = file;
     slice.series_uid = read.text(DCM_SeriesInstanceUID, true);
@@ -129,6 +138,9 @@ ScalarImage read_dicom_series(const fs::path& folder, const std::string& series_
     if (!series_uid.empty() && slice.series_uid != series_uid) continue;
     slice.format = std::move(format);
     slices.push_back(std::move(slice));
+  }
+  if (series_seen.empty()) {
+    throw InputError(folder_name + ": no CT slices (only RT Structure Sets): expected the CT series they are drawn on");
   }
   if (slices.empty()) {
     std::string list;
@@ -326,6 +338,196 @@ ScalarImage read_dicom_series(const fs::path& folder, const std::string& series_
   }
 
   return image;
+}
+
+// A DS or FD value of a sequence item, or a one-line refusal.
+double item_number(DcmItem& item, const DcmTagKey& key, unsigned long at, const std::string& name,
+                   const std::string& where) {
+  Float64 value = 0.0;
+  if (item.findAndGetFloat64(key, value, at).bad() || !std::isfinite(value)) {
+    throw InputError(fmt::format("{}: {} {}: value {} missing or not a number", name, where, tag_text(key), at + 1));
+  }
+  return value;
+}
+
+// Fills the pixels whose centres a closed polygon (in continuous pixel indices) holds, by the
+// even-odd rule, toggling them in `slice` (so that a hole drawn as a contour of its own, and a
+// structure drawn twice, cancel: the XOR of the contours).
+void toggle_polygon(const std::vector<Eigen::Vector2d>& polygon, std::size_t nx, std::size_t ny,
+                    std::vector<std::uint8_t>& slice) {
+  std::vector<double> crossings;
+  for (std::size_t j = 0; j < ny; ++j) {
+    const double y = static_cast<double>(j);
+    crossings.clear();
+    for (std::size_t e = 0; e < polygon.size(); ++e) {
+      const Eigen::Vector2d& a = polygon[e];
+      const Eigen::Vector2d& b = polygon[(e + 1) % polygon.size()];
+      if ((a.y() <= y) == (b.y() <= y)) continue;  // half-open: a vertex on the row counts once
+      crossings.push_back(a.x() + (y - a.y()) * (b.x() - a.x()) / (b.y() - a.y()));
+    }
+    std::sort(crossings.begin(), crossings.end());
+    for (std::size_t c = 0; c + 1 < crossings.size(); c += 2) {
+      const double from = std::max(0.0, std::ceil(crossings[c])),
+                   to = std::min(static_cast<double>(nx), std::ceil(crossings[c + 1]));
+      for (double i = from; i < to; ++i) slice[static_cast<std::size_t>(i) + nx * j] ^= 1;
+    }
+  }
+}
+
+}  // namespace
+
+ScalarImage read_dicom_series(const fs::path& folder, const std::string& series_uid) {
+  std::vector<fs::path> structure_sets;
+  return read_series(folder, series_uid, structure_sets);
+}
+
+LabelMap read_dicom_structures(const fs::path& folder) {
+  std::vector<fs::path> structure_sets;
+  const ScalarImage ct = read_series(folder, "", structure_sets);
+  const std::string folder_name = folder.string();
+  if (structure_sets.size() != 1) {
+    throw InputError(fmt::format("{}: {} RT Structure Sets (Modality RTSTRUCT): expected one beside the CT series",
+                                 folder_name, structure_sets.size()));
+  }
+  const fs::path& file = structure_sets.front();
+  const std::string name = file.string();
+  DcmFileFormat format;
+  if (format.loadFile(name.c_str()).bad()) throw InputError(name + ": not a readable DICOM file");
+  DcmDataset& data = *format.getDataset();
+  const SliceReader read(file, data);
+  // The frame of reference must be the CT's: contours in another frame would land anywhere.
+  DcmItem* frame = nullptr;
+  if (data.findAndGetSequenceItem(DCM_ReferencedFrameOfReferenceSequence, frame, 0).good() && frame != nullptr) {
+    OFString uid;
+    frame->findAndGetOFString(DCM_FrameOfReferenceUID, uid);
+    if (uid.c_str() != ct.dicom->frame_of_reference_uid) {
+      read.fail(DCM_FrameOfReferenceUID, fmt::format("{} in ReferencedFrameOfReferenceSequence: expected the CT "
+                                                     "series' {}",
+                                                     uid.c_str(), ct.dicom->frame_of_reference_uid));
+    }
+  }
+  // The ROIs by number, in the file's order.
+  std::vector<std::pair<Sint32, std::string>> rois;
+  DcmSequenceOfItems* roi_sequence = nullptr;
+  if (data.findAndGetSequence(DCM_StructureSetROISequence, roi_sequence).bad() || roi_sequence == nullptr ||
+      roi_sequence->card() == 0) {
+    read.fail(DCM_StructureSetROISequence, "missing or empty: expected the structures");
+  }
+  for (unsigned long r = 0; r < roi_sequence->card(); ++r) {
+    DcmItem& item = *roi_sequence->getItem(r);
+    Sint32 number = 0;
+    OFString roi_name;
+    if (item.findAndGetSint32(DCM_ROINumber, number).bad() || item.findAndGetOFString(DCM_ROIName, roi_name).bad()) {
+      read.fail(DCM_StructureSetROISequence, fmt::format("item {}: expected ROINumber and ROIName", r + 1));
+    }
+    rois.emplace_back(number, roi_name.c_str());
+  }
+  // Each ROI's voxels: its contours filled on their slices (even-odd over the contours of a slice).
+  const std::size_t nx = ct.size[0], ny = ct.size[1], nz = ct.size[2], per_slice = nx * ny;
+  const Eigen::Matrix4d to_ijk = ct.ijk_to_lps.inverse();
+  std::vector<std::vector<std::uint8_t>> masks(rois.size());
+  DcmSequenceOfItems* contour_sequence = nullptr;
+  if (data.findAndGetSequence(DCM_ROIContourSequence, contour_sequence).bad() || contour_sequence == nullptr) {
+    read.fail(DCM_ROIContourSequence, "missing: expected the structures' contours");
+  }
+  for (unsigned long r = 0; r < contour_sequence->card(); ++r) {
+    DcmItem& item = *contour_sequence->getItem(r);
+    Sint32 number = 0;
+    if (item.findAndGetSint32(DCM_ReferencedROINumber, number).bad()) {
+      read.fail(DCM_ReferencedROINumber, fmt::format("missing in ROIContourSequence item {}", r + 1));
+    }
+    const auto roi = std::find_if(rois.begin(), rois.end(), [number](const auto& x) { return x.first == number; });
+    if (roi == rois.end()) {
+      read.fail(DCM_ReferencedROINumber,
+                fmt::format("{}: expected the ROINumber of a StructureSetROISequence item", number));
+    }
+    std::vector<std::uint8_t>& mask = masks[static_cast<std::size_t>(roi - rois.begin())];
+    mask.resize(per_slice * nz, 0);
+    DcmSequenceOfItems* contours = nullptr;
+    if (item.findAndGetSequence(DCM_ContourSequence, contours).bad() || contours == nullptr) continue;  // empty ROI
+    for (unsigned long c = 0; c < contours->card(); ++c) {
+      DcmItem& contour = *contours->getItem(c);
+      const std::string where = fmt::format("ROI '{}' contour {}", roi->second, c + 1);
+      OFString type;
+      contour.findAndGetOFString(DCM_ContourGeometricType, type);
+      if (type != "CLOSED_PLANAR") {
+        if (type == "POINT" || type == "OPEN_PLANAR" || type == "OPEN_NONPLANAR") continue;  // no inside
+        throw InputError(fmt::format("{}: {} (3006,0042) ContourGeometricType '{}': expected CLOSED_PLANAR", name,
+                                     where, type.c_str()));
+      }
+      DcmElement* points = nullptr;
+      if (contour.findAndGetElement(DCM_ContourData, points).bad() || points == nullptr || points->getVM() < 9 ||
+          points->getVM() % 3 != 0) {
+        throw InputError(
+            fmt::format("{}: {} (3006,0050) ContourData: expected at least three points (x\\y\\z ...)", name, where));
+      }
+      std::vector<Eigen::Vector2d> polygon;
+      double slice_index = 0.0;
+      for (unsigned long p = 0; p < points->getVM() / 3; ++p) {
+        Eigen::Vector4d x(0, 0, 0, 1);
+        for (int a = 0; a < 3; ++a)
+          x[a] = item_number(contour, DCM_ContourData, 3 * p + static_cast<unsigned long>(a), name, where) * 1e-3;
+        const Eigen::Vector3d ijk = (to_ijk * x).head<3>();
+        if (p == 0) slice_index = ijk.z();
+        if (std::abs(ijk.z() - slice_index) > 0.01 || std::abs(ijk.z() - std::round(ijk.z())) > 0.1) {
+          throw InputError(fmt::format("{}: {} (3006,0050) ContourData: point {} lies between the CT's slices "
+                                       "(slice index {:.3f}): expected each contour on one slice of the series",
+                                       name, where, p + 1, ijk.z()));
+        }
+        polygon.emplace_back(ijk.x(), ijk.y());
+      }
+      const double k = std::round(slice_index);
+      if (k < 0 || k >= static_cast<double>(nz)) {
+        throw InputError(fmt::format("{}: {} (3006,0050) ContourData: on slice {:.0f}, outside the CT's {} slices",
+                                     name, where, k, nz));
+      }
+      std::vector<std::uint8_t> slice(per_slice, 0);
+      toggle_polygon(polygon, nx, ny, slice);
+      std::uint8_t* target = mask.data() + static_cast<std::size_t>(k) * per_slice;
+      for (std::size_t v = 0; v < per_slice; ++v) target[v] ^= slice[v];
+    }
+  }
+  // One label per voxel: ROI n (file order) is label n; a voxel in several ROIs takes the
+  // smallest of them (a lobe over its lung, a tumour over its lobe), so that each name keeps
+  // what is most its own.
+  std::vector<std::size_t> order(rois.size()), voxels(rois.size(), 0);
+  for (std::size_t r = 0; r < rois.size(); ++r) {
+    order[r] = r;
+    for (const std::uint8_t m : masks[r]) voxels[r] += m;
+  }
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return voxels[a] > voxels[b]; });
+  LabelMap map;
+  map.size = ct.size;
+  map.ijk_to_lps = ct.ijk_to_lps;
+  map.transform_source = "RTSTRUCT on ImagePositionPatient";
+  map.labels.assign(per_slice * nz, 0);
+  for (const std::size_t r : order) {
+    if (masks[r].empty()) continue;
+    for (std::size_t v = 0; v < map.labels.size(); ++v) {
+      if (masks[r][v]) map.labels[v] = static_cast<std::int32_t>(r + 1);
+    }
+  }
+  for (std::size_t r = 0; r < rois.size(); ++r)
+    map.segments.push_back({rois[r].second, static_cast<std::int32_t>(r + 1)});
+  return map;
+}
+
+}  // namespace pneuma::image::detail
+
+namespace pneuma::image::detail {
+
+bool holds_dicom(const std::filesystem::path& folder) {
+  std::vector<std::filesystem::path> files;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(folder, ec)) {
+    if (entry.is_regular_file() && !is_hidden(entry.path())) files.push_back(entry.path());
+  }
+  if (files.empty()) return false;
+  std::sort(files.begin(), files.end());
+  std::ifstream in(files.front(), std::ios::binary);
+  std::array<char, 132> head{};
+  in.read(head.data(), head.size());
+  return in.gcount() == 132 && std::string(head.data() + 128, 4) == "DICM";
 }
 
 }  // namespace pneuma::image::detail

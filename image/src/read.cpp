@@ -954,6 +954,7 @@ LabelMap read_map(const fs::path& path, const LabelMapOptions& options) {
   const std::string name = path.string();
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
+    if (detail::holds_dicom(path)) return detail::read_dicom_structures(path);
     return read_mask_folder(path, name, options);
   }
   require_readable_file(path);

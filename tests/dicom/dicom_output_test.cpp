@@ -9,11 +9,15 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <string>
 #include <vector>
 
+#include <Eigen/LU>
+
+#include "pneuma/image/label_map.h"
 #include "pneuma/image/scalar_image.h"
 #include "test_support.h"
 
@@ -44,7 +48,7 @@ outputs:
   hdf5: false
   report: false
   phases: {{bins: 4}}
-  voxels: {{at: [phases], spacing: 6 mm, image: {}, dicom: true, jacobian: false}}
+  voxels: {{at: [phases], spacing: 5 mm, image: {}, dicom: true, jacobian: false}}
 )",
                      (pneuma::test::ct_lobes_dir() / "case004_lobes.nii.gz").string(), image);
 }
@@ -106,6 +110,63 @@ TEST(DicomOutputs, EveryPhaseReadsBackInPlastimatchAndPydicomInTheInputsStudy) {
                                   input.dicom->study_instance_uid, "--frame", input.dicom->frame_of_reference_uid});
   EXPECT_EQ(check.exit_code, 0) << check.out << check.err;
   std::cout << check.out;
+
+  // A phase's CT series and RTSTRUCT in one folder read back as a label map (the reader, checked
+  // against pydicom's shapes in dicom_structures_test): each lobe's voxels are the warped label
+  // map's (a lobe, smaller than its lung, takes the voxels both hold).
+  fs::create_directories(dir / "phase");
+  for (const auto& e : fs::directory_iterator(dir / "out/dicom/ct-bin_01")) fs::copy(e.path(), dir / "phase");
+  fs::copy(dir / "out/dicom/rtstruct-bin_01.dcm", dir / "phase");
+  const auto read = pneuma::image::read_label_map(dir / "phase");
+  const auto warped = pneuma::image::read_label_map(dir / "out/voxels/labels-bin_01.nii.gz");
+  ASSERT_EQ(read.voxel_count(), warped.voxel_count());
+  const Eigen::Matrix4d to_warped = warped.ijk_to_lps.inverse() * read.ijk_to_lps;
+  std::size_t differ = 0;
+  for (std::size_t k = 0; k < read.size[2]; ++k) {
+    for (std::size_t j = 0; j < read.size[1]; ++j) {
+      for (std::size_t i = 0; i < read.size[0]; ++i) {
+        const Eigen::Vector3d x =
+            (to_warped * Eigen::Vector4d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k), 1.0))
+                .head<3>()
+                .array()
+                .round();
+        const auto w = warped.labels[static_cast<std::size_t>(x[0]) +
+                                     warped.size[0] * (static_cast<std::size_t>(x[1]) +
+                                                       warped.size[1] * static_cast<std::size_t>(x[2]))];
+        const auto label = read.labels[i + read.size[0] * (j + read.size[1] * k)];
+        const std::string name = label == 0 ? "" : read.segments[static_cast<std::size_t>(label - 1)].name;
+        differ += name != (w == 0 ? std::string() : "label_" + std::to_string(w));
+      }
+    }
+  }
+  EXPECT_EQ(differ, 0u);
+  // ... and as a run's label source, its lobes picked by ROI name: the warped lungs keep the
+  // physiology's volume (voxels.csv's error, counted by the run against the rest label map).
+  const auto from_rtstruct = dir.write("from-rtstruct.yaml", R"(name: from-rtstruct
+duration: 4 s
+frames: {rate: 5 Hz}
+mesh:
+  labels: phase/
+  lungs: {right: [label_3, label_4, label_5], left: [label_1, label_2]}
+  edge: 8 mm
+field:
+  tissue: healthy-supine
+  interior: {edge: 8 mm, mesher: lattice, unfold: 1 L}
+physiology: {preset: healthy-adult}
+outputs: {gltf: false, hdf5: false, report: false, voxels: {at: [end_inspiration], spacing: 6 mm}}
+)");
+  const auto labelled =
+      pneuma::test::run_pneuma({"run", from_rtstruct.string(), "-o", (dir / "labelled").string(), "--quiet"});
+  ASSERT_EQ(labelled.exit_code, 0) << labelled.err;
+  const std::string csv = pneuma::test::read_text(dir / "labelled/voxels/voxels.csv");
+  const std::string row = csv.substr(csv.find('\n') + 1);
+  std::vector<std::string> cells;
+  for (std::size_t at = 0, next = 0; next != std::string::npos; at = next + 1) {
+    next = row.find(',', at);
+    cells.push_back(row.substr(at, next == std::string::npos ? std::string::npos : next - at));
+  }
+  ASSERT_GE(cells.size(), 8u) << csv;
+  EXPECT_LT(std::abs(std::stod(cells[7])), 5.0) << csv;  // volume_error_percent
 
   // The same run at one thread: the same DICOM bytes (UIDs included).
   const auto again =
