@@ -13,6 +13,9 @@
 //                    names its segments (SegmentN_Name, _LabelValue, _Layer); several layers
 //                    are flattened into one when they do not overlap.
 //   .mha, .mhd       MetaImage (LPS by convention).
+//   a DICOM folder   a CT series and one RT Structure Set on it (src/dicom_read.cpp, DCMTK): ROI n is
+//                    label n, named by its ROIName, each CLOSED_PLANAR contour filled on its slice
+//                    of the CT's grid; a voxel in several ROIs takes the smallest (docs/formats.md).
 //   a folder         TotalSegmentator's masks (lung_upper_lobe_left.nii.gz, ...): the files
 //                    named in LabelMapOptions::masks (the five lung lobes) on one grid, each a
 //                    segment named by its file stem, label value its TotalSegmentator v2 class.
