@@ -20,6 +20,7 @@
 #include <optional>
 
 #include "dicom_series.h"
+#include "itk_image.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
 
@@ -195,6 +196,16 @@ ScalarImage read_series(const fs::path& folder, const std::string& series_uid, s
       read.fail(DCM_PixelSpacing, fmt::format("{}\\{}: expected {}\\{} as in {}", dr, dc, row_spacing, column_spacing,
                                               slices.front().file.filename().string()));
     }
+    // The pixel data the header declares, before anything is allocated for it.
+    DcmElement* pixel_data = nullptr;
+    if (data.findAndGetElement(DCM_PixelData, pixel_data).bad() || pixel_data == nullptr) {
+      read.fail(DCM_PixelData, "missing: expected the slice's pixels");
+    }
+    const std::size_t slice_bytes = std::size_t{2} * slice_rows * slice_columns;
+    if (pixel_data->getLength() < slice_bytes) {
+      read.fail(DCM_PixelData, fmt::format("{} bytes: expected {} x {} pixels of 16 bits ({} bytes)",
+                                           pixel_data->getLength(), slice_columns, slice_rows, slice_bytes));
+    }
     const double tilt = read.number(DCM_GantryDetectorTilt, 0, 0.0);
     if (std::abs(tilt) > 1e-6) {
       read.fail(DCM_GantryDetectorTilt,
@@ -303,6 +314,7 @@ ScalarImage read_series(const fs::path& folder, const std::string& series_uid, s
 
   // The pixels, slice by slice, in Hounsfield units.
   const std::size_t per_slice = static_cast<std::size_t>(rows) * columns;
+  check_voxel_count(folder_name, image.size, 1);
   image.values.resize(per_slice * slices.size());
   for (std::size_t k = 0; k < slices.size(); ++k) {
     DcmDataset& data = *slices[k].format->getDataset();
@@ -522,12 +534,12 @@ bool holds_dicom(const std::filesystem::path& folder) {
   for (const auto& entry : std::filesystem::directory_iterator(folder, ec)) {
     if (entry.is_regular_file() && !is_hidden(entry.path())) files.push_back(entry.path());
   }
-  if (files.empty()) return false;
-  std::sort(files.begin(), files.end());
-  std::ifstream in(files.front(), std::ios::binary);
-  std::array<char, 132> head{};
-  in.read(head.data(), head.size());
-  return in.gcount() == 132 && std::string(head.data() + 128, 4) == "DICM";
+  return std::any_of(files.begin(), files.end(), [](const std::filesystem::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    std::array<char, 132> head{};
+    in.read(head.data(), head.size());
+    return in.gcount() == 132 && std::string(head.data() + 128, 4) == "DICM";
+  });
 }
 
 }  // namespace pneuma::image::detail

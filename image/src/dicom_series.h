@@ -24,7 +24,7 @@ ScalarImage read_dicom_series(const std::filesystem::path& folder, const std::st
 // a voxel in several ROIs gets the smallest one's label.
 LabelMap read_dicom_structures(const std::filesystem::path& folder);
 
-// Whether `folder` holds DICOM files (the first regular file has 'DICM' at byte 128).
+// Whether `folder` holds DICOM files (a regular file with 'DICM' at byte 128).
 bool holds_dicom(const std::filesystem::path& folder);
 
 }  // namespace pneuma::image::detail
