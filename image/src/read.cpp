@@ -19,6 +19,7 @@
 #include <sstream>
 #include <string>
 
+#include "dicom_series.h"
 #include "itk_image.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/paths.h"
@@ -953,21 +954,11 @@ LabelMap read_mask_folder(const fs::path& dir, const std::string& name, const La
 
 }  // namespace
 
-std::vector<fs::path> label_map_files(const fs::path& path, const LabelMapOptions& options) {
+std::vector<fs::path> label_map_files(const fs::path& path) {
   const std::string name = path.string();
   std::error_code ec;
-  if (fs::is_directory(path, ec)) {
-    std::vector<fs::path> files;
-    for (const std::string& stem : options.masks) {
-      for (const char* ending : {".nii.gz", ".nii"}) {
-        const fs::path file = path / (stem + ending);
-        if (!fs::exists(file, ec)) continue;
-        files.push_back(file);
-        break;
-      }
-    }
-    return files;
-  }
+  // A folder (TotalSegmentator masks, a DICOM series with its RTSTRUCT): the folder itself.
+  if (fs::is_directory(path, ec)) return {path};
   std::vector<fs::path> files{path};
   const std::string n = lower(name);
   if (n.ends_with(".nhdr") || n.ends_with(".nrrd")) {
@@ -995,6 +986,7 @@ LabelMap read_map(const fs::path& path, const LabelMapOptions& options) {
   const std::string name = path.string();
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
+    if (detail::holds_dicom(path)) return detail::read_dicom_structures(path);
     return read_mask_folder(path, name, options);
   }
   require_readable_file(path);
@@ -1030,8 +1022,10 @@ LabelMap read_label_map(const fs::path& path, const LabelMapOptions& options) {
   return map;
 }
 
-ScalarImage read_scalar_image(const fs::path& path) {
+ScalarImage read_scalar_image(const fs::path& path, const ScalarImageOptions& options) {
   const std::string name = path.string();
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) return detail::read_dicom_series(path, options.series_instance_uid);
   require_readable_file(path);
   const std::string n = lower(name);
   ScalarImage out;
@@ -1053,7 +1047,7 @@ ScalarImage read_scalar_image(const fs::path& path) {
     out.ijk_to_lps = image.ijk_to_lps;
     out.transform_source = nrrd ? "space directions" : "TransformMatrix";
   } else {
-    throw InputError(name + ": expected an image: .nii, .nii.gz, .nrrd, .nhdr, .mha or .mhd");
+    throw InputError(name + ": expected an image: .nii, .nii.gz, .nrrd, .nhdr, .mha, .mhd or a DICOM series folder");
   }
   if (!out.ijk_to_lps.allFinite() || !(std::abs(out.ijk_to_lps.block<3, 3>(0, 0).determinant()) > 0.0)) {
     throw InputError(name + ": the " + out.transform_source +

@@ -1,6 +1,7 @@
 // The HDF5 field cache. HDF5 (C API) stays inside this file.
 #include "pneuma/model/field_cache.h"
 
+#include <algorithm>
 #include <hdf5.h>
 
 #include <array>
@@ -532,7 +533,24 @@ std::string interior_key(const std::string& field_key, double edge_m, const fiel
 std::string source_key(const std::vector<std::filesystem::path>& files, const std::string& options_text) {
   Hasher h;
   h.text("pneuma-source/1");
+  // A folder (a mask folder, a DICOM series with its RTSTRUCT): its files' names and bytes, in
+  // name order; a file alone: its bytes (the keys of earlier runs unchanged).
+  std::vector<std::pair<std::filesystem::path, bool>> inputs;  // (file, named)
   for (const auto& file : files) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(file, ec)) {
+      inputs.emplace_back(file, false);
+      continue;
+    }
+    std::vector<std::filesystem::path> inside;
+    for (const auto& entry : std::filesystem::directory_iterator(file, ec)) {
+      if (entry.is_regular_file()) inside.push_back(entry.path());
+    }
+    std::sort(inside.begin(), inside.end());
+    for (const auto& f : inside) inputs.emplace_back(f, true);
+  }
+  for (const auto& [file, named] : inputs) {
+    if (named) h.text(file.filename().string());
     std::ifstream in(file, std::ios::binary);
     if (!in) throw IoError(file.string() + ": cannot open file");
     std::vector<char> buffer(1 << 20);

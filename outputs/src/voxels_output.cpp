@@ -9,9 +9,11 @@
 #include <limits>
 #include <optional>
 
+#include "dicom_series.h"
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
 #include "pneuma/image/label_map.h"
+#include "pneuma/image/scalar_image.h"
 #include "pneuma/mesh/volume/tetrahedralize.h"
 #include "pneuma/model/body_motion.h"
 #include "pneuma/model/compile.h"
@@ -118,11 +120,18 @@ std::any read_spec(const scenario::Node* options, const scenario::Scenario& run)
         structures.fail_at(name, "expected a name without spaces or slashes (it names files)");
       spec.structures.push_back(std::move(structure));
     }
+  image::ScalarImageOptions image_options;
+  if (options->has("image_series")) {
+    if (!options->has("image")) options->fail_at("image_series", "expected `image` (a DICOM folder) beside it");
+    image_options.series_instance_uid = options->string("image_series");
   }
   if (options->has("image")) {
     spec.image_file = options->directory("image") / options->string("image");
     try {
-      spec.image = std::make_shared<const voxels::Image>(voxels::read_image(spec.image_file));
+      image::ScalarImage read = image::read_scalar_image(spec.image_file, image_options);
+      spec.image_dicom = std::move(read.dicom);
+      spec.image = std::make_shared<const voxels::Image>(
+          voxels::Image{voxels::Grid{read.size, read.ijk_to_lps}, std::move(read.values)});
     } catch (const Error& e) {
       options->fail_at("image", e.what());
     }
@@ -137,6 +146,10 @@ std::any read_spec(const scenario::Node* options, const scenario::Scenario& run)
   if (options->has("density"))
     spec.mass_preserving = options->choice("density", {"mass_preserving", "unchanged"}) == "mass_preserving";
   spec.jacobian = options->boolean("jacobian", spec.jacobian);
+  spec.dicom = options->boolean("dicom", spec.dicom);
+  if (spec.dicom && !spec.image) {
+    options->fail_at("dicom", "expected `image` (the CT written per time point as a DICOM series) beside it");
+  }
   options->finish();
   return spec;
 }
@@ -288,7 +301,10 @@ class VoxelsOutput final : public Output {
       for (const VoxelPoint& at : time_points) n += at.frame ? 0.0 : static_cast<double>(at.bin_samples);
       return n;
     }();
-    for (const std::size_t i : order) {
+    std::optional<DicomRun> dicom;
+    if (spec_.dicom) dicom.emplace(*run.scenario, *spec_.image, spec_.image_dicom, dicom_structures(model, scene));
+    for (std::size_t step = 0; step < order.size(); ++step) {
+      const std::size_t i = order[step];
       const VoxelPoint& at = time_points[i];
       scene.compute(at.scales, point);
       if (sequences && in_sequence(at)) sequences->append(point);
@@ -302,6 +318,11 @@ class VoxelsOutput final : public Output {
           voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension, spec_.dvf_convention);
       for (const auto& f : {written.forward, written.pullback, written.labels, written.ct, written.jacobian}) {
         if (!f.empty()) files.push_back(f);
+      }
+      if (dicom) {
+        const std::vector<std::filesystem::path> dicom_files =
+            dicom->write(dir_ / "dicom", at.tag, at.phase_percent, at.amplitude_bin, static_cast<int>(step + 1), point);
+        files.insert(files.end(), dicom_files.begin(), dicom_files.end());
       }
       // The warped lungs' volume against the rest label map's plus each lung's share of the
       // physiology's change (the volume the surface frames follow).
@@ -441,11 +462,12 @@ class VoxelsOutput final : public Output {
   // A time point to write: a frame, or a respiratory bin at its mean volume.
   struct VoxelPoint {
     std::string tag;                   // in the file names: "end_inspiration", "2.400s", "bin_03"
+    double phase_percent = -1.0;       // a bin's centre (b * 100 / N); -1 for a frame
+    bool amplitude_bin = false;        // the bins are by amplitude, not phase
     std::optional<std::size_t> frame;  // none for a bin
     std::vector<double> scales;        // per model lung
     double volume_m3 = 0.0;            // the physiology's volume above FRC
     double lung_change_m3 = 0.0;       // the lungs' volume change from the scan's (their shares of it)
-    double phase_percent = 0.0;        // a bin's centre (phases.csv), for the sequences' index
     std::size_t bin_samples = 0;       // a bin's frames: its share of the breathing time
   };
 
@@ -468,7 +490,7 @@ class VoxelsOutput final : public Output {
     };
     std::vector<VoxelPoint> out;
     for (const auto& [k, tag] : frames_of(series.time_s, series.volume_m3)) {
-      VoxelPoint p{tag, k, {}, series.volume_m3[k], lung_change({k})};
+      VoxelPoint p{tag, -1.0, false, k, {}, series.volume_m3[k], lung_change({k})};
       for (std::size_t i = 0; i < model.lungs.size(); ++i) p.scales.push_back(run.scales[i][k]);
       out.push_back(std::move(p));
     }
@@ -477,8 +499,10 @@ class VoxelsOutput final : public Output {
       for (std::size_t b = 0; b < binning.bins.size(); ++b) {
         const physiology::PhaseBin& bin = binning.bins[b];
         if (bin.samples.empty()) continue;
-        out.push_back({fmt::format("bin_{:02}", b), std::nullopt, phase_bin_scales(model, *run.drive, bin),
-                       bin.mean_volume_m3, lung_change(bin.samples), bin.centre_percent, bin.samples.size()});
+        out.push_back({fmt::format("bin_{:02}", b), bin.centre_percent,
+                       binning.method == physiology::BinningMethod::amplitude, std::nullopt,
+                       phase_bin_scales(model, *run.drive, bin), bin.mean_volume_m3, lung_change(bin.samples),
+                       bin.samples.size()});
       }
     }
     return out;

@@ -13,6 +13,9 @@
 //                    names its segments (SegmentN_Name, _LabelValue, _Layer); several layers
 //                    are flattened into one when they do not overlap.
 //   .mha, .mhd       MetaImage (LPS by convention).
+//   a DICOM folder   a CT series and one RT Structure Set on it (src/dicom_read.cpp, DCMTK): ROI n is
+//                    label n, named by its ROIName, each CLOSED_PLANAR contour filled on its slice
+//                    of the CT's grid; a voxel in several ROIs takes the smallest (docs/formats.md).
 //   a folder         TotalSegmentator's masks (lung_upper_lobe_left.nii.gz, ...): the files
 //                    named in LabelMapOptions::masks (the five lung lobes) on one grid, each a
 //                    segment named by its file stem, label value its TotalSegmentator v2 class.
@@ -77,12 +80,12 @@ struct LabelMapOptions {
 // .seg.nrrd layers, or (a folder) masks on different grids, overlapping masks or none at all.
 LabelMap read_label_map(const std::filesystem::path& path, const LabelMapOptions& options = {});
 
-// Every file a label map at `path` is read from, in a fixed order: a folder's mask files, a
-// detached header (.nhdr, .mhd) with its data files, else the file itself. What a digest of the
-// input must cover (a field cache keyed by it is stale when any of them changes). Throws as
-// read_label_map does for a header that names its data files wrongly.
-std::vector<std::filesystem::path> label_map_files(const std::filesystem::path& path,
-                                                   const LabelMapOptions& options = {});
+// What a label map at `path` is read from, in a fixed order: a detached header (.nhdr, .mhd)
+// with its data files, else the file itself, or the folder (a mask folder, a DICOM series with
+// its RTSTRUCT) whose files a digest must then cover by name and bytes (model's source_key). What
+// a field cache's key covers: it is stale when any of them changes. Throws as read_label_map does
+// for a header that names its data files wrongly.
+std::vector<std::filesystem::path> label_map_files(const std::filesystem::path& path);
 
 // How many label maps this process has read (read_label_map calls that returned a map; a mask
 // folder counts once): a run reads its label map once, and the tests hold it to that.

@@ -28,11 +28,13 @@
 // lung, 2 left).
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <variant>
 #include <vector>
 
+#include "pneuma/image/dicom.h"
 #include "pneuma/outputs/output.h"
 #include "pneuma/outputs/report.h"
 #include "pneuma/outputs/tracking.h"
@@ -59,6 +61,11 @@ struct VoxelsSpec {
   std::vector<voxels::SequenceFormat> sequences;  // `sequences`: none by default
   std::vector<Fiducial> points;                   // `points: fiducials.csv` -> trajectories.csv
   std::vector<StructureSpec> structures;          // `structures: {gtv: 7, target: mask.nii.gz}`
+  // `dicom: true`: each time point's CT as a DICOM CT series and its structures as an RTSTRUCT
+  // (dicom/; docs/formats.md, "DICOM"); needs `image`. The CT's patient, study and frame of
+  // reference when it was a DICOM series (`image_series`: which one of a folder's).
+  bool dicom = false;
+  std::optional<image::DicomSource> image_dicom;
 };
 
 // A run's voxel setting, made once from the compiled model (with the lungs' inside): the grid,
