@@ -231,6 +231,8 @@ std::vector<std::filesystem::path> StructureTracker::finish() {
     const std::filesystem::path file = folder_ / ("itv-" + spec_.name + extension_);
     voxels::write_label_map(file, *itv_);
     files_.push_back(file);
+    itv_shared_ = std::make_shared<const image::LabelMap>(std::move(*itv_));
+    itv_.reset();
   }
   return files_;
 }

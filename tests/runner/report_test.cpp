@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <sstream>
@@ -795,4 +796,156 @@ outputs:
     EXPECT_LT(result["slices"][0][p]["channels"][1]["mean_rgb"].get<double>(),
               result["slices"][1][p]["channels"][1]["mean_rgb"].get<double>());
   }
+}
+
+// voxels.points on the page (#48): each point's positions per frame are trajectories.csv's
+// numbers exactly, and Chromium draws each point's marker where trajectories.csv puts it on both
+// planes (projected: column along x or y, row down from the top along z) at two cursor times, so
+// the marker moves by the pixels the CSV's displacement says. Two points inside the phantom's
+// convex lung (from a first run's rest slice): its centre and just above its lowest row.
+TEST(Report, PointTrajectoriesArePlottedAndTheirMarkersMoveOnTheSlices) {
+  TempDir dir;
+  const std::string scenario_text = R"(duration: 4 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 8 mm}
+field: {tissue: healthy-upright, interior: {edge: 8 mm}}
+physiology:
+  preset: healthy-adult
+  output_rate: 10 Hz
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}
+outputs:
+  hdf5: false
+  gltf: false
+  voxels: {at: [end_expiration, end_inspiration], spacing: 4 mm{points}}
+)";
+  auto with = [&](const std::string& points) {
+    std::string text = scenario_text;
+    return text.replace(text.find("{points}"), 8, points);
+  };
+  const auto first = dir.write("first.yaml", with(""));
+  ASSERT_EQ(run_pneuma({"run", first.string(), "-o", (dir / "a").string(), "--quiet"}).exit_code, 0);
+  const Page rest_page = read_page(dir / "a/report.html");
+  ASSERT_FALSE(rest_page.data.contains("trajectories"));
+  const auto& coronal = rest_page.data["slices"]["planes"][0];
+  ASSERT_EQ(coronal["name"], "coronal");
+  ASSERT_EQ(coronal["times_s"][0].get<double>(), 0.0);
+  const std::size_t width = coronal["width"].get<std::size_t>(), height = coronal["height"].get<std::size_t>();
+  const double h = coronal["pixel_mm"].get<double>();
+  const auto& origin = coronal["origin_mm"];
+  std::vector<int> labels;
+  const auto& runs = coronal["labels"][0];
+  for (std::size_t r = 0; r + 1 < runs.size(); r += 2)
+    labels.insert(labels.end(), runs[r + 1].get<std::size_t>(), runs[r].get<int>());
+  ASSERT_EQ(labels.size(), width * height);
+  double sum_row = 0.0, sum_column = 0.0;
+  std::size_t count = 0, lowest = 0;
+  for (std::size_t row = 0; row < height; ++row)
+    for (std::size_t c = 0; c < width; ++c)
+      if (labels[row * width + c] == 1) {
+        sum_row += static_cast<double>(row);
+        sum_column += static_cast<double>(c);
+        ++count;
+        lowest = row;
+      }
+  ASSERT_GT(count, 50u);
+  std::vector<std::size_t> lowest_columns;
+  for (std::size_t c = 0; c < width; ++c)
+    if (labels[lowest * width + c] == 1) lowest_columns.push_back(c);
+  // A pixel's LPS centre (mm) on the coronal plane.
+  auto lps = [&](double row, double column) {
+    return std::array<double, 3>{origin[0].get<double>() + column * h, origin[1].get<double>(),
+                                 origin[2].get<double>() + (static_cast<double>(height) - 1.0 - row) * h};
+  };
+  const auto centre =
+      lps(std::round(sum_row / static_cast<double>(count)), std::round(sum_column / static_cast<double>(count)));
+  const auto base =
+      lps(static_cast<double>(lowest) - 2.0, static_cast<double>(lowest_columns[lowest_columns.size() / 2]));
+  dir.write("points.csv", fmt::format("name,x_mm,y_mm,z_mm\ncentre,{},{},{}\nbase,{},{},{}\n", centre[0], centre[1],
+                                      centre[2], base[0], base[1], base[2]));
+  const auto second = dir.write("second.yaml", with(", points: points.csv"));
+  const auto out = dir / "b";
+  const auto run = run_pneuma({"run", second.string(), "-o", out.string(), "--quiet"});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const Page page = read_page(out / "report.html");
+
+  // The page's numbers are trajectories.csv's frame rows (the bins' rows are not plotted).
+  std::ifstream csv_in(out / "voxels/trajectories.csv");
+  std::string line;
+  std::getline(csv_in, line);
+  ASSERT_EQ(line, "point,moves_with,frame,time_s,bin,x_mm,y_mm,z_mm");
+  std::map<std::string, std::vector<std::array<double, 3>>> csv_positions;
+  std::vector<double> csv_times;
+  while (std::getline(csv_in, line)) {
+    std::vector<std::string> cells;
+    std::stringstream s(line);
+    for (std::string cell; std::getline(s, cell, ',');) cells.push_back(cell);
+    ASSERT_EQ(cells.size(), 8u) << line;
+    EXPECT_EQ(cells[1], "right interior") << line;
+    if (cells[0] == "centre") csv_times.push_back(std::stod(cells[3]));
+    csv_positions[cells[0]].push_back({std::stod(cells[5]), std::stod(cells[6]), std::stod(cells[7])});
+  }
+  const auto& tracks = page.data["trajectories"];
+  ASSERT_EQ(tracks["times_s"].size(), csv_times.size());
+  for (std::size_t k = 0; k < csv_times.size(); ++k)
+    EXPECT_NEAR(tracks["times_s"][k].get<double>(), csv_times[k], 1e-6);
+  ASSERT_EQ(tracks["points"].size(), 2u);
+  for (const auto& point : tracks["points"]) {
+    const auto& expected = csv_positions[point["name"].get<std::string>()];
+    ASSERT_EQ(expected.size(), csv_times.size()) << point["name"];
+    for (std::size_t k = 0; k < expected.size(); ++k) {
+      EXPECT_EQ(point["x_mm"][k].get<double>(), expected[k][0]) << point["name"] << " frame " << k;
+      EXPECT_EQ(point["y_mm"][k].get<double>(), expected[k][1]) << point["name"] << " frame " << k;
+      EXPECT_EQ(point["z_mm"][k].get<double>(), expected[k][2]) << point["name"] << " frame " << k;
+    }
+  }
+  EXPECT_NEAR(tracks["points"][0]["rest_mm"][2].get<double>(), centre[2], 1e-9);
+  EXPECT_NEAR(tracks["points"][1]["rest_mm"][0].get<double>(), base[0], 1e-9);
+
+  // Chromium at rest and at end-inspiration: each marker where the CSV puts it, on both planes.
+  const Csv voxels_csv = read_csv(out / "voxels/voxels.csv");
+  const auto inspiration = static_cast<std::size_t>(voxels_csv.rows[1][voxels_csv.column("frame")]);
+  const Chromium c = open_in_chromium(dir, out / "report.html", fmt_times(0.0, csv_times[inspiration]));
+  if (c.run.out.empty() && c.run.err.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
+  ASSERT_EQ(c.run.exit_code, 0) << c.run.err;
+  ASSERT_FALSE(c.selftest.empty() || c.selftest == "pending") << c.run.err;
+  const auto result = nlohmann::json::parse(c.selftest);
+  EXPECT_EQ(result["errors"], 0) << result["messages"].dump();
+  const auto& planes = page.data["slices"]["planes"];
+  for (std::size_t p = 0; p < 2; ++p) {
+    const auto& plane = planes[p];
+    const bool is_coronal = plane["name"] == "coronal";
+    const double pixel = plane["pixel_mm"].get<double>();
+    const auto& o = plane["origin_mm"];
+    const double plane_height = plane["height"].get<double>();
+    for (std::size_t k = 0; k < 2; ++k) {
+      const std::string name = tracks["points"][k]["name"];
+      std::array<double, 2> moved{};
+      for (std::size_t shot = 0; shot < 2; ++shot) {
+        const std::size_t frame = shot == 0 ? 0 : inspiration;
+        const auto& x = csv_positions[name][frame];
+        const double column =
+            is_coronal ? (x[0] - o[0].get<double>()) / pixel + 0.5 : (x[1] - o[1].get<double>()) / pixel + 0.5;
+        const double row = plane_height - 1.0 - (x[2] - o[2].get<double>()) / pixel + 0.5;
+        const auto& marker = result["slices"][shot][p]["markers"][k];
+        ASSERT_EQ(marker["name"], name);
+        EXPECT_EQ(marker["frame"].get<std::size_t>(), frame);
+        EXPECT_EQ(marker["pixels"].get<int>(), 9) << marker.dump();
+        ASSERT_TRUE(marker["column"].is_number()) << marker.dump();
+        // The 3 x 3 marker's centre is the pixel holding the point.
+        EXPECT_NEAR(marker["column"].get<double>(), column, 0.5 + 1e-6) << plane["name"] << " " << marker.dump();
+        EXPECT_NEAR(marker["row"].get<double>(), row, 0.5 + 1e-6) << plane["name"] << " " << marker.dump();
+        moved[shot] = marker["row"].get<double>();
+        if (shot == 1) {
+          const auto& x0 = csv_positions[name][0];
+          const double expected_rows = -(x[2] - x0[2]) / pixel;
+          std::printf("%s on the %s plane: the marker moved %+.0f rows, the CSV %+.2f\n", name.c_str(),
+                      plane["name"].get<std::string>().c_str(), moved[1] - moved[0], expected_rows);
+          EXPECT_NEAR(moved[1] - moved[0], expected_rows, 1.0);
+        }
+      }
+    }
+  }
+  // The base of the lung moves down (SI) by more than two pixels at end-inspiration.
+  const auto& base_track = csv_positions["base"];
+  EXPECT_LT(base_track[inspiration][2] - base_track[0][2], -2.0 * planes[0]["pixel_mm"].get<double>());
 }

@@ -79,6 +79,8 @@ class StructureTracker {
   // Writes itv-<name><extension> when a time point had a weight; the files written.
   std::vector<std::filesystem::path> finish();
   double itv_volume_m3() const { return itv_volume_m3_; }
+  // The ITV after finish() (null without a weighted time point), shared rather than copied.
+  std::shared_ptr<const image::LabelMap> itv() const { return itv_shared_; }
   // The mid-ventilation row (index into rows()) and the weighted mean position; none without weights.
   std::optional<std::size_t> midventilation() const;
   Eigen::Vector3d mean_position_m() const;
@@ -90,6 +92,7 @@ class StructureTracker {
   std::vector<Row> rows_;
   std::vector<std::filesystem::path> files_;
   std::optional<image::LabelMap> itv_;
+  std::shared_ptr<const image::LabelMap> itv_shared_;
   image::LabelMap scratch_;
   double itv_volume_m3_ = 0.0;
 };

@@ -109,6 +109,16 @@ const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& ru
 struct VoxelFigures {
   std::vector<VoxelPointFigures> points;
 };
+// The structures' figures and ITVs (in the order of voxels.structures), shared the same way.
+struct VoxelStructures {
+  std::vector<StructureFacts> facts;
+  std::vector<std::shared_ptr<const image::LabelMap>> itvs;  // null without one
+};
+// The points' trajectories (trajectories.csv's frame rows), shared the same way.
+struct VoxelTracks {
+  std::vector<double> times_s;  // per frame
+  std::vector<PointTrack> points;
+};
 
 // report.html's slices of the warped label map (voxel outputs on; empty otherwise): a coronal
 // plane through the middle of the lungs and a sagittal one through the middle of the first, with
