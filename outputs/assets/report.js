@@ -247,6 +247,7 @@
   });
   // ---- points that follow the breath (voxels.points): each one's displacement from rest ----
   var TRACK_COLORS = ['#ff2fd0', '#00e5ff', '#ffe600', '#ff6a00', '#7cff4f', '#ffffff'];
+  var STRUCTURE_COLORS = ['#ff1f1f', '#21ff74', '#a020ff'], ITV_COLORS = ['#ff9d9d', '#b3ffd1', '#d9a6ff'];
   var tracks = data.trajectories || null;
   if (tracks) {
     tracks.points.forEach(function (p, k) {
@@ -513,10 +514,43 @@
       // The reference line: the lungs' lowest row at the time point with the least lung (end-expiration).
       var least = 0;
       decoded.forEach(function (d, i) { if (d.lung < decoded[least].lung) least = i; });
+      // Each structure's outline pixels (in the mask, a 4-neighbour out of it or off the plane), per time and of its ITV.
+      var outlines = (plane.structures || []).map(function (st) {
+        return { name: st.name, masks: st.masks.map(function (runs) { return outlinePixels(plane, runs); }),
+                 itv: st.itv ? outlinePixels(plane, st.itv) : [] };
+      });
       slicePlanes.push({ plane: plane, canvas: canvas, info: info, decoded: decoded, reference: decoded[least].lowest,
-                         reference_time: plane.times_s[least], shown: -1, channels: channels });
+                         reference_time: plane.times_s[least], shown: -1, channels: channels, outlines: outlines });
     });
     listeners.push(function (t) { slicePlanes.forEach(function (s) { drawSlice(s, t); }); });
+    // The structures (voxels.structures): structures.csv's volume and centroid per time point, the
+    // one nearest the cursor marked, and structures-summary.csv's ITV and mid-ventilation.
+    (data.structures || []).forEach(function (st) {
+      var table = el('table', { 'class': 'voxel-points structure' });
+      var mid = st.midventilation === null ? 'none' : st.midventilation + ' at (' + st.midventilation_mm.map(function (v) { return fmt(v, 1); }).join(', ') + ') mm';
+      table.appendChild(el('caption', null, 'Structure ' + st.name + ' (outlined on the slices at the time shown, its ITV ' +
+        'in a lighter shade of the same colour; voxels/structures.csv): ITV ' +
+        (st.itv_mL === null ? 'none' : fmt(st.itv_mL, 2) + ' mL') + ', mid-ventilation ' + mid));
+      var head = el('tr');
+      ['time point', 't (s)', 'volume (mL)', 'centroid x, y, z (mm, LPS)', 'weight'].forEach(function (h) { head.appendChild(el('th', null, h)); });
+      table.appendChild(head);
+      var rows = st.rows.map(function (r) {
+        var tr = el('tr');
+        [r.tag + (r.tag === st.midventilation ? ' (mid-ventilation)' : ''), r.time_s === null ? 'bin' : fmt(r.time_s, 2), fmt(r.volume_mL, 2),
+         r.centroid_mm === null ? 'empty' : r.centroid_mm.map(function (v) { return fmt(v, 1); }).join(', '), fmt(r.weight, 3)]
+          .forEach(function (v) { tr.appendChild(el('td', null, v)); });
+        table.appendChild(tr);
+        return tr;
+      });
+      slicesRoot.appendChild(table);
+      listeners.push(function (t) {
+        var best = -1;
+        st.rows.forEach(function (r, i) {
+          if (r.time_s !== null && (best < 0 || Math.abs(r.time_s - t) < Math.abs(st.rows[best].time_s - t))) best = i;
+        });
+        rows.forEach(function (tr, i) { tr.className = i === best ? 'current' : ''; });
+      });
+    });
     // The voxel time points' figures (voxels.csv), the one nearest the cursor marked.
     var points = data.voxel_points || [];
     if (points.length) {
@@ -542,6 +576,17 @@
         pointRows.forEach(function (tr, i) { tr.className = i === best ? 'current' : ''; });
       });
     }
+  }
+  // A 0/1 mask (run lengths) to the indices of its outline pixels.
+  function outlinePixels(plane, runs) {
+    var w = plane.width, h = plane.height, m = new Uint8Array(w * h), at = 0, out = [];
+    for (var r = 0; r < runs.length; r += 2) { if (runs[r]) m.fill(1, at, at + runs[r + 1]); at += runs[r + 1]; }
+    for (var i = 0; i < m.length; ++i) {
+      if (!m[i]) continue;
+      var c = i % w, row = (i - c) / w;
+      if (c === 0 || c === w - 1 || row === 0 || row === h - 1 || !m[i - 1] || !m[i + 1] || !m[i - w] || !m[i + w]) out.push(i);
+    }
+    return out;
   }
   function channelCaption(c) {
     if (c.name === 'ct') return 'warped CT, ' + c.lo + ' to ' + c.hi + ' HU';
@@ -606,6 +651,14 @@
       g.beginPath(); g.moveTo(0, s.reference + 1); g.lineTo(s.plane.width, s.reference + 1); g.stroke();
       g.setLineDash([]);
     }
+    s.outlines.forEach(function (o, k) {  // the ITV's outline, then the structure's at the time shown over it
+      g.fillStyle = ITV_COLORS[k % ITV_COLORS.length];
+      o.itv.forEach(function (p) { g.fillRect(p % s.plane.width, Math.floor(p / s.plane.width), 1, 1); });
+    });
+    s.outlines.forEach(function (o, k) {
+      g.fillStyle = STRUCTURE_COLORS[k % STRUCTURE_COLORS.length];
+      o.masks[i].forEach(function (p) { g.fillRect(p % s.plane.width, Math.floor(p / s.plane.width), 1, 1); });
+    });
     if (tracks) drawTracks(s, frame);
     s.channels.forEach(function (c) {
       var j = nearestIndex(s.plane.channel_times_s, t);
@@ -805,7 +858,17 @@
           return { name: pt.name, frame: s.frame, time_s: tracks.times_s[s.frame], pixels: n,
                    column: n ? cx / n : null, row: n ? cy / n : null };
         }) : [];
-        return { time_s: s.plane.times_s[s.shown], lung_pixels: lungPixels, channels: channelPixels, markers: markers };
+        // Each structure's outline and its ITV's, counted by their colours as drawn.
+        var outlines = s.outlines.map(function (o, k) {
+          var a = hexRgb(STRUCTURE_COLORS[k % STRUCTURE_COLORS.length]), b = hexRgb(ITV_COLORS[k % ITV_COLORS.length]), n = 0, m = 0;
+          for (var i = 0; i < p.length; i += 4) {
+            if (p[i] === a[0] && p[i + 1] === a[1] && p[i + 2] === a[2]) ++n;
+            if (p[i] === b[0] && p[i + 1] === b[1] && p[i + 2] === b[2]) ++m;
+          }
+          return { name: o.name, outline_pixels: n, itv_outline_pixels: m };
+        });
+        return { time_s: s.plane.times_s[s.shown], lung_pixels: lungPixels, channels: channelPixels, markers: markers,
+                 structures: outlines };
       }));
       result.pixels = shot.w * shot.h;
       return shot;
