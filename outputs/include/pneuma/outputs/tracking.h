@@ -63,7 +63,8 @@ struct StructureSpec {
 // `structure-<name>-<tag><extension>` (uint8 0/1), its volume and centroid; the ITV, the union of
 // the masks of the time points added with a weight > 0 (the phase bins), voxel for voxel; the
 // mid-ventilation time point, the weighted one whose centroid is closest to the weighted mean of
-// the centroids (weights: each bin's share of the breathing time).
+// the centroids (weights: each bin's share of the breathing time). An empty `folder` writes no
+// file (the Python module: the masks as arrays, mask() after each add()).
 class StructureTracker {
  public:
   StructureTracker(std::filesystem::path folder, std::string extension, StructureSpec spec);
@@ -76,6 +77,8 @@ class StructureTracker {
   };
   const std::vector<Row>& rows() const { return rows_; }
   const StructureSpec& spec() const { return spec_; }
+  // The last time point's mask (0/1 on its grid).
+  const image::LabelMap& mask() const { return scratch_; }
   // Writes itv-<name><extension> when a time point had a weight; the files written.
   std::vector<std::filesystem::path> finish();
   double itv_volume_m3() const { return itv_volume_m3_; }
