@@ -990,7 +990,7 @@ outputs:
     const std::size_t n = runs[r + 1].get<std::size_t>();
     if (runs[r].get<int>() == 1)
       for (std::size_t q = at; q < at + n; ++q) {
-        rows += static_cast<double>(q / width);
+        rows += std::floor(static_cast<double>(q) / static_cast<double>(width));  // the pixel's row
         ++count;
       }
     at += n;
