@@ -124,8 +124,9 @@ struct VoxelTracks {
 // plane through the middle of the lungs and a sagittal one through the middle of the first, with
 // pixels of 2 mm (coarser for a chest wider than 40 cm), at up to `max_times` frames spread
 // evenly over the run; beside them, at up to `max_channel_times` of those frames, the warped CT
-// (when given), |forward DVF| and the forward map's Jacobian. `lung_labels` gets the label values
-// that are lung.
+// (when given), |forward DVF| and the forward map's Jacobian; each voxels.structures structure's
+// mask on the plane at every slice time and its ITV (shared by the voxel output, VoxelStructures)
+// sampled at the pixels. `lung_labels` gets the label values that are lung.
 std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
                                             std::vector<int>& lung_labels, std::size_t max_times = 32,
                                             std::size_t max_channel_times = 8);
