@@ -134,9 +134,12 @@
   // ---- plots: each a <canvas>, its static part drawn once per size, the cursor per frame ----
   var series = data.series;
   var times = series.columns.time_s;
+  // spec: {title, unit, columns} of the physiology series, or with its own {times, values, labels}
+  // (the points' trajectories).
   function Plot(spec, index) {
     var self = this;
     this.spec = spec;
+    this.times = spec.times || times;
     this.root = el('div', { 'class': 'plot' });
     var head = el('div', { 'class': 'head' });
     var title = el('b', null, spec.title + ' (' + spec.unit + ')');
@@ -148,12 +151,12 @@
       var swatch = el('i');
       swatch.style.background = color;
       keyEl.appendChild(swatch);
-      keyEl.appendChild(document.createTextNode(series.labels[key] + ' '));
+      keyEl.appendChild(document.createTextNode((spec.labels || series.labels)[key] + ' '));
       var readout = el('span', null, '');
       keyEl.appendChild(readout);
       head.appendChild(keyEl);
       self.readouts.push(readout);
-      return { key: key, values: series.columns[key], color: color };
+      return { key: key, values: (spec.values || series.columns)[key], color: color };
     });
     this.canvas = el('canvas', { 'aria-label': spec.title });
     this.root.appendChild(head);
@@ -214,8 +217,8 @@
     this.lines.forEach(function (l) {
       g.strokeStyle = l.color;
       g.beginPath();
-      for (var i = 0; i < times.length; ++i) {
-        var px = self.xAt(times[i]), py = self.yAt(l.values[i]);
+      for (var i = 0; i < self.times.length; ++i) {
+        var px = self.xAt(self.times[i]), py = self.yAt(l.values[i]);
         if (i === 0) g.moveTo(px, py); else g.lineTo(px, py);
       }
       g.stroke();
@@ -229,7 +232,7 @@
     g.strokeStyle = '#1d232b'; g.lineWidth = 1 * dpr;
     g.beginPath(); g.moveTo(x, this.top); g.lineTo(x, this.bottom); g.stroke();
     this.lines.forEach(function (l, j) {
-      var v = valueAt(times, l.values, t);
+      var v = valueAt(self.times, l.values, t);
       g.fillStyle = l.color;
       g.beginPath(); g.arc(x, self.yAt(v), 3 * dpr, 0, 2 * Math.PI); g.fill();
       self.readouts[j].textContent = fmt(v, Math.abs(v) >= 100 ? 0 : 2);
@@ -242,6 +245,28 @@
     plotsRoot.appendChild(p.root);
     return p;
   });
+  // ---- points that follow the breath (voxels.points): each one's displacement from rest ----
+  var TRACK_COLORS = ['#ff2fd0', '#00e5ff', '#ffe600', '#ff6a00', '#7cff4f', '#ffffff'];
+  var STRUCTURE_COLORS = ['#ff1f1f', '#21ff74', '#a020ff'], ITV_COLORS = ['#ff9d9d', '#b3ffd1', '#d9a6ff'];
+  var tracks = data.trajectories || null;
+  if (tracks) {
+    tracks.points.forEach(function (p, k) {
+      // LPS: x to the patient's left, y posterior, z superior; the change from the CSV's rest position.
+      var values = { lr: [], ap: [], si: [] };
+      for (var f = 0; f < tracks.times_s.length; ++f) {
+        values.lr.push(p.x_mm[f] - p.rest_mm[0]);
+        values.ap.push(p.y_mm[f] - p.rest_mm[1]);
+        values.si.push(p.z_mm[f] - p.rest_mm[2]);
+      }
+      var plot = new Plot({ title: 'Point ' + p.name + ' (' + p.moves_with + ', marker ' + (k + 1) +
+                                   ' on the slices) from rest, LPS', unit: 'mm', columns: ['lr', 'ap', 'si'],
+                            times: tracks.times_s, values: values,
+                            labels: { lr: 'LR (x, +left)', ap: 'AP (y, +posterior)', si: 'SI (z, +superior)' } }, k);
+      plot.root.setAttribute('data-point', p.name);
+      plotsRoot.appendChild(plot.root);
+      plots.push(plot);
+    });
+  }
   // ---- the ventilator screen (ventilated runs): the numerics of the breath under the cursor ----
   var SCREEN = [['pip', 'PIP', 'cmH2O', 1], ['pplat', 'Pplat', 'cmH2O', 1], ['pmean', 'Pmean', 'cmH2O', 1],
                 ['peep', 'PEEP', 'cmH2O', 1], ['peepi', 'PEEPi', 'cmH2O', 1], ['vti', 'VTi', 'mL', 0],
@@ -489,10 +514,43 @@
       // The reference line: the lungs' lowest row at the time point with the least lung (end-expiration).
       var least = 0;
       decoded.forEach(function (d, i) { if (d.lung < decoded[least].lung) least = i; });
+      // Each structure's outline pixels (in the mask, a 4-neighbour out of it or off the plane), per time and of its ITV.
+      var outlines = (plane.structures || []).map(function (st) {
+        return { name: st.name, masks: st.masks.map(function (runs) { return outlinePixels(plane, runs); }),
+                 itv: st.itv ? outlinePixels(plane, st.itv) : [] };
+      });
       slicePlanes.push({ plane: plane, canvas: canvas, info: info, decoded: decoded, reference: decoded[least].lowest,
-                         reference_time: plane.times_s[least], shown: -1, channels: channels });
+                         reference_time: plane.times_s[least], shown: -1, channels: channels, outlines: outlines });
     });
     listeners.push(function (t) { slicePlanes.forEach(function (s) { drawSlice(s, t); }); });
+    // The structures (voxels.structures): structures.csv's volume and centroid per time point, the
+    // one nearest the cursor marked, and structures-summary.csv's ITV and mid-ventilation.
+    (data.structures || []).forEach(function (st) {
+      var table = el('table', { 'class': 'voxel-points structure' });
+      var mid = st.midventilation === null ? 'none' : st.midventilation + ' at (' + st.midventilation_mm.map(function (v) { return fmt(v, 1); }).join(', ') + ') mm';
+      table.appendChild(el('caption', null, 'Structure ' + st.name + ' (outlined on the slices at the time shown, its ITV ' +
+        'in a lighter shade of the same colour; voxels/structures.csv): ITV ' +
+        (st.itv_mL === null ? 'none' : fmt(st.itv_mL, 2) + ' mL') + ', mid-ventilation ' + mid));
+      var head = el('tr');
+      ['time point', 't (s)', 'volume (mL)', 'centroid x, y, z (mm, LPS)', 'weight'].forEach(function (h) { head.appendChild(el('th', null, h)); });
+      table.appendChild(head);
+      var rows = st.rows.map(function (r) {
+        var tr = el('tr');
+        [r.tag + (r.tag === st.midventilation ? ' (mid-ventilation)' : ''), r.time_s === null ? 'bin' : fmt(r.time_s, 2), fmt(r.volume_mL, 2),
+         r.centroid_mm === null ? 'empty' : r.centroid_mm.map(function (v) { return fmt(v, 1); }).join(', '), fmt(r.weight, 3)]
+          .forEach(function (v) { tr.appendChild(el('td', null, v)); });
+        table.appendChild(tr);
+        return tr;
+      });
+      slicesRoot.appendChild(table);
+      listeners.push(function (t) {
+        var best = -1;
+        st.rows.forEach(function (r, i) {
+          if (r.time_s !== null && (best < 0 || Math.abs(r.time_s - t) < Math.abs(st.rows[best].time_s - t))) best = i;
+        });
+        rows.forEach(function (tr, i) { tr.className = i === best ? 'current' : ''; });
+      });
+    });
     // The voxel time points' figures (voxels.csv), the one nearest the cursor marked.
     var points = data.voxel_points || [];
     if (points.length) {
@@ -519,6 +577,17 @@
       });
     }
   }
+  // A 0/1 mask (run lengths) to the indices of its outline pixels.
+  function outlinePixels(plane, runs) {
+    var w = plane.width, h = plane.height, m = new Uint8Array(w * h), at = 0, out = [];
+    for (var r = 0; r < runs.length; r += 2) { if (runs[r]) m.fill(1, at, at + runs[r + 1]); at += runs[r + 1]; }
+    for (var i = 0; i < m.length; ++i) {
+      if (!m[i]) continue;
+      var c = i % w, row = (i - c) / w;
+      if (c === 0 || c === w - 1 || row === 0 || row === h - 1 || !m[i - 1] || !m[i + 1] || !m[i - w] || !m[i + w]) out.push(i);
+    }
+    return out;
+  }
   function channelCaption(c) {
     if (c.name === 'ct') return 'warped CT, ' + c.lo + ' to ' + c.hi + ' HU';
     if (c.name === 'displacement') return '|forward DVF|, 0 (dark) to ' + c.hi + ' mm (bright)';
@@ -541,10 +610,40 @@
     var i = lowerIndex(list, t);
     return i + 1 < list.length && Math.abs(list[i + 1] - t) < Math.abs(list[i] - t) ? i + 1 : i;
   }
+  // A point (LPS mm) on a plane's canvas, projected along the plane's normal: [column, row] with
+  // pixel centres at +0.5 (row 0 the most superior).
+  function planePixel(plane, x, y, z) {
+    var o = plane.origin_mm, h = plane.pixel_mm;
+    var across = plane.name === 'coronal' ? (x - o[0]) / h : (y - o[1]) / h;
+    return [across + 0.5, plane.height - 1 - (z - o[2]) / h + 0.5];
+  }
+  // Each point's path over the run (a thin line) and, at the cursor's frame, its marker: a 3 x 3
+  // square of its own colour (the self-test finds it by that colour).
+  function drawTracks(s, frame) {
+    var g = s.canvas.getContext('2d');
+    g.globalAlpha = 0.6; g.lineWidth = 1;
+    tracks.points.forEach(function (p, k) {  // every path first: no line over another point's marker
+      g.strokeStyle = TRACK_COLORS[k % TRACK_COLORS.length];
+      g.beginPath();
+      for (var f = 0; f < tracks.times_s.length; ++f) {
+        var q = planePixel(s.plane, p.x_mm[f], p.y_mm[f], p.z_mm[f]);
+        if (f === 0) g.moveTo(q[0], q[1]); else g.lineTo(q[0], q[1]);
+      }
+      g.stroke();
+    });
+    g.globalAlpha = 1;
+    tracks.points.forEach(function (p, k) {
+      g.fillStyle = TRACK_COLORS[k % TRACK_COLORS.length];
+      var m = planePixel(s.plane, p.x_mm[frame], p.y_mm[frame], p.z_mm[frame]);
+      g.fillRect(Math.floor(m[0]) - 1, Math.floor(m[1]) - 1, 3, 3);
+    });
+  }
   function drawSlice(s, t) {
     var i = nearestIndex(s.plane.times_s, t);
-    if (i === s.shown) return;
+    var frame = tracks ? nearestIndex(tracks.times_s, t) : -1;  // the points at the cursor's own frame
+    if (i === s.shown && frame === s.frame) return;
     s.shown = i;
+    s.frame = frame;
     var g = s.canvas.getContext('2d'), d = s.decoded[i];
     g.putImageData(d.image, 0, 0);
     if (s.reference >= 0) {  // dashed: the lungs' lowest point at end-expiration
@@ -552,6 +651,15 @@
       g.beginPath(); g.moveTo(0, s.reference + 1); g.lineTo(s.plane.width, s.reference + 1); g.stroke();
       g.setLineDash([]);
     }
+    s.outlines.forEach(function (o, k) {  // the ITV's outline, then the structure's at the time shown over it
+      g.fillStyle = ITV_COLORS[k % ITV_COLORS.length];
+      o.itv.forEach(function (p) { g.fillRect(p % s.plane.width, Math.floor(p / s.plane.width), 1, 1); });
+    });
+    s.outlines.forEach(function (o, k) {
+      g.fillStyle = STRUCTURE_COLORS[k % STRUCTURE_COLORS.length];
+      o.masks[i].forEach(function (p) { g.fillRect(p % s.plane.width, Math.floor(p / s.plane.width), 1, 1); });
+    });
+    if (tracks) drawTracks(s, frame);
     s.channels.forEach(function (c) {
       var j = nearestIndex(s.plane.channel_times_s, t);
       if (j === c.shown) return;
@@ -738,7 +846,29 @@
           for (var k = 0; k < q.length; k += 4) { sum += q[k] + q[k + 1] + q[k + 2]; if (q[k + 3] > 0) ++n; }
           return { name: c.channel.name, time_s: s.plane.channel_times_s[c.shown], drawn: n, mean_rgb: sum / (3 * Math.max(1, n)) };
         });
-        return { time_s: s.plane.times_s[s.shown], lung_pixels: lungPixels, channels: channelPixels };
+        // Each point's marker as drawn: the centre of the pixels of its colour (null when off the canvas).
+        var markers = tracks ? tracks.points.map(function (pt, k) {
+          var rgb = hexRgb(TRACK_COLORS[k % TRACK_COLORS.length]), n = 0, cx = 0, cy = 0;
+          for (var i = 0; i < p.length; i += 4) {
+            if (p[i] === rgb[0] && p[i + 1] === rgb[1] && p[i + 2] === rgb[2]) {
+              var at = i / 4;
+              ++n; cx += at % s.plane.width + 0.5; cy += Math.floor(at / s.plane.width) + 0.5;
+            }
+          }
+          return { name: pt.name, frame: s.frame, time_s: tracks.times_s[s.frame], pixels: n,
+                   column: n ? cx / n : null, row: n ? cy / n : null };
+        }) : [];
+        // Each structure's outline and its ITV's, counted by their colours as drawn.
+        var outlines = s.outlines.map(function (o, k) {
+          var a = hexRgb(STRUCTURE_COLORS[k % STRUCTURE_COLORS.length]), b = hexRgb(ITV_COLORS[k % ITV_COLORS.length]), n = 0, m = 0;
+          for (var i = 0; i < p.length; i += 4) {
+            if (p[i] === a[0] && p[i + 1] === a[1] && p[i + 2] === a[2]) ++n;
+            if (p[i] === b[0] && p[i + 1] === b[1] && p[i + 2] === b[2]) ++m;
+          }
+          return { name: o.name, outline_pixels: n, itv_outline_pixels: m };
+        });
+        return { time_s: s.plane.times_s[s.shown], lung_pixels: lungPixels, channels: channelPixels, markers: markers,
+                 structures: outlines };
       }));
       result.pixels = shot.w * shot.h;
       return shot;

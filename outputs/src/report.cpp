@@ -223,7 +223,8 @@ Json bins_json(const ReportBins& bins) {
 
 // A slice's labels run-length encoded, row by row as stored: [label, count, label, count, ...]
 // (a lung plane is a few runs a row: tens of kB instead of megabytes).
-Json run_lengths(const std::vector<std::int32_t>& labels) {
+template <typename Labels>
+Json run_lengths(const Labels& labels) {
   Json out = Json::array();
   for (std::size_t i = 0; i < labels.size();) {
     std::size_t j = i;
@@ -231,6 +232,17 @@ Json run_lengths(const std::vector<std::int32_t>& labels) {
     out.push_back(labels[i]);
     out.push_back(j - i);
     i = j;
+  }
+  return out;
+}
+
+// Each structure's masks on the plane (per time) and its ITV (null without one), run-length encoded.
+Json plane_structures(const LabelSlice& slice) {
+  Json out = Json::array();
+  for (const LabelSlice::Structure& s : slice.structures) {
+    Json masks = Json::array();
+    for (const auto& mask : s.masks) masks.push_back(run_lengths(mask));
+    out.push_back(Json{{"name", s.name}, {"masks", masks}, {"itv", s.itv.empty() ? Json() : run_lengths(s.itv)}});
   }
   return out;
 }
@@ -256,17 +268,62 @@ Json slices_json(const std::vector<LabelSlice>& slices, const std::vector<int>& 
                               {"log", c.log},
                               {"images", encoded}});
     }
-    planes.push_back(Json{{"name", slice.name},
-                          {"fixed", slice.fixed},
-                          {"width", slice.width},
-                          {"height", slice.height},
-                          {"pixel_mm", rounded(slice.pixel_mm, 4)},
-                          {"times_s", times},
-                          {"labels", images},
-                          {"channel_times_s", channel_times},
-                          {"channels", channels}});
+    planes.push_back(Json{
+        {"name", slice.name},
+        {"fixed", slice.fixed},
+        {"width", slice.width},
+        {"height", slice.height},
+        {"pixel_mm", rounded(slice.pixel_mm, 4)},
+        {"origin_mm", {rounded(slice.origin_mm[0], 4), rounded(slice.origin_mm[1], 4), rounded(slice.origin_mm[2], 4)}},
+        {"times_s", times},
+        {"labels", images},
+        {"channel_times_s", channel_times},
+        {"channels", channels},
+        {"structures", plane_structures(slice)}});
   }
   return Json{{"lung_labels", lung_labels}, {"planes", planes}};
+}
+
+// The points' positions per frame as three columns (LPS mm): the numbers trajectories.csv prints.
+Json tracks_json(const std::vector<double>& times_s, const std::vector<PointTrack>& tracks) {
+  Json points = Json::array();
+  for (const PointTrack& track : tracks) {
+    Json axes = Json::array({Json::array(), Json::array(), Json::array()});
+    for (const auto& x : track.position_mm)
+      for (std::size_t a = 0; a < 3; ++a) axes[a].push_back(x[a]);
+    points.push_back(Json{{"name", track.name},
+                          {"moves_with", track.moves_with},
+                          {"rest_mm", track.rest_mm},
+                          {"x_mm", axes[0]},
+                          {"y_mm", axes[1]},
+                          {"z_mm", axes[2]}});
+  }
+  Json times = Json::array();
+  for (const double t : times_s) times.push_back(rounded(t, 6));
+  return Json{{"times_s", times}, {"points", points}};
+}
+
+Json optional_mm(const std::optional<std::array<double, 3>>& x) { return x ? Json(*x) : Json(); }
+
+// structures.csv and structures-summary.csv as the page lists them.
+Json structures_json(const std::vector<StructureFacts>& structures) {
+  Json out = Json::array();
+  for (const StructureFacts& s : structures) {
+    Json rows = Json::array();
+    for (const StructureFacts::Row& row : s.rows)
+      rows.push_back(Json{{"tag", row.tag},
+                          {"time_s", row.time_s ? Json(rounded(*row.time_s, 6)) : Json()},
+                          {"volume_mL", row.volume_ml},
+                          {"centroid_mm", optional_mm(row.centroid_mm)},
+                          {"weight", row.weight}});
+    out.push_back(Json{{"name", s.name},
+                       {"rows", rows},
+                       {"itv_mL", s.itv_ml ? Json(*s.itv_ml) : Json()},
+                       {"midventilation", s.midventilation.empty() ? Json() : Json(s.midventilation)},
+                       {"midventilation_mm", optional_mm(s.midventilation_mm)},
+                       {"mean_mm", optional_mm(s.mean_mm)}});
+  }
+  return out;
 }
 
 Json voxel_points_json(const std::vector<VoxelPointFigures>& points) {
@@ -363,6 +420,8 @@ std::string report_html(const ReportInput& input) {
   if (input.bins) data["bins"] = bins_json(*input.bins);
   if (!input.slices.empty()) data["slices"] = slices_json(input.slices, input.lung_labels);
   if (!input.voxel_points.empty()) data["voxel_points"] = voxel_points_json(input.voxel_points);
+  if (!input.structures.empty()) data["structures"] = structures_json(input.structures);
+  if (!input.tracks.empty()) data["trajectories"] = tracks_json(input.track_times_s, input.tracks);
 
   const std::string json = script_json(data);
   const std::string glb = base64(input.glb);

@@ -121,6 +121,11 @@ ReportInput report_input(const model::Model& model, const RunRecord& run) {
   }
   r.slices = report_label_slices(model, run, r.lung_labels);
   if (const VoxelFigures* figures = run.shared.find<VoxelFigures>()) r.voxel_points = figures->points;
+  if (const VoxelStructures* structures = run.shared.find<VoxelStructures>()) r.structures = structures->facts;
+  if (const VoxelTracks* tracks = run.shared.find<VoxelTracks>()) {
+    r.track_times_s = tracks->times_s;
+    r.tracks = tracks->points;
+  }
   return r;
 }
 

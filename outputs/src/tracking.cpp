@@ -210,9 +210,11 @@ void StructureTracker::add(const std::string& tag, const voxels::TimePoint& poin
   row.volume_m3 = static_cast<double>(count) * scratch_.voxel_volume_m3();
   row.centroid_m = count > 0 ? Eigen::Vector3d(row.centroid_m / static_cast<double>(count))
                              : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-  const std::filesystem::path file = folder_ / ("structure-" + spec_.name + "-" + tag + extension_);
-  voxels::write_label_map(file, scratch_);
-  files_.push_back(file);
+  if (!folder_.empty()) {
+    const std::filesystem::path file = folder_ / ("structure-" + spec_.name + "-" + tag + extension_);
+    voxels::write_label_map(file, scratch_);
+    files_.push_back(file);
+  }
   if (weight > 0.0) {
     if (!itv_) {
       itv_ = scratch_;
@@ -228,9 +230,13 @@ std::vector<std::filesystem::path> StructureTracker::finish() {
     std::size_t count = 0;
     for (const std::int32_t v : itv_->labels) count += v != 0;
     itv_volume_m3_ = static_cast<double>(count) * itv_->voxel_volume_m3();
-    const std::filesystem::path file = folder_ / ("itv-" + spec_.name + extension_);
-    voxels::write_label_map(file, *itv_);
-    files_.push_back(file);
+    if (!folder_.empty()) {
+      const std::filesystem::path file = folder_ / ("itv-" + spec_.name + extension_);
+      voxels::write_label_map(file, *itv_);
+      files_.push_back(file);
+    }
+    itv_shared_ = std::make_shared<const image::LabelMap>(std::move(*itv_));
+    itv_.reset();
   }
   return files_;
 }

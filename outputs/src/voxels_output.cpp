@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <optional>
 
 #include "dicom_series.h"
@@ -21,6 +22,7 @@
 #include "pneuma/voxels/grid.h"
 #include "pneuma/voxels/time_point.h"
 #include "pneuma/voxels/voxel_io.h"
+#include "pneuma/voxels/warp.h"
 
 namespace pneuma::outputs {
 namespace {
@@ -348,7 +350,12 @@ class VoxelsOutput final : public Output {
     if (sequences) {
       for (const auto& f : sequences->finish()) files.push_back(f);
     }
-    if (!structures.empty()) write_structures(structures, files);
+    if (!structures.empty()) {
+      std::map<std::string, double> time_of;  // the frames' tags; a bin has no time
+      for (const VoxelPoint& at : time_points)
+        if (at.frame) time_of[at.tag] = series.time_s[*at.frame];
+      write_structures(run, structures, time_of, files);
+    }
     if (!spec_.points.empty()) files.push_back(write_trajectories(model, run, time_points));
     const std::filesystem::path csv = dir_ / "voxels" / "voxels.csv";
     write_stream_atomically(csv, false, [&](std::ostream& out) {
@@ -391,22 +398,46 @@ class VoxelsOutput final : public Output {
 
   // structures.csv (each structure at each time point) and structures-summary.csv (its ITV and
   // mid-ventilation), beside each structure's files.
-  void write_structures(std::vector<StructureTracker>& structures, std::vector<std::filesystem::path>& files) {
+  // The same numbers shared for report.html (VoxelStructures): each printed once and read back.
+  void write_structures(const RunRecord& run, std::vector<StructureTracker>& structures,
+                        const std::map<std::string, double>& time_of, std::vector<std::filesystem::path>& files) {
     const auto mm = [](const Eigen::Vector3d& x) {
       return std::isfinite(x.x()) ? fmt::format("{:.4f},{:.4f},{:.4f}", x.x() * 1e3, x.y() * 1e3, x.z() * 1e3)
                                   : std::string(",,");
     };
+    const auto read_back = [](const Eigen::Vector3d& x) -> std::optional<std::array<double, 3>> {
+      if (!std::isfinite(x.x())) return std::nullopt;
+      std::array<double, 3> out{};
+      for (int a = 0; a < 3; ++a) out[static_cast<std::size_t>(a)] = std::stod(fmt::format("{:.4f}", x[a] * 1e3));
+      return out;
+    };
+    const auto g6 = [](double x) { return std::stod(fmt::format("{:.6g}", x)); };
+    VoxelStructures shared;
     std::string rows, summary;
     for (StructureTracker& structure : structures) {
       for (const auto& f : structure.finish()) files.push_back(f);
-      for (const StructureTracker::Row& row : structure.rows())
+      StructureFacts facts;
+      facts.name = structure.spec().name;
+      for (const StructureTracker::Row& row : structure.rows()) {
         rows += fmt::format("{},{},{:.6g},{},{:.6g}\n", structure.spec().name, row.tag, row.volume_m3 * 1e6,
                             mm(row.centroid_m), row.weight);
+        const auto time = time_of.find(row.tag);
+        facts.rows.push_back({row.tag, time == time_of.end() ? std::nullopt : std::optional<double>(time->second),
+                              g6(row.volume_m3 * 1e6), read_back(row.centroid_m), g6(row.weight)});
+      }
       const std::optional<std::size_t> mid = structure.midventilation();
       summary +=
           fmt::format("{},{:.6g},{},{},{}\n", structure.spec().name, structure.itv_volume_m3() * 1e6,
                       mid ? structure.rows()[*mid].tag : "",
                       mid ? mm(structure.rows()[*mid].centroid_m) : std::string(",,"), mm(structure.mean_position_m()));
+      if (structure.itv()) facts.itv_ml = g6(structure.itv_volume_m3() * 1e6);
+      if (mid) {
+        facts.midventilation = structure.rows()[*mid].tag;
+        facts.midventilation_mm = read_back(structure.rows()[*mid].centroid_m);
+      }
+      facts.mean_mm = read_back(structure.mean_position_m());
+      shared.facts.push_back(std::move(facts));
+      shared.itvs.push_back(structure.itv());
       facts_.emplace_back("structures." + structure.spec().name + ".itv_mL",
                           fmt::format("{:.6g}", structure.itv_volume_m3() * 1e6));
       if (mid)
@@ -424,6 +455,7 @@ class VoxelsOutput final : public Output {
     });
     files.push_back(csv);
     files.push_back(summary_csv);
+    run.shared.get<VoxelStructures>([&] { return std::make_shared<const VoxelStructures>(std::move(shared)); });
   }
 
   // trajectories.csv: every point at every frame, then at each phase bin (when `phases` is in `at`).
@@ -432,27 +464,40 @@ class VoxelsOutput final : public Output {
     const auto& series = run.drive->series;
     std::vector<PointMotion> motions;
     for (const Fiducial& f : spec_.points) motions.push_back(locate(model, f.rest_m));
+    // Each position printed once: the CSV's text and report.html's numbers (VoxelTracks) the same.
+    const auto mm = [](double x_m) { return fmt::format("{:.4f}", x_m * 1e3); };
+    VoxelTracks tracks;
+    tracks.times_s = series.time_s;
+    for (std::size_t p = 0; p < spec_.points.size(); ++p) {
+      const Eigen::Vector3d& rest = spec_.points[p].rest_m;
+      tracks.points.push_back(
+          {spec_.points[p].name, moves_with(model, motions[p]), {rest.x() * 1e3, rest.y() * 1e3, rest.z() * 1e3}, {}});
+    }
     std::filesystem::path csv = dir_ / "voxels" / "trajectories.csv";
     write_stream_atomically(csv, false, [&](std::ostream& out) {
       out << "point,moves_with,frame,time_s,bin,x_mm,y_mm,z_mm\n";
       std::vector<double> scales(model.lungs.size());
-      const auto row = [&](const std::string& when) {
+      const auto row = [&](const std::string& when, bool frame) {
         for (std::size_t p = 0; p < spec_.points.size(); ++p) {
-          const Eigen::Vector3d x = moved_point(model, spec_.points[p].rest_m, motions[p], scales) * 1e3;
-          out << fmt::format("{},{},{},{:.4f},{:.4f},{:.4f}\n", spec_.points[p].name, moves_with(model, motions[p]),
-                             when, x.x(), x.y(), x.z());
+          const Eigen::Vector3d x = moved_point(model, spec_.points[p].rest_m, motions[p], scales);
+          const std::array<std::string, 3> text{mm(x.x()), mm(x.y()), mm(x.z())};
+          out << fmt::format("{},{},{},{},{},{}\n", spec_.points[p].name, tracks.points[p].moves_with, when, text[0],
+                             text[1], text[2]);
+          if (frame)
+            tracks.points[p].position_mm.push_back({std::stod(text[0]), std::stod(text[1]), std::stod(text[2])});
         }
       };
       for (std::size_t k = 0; k < series.time_s.size(); ++k) {
         for (std::size_t i = 0; i < model.lungs.size(); ++i) scales[i] = run.scales[i][k];
-        row(fmt::format("{},{:.6f},", k, series.time_s[k]));
+        row(fmt::format("{},{:.6f},", k, series.time_s[k]), true);
       }
       for (const VoxelPoint& at : time_points) {
         if (at.frame) continue;
         scales = at.scales;
-        row(",," + at.tag);
+        row(",," + at.tag, false);
       }
     });
+    run.shared.get<VoxelTracks>([&] { return std::make_shared<const VoxelTracks>(std::move(tracks)); });
     return csv;
   }
 
@@ -702,9 +747,12 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
     for (const double sc : run.scales[i]) largest_s = std::max(largest_s, std::abs(sc));
     max_displacement_mm = std::max(max_displacement_mm, std::ceil(largest_u * largest_s * 1e3));
   }
+  const VoxelStructures* shared_structures = run.shared.find<VoxelStructures>();  // the ITVs
+  image::LabelMap warped_mask;
   for (const bool coronal : {true, false}) {
     const voxels::Grid grid = plane(coronal);
     LabelSlice slice;
+    for (const StructureSpec& structure : spec.structures) slice.structures.push_back({structure.name, {}, {}});
     slice.name = coronal ? "coronal" : "sagittal";
     const Eigen::Vector3d origin = grid.ijk_to_lps.block<3, 1>(0, 3);
     slice.fixed =
@@ -712,6 +760,7 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
     slice.width = coronal ? grid.size[0] : grid.size[1];
     slice.height = grid.size[2];
     slice.pixel_mm = h * 1e3;
+    slice.origin_mm = {origin.x() * 1e3, origin.y() * 1e3, origin.z() * 1e3};
     // The channels at every `stride`-th slice time (the first and the last among them).
     const std::size_t stride = max_channel_times == 0 ? n + 1 : (n + max_channel_times - 1) / max_channel_times;
     const bool with_ct = scene_has_image;
@@ -738,6 +787,22 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
         for (std::size_t c = 0; c < slice.width; ++c) image.push_back(point.labels->labels[voxel(row, c)]);
       slice.times_s.push_back(time_s[k]);
       slice.labels.push_back(std::move(image));
+      // Each structure as the voxel output warps it (StructureTracker::add): the label among the
+      // warped labels, or the mask file pulled back.
+      for (std::size_t s = 0; s < spec.structures.size(); ++s) {
+        const StructureSpec& structure = spec.structures[s];
+        if (structure.mask) voxels::warp_labels(*structure.mask, point.pullback, warped_mask);
+        const std::vector<std::int32_t>& values = structure.mask ? warped_mask.labels : point.labels->labels;
+        std::vector<std::int32_t> mask;
+        mask.reserve(slice.width * slice.height);
+        for (std::size_t row = 0; row < slice.height; ++row) {
+          for (std::size_t c = 0; c < slice.width; ++c) {
+            const std::int32_t v = values[voxel(row, c)];
+            mask.push_back(structure.mask ? v != 0 : v == structure.label);
+          }
+        }
+        slice.structures[s].masks.push_back(std::move(mask));
+      }
       if (!channels) continue;
       slice.channel_times_s.push_back(time_s[k]);
       for (LabelSlice::Channel& channel : slice.channels) {
@@ -753,6 +818,29 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
           }
         }
         channel.images.push_back(std::move(bytes));
+      }
+    }
+    // Each ITV sampled at the plane's pixel centres (nearest voxel; 0 outside it).
+    for (std::size_t s = 0; shared_structures != nullptr && s < shared_structures->itvs.size(); ++s) {
+      if (!shared_structures->itvs[s] || s >= slice.structures.size()) continue;
+      const image::LabelMap& itv = *shared_structures->itvs[s];
+      const voxels::Grid itv_grid = voxels::grid_of(itv);
+      const Eigen::Matrix4d to_ijk = itv_grid.lps_to_ijk();
+      std::vector<std::int32_t>& out = slice.structures[s].itv;
+      for (std::size_t row = 0; row < slice.height; ++row) {
+        for (std::size_t c = 0; c < slice.width; ++c) {
+          const std::size_t z = slice.height - 1 - row;
+          const Eigen::Vector3d x = coronal ? grid.centre_m(c, 0, z) : grid.centre_m(0, c, z);
+          const Eigen::Vector3d ijk = (to_ijk * x.homogeneous()).head<3>();
+          std::array<std::size_t, 3> at{};
+          bool inside = true;
+          for (std::size_t a = 0; a < 3; ++a) {
+            const double nearest = std::round(ijk[static_cast<Eigen::Index>(a)]);
+            inside = inside && nearest >= 0.0 && nearest < static_cast<double>(itv_grid.size[a]);
+            at[a] = inside ? static_cast<std::size_t>(nearest) : 0;
+          }
+          out.push_back(inside && itv.labels[itv_grid.index(at[0], at[1], at[2])] != 0);
+        }
       }
     }
     slices.push_back(std::move(slice));

@@ -151,6 +151,87 @@ struct Animation {
     result["moves_with"] = moves;
     return result;
   }
+  // The scenario's structures (voxels.structures) at `frames`, as voxels/structures.csv and
+  // structures-summary.csv (outputs/tracking.h: StructureTracker, the CLI's own rule).
+  py::dict structures(const std::vector<std::size_t>& frames, std::optional<std::vector<double>> weights) const {
+    if (!voxels_spec || voxels_spec->structures.empty())
+      throw ValueError("structures: the scenario has no `outputs: voxels: structures`");
+    if (frames.empty()) throw ValueError("frames: expected at least one frame index");
+    for (const std::size_t k : frames) {
+      if (k >= frame_count())
+        throw ValueError(fmt::format("frames: expected frame indices from 0 to {}, got {}", frame_count() - 1, k));
+    }
+    const std::vector<double> w = weights ? *weights : std::vector<double>(frames.size(), 1.0);
+    if (w.size() != frames.size())
+      throw ValueError(fmt::format("weights: expected one per frame ({}), got {}", frames.size(), w.size()));
+    if (!voxel_scene) {
+      py::gil_scoped_release release;
+      voxel_scene = std::make_shared<const outputs::VoxelScene>(*model, scenario, *voxels_spec);
+    }
+    const voxels::Grid& grid = voxel_scene->grid();
+    const auto nx = static_cast<py::ssize_t>(grid.size[0]), ny = static_cast<py::ssize_t>(grid.size[1]),
+               nz = static_cast<py::ssize_t>(grid.size[2]), n = static_cast<py::ssize_t>(frames.size());
+    const auto b = static_cast<py::ssize_t>(sizeof(bool));
+    std::vector<outputs::StructureTracker> trackers;
+    std::vector<py::array_t<bool>> masks;  // [structure]: (frames, nx, ny, nz), indexed like voxels()
+    for (const outputs::StructureSpec& spec : voxels_spec->structures) {
+      trackers.emplace_back(std::filesystem::path{}, std::string{}, spec);
+      masks.emplace_back(std::vector<py::ssize_t>{n, nx, ny, nz},
+                         std::vector<py::ssize_t>{b * nx * ny * nz, b, b * nx, b * nx * ny});
+    }
+    voxels::TimePoint point;
+    for (std::size_t t = 0; t < frames.size(); ++t) {
+      {
+        py::gil_scoped_release release;
+        std::vector<double> at;
+        for (const auto& lung : scales) at.push_back(lung[frames[t]]);
+        voxel_scene->compute(at, point);
+        for (auto& tracker : trackers) tracker.add(std::to_string(frames[t]), point, w[t]);
+      }
+      for (std::size_t s = 0; s < trackers.size(); ++s) {
+        const std::vector<std::int32_t>& mask = trackers[s].mask().labels;
+        std::transform(mask.begin(), mask.end(), masks[s].mutable_data() + static_cast<std::size_t>(t) * mask.size(),
+                       [](std::int32_t v) { return v != 0; });
+      }
+    }
+    const auto vector = [](const Eigen::Vector3d& x) {
+      py::array_t<double> out(3);
+      std::copy_n(x.data(), 3, out.mutable_data());
+      return out;
+    };
+    py::dict out;
+    for (std::size_t s = 0; s < trackers.size(); ++s) {
+      outputs::StructureTracker& tracker = trackers[s];
+      tracker.finish();
+      py::array_t<double> volume(n), centroid({n, py::ssize_t{3}});
+      for (std::size_t t = 0; t < frames.size(); ++t) {
+        const auto& row = tracker.rows()[t];
+        volume.mutable_at(static_cast<py::ssize_t>(t)) = row.volume_m3;
+        for (py::ssize_t a = 0; a < 3; ++a) centroid.mutable_at(static_cast<py::ssize_t>(t), a) = row.centroid_m[a];
+      }
+      py::dict one;
+      one["masks"] = masks[s];
+      one["volume_m3"] = volume;
+      one["centroid_m"] = centroid;
+      one["weights"] = w;
+      if (const auto itv = tracker.itv()) {
+        py::array_t<bool> itv_mask({nx, ny, nz}, {b, b * nx, b * nx * ny});
+        std::transform(itv->labels.begin(), itv->labels.end(), itv_mask.mutable_data(),
+                       [](std::int32_t v) { return v != 0; });
+        one["itv"] = itv_mask;
+        one["itv_volume_m3"] = tracker.itv_volume_m3();
+      } else {
+        one["itv"] = py::none();
+        one["itv_volume_m3"] = py::none();
+      }
+      const std::optional<std::size_t> mid = tracker.midventilation();
+      one["midventilation"] = mid ? py::cast(*mid) : py::none();
+      one["midventilation_m"] = mid ? py::object(vector(tracker.rows()[*mid].centroid_m)) : py::none();
+      one["mean_m"] = vector(tracker.mean_position_m());
+      out[py::str(tracker.spec().name)] = one;
+    }
+    return out;
+  }
   // The frame whose time is nearest to t (frames are 1 / frame_rate apart).
   std::size_t index_at(double t) const {
     if (!(t >= time_s.front() - 1e-9 && t <= time_s.back() + 1e-9)) {
@@ -281,6 +362,14 @@ void register_animation(py::module_& m) {
            "surface', 'left interior', 'body', ...): a point within 0.01 mm of a rest surface moves with the "
            "surface frames, one inside a lung's tetrahedra (the scenario needs `outputs: voxels`) with its "
            "inside, any other with the body's motion (docs/formats.md, \"Points and structures\").")
+      .def("structures", &Animation::structures, py::arg("frames"), py::arg("weights") = py::none(),
+           "structures(frames, weights=None) -> dict: each structure of the scenario's voxels.structures "
+           "(a label or a mask file) at the frames (indices), as voxels/structures.csv and "
+           "structures-summary.csv: by name a dict of 'masks' (len(frames), nx, ny, nz) bool (the warped mask, "
+           "indexed like voxels()), 'volume_m3' and 'centroid_m' (len(frames), 3) per frame (NaN: empty), "
+           "'weights' (default 1 each; the CLI weighs phase bins by their share of the breathing time), 'itv' "
+           "(nx, ny, nz) bool the union of the frames with weight > 0 and 'itv_volume_m3', 'midventilation' "
+           "(the index into frames whose centroid is nearest the weighted mean), 'midventilation_m', 'mean_m'.")
       .def("__len__", [](const Animation& a) { return a.frame_count(); })
       .def("__repr__", [](const Animation& a) {
         return fmt::format("<pneuma.Animation '{}' {} frames, {} vertices{}>", a.scenario.name, a.frame_count(),

@@ -87,3 +87,59 @@ def VOXELS_SCENARIO(tmp_path, points):
     path = tmp_path / ("voxels.yaml" if points is None else "voxels-points.yaml")
     path.write_text(text)
     return path
+
+
+def test_structures_are_the_cli_files(tmp_path):
+    """Animation.structures: a ball mask in the lung (written with nibabel, RAS affine) at the CLI's
+    two time points gives, per frame, the warped mask voxel for voxel as the CLI's
+    structure-ball-<tag>.nii.gz, the volume and centroid of voxels/structures.csv, the ITV as
+    itv-ball.nii.gz and the mid-ventilation and mean of structures-summary.csv; the volume is also
+    numpy's count of the mask's voxels."""
+    rest = pneuma.Animation(VOXELS_SCENARIO(tmp_path, None)).vertices
+    centre = rest.mean(axis=0) * 1e3  # LPS mm
+    h, n = 1.5, 24
+    lps_origin = centre - h * (n - 1) / 2
+    # NIfTI's RAS+ affine of the LPS grid i, j, k along x, y, z.
+    affine = np.diag([-h, -h, h, 1.0])
+    affine[:3, 3] = [-lps_origin[0], -lps_origin[1], lps_origin[2]]
+    ijk = np.indices((n, n, n)).reshape(3, -1).T
+    points = lps_origin + h * ijk
+    ball = (np.linalg.norm(points - centre, axis=1) <= 15.0).reshape(n, n, n).astype(np.uint8)
+    nib.save(nib.Nifti1Image(ball, affine), tmp_path / "ball.nii.gz")
+    text = VOXELS.replace("at: [end_inspiration], spacing: 4 mm}",
+                          "at: [end_expiration, end_inspiration], spacing: 4 mm, structures: {ball: ball.nii.gz}}")
+    assert text != VOXELS
+    scenario = tmp_path / "structures.yaml"
+    scenario.write_text(text)
+    code, _, err = run_cli("run", scenario, "-o", tmp_path / "cli", "--quiet")
+    assert code == 0, err
+    animation = pneuma.Animation(scenario)
+    frames = {"end_expiration": int(np.argmin(animation.volume_mL)),
+              "end_inspiration": int(np.argmax(animation.volume_mL))}
+    tags = sorted(frames, key=lambda t: frames[t])  # in time order, as the CLI computes them
+    out = animation.structures([frames[t] for t in tags])["ball"]
+    folder = tmp_path / "cli" / "voxels"
+    rows = {r[1]: r for r in (line.split(",") for line in (folder / "structures.csv").read_text().splitlines()[1:])}
+    assert set(rows) == set(tags)
+    voxel_m3 = 4e-3 ** 3
+    for t, tag in enumerate(tags):
+        written = np.asarray(nib.load(folder / f"structure-ball-{tag}.nii.gz").dataobj) != 0
+        assert out["masks"][t].shape == written.shape
+        np.testing.assert_array_equal(out["masks"][t], written)
+        assert out["volume_m3"][t] == pytest.approx(np.count_nonzero(out["masks"][t]) * voxel_m3, rel=1e-9)
+        assert out["volume_m3"][t] * 1e6 == pytest.approx(float(rows[tag][2]), rel=1e-5)
+        np.testing.assert_allclose(out["centroid_m"][t] * 1e3, [float(v) for v in rows[tag][3:6]], atol=1e-4)
+        assert float(rows[tag][6]) == out["weights"][t] == 1.0
+    assert np.count_nonzero(out["masks"][0]) > 100  # the ball: (30 mm)^3 pi / 6 on 4 mm voxels
+    assert not np.array_equal(out["masks"][0], out["masks"][1])  # it moved
+    itv = np.asarray(nib.load(folder / "itv-ball.nii.gz").dataobj) != 0
+    np.testing.assert_array_equal(out["itv"], itv)
+    np.testing.assert_array_equal(out["itv"], out["masks"].any(axis=0))
+    summary = (folder / "structures-summary.csv").read_text().splitlines()[1].split(",")
+    assert summary[0] == "ball"
+    assert out["itv_volume_m3"] * 1e6 == pytest.approx(float(summary[1]), rel=1e-5)
+    assert tags[out["midventilation"]] == summary[2]
+    np.testing.assert_allclose(out["midventilation_m"] * 1e3, [float(v) for v in summary[3:6]], atol=1e-4)
+    np.testing.assert_allclose(out["mean_m"] * 1e3, [float(v) for v in summary[6:9]], atol=1e-4)
+    with pytest.raises(ValueError, match="weights"):
+        animation.structures([0, 1], weights=[1.0])

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <sstream>
@@ -794,5 +795,385 @@ outputs:
     // |DVF| at rest is the scale's zero (dark); at 2 s brighter.
     EXPECT_LT(result["slices"][0][p]["channels"][1]["mean_rgb"].get<double>(),
               result["slices"][1][p]["channels"][1]["mean_rgb"].get<double>());
+  }
+}
+
+// voxels.points on the page (#48): each point's positions per frame are trajectories.csv's
+// numbers exactly, and Chromium draws each point's marker where trajectories.csv puts it on both
+// planes (projected: column along x or y, row down from the top along z) at two cursor times, so
+// the marker moves by the pixels the CSV's displacement says. Two points inside the phantom's
+// convex lung (from a first run's rest slice): its centre and just above its lowest row.
+TEST(Report, PointTrajectoriesArePlottedAndTheirMarkersMoveOnTheSlices) {
+  TempDir dir;
+  const std::string scenario_text = R"(duration: 4 s
+frames: {rate: 10 Hz}
+mesh: {phantom: right, edge: 8 mm}
+field: {tissue: healthy-upright, interior: {edge: 8 mm}}
+physiology:
+  preset: healthy-adult
+  output_rate: 10 Hz
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}
+outputs:
+  hdf5: false
+  gltf: false
+  voxels: {at: [end_expiration, end_inspiration], spacing: 4 mm{points}}
+)";
+  auto with = [&](const std::string& points) {
+    std::string text = scenario_text;
+    return text.replace(text.find("{points}"), 8, points);
+  };
+  const auto first = dir.write("first.yaml", with(""));
+  ASSERT_EQ(run_pneuma({"run", first.string(), "-o", (dir / "a").string(), "--quiet"}).exit_code, 0);
+  const Page rest_page = read_page(dir / "a/report.html");
+  ASSERT_FALSE(rest_page.data.contains("trajectories"));
+  const auto& coronal = rest_page.data["slices"]["planes"][0];
+  ASSERT_EQ(coronal["name"], "coronal");
+  ASSERT_EQ(coronal["times_s"][0].get<double>(), 0.0);
+  const std::size_t width = coronal["width"].get<std::size_t>(), height = coronal["height"].get<std::size_t>();
+  const double h = coronal["pixel_mm"].get<double>();
+  const auto& origin = coronal["origin_mm"];
+  std::vector<int> labels;
+  const auto& runs = coronal["labels"][0];
+  for (std::size_t r = 0; r + 1 < runs.size(); r += 2)
+    labels.insert(labels.end(), runs[r + 1].get<std::size_t>(), runs[r].get<int>());
+  ASSERT_EQ(labels.size(), width * height);
+  double sum_row = 0.0, sum_column = 0.0;
+  std::size_t count = 0, lowest = 0;
+  for (std::size_t row = 0; row < height; ++row)
+    for (std::size_t c = 0; c < width; ++c)
+      if (labels[row * width + c] == 1) {
+        sum_row += static_cast<double>(row);
+        sum_column += static_cast<double>(c);
+        ++count;
+        lowest = row;
+      }
+  ASSERT_GT(count, 50u);
+  std::vector<std::size_t> lowest_columns;
+  for (std::size_t c = 0; c < width; ++c)
+    if (labels[lowest * width + c] == 1) lowest_columns.push_back(c);
+  // A pixel's LPS centre (mm) on the coronal plane.
+  auto lps = [&](double row, double column) {
+    return std::array<double, 3>{origin[0].get<double>() + column * h, origin[1].get<double>(),
+                                 origin[2].get<double>() + (static_cast<double>(height) - 1.0 - row) * h};
+  };
+  const auto centre =
+      lps(std::round(sum_row / static_cast<double>(count)), std::round(sum_column / static_cast<double>(count)));
+  const auto base =
+      lps(static_cast<double>(lowest) - 2.0, static_cast<double>(lowest_columns[lowest_columns.size() / 2]));
+  dir.write("points.csv", fmt::format("name,x_mm,y_mm,z_mm\ncentre,{},{},{}\nbase,{},{},{}\n", centre[0], centre[1],
+                                      centre[2], base[0], base[1], base[2]));
+  const auto second = dir.write("second.yaml", with(", points: points.csv"));
+  const auto out = dir / "b";
+  const auto run = run_pneuma({"run", second.string(), "-o", out.string(), "--quiet"});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const Page page = read_page(out / "report.html");
+
+  // The page's numbers are trajectories.csv's frame rows (the bins' rows are not plotted).
+  std::ifstream csv_in(out / "voxels/trajectories.csv");
+  std::string line;
+  std::getline(csv_in, line);
+  ASSERT_EQ(line, "point,moves_with,frame,time_s,bin,x_mm,y_mm,z_mm");
+  std::map<std::string, std::vector<std::array<double, 3>>> csv_positions;
+  std::vector<double> csv_times;
+  while (std::getline(csv_in, line)) {
+    std::vector<std::string> cells;
+    std::stringstream s(line);
+    for (std::string cell; std::getline(s, cell, ',');) cells.push_back(cell);
+    ASSERT_EQ(cells.size(), 8u) << line;
+    EXPECT_EQ(cells[1], "right interior") << line;
+    if (cells[0] == "centre") csv_times.push_back(std::stod(cells[3]));
+    csv_positions[cells[0]].push_back({std::stod(cells[5]), std::stod(cells[6]), std::stod(cells[7])});
+  }
+  const auto& tracks = page.data["trajectories"];
+  ASSERT_EQ(tracks["times_s"].size(), csv_times.size());
+  for (std::size_t k = 0; k < csv_times.size(); ++k)
+    EXPECT_NEAR(tracks["times_s"][k].get<double>(), csv_times[k], 1e-6);
+  ASSERT_EQ(tracks["points"].size(), 2u);
+  for (const auto& point : tracks["points"]) {
+    const auto& expected = csv_positions[point["name"].get<std::string>()];
+    ASSERT_EQ(expected.size(), csv_times.size()) << point["name"];
+    for (std::size_t k = 0; k < expected.size(); ++k) {
+      EXPECT_EQ(point["x_mm"][k].get<double>(), expected[k][0]) << point["name"] << " frame " << k;
+      EXPECT_EQ(point["y_mm"][k].get<double>(), expected[k][1]) << point["name"] << " frame " << k;
+      EXPECT_EQ(point["z_mm"][k].get<double>(), expected[k][2]) << point["name"] << " frame " << k;
+    }
+  }
+  EXPECT_NEAR(tracks["points"][0]["rest_mm"][2].get<double>(), centre[2], 1e-9);
+  EXPECT_NEAR(tracks["points"][1]["rest_mm"][0].get<double>(), base[0], 1e-9);
+
+  // Chromium at rest and at end-inspiration: each marker where the CSV puts it, on both planes.
+  const Csv voxels_csv = read_csv(out / "voxels/voxels.csv");
+  const auto inspiration = static_cast<std::size_t>(voxels_csv.rows[1][voxels_csv.column("frame")]);
+  const Chromium c = open_in_chromium(dir, out / "report.html", fmt_times(0.0, csv_times[inspiration]));
+  if (c.run.out.empty() && c.run.err.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
+  ASSERT_EQ(c.run.exit_code, 0) << c.run.err;
+  ASSERT_FALSE(c.selftest.empty() || c.selftest == "pending") << c.run.err;
+  const auto result = nlohmann::json::parse(c.selftest);
+  EXPECT_EQ(result["errors"], 0) << result["messages"].dump();
+  const auto& planes = page.data["slices"]["planes"];
+  for (std::size_t p = 0; p < 2; ++p) {
+    const auto& plane = planes[p];
+    const bool is_coronal = plane["name"] == "coronal";
+    const double pixel = plane["pixel_mm"].get<double>();
+    const auto& o = plane["origin_mm"];
+    const double plane_height = plane["height"].get<double>();
+    for (std::size_t k = 0; k < 2; ++k) {
+      const std::string name = tracks["points"][k]["name"];
+      std::array<double, 2> moved{};
+      for (std::size_t shot = 0; shot < 2; ++shot) {
+        const std::size_t frame = shot == 0 ? 0 : inspiration;
+        const auto& x = csv_positions[name][frame];
+        const double column =
+            is_coronal ? (x[0] - o[0].get<double>()) / pixel + 0.5 : (x[1] - o[1].get<double>()) / pixel + 0.5;
+        const double row = plane_height - 1.0 - (x[2] - o[2].get<double>()) / pixel + 0.5;
+        const auto& marker = result["slices"][shot][p]["markers"][k];
+        ASSERT_EQ(marker["name"], name);
+        EXPECT_EQ(marker["frame"].get<std::size_t>(), frame);
+        EXPECT_EQ(marker["pixels"].get<int>(), 9) << marker.dump();
+        ASSERT_TRUE(marker["column"].is_number()) << marker.dump();
+        // The 3 x 3 marker's centre is the pixel holding the point.
+        EXPECT_NEAR(marker["column"].get<double>(), column, 0.5 + 1e-6) << plane["name"] << " " << marker.dump();
+        EXPECT_NEAR(marker["row"].get<double>(), row, 0.5 + 1e-6) << plane["name"] << " " << marker.dump();
+        moved[shot] = marker["row"].get<double>();
+        if (shot == 1) {
+          const auto& x0 = csv_positions[name][0];
+          const double expected_rows = -(x[2] - x0[2]) / pixel;
+          std::printf("%s on the %s plane: the marker moved %+.0f rows, the CSV %+.2f\n", name.c_str(),
+                      plane["name"].get<std::string>().c_str(), moved[1] - moved[0], expected_rows);
+          EXPECT_NEAR(moved[1] - moved[0], expected_rows, 1.0);
+        }
+      }
+    }
+  }
+  // The base of the lung moves down (SI) by more than two pixels at end-inspiration.
+  const auto& base_track = csv_positions["base"];
+  EXPECT_LT(base_track[inspiration][2] - base_track[0][2], -2.0 * planes[0]["pixel_mm"].get<double>());
+}
+
+// voxels.structures on the page (#48): a ball mask in the phantom's lung, its figures listed as
+// structures.csv and structures-summary.csv print them; on each plane at rest its mask is the ball
+// file sampled at the pixel centres (the oracle: the test's own nearest-voxel sampling of the
+// input), its ITV the written itv file sampled the same way, and Chromium draws exactly the
+// outline pixels of both (counted by colour).
+TEST(Report, StructuresAreOutlinedOnTheSlicesWithTheirItv) {
+  TempDir dir;
+  const std::string scenario_text = R"(duration: 8 s
+frames: {rate: 5 Hz}
+mesh: {phantom: right, edge: 8 mm}
+field: {tissue: healthy-upright, interior: {edge: 8 mm}}
+physiology:
+  preset: healthy-adult
+  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}
+outputs:
+  hdf5: false
+  gltf: false
+  voxels: {at: [end_expiration, end_inspiration, phases], spacing: 4 mm, jacobian: false{structures}}
+)";
+  auto with = [&](const std::string& structures) {
+    std::string text = scenario_text;
+    return text.replace(text.find("{structures}"), 12, structures);
+  };
+  const auto first = dir.write("first.yaml", with(""));
+  ASSERT_EQ(run_pneuma({"run", first.string(), "-o", (dir / "a").string(), "--quiet"}).exit_code, 0);
+  const Page rest_page = read_page(dir / "a/report.html");
+  const auto& rest_planes = rest_page.data["slices"]["planes"];
+  ASSERT_EQ(rest_planes[0]["name"], "coronal");
+  // The ball's centre on both planes (x of the sagittal one, y of the coronal one), at the middle
+  // height of the lung's pixels on the coronal plane at rest.
+  const auto& coronal = rest_planes[0];
+  const std::size_t width = coronal["width"].get<std::size_t>(), height = coronal["height"].get<std::size_t>();
+  const double h = coronal["pixel_mm"].get<double>();
+  const auto& runs = coronal["labels"][0];
+  std::size_t at = 0, count = 0;
+  double rows = 0.0;
+  for (std::size_t r = 0; r + 1 < runs.size(); r += 2) {
+    const std::size_t n = runs[r + 1].get<std::size_t>();
+    if (runs[r].get<int>() == 1)
+      for (std::size_t q = at; q < at + n; ++q) {
+        rows += std::floor(static_cast<double>(q) / static_cast<double>(width));  // the pixel's row
+        ++count;
+      }
+    at += n;
+  }
+  ASSERT_EQ(at, width * height);
+  ASSERT_GT(count, 50u);
+  const Eigen::Vector3d centre(rest_planes[1]["origin_mm"][0].get<double>() * 1e-3,
+                               coronal["origin_mm"][1].get<double>() * 1e-3,
+                               (coronal["origin_mm"][2].get<double>() +
+                                (static_cast<double>(height) - 1.0 - rows / static_cast<double>(count)) * h) *
+                                   1e-3);
+  pneuma::image::LabelMap ball;
+  ball.size = {24, 24, 24};
+  ball.ijk_to_lps = Eigen::Matrix4d::Identity();
+  ball.ijk_to_lps.topLeftCorner<3, 3>() *= 1.5e-3;
+  ball.ijk_to_lps.block<3, 1>(0, 3) = centre - Eigen::Vector3d::Constant(1.5e-3 * 11.5);
+  ball.labels.resize(ball.voxel_count());
+  for (std::size_t k = 0; k < 24; ++k)
+    for (std::size_t j = 0; j < 24; ++j)
+      for (std::size_t i = 0; i < 24; ++i) {
+        const Eigen::Vector3d x = (ball.ijk_to_lps * Eigen::Vector4d(static_cast<double>(i), static_cast<double>(j),
+                                                                     static_cast<double>(k), 1.0))
+                                      .head<3>();
+        ball.labels[i + 24 * (j + 24 * k)] = (x - centre).norm() <= 15e-3;
+      }
+  pneuma::voxels::write_label_map(dir / "ball.nii.gz", ball);
+  const auto second = dir.write("second.yaml", with(", structures: {target: ball.nii.gz}"));
+  const auto out = dir / "b";
+  const auto run = run_pneuma({"run", second.string(), "-o", out.string(), "--quiet"});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const Page page = read_page(out / "report.html");
+
+  // The listed figures are the CSVs' numbers.
+  const auto& listed = page.data["structures"];
+  ASSERT_EQ(listed.size(), 1u);
+  EXPECT_EQ(listed[0]["name"], "target");
+  const Csv csv = read_csv(out / "voxels/structures.csv");
+  ASSERT_EQ(listed[0]["rows"].size(), csv.rows.size());
+  ASSERT_EQ(csv.rows.size(), 12u);  // two frames and ten bins
+  for (std::size_t r = 0; r < csv.rows.size(); ++r) {
+    const auto& row = listed[0]["rows"][r];
+    EXPECT_EQ(row["volume_mL"].get<double>(), csv.rows[r][csv.column("volume_mL")]) << r;
+    EXPECT_EQ(row["weight"].get<double>(), csv.rows[r][csv.column("weight")]) << r;
+    EXPECT_EQ(row["centroid_mm"][0].get<double>(), csv.rows[r][csv.column("centroid_x_mm")]) << r;
+    EXPECT_EQ(row["centroid_mm"][1].get<double>(), csv.rows[r][csv.column("centroid_y_mm")]) << r;
+    EXPECT_EQ(row["centroid_mm"][2].get<double>(), csv.rows[r][csv.column("centroid_z_mm")]) << r;
+    EXPECT_EQ(row["time_s"].is_null(), row["tag"].get<std::string>().starts_with("bin_")) << r;
+  }
+  std::ifstream summary_in(out / "voxels/structures-summary.csv");
+  std::string line;
+  std::getline(summary_in, line);
+  std::getline(summary_in, line);
+  std::vector<std::string> summary;
+  std::stringstream summary_cells(line);
+  for (std::string cell; std::getline(summary_cells, cell, ',');) summary.push_back(cell);
+  ASSERT_EQ(summary.size(), 9u) << line;
+  EXPECT_EQ(listed[0]["itv_mL"].get<double>(), std::stod(summary[1]));
+  EXPECT_EQ(listed[0]["midventilation"], summary[2]);
+  for (std::size_t a = 0; a < 3; ++a) {
+    EXPECT_EQ(listed[0]["midventilation_mm"][a].get<double>(), std::stod(summary[3 + a]));
+    EXPECT_EQ(listed[0]["mean_mm"][a].get<double>(), std::stod(summary[6 + a]));
+  }
+
+  // A 0/1 image of a label map sampled at a plane's pixel centres (nearest voxel), as the least
+  // and the largest value a pixel may have: a pixel centre within 1e-3 voxel of a voxel face
+  // (the run's 4 mm grid and the 2 mm planes share such faces) may take either voxel's.
+  auto sampled = [](const nlohmann::json& plane, const pneuma::image::LabelMap& map) {
+    const std::size_t w = plane["width"].get<std::size_t>(), ht = plane["height"].get<std::size_t>();
+    const double px = plane["pixel_mm"].get<double>() * 1e-3;
+    const Eigen::Vector3d o(plane["origin_mm"][0].get<double>() * 1e-3, plane["origin_mm"][1].get<double>() * 1e-3,
+                            plane["origin_mm"][2].get<double>() * 1e-3);
+    const Eigen::Matrix4d to_ijk = map.ijk_to_lps.inverse();
+    std::vector<std::pair<int, int>> image;
+    for (std::size_t row = 0; row < ht; ++row)
+      for (std::size_t c = 0; c < w; ++c) {
+        Eigen::Vector3d x = o;
+        x[plane["name"] == "coronal" ? 0 : 1] += static_cast<double>(c) * px;
+        x[2] += static_cast<double>(ht - 1 - row) * px;
+        const Eigen::Vector3d ijk = (to_ijk * x.homogeneous()).head<3>();
+        std::array<std::vector<long>, 3> candidates;
+        for (int a = 0; a < 3; ++a) {
+          const double f = ijk[a] - std::floor(ijk[a]);
+          if (std::abs(f - 0.5) < 1e-3) {
+            candidates[static_cast<std::size_t>(a)] = {static_cast<long>(std::floor(ijk[a])),
+                                                       static_cast<long>(std::floor(ijk[a])) + 1};
+          } else {
+            candidates[static_cast<std::size_t>(a)] = {std::lround(ijk[a])};
+          }
+        }
+        std::pair<int, int> range{1, 0};
+        for (const long i : candidates[0])
+          for (const long j : candidates[1])
+            for (const long k : candidates[2]) {
+              int value = 0;
+              if (i >= 0 && j >= 0 && k >= 0 && i < static_cast<long>(map.size[0]) &&
+                  j < static_cast<long>(map.size[1]) && k < static_cast<long>(map.size[2]))
+                value = map.labels[static_cast<std::size_t>(i) +
+                                   map.size[0] *
+                                       (static_cast<std::size_t>(j) + map.size[1] * static_cast<std::size_t>(k))] != 0;
+              range = {std::min(range.first, value), std::max(range.second, value)};
+            }
+        image.push_back(range);
+      }
+    return image;
+  };
+  // The pixels of `page` outside the range `expected` allows, and those the range fixes to 1.
+  auto mismatch = [](const std::vector<int>& page_mask, const std::vector<std::pair<int, int>>& expected) {
+    std::pair<std::size_t, std::size_t> counts{0, 0};
+    for (std::size_t i = 0; i < page_mask.size(); ++i) {
+      counts.first += page_mask[i] < expected[i].first || page_mask[i] > expected[i].second;
+      counts.second += expected[i].first == 1;
+    }
+    return counts;
+  };
+  auto decoded = [](const nlohmann::json& rle) {
+    std::vector<int> labels;
+    for (std::size_t r = 0; r + 1 < rle.size(); r += 2)
+      labels.insert(labels.end(), rle[r + 1].get<std::size_t>(), rle[r].get<int>());
+    return labels;
+  };
+  auto outline = [](const std::vector<int>& m, std::size_t w) {
+    const std::size_t ht = m.size() / w;
+    std::vector<int> o(m.size(), 0);
+    for (std::size_t i = 0; i < m.size(); ++i) {
+      if (!m[i]) continue;
+      const std::size_t c = i % w, row = i / w;
+      o[i] = c == 0 || c + 1 == w || row == 0 || row + 1 == ht || !m[i - 1] || !m[i + 1] || !m[i - w] || !m[i + w];
+    }
+    return o;
+  };
+  const pneuma::image::LabelMap itv = pneuma::image::read_label_map(out / "voxels/itv-target.nii.gz");
+  const auto& planes = page.data["slices"]["planes"];
+  std::vector<std::vector<int>> rest_masks, itv_masks;
+  for (const auto& plane : planes) {
+    ASSERT_EQ(plane["structures"].size(), 1u);
+    const auto& s = plane["structures"][0];
+    ASSERT_EQ(s["masks"].size(), plane["times_s"].size());
+    ASSERT_EQ(plane["times_s"][0].get<double>(), 0.0);
+    const std::vector<int> rest = decoded(s["masks"][0]);
+    const auto expected = sampled(plane, ball);
+    ASSERT_EQ(rest.size(), expected.size());
+    const auto [differ, pixels] = mismatch(rest, expected);
+    std::printf("%s: the ball's %zu pixels at rest, %zu differ from the mask sampled here\n",
+                plane["name"].get<std::string>().c_str(), pixels, differ);
+    EXPECT_GT(pixels, 100u);  // a 30 mm ball through its centre on 2 mm pixels: about 177
+    EXPECT_EQ(differ, 0u);
+    const std::vector<int> itv_pixels = decoded(s["itv"]);
+    const auto [itv_differ, itv_count] = mismatch(itv_pixels, sampled(plane, itv));
+    std::printf("%s: the ITV's %zu pixels, %zu differ from itv-target sampled here\n",
+                plane["name"].get<std::string>().c_str(), itv_count, itv_differ);
+    EXPECT_GE(itv_count, pixels);  // the ball moves: its ITV is larger than it is at rest
+    EXPECT_EQ(itv_differ, 0u);
+    rest_masks.push_back(rest);
+    itv_masks.push_back(itv_pixels);
+  }
+
+  // Chromium at rest and at end-inspiration: the outline pixels of the mask shown and of the ITV
+  // (less where the mask's outline is drawn over it).
+  const Csv voxels_csv = read_csv(out / "voxels/voxels.csv");
+  const double inspiration = voxels_csv.rows[1][voxels_csv.column("time_s")];
+  const Chromium c = open_in_chromium(dir, out / "report.html", fmt_times(0.0, inspiration));
+  if (c.run.out.empty() && c.run.err.empty()) GTEST_SKIP() << "chromium not installed (Debian: apt install chromium)";
+  ASSERT_EQ(c.run.exit_code, 0) << c.run.err;
+  ASSERT_FALSE(c.selftest.empty() || c.selftest == "pending") << c.run.err;
+  const auto result = nlohmann::json::parse(c.selftest);
+  EXPECT_EQ(result["errors"], 0) << result["messages"].dump();
+  for (std::size_t p = 0; p < 2; ++p) {
+    const std::size_t w = planes[p]["width"].get<std::size_t>();
+    for (std::size_t shot = 0; shot < 2; ++shot) {
+      const auto& shown = result["slices"][shot][p];
+      std::size_t t = 0;
+      for (std::size_t k = 0; k < planes[p]["times_s"].size(); ++k)
+        if (planes[p]["times_s"][k] == shown["time_s"]) t = k;
+      const std::vector<int> mask = shot == 0 ? rest_masks[p] : decoded(planes[p]["structures"][0]["masks"][t]);
+      const std::vector<int> edge = outline(mask, w), itv_edge = outline(itv_masks[p], w);
+      std::size_t edge_pixels = 0, itv_only = 0;
+      for (std::size_t i = 0; i < edge.size(); ++i) {
+        edge_pixels += edge[i];
+        itv_only += itv_edge[i] && !edge[i];
+      }
+      EXPECT_GT(edge_pixels, 20u);
+      EXPECT_EQ(shown["structures"][0]["outline_pixels"].get<std::size_t>(), edge_pixels) << shown.dump();
+      EXPECT_EQ(shown["structures"][0]["itv_outline_pixels"].get<std::size_t>(), itv_only) << shown.dump();
+    }
   }
 }

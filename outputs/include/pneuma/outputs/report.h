@@ -5,6 +5,7 @@
 // warped label map (voxel outputs), under one time cursor. It opens from the file
 // system without a server or the internet: three.js (Debian's libjs-three, r111, found at
 // configure time), the page's script, the data and the glb (base64) are all inside the file.
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -43,6 +44,9 @@ struct LabelSlice {
   std::string fixed;                  // the plane, such as "y = 12.0 mm" (LPS)
   std::size_t width = 0, height = 0;  // pixels; row 0 is the most superior
   double pixel_mm = 0.0;
+  // The LPS centre (mm) of the plane's voxel (0, 0, 0): the bottom-left pixel (row height - 1,
+  // column 0). Columns run along x (coronal) or y (sagittal), rows up along z.
+  std::array<double, 3> origin_mm{};
   std::vector<double> times_s;
   std::vector<std::vector<std::int32_t>> labels;  // per time: width * height, row by row
   // Beside the labels, at `channel_times_s` (some of `times_s`): 8-bit images of the same pixels,
@@ -56,6 +60,15 @@ struct LabelSlice {
   };
   std::vector<double> channel_times_s;
   std::vector<Channel> channels;
+  // Each structure (voxels.structures) on the plane: per time of `times_s` its warped mask (0/1,
+  // width * height, row by row, pulled back as the labels), and its ITV sampled at the pixels
+  // (nearest voxel; empty without one).
+  struct Structure {
+    std::string name;
+    std::vector<std::vector<std::int32_t>> masks;
+    std::vector<std::int32_t> itv;
+  };
+  std::vector<Structure> structures;
 };
 
 // One voxel time point's quality figures (voxels.csv), for the page under the cursor.
@@ -65,6 +78,31 @@ struct VoxelPointFigures {
   double volume_error_percent = 0.0;
   double min_jacobian = 0.0;
   std::size_t folded_tets = 0;
+};
+
+// A point that follows the breath (voxels.points) at every frame: trajectories.csv's frame rows,
+// the same numbers (LPS mm, as the CSV prints them).
+struct PointTrack {
+  std::string name;
+  std::string moves_with;                          // "right interior", "body", ...
+  std::array<double, 3> rest_mm{};                 // where the fiducials CSV puts it
+  std::vector<std::array<double, 3>> position_mm;  // per frame
+};
+
+// A structure's figures as structures.csv and structures-summary.csv print them.
+struct StructureFacts {
+  std::string name;
+  struct Row {
+    std::string tag;
+    std::optional<double> time_s;  // none for a bin
+    double volume_ml = 0.0;
+    std::optional<std::array<double, 3>> centroid_mm;  // none when the mask is empty
+    double weight = 0.0;
+  };
+  std::vector<Row> rows;
+  std::optional<double> itv_ml;  // none without a weighted time point
+  std::string midventilation;    // its time point's tag, "" for none
+  std::optional<std::array<double, 3>> midventilation_mm, mean_mm;
 };
 
 struct ReportInput {
@@ -83,6 +121,9 @@ struct ReportInput {
   std::vector<LabelSlice> slices;                          // with voxel outputs
   std::vector<int> lung_labels;                            // the slices' lung label values
   std::vector<VoxelPointFigures> voxel_points;             // voxels.csv's figures (voxel outputs)
+  std::vector<double> track_times_s;                       // the frames' times, for `tracks`
+  std::vector<PointTrack> tracks;                          // voxels.points (trajectories.csv)
+  std::vector<StructureFacts> structures;                  // voxels.structures (structures*.csv)
 };
 
 // The whole page. Throws ValueError when `physiology` is null or empty.

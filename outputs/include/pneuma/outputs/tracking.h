@@ -63,7 +63,8 @@ struct StructureSpec {
 // `structure-<name>-<tag><extension>` (uint8 0/1), its volume and centroid; the ITV, the union of
 // the masks of the time points added with a weight > 0 (the phase bins), voxel for voxel; the
 // mid-ventilation time point, the weighted one whose centroid is closest to the weighted mean of
-// the centroids (weights: each bin's share of the breathing time).
+// the centroids (weights: each bin's share of the breathing time). An empty `folder` writes no
+// file (the Python module: the masks as arrays, mask() after each add()).
 class StructureTracker {
  public:
   StructureTracker(std::filesystem::path folder, std::string extension, StructureSpec spec);
@@ -76,9 +77,13 @@ class StructureTracker {
   };
   const std::vector<Row>& rows() const { return rows_; }
   const StructureSpec& spec() const { return spec_; }
+  // The last time point's mask (0/1 on its grid).
+  const image::LabelMap& mask() const { return scratch_; }
   // Writes itv-<name><extension> when a time point had a weight; the files written.
   std::vector<std::filesystem::path> finish();
   double itv_volume_m3() const { return itv_volume_m3_; }
+  // The ITV after finish() (null without a weighted time point), shared rather than copied.
+  std::shared_ptr<const image::LabelMap> itv() const { return itv_shared_; }
   // The mid-ventilation row (index into rows()) and the weighted mean position; none without weights.
   std::optional<std::size_t> midventilation() const;
   Eigen::Vector3d mean_position_m() const;
@@ -90,6 +95,7 @@ class StructureTracker {
   std::vector<Row> rows_;
   std::vector<std::filesystem::path> files_;
   std::optional<image::LabelMap> itv_;
+  std::shared_ptr<const image::LabelMap> itv_shared_;
   image::LabelMap scratch_;
   double itv_volume_m3_ = 0.0;
 };

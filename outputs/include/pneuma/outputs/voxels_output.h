@@ -116,13 +116,24 @@ const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& ru
 struct VoxelFigures {
   std::vector<VoxelPointFigures> points;
 };
+// The structures' figures and ITVs (in the order of voxels.structures), shared the same way.
+struct VoxelStructures {
+  std::vector<StructureFacts> facts;
+  std::vector<std::shared_ptr<const image::LabelMap>> itvs;  // null without one
+};
+// The points' trajectories (trajectories.csv's frame rows), shared the same way.
+struct VoxelTracks {
+  std::vector<double> times_s;  // per frame
+  std::vector<PointTrack> points;
+};
 
 // report.html's slices of the warped label map (voxel outputs on; empty otherwise): a coronal
 // plane through the middle of the lungs and a sagittal one through the middle of the first, with
 // pixels of 2 mm (coarser for a chest wider than 40 cm), at up to `max_times` frames spread
 // evenly over the run; beside them, at up to `max_channel_times` of those frames, the warped CT
-// (when given), |forward DVF| and the forward map's Jacobian. `lung_labels` gets the label values
-// that are lung.
+// (when given), |forward DVF| and the forward map's Jacobian; each voxels.structures structure's
+// mask on the plane at every slice time and its ITV (shared by the voxel output, VoxelStructures)
+// sampled at the pixels. `lung_labels` gets the label values that are lung.
 std::vector<LabelSlice> report_label_slices(const model::Model& model, const RunRecord& run,
                                             std::vector<int>& lung_labels, std::size_t max_times = 32,
                                             std::size_t max_channel_times = 8);
