@@ -111,7 +111,12 @@ CHANGES = (("Pulse's settings (the scored run)", {}),
            ("tubing 4 mL/cmH2O", {"circuit": "{compliance: 4 mL/cmH2O, resistance: 1 cmH2O*s/L}"}),
            ("leak 2 L/min", {"circuit": "{patient_leak: {flow: 2 L/min, at: 10 cmH2O}}"}),
            ("leak 3 L/min", {"circuit": "{patient_leak: {flow: 3 L/min, at: 10 cmH2O}}"}),
-           ("leak 4 L/min", {"circuit": "{patient_leak: {flow: 4 L/min, at: 10 cmH2O}}"}))
+           ("leak 4 L/min", {"circuit": "{patient_leak: {flow: 4 L/min, at: 10 cmH2O}}"}),
+           # Two at once, where no single change closes a gap: the slow release with the leak the
+           # bench shows for restrictive CPAP (8 %: 2 L/min), or with a stronger effort.
+           ("release over all of Te, leak 2 L/min", {"release": 1.0,
+                                                     "circuit": "{patient_leak: {flow: 2 L/min, at: 10 cmH2O}}"}),
+           ("release over all of Te, muscle pressure x 1.2", {"release": 1.0, "Pmus": 1.2}))
 
 
 def whole(x, signed=False):
