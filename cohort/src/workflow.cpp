@@ -302,10 +302,9 @@ std::string diagnose_snakemake(const std::string& log, const std::filesystem::pa
       }
     }
     if (why.empty()) why = "its command failed";
-    std::string text = "rule " + m[1].str() + (wildcards.empty() ? "" : " (" + wildcards + ")") + " failed" +
-                       (status.empty() ? "" : " (exit " + status + ")") + ": " + why;
-    if (!job_log.empty()) text += " (log: " + job_log + ")";
-    return text;
+    return fmt::format("rule {}{} failed{}: {}{}", m[1].str(), wildcards.empty() ? "" : " (" + wildcards + ")",
+                       status.empty() ? "" : " (exit " + status + ")", why,
+                       job_log.empty() ? "" : " (log: " + job_log + ")");
   }
   // Snakemake stopped before any job: its first error line, with the next when it ends in ':'.
   for (std::size_t i = 0; i < lines.size(); ++i) {

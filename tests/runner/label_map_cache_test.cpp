@@ -29,7 +29,10 @@ std::vector<std::int16_t> ellipsoid(std::int16_t label, int from_k = 0, int belo
     for (int j = 0; j < kNy; ++j)
       for (int i = 0; i < kNx; ++i) {
         const double x = (i - kNx / 2.0) / 7.0, y = (j - kNy / 2.0) / 9.0, z = (k - kNz / 2.0) / 11.0;
-        if (x * x + y * y + z * z < 1.0) labels[static_cast<std::size_t>(i + kNx * (j + kNy * k))] = label;
+        const auto at =
+            static_cast<std::size_t>(i) +
+            static_cast<std::size_t>(kNx) * (static_cast<std::size_t>(j) + kNy * static_cast<std::size_t>(k));
+        if (x * x + y * y + z * z < 1.0) labels[at] = label;
       }
   return labels;
 }
