@@ -120,6 +120,7 @@ std::any read_spec(const scenario::Node* options, const scenario::Scenario& run)
         structures.fail_at(name, "expected a name without spaces or slashes (it names files)");
       spec.structures.push_back(std::move(structure));
     }
+  }
   image::ScalarImageOptions image_options;
   if (options->has("image_series")) {
     if (!options->has("image")) options->fail_at("image_series", "expected `image` (a DICOM folder) beside it");
