@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "pneuma/mesh/geometry/surface_queries.h"
@@ -605,4 +606,44 @@ TEST(VoxelsRun, ATimePointAtRestIsAnExactZeroField) {
     EXPECT_GT(values, 100000u) << kind;
     EXPECT_EQ(nonzero, 0u) << kind;
   }
+}
+
+// Every .nii.gz of a run (DVFs, warped labels, Jacobian) at a 1 mm grid (the DVFs over 4 MiB:
+// several gzip members, voxels/gzip.h) is the same bytes at --threads 1 and 2, and nibabel reads
+// from each the values of the same run written plain (`format: nii`).
+TEST(VoxelsRun, TheNiftiGzFilesAreTheSameBytesAtAnyThreadCountAndNibabelReadsThem) {
+  TempDir dir;
+  std::string text = kPhantom;
+  const std::string from = "{at: [end_expiration, end_inspiration, 1 s], spacing: 3 mm}";
+  text.replace(text.find(from), from.size(), "{at: [end_inspiration], spacing: 1 mm}");
+  const auto scenario = dir.write("s.yaml", text);
+  std::string plain_text = text;
+  plain_text.replace(plain_text.find("spacing: 1 mm"), 13, "spacing: 1 mm, format: nii");
+  const auto plain = dir.write("plain.yaml", plain_text);
+  for (const auto& [yaml, threads, out] :
+       {std::tuple{scenario, "1", "one"}, std::tuple{scenario, "2", "two"}, std::tuple{plain, "2", "plain"}}) {
+    const auto r = run_pneuma({"--threads", threads, "run", yaml.string(), "-o", (dir / out).string(), "--quiet"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  // Over 4 MiB plain: several gzip members.
+  EXPECT_GT(std::filesystem::file_size(dir / "plain/voxels/dvf-pullback-end_inspiration.nii"), std::size_t{8} << 20);
+  const std::vector<std::string> kinds{"dvf-forward", "dvf-pullback", "labels", "jacobian"};
+  for (const auto& kind : kinds) {
+    const std::string name = "voxels/" + kind + "-end_inspiration.nii.gz";
+    const std::string one = pneuma::test::read_text(dir / "one" / name);
+    EXPECT_TRUE(one == pneuma::test::read_text(dir / "two" / name)) << name;
+  }
+  if (pneuma::test::run_program("/usr/bin/python3", {"-c", "import nibabel, numpy"}).exit_code != 0)
+    GTEST_SKIP() << "nibabel is not importable by /usr/bin/python3 (install-deps: python3-nibabel)";
+  const std::string script =
+      "import sys, nibabel, numpy as np\n"
+      "for k in sys.argv[2:]:\n"
+      "  gz = np.array(nibabel.load(f'{sys.argv[1]}/two/voxels/{k}-end_inspiration.nii.gz').dataobj)\n"
+      "  nii = np.array(nibabel.load(f'{sys.argv[1]}/plain/voxels/{k}-end_inspiration.nii').dataobj)\n"
+      "  assert gz.dtype == nii.dtype and np.array_equal(gz, nii), k\n"
+      "  assert np.any(nii != 0), k\n";
+  std::vector<std::string> args{"-c", script, dir.path().string()};
+  args.insert(args.end(), kinds.begin(), kinds.end());
+  const auto r = pneuma::test::run_program("/usr/bin/python3", args);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
 }

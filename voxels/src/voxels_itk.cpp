@@ -11,9 +11,10 @@
 // This is what ITK itself, plastimatch and ANTs read back. ITK 5.2's NIfTI writer sets neither
 // `descrip` (it ignores ITK_FileNotes; measured) nor another intent than 1007, so a DVF is written
 // by ITK uncompressed, its header's descrip (and, for the NIfTI standard's DISPVECT with RAS
-// components, intent_code 1006) patched, and then gzipped (zlib's gz stream, no time stamp: the
-// same bytes each run). NRRD's key/values and measurement frame come from the metadata dictionary
-// (NrrdImageIO::Write).
+// components, intent_code 1006) patched, and then gzipped by pneuma (gzip.h: parallel members cut
+// at fixed offsets, no time stamp: the same bytes each run and at any thread count); label maps
+// and images too, so that every .nii.gz is compressed alike. NRRD's key/values and measurement frame come from the
+// metadata dictionary (NrrdImageIO::Write).
 // clang-format off
 #include "itk_clang.h"  // first: Debian's ITK headers under clang
 // clang-format on
@@ -21,7 +22,6 @@
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
-#include <zlib.h>
 
 #include "itk_quiet.h"
 
@@ -38,6 +38,7 @@
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
+#include "pneuma/voxels/gzip.h"
 #include "pneuma/voxels/voxel_io.h"
 
 namespace pneuma::voxels {
@@ -92,25 +93,6 @@ void patch_nifti_header(const fs::path& nii, const FileNotes& notes) {
   if (!file) throw IoError(nii.string() + ": cannot patch the NIfTI header");
 }
 
-// `from` gzipped into `to` (zlib's gz stream: a fixed header without a time stamp).
-void gzip_file(const fs::path& from, const fs::path& to) {
-  std::ifstream in(from, std::ios::binary);
-  gzFile out = gzopen(to.c_str(), "wb6");
-  if (!in || out == nullptr) {
-    if (out != nullptr) gzclose(out);
-    throw IoError(to.string() + ": cannot write");
-  }
-  std::vector<char> buffer(1 << 20);
-  bool ok = true;
-  while (ok && in) {
-    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-    const auto n = static_cast<unsigned>(in.gcount());
-    if (n > 0) ok = gzwrite(out, buffer.data(), n) == static_cast<int>(n);
-  }
-  ok = gzclose(out) == Z_OK && ok;
-  if (!ok) throw IoError(to.string() + ": cannot write (disk full?)");
-}
-
 // Writes `components` values of `component` per voxel (`buffer`, component fastest, then i, j,
 // k) on `grid` to `path`, atomically: ITK writes a temporary name with the file's extension (it
 // chooses compression by it), which is renamed into place.
@@ -121,15 +103,18 @@ void write_itk(const fs::path& path, const Grid& grid, itk::IOPixelEnum pixel, C
     throw ValueError(path.string() + ": expected a voxel file name ending in .nii.gz, .nii, .mha or .nrrd");
   }
   const bool nifti = extension == ".nii.gz" || extension == ".nii";
-  // A patched header: ITK writes the plain .nii, pneuma patches and compresses it.
+  // NIfTI: ITK writes the plain .nii, pneuma patches its header (DVFs) and gzips it in parallel
+  // members (gzip.h; ITK's znzlib would compress in one thread).
   const bool patch = nifti && (notes.nifti_intent != 0 || !notes.nifti_description.empty());
   const Eigen::Vector3d spacing_m = grid.spacing_m();
   write_atomically(path, [&](const fs::path& tmp) {
-    const fs::path itk_path = tmp.string() + (patch ? ".nii" : extension);
-    const std::lock_guard<std::mutex> lock(itk_quiet::mutex());
-    itk::Object::SetGlobalWarningDisplay(false);
-    const itk_quiet::SilenceStdErr silence;
+    const fs::path itk_path = tmp.string() + (nifti ? ".nii" : extension);
+    // ITK alone under the lock: the gzip after it runs TBB tasks, which must not wait on a lock
+    // another task of the same thread may hold.
     try {
+      const std::lock_guard<std::mutex> lock(itk_quiet::mutex());
+      itk::Object::SetGlobalWarningDisplay(false);
+      const itk_quiet::SilenceStdErr silence;
       itk::ImageIOBase::Pointer io;
       if (extension == ".mha") {
         io = itk::MetaImageIO::New().GetPointer();
@@ -164,7 +149,7 @@ void write_itk(const fs::path& path, const Grid& grid, itk::IOPixelEnum pixel, C
       io->SetPixelType(pixel);
       io->SetComponentType(component);
       io->SetNumberOfComponents(components);
-      io->SetUseCompression(extension != ".nii" && !patch);
+      io->SetUseCompression(!nifti);
       io->SetFileName(itk_path.string());
       io->WriteImageInformation();
       io->Write(buffer);
@@ -175,9 +160,9 @@ void write_itk(const fs::path& path, const Grid& grid, itk::IOPixelEnum pixel, C
                     " writer failed: is the folder writable, the disk full?)");
     }
     std::error_code ec;
-    if (patch) {
+    if (nifti) {
       try {
-        patch_nifti_header(itk_path, notes);
+        if (patch) patch_nifti_header(itk_path, notes);
         if (extension == ".nii.gz") {
           gzip_file(itk_path, tmp);
           fs::remove(itk_path, ec);

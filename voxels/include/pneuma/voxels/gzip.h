@@ -1,0 +1,36 @@
+#pragma once
+// gzip files made of independent members (RFC 1952 allows a file to be several members one after
+// the other; gzip, zlib's gzread, Python's gzip (nibabel), ITK and plastimatch read them as one
+// stream): the input is cut at fixed offsets (`member_bytes`), never by the thread count, and each
+// piece is compressed on its own by TBB's threads, so the bytes are the same at any thread count
+// and the time is divided by the cores. Header: no time stamp, no name (the same bytes each run).
+// The measurements that chose the default: BENCHMARKS.md, "Voxel outputs", "Files".
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <vector>
+
+namespace pneuma::voxels {
+
+enum class GzipLibrary { zlib, libdeflate };
+
+struct GzipSettings {
+  GzipLibrary library = GzipLibrary::libdeflate;
+  int level = 1;  // zlib 1-9, libdeflate 1-12
+  // Uncompressed bytes per member; 0: one member for the whole input (one thread).
+  std::size_t member_bytes = std::size_t{4} << 20;
+};
+
+// What pneuma writes (.nii.gz): the default settings above.
+inline constexpr GzipSettings kVoxelGzip{};
+
+// `data` as a gzip file (one or more members). Throws ValueError for a level out of range.
+std::vector<std::uint8_t> gzip_bytes(std::span<const std::uint8_t> data, const GzipSettings& settings = kVoxelGzip);
+
+// `from` gzipped into `to`, read and compressed a batch of members at a time (memory bounded by
+// the batch, not the file). Throws IoError when either cannot be read or written.
+void gzip_file(const std::filesystem::path& from, const std::filesystem::path& to,
+               const GzipSettings& settings = kVoxelGzip);
+
+}  // namespace pneuma::voxels
