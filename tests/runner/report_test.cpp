@@ -632,6 +632,23 @@ outputs:
   }
 }
 
+namespace {
+
+// The phantom's 800 mL breath at 15 /min with voxel outputs (4 mm) and report.html: `duration`
+// and `rate` of the frames, `at` the voxel time points, `voxels` what else goes inside
+// outputs.voxels (", image: ct.nii.gz"), `gltf` whether the glb is written too.
+std::string phantom_voxels_scenario(const std::string& duration, const std::string& rate, const std::string& at,
+                                    const std::string& voxels, bool gltf = true) {
+  return "duration: " + duration + "\nframes: {rate: " + rate +
+         "}\nmesh: {phantom: right, edge: 8 mm}\nfield: {tissue: healthy-upright, interior: {edge: 8 mm}}\n"
+         "physiology:\n  preset: healthy-adult\n"
+         "  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}\noutputs:\n  hdf5: false\n" +
+         (gltf ? std::string() : std::string("  gltf: false\n")) + "  voxels: {at: [" + at + "], spacing: 4 mm" +
+         voxels + "}\n";
+}
+
+}  // namespace
+
 // With a CT given, each slice plane shows beside its labels the warped CT, |forward DVF| and the
 // forward map's Jacobian (#45), and the page lists the voxel time points' figures. Oracles: at
 // the first frame the lungs are at rest (s = 0): no displacement, J = 1 everywhere, and the CT is
@@ -641,21 +658,8 @@ outputs:
 // voxels.csv's; Chromium draws every channel.
 TEST(Report, SlicesShowTheWarpedCtDisplacementAndJacobian) {
   TempDir dir;
-  const std::string scenario_text = R"(duration: 4 s
-frames: {rate: 10 Hz}
-mesh: {phantom: right, edge: 8 mm}
-field: {tissue: healthy-upright, interior: {edge: 8 mm}}
-physiology:
-  preset: healthy-adult
-  output_rate: 10 Hz
-  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}
-outputs:
-  hdf5: false
-  voxels: {at: [end_expiration, end_inspiration], spacing: 4 mm{image}}
-)";
-  auto with_image = [&](const std::string& image) {
-    std::string text = scenario_text;
-    return text.replace(text.find("{image}"), 7, image);
+  auto with_image = [](const std::string& image) {
+    return phantom_voxels_scenario("4 s", "10 Hz", "end_expiration, end_inspiration", image);
   };
   // The synthetic CT on the rest label map's grid: lung -849.5 HU, tissue 40 HU.
   const auto first = dir.write("rest.yaml", with_image(""));
@@ -805,22 +809,8 @@ outputs:
 // convex lung (from a first run's rest slice): its centre and just above its lowest row.
 TEST(Report, PointTrajectoriesArePlottedAndTheirMarkersMoveOnTheSlices) {
   TempDir dir;
-  const std::string scenario_text = R"(duration: 4 s
-frames: {rate: 10 Hz}
-mesh: {phantom: right, edge: 8 mm}
-field: {tissue: healthy-upright, interior: {edge: 8 mm}}
-physiology:
-  preset: healthy-adult
-  output_rate: 10 Hz
-  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}
-outputs:
-  hdf5: false
-  gltf: false
-  voxels: {at: [end_expiration, end_inspiration], spacing: 4 mm{points}}
-)";
-  auto with = [&](const std::string& points) {
-    std::string text = scenario_text;
-    return text.replace(text.find("{points}"), 8, points);
+  auto with = [](const std::string& points) {
+    return phantom_voxels_scenario("4 s", "10 Hz", "end_expiration, end_inspiration", points, false);
   };
   const auto first = dir.write("first.yaml", with(""));
   ASSERT_EQ(run_pneuma({"run", first.string(), "-o", (dir / "a").string(), "--quiet"}).exit_code, 0);
@@ -957,21 +947,9 @@ outputs:
 // outline pixels of both (counted by colour).
 TEST(Report, StructuresAreOutlinedOnTheSlicesWithTheirItv) {
   TempDir dir;
-  const std::string scenario_text = R"(duration: 8 s
-frames: {rate: 5 Hz}
-mesh: {phantom: right, edge: 8 mm}
-field: {tissue: healthy-upright, interior: {edge: 8 mm}}
-physiology:
-  preset: healthy-adult
-  driver: {mode: spontaneous, rate: 15 /min, ie_ratio: 1:2, tidal_volume: 800 mL}
-outputs:
-  hdf5: false
-  gltf: false
-  voxels: {at: [end_expiration, end_inspiration, phases], spacing: 4 mm, jacobian: false{structures}}
-)";
-  auto with = [&](const std::string& structures) {
-    std::string text = scenario_text;
-    return text.replace(text.find("{structures}"), 12, structures);
+  auto with = [](const std::string& structures) {
+    return phantom_voxels_scenario("8 s", "5 Hz", "end_expiration, end_inspiration, phases",
+                                   ", jacobian: false" + structures, false);
   };
   const auto first = dir.write("first.yaml", with(""));
   ASSERT_EQ(run_pneuma({"run", first.string(), "-o", (dir / "a").string(), "--quiet"}).exit_code, 0);
