@@ -6,7 +6,6 @@
 // per phase bin, whose union must be the ITV voxel for voxel.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <zlib.h>
 
 #include <algorithm>
 #include <array>
@@ -94,20 +93,7 @@ NrrdField read_nrrd_dvf(const fs::path& path) {
       f.origin = Eigen::Vector3d(v[0], v[1], v[2]);
     }
   }
-  z_stream z{};
-  EXPECT_EQ(inflateInit2(&z, 15 + 32), Z_OK);
-  std::string bytes;
-  std::vector<char> out(1 << 20);
-  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(text.data() + end + 2));
-  z.avail_in = static_cast<unsigned>(text.size() - end - 2);
-  int status = Z_OK;
-  while (status == Z_OK) {
-    z.next_out = reinterpret_cast<Bytef*>(out.data());
-    z.avail_out = static_cast<unsigned>(out.size());
-    status = inflate(&z, Z_NO_FLUSH);
-    bytes.append(out.data(), out.size() - z.avail_out);
-  }
-  inflateEnd(&z);
+  const std::string bytes = pneuma::test::gunzip(std::string_view(text).substr(end + 2));
   f.values.resize(bytes.size() / 4);
   std::memcpy(f.values.data(), bytes.data(), f.values.size() * 4);
   return f;

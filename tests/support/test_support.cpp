@@ -1,9 +1,11 @@
 #include "test_support.h"
 
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <chrono>
 #include <csignal>
@@ -48,6 +50,33 @@ std::vector<std::string> TempDir::files() const {
     if (e.is_regular_file()) names.push_back(std::filesystem::relative(e.path(), path_).string());
   }
   return names;
+}
+
+std::string gunzip(std::string_view gz, int* members) {
+  std::string out;
+  int count = 0;
+  std::vector<char> chunk(1 << 20);
+  for (std::size_t at = 0; at < gz.size(); ++count) {
+    z_stream z{};
+    EXPECT_EQ(inflateInit2(&z, 15 + 16), Z_OK);  // gzip only
+    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(gz.data() + at));
+    z.avail_in = static_cast<uInt>(gz.size() - at);
+    int status = Z_OK;
+    while (status == Z_OK) {
+      z.next_out = reinterpret_cast<Bytef*>(chunk.data());
+      z.avail_out = static_cast<uInt>(chunk.size());
+      status = inflate(&z, Z_NO_FLUSH);
+      out.append(chunk.data(), chunk.size() - z.avail_out);
+    }
+    at += z.total_in;
+    inflateEnd(&z);
+    if (status != Z_STREAM_END) {
+      ADD_FAILURE() << "gzip member " << count << " ends with zlib status " << status;
+      break;
+    }
+  }
+  if (members != nullptr) *members = count;
+  return out;
 }
 
 std::string read_text(const std::filesystem::path& path) {

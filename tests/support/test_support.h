@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace pneuma::test {
@@ -87,6 +88,11 @@ bool wait_until(const std::function<bool()>& condition, int timeout_ms);
 std::filesystem::path source_dir();
 
 std::string read_text(const std::filesystem::path& path);
+
+// zlib's inflate over each gzip member of `gz` in turn (a writer may concatenate several: pneuma's
+// .nii.gz members); `members` gets their count. A member that does not end cleanly is a test
+// failure (and ends the reading).
+std::string gunzip(std::string_view gz, int* members = nullptr);
 // Number of lines in a text file (0 when it cannot be read).
 int count_lines(const std::filesystem::path& path);
 

@@ -8,7 +8,6 @@
 #include "itk_clang.h"  // first: Debian's ITK headers under clang
 // clang-format on
 #include <itkNrrdImageIO.h>
-#include <zlib.h>
 
 #include <gtest/gtest.h>
 
@@ -93,21 +92,7 @@ std::vector<float> gzip_data_after_header(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const std::size_t start = text.find("\n\n") + 2;
-  std::string bytes;
-  z_stream z{};
-  if (inflateInit2(&z, 15 + 32) != Z_OK) return {};
-  std::vector<char> out(1 << 20);
-  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(text.data() + start));
-  z.avail_in = static_cast<unsigned>(text.size() - start);
-  int status = Z_OK;
-  while (status == Z_OK) {
-    z.next_out = reinterpret_cast<Bytef*>(out.data());
-    z.avail_out = static_cast<unsigned>(out.size());
-    status = inflate(&z, Z_NO_FLUSH);
-    bytes.append(out.data(), out.size() - z.avail_out);
-  }
-  inflateEnd(&z);
-  EXPECT_EQ(status, Z_STREAM_END) << path;
+  const std::string bytes = pneuma::test::gunzip(std::string_view(text).substr(start));
   std::vector<float> values(bytes.size() / sizeof(float));
   std::memcpy(values.data(), bytes.data(), values.size() * sizeof(float));
   return values;
