@@ -21,6 +21,7 @@
 #include "pneuma/outputs/report.h"
 #include "pneuma/voxels/grid.h"
 #include "pneuma/voxels/voxel_io.h"
+#include "runner_fixture.h"
 #include "test_support.h"
 
 using pneuma::test::read_text;
@@ -980,21 +981,7 @@ TEST(Report, StructuresAreOutlinedOnTheSlicesWithTheirItv) {
                                (coronal["origin_mm"][2].get<double>() +
                                 (static_cast<double>(height) - 1.0 - rows / static_cast<double>(count)) * h) *
                                    1e-3);
-  pneuma::image::LabelMap ball;
-  ball.size = {24, 24, 24};
-  ball.ijk_to_lps = Eigen::Matrix4d::Identity();
-  ball.ijk_to_lps.topLeftCorner<3, 3>() *= 1.5e-3;
-  ball.ijk_to_lps.block<3, 1>(0, 3) = centre - Eigen::Vector3d::Constant(1.5e-3 * 11.5);
-  ball.labels.resize(ball.voxel_count());
-  for (std::size_t k = 0; k < 24; ++k)
-    for (std::size_t j = 0; j < 24; ++j)
-      for (std::size_t i = 0; i < 24; ++i) {
-        const Eigen::Vector3d x = (ball.ijk_to_lps * Eigen::Vector4d(static_cast<double>(i), static_cast<double>(j),
-                                                                     static_cast<double>(k), 1.0))
-                                      .head<3>();
-        ball.labels[i + 24 * (j + 24 * k)] = (x - centre).norm() <= 15e-3;
-      }
-  pneuma::voxels::write_label_map(dir / "ball.nii.gz", ball);
+  const pneuma::image::LabelMap ball = pneuma::test::write_ball_mask(dir / "ball.nii.gz", centre);
   const auto second = dir.write("second.yaml", with(", structures: {target: ball.nii.gz}"));
   const auto out = dir / "b";
   const auto run = run_pneuma({"run", second.string(), "-o", out.string(), "--quiet"});

@@ -21,6 +21,7 @@
 #include "pneuma/image/label_map.h"
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/voxels/voxel_io.h"
+#include "runner_fixture.h"
 #include "test_support.h"
 
 namespace {
@@ -187,21 +188,7 @@ TEST(Tracking, TheItvOfASphericalTargetIsTheUnionOfItsPhases) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& v : rest.vertices) mean += v;
   mean /= static_cast<double>(rest.vertices.size());
-  pneuma::image::LabelMap ball;
-  ball.size = {24, 24, 24};
-  ball.ijk_to_lps = Eigen::Matrix4d::Identity();
-  ball.ijk_to_lps.topLeftCorner<3, 3>() *= 1.5e-3;
-  ball.ijk_to_lps.block<3, 1>(0, 3) = mean - Eigen::Vector3d::Constant(1.5e-3 * 11.5);
-  ball.labels.resize(ball.voxel_count());
-  for (std::size_t k = 0; k < 24; ++k)
-    for (std::size_t j = 0; j < 24; ++j)
-      for (std::size_t i = 0; i < 24; ++i) {
-        const Eigen::Vector3d x = (ball.ijk_to_lps * Eigen::Vector4d(static_cast<double>(i), static_cast<double>(j),
-                                                                     static_cast<double>(k), 1.0))
-                                      .head<3>();
-        ball.labels[i + 24 * (j + 24 * k)] = (x - mean).norm() <= 15e-3;
-      }
-  pneuma::voxels::write_label_map(dir / "ball.nii.gz", ball);
+  pneuma::test::write_ball_mask(dir / "ball.nii.gz", mean);
   const fs::path second =
       dir.write("second.yaml", std::string(kPhantom) +
                                    "  voxels: {at: [phases], spacing: 3 mm, jacobian: false, structures: {gtv: "
