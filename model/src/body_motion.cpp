@@ -53,11 +53,6 @@ struct Lattice {
       visit(at(b[0] + di, b[1] + dj, b[2] + dk), w);
     }
   }
-  double sample(const std::vector<double>& v, const Eigen::Vector3d& x) const {
-    double sum = 0.0;
-    corners(x, [&](std::size_t node, double w) { sum += w * v[node]; });
-    return sum;
-  }
 };
 
 // An unnormalised Gaussian blur (peak 1, truncated at 3 sigma) of a lattice's values, along each
@@ -202,21 +197,33 @@ BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : o
     }
     for (auto& a : arrays) blur(a, g, 2.0);
     const tsan::Region region;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, fine.n[2]),
-                      region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
-                        for (std::size_t k = r.begin(); k != r.end(); ++k)
-                          for (std::size_t j = 0; j < fine.n[1]; ++j)
-                            for (std::size_t i = 0; i < fine.n[0]; ++i) {
-                              const Eigen::Vector3d x = fine.node(i, j, k);
-                              const std::size_t node = fine.at(i, j, k);
-                              for (std::size_t l = 0; l < lungs; ++l)
-                                for (std::size_t c = 0; c < 3; ++c)
-                                  numerator[l * nodes + node][static_cast<Eigen::Index>(c)] +=
-                                      factor * g.sample(arrays[3 * l + c], x);
-                              weight[node] += factor * g.sample(arrays[3 * lungs], x);
-                              diaphragm[node] += factor * g.sample(arrays[3 * lungs + 1], x);
-                            }
-                      }));
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, fine.n[2]), region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+          for (std::size_t k = r.begin(); k != r.end(); ++k)
+            for (std::size_t j = 0; j < fine.n[1]; ++j)
+              for (std::size_t i = 0; i < fine.n[0]; ++i) {
+                const std::size_t node = fine.at(i, j, k);
+                // The fine node's 8 corners on this scale's lattice, found once for
+                // every array.
+                std::array<std::size_t, 8> corner{};
+                std::array<double, 8> w{};
+                std::size_t n = 0;
+                g.corners(fine.node(i, j, k), [&](std::size_t at, double weight_at) {
+                  corner[n] = at;
+                  w[n++] = weight_at;
+                });
+                const auto sample = [&](const std::vector<double>& a) {
+                  double sum = 0.0;
+                  for (std::size_t q = 0; q < n; ++q) sum += w[q] * a[corner[q]];
+                  return sum;
+                };
+                for (std::size_t l = 0; l < lungs; ++l)
+                  for (std::size_t c = 0; c < 3; ++c)
+                    numerator[l * nodes + node][static_cast<Eigen::Index>(c)] += factor * sample(arrays[3 * l + c]);
+                weight[node] += factor * sample(arrays[3 * lungs]);
+                diaphragm[node] += factor * sample(arrays[3 * lungs + 1]);
+              }
+        }));
     region.join();
   }
 
