@@ -2,7 +2,6 @@
 #include "dicom_series.h"
 
 #include <fmt/format.h>
-#include <openssl/evp.h>
 
 #include <array>
 #include <fstream>
@@ -11,27 +10,10 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/model/model.h"
+#include "sha256.h"
 
 namespace pneuma::outputs {
 namespace {
-
-using Digest = std::array<unsigned char, 32>;
-
-Digest sha256(const std::vector<std::pair<const void*, std::size_t>>& parts) {
-  std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> context(EVP_MD_CTX_new(), EVP_MD_CTX_free);
-  EVP_DigestInit_ex(context.get(), EVP_sha256(), nullptr);
-  for (const auto& [data, size] : parts) EVP_DigestUpdate(context.get(), data, size);
-  Digest digest{};
-  unsigned length = 0;
-  EVP_DigestFinal_ex(context.get(), digest.data(), &length);
-  return digest;
-}
-
-std::string hex(const Digest& digest) {
-  std::string text;
-  for (const unsigned char byte : digest) text += fmt::format("{:02x}", byte);
-  return text;
-}
 
 // The 16 bytes as one unsigned decimal number (no leading zeros), by long division.
 std::string decimal(std::array<unsigned char, 16> bytes) {
@@ -71,7 +53,8 @@ constexpr std::array<std::array<int, 3>, 8> kColours{{{128, 174, 128},
 }  // namespace
 
 std::string derived_uid(const std::string& key, const std::string& what) {
-  const Digest digest = sha256({{key.data(), key.size()}, {"\0", 1}, {what.data(), what.size()}});
+  const Sha256Digest digest =
+      Sha256().update(key.data(), key.size()).update("\0", 1).update(what.data(), what.size()).finish();
   std::array<unsigned char, 16> uuid{};
   std::copy_n(digest.begin(), 16, uuid.begin());
   uuid[6] = static_cast<unsigned char>((uuid[6] & 0x0F) | 0x80);  // version 8
@@ -109,12 +92,13 @@ DicomRun::DicomRun(const scenario::Scenario& scenario, const voxels::Image& ct,
                    const std::optional<image::DicomSource>& source, std::vector<voxels::Structure> structures)
     : structures_(std::move(structures)) {
   const std::string text = file_bytes(scenario.file);
-  const Digest digest = sha256({{text.data(), text.size()},
-                                {scenario.name.data(), scenario.name.size()},
-                                {ct.grid.size.data(), sizeof(ct.grid.size)},
-                                {ct.grid.ijk_to_lps.data(), sizeof(double) * 16},
-                                {ct.values.data(), ct.values.size() * sizeof(float)}});
-  key_ = hex(digest);
+  key_ = to_hex(Sha256()
+                    .update(text.data(), text.size())
+                    .update(scenario.name.data(), scenario.name.size())
+                    .update(ct.grid.size.data(), sizeof(ct.grid.size))
+                    .update(ct.grid.ijk_to_lps.data(), sizeof(double) * 16)
+                    .update(ct.values.data(), ct.values.size() * sizeof(float))
+                    .finish());
   if (source) {
     study_ = *source;
     key_ += source->study_instance_uid + source->frame_of_reference_uid + source->series_instance_uid;
@@ -136,7 +120,7 @@ std::vector<std::filesystem::path> DicomRun::write(const std::filesystem::path& 
   const voxels::Image& ct = *point.ct;
   // The series' content in its UIDs: the same phase written again gets the same UIDs, another
   // content others.
-  const std::string content = hex(sha256({{ct.values.data(), ct.values.size() * sizeof(float)}}));
+  const std::string content = to_hex(Sha256().update(ct.values.data(), ct.values.size() * sizeof(float)).finish());
   const std::string phase = phase_percent >= 0.0 ? fmt::format("{:g}%", phase_percent) : tag;
   voxels::CtSeriesSpec spec;
   spec.study = study_;

@@ -1,43 +1,22 @@
 #include "pneuma/outputs/manifest.h"
 
 #include <H5public.h>
-#include <openssl/evp.h>
+#include <openssl/opensslv.h>
 #include <sundials/sundials_config.h>
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Core>
 #include <algorithm>
-#include <array>
 #include <fstream>
-#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
+#include "sha256.h"
 
 namespace pneuma::outputs {
 
-std::string sha256_file(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw IoError(file.string() + ": cannot open file to checksum it");
-  std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> context(EVP_MD_CTX_new(), EVP_MD_CTX_free);
-  EVP_DigestInit_ex(context.get(), EVP_sha256(), nullptr);
-  std::array<char, 1 << 16> chunk{};
-  while (in) {
-    in.read(chunk.data(), chunk.size());
-    EVP_DigestUpdate(context.get(), chunk.data(), static_cast<std::size_t>(in.gcount()));
-  }
-  std::array<unsigned char, EVP_MAX_MD_SIZE> digest{};
-  unsigned int length = 0;
-  EVP_DigestFinal_ex(context.get(), digest.data(), &length);
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string hex;
-  for (unsigned int i = 0; i < length; ++i) {
-    hex += kHex[digest[i] >> 4];
-    hex += kHex[digest[i] & 15];
-  }
-  return hex;
-}
+std::string sha256_file(const std::filesystem::path& file) { return to_hex(sha256_of_file(file)); }
 
 std::vector<std::pair<std::string, std::string>> library_versions() {
   auto dotted = [](int a, int b, int c) {
