@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <atomic>
 #include <bit>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -776,6 +777,7 @@ LabelMap flatten_layers(detail::ItkImage& image, const std::vector<SegNrrdSegmen
 // fuzz_labels_mha); NDims = 99997 sized matrices for minutes. So every line MetaIO parses is
 // checked here first, up to ElementDataFile: "<file>:<line>:1: <Key>: expected ..., got '...'".
 void check_meta_header(const fs::path& path, const std::string& name) {
+  constexpr std::size_t kMaxMetaKey = 64;
   static const std::set<std::string> kTypes{
       "MET_CHAR", "MET_UCHAR", "MET_SHORT",     "MET_USHORT",     "MET_INT",   "MET_UINT",
       "MET_LONG", "MET_ULONG", "MET_LONG_LONG", "MET_ULONG_LONG", "MET_FLOAT", "MET_DOUBLE",
@@ -794,6 +796,13 @@ void check_meta_header(const fs::path& path, const std::string& name) {
     if (eq == std::string::npos)
       throw InputError(where + "expected 'Key = Value' (a MetaImage header line), got " + quote_input(line));
     const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
+    // MetaIO copies an unknown key into a 255-byte name with strcpy (a 250-byte key overflowed it,
+    // found by fuzz_labels_mha): a key is a word, as every MetaIO key is.
+    if (key.empty() || key.size() > kMaxMetaKey ||
+        !std::all_of(key.begin(), key.end(), [](unsigned char c) { return std::isalnum(c) || c == '_'; })) {
+      throw InputError(fmt::format("{}expected a key of letters, digits and '_' (at most {} characters), got {}", where,
+                                   kMaxMetaKey, quote_input(key)));
+    }
     auto numbers = [&](std::size_t count, bool whole, double low, double high) {
       std::istringstream words(value);
       std::string word;

@@ -552,6 +552,14 @@ TEST(LabelFormats, HeadersAreCheckedBeforeItkAndBeforeAllocation) {
   expect_error("mirrored.mha", ":9:1: ElementSpacing: expected 3 numbers from 0.001 to 1e+06, got '-0.8 0.9 2'");
   write_bytes(dir / "thin.mha", with_line(mha, "ElementSpacing", "ElementSpacing = 1e-9 0.9 2"));
   expect_error("thin.mha", ":9:1: ElementSpacing: expected 3 numbers from 0.001 to 1e+06, got '1e-9 0.9 2'");
+  // A 250-byte key (MetaIO copies unknown keys into a 255-byte name: fuzz_labels_mha's overflow).
+  const std::string long_key(250, 'K');
+  write_bytes(dir / "long-key.mha", long_key + " = Image\n" + mha);
+  expect_error("long-key.mha", ":1:1: expected a key of letters, digits and '_' (at most 64 characters), got '" +
+                                   long_key.substr(0, 80) + "...' (250 bytes)");
+  write_bytes(dir / "key.mha", with_line(mha, "ElementType", "Element Type = MET_SHORT"));
+  expect_error("key.mha",
+               ":11:1: expected a key of letters, digits and '_' (at most 64 characters), got 'Element Type'");
 
   // A compressed stream whose check fails: gzip's CRC-32 (NRRD), zlib's Adler-32 (MetaImage).
   write_nrrd(dir / "g.nrrd", kBoxes, boxes, box_transform(), {.gzip = true});
