@@ -45,8 +45,8 @@ struct Grid {
 std::vector<Eigen::Vector3d> smooth_field_in_space(const mesh::TriangleMesh& rest,
                                                    const std::vector<Eigen::Vector3d>& u, double sigma_m) {
   if (u.size() != rest.vertices.size())
-    throw ValueError(fmt::format("smooth_field_in_space: {} displacements for {} vertices", u.size(),
-                                 rest.vertices.size()));
+    throw ValueError(
+        fmt::format("smooth_field_in_space: {} displacements for {} vertices", u.size(), rest.vertices.size()));
   if (!(sigma_m > 0.0) || rest.vertices.empty()) return u;
   const std::vector<double> area = vertex_areas(rest);
   Grid grid;

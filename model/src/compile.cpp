@@ -135,19 +135,17 @@ LungModel lung_model(const Scenario& s, const mesh::SurfaceSource& surfaces, std
     field::InteriorOptions interior_options = s.field.interior;
     interior_options.unfold_deflation_m3 = deflation_m3;
     // The inside extends the field it is given: the deflation's, where it is smoothed.
-    const std::string field_key = deflation.sigma_m > 0.0
-                                      ? fmt::format("{} deflation-sigma {:.17g}", computed.record.metadata.key,
-                                                    deflation.sigma_m)
-                                      : computed.record.metadata.key;
-    const std::string key =
-        interior_key(field_key, s.field.interior_edge_m, interior_options, s.field.interior_mesher);
+    const std::string field_key = deflation.sigma_m > 0.0 ? fmt::format("{} deflation-sigma {:.17g}",
+                                                                        computed.record.metadata.key, deflation.sigma_m)
+                                                          : computed.record.metadata.key;
+    const std::string key = interior_key(field_key, s.field.interior_edge_m, interior_options, s.field.interior_mesher);
     const bool cached = computed.record.interior && computed.record.interior->key == key;
     if (cached) {
       interior = computed.record.interior;
     } else {
       std::shared_ptr<LungInterior> fresh =
-          compute_interior(computed.record.rest, deflation.unit_displacement, s.field.interior_edge_m,
-                           interior_options, s.field.interior_mesher);
+          compute_interior(computed.record.rest, deflation.unit_displacement, s.field.interior_edge_m, interior_options,
+                           s.field.interior_mesher);
       fresh->key = key;
       interior = fresh;
       computed.record.interior = fresh;

@@ -169,8 +169,8 @@ void read_breath(const scenario::Node& n, MeshSpec& m) {
   const std::string key = n.has("breath") ? "breath" : "reference_volume";
   if (!n.has(key)) return;
   const char* expected = key == "breath" ? "expected end_inspiration, end_expiration or a volume above FRC with its "
-                                          "unit from 0 to 10 L, such as '500 mL'"
-                                        : "expected a volume above FRC with its unit from 0 to 10 L, such as '500 mL'";
+                                           "unit from 0 to 10 L, such as '500 mL'"
+                                         : "expected a volume above FRC with its unit from 0 to 10 L, such as '500 mL'";
   if (n.is_map(key)) n.fail_at(key, expected);
   std::string text;
   try {

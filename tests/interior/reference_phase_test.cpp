@@ -105,8 +105,8 @@ TEST_P(CtBreathHold, AQuietBreathFromTheScanAtEndInspirationNeitherFoldsNorSelfI
   }
   EXPECT_FALSE(mesh::self_intersects(both));
   std::cout << GetParam() << ": both lungs " << scan_m3 * 1e6 << " mL at the scan, " << expiration_m3 * 1e6
-            << " mL at end-expiration (expected " << (scan_m3 - tidal_m3) * 1e6 << " mL: "
-            << (expiration_m3 / (scan_m3 - tidal_m3) - 1.0) * 100 << " %)\n";
+            << " mL at end-expiration (expected " << (scan_m3 - tidal_m3) * 1e6
+            << " mL: " << (expiration_m3 / (scan_m3 - tidal_m3) - 1.0) * 100 << " %)\n";
 }
 
 INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtBreathHold,

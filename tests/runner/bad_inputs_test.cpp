@@ -268,9 +268,12 @@ TEST(BadInputs, ABreathThatIsNeitherAMomentNorAVolumeIsRefusedAtItsKey) {
   TempDir dir;
   const std::string takes = "expected end_inspiration, end_expiration or a volume above FRC with its unit from 0 to "
                             "10 L, such as '500 mL'\n";
-  for (const auto& [value, expected] :
-       {std::pair<std::string, std::string>{"end_inhale", takes}, {"500", takes}, {"500 mm", takes},
-        {"-20 mL", takes}, {"11 L", takes}, {"[500 mL]", takes}}) {
+  for (const auto& [value, expected] : {std::pair<std::string, std::string>{"end_inhale", takes},
+                                        {"500", takes},
+                                        {"500 mm", takes},
+                                        {"-20 mL", takes},
+                                        {"11 L", takes},
+                                        {"[500 mL]", takes}}) {
     SCOPED_TRACE(value);
     const auto file = dir.write("s.yaml", "duration: 2 s\nmesh: {phantom: right, breath: " + value +
                                               "}\nphysiology: {preset: healthy-adult}\n");

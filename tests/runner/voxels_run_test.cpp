@@ -626,7 +626,7 @@ TEST(VoxelsRun, ABreathHoldScanIsTheEndInspirationOfTheExpectedVolumes) {
     EXPECT_EQ(held[k].folded_tets, 0u);
     EXPECT_GT(held[k].min_jacobian, 0.0);
   }
-  EXPECT_NEAR(held[1].expected_mL, scan_mL, 0.05);                       // the scan is end-inspiration
+  EXPECT_NEAR(held[1].expected_mL, scan_mL, 0.05);                      // the scan is end-inspiration
   EXPECT_NEAR(held[0].expected_mL, scan_mL - share * breath_mL, 0.05);  // deflated by the whole breath
 }
 

@@ -61,8 +61,8 @@ struct LungModel {
   VolumeScaleMap volume_map;  // V(s) of rest + s u, an exact cubic
 
   // ---- Which lung, and its part of each breath (set by compile(); scenario::LungSpec) -------------
-  std::optional<mesh::Lung> side;  // nullopt: a one-surface run of a file or label map
-  double share = 1.0;              // mesh volume = rest + share * (V - reference)
+  std::optional<mesh::Lung> side;    // nullopt: a one-surface run of a file or label map
+  double share = 1.0;                // mesh volume = rest + share * (V - reference)
   double reference_volume_m3 = 0.0;  // the volume above FRC the scan shows (mesh.breath, resolved)
   // The field's smoothing in space for a breath below the scan (field_for_deflation; 0: none).
   double deflation_sigma_m = 0.0;

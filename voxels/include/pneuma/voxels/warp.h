@@ -32,10 +32,10 @@ inline constexpr float kOutsideHu = -1024.0f;
 // a rest mesh (the body's tissue, carried by the outside field to the pleura) takes the nearest
 // of the eight outside every rest mesh; where none of the eight is on x's side, the nearest voxel
 // that is, ring by ring up to 16 voxels away (a lung deflating below its scan leaves a gap of
-// several voxels that the body field, blurred over 12 mm, does not fill). Without it, a growing lung loses part of that rim (a
-// quarter voxel times its area: 2.3 % of the phantom at 3 mm) and the chest wall takes lung
-// labels where it slides past the pleura; with it, the warped lung's voxels are those of the
-// deformed mesh, and labels inside the mesh (lobes, holes) are kept as they are.
+// several voxels that the body field, blurred over 12 mm, does not fill). Without it, a growing lung loses part of that
+// rim (a quarter voxel times its area: 2.3 % of the phantom at 3 mm) and the chest wall takes lung labels where it
+// slides past the pleura; with it, the warped lung's voxels are those of the deformed mesh, and labels inside the mesh
+// (lobes, holes) are kept as they are.
 image::LabelMap warp_labels(const image::LabelMap& labels, const DisplacementField& pullback,
                             const std::vector<std::uint8_t>* rest_lung = nullptr);
 // The same into `out` (its storage reused).
