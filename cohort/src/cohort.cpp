@@ -52,7 +52,7 @@ void check_id(const scenario::Node& node, const std::string& key, const char* wh
 }
 
 // The mesh keys that describe the surface: a subject's `mesh:` replaces these of the scenario's
-// (which keeps `reference_volume`, a property of the breathing, not of the anatomy).
+// (which keeps `breath` / `reference_volume`, a property of the breathing, not of the anatomy).
 constexpr const char* kSurfaceKeys[] = {"phantom", "file",   "labels", "values", "unit",
                                         "edge",    "repair", "export", "share"};
 
@@ -175,7 +175,8 @@ Cohort load_cohort(const std::filesystem::path& file) {
     }
     mesh.accept("phantom");
     for (const char* key : kSurfaceKeys) mesh.accept(key);
-    mesh.accept("reference_volume");  // checked by the scenario reader, with every other key
+    mesh.accept("breath");            // checked by the scenario reader, with every other key
+    mesh.accept("reference_volume");  // (breath's older name)
     refuse_cache(subject, "subjects." + id + ".");
     subject.accept("field");
     subject.finish();

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cstddef>
 #include <memory>
 #include <string>
@@ -114,20 +115,37 @@ LungModel lung_model(const Scenario& s, const mesh::SurfaceSource& surfaces, std
   report.timings_s.emplace_back((computed.reused ? "mesh and field (cached)" : "mesh and field") + what,
                                 seconds_since(start));
 
+  // Where the scan lies on this lung's breath, and how far below it the lung deflates: the field
+  // that deflation needs (the cached field stays the inflation's; docs/voxels.md).
+  start = Clock::now();
+  const std::vector<double>* volumes = options.drive ? &lung_volumes(*options.drive, spec.compartment) : nullptr;
+  double reference_m3 = s.mesh.reference_volume_m3;
+  if (s.mesh.breath_at_end_inspiration)
+    reference_m3 = volumes && !volumes->empty() ? *std::max_element(volumes->begin(), volumes->end()) : 0.0;
+  const double lowest_m3 = volumes && !volumes->empty() ? *std::min_element(volumes->begin(), volumes->end()) : 0.0;
+  const double deflation_m3 = spec.share * std::max(0.0, reference_m3 - lowest_m3);
+  DeflationField deflation = field_for_deflation(computed.record.rest, computed.record.unit_displacement, deflation_m3);
+  if (deflation_m3 > 0.0) report.timings_s.emplace_back("deflation field" + what, seconds_since(start));
+
   // The inside, where an output needs it: kept in the field's cache file beside the field it
   // extends (on the cached surface, also where the run exports the original mesh).
   std::shared_ptr<const LungInterior> interior;
   if (options.interior) {
     start = Clock::now();
-    const std::string key =
-        interior_key(computed.record.metadata.key, s.field.interior_edge_m, s.field.interior, s.field.interior_mesher);
+    field::InteriorOptions interior_options = s.field.interior;
+    interior_options.unfold_deflation_m3 = deflation_m3;
+    // The inside extends the field it is given: the deflation's, where it is smoothed.
+    const std::string field_key = deflation.sigma_m > 0.0 ? fmt::format("{} deflation-sigma {:.17g}",
+                                                                        computed.record.metadata.key, deflation.sigma_m)
+                                                          : computed.record.metadata.key;
+    const std::string key = interior_key(field_key, s.field.interior_edge_m, interior_options, s.field.interior_mesher);
     const bool cached = computed.record.interior && computed.record.interior->key == key;
     if (cached) {
       interior = computed.record.interior;
     } else {
       std::shared_ptr<LungInterior> fresh =
-          compute_interior(computed.record.rest, computed.record.unit_displacement, s.field.interior_edge_m,
-                           s.field.interior, s.field.interior_mesher);
+          compute_interior(computed.record.rest, deflation.unit_displacement, s.field.interior_edge_m, interior_options,
+                           s.field.interior_mesher);
       fresh->key = key;
       interior = fresh;
       computed.record.interior = fresh;
@@ -137,7 +155,7 @@ LungModel lung_model(const Scenario& s, const mesh::SurfaceSource& surfaces, std
   }
 
   mesh::TriangleMesh rest = std::move(computed.record.rest);
-  std::vector<Eigen::Vector3d> u = std::move(computed.record.unit_displacement);
+  std::vector<Eigen::Vector3d> u = std::move(deflation.unit_displacement);
   if (s.mesh.export_original) {
     // The field lives on the remeshed surface; carry it to the original vertices through their
     // closest points on it (barycentric interpolation).
@@ -160,7 +178,8 @@ LungModel lung_model(const Scenario& s, const mesh::SurfaceSource& surfaces, std
   }();
   lung.side = spec.side;
   lung.share = spec.share;
-  lung.reference_volume_m3 = s.mesh.reference_volume_m3;
+  lung.reference_volume_m3 = reference_m3;
+  lung.deflation_sigma_m = deflation.sigma_m;
   lung.compartment = spec.compartment;
   lung.label_values = surfaces.lung(index).label_values;
   lung.interior = std::move(interior);

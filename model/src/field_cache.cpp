@@ -526,6 +526,7 @@ std::string interior_key(const std::string& field_key, double edge_m, const fiel
   h.value(options.tolerance);
   h.value(static_cast<std::uint64_t>(options.max_iterations));
   h.value(options.unfold_volume_m3);
+  if (options.unfold_deflation_m3 > 0.0) h.value(options.unfold_deflation_m3);  // earlier keys unchanged
   if (mesher != mesh::TetMesher::delaunay) h.text(mesh::tet_mesher_name(mesher));
   return h.hex();
 }

@@ -69,6 +69,10 @@ void check_no_fold(const Model& model, std::span<const LungScales> scales) {
 }
 
 const std::vector<double>& LungModel::volumes(const physiology::SimulationResult& drive) const {
+  return lung_volumes(drive, compartment);
+}
+
+const std::vector<double>& lung_volumes(const physiology::SimulationResult& drive, int compartment) {
   if (compartment < 0) return drive.series.volume_m3;
   const auto c = static_cast<std::size_t>(compartment);
   if (c >= drive.series.compartment_volume_m3.size())

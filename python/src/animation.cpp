@@ -337,8 +337,13 @@ void register_animation(py::module_& m) {
           },
           "The mesh's share of the lung volume change (mesh.share; two lungs: each lung's).")
       .def_property_readonly(
-          "reference_volume_mL", [](const Animation& a) { return a.scenario.mesh.reference_volume_m3 * kMl; },
-          "The lung volume the rest mesh shows (mesh.reference_volume), mL.")
+          "reference_volume_mL",
+          [](const Animation& a) {
+            if (!a.model->two_lungs()) return py::cast(a.model->lungs[0].reference_volume_m3 * kMl);
+            return a.by_lung([&](std::size_t i) { return a.model->lungs[i].reference_volume_m3 * kMl; });
+          },
+          "The volume above FRC the rest mesh shows (mesh.breath, placed on the breath: end_inspiration is the "
+          "breath's peak), mL. Two lungs: a dict by side.")
       .def_readonly("field_reused", &Animation::field_reused, "True when the field came from the cache.")
       .def("frame", &Animation::frame, py::arg("index"),
            "frame(index) -> (V, 3) float64: the positions of frame `index` (0 to N - 1), metres; its enclosed "

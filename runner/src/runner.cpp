@@ -70,6 +70,9 @@ std::vector<std::pair<std::string, std::string>> run_facts(const scenario::Scena
     facts.emplace_back(prefix + "rest_volume_m3", fmt::format("{:.9g}", lung.volume_map.volume(0.0)));
     facts.emplace_back(prefix + "rest_area_m2", fmt::format("{:.9g}", lung.rest_area_m2));
     facts.emplace_back(prefix + "scale_range", fmt::format("{:.9g} .. {:.9g}", scales.min_scale, scales.max_scale));
+    facts.emplace_back(prefix + "reference_volume_m3", fmt::format("{:.9g}", lung.reference_volume_m3));
+    if (lung.deflation_sigma_m > 0.0)
+      facts.emplace_back(prefix + "deflation_smoothing_m", fmt::format("{:.9g}", lung.deflation_sigma_m));
     if (!lung.label_values.empty()) {
       facts.emplace_back(
           prefix + "touches_label_map_edge",
@@ -124,7 +127,9 @@ std::optional<std::string> unfollowable_trace_sample(const model::Model& model, 
 
 Prepared prepare(const scenario::Scenario& s, const physiology::SimulationResult& drive,
                  const model::CompileOptions& options) {
-  Prepared prepared{model::compile(s, options), {}, {}};
+  model::CompileOptions with_drive = options;
+  with_drive.drive = &drive;  // places the scan on the breath (mesh.breath)
+  Prepared prepared{model::compile(s, with_drive), {}, {}};
   prepared.timings_s = prepared.model.report.timings_s;
   try {
     prepared.scales = prepared.model.scales(drive);

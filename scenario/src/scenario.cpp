@@ -161,6 +161,38 @@ std::vector<LungSpec> read_lungs(const scenario::Node& n, bool labels) {
   return specs;
 }
 
+// `breath: end_inspiration | end_expiration | <volume above FRC>` (or its older name
+// `reference_volume: <volume>`): where the scan lies on the breath.
+void read_breath(const scenario::Node& n, MeshSpec& m) {
+  if (n.has("breath") && n.has("reference_volume"))
+    n.fail_at("reference_volume", "give either 'breath' or its older name 'reference_volume', not both");
+  const std::string key = n.has("breath") ? "breath" : "reference_volume";
+  if (!n.has(key)) return;
+  const char* expected = key == "breath" ? "expected end_inspiration, end_expiration or a volume above FRC with its "
+                                           "unit from 0 to 10 L, such as '500 mL'"
+                                         : "expected a volume above FRC with its unit from 0 to 10 L, such as '500 mL'";
+  if (n.is_map(key)) n.fail_at(key, expected);
+  std::string text;
+  try {
+    text = n.string(key);
+  } catch (const InputError&) {
+    n.fail_at(key, expected);  // a list
+  }
+  if (key == "breath" && (text == "end_inspiration" || text == "end_expiration")) {
+    m.breath_at_end_inspiration = text == "end_inspiration";
+    return;
+  }
+  double v = 0.0;
+  try {
+    v = n.quantity(key, kind::volume);
+  } catch (const InputError&) {
+    n.fail_at(key, expected);
+  }
+  constexpr double kMostAboveFrc_m3 = 10e-3;  // more than any lung's inspiratory capacity
+  if (!(v >= 0.0 && v <= kMostAboveFrc_m3)) n.fail_at(key, expected);
+  m.reference_volume_m3 = v;
+}
+
 MeshSpec read_mesh_spec(const scenario::Node& n) {
   MeshSpec m;
   if (int(n.has("phantom")) + int(n.has("file")) + int(n.has("labels")) > 1) {
@@ -225,7 +257,7 @@ MeshSpec read_mesh_spec(const scenario::Node& n) {
     if (!(*share > 0.0 && *share <= 1.0)) n.fail_at("share", "expected a share in (0, 1], such as '0.55' or '55 %'");
     m.share = *share;
   }
-  if (n.has("reference_volume")) m.reference_volume_m3 = n.quantity("reference_volume", kind::volume);
+  read_breath(n, m);
   n.finish();
   return m;
 }

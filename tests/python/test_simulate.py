@@ -77,8 +77,8 @@ def test_unknown_dict_key_lists_the_known_ones():
     with pytest.raises(pneuma.InputError) as e:
         pneuma.load_scenario({"duration": "4 s", "mesh": {"phantom": "right", "egde": "4 mm"},
                               "physiology": {"preset": "healthy-adult"}})
-    assert str(e.value) == ("<dict>: mesh.egde: unknown key; expected one of: edge, file, labels, lungs, phantom, "
-                            "reference_volume, share")
+    assert str(e.value) == ("<dict>: mesh.egde: unknown key; expected one of: breath, edge, file, labels, lungs, "
+                            "phantom, reference_volume, share")
 
 
 def test_a_bad_file_gives_the_cli_message(tmp_path):

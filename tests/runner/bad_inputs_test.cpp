@@ -262,6 +262,42 @@ TEST(BadInputs, AMeshEdgeBelowATenthOfAMillimetreIsRefusedAtItsKey) {
   EXPECT_FALSE(fs::exists(dir / "out"));
 }
 
+// mesh.breath (#45): a moment by its name or a volume above FRC with its unit, else one line at
+// the key saying what it takes; its older name reference_volume takes a volume only, and not both.
+TEST(BadInputs, ABreathThatIsNeitherAMomentNorAVolumeIsRefusedAtItsKey) {
+  TempDir dir;
+  const std::string takes = "expected end_inspiration, end_expiration or a volume above FRC with its unit from 0 to "
+                            "10 L, such as '500 mL'\n";
+  for (const auto& [value, expected] : {std::pair<std::string, std::string>{"end_inhale", takes},
+                                        {"500", takes},
+                                        {"500 mm", takes},
+                                        {"-20 mL", takes},
+                                        {"11 L", takes},
+                                        {"[500 mL]", takes}}) {
+    SCOPED_TRACE(value);
+    const auto file = dir.write("s.yaml", "duration: 2 s\nmesh: {phantom: right, breath: " + value +
+                                              "}\nphysiology: {preset: healthy-adult}\n");
+    const auto r = run_pneuma({"run", file.string(), "-o", (dir / "out").string(), "-q"});
+    EXPECT_EQ(r.exit_code, 3);
+    EXPECT_EQ(r.err, file.string() + ":2:32: mesh.breath: " + expected);
+    EXPECT_FALSE(fs::exists(dir / "out"));
+  }
+  const auto both = dir.write("both.yaml", "duration: 2 s\nmesh: {phantom: right, breath: end_inspiration, "
+                                           "reference_volume: 100 mL}\nphysiology: {preset: healthy-adult}\n");
+  const auto r = run_pneuma({"run", both.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_EQ(r.err, both.string() +
+                       ":2:67: mesh.reference_volume: give either 'breath' or its older name 'reference_volume', not "
+                       "both\n");
+  const auto old = dir.write("old.yaml", "duration: 2 s\nmesh: {phantom: right, reference_volume: end_inspiration}\n"
+                                         "physiology: {preset: healthy-adult}\n");
+  const auto o = run_pneuma({"run", old.string(), "-o", (dir / "out").string(), "-q"});
+  EXPECT_EQ(o.exit_code, 3);
+  EXPECT_EQ(o.err, old.string() +
+                       ":2:42: mesh.reference_volume: expected a volume above FRC with its unit from 0 to 10 L, such "
+                       "as '500 mL'\n");
+}
+
 // A file that cannot be read for want of permission is reported as such, not as missing. As
 // root (who reads everything), pneuma runs as nobody through setpriv.
 TEST(BadInputs, PermissionDeniedIsReportedAsSuch) {

@@ -204,7 +204,7 @@ INSTANTIATE_TEST_SUITE_P(
                "2:16: frames.rate: expected a rate such as '12 /min', got '30 mL'", 3},
         BadRun{
             "unknown_key", "duration: 4 s\nmesh: {phantom: right, egde: 4 mm}\nphysiology: {preset: healthy-adult}\n",
-            "2:24: mesh.egde: unknown key; expected one of: edge, file, labels, lungs, phantom, reference_volume, share",
+            "2:24: mesh.egde: unknown key; expected one of: breath, edge, file, labels, lungs, phantom, reference_volume, share",
             3},
         BadRun{"missing_mesh", "duration: 4 s\nmesh: {file: lungs.stl}\nphysiology: {preset: healthy-adult}\n",
                "2:14: mesh.file: no such file: {dir}/lungs.stl", 3},

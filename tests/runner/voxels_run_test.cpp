@@ -580,6 +580,56 @@ TEST(VoxelsRun, TheScansVolumeIsTheReferenceOfTheExpectedVolumes) {
   }
 }
 
+// A breath-hold scan (mesh.breath: end_inspiration, #45): the rest label map stands for the
+// breath's peak, so voxels.csv expects the scan's lung at end-inspiration and the scan's minus the
+// lung's share of the whole breath at end-expiration, and the warped map holds that, unfolded.
+// The oracle is the same phantom run with the scan at FRC: its expected volumes less the lung's
+// share of the physiology's volume give the scan's lung volume, whatever the breath.
+TEST(VoxelsRun, ABreathHoldScanIsTheEndInspirationOfTheExpectedVolumes) {
+  TempDir dir;
+  auto run = [&](const std::string& name, const std::string& breath) {
+    std::string text = kPhantom;
+    text.replace(text.find("edge: 8 mm}"), 11, "edge: 8 mm" + breath + "}");
+    const auto scenario = dir.write(name + ".yaml", text);
+    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / name).string(), "--quiet"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return read_voxels_csv(dir / name / "voxels/voxels.csv");
+  };
+  const auto at_frc = run("frc", "");
+  const auto held = run("held", ", breath: end_inspiration");
+  ASSERT_EQ(at_frc.size(), 3u);
+  ASSERT_EQ(held.size(), 3u);
+  std::stringstream csv(pneuma::test::read_text(dir / "frc/voxels/voxels.csv"));
+  std::string line;
+  std::getline(csv, line);
+  std::vector<double> physiology_mL;  // the column physiology_volume_mL
+  while (std::getline(csv, line)) {
+    std::stringstream cells(line);
+    std::string cell;
+    for (int c = 0; c <= 4; ++c) std::getline(cells, cell, ',');
+    physiology_mL.push_back(std::stod(cell));
+  }
+  ASSERT_EQ(physiology_mL.size(), 3u);
+  ASSERT_EQ(at_frc[0].time_point, "end_expiration");
+  ASSERT_EQ(at_frc[1].time_point, "end_inspiration");
+  const double share = (at_frc[1].expected_mL - at_frc[0].expected_mL) / (physiology_mL[1] - physiology_mL[0]);
+  const double scan_mL = at_frc[0].expected_mL - share * physiology_mL[0];
+  const double breath_mL = physiology_mL[1] - physiology_mL[0];
+  EXPECT_GT(breath_mL, 700.0);  // the 800 mL breath of kPhantom
+  for (std::size_t k = 0; k < 3; ++k) {
+    SCOPED_TRACE(held[k].time_point);
+    EXPECT_EQ(held[k].time_point, at_frc[k].time_point);
+    // Below the scan by the lung's share of what the breath has still to rise.
+    EXPECT_NEAR(held[k].expected_mL, scan_mL - share * (physiology_mL[1] - physiology_mL[k]), 0.05);
+    EXPECT_NEAR(held[k].warped_mL / held[k].expected_mL, 1.0, 0.02);
+    EXPECT_NEAR(held[k].error_percent, (held[k].warped_mL / held[k].expected_mL - 1.0) * 100.0, 0.01);
+    EXPECT_EQ(held[k].folded_tets, 0u);
+    EXPECT_GT(held[k].min_jacobian, 0.0);
+  }
+  EXPECT_NEAR(held[1].expected_mL, scan_mL, 0.05);                      // the scan is end-inspiration
+  EXPECT_NEAR(held[0].expected_mL, scan_mL - share * breath_mL, 0.05);  // deflated by the whole breath
+}
+
 // A time point at rest (t = 0: the physiology at FRC, every lung at s = 0) writes exact zero
 // fields, forward and pull-back, inside the lungs and out: no rounding noise for a compressor to
 // store (it was 18 MB against the forward field's 1.7 MB on case004).

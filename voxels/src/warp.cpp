@@ -9,6 +9,8 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <vector>
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
@@ -34,6 +36,42 @@ void for_each_sample(const DisplacementField& field, const Grid& source, const F
         }
   }));
   region.join();
+}
+
+// The voxel on `side` of the pleura (rest_lung == side) nearest to the continuous index q, looked
+// for ring by ring (cubes of growing half-width around q's nearest voxel) up to kFarthestRing:
+// the nearest by distance in the first ring that holds one, the first in k, j, i order on a tie.
+// For a voxel whose pull-back lands more than half a voxel across the pleura: the body field
+// lags the pleura by its 12 mm blur (docs/voxels.md, "Around the lungs"), which a lung that
+// deflates below its scan leaves as a gap of several voxels between its moved and its rest
+// surface (docs/voxels.md, "The scan's place on the breath").
+constexpr long kFarthestRing = 16;
+
+std::optional<std::size_t> nearest_on_side(const std::vector<std::uint8_t>& rest_lung,
+                                           const std::array<std::size_t, 3>& size, const Eigen::Vector3d& q,
+                                           std::uint8_t side) {
+  std::array<long, 3> centre{}, n{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    centre[a] = static_cast<long>(std::floor(q[static_cast<Eigen::Index>(a)] + 0.5));
+    n[a] = static_cast<long>(size[a]);
+  }
+  for (long ring = 1; ring <= kFarthestRing; ++ring) {
+    double best = std::numeric_limits<double>::infinity();
+    std::optional<std::size_t> found;
+    for (long k = std::max(centre[2] - ring, 0L); k <= std::min(centre[2] + ring, n[2] - 1); ++k)
+      for (long j = std::max(centre[1] - ring, 0L); j <= std::min(centre[1] + ring, n[1] - 1); ++j)
+        for (long i = std::max(centre[0] - ring, 0L); i <= std::min(centre[0] + ring, n[0] - 1); ++i) {
+          const long chebyshev = std::max({std::abs(i - centre[0]), std::abs(j - centre[1]), std::abs(k - centre[2])});
+          if (chebyshev != ring) continue;  // inner rings were searched already
+          const auto index = static_cast<std::size_t>(i + n[0] * (j + n[1] * k));
+          if (rest_lung[index] != side) continue;
+          const double d = (Eigen::Vector3d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)) - q)
+                               .squaredNorm();
+          if (d < best) best = d, found = index;
+        }
+    if (found) return found;
+  }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -92,6 +130,9 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
           nearest = candidate;
         }
       }
+      if (std::isinf(best)) {
+        if (const auto far = nearest_on_side(*rest_lung, labels.size, q, lung)) nearest = *far;
+      }
     }
     const std::int32_t label = labels.labels[nearest];
     out.labels[v] = label;
@@ -142,6 +183,13 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
       if (rest_lung && (*rest_lung)[i + size[0] * (j + size[1] * k)] == side) {
         same_side_value += weight * at(i, j, k);
         same_side_weight += weight;
+      }
+    }
+    if (rest_lung && same_side_weight == 0.0) {
+      // Every corner across the pleura: the nearest voxel on x's side, where there is one.
+      if (const auto far = nearest_on_side(*rest_lung, size, q, side)) {
+        out.values[v] = image.values[*far];
+        return;
       }
     }
     out.values[v] = static_cast<float>(same_side_weight > 0.0 ? same_side_value / same_side_weight : value);

@@ -38,6 +38,9 @@ struct InteriorOptions {
   // lung), its free nodes are moved until no tetrahedron folds (field/untangle.h), and a folded
   // tetrahedron with all four nodes on the surface is left out of the mesh. 0: neither.
   double unfold_volume_m3 = 1e-3;
+  // The same for a breath down to this volume below rest (a scan above FRC, model::compile sets it
+  // from the breath): tetrahedra that fold as the lung deflates. 0: none.
+  double unfold_deflation_m3 = 0.0;
 };
 
 struct InteriorReport {

@@ -29,6 +29,11 @@ struct CompileOptions {
   std::filesystem::path auto_cache_write_file = {};
   std::optional<double> edge_override_m = std::nullopt;  // a coarser or finer mesh than the scenario's
   bool interior = false;  // compute each lung's inside and the body around them (an output needs it)
+  // The breath the model will follow (runner::prepare's drive): places the scan on it
+  // (`mesh.breath: end_inspiration` is each lung's peak volume) and tells how far below the scan
+  // each lung deflates (field_for_deflation). Null (a cohort's field job): the scan at the volume
+  // given, and a deflation down to FRC.
+  const physiology::SimulationResult* drive = nullptr;
 };
 
 // Compiles `scenario`. A cache file found damaged is replaced (Model::report.warnings says so).

@@ -61,9 +61,11 @@ struct LungModel {
   VolumeScaleMap volume_map;  // V(s) of rest + s u, an exact cubic
 
   // ---- Which lung, and its part of each breath (set by compile(); scenario::LungSpec) -------------
-  std::optional<mesh::Lung> side;  // nullopt: a one-surface run of a file or label map
-  double share = 1.0;              // mesh volume = rest + share * (V - reference)
-  double reference_volume_m3 = 0.0;
+  std::optional<mesh::Lung> side;    // nullopt: a one-surface run of a file or label map
+  double share = 1.0;                // mesh volume = rest + share * (V - reference)
+  double reference_volume_m3 = 0.0;  // the volume above FRC the scan shows (mesh.breath, resolved)
+  // The field's smoothing in space for a breath below the scan (field_for_deflation; 0: none).
+  double deflation_sigma_m = 0.0;
   int compartment = -1;                // V is this physiology compartment's volume; -1: the total
   std::vector<int> label_values = {};  // the label map's values of this lung (names resolved); empty: no label map
   // The label map's faces this lung's labels reach ("inferior face (k = 0)"): cut flat by the scan there.
@@ -121,6 +123,22 @@ struct Model {
 // are two lungs that cut into each other (both at their lowest scales, then both at their highest:
 // end-expiration and end-inspiration). Throws UnsupportedError naming the scenario file.
 void check_no_fold(const Model& model, std::span<const LungScales> scales);
+
+// The volumes a lung following `compartment` (-1: the total) reads in `drive`. Throws ValueError
+// for a compartment the drive lacks.
+const std::vector<double>& lung_volumes(const physiology::SimulationResult& drive, int compartment);
+
+// The surface field for a lung that deflates `depth_m3` below its rest shape (a scan above FRC):
+// `u` itself where rest + s u does not self-intersect at 1.5 times that depth, else u smoothed in
+// space (field::smooth_field_in_space) at the first of 2, 4, 6, 8, 12, 16 mm whose deflation does not
+// (the largest when none does: check_no_fold then names the scale). docs/voxels.md, "The scan's
+// place on the breath".
+struct DeflationField {
+  std::vector<Eigen::Vector3d> unit_displacement;
+  double sigma_m = 0.0;
+};
+DeflationField field_for_deflation(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& u,
+                                   double depth_m3);
 
 // The model of `rest` moved by `unit_displacement`: normals, the volume cubic, the rest area and
 // the anatomical regions (in the body `axes`, of the lung `side` where given) are computed here,

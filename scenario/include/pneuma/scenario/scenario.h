@@ -55,7 +55,11 @@ struct MeshSpec {
   bool repair = true;                    // repair what is safe before use
   bool export_original = false;          // export the file's mesh with the field transferred to it
   double share = 1.0;                    // share of the total volume change this mesh takes (0, 1]
-  double reference_volume_m3 = 0.0;      // physiological volume above FRC that the rest mesh shows
+  // Where the rest mesh (the scan) lies on the breath (`breath:`; `reference_volume:` is the same
+  // key's older name): a volume above FRC (end_expiration: 0), or the peak of each lung's breath
+  // (end_inspiration: a breath-hold scan), known once the physiology has run (model::compile).
+  bool breath_at_end_inspiration = false;
+  double reference_volume_m3 = 0.0;  // physiological volume above FRC that the rest mesh shows
   // Two lungs (`phantom: both` or `lungs:`), right then left; empty for one surface (the fields
   // above). With two lungs `share` is their sum and the label map, unit, edge and repair are shared.
   std::vector<LungSpec> lungs;

@@ -30,10 +30,12 @@ inline constexpr float kOutsideHu = -1024.0f;
 // voxel of its edge) takes the label of the nearest of the eight voxels around x + v(x) that lie
 // inside it, where there is one; a voxel outside every deformed lung whose nearest voxel lies in
 // a rest mesh (the body's tissue, carried by the outside field to the pleura) takes the nearest
-// of the eight outside every rest mesh. Without it, a growing lung loses part of that rim (a
-// quarter voxel times its area: 2.3 % of the phantom at 3 mm) and the chest wall takes lung
-// labels where it slides past the pleura; with it, the warped lung's voxels are those of the
-// deformed mesh, and labels inside the mesh (lobes, holes) are kept as they are.
+// of the eight outside every rest mesh; where none of the eight is on x's side, the nearest voxel
+// that is, ring by ring up to 16 voxels away (a lung deflating below its scan leaves a gap of
+// several voxels that the body field, blurred over 12 mm, does not fill). Without it, a growing lung loses part of that
+// rim (a quarter voxel times its area: 2.3 % of the phantom at 3 mm) and the chest wall takes lung labels where it
+// slides past the pleura; with it, the warped lung's voxels are those of the deformed mesh, and labels inside the mesh
+// (lobes, holes) are kept as they are.
 image::LabelMap warp_labels(const image::LabelMap& labels, const DisplacementField& pullback,
                             const std::vector<std::uint8_t>* rest_lung = nullptr);
 // The same into `out` (its storage reused).
@@ -44,8 +46,9 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
 // than half a voxel outside the image (between the outer voxel centres and the image's edge the
 // edge value is kept). With `rest_lung` (per voxel of `image`: 0, or 1 + the lung whose rest mesh
 // holds it, as forward_dvf's `lung` at scale 0 on the image's grid), only the corners on x's side
-// of the pleura (pullback.lung[x]) are interpolated, where there is one: no chest wall is blended
-// into a lung voxel, and no lung into the chest wall.
+// of the pleura (pullback.lung[x]) are interpolated, where there is one (else the nearest voxel on
+// that side, as warp_labels): no chest wall is blended into a lung voxel, and no lung into the
+// chest wall.
 Image warp_image(const Image& image, const DisplacementField& pullback, float outside = kOutsideHu,
                  const std::vector<std::uint8_t>* rest_lung = nullptr);
 // The same into `out` (its storage reused).

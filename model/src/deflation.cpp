@@ -1,0 +1,49 @@
+// The field of a lung that breathes below its rest shape (docs/voxels.md, "The scan's place on
+// the breath"): the inflation's field, smoothed in space just enough that its mirror does not
+// pass one face of a thin part of the lung through the other.
+#include <array>
+
+#include "pneuma/core/error.h"
+#include "pneuma/field/deflation.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
+#include "pneuma/model/model.h"
+#include "pneuma/model/volume_scale.h"
+
+namespace pneuma::model {
+namespace {
+
+// True when rest + s u, at the scale whose volume is `depth_m3` below rest's, is a surface
+// without self-intersection (false also when u cannot deflate that far).
+bool deflates_cleanly(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& u, double depth_m3) {
+  const VolumeScaleMap map(rest.vertices, u, rest.triangles);
+  const double target = map.volume(0.0) - depth_m3;
+  if (!map.reachable(target)) return false;
+  const double s = map.scale_for(target);
+  mesh::TriangleMesh moved = rest;
+  for (std::size_t i = 0; i < moved.vertices.size(); ++i) moved.vertices[i] += s * u[i];
+  return !mesh::self_intersects(moved);
+}
+
+}  // namespace
+
+DeflationField field_for_deflation(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& u,
+                                   double depth_m3) {
+  // The surface must deflate half as far again without its faces crossing: a wedge that closes
+  // only there keeps about a third of its thickness at the depth itself, so the tetrahedra across
+  // it do not fold either (on the shared CT lungs a field whose surface only just passes at the
+  // depth folds 2-9 tetrahedra of the inside, that untangling does not mend).
+  constexpr double kMargin = 1.5;
+  const double checked_m3 = kMargin * depth_m3;
+  if (!(depth_m3 > 0.0) || deflates_cleanly(rest, u, checked_m3)) return {u, 0.0};
+  // Lengths from half a 4 mm edge to about the thickness of the thinnest wedges of the shared CT
+  // lungs' bases; the shortest that works changes the motion least.
+  constexpr std::array<double, 6> kSigmas_m{2e-3, 4e-3, 6e-3, 8e-3, 12e-3, 16e-3};
+  DeflationField out;
+  for (const double sigma : kSigmas_m) {
+    out = {field::smooth_field_in_space(rest, u, sigma), sigma};
+    if (deflates_cleanly(rest, out.unit_displacement, checked_m3)) break;
+  }
+  return out;
+}
+
+}  // namespace pneuma::model
