@@ -5,7 +5,7 @@
 // neighbour's by more than a voxel) and the warped CT keeps the lungs' mass. The oracle is nibabel
 // + numpy + scipy reading the written files (their own affine, their own finite differences and
 // distance transform): none of it is pneuma's arithmetic. Cheap settings (5 mm surfaces, 6 mm
-// tets, 4 mm voxels) keep the six runs near a minute; the scenario's own (4 mm, 3 mm voxels) are
+// tets, 4 mm voxels) keep each run near 20 s of CPU; the scenario's own (4 mm, 3 mm voxels) are
 // measured in docs/voxels.md.
 #include <gtest/gtest.h>
 
