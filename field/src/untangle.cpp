@@ -18,6 +18,13 @@ namespace {
 // Jacobian is cubic in s, so a map unfolded at the deepest breath can fold at a lighter one).
 constexpr std::array<double, 8> kFractions{0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0};
 
+// How far a move for a deeper breath may lower a lighter one's Jacobian, at the fraction f of
+// `scale`: not at all up to half of it (quiet breaths keep the elastic field's inside), then
+// down to the floor at the whole of it.
+double lighter_floor(double f, double min_jacobian) {
+  return f <= 0.5 ? 1.0 : 1.0 - (1.0 - min_jacobian) * (2.0 * f - 1.0);
+}
+
 // Whether tet `q` folds at one of the breaths checked up to `scale`.
 bool folds_by(const mesh::TetMesh& mesh, const mesh::Tetrahedron& q, const std::vector<Eigen::Vector3d>& displacement,
               double scale) {
@@ -324,7 +331,7 @@ UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std:
         if (!maximise_smallest(f, mesh::moved_node(mesh.nodes[v], displacement[v], s), optimum, best)) continue;
         // On the way from the node's U to the one that reaches the optimum at this breath, the
         // star's smallest Jacobian at this breath (`here`) and at each lighter one (`lighter`) is
-        // concave in lambda: go no further than the lighter breaths allow (not below the floor, or
+        // concave in lambda: go no further than the lighter breaths allow (not below their envelope, or
         // below where they are), and there as far as needed to reach the floor, else to the best.
         const Eigen::Vector3d u0 = displacement[v], u1 = (optimum - mesh.nodes[v]) / s;
         auto smallest = [&](double lambda, std::size_t from, std::size_t to) {
@@ -342,16 +349,26 @@ UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std:
           return m;
         };
         auto here = [&](double lambda) { return smallest(lambda, level, level + 1); };
-        auto lighter = [&](double lambda) { return smallest(lambda, 0, level); };
+        // A lighter breath l keeps the star's smallest Jacobian at or above lighter_floor (or where
+        // it was, if lower): a quiet breath's inside, which the elastic field leaves near 1, is
+        // not traded for a deep one's (a floor of 0.2 at every breath let the moves for 1 L leave
+        // J = 0.25-0.55 in a 250 mL breath beside the heart).
+        std::array<double, kFractions.size()> keep{};
+        for (std::size_t l = 0; l < level; ++l)
+          keep[l] = std::min(lighter_floor(kFractions[l], min_jacobian), smallest(0.0, l, l + 1));
+        auto lighter_keep = [&](double lambda) {
+          for (std::size_t l = 0; l < level; ++l)
+            if (smallest(lambda, l, l + 1) < keep[l]) return false;
+          return true;
+        };
         const double start_here = here(0.0);
         if (!(best > start_here + 1e-9)) continue;
-        const double keep = std::min(min_jacobian, lighter(0.0));
-        double reach = 1.0;  // the lighter breaths allow [0, reach]
-        if (lighter(1.0) < keep) {
+        double reach = 1.0;  // the lighter breaths allow [0, reach] (each is concave in lambda)
+        if (!lighter_keep(1.0)) {
           double lo = 0.0, hi = 1.0;
           for (int it = 0; it < 40; ++it) {
             const double mid = 0.5 * (lo + hi);
-            (lighter(mid) >= keep ? lo : hi) = mid;
+            (lighter_keep(mid) ? lo : hi) = mid;
           }
           reach = lo;
         }
