@@ -4,7 +4,11 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -61,32 +65,45 @@ struct VectorGrid {
     return out;
   }
   // Convolves along axis `a` with the symmetric kernel (weights for offsets 0..K), zero outside.
+  // The lines are independent: they run on every thread, each computed as alone (the same bits
+  // at any thread count); a line that is all zero stays zero and is skipped (most of the grid
+  // lies away from the surface).
   void blur(int a, const std::vector<double>& kernel) {
     const auto radius = static_cast<std::ptrdiff_t>(kernel.size()) - 1;
     const std::size_t ua = static_cast<std::size_t>(a);
     const std::ptrdiff_t len = n[ua];
-    std::vector<Eigen::Vector3d> line(static_cast<std::size_t>(len));
     const std::size_t b1 = (ua + 1) % 3, b2 = (ua + 2) % 3;
-    for (std::ptrdiff_t q = 0; q < n[b2]; ++q) {
-      for (std::ptrdiff_t p = 0; p < n[b1]; ++p) {
-        auto at = [&](std::ptrdiff_t t) {
-          std::array<std::ptrdiff_t, 3> ijk{};
-          ijk[ua] = t;
-          ijk[b1] = p;
-          ijk[b2] = q;
-          return index(ijk[0], ijk[1], ijk[2]);
-        };
-        for (std::ptrdiff_t t = 0; t < len; ++t) line[static_cast<std::size_t>(t)] = value[at(t)];
-        for (std::ptrdiff_t t = 0; t < len; ++t) {
-          Eigen::Vector3d sum = kernel[0] * line[static_cast<std::size_t>(t)];
-          for (std::ptrdiff_t r = 1; r <= radius; ++r) {
-            if (t - r >= 0) sum += kernel[static_cast<std::size_t>(r)] * line[static_cast<std::size_t>(t - r)];
-            if (t + r < len) sum += kernel[static_cast<std::size_t>(r)] * line[static_cast<std::size_t>(t + r)];
+    const tsan::Region region;
+    tbb::parallel_for(
+        tbb::blocked_range<std::ptrdiff_t>(0, n[b2]), region.wrap([&](const tbb::blocked_range<std::ptrdiff_t>& qs) {
+          std::vector<Eigen::Vector3d> line(static_cast<std::size_t>(len));
+          for (std::ptrdiff_t q = qs.begin(); q < qs.end(); ++q) {
+            for (std::ptrdiff_t p = 0; p < n[b1]; ++p) {
+              auto at = [&](std::ptrdiff_t t) {
+                std::array<std::ptrdiff_t, 3> ijk{};
+                ijk[ua] = t;
+                ijk[b1] = p;
+                ijk[b2] = q;
+                return index(ijk[0], ijk[1], ijk[2]);
+              };
+              bool zero = true;
+              for (std::ptrdiff_t t = 0; t < len; ++t) {
+                line[static_cast<std::size_t>(t)] = value[at(t)];
+                zero = zero && (line[static_cast<std::size_t>(t)].array() == 0.0).all();
+              }
+              if (zero) continue;
+              for (std::ptrdiff_t t = 0; t < len; ++t) {
+                Eigen::Vector3d sum = kernel[0] * line[static_cast<std::size_t>(t)];
+                for (std::ptrdiff_t r = 1; r <= radius; ++r) {
+                  if (t - r >= 0) sum += kernel[static_cast<std::size_t>(r)] * line[static_cast<std::size_t>(t - r)];
+                  if (t + r < len) sum += kernel[static_cast<std::size_t>(r)] * line[static_cast<std::size_t>(t + r)];
+                }
+                value[at(t)] = sum;
+              }
+            }
           }
-          value[at(t)] = sum;
-        }
-      }
-    }
+        }));
+    region.join();
   }
   // A Gaussian of standard deviation sigma (truncated at 3 sigma), separably along the three axes.
   void gaussian_blur(double sigma) {
@@ -99,6 +116,18 @@ struct VectorGrid {
     for (int a = 0; a < 3; ++a) blur(a, kernel);
   }
 };
+
+// f(i) for i in [0, n) on every thread; f writes slot i only, so the result is the same at any
+// thread count.
+template <class F>
+void for_each_index(std::size_t n, const F& f) {
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t i = range.begin(); i < range.end(); ++i) f(i);
+                    }));
+  region.join();
+}
 
 // The largest grid (cells) the smoothing may allocate; beyond it the spacing grows.
 constexpr double kMaxCells = 8.0e6;
@@ -186,11 +215,9 @@ std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double s
   grid.gaussian_blur(sigma);
 
   std::vector<Eigen::Vector3d> blurred(p.size());
+  for_each_index(p.size(), [&](std::size_t i) { blurred[i] = grid.sample(p[i]); });
   double largest = 0.0;
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    blurred[i] = grid.sample(p[i]);
-    largest = std::max(largest, blurred[i].norm());
-  }
+  for (const Eigen::Vector3d& b : blurred) largest = std::max(largest, b.norm());
   for (std::size_t i = 0; i < p.size(); ++i) {
     const double len = blurred[i].norm();
     if (len > 1e-9 * largest) result[i] = blurred[i] / len;
@@ -207,11 +234,47 @@ std::vector<double> blurred_in_space(const TriangleMesh& mesh, const std::vector
   for (std::size_t i = 0; i < value.size(); ++i) grid.splat(mesh.vertices[i], {area[i] * value[i], area[i], 0.0});
   grid.gaussian_blur(sigma);
   std::vector<double> out(value.size());
-  for (std::size_t i = 0; i < value.size(); ++i) {
+  for_each_index(value.size(), [&](std::size_t i) {
     const Eigen::Vector3d s = grid.sample(mesh.vertices[i]);
     out[i] = s.y() > 0.0 ? s.x() / s.y() : value[i];
-  }
+  });
   return out;
+}
+
+std::vector<Eigen::Vector3d> hull_proxy_points(const std::vector<Eigen::Vector3d>& points, double cell) {
+  if (!(cell > 0.0) || points.empty()) return points;
+  const auto box = bounding_box(points);
+  const Eigen::Vector3d extent = box[1] - box[0];
+  constexpr double kMaxProxyCells = 2.0e6;  // 32 MB of grid at most
+  double h = cell;
+  const double cells = (extent.array() / h + 1.0).prod();
+  if (cells > kMaxProxyCells) h *= std::cbrt(cells / kMaxProxyCells);
+  std::array<std::size_t, 3> n{};
+  for (std::size_t a = 0; a < 3; ++a) n[a] = static_cast<std::size_t>(extent[static_cast<int>(a)] / h) + 1;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+  std::vector<std::size_t> best(n[0] * n[1] * n[2], kNone);
+  std::vector<double> best_distance(best.size(), -1.0);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    std::array<std::size_t, 3> c{};
+    for (std::size_t a = 0; a < 3; ++a) {
+      const auto ia = static_cast<int>(a);
+      c[a] = std::min(n[a] - 1, static_cast<std::size_t>((points[i][ia] - box[0][ia]) / h));
+    }
+    const std::size_t k = (c[2] * n[1] + c[1]) * n[0] + c[0];
+    const double d = (points[i] - mean).squaredNorm();
+    if (d > best_distance[k]) {  // strictly: the lowest index keeps a tie
+      best_distance[k] = d;
+      best[k] = i;
+    }
+  }
+  std::vector<Eigen::Vector3d> kept;
+  for (std::size_t k : best) {
+    if (k != kNone) kept.push_back(points[k]);
+  }
+  return kept;
 }
 
 SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& o) {
@@ -253,7 +316,8 @@ SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& o) {
     sample.push_back(steep[k]);
     queries.push_back(mesh.vertices[steep[k]]);
   }
-  const std::vector<double> depth = depth_below_convex_hull(mesh.vertices, queries);
+  const std::vector<double> depth =
+      depth_below_convex_hull(hull_proxy_points(mesh.vertices, o.hull_proxy_cell_m), queries);
   const std::vector<double> area = vertex_areas(mesh);
   double sum_left = 0.0, area_left = 0.0, sum_right = 0.0, area_right = 0.0;
   for (std::size_t k = 0; k < sample.size(); ++k) {
