@@ -150,14 +150,18 @@ struct VectorGrid {
         tbb::blocked_range<std::ptrdiff_t>(0, planes), region.wrap([&](const tbb::blocked_range<std::ptrdiff_t>& ps) {
           std::vector<Value> copy(static_cast<std::size_t>(len) * width);
           std::vector<std::ptrdiff_t> nonzero(static_cast<std::size_t>(len) + 1);  // nonzero rows before t
+          std::vector<std::ptrdiff_t> needed(static_cast<std::size_t>(len) + 1);   // needed rows before t
           for (std::ptrdiff_t plane = ps.begin(); plane < ps.end(); ++plane) {
-            bool any = false;
-            for (std::ptrdiff_t t = 0; t < len; ++t) any = any || need[row_at(t, plane)];
-            if (!any) continue;
+            for (std::ptrdiff_t t = 0; t < len; ++t)
+              needed[static_cast<std::size_t>(t) + 1] = needed[static_cast<std::size_t>(t)] + need[row_at(t, plane)];
+            if (needed[static_cast<std::size_t>(len)] == 0) continue;
             nonzero[0] = 0;
             for (std::ptrdiff_t t = 0; t < len; ++t) {
               const std::size_t first = row_at(t, plane) * width;
-              const bool zero = row_is_zero(first);
+              // A row no needed output reads (none needed within the radius) counts as zero.
+              const auto lo = static_cast<std::size_t>(std::max<std::ptrdiff_t>(t - radius, 0));
+              const auto hi = static_cast<std::size_t>(std::min(t + radius + 1, len));
+              const bool zero = needed[hi] == needed[lo] || row_is_zero(first);
               nonzero[static_cast<std::size_t>(t) + 1] = nonzero[static_cast<std::size_t>(t)] + (zero ? 0 : 1);
               if (!zero)
                 std::copy_n(value.begin() + static_cast<std::ptrdiff_t>(first), width,
