@@ -120,11 +120,19 @@ struct VectorGrid {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, need.size()),
                       region.wrap([&](const tbb::blocked_range<std::size_t>& rows) {
                         std::vector<Value> line(static_cast<std::size_t>(len));
+                        std::vector<std::ptrdiff_t> nonzero(static_cast<std::size_t>(len) + 1);  // before t
                         for (std::size_t w = rows.begin(); w < rows.end(); ++w) {
                           const std::size_t first = w * static_cast<std::size_t>(len);
-                          if (!need[w] || row_is_zero(first)) continue;  // zeros blur to zeros
-                          std::copy_n(value.begin() + static_cast<std::ptrdiff_t>(first), len, line.begin());
+                          if (!need[w]) continue;
                           for (std::ptrdiff_t t = 0; t < len; ++t) {
+                            const auto ut = static_cast<std::size_t>(t);
+                            line[ut] = value[first + ut];
+                            nonzero[ut + 1] = nonzero[ut] + ((line[ut].array() != 0.0).any() ? 1 : 0);
+                          }
+                          for (std::ptrdiff_t t = 0; t < len; ++t) {
+                            const auto lo = static_cast<std::size_t>(std::max<std::ptrdiff_t>(t - radius, 0));
+                            const auto hi = static_cast<std::size_t>(std::min(t + radius + 1, len));
+                            if (nonzero[hi] == nonzero[lo]) continue;  // zeros blur to zeros
                             Value sum = kernel[0] * line[static_cast<std::size_t>(t)];
                             for (std::ptrdiff_t r = 1; r <= radius; ++r) {
                               const double k = kernel[static_cast<std::size_t>(r)];
