@@ -107,10 +107,15 @@ struct VectorGrid {
   // count): along x within each row, along y and z a row at a time from a copy of the rows it
   // reads (contiguous, so the loops over x vectorise and the cache is used whole).
   std::size_t row(std::ptrdiff_t j, std::ptrdiff_t k) const { return static_cast<std::size_t>(k * n[1] + j); }
-  bool row_is_zero(std::size_t first) const {
-    return std::all_of(value.begin() + static_cast<std::ptrdiff_t>(first),
-                       value.begin() + static_cast<std::ptrdiff_t>(first) + n[0],
-                       [](const Value& v) { return (v.array() == 0.0).all(); });
+  // [first nonzero cell, last nonzero cell + 1) of the row starting at `first`; [0, 0) if none.
+  std::pair<std::size_t, std::size_t> nonzero_extent(std::size_t first) const {
+    const auto width = static_cast<std::size_t>(n[0]);
+    auto zero = [&](std::size_t i) { return (value[first + i].array() == 0.0).all(); };
+    std::size_t from = 0, to = width;
+    while (from < width && zero(from)) ++from;
+    if (from == width) return {0, 0};
+    while (zero(to - 1)) --to;
+    return {from, to};
   }
   // The convolution along x of every marked row, zero outside the grid.
   void blur_x(const std::vector<double>& kernel, const std::vector<char>& need) {
@@ -159,21 +164,25 @@ struct VectorGrid {
           std::vector<Value> copy(static_cast<std::size_t>(len) * width);
           std::vector<std::ptrdiff_t> nonzero(static_cast<std::size_t>(len) + 1);  // nonzero rows before t
           std::vector<std::ptrdiff_t> needed(static_cast<std::size_t>(len) + 1);   // needed rows before t
+          std::vector<std::pair<std::size_t, std::size_t>> extent(static_cast<std::size_t>(len));  // its nonzeros
           for (std::ptrdiff_t plane = ps.begin(); plane < ps.end(); ++plane) {
             for (std::ptrdiff_t t = 0; t < len; ++t)
               needed[static_cast<std::size_t>(t) + 1] = needed[static_cast<std::size_t>(t)] + need[row_at(t, plane)];
             if (needed[static_cast<std::size_t>(len)] == 0) continue;
             nonzero[0] = 0;
             for (std::ptrdiff_t t = 0; t < len; ++t) {
+              const auto ut = static_cast<std::size_t>(t);
               const std::size_t first = row_at(t, plane) * width;
               // A row no needed output reads (none needed within the radius) counts as zero.
               const auto lo = static_cast<std::size_t>(std::max<std::ptrdiff_t>(t - radius, 0));
               const auto hi = static_cast<std::size_t>(std::min(t + radius + 1, len));
-              const bool zero = needed[hi] == needed[lo] || row_is_zero(first);
-              nonzero[static_cast<std::size_t>(t) + 1] = nonzero[static_cast<std::size_t>(t)] + (zero ? 0 : 1);
+              extent[ut] = needed[hi] == needed[lo] ? std::pair<std::size_t, std::size_t>{0, 0} : nonzero_extent(first);
+              const bool zero = extent[ut].first == extent[ut].second;
+              nonzero[ut + 1] = nonzero[ut] + (zero ? 0 : 1);
               if (!zero)
-                std::copy_n(value.begin() + static_cast<std::ptrdiff_t>(first), width,
-                            copy.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(t) * width));
+                std::copy(value.begin() + static_cast<std::ptrdiff_t>(first + extent[ut].first),
+                          value.begin() + static_cast<std::ptrdiff_t>(first + extent[ut].second),
+                          copy.begin() + static_cast<std::ptrdiff_t>(ut * width + extent[ut].first));
             }
             for (std::ptrdiff_t t = 0; t < len; ++t) {
               const auto lo = static_cast<std::size_t>(std::max<std::ptrdiff_t>(t - radius, 0));
@@ -183,19 +192,31 @@ struct VectorGrid {
                 const bool zero = nonzero[static_cast<std::size_t>(u) + 1] == nonzero[static_cast<std::size_t>(u)];
                 return zero ? nullptr : copy.data() + static_cast<std::size_t>(u) * width;
               };
+              // Only the cells in the span of the window's nonzeros can be nonzero; the rest of
+              // the row is zero already (its own input lies in that span).
+              std::size_t begin = width, end = 0;
+              for (std::size_t u = lo; u < hi; ++u) {
+                if (extent[u].first == extent[u].second) continue;
+                begin = std::min(begin, extent[u].first);
+                end = std::max(end, extent[u].second);
+              }
               Value* out = value.data() + row_at(t, plane) * width;
               const Value* centre = in(t);
-              for (std::size_t i = 0; i < width; ++i) out[i] = centre ? Value(kernel[0] * centre[i]) : Value::Zero();
+              auto inside = [&](std::ptrdiff_t u, std::size_t i) {  // row u's copy holds cell i
+                return extent[static_cast<std::size_t>(u)].first <= i && i < extent[static_cast<std::size_t>(u)].second;
+              };
+              for (std::size_t i = begin; i < end; ++i)
+                out[i] = centre && inside(t, i) ? Value(kernel[0] * centre[i]) : Value(kernel[0] * Value::Zero());
               for (std::ptrdiff_t r = 1; r <= radius; ++r) {
                 const double k = kernel[static_cast<std::size_t>(r)];
-                // A zero row adds k * 0 = +0: leaving it out gives the same bits.
-                if (t - r >= 0) {
-                  if (const Value* below = in(t - r))
-                    for (std::size_t i = 0; i < width; ++i) out[i] += k * below[i];
-                }
-                if (t + r < len) {
-                  if (const Value* above = in(t + r))
-                    for (std::size_t i = 0; i < width; ++i) out[i] += k * above[i];
+                // A zero row, or a row's cells outside its nonzeros, add k * 0 = +0: leaving them
+                // out gives the same bits.
+                for (const std::ptrdiff_t u : {t - r, t + r}) {
+                  if (u < 0 || u >= len) continue;
+                  if (const Value* row_in = in(u)) {
+                    const auto& [from, to] = extent[static_cast<std::size_t>(u)];
+                    for (std::size_t i = from; i < to; ++i) out[i] += k * row_in[i];
+                  }
                 }
               }
             }
