@@ -102,10 +102,11 @@ struct VectorGrid {
     return out;
   }
   // Rows are the grid's lines along x (contiguous); row (j, k) is row j + n[1] k. `need` marks
-  // rows. The passes below compute a whole row where its row is marked, cell by cell in the one
-  // order of a 1-D convolution (the same bits whichever rows are computed, and at any thread
-  // count): along x within each row, along y and z a row at a time from a copy of the rows it
-  // reads (contiguous, so the loops over x vectorise and the cache is used whole).
+  // rows. The passes below compute the marked rows, each cell by the one sequence of operations
+  // of a 1-D convolution (the same bits whichever rows are computed, and at any thread count),
+  // leaving out only cells and terms that are zeros (a zero window gives +0, a zero term adds
+  // +0): along x within each row, along y and z a row at a time from a copy of the rows it reads
+  // (contiguous, so the loops over x vectorise and the cache is used whole).
   std::size_t row(std::ptrdiff_t j, std::ptrdiff_t k) const { return static_cast<std::size_t>(k * n[1] + j); }
   // [first nonzero cell, last nonzero cell + 1) of the row starting at `first`; [0, 0) if none.
   std::pair<std::size_t, std::size_t> nonzero_extent(std::size_t first) const {
