@@ -1,7 +1,9 @@
 // Anatomical regions, smoothed normals and the motion summary, against geometric oracles.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <limits>
+#include <map>
 
 #include <algorithm>
 #include <cmath>
@@ -406,6 +408,99 @@ TEST(Regions, TheSameSurfaceGivesTheSameBitsOnEveryCall) {
     ASSERT_EQ(again.right_face_depth, first.right_face_depth) << call;
     ASSERT_EQ(again.weight, first.weight) << call;
     ASSERT_EQ(again.label, first.label) << call;
+  }
+}
+
+}  // namespace
+}  // namespace pneuma::mesh
+
+namespace pneuma::mesh {
+namespace {
+
+// The coarse proxy of the hull (issue #50): one input point per occupied cell, the one farthest
+// from the points' mean (checked cell by cell by brute force).
+TEST(HullProxy, KeepsOneInputPointPerOccupiedCellTheFarthestFromTheMean) {
+  const TriangleMesh s = make_icosphere(0.1, 5);  // 10,242 points
+  const double cell = 0.01;
+  const std::vector<Eigen::Vector3d> kept = hull_proxy_points(s.vertices, cell);
+  const auto box = bounding_box(s.vertices);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : s.vertices) mean += p;
+  mean /= static_cast<double>(s.vertices.size());
+  auto cell_of = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d c = ((p - box[0]) / cell).array().floor();
+    return std::array<long, 3>{static_cast<long>(c.x()), static_cast<long>(c.y()), static_cast<long>(c.z())};
+  };
+  std::map<std::array<long, 3>, Eigen::Vector3d> farthest;  // per occupied cell
+  for (const auto& p : s.vertices) {
+    auto [it, added] = farthest.emplace(cell_of(p), p);
+    if (!added && (p - mean).squaredNorm() > (it->second - mean).squaredNorm()) it->second = p;
+  }
+  ASSERT_EQ(kept.size(), farthest.size());
+  for (const auto& p : kept) EXPECT_EQ(farthest.at(cell_of(p)), p);
+  EXPECT_EQ(hull_proxy_points(s.vertices, 0.0), s.vertices);  // no proxy
+}
+
+// Its hull lies inside the whole hull, within the sagitta of a cell's diagonal: on a sphere of
+// radius R every point is within d = cell sqrt(3) of a kept one, so the proxy's hull reaches
+// within d^2 / (2 R) of the sphere. A point inside is nearer the proxy's hull: its depth below it
+// is <= the exact depth, and at most that sagitta less; the surface's points lie on or outside
+// both hulls (depth 0).
+TEST(HullProxy, DepthsBelowItsHullAreWithinTheSagittaOfTheExactOnes) {
+  const TriangleMesh s = make_icosphere(0.1, 6);  // 40,962 points, 1.9 mm apart
+  const double cell = 2e-3, bound = 3.0 * cell * cell / (2.0 * 0.1);
+  std::vector<Eigen::Vector3d> queries = s.vertices;
+  for (double r : {0.0, 0.05, 0.09, 0.099}) queries.emplace_back(r * 0.6, -r * 0.8, 0.0);
+  const std::vector<double> exact = depth_below_convex_hull(s.vertices, queries);
+  const std::vector<double> proxy = depth_below_convex_hull(hull_proxy_points(s.vertices, cell), queries);
+  double largest = 0.0;
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    EXPECT_LE(proxy[i], exact[i] + 1e-15);
+    if (i < s.vertices.size()) {
+      EXPECT_EQ(proxy[i], 0.0);
+    }
+    largest = std::max(largest, exact[i] - proxy[i]);
+  }
+  EXPECT_LE(largest, bound);
+  EXPECT_GT(largest, 0.0);  // a proxy, not the whole hull
+  EXPECT_NEAR(proxy[s.vertices.size()], 0.1, bound + 0.1 * (1.0 - std::cos(std::numbers::pi / 256)));
+}
+
+// The side and every weight of the phantom's lungs are the same with the proxy's hull as with the
+// hull of every vertex; the deciding depths differ by less than the proxy's bound.
+TEST(HullProxy, ThePhantomsSidesAndWeightsAreThoseOfTheExactHull) {
+  for (Lung lung : {Lung::right, Lung::left}) {
+    const TriangleMesh m = phantom(lung, 2e-3);
+    RegionOptions exact_options;
+    exact_options.hull_proxy_cell_m = 0.0;
+    const SurfaceRegions exact = find_regions(m, exact_options), proxy = find_regions(m);
+    EXPECT_EQ(proxy.side, exact.side);
+    EXPECT_EQ(proxy.weight, exact.weight);
+    EXPECT_NEAR(proxy.left_face_depth, exact.left_face_depth, 0.05e-3);
+    EXPECT_NEAR(proxy.right_face_depth, exact.right_face_depth, 0.05e-3);
+  }
+}
+
+// The grid smoothing runs on every thread (lines, rows, z-slabs of the splat): the same bits at
+// one, two and four threads, for the smoothed normals, the blur in space and the regions.
+TEST(Regions, TheGridSmoothingIsTheSameBitsAtOneTwoAndFourThreads) {
+  const TriangleMesh m = phantom(Lung::right, 2e-3);
+  std::vector<double> height(m.vertices.size());
+  for (std::size_t i = 0; i < height.size(); ++i) height[i] = m.vertices[i].z();
+  std::vector<std::vector<Eigen::Vector3d>> normals;
+  std::vector<std::vector<double>> blurred;
+  std::vector<SurfaceRegions> regions;
+  for (int threads : {1, 2, 4}) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+    normals.push_back(smoothed_normals(m, 0.02));
+    blurred.push_back(blurred_in_space(m, height, 0.003));
+    regions.push_back(find_regions(m));
+  }
+  for (std::size_t k = 1; k < normals.size(); ++k) {
+    EXPECT_EQ(normals[k], normals[0]) << k;
+    EXPECT_EQ(blurred[k], blurred[0]) << k;
+    EXPECT_EQ(regions[k].weight, regions[0].weight) << k;
+    EXPECT_EQ(regions[k].left_face_depth, regions[0].left_face_depth) << k;
   }
 }
 

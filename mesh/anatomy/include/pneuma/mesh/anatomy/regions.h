@@ -57,6 +57,9 @@ struct RegionOptions {
   double medial_cos = 0.45;               // n.medial at the mediastinal border
   double transition = 0.35;               // half-width of the smooth steps in a cosine (wide: docs/realism.md, 4.)
   double height_transition = 0.05;        // half-width of the smooth steps in height
+  // The side's hull depths are measured below the convex hull of a coarse proxy of the surface:
+  // its vertices thinned to one per cell of this size (hull_proxy_points). 0: every vertex.
+  double hull_proxy_cell_m = 2e-3;
 };
 inline const RegionOptions kDefaultRegionOptions{};
 
@@ -110,6 +113,14 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
 inline std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& points) {
   return depth_below_convex_hull(points, points);
 }
+
+// A coarse proxy of a point set for its convex hull: one point per occupied cell of a grid of
+// spacing `cell` (the one farthest from the points' mean, the lowest index on a tie), in cell
+// order. Every point lies within a cell's diagonal of a kept one, and on a smooth surface of
+// curvature radius R the proxy's hull lies within about cell^2 / R of the whole hull (a few
+// hundredths of a millimetre on a lung at 2 mm), at a cost that does not grow with the mesh's
+// resolution. The grid grows coarser past 2e6 cells. cell <= 0: the points as they are.
+std::vector<Eigen::Vector3d> hull_proxy_points(const std::vector<Eigen::Vector3d>& points, double cell);
 
 // Per vertex: a third of the area of the incident triangles (sums to the surface area).
 std::vector<double> vertex_areas(const TriangleMesh& mesh);
