@@ -54,7 +54,8 @@ inline Eigen::Vector3d tet_displacement(const LungMotion& lung, std::size_t t, c
 // Calls visit(voxel, set, tet, l, i, j, k) once for every voxel whose centre lies in the closed
 // simplex of some tet (barycentric coordinates l >= -kBarycentricTolerance), for the first set
 // and in it the lowest tet holding it, and empty(voxel, i, j, k) once for every other voxel (from
-// the same task, after its slab's tets: the outputs are first touched in parallel). Sets `owner`
+// the same task, after its slab's tets, in index order, i fastest: the outputs are first touched
+// in parallel, and a voxel's row neighbour i - 1 is final when it is called). Sets `owner`
 // per voxel to 0 (no tet) or 1 + the set's index (its storage reused).
 // Parallel over slabs of k, each slab's tets in increasing order: the same result at any thread
 // count. Degenerate tets (|6V| below 1e-12 of their bounding box's volume, in index space) hold
