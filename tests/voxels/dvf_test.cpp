@@ -209,6 +209,36 @@ TEST(Dvf, TheOutsideCallbackIsGivenItsRowNeighboursValue) {
   EXPECT_EQ(given1, given);
 }
 
+// A grid one voxel thick (report.html's planes) gets, voxel for voxel, the values of the same
+// voxels in the whole grid (to rounding): rasterize() drops the tets beside a thin grid, none
+// that cross it.
+TEST(Dvf, AOneVoxelPlaneIsTheWholeGridsPlane) {
+  const AffineCube cube;
+  const DisplacementField whole = pullback_dvf(cube.grid, cube.lungs());
+  for (const std::size_t axis : {std::size_t{0}, std::size_t{1}}) {
+    for (const std::size_t at : {std::size_t{20}, std::size_t{28}, std::size_t{35}}) {
+      Grid plane = cube.grid;
+      plane.size[axis] = 1;
+      Eigen::Vector4d first = Eigen::Vector4d::UnitW();
+      first[static_cast<Eigen::Index>(axis)] = static_cast<double>(at);
+      plane.ijk_to_lps.col(3) = cube.grid.ijk_to_lps * first;
+      const DisplacementField thin = pullback_dvf(plane, cube.lungs());
+      std::size_t inside = 0;
+      for (std::size_t k = 0; k < plane.size[2]; ++k)
+        for (std::size_t j = 0; j < plane.size[1]; ++j)
+          for (std::size_t i = 0; i < plane.size[0]; ++i) {
+            const std::size_t w = axis == 0 ? cube.grid.index(at, j, k) : cube.grid.index(i, at, k);
+            const std::size_t v = plane.index(i, j, k);
+            ASSERT_EQ(thin.lung[v], whole.lung[w]) << axis << " " << at << ": " << i << " " << j << " " << k;
+            // The same tet, its barycentric coordinates from other index coordinates: to rounding.
+            ASSERT_LE((thin.displacement_m[v] - whole.displacement_m[w]).norm(), 1e-15);
+            inside += thin.lung[v] != 0;
+          }
+      EXPECT_GT(inside, 50u) << "the plane crosses the cube";
+    }
+  }
+}
+
 // rest_lungs: the rest meshes' voxels alone, by the analytic cube (inside, outside).
 TEST(Dvf, RestLungsAreTheVoxelsOfTheRestCube) {
   const AffineCube cube;
