@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Voxel outputs by the clock (#50; BENCHMARKS.md, "Voxel outputs", "Whole runs"): whole processes
-# (/usr/bin/time -v: wall time and peak resident memory) and the manifest's stage times, each
-# against `plastimatch warp` of the same CT with pneuma's own pull-back DVF in the same script:
+# (/usr/bin/time -v: wall time and peak resident memory) and the manifest's stage times; the
+# native time point against `plastimatch warp` of its CT with pneuma's own pull-back DVF, run by
+# the same script right after it:
 #   native  one time point (end-inspiration) at case004's own grid (512 x 512 x 270, 70.8 Mvoxels):
 #           forward and pull-back DVF, warped label map and warped CT (a stand-in CT made from the
 #           label map on its grid: lung -850 + 5 l HU for lobe l, everything else 40 HU), no report;
 #           then plastimatch warps that CT with the run's pull-back DVF (linear, the default)
-#   phases  ten phase bins at that grid (DVFs and labels, no CT, no report)
+#   phases  ten phase bins at that grid over 24 s of breathing (DVFs, labels and Jacobian images,
+#           the defaults; no CT, no report)
 #   shipped scenarios/4d-from-labels.yaml as shipped (2 mm, two time points, report on)
 # Usage: bench/voxels_speed.sh [MODES (default "native phases shipped")] [WORK_DIR]
 set -euo pipefail
