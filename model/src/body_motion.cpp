@@ -25,6 +25,8 @@ struct Lattice {
     for (int a = 0; a < 3; ++a)
       n[static_cast<std::size_t>(a)] = static_cast<std::size_t>(std::ceil((hi[a] - lo[a]) / h)) + 1;
   }
+  Lattice(const Eigen::Vector3d& first, double spacing, const std::array<std::size_t, 3>& nodes)
+      : origin(first), h(spacing), n(nodes) {}
   std::size_t count() const { return n[0] * n[1] * n[2]; }
   std::size_t at(std::size_t i, std::size_t j, std::size_t k) const { return i + n[0] * (j + n[1] * k); }
   Eigen::Vector3d node(std::size_t i, std::size_t j, std::size_t k) const {
@@ -266,11 +268,30 @@ BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : o
 Eigen::Vector3d BodyMotion::displacement(const Eigen::Vector3d& x, std::span<const double> scales) const {
   Eigen::Vector3d u = Eigen::Vector3d::Zero();
   if (unit_.empty()) return u;
-  Lattice fine(origin_, origin_, options_.cell_m);
-  fine.n = size_;
+  const Lattice fine(origin_, options_.cell_m, size_);
   fine.corners(x, [&](std::size_t node, double w) {
     for (std::size_t l = 0; l < unit_.size() && l < scales.size(); ++l) u += (w * scales[l]) * unit_[l][node];
   });
+  return u;
+}
+
+BodyMotion::Frame BodyMotion::frame(std::span<const double> scales) const {
+  Frame out;
+  if (unit_.empty()) return out;
+  out.origin_ = origin_;
+  out.h_ = options_.cell_m;
+  out.size_ = size_;
+  out.u_.assign(unit_.front().size(), Eigen::Vector3d::Zero());
+  for (std::size_t l = 0; l < unit_.size() && l < scales.size(); ++l)
+    for (std::size_t node = 0; node < out.u_.size(); ++node) out.u_[node] += scales[l] * unit_[l][node];
+  return out;
+}
+
+Eigen::Vector3d BodyMotion::Frame::displacement(const Eigen::Vector3d& x) const {
+  Eigen::Vector3d u = Eigen::Vector3d::Zero();
+  if (u_.empty()) return u;
+  const Lattice fine(origin_, h_, size_);
+  fine.corners(x, [&](std::size_t node, double w) { u += w * u_[node]; });
   return u;
 }
 

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <optional>
 
 #include "dicom_series.h"
@@ -645,12 +646,19 @@ void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> sc
   inputs.mass_preserving = spec_.mass_preserving;
   inputs.jacobian_map = spec_.jacobian || with_jacobian;
   if (body) {
-    inputs.forward_outside = [body, scales](const Eigen::Vector3d& x) { return body->displacement(x, scales); };
-    // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L).
-    inputs.pullback_outside = [body, scales](const Eigen::Vector3d& x) {
-      Eigen::Vector3d v = -body->displacement(x, scales);
+    // The lungs' body grids summed with this time point's scales once (BodyMotion::Frame): each
+    // voxel's lookup is then one trilinear interpolation, not one per lung.
+    auto frame = std::make_shared<const model::BodyMotion::Frame>(body->frame(scales));
+    inputs.forward_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
+      return frame->displacement(x);
+    };
+    // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L),
+    // started from the row's previous voxel (its v differs by a voxel's worth of a smooth field,
+    // so fewer steps reach the tolerance than from -u(x)).
+    inputs.pullback_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d* previous) {
+      Eigen::Vector3d v = previous ? *previous : Eigen::Vector3d(-frame->displacement(x));
       for (int it = 0; it < 50; ++it) {
-        const Eigen::Vector3d next = -body->displacement(x + v, scales);
+        const Eigen::Vector3d next = -frame->displacement(x + v);
         const double change = (next - v).norm();
         v = next;
         if (change < 1e-9) break;

@@ -241,5 +241,34 @@ TEST(BodyMotion, TheBodyFollowsThePleuraAcrossItAndFadesSmoothly) {
             << largest_step * 1e3 << " mm\n";
 }
 
+// BodyMotion::Frame (one time point's field, the lungs' grids summed once) gives what
+// BodyMotion::displacement gives point by point, to rounding, on a 7 mm grid around the lung and
+// beyond the field's box; at scale 0 both are exactly 0.
+TEST(BodyMotion, AFramesFieldIsThePointwiseField) {
+  test::TempDir dir;
+  const runner::Prepared c = phantom_with_inside(dir, "10 mm", "0.8 L");
+  ASSERT_NE(c.model.body, nullptr);
+  const model::BodyMotion& body = *c.model.body;
+  const std::vector<double> scales{c.scales[0].max_scale}, rest{0.0};
+  const model::BodyMotion::Frame frame = body.frame(scales), at_rest = body.frame(rest);
+  const auto box = mesh::bounding_box(c.model.lungs[0].rest.vertices);
+  double largest = 0.0, worst = 0.0;
+  std::size_t points = 0;
+  for (double x = box[0].x() - 0.12; x <= box[1].x() + 0.12; x += 7e-3)
+    for (double y = box[0].y() - 0.12; y <= box[1].y() + 0.12; y += 7e-3)
+      for (double z = box[0].z() - 0.3; z <= box[1].z() + 0.12; z += 7e-3) {
+        const Eigen::Vector3d p(x, y, z);
+        const Eigen::Vector3d u = body.displacement(p, scales);
+        largest = std::max(largest, u.norm());
+        worst = std::max(worst, (frame.displacement(p) - u).norm());
+        ASSERT_EQ(at_rest.displacement(p), Eigen::Vector3d::Zero());
+        ASSERT_EQ(body.displacement(p, rest), Eigen::Vector3d::Zero());
+        ++points;
+      }
+  EXPECT_GT(points, 10000u);
+  EXPECT_GT(largest, 5e-3);  // the field moves by millimetres
+  EXPECT_LE(worst, 1e-14 * largest + 1e-18) << "largest " << largest;
+}
+
 }  // namespace
 }  // namespace pneuma

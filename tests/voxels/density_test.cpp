@@ -37,7 +37,8 @@ TEST(JacobianImage, AnAffineFieldHasItsDeterminantInsideAndOutsideTheLung) {
   const std::vector<Eigen::Vector3d> u = test::affine_field(ball.mesh, a, b);
   const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, s}};
   const DisplacementField forward =
-      forward_dvf(ball.grid, lungs, [&](const Eigen::Vector3d& x) { return Eigen::Vector3d(s * (a * x + b)); });
+      forward_dvf(ball.grid, lungs,
+                  [&](const Eigen::Vector3d& x, const Eigen::Vector3d*) { return Eigen::Vector3d(s * (a * x + b)); });
   Image jacobian;
   jacobian_image(lungs, forward, jacobian);
   const double expected = (Eigen::Matrix3d::Identity() + s * a).determinant();

@@ -5,7 +5,9 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <cmath>
 #include <cstring>
+#include <utility>
 
 #include "pneuma/core/error.h"
 #include "pneuma/voxels/dvf.h"
@@ -157,11 +159,83 @@ TEST(Dvf, FirstLungWinsAndOutsideComesFromTheCallback) {
   const std::vector<Eigen::Vector3d> zero(cube.mesh.node_count(), Eigen::Vector3d::Zero());
   const std::vector<LungMotion> lungs{LungMotion{cube.mesh, zero, 1.0}, LungMotion{cube.mesh, cube.u, 1.0}};
   const Eigen::Vector3d body(1e-3, 2e-3, 3e-3);
-  const DisplacementField f =
-      forward_dvf(cube.grid, lungs, [&](const Eigen::Vector3d&) { return Eigen::Vector3d(body); });
+  const DisplacementField f = forward_dvf(
+      cube.grid, lungs, [&](const Eigen::Vector3d&, const Eigen::Vector3d*) { return Eigen::Vector3d(body); });
   for (std::size_t v = 0; v < f.lung.size(); ++v) {
     EXPECT_NE(f.lung[v], 2);
     EXPECT_EQ(f.displacement_m[v], f.lung[v] == 1 ? Eigen::Vector3d::Zero() : body);
+  }
+}
+
+// The outside callback's starting guess (dvf.h, OutsideField): for each voxel outside the
+// deformed cube, the value given to its row neighbour i - 1 when that one is outside too (here the
+// neighbour's centre, from the grid itself), else none; the same at 1 and 2 threads.
+TEST(Dvf, TheOutsideCallbackIsGivenItsRowNeighboursValue) {
+  const AffineCube cube;
+  const Eigen::Matrix4d to_ijk = cube.grid.lps_to_ijk();
+  const auto run = [&] {
+    std::vector<Eigen::Vector3d> given(cube.grid.voxel_count(), Eigen::Vector3d::Constant(-1.0));
+    DisplacementField field =
+        pullback_dvf(cube.grid, cube.lungs(), [&](const Eigen::Vector3d& x, const Eigen::Vector3d* previous) {
+          const Eigen::Vector3d ijk = (to_ijk * x.homogeneous()).head<3>();
+          const std::size_t v = cube.grid.index(static_cast<std::size_t>(std::lround(ijk.x())),
+                                                static_cast<std::size_t>(std::lround(ijk.y())),
+                                                static_cast<std::size_t>(std::lround(ijk.z())));
+          given[v] = previous ? *previous : Eigen::Vector3d::Constant(-2.0);  // each voxel once: no race
+          return x;
+        });
+    return std::pair(std::move(field), std::move(given));
+  };
+  const auto [field, given] = run();
+  std::size_t with = 0, without = 0;
+  for (std::size_t k = 0; k < cube.grid.size[2]; ++k)
+    for (std::size_t j = 0; j < cube.grid.size[1]; ++j)
+      for (std::size_t i = 0; i < cube.grid.size[0]; ++i) {
+        const std::size_t v = cube.grid.index(i, j, k);
+        if (field.lung[v] != 0) {
+          EXPECT_EQ(given[v], Eigen::Vector3d::Constant(-1.0)) << "a voxel inside the cube was asked";
+        } else if (i > 0 && field.lung[v - 1] == 0) {
+          EXPECT_EQ(given[v], cube.grid.centre_m(i - 1, j, k)) << i << " " << j << " " << k;
+          ++with;
+        } else {
+          EXPECT_EQ(given[v], Eigen::Vector3d::Constant(-2.0)) << i << " " << j << " " << k;
+          ++without;
+        }
+      }
+  EXPECT_GT(with, 1000u);
+  EXPECT_GT(without, 100u);  // each row's first voxel, and the first after the cube
+  const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  const auto [field1, given1] = run();
+  EXPECT_EQ(given1, given);
+}
+
+// A grid one voxel thick (report.html's planes) gets, voxel for voxel, the values of the same
+// voxels in the whole grid (to rounding): rasterize() drops the tets beside a thin grid, none
+// that cross it.
+TEST(Dvf, AOneVoxelPlaneIsTheWholeGridsPlane) {
+  const AffineCube cube;
+  const DisplacementField whole = pullback_dvf(cube.grid, cube.lungs());
+  for (const std::size_t axis : {std::size_t{0}, std::size_t{1}}) {
+    for (const std::size_t at : {std::size_t{20}, std::size_t{28}, std::size_t{35}}) {
+      Grid plane = cube.grid;
+      plane.size[axis] = 1;
+      Eigen::Vector4d first = Eigen::Vector4d::UnitW();
+      first[static_cast<Eigen::Index>(axis)] = static_cast<double>(at);
+      plane.ijk_to_lps.col(3) = cube.grid.ijk_to_lps * first;
+      const DisplacementField thin = pullback_dvf(plane, cube.lungs());
+      std::size_t inside = 0;
+      for (std::size_t k = 0; k < plane.size[2]; ++k)
+        for (std::size_t j = 0; j < plane.size[1]; ++j)
+          for (std::size_t i = 0; i < plane.size[0]; ++i) {
+            const std::size_t w = axis == 0 ? cube.grid.index(at, j, k) : cube.grid.index(i, at, k);
+            const std::size_t v = plane.index(i, j, k);
+            ASSERT_EQ(thin.lung[v], whole.lung[w]) << axis << " " << at << ": " << i << " " << j << " " << k;
+            // The same tet, its barycentric coordinates from other index coordinates: to rounding.
+            ASSERT_LE((thin.displacement_m[v] - whole.displacement_m[w]).norm(), 1e-15);
+            inside += thin.lung[v] != 0;
+          }
+      EXPECT_GT(inside, 50u) << "the plane crosses the cube";
+    }
   }
 }
 

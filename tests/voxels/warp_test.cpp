@@ -83,7 +83,7 @@ TEST(WarpImage, LinearImageIsSampledExactlyAndOutsideIsAir) {
   // A shift large enough to pull samples from outside the image.
   const std::vector<Eigen::Vector3d> u = ball.radial(-0.3, Eigen::Vector3d(0, 0, 12e-3));
   const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, 1.0}};
-  const DisplacementField pull = pullback_dvf(ball.grid, lungs, [](const Eigen::Vector3d&) {
+  const DisplacementField pull = pullback_dvf(ball.grid, lungs, [](const Eigen::Vector3d&, const Eigen::Vector3d*) {
     return Eigen::Vector3d(0, 0, -40e-3);  // a body field pulling from 40 mm below
   });
   const Image warped = warp_image(ct, pull);

@@ -12,10 +12,16 @@
 namespace pneuma::voxels {
 namespace {
 
-// The value of a voxel that no tet holds: outside(x), or 0.
+// The value of a voxel that no tet holds: outside(x), or 0. rasterize() calls this in row order
+// after the slab's tets, so voxel v - 1 (same row, i > 0) is final when it is outside too.
 void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i, std::size_t j,
                  std::size_t k) {
-  field.displacement_m[v] = outside ? outside(field.grid.centre_m(i, j, k)) : Eigen::Vector3d::Zero();
+  if (!outside) {
+    field.displacement_m[v] = Eigen::Vector3d::Zero();
+    return;
+  }
+  const Eigen::Vector3d* previous = i > 0 && field.lung[v - 1] == 0 ? &field.displacement_m[v - 1] : nullptr;
+  field.displacement_m[v] = outside(field.grid.centre_m(i, j, k), previous);
 }
 
 }  // namespace

@@ -54,7 +54,8 @@ inline Eigen::Vector3d tet_displacement(const LungMotion& lung, std::size_t t, c
 // Calls visit(voxel, set, tet, l, i, j, k) once for every voxel whose centre lies in the closed
 // simplex of some tet (barycentric coordinates l >= -kBarycentricTolerance), for the first set
 // and in it the lowest tet holding it, and empty(voxel, i, j, k) once for every other voxel (from
-// the same task, after its slab's tets: the outputs are first touched in parallel). Sets `owner`
+// the same task, after its slab's tets, in index order, i fastest: the outputs are first touched
+// in parallel, and a voxel's row neighbour i - 1 is final when it is called). Sets `owner`
 // per voxel to 0 (no tet) or 1 + the set's index (its storage reused).
 // Parallel over slabs of k, each slab's tets in increasing order: the same result at any thread
 // count. Degenerate tets (|6V| below 1e-12 of their bounding box's volume, in index space) hold
@@ -86,11 +87,18 @@ void rasterize(const Grid& grid, std::span<const TetSet> sets, std::vector<std::
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, sets[s].tets.size(), 4096), region.wrap([&](const auto& r) {
       for (std::size_t t = r.begin(); t != r.end(); ++t) {
         const auto p = corners(sets[s], t);
-        double lo = p[0].z(), hi = p[0].z();
-        for (const auto& q : p) lo = std::min(lo, q.z()), hi = std::max(hi, q.z());
-        const double k0 = std::max(0.0, std::ceil(lo - kPad));
-        const double k1 = std::min(static_cast<double>(nz - 1), std::floor(hi + kPad));
-        if (!(k0 <= k1)) continue;  // outside the grid (or not finite)
+        Eigen::Vector3d lo = p[0], hi = p[0];
+        for (const auto& q : p) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
+        // A tet beside the grid along i or j holds none of its voxels (the bounds of the voxel
+        // loops below): no slab gets it. A thin grid (report.html's one-voxel planes) then
+        // visits only the tets that cross it.
+        const double i0 = std::max(0.0, std::ceil(lo.x() - kPad));
+        const double i1 = std::min(static_cast<double>(nx - 1), std::floor(hi.x() + kPad));
+        const double j0 = std::max(0.0, std::ceil(lo.y() - kPad));
+        const double j1 = std::min(static_cast<double>(ny - 1), std::floor(hi.y() + kPad));
+        const double k0 = std::max(0.0, std::ceil(lo.z() - kPad));
+        const double k1 = std::min(static_cast<double>(nz - 1), std::floor(hi.z() + kPad));
+        if (!(i0 <= i1) || !(j0 <= j1) || !(k0 <= k1)) continue;  // outside the grid (or not finite)
         const auto slab = static_cast<double>(kSlabVoxels);
         slab_range[first_tet[s] + t] = {static_cast<std::int64_t>(std::floor(k0 / slab)),
                                         static_cast<std::int64_t>(std::floor(k1 / slab))};

@@ -24,7 +24,9 @@
 // field has no bands and no tears; its Jacobian is measured (docs/voxels.md), not bounded.
 //
 // The field is precomputed per lung for s = 1 on a grid of `cell_m` (6 mm) and interpolated
-// trilinearly; a frame's field is the lungs' scales times theirs.
+// trilinearly; a frame's field is the lungs' scales times theirs. A voxel output asks it at tens of
+// millions of points per time point: BodyMotion::Frame sums the lungs' grids with their scales
+// once, so that each point costs one trilinear lookup (#50).
 #include <Eigen/Core>
 #include <array>
 #include <span>
@@ -46,6 +48,20 @@ struct BodyMotionOptions {
 
 class BodyMotion {
  public:
+  // The field of one frame (the lungs' scales fixed): u(x) as BodyMotion::displacement gives it,
+  // the lungs' grids summed once (the same value up to rounding: the sum is taken in another order).
+  class Frame {
+   public:
+    Eigen::Vector3d displacement(const Eigen::Vector3d& x) const;
+
+   private:
+    friend class BodyMotion;
+    Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
+    double h_ = 1.0;
+    std::array<std::size_t, 3> size_{0, 0, 0};
+    std::vector<Eigen::Vector3d> u_;  // per node, i fastest; empty: nothing moves
+  };
+
   BodyMotion() = default;  // no lungs: nothing moves
   // The unit fields of every lung of `model` (its rest surface, normals, unit displacement and
   // body axes).
@@ -54,6 +70,8 @@ class BodyMotion {
   // The displacement (metres, LPS) of body tissue at `x` (outside the lungs) for the lungs'
   // scales (one per model lung); 0 outside the field's box.
   Eigen::Vector3d displacement(const Eigen::Vector3d& x, std::span<const double> scales) const;
+  // The field at these scales, for many points.
+  Frame frame(std::span<const double> scales) const;
   const BodyMotionOptions& options() const { return options_; }
 
  private:

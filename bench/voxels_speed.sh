@@ -1,0 +1,87 @@
+#!/usr/bin/env bash
+# Voxel outputs by the clock (#50; BENCHMARKS.md, "Voxel outputs", "Whole runs"): whole processes
+# (/usr/bin/time -v: wall time and peak resident memory) and the manifest's stage times; the
+# native time point against `plastimatch warp` of its CT with pneuma's own pull-back DVF, run by
+# the same script right after it:
+#   native  one time point (end-inspiration) at case004's own grid (512 x 512 x 270, 70.8 Mvoxels):
+#           forward and pull-back DVF, warped label map and warped CT (a stand-in CT made from the
+#           label map on its grid: lung -850 + 5 l HU for lobe l, everything else 40 HU), no report;
+#           then plastimatch warps that CT with the run's pull-back DVF (linear, the default)
+#   phases  ten phase bins at that grid over 24 s of breathing (DVFs, labels and Jacobian images,
+#           the defaults; no CT, no report)
+#   shipped scenarios/4d-from-labels.yaml as shipped (2 mm, two time points, report on)
+# Usage: bench/voxels_speed.sh [MODES (default "native phases shipped")] [WORK_DIR]
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+modes=${1:-native phases shipped}
+work=${2:-$(mktemp -d /tmp/pneuma-voxels-speed.XXXXXX)}
+pneuma=$here/build/release/cli/pneuma
+labels=$(cd "$here/../shared/data/ct-lobes" && pwd)/case004_lobes.nii.gz
+mkdir -p "$work"
+cd "$work"
+echo "work: $work; $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg)"
+
+# whole PROCESS...: runs it under /usr/bin/time -v and prints its wall time and peak memory.
+timed() {
+  local name=$1
+  shift
+  /usr/bin/time -v "$@" > "$name.out" 2> "$name.time"
+  local wall rss
+  wall=$(grep 'Elapsed (wall clock)' "$name.time" | awk '{print $NF}')
+  rss=$(grep 'Maximum resident' "$name.time" | awk '{print $NF}')
+  printf '%-28s wall %9s  peak %6.2f GiB  (load %s)\n' "$name" "$wall" "$(echo "$rss / 1048576" | bc -l)" \
+    "$(cut -d' ' -f1 /proc/loadavg)"
+}
+# The manifest's stage times, and each one's share of their sum.
+stages() {
+  /usr/bin/python3 - "$1/manifest.json" <<'PY'
+import json, sys
+t = json.load(open(sys.argv[1]))["timings_s"]
+total = sum(t.values())
+for k, v in t.items():
+    print(f"    {k:34} {v:8.2f} s {100 * v / total:5.1f} %")
+print(f"    {'(sum)':34} {total:8.2f} s")
+PY
+}
+scenario() {  # scenario OUT SED-EXPRESSIONS...
+  local out=$1
+  shift
+  sed -e "s#../../shared/data/ct-lobes/case004_lobes.nii.gz#$labels#" "$@" "$here/scenarios/4d-from-labels.yaml" > "$out"
+}
+
+if [[ " $modes " == *" native "* ]]; then
+  [ -f ct.nii.gz ] || /usr/bin/python3 - "$labels" <<'PY'
+import sys
+import nibabel, numpy
+src = nibabel.load(sys.argv[1])
+lobes = numpy.asarray(src.dataobj).astype(numpy.int16)
+ct = numpy.where(lobes > 0, -850 + 5 * lobes, 40).astype(numpy.int16)
+nibabel.save(nibabel.Nifti1Image(ct, src.affine, src.header), "ct.nii.gz")
+PY
+  scenario native.yaml -e 's#at: \[end_expiration, end_inspiration\]#at: [end_inspiration]#' \
+    -e "s#^    spacing: 2 mm#    image: $work/ct.nii.gz\n    jacobian: false#" \
+    -e 's#^  physiology_csv: true#  physiology_csv: true\n  report: false#'
+  rm -rf native
+  timed "native: pneuma run" "$pneuma" run native.yaml -o native --quiet
+  stages native
+  ls -l native/voxels
+  timed "native: plastimatch warp" plastimatch warp --input ct.nii.gz \
+    --xf native/voxels/dvf-pullback-end_inspiration.nii.gz --output-img plastimatch-ct.nii.gz
+fi
+
+if [[ " $modes " == *" phases "* ]]; then
+  scenario phases.yaml -e 's#^duration: 8 s#duration: 24 s#' \
+    -e 's#at: \[end_expiration, end_inspiration\]#at: [phases]#' -e "/^    spacing: 2 mm/d" \
+    -e 's#^  physiology_csv: true#  physiology_csv: true\n  report: false\n  phases: {bins: 10}#'
+  rm -rf phases
+  timed "phases: pneuma run" "$pneuma" run phases.yaml -o phases --quiet
+  stages phases
+  ls phases/voxels | wc -l
+fi
+
+if [[ " $modes " == *" shipped "* ]]; then
+  scenario shipped.yaml
+  rm -rf shipped
+  timed "shipped: pneuma run" "$pneuma" run shipped.yaml -o shipped --quiet
+  stages shipped
+fi
