@@ -16,7 +16,7 @@ BUILD_BENCH ?= $(if $(filter release,$(PRESET)),ON,OFF)
 # make install PREFIX=...: the CLI, its presets and the Python module (cmake --install).
 PREFIX ?= /usr/local
 
-.PHONY: all deps deps-demo configure configure-demo build demo test bench install deb clean format check-format
+.PHONY: all deps deps-demo configure configure-demo configure-full build demo test bench install deb clean format check-format
 
 all: build
 
@@ -24,15 +24,16 @@ deps:
 	@scripts/install-deps
 
 # `make demo` installs and builds only what `pneuma run` needs (no test tools, Chromium or
-# clang; only the executable); `make test` adds the rest to the same build folder.
+# clang; only the executable, phantom-only: PNEUMA_PHANTOM_ONLY leaves out the label-map, repair
+# and Mesh_3 units the demo never calls); `make test` adds the rest to the same build folder.
 deps-demo:
 	@scripts/install-deps --demo
 
 configure-demo: deps-demo
-	@cmake --preset $(PRESET) -DPNEUMA_BUILD_TESTS=OFF -DPNEUMA_BUILD_BENCH=OFF >/dev/null
+	@cmake --preset $(PRESET) -DPNEUMA_BUILD_TESTS=OFF -DPNEUMA_BUILD_BENCH=OFF -DPNEUMA_PHANTOM_ONLY=ON >/dev/null
 
 configure: deps
-	@cmake --preset $(PRESET) -DPNEUMA_BUILD_TESTS=ON -DPNEUMA_BUILD_BENCH=$(BUILD_BENCH) >/dev/null
+	@cmake --preset $(PRESET) -DPNEUMA_BUILD_TESTS=ON -DPNEUMA_BUILD_BENCH=$(BUILD_BENCH) -DPNEUMA_PHANTOM_ONLY=OFF >/dev/null
 
 build: configure
 	@cmake --build --preset $(PRESET)
@@ -44,15 +45,20 @@ demo: configure-demo
 test: build
 	@ctest --preset $(PRESET)
 
+# What is installed is the whole engine: a folder `make demo` configured (phantom-only) is
+# switched back, keeping its tests setting; a new one gets neither tests nor benchmarks.
+configure-full:
+	@test -f $(BUILD)/build.ninja || scripts/install-deps --demo
+	@if [ -f $(BUILD)/build.ninja ]; then cmake --preset $(PRESET) -DPNEUMA_PHANTOM_ONLY=OFF >/dev/null; \
+	else cmake --preset $(PRESET) -DPNEUMA_BUILD_TESTS=OFF -DPNEUMA_BUILD_BENCH=OFF -DPNEUMA_PHANTOM_ONLY=OFF >/dev/null; fi
+
 # Builds only what is installed (the CLI and the Python module) in the configured build folder.
-install:
-	@test -f $(BUILD)/build.ninja || $(MAKE) configure-demo
+install: configure-full
 	@cmake --build --preset $(PRESET) --target installables
 	@cmake --install $(BUILD) --prefix $(PREFIX)
 
 # build/<preset>/pneuma_<version>_<arch>.deb (installs into /usr; apt-get install ./that.deb).
-deb:
-	@test -f $(BUILD)/build.ninja || $(MAKE) configure-demo
+deb: configure-full
 	@cmake --build --preset $(PRESET) --target installables
 	@cd $(BUILD) && cpack -G DEB
 
