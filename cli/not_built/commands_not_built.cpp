@@ -9,7 +9,8 @@ namespace {
 
 void add_not_built(CLI::App& app, const std::string& name, const std::string& description) {
   CLI::App* cmd = app.add_subcommand(name, description + " (not built into this pneuma)");
-  cmd->allow_extras();
+  cmd->fallthrough(false);  // any arguments stay here: the answer is the same
+  cmd->prefix_command();
   cmd->callback([name] { throw_not_built("pneuma " + name); });
 }
 
