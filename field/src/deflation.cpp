@@ -11,6 +11,7 @@
 #include <unordered_map>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
 
 namespace pneuma::field {
 namespace {
@@ -60,30 +61,33 @@ std::vector<Eigen::Vector3d> smooth_field_in_space(const mesh::TriangleMesh& res
   const double reach2 = grid.cell * grid.cell;
   const double inv_two_sigma2 = 1.0 / (2.0 * sigma_m * sigma_m);
   std::vector<Eigen::Vector3d> out(u.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, u.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t v = r.begin(); v != r.end(); ++v) {
-      const Eigen::Vector3d& x = rest.vertices[v];
-      const auto [ci, cj, ck] = grid.index(x);
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      double weight = 0.0;
-      for (std::int64_t i = ci - 1; i <= ci + 1; ++i) {
-        for (std::int64_t j = cj - 1; j <= cj + 1; ++j) {
-          for (std::int64_t k = ck - 1; k <= ck + 1; ++k) {
-            const auto cell = grid.cells.find(Grid::key(i, j, k));
-            if (cell == grid.cells.end()) continue;
-            for (const std::uint32_t w : cell->second) {
-              const double d2 = (rest.vertices[w] - x).squaredNorm();
-              if (d2 > reach2) continue;
-              const double kw = area[w] * std::exp(-d2 * inv_two_sigma2);
-              sum += kw * u[w];
-              weight += kw;
-            }
-          }
-        }
-      }
-      out[v] = sum / weight;  // the vertex itself is within reach: weight > 0
-    }
-  });
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, u.size(), 256),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t v = r.begin(); v != r.end(); ++v) {
+                        const Eigen::Vector3d& x = rest.vertices[v];
+                        const auto [ci, cj, ck] = grid.index(x);
+                        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+                        double weight = 0.0;
+                        for (std::int64_t i = ci - 1; i <= ci + 1; ++i) {
+                          for (std::int64_t j = cj - 1; j <= cj + 1; ++j) {
+                            for (std::int64_t k = ck - 1; k <= ck + 1; ++k) {
+                              const auto cell = grid.cells.find(Grid::key(i, j, k));
+                              if (cell == grid.cells.end()) continue;
+                              for (const std::uint32_t w : cell->second) {
+                                const double d2 = (rest.vertices[w] - x).squaredNorm();
+                                if (d2 > reach2) continue;
+                                const double kw = area[w] * std::exp(-d2 * inv_two_sigma2);
+                                sum += kw * u[w];
+                                weight += kw;
+                              }
+                            }
+                          }
+                        }
+                        out[v] = sum / weight;  // the vertex itself is within reach: weight > 0
+                      }
+                    }));
+  region.join();
   // Keep the area unit: s means the same first-order area change as before.
   const std::vector<Eigen::Vector3d> g = mesh::area_gradient(rest);
   double before = 0.0, after = 0.0;

@@ -58,11 +58,18 @@ class Body {
   Body& operator=(Body&&) = delete;
   ~Body() { acquire(this); }  // a cancelled task is destroyed by a thread that never ran it
 
+  // Returns what the body returns (a parallel_reduce body or join gives its partial result).
   template <typename... Args>
-  void operator()(Args&&... args) const {
+  decltype(auto) operator()(Args&&... args) const {
     acquire(this);
-    f_(std::forward<Args>(args)...);
-    release(end_);
+    if constexpr (std::is_void_v<std::invoke_result_t<const F&, Args...>>) {
+      f_(std::forward<Args>(args)...);
+      release(end_);
+    } else {
+      auto result = f_(std::forward<Args>(args)...);
+      release(end_);
+      return result;
+    }
   }
 
  private:
