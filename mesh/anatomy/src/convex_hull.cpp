@@ -53,10 +53,10 @@ std::vector<Point> possible_corners(const std::vector<Eigen::Vector3d>& points) 
   using Best = std::array<std::pair<double, std::size_t>, kDirections>;
   Best none;
   none.fill({-std::numeric_limits<double>::infinity(), 0});
-  const tsan::Region region;  // TBB's own synchronisation, told to ThreadSanitizer (core/tsan.h)
+  const tsan::Region extremes;  // TBB's own synchronisation, told to ThreadSanitizer (core/tsan.h)
   const Best best =
       tbb::parallel_reduce(tbb::blocked_range<std::size_t>(0, points.size(), 4096), none,
-                           region.wrap([&](const tbb::blocked_range<std::size_t>& range, Best b) {
+                           extremes.wrap([&](const tbb::blocked_range<std::size_t>& range, Best b) {
                              for (std::size_t i = range.begin(); i < range.end(); ++i) {
                                for (std::size_t k = 0; k < kDirections; ++k) {
                                  const double d = direction[k].dot(points[i]);
@@ -65,14 +65,14 @@ std::vector<Point> possible_corners(const std::vector<Eigen::Vector3d>& points) 
                              }
                              return b;
                            }),
-                           region.wrap([](Best a, const Best& b) {
+                           extremes.wrap([](Best a, const Best& b) {
                              for (std::size_t k = 0; k < kDirections; ++k) {
                                if (b[k].first > a[k].first || (b[k].first == a[k].first && b[k].second < a[k].second))
                                  a[k] = b[k];
                              }
                              return a;
                            }));
-  region.join();
+  extremes.join();
   std::vector<std::size_t> extreme;
   for (const auto& [value, index] : best) extreme.push_back(index);
   std::sort(extreme.begin(), extreme.end());
