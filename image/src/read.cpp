@@ -803,6 +803,17 @@ void check_meta_header(const fs::path& path, const std::string& name) {
       throw InputError(fmt::format("{}expected a key of letters, digits and '_' (at most {} characters), got {}", where,
                                    kMaxMetaKey, quote_input(key)));
     }
+    // Control characters in a text value: pneuma and MetaIO would read different values (tabs and
+    // carriage returns before LOCAL made MetaIO look for a data file, and leak its stream, where
+    // pneuma saw LOCAL: fuzz_labels_mha). A line's final '\r' (CRLF files) is whitespace.
+    auto printable = [&] {
+      const std::string_view text(line.data(), line.ends_with('\r') ? line.size() - 1 : line.size());
+      if (std::any_of(text.begin(), text.end(), [](unsigned char c) { return c < 0x20 || c == 0x7f; })) {
+        std::string_view raw = text.substr(eq + 1);
+        raw.remove_prefix(std::min(raw.find_first_not_of(' '), raw.size()));
+        throw InputError(where + key + ": expected printable text, got " + quote_input(raw));
+      }
+    };
     auto numbers = [&](std::size_t count, bool whole, double low, double high) {
       std::istringstream words(value);
       std::string word;
@@ -855,9 +866,12 @@ void check_meta_header(const fs::path& path, const std::string& name) {
                          quote_input(value));
       element_type = true;
     } else if (key == "ElementDataFile") {
+      printable();
       if (!dim_size || !element_type)
         throw InputError(where + key + ": expected NDims, DimSize and ElementType before it");
       return;
+    } else {
+      printable();
     }
   }
   throw InputError(name + ": " + detail::format_expectation(detail::ImageFormat::meta));

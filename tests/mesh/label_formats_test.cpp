@@ -557,6 +557,9 @@ TEST(LabelFormats, HeadersAreCheckedBeforeItkAndBeforeAllocation) {
   write_bytes(dir / "long-key.mha", long_key + " = Image\n" + mha);
   expect_error("long-key.mha", ":1:1: expected a key of letters, digits and '_' (at most 64 characters), got '" +
                                    long_key.substr(0, 80) + "...' (250 bytes)");
+  // Tabs and carriage returns before LOCAL: MetaIO looked for a data file (and leaked its stream).
+  write_bytes(dir / "tabs.mha", with_line(mha, "ElementDataFile", "ElementDataFile = \r\t\tLOCAL"));
+  expect_error("tabs.mha", ":12:1: ElementDataFile: expected printable text, got '\r\t\tLOCAL'");
   write_bytes(dir / "key.mha", with_line(mha, "ElementType", "Element Type = MET_SHORT"));
   expect_error("key.mha",
                ":11:1: expected a key of letters, digits and '_' (at most 64 characters), got 'Element Type'");
