@@ -12,20 +12,10 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
+#include "pneuma/mesh/anatomy/regions.h"
 
 namespace pneuma::field {
 namespace {
-
-// A third of each triangle's area to each of its corners: the surface each vertex stands for.
-std::vector<double> vertex_areas(const mesh::TriangleMesh& m) {
-  std::vector<double> area(m.vertices.size(), 0.0);
-  for (const mesh::Triangle& t : m.triangles) {
-    const double a =
-        0.5 * (m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]).norm() / 3.0;
-    for (const std::uint32_t v : t) area[v] += a;
-  }
-  return area;
-}
 
 // Cells of a uniform grid, each listing its vertices in ascending order.
 struct Grid {
@@ -49,7 +39,7 @@ std::vector<Eigen::Vector3d> smooth_field_in_space(const mesh::TriangleMesh& res
     throw ValueError(
         fmt::format("smooth_field_in_space: {} displacements for {} vertices", u.size(), rest.vertices.size()));
   if (!(sigma_m > 0.0) || rest.vertices.empty()) return u;
-  const std::vector<double> area = vertex_areas(rest);
+  const std::vector<double> area = mesh::vertex_areas(rest);  // a third of each triangle to its corners
   Grid grid;
   grid.cell = 4.0 * sigma_m;  // the kernel's reach: exp(-8) of the centre weight beyond it
   grid.origin = rest.vertices.front();
