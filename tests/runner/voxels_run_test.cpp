@@ -539,35 +539,49 @@ TEST(VoxelsRun, TheShippedPhaseExampleMakesAFullTenPhaseSet) {
   }
 }
 
+namespace {
+
+// The phantom voxel scenario (kPhantom) run with `mesh_keys` added to its mesh map, into dir/name:
+// its voxels.csv rows.
+std::vector<CsvRow> run_phantom_with_mesh_keys(const TempDir& dir, const std::string& name,
+                                               const std::string& mesh_keys) {
+  std::string text = kPhantom;
+  text.replace(text.find("edge: 8 mm}"), 11, "edge: 8 mm" + mesh_keys + "}");
+  const auto scenario = dir.write(name + ".yaml", text);
+  const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / name).string(), "--quiet"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return read_voxels_csv(dir / name / "voxels/voxels.csv");
+}
+
+// voxels.csv's column physiology_volume_mL, row by row.
+std::vector<double> physiology_volumes_mL(const std::filesystem::path& voxels_csv) {
+  std::stringstream csv(pneuma::test::read_text(voxels_csv));
+  std::string line;
+  std::getline(csv, line);
+  std::vector<double> volumes;
+  while (std::getline(csv, line)) {
+    std::stringstream cells(line);
+    std::string cell;
+    for (int c = 0; c <= 4; ++c) std::getline(cells, cell, ',');
+    volumes.push_back(std::stod(cell));
+  }
+  return volumes;
+}
+
+}  // namespace
+
 // A scan taken 150 mL above FRC (mesh.reference_volume): the rest label map stands for that
 // volume, so each time point expects the lung's share of 150 mL less lung than the same run with
 // the scan at FRC (the rest shape is the same; only what it stands for moved), and the warped
 // map holds it.
 TEST(VoxelsRun, TheScansVolumeIsTheReferenceOfTheExpectedVolumes) {
   TempDir dir;
-  auto run = [&](const std::string& name, const std::string& reference) {
-    std::string text = kPhantom;
-    text.replace(text.find("edge: 8 mm}"), 11, "edge: 8 mm" + reference + "}");
-    const auto scenario = dir.write(name + ".yaml", text);
-    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / name).string(), "--quiet"});
-    EXPECT_EQ(r.exit_code, 0) << r.err;
-    return read_voxels_csv(dir / name / "voxels/voxels.csv");
-  };
-  const auto at_frc = run("frc", "");
-  const auto above = run("above", ", reference_volume: 150 mL");
+  const auto at_frc = run_phantom_with_mesh_keys(dir, "frc", "");
+  const auto above = run_phantom_with_mesh_keys(dir, "above", ", reference_volume: 150 mL");
   ASSERT_EQ(at_frc.size(), 3u);
   ASSERT_EQ(above.size(), 3u);
   // The lung's share of the breath, from the run at FRC (expected = rest + share V).
-  std::stringstream csv(pneuma::test::read_text(dir / "frc/voxels/voxels.csv"));
-  std::string line;
-  std::getline(csv, line);
-  std::vector<double> physiology_mL;  // the column physiology_volume_mL
-  while (std::getline(csv, line)) {
-    std::stringstream cells(line);
-    std::string cell;
-    for (int c = 0; c <= 4; ++c) std::getline(cells, cell, ',');
-    physiology_mL.push_back(std::stod(cell));
-  }
+  const std::vector<double> physiology_mL = physiology_volumes_mL(dir / "frc/voxels/voxels.csv");
   ASSERT_EQ(physiology_mL.size(), 3u);
   const double share = (at_frc[1].expected_mL - at_frc[0].expected_mL) / (physiology_mL[1] - physiology_mL[0]);
   EXPECT_GT(share, 0.3);
@@ -587,28 +601,11 @@ TEST(VoxelsRun, TheScansVolumeIsTheReferenceOfTheExpectedVolumes) {
 // share of the physiology's volume give the scan's lung volume, whatever the breath.
 TEST(VoxelsRun, ABreathHoldScanIsTheEndInspirationOfTheExpectedVolumes) {
   TempDir dir;
-  auto run = [&](const std::string& name, const std::string& breath) {
-    std::string text = kPhantom;
-    text.replace(text.find("edge: 8 mm}"), 11, "edge: 8 mm" + breath + "}");
-    const auto scenario = dir.write(name + ".yaml", text);
-    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / name).string(), "--quiet"});
-    EXPECT_EQ(r.exit_code, 0) << r.err;
-    return read_voxels_csv(dir / name / "voxels/voxels.csv");
-  };
-  const auto at_frc = run("frc", "");
-  const auto held = run("held", ", breath: end_inspiration");
+  const auto at_frc = run_phantom_with_mesh_keys(dir, "frc", "");
+  const auto held = run_phantom_with_mesh_keys(dir, "held", ", breath: end_inspiration");
   ASSERT_EQ(at_frc.size(), 3u);
   ASSERT_EQ(held.size(), 3u);
-  std::stringstream csv(pneuma::test::read_text(dir / "frc/voxels/voxels.csv"));
-  std::string line;
-  std::getline(csv, line);
-  std::vector<double> physiology_mL;  // the column physiology_volume_mL
-  while (std::getline(csv, line)) {
-    std::stringstream cells(line);
-    std::string cell;
-    for (int c = 0; c <= 4; ++c) std::getline(cells, cell, ',');
-    physiology_mL.push_back(std::stod(cell));
-  }
+  const std::vector<double> physiology_mL = physiology_volumes_mL(dir / "frc/voxels/voxels.csv");
   ASSERT_EQ(physiology_mL.size(), 3u);
   ASSERT_EQ(at_frc[0].time_point, "end_expiration");
   ASSERT_EQ(at_frc[1].time_point, "end_inspiration");
