@@ -778,6 +778,7 @@ LabelMap flatten_layers(detail::ItkImage& image, const std::vector<SegNrrdSegmen
 // checked here first, up to ElementDataFile: "<file>:<line>:1: <Key>: expected ..., got '...'".
 void check_meta_header(const fs::path& path, const std::string& name) {
   constexpr std::size_t kMaxMetaKey = 64;
+  constexpr std::size_t kMaxMetaText = 254;
   static const std::set<std::string> kTypes{
       "MET_CHAR", "MET_UCHAR", "MET_SHORT",     "MET_USHORT",     "MET_INT",   "MET_UINT",
       "MET_LONG", "MET_ULONG", "MET_LONG_LONG", "MET_ULONG_LONG", "MET_FLOAT", "MET_DOUBLE",
@@ -808,10 +809,13 @@ void check_meta_header(const fs::path& path, const std::string& name) {
     // pneuma saw LOCAL: fuzz_labels_mha). A line's final '\r' (CRLF files) is whitespace.
     auto printable = [&] {
       const std::string_view text(line.data(), line.ends_with('\r') ? line.size() - 1 : line.size());
-      if (std::any_of(text.begin(), text.end(), [](unsigned char c) { return c < 0x20 || c == 0x7f; })) {
+      // MetaIO strcpy's a text value into a 255-byte field (a 300-byte ObjectType overflowed it).
+      if (value.size() > kMaxMetaText ||
+          std::any_of(text.begin(), text.end(), [](unsigned char c) { return c < 0x20 || c == 0x7f; })) {
         std::string_view raw = text.substr(eq + 1);
         raw.remove_prefix(std::min(raw.find_first_not_of(' '), raw.size()));
-        throw InputError(where + key + ": expected printable text, got " + quote_input(raw));
+        throw InputError(fmt::format("{}{}: expected printable text of at most {} bytes, got {}", where, key,
+                                     kMaxMetaText, quote_input(raw)));
       }
     };
     auto numbers = [&](std::size_t count, bool whole, double low, double high) {

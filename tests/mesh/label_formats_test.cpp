@@ -559,7 +559,11 @@ TEST(LabelFormats, HeadersAreCheckedBeforeItkAndBeforeAllocation) {
                                    long_key.substr(0, 80) + "...' (250 bytes)");
   // Tabs and carriage returns before LOCAL: MetaIO looked for a data file (and leaked its stream).
   write_bytes(dir / "tabs.mha", with_line(mha, "ElementDataFile", "ElementDataFile = \r\t\tLOCAL"));
-  expect_error("tabs.mha", ":12:1: ElementDataFile: expected printable text, got '\r\t\tLOCAL'");
+  expect_error("tabs.mha", ":12:1: ElementDataFile: expected printable text of at most 254 bytes, got '\r\t\tLOCAL'");
+  // A 300-byte ObjectType: MetaIO copies it into a 255-byte field (fuzz_labels_mha's overflow).
+  write_bytes(dir / "long-type.mha", "ObjectType = " + std::string(300, 'I') + "\n" + mha);
+  expect_error("long-type.mha", ":1:1: ObjectType: expected printable text of at most 254 bytes, got '" +
+                                    std::string(80, 'I') + "...' (300 bytes)");
   write_bytes(dir / "key.mha", with_line(mha, "ElementType", "Element Type = MET_SHORT"));
   expect_error("key.mha",
                ":11:1: expected a key of letters, digits and '_' (at most 64 characters), got 'Element Type'");
