@@ -106,6 +106,25 @@ void time_frames(benchmark::State& state, render::Renderer& renderer, const Mode
       benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
+// The same with the frames pipelined (Renderer::submit / collect, two in flight): the
+// read-back of one frame overlaps the drawing of the next, as in the PNG sink.
+void time_pipelined_frames(benchmark::State& state, render::Renderer& renderer, const Model& m) {
+  render::Image image;
+  renderer.render(0.0, image);
+  int k = 0;
+  const double cpu_start = process_cpu_ms();
+  for (auto _ : state) {
+    if (renderer.frames_in_flight() == render::Renderer::max_frames_in_flight) renderer.collect(image);
+    renderer.submit(0.01 * (k++ % 100));
+    benchmark::DoNotOptimize(image.rgba.data());
+  }
+  while (renderer.frames_in_flight() > 0) renderer.collect(image);
+  per_frame_cpu(state, cpu_start);
+  label(state, m);
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
 // Per frame: uniform s, draw, resolve, read back (the frame's pixels in memory).
 // Arguments: subdivisions, MSAA samples (4: the default), FXAA (0/1).
 void BM_Draw(benchmark::State& state) {
@@ -279,6 +298,53 @@ BENCHMARK(BM_DrawBackend)
     ->Args({1, 1, 4, 0})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+// BM_DrawBackend's cases with the frames pipelined (two in flight).
+void BM_DrawBackendPipelined(benchmark::State& state) {
+  const Model& m = model(8);
+  render::RenderOptions o = options(state, 2);
+  o.gl = state.range(0) ? render::GlBackend::egl : render::GlBackend::osmesa;
+  if (state.range(1)) {
+    o.width = 1920;
+    o.height = 1080;
+  }
+  render::Renderer renderer(m.rest, m.field, 1.0, o);
+  name_antialiasing(state, 2);
+  state.SetLabel("pipelined, " + renderer.gl_backend() + ", " + std::to_string(o.width) + "x" +
+                 std::to_string(o.height) + ", " + renderer.gl_renderer());
+  time_pipelined_frames(state, renderer, m);
+}
+BENCHMARK(BM_DrawBackendPipelined)
+    ->Args({0, 0, 0, 1})
+    ->Args({1, 0, 0, 1})
+    ->Args({0, 0, 0, 0})
+    ->Args({1, 0, 0, 0})
+    ->Args({1, 1, 0, 0})
+    ->Args({1, 1, 0, 1})
+    ->Args({1, 1, 4, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// The empty scene pipelined (arguments: backend, MSAA samples, FXAA): the cost of getting pixels
+// out when read-backs overlap.
+void BM_ClearReadbackPipelined(benchmark::State& state) {
+  render::RenderOptions o = options(state, 1);
+  o.gl = state.range(0) ? render::GlBackend::egl : render::GlBackend::osmesa;
+  render::Renderer renderer(mesh::TriangleMesh{}, {}, 1.0, o);
+  name_antialiasing(state, 1);
+  state.SetLabel("pipelined, " + renderer.gl_backend() + ", " + renderer.gl_renderer());
+  render::Image image;
+  renderer.render(0.0, image);
+  for (auto _ : state) {
+    if (renderer.frames_in_flight() == render::Renderer::max_frames_in_flight) renderer.collect(image);
+    renderer.submit(0.5);
+    benchmark::DoNotOptimize(image.rgba.data());
+  }
+  while (renderer.frames_in_flight() > 0) renderer.collect(image);
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_ClearReadbackPipelined)->Args({1, 0, 0})->Args({1, 0, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // PNG encoding (fast, the sink's setting) of a 1920x1080 frame of the 1.3M-triangle mesh, timed
 // apart from the drawing above.

@@ -58,7 +58,10 @@ namespace pneuma::render::detail {
   X(PFNGLGENTEXTURESPROC, GenTextures) X(PFNGLBINDTEXTUREPROC, BindTexture)                    \
   X(PFNGLDELETETEXTURESPROC, DeleteTextures) X(PFNGLTEXIMAGE2DPROC, TexImage2D)                \
   X(PFNGLTEXPARAMETERIPROC, TexParameteri) X(PFNGLACTIVETEXTUREPROC, ActiveTexture)            \
-  X(PFNGLFRAMEBUFFERTEXTURE2DPROC, FramebufferTexture2D) X(PFNGLUNIFORM2FPROC, Uniform2f)
+  X(PFNGLFRAMEBUFFERTEXTURE2DPROC, FramebufferTexture2D) X(PFNGLUNIFORM2FPROC, Uniform2f)    \
+  X(PFNGLFLUSHPROC, Flush) X(PFNGLMAPBUFFERRANGEPROC, MapBufferRange)                        \
+  X(PFNGLUNMAPBUFFERPROC, UnmapBuffer) X(PFNGLFENCESYNCPROC, FenceSync)                      \
+  X(PFNGLCLIENTWAITSYNCPROC, ClientWaitSync) X(PFNGLDELETESYNCPROC, DeleteSync)
 // clang-format on
 
 // The GL functions, called as gl.Clear(...) etc.

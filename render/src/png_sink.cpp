@@ -102,15 +102,24 @@ std::filesystem::path PngFrameSink::path_of(std::size_t index) const {
 void PngFrameSink::frame(const model::Model&, const model::Frame& frame) {
   if (!renderer_) throw Error(ExitCode::failure, "render: PngFrameSink::frame() called before begin()");
   if (frame.index % options_.every != 0) return;
-  Image image = encoder_->take_buffer();
   for (std::size_t i = 0; i < scales_.size(); ++i) scales_[i] = frame.lungs[i].scale;
-  renderer_->render(std::span<const double>(scales_), image);
-  const auto path = path_of(frame.index);
-  encoder_->submit(std::move(image), path);
-  written_.push_back(path);
+  // The frame is drawn now and comes back while the next one is drawn (Renderer::submit).
+  if (renderer_->frames_in_flight() == Renderer::max_frames_in_flight) encode_oldest();
+  renderer_->submit(std::span<const double>(scales_));
+  written_.push_back(path_of(frame.index));
+}
+
+void PngFrameSink::encode_oldest() {
+  Image image = encoder_->take_buffer();
+  renderer_->collect(image);
+  const std::size_t frame = written_.size() - renderer_->frames_in_flight() - 1;
+  encoder_->submit(std::move(image), written_[frame]);
 }
 
 std::vector<std::filesystem::path> PngFrameSink::finish(const model::Model&, const outputs::RunRecord&) {
+  if (renderer_) {
+    while (renderer_->frames_in_flight() > 0) encode_oldest();
+  }
   renderer_.reset();
   if (encoder_) {
     const auto encoder = std::move(encoder_);

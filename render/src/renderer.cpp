@@ -356,7 +356,14 @@ struct Renderer::Impl {
   GLuint fxaa_program = 0, empty_vao = 0;
   GLint s_location = -1, view_location = -1, projection_location = -1, ray_scale_location = -1,
         ray_offset_location = -1;
-  std::vector<std::uint8_t> row;  // scratch for flipping rows
+  // The read-back ring: each slot a pixel-pack buffer and the fence of the frame read into it;
+  // slots in flight are oldest, oldest + 1, ... (mod the ring's size).
+  struct Readback {
+    GLuint buffer = 0;
+    GLsync fence = nullptr;
+  };
+  std::array<Readback, Renderer::max_frames_in_flight> readbacks;
+  std::size_t oldest = 0, in_flight = 0;
 
   const detail::GlFunctions& gl() const { return context.gl(); }
 
@@ -554,6 +561,57 @@ struct Renderer::Impl {
       gl().FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, output_rb);
       check_framebuffer("output");
     }
+    const auto bytes = static_cast<GLsizeiptr>(options.width) * options.height * 4;
+    for (Readback& slot : readbacks) {
+      gl().GenBuffers(1, &slot.buffer);
+      gl().BindBuffer(GL_PIXEL_PACK_BUFFER, slot.buffer);
+      gl().BufferData(GL_PIXEL_PACK_BUFFER, bytes, nullptr, GL_STREAM_READ);
+    }
+    gl().BindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  }
+
+  // Clear, draw every surface at its s, resolve MSAA, filter (FXAA): the frame is then in
+  // readback_fbo().
+  void draw(std::span<const double> s) {
+    const auto& gl = this->gl();
+    const int w = options.width, h = options.height;
+    gl.BindFramebuffer(GL_FRAMEBUFFER, draw_fbo());
+    gl.Viewport(0, 0, w, h);
+    const Eigen::Vector3d& bg = options.background;
+    gl.ClearColor(static_cast<float>(bg.x()), static_cast<float>(bg.y()), static_cast<float>(bg.z()), 1.0f);
+    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    if (index_count > 0) {
+      gl.UseProgram(program);
+      for (std::size_t p = 0; p < parts.size(); ++p) {
+        const Part& part = parts[p];
+        gl.Uniform1f(s_location, static_cast<float>(s[p]));
+        if (p == 0) gl.BindVertexArray(vao);
+        const bool culled = draws_visible_only(part, s[p]);
+        gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, culled ? visible_buffer : index_buffer);
+        const GLsizei first = culled ? part.visible_begin : part.index_begin;
+        // GL takes the offset in the bound element buffer as a pointer.
+        const std::uintptr_t offset = static_cast<std::uintptr_t>(first) * sizeof(std::uint32_t);
+        gl.DrawElements(GL_TRIANGLES, culled ? part.visible_count : part.index_count, GL_UNSIGNED_INT,
+                        reinterpret_cast<const void*>(offset));  // NOLINT(performance-no-int-to-ptr): GL's API
+      }
+      gl.BindVertexArray(0);
+    }
+    if (samples > 0) {
+      gl.BindFramebuffer(GL_READ_FRAMEBUFFER, msaa_fbo);
+      gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, image_fbo);
+      gl.BlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    }
+    if (options.fxaa) {
+      gl.BindFramebuffer(GL_FRAMEBUFFER, output_fbo);
+      gl.Disable(GL_DEPTH_TEST);
+      gl.UseProgram(fxaa_program);
+      gl.ActiveTexture(GL_TEXTURE0);
+      gl.BindTexture(GL_TEXTURE_2D, image_texture);
+      gl.BindVertexArray(empty_vao);
+      gl.DrawArrays(GL_TRIANGLES, 0, 3);
+      gl.BindVertexArray(0);
+      gl.Enable(GL_DEPTH_TEST);
+    }
   }
 
   GLuint draw_fbo() const { return samples > 0 ? msaa_fbo : image_fbo; }
@@ -618,6 +676,10 @@ struct Renderer::Impl {
 
   ~Impl() {
     context.make_current();
+    for (Readback& slot : readbacks) {
+      if (slot.fence != nullptr) gl().DeleteSync(slot.fence);
+      gl().DeleteBuffers(1, &slot.buffer);
+    }
     // Deleting the name 0 is a no-op, so unused objects need no special case.
     const GLuint framebuffers[] = {msaa_fbo, image_fbo, output_fbo};
     gl().DeleteFramebuffers(3, framebuffers);
@@ -687,7 +749,6 @@ Renderer::Renderer(std::span<const RenderPart> surfaces, const RenderOptions& op
                           options.fov_y_deg, options.margin);
   r.overlay_max = options.overlay_max_m > 0.0 ? options.overlay_max_m : overlay_reach;
   if (!(r.overlay_max > 0.0)) r.overlay_max = 1e-3;  // a field of zeros: any positive scale shows 0
-  r.row.resize(static_cast<std::size_t>(options.width) * 4);
 
   const auto& gl = r.gl();
   // PNEUMA_DRAW_ALL_TRIANGLES=1 turns the pre-cull off (to compare; the image is the same).
@@ -729,67 +790,75 @@ Image Renderer::render(std::span<const double> s) {
 }
 
 void Renderer::render(std::span<const double> s, Image& out) {
-  if (s.size() != impl_->parts.size())
-    throw ValueError("render: " + std::to_string(impl_->parts.size()) + " scales expected, one per surface");
+  if (impl_->in_flight > 0)
+    throw Error(ExitCode::failure, "render: render() with frames in flight (collect them first)");
+  submit(s);
+  collect(out);
+}
+
+void Renderer::submit(double s) {
+  const std::array<double, 1> one{s};
+  submit(std::span<const double>(one));
+}
+
+void Renderer::submit(std::span<const double> s) {
   Impl& r = *impl_;
+  if (s.size() != r.parts.size())
+    throw ValueError("render: " + std::to_string(r.parts.size()) + " scales expected, one per surface");
+  if (r.in_flight == max_frames_in_flight)
+    throw Error(ExitCode::failure,
+                "render: " + std::to_string(max_frames_in_flight) + " frames in flight already (collect one first)");
+  const auto& gl = r.gl();
+  r.context.make_current();
+  r.draw(s);
+  Impl::Readback& slot = r.readbacks[(r.oldest + r.in_flight) % max_frames_in_flight];
+  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, r.readback_fbo());
+  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
+  gl.BindBuffer(GL_PIXEL_PACK_BUFFER, slot.buffer);
+  gl.ReadPixels(0, 0, r.options.width, r.options.height, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+  gl.BindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  slot.fence = gl.FenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  gl.Flush();  // the GPU starts on this frame now, not when it is collected
+  r.check_gl("render");
+  ++r.in_flight;
+}
+
+void Renderer::collect(Image& out) {
+  Impl& r = *impl_;
+  if (r.in_flight == 0) throw Error(ExitCode::failure, "render: collect() with no frame in flight");
   const auto& gl = r.gl();
   const int w = r.options.width, h = r.options.height;
   if (out.width != w || out.height != h || out.rgba.size() != out.pixel_count() * 4) out = Image(w, h);
   r.context.make_current();
-
-  gl.BindFramebuffer(GL_FRAMEBUFFER, r.draw_fbo());
-  gl.Viewport(0, 0, w, h);
-  const Eigen::Vector3d& bg = r.options.background;
-  gl.ClearColor(static_cast<float>(bg.x()), static_cast<float>(bg.y()), static_cast<float>(bg.z()), 1.0f);
-  gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  if (r.index_count > 0) {
-    gl.UseProgram(r.program);
-    for (std::size_t p = 0; p < r.parts.size(); ++p) {
-      const Impl::Part& part = r.parts[p];
-      gl.Uniform1f(r.s_location, static_cast<float>(s[p]));
-      if (p == 0) gl.BindVertexArray(r.vao);
-      const bool culled = r.draws_visible_only(part, s[p]);
-      gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, culled ? r.visible_buffer : r.index_buffer);
-      const GLsizei first = culled ? part.visible_begin : part.index_begin;
-      // GL takes the offset in the bound element buffer as a pointer.
-      const std::uintptr_t offset = static_cast<std::uintptr_t>(first) * sizeof(std::uint32_t);
-      gl.DrawElements(GL_TRIANGLES, culled ? part.visible_count : part.index_count, GL_UNSIGNED_INT,
-                      reinterpret_cast<const void*>(offset));  // NOLINT(performance-no-int-to-ptr): GL's API
-    }
-    gl.BindVertexArray(0);
-  }
-  if (r.samples > 0) {
-    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, r.msaa_fbo);
-    gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, r.image_fbo);
-    gl.BlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
-  }
-  if (r.options.fxaa) {
-    gl.BindFramebuffer(GL_FRAMEBUFFER, r.output_fbo);
-    gl.Disable(GL_DEPTH_TEST);
-    gl.UseProgram(r.fxaa_program);
-    gl.ActiveTexture(GL_TEXTURE0);
-    gl.BindTexture(GL_TEXTURE_2D, r.image_texture);
-    gl.BindVertexArray(r.empty_vao);
-    gl.DrawArrays(GL_TRIANGLES, 0, 3);
-    gl.BindVertexArray(0);
-    gl.Enable(GL_DEPTH_TEST);
-  }
-  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, r.readback_fbo());
-  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
-  gl.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, out.rgba.data());
-  r.check_gl("render");
-
-  // OpenGL's first row is the bottom one; images here start at the top.
+  Impl::Readback& slot = r.readbacks[r.oldest];
+  r.oldest = (r.oldest + 1) % max_frames_in_flight;
+  --r.in_flight;
+  constexpr GLuint64 kSecond_ns = 1'000'000'000;
+  GLenum waited = GL_TIMEOUT_EXPIRED;
+  while (waited == GL_TIMEOUT_EXPIRED) waited = gl.ClientWaitSync(slot.fence, GL_SYNC_FLUSH_COMMANDS_BIT, kSecond_ns);
+  gl.DeleteSync(slot.fence);
+  slot.fence = nullptr;
+  if (waited == GL_WAIT_FAILED) r.check_gl("waiting for a frame");
   const std::size_t stride = static_cast<std::size_t>(w) * 4;
-  for (int y = 0; y < h / 2; ++y) {
-    std::uint8_t* top = out.rgba.data() + static_cast<std::size_t>(y) * stride;
-    std::uint8_t* bottom = out.rgba.data() + static_cast<std::size_t>(h - 1 - y) * stride;
-    std::memcpy(r.row.data(), top, stride);
-    std::memcpy(top, bottom, stride);
-    std::memcpy(bottom, r.row.data(), stride);
+  gl.BindBuffer(GL_PIXEL_PACK_BUFFER, slot.buffer);
+  const auto* pixels = static_cast<const std::uint8_t*>(
+      gl.MapBufferRange(GL_PIXEL_PACK_BUFFER, 0, static_cast<GLsizeiptr>(stride * h), GL_MAP_READ_BIT));
+  if (pixels == nullptr) {
+    gl.BindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+    r.check_gl("mapping a frame");
+    throw Error(ExitCode::failure, "render: the OpenGL driver did not map the frame's pixels");
   }
+  // OpenGL's first row is the bottom one; images here start at the top.
+  for (int y = 0; y < h; ++y)
+    std::memcpy(out.rgba.data() + static_cast<std::size_t>(y) * stride,
+                pixels + static_cast<std::size_t>(h - 1 - y) * stride, stride);
+  gl.UnmapBuffer(GL_PIXEL_PACK_BUFFER);
+  gl.BindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  r.check_gl("read-back");
   if (r.options.overlay_magnitude && r.options.legend) detail::draw_legend(out, r.overlay_max);
 }
+
+std::size_t Renderer::frames_in_flight() const { return impl_->in_flight; }
 
 void Renderer::set_camera(CameraPreset preset) {
   const RenderOptions& o = impl_->options;

@@ -255,7 +255,50 @@ TEST(PngFrameSink, WritesEveryNthFrameAndNothingElse) {
   EXPECT_EQ(dir.files().size(), 3u) << "no temporaries left";
   // Each file is the renderer's image of its frame.
   render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-0.5, 1.0}, small_options());
+  EXPECT_EQ(render::read_png(written[0]).rgba, renderer.render(-0.5).rgba);
+  EXPECT_EQ(render::read_png(written[1]).rgba, renderer.render(1.0).rgba);
   EXPECT_EQ(render::read_png(written[2]).rgba, renderer.render(0.25).rgba);
+}
+
+// Pipelined frames (two in flight) come back in the order submitted, each the image that
+// render() gives on its own, the overlay's legend included.
+TEST(Renderer, PipelinedFramesAreTheFramesRenderGives) {
+  const auto lung = make_lung_stand_in(3);
+  render::RenderOptions options = small_options(render::CameraPreset::oblique);
+  options.overlay_magnitude = true;
+  render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-0.5, 1.0}, options);
+  const std::vector<double> scales = {0.0, 1.0, -0.5, 0.3, 0.7};
+  std::vector<render::Image> expected;
+  for (double s : scales) expected.push_back(renderer.render(s));
+  ASSERT_NE(expected[0].rgba, expected[1].rgba);  // the frames differ, so the order shows
+  std::vector<render::Image> pipelined;
+  for (double s : scales) {
+    if (renderer.frames_in_flight() == render::Renderer::max_frames_in_flight)
+      renderer.collect(pipelined.emplace_back());
+    renderer.submit(s);
+  }
+  while (renderer.frames_in_flight() > 0) renderer.collect(pipelined.emplace_back());
+  ASSERT_EQ(pipelined.size(), scales.size());
+  for (std::size_t k = 0; k < scales.size(); ++k) EXPECT_EQ(pipelined[k].rgba, expected[k].rgba) << "frame " << k;
+}
+
+TEST(Renderer, PipelineRefusesAThirdFrameInFlightAndAnEmptyCollect) {
+  const auto lung = make_lung_stand_in(2);
+  render::Renderer renderer(lung.rest, lung.field, 1.0, small_options());
+  render::Image image;
+  EXPECT_THROW(renderer.collect(image), Error);
+  renderer.submit(0.2);
+  EXPECT_THROW(renderer.render(0.5, image), Error);  // render() needs none in flight
+  renderer.submit(0.4);
+  EXPECT_THROW(renderer.submit(0.6), Error);
+  EXPECT_EQ(renderer.frames_in_flight(), 2u);
+  render::Image second;
+  renderer.collect(image);
+  renderer.collect(second);
+  EXPECT_EQ(renderer.frames_in_flight(), 0u);
+  EXPECT_THROW(renderer.collect(image), Error);
+  EXPECT_EQ(image.rgba, renderer.render(0.2).rgba);
+  EXPECT_EQ(second.rgba, renderer.render(0.4).rgba);
 }
 
 // The pre-cull leaves out the triangles that face away from the camera at every scale of the

@@ -39,6 +39,9 @@ class PngFrameSink final : public outputs::Output {
   std::filesystem::path path_of(std::size_t index) const;
 
  private:
+  // Collects the oldest frame in flight and hands it to the encoder.
+  void encode_oldest();
+
   std::filesystem::path directory_;
   PngSinkOptions options_;
   std::unique_ptr<Renderer> renderer_;

@@ -115,6 +115,17 @@ class Renderer {
   Image render(std::span<const double> s);
   void render(std::span<const double> s, Image& out);
 
+  // Pipelined frames, for sequences: submit() draws a frame and starts reading it back without
+  // waiting; collect() waits for the oldest frame submitted and copies it into `out`. With two
+  // in flight, the GPU draws one frame while the previous one comes back to memory. Frames come
+  // back in the order submitted, each the image render() gives for its s. render() needs none in
+  // flight. Throws as render(), and Error(failure) when submitting a third or collecting none.
+  static constexpr std::size_t max_frames_in_flight = 2;
+  void submit(std::span<const double> s);
+  void submit(double s);
+  void collect(Image& out);
+  std::size_t frames_in_flight() const;
+
   // Per-frame view changes (no re-upload).
   void set_camera(CameraPreset preset);  // framed on the same bounds as at construction
   void set_camera(const Camera& camera);
