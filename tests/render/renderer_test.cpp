@@ -268,8 +268,8 @@ TEST(Renderer, PipelinedFramesAreTheFramesRenderGives) {
   options.overlay_magnitude = true;
   render::Renderer renderer(lung.rest, lung.field, render::ScaleRange{-0.5, 1.0}, options);
   const std::vector<double> scales = {0.0, 1.0, -0.5, 0.3, 0.7};
-  std::vector<render::Image> expected;
-  for (double s : scales) expected.push_back(renderer.render(s));
+  std::vector<render::Image> expected(scales.size());
+  for (std::size_t k = 0; k < scales.size(); ++k) renderer.render(scales[k], expected[k]);
   ASSERT_NE(expected[0].rgba, expected[1].rgba);  // the frames differ, so the order shows
   std::vector<render::Image> pipelined;
   for (double s : scales) {
