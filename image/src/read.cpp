@@ -786,7 +786,8 @@ void check_meta_header(const fs::path& path, const std::string& name) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
   std::size_t ndims = 0;
-  bool dim_size = false, element_type = false;
+  bool dim_size = false, element_type = false, binary = false;
+  int compressed_line = 0;  // CompressedData = True's line, if any
   std::uint64_t read = 0;
   for (int number = 1; std::getline(in, line) && read < (1u << 20); ++number) {
     read += line.size() + 1;
@@ -861,6 +862,8 @@ void check_meta_header(const fs::path& path, const std::string& name) {
                key == "ElementByteOrderMSB") {
       if (lower(value) != "true" && lower(value) != "false")
         throw InputError(where + key + ": expected True or False, got " + quote_input(value));
+      if (key == "CompressedData") compressed_line = lower(value) == "true" ? number : 0;
+      if (key == "BinaryData") binary = lower(value) == "true";
     } else if (key == "ElementType") {
       std::string base = value;
       if (base.ends_with("_ARRAY")) base.resize(base.size() - 6);
@@ -873,6 +876,14 @@ void check_meta_header(const fs::path& path, const std::string& name) {
       printable();
       if (!dim_size || !element_type)
         throw InputError(where + key + ": expected NDims, DimSize and ElementType before it");
+      // Compressed text data: MetaIO then inflates the file from its first byte, header and all;
+      // the voxels read as zeros without a word, or (a header that begins like a zlib stream) the
+      // read never ends (fuzz_labels_mha). MetaIO writes compressed data only as binary.
+      if (compressed_line > 0 && !binary) {
+        throw InputError(fmt::format("{}:{}:1: CompressedData: expected BinaryData = True in the header (compressed "
+                                     "data is binary)",
+                                     name, compressed_line));
+      }
       return;
     } else {
       printable();

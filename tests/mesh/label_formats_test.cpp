@@ -557,6 +557,18 @@ TEST(LabelFormats, HeadersAreCheckedBeforeItkAndBeforeAllocation) {
   write_bytes(dir / "long-key.mha", long_key + " = Image\n" + mha);
   expect_error("long-key.mha", ":1:1: expected a key of letters, digits and '_' (at most 64 characters), got '" +
                                    long_key.substr(0, 80) + "...' (250 bytes)");
+  // Compressed data without BinaryData = True: MetaIO inflated the whole file from its first byte,
+  // so the voxels read as zeros, and a header that begins like a zlib stream ('Hj') never ended
+  // (fuzz_labels_mha's hang). The zlib stream here is intact and ITK reads it with BinaryData.
+  write_mha(dir / "z.mha", kBoxes, data, "MET_SHORT", box_transform(), true);
+  const std::string zmha = pneuma::test::read_text(dir / "z.mha");
+  EXPECT_NO_THROW(read_label_map(dir / "z.mha"));
+  write_bytes(dir / "text-z.mha", with_line(zmha, "BinaryData", "BinaryData = False"));
+  expect_error("text-z.mha",
+               ":5:1: CompressedData: expected BinaryData = True in the header (compressed data is binary)");
+  write_bytes(dir / "hang-z.mha", "Hj = mage\n" + with_line(zmha, "BinaryData", "Comment = no BinaryData"));
+  expect_error("hang-z.mha",
+               ":6:1: CompressedData: expected BinaryData = True in the header (compressed data is binary)");
   // Tabs and carriage returns before LOCAL: MetaIO looked for a data file (and leaked its stream).
   write_bytes(dir / "tabs.mha", with_line(mha, "ElementDataFile", "ElementDataFile = \r\t\tLOCAL"));
   expect_error("tabs.mha", ":12:1: ElementDataFile: expected printable text of at most 254 bytes, got '\r\t\tLOCAL'");
