@@ -27,8 +27,9 @@ deps:
 	@scripts/install-deps
 
 # `make demo` installs and builds only what `pneuma run` on the built-in phantom needs (no test
-# tools, Chromium or clang; only the executable, without the label-map, DICOM, repair and Mesh_3
-# code the phantom never calls, each library one unity source: BENCHMARKS.md, goal 4 of #50);
+# tools, Chromium or clang, no ITK or DCMTK; only the executable, without the label-map, image,
+# DICOM, repair and Mesh_3 code the phantom never calls, each library one unity source:
+# BENCHMARKS.md, goal 4 of #50);
 # `make test` builds the whole engine and the rest in build/$(PRESET).
 deps-demo:
 	@scripts/install-deps --demo
@@ -52,7 +53,7 @@ test: build
 
 # A folder not configured yet gets the whole engine without tests or benchmarks.
 configure-installables:
-	@test -f $(BUILD)/build.ninja || { scripts/install-deps --demo && \
+	@test -f $(BUILD)/build.ninja || { scripts/install-deps --engine && \
 	  cmake --preset $(PRESET) -DPNEUMA_BUILD_TESTS=OFF -DPNEUMA_BUILD_BENCH=OFF >/dev/null; }
 
 # Builds only what is installed (the CLI and the Python module) in the configured build folder.

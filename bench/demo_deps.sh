@@ -46,7 +46,7 @@ PY
 
 list() { sed -n "/^$1=(/,/^)/p" "$root/scripts/install-deps" | sed -e 's/#.*//' -e "s/^$1=(//" -e 's/)$//' | tr -s ' \n' ' '; }
 demo=$(list demo_packages)
-full="$demo $(list test_packages)"
+full="$demo $(list engine_packages) $(list test_packages)"
 apt_opts=(-o "Dir::State::status=$work/status" -o "Dir::Cache::archives=$work/archives" --no-install-recommends)
 mkdir -p "$work/archives/partial"
 for set in demo full; do

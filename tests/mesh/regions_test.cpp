@@ -481,6 +481,36 @@ TEST(HullProxy, ThePhantomsSidesAndWeightsAreThoseOfTheExactHull) {
   }
 }
 
+// Oracle: the sum itself, sum_j G(x_i - x_j) A_j v_j / sum_j G(x_i - x_j) A_j over every pair
+// of vertices, on a phantom lung (3,400 vertices) with a value that varies on the scale of the
+// blur. The grid (spacing sigma, trilinear splat and sample, a Gaussian narrowed by their
+// variance) stays within 2 % of the value's range of it; without the narrowing the blur is
+// wider and the error larger.
+TEST(BlurredInSpace, MatchesTheGaussianSumOverEveryPairOfVertices) {
+  const TriangleMesh m = phantom(Lung::right, 3e-3);
+  const double sigma = 0.005;
+  std::vector<double> value(m.vertices.size());
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    const Eigen::Vector3d& p = m.vertices[i];
+    value[i] = std::sin(p.x() / 0.006) * std::cos(p.y() / 0.008) + std::sin(p.z() / 0.01);
+  }
+  const auto [lo, hi] = std::minmax_element(value.begin(), value.end());
+  const std::vector<double> area = vertex_areas(m);
+  const std::vector<double> blurred = blurred_in_space(m, value, sigma);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    double sum = 0.0, weight = 0.0;
+    for (std::size_t j = 0; j < m.vertices.size(); ++j) {
+      const double g = std::exp(-0.5 * (m.vertices[i] - m.vertices[j]).squaredNorm() / (sigma * sigma)) * area[j];
+      sum += g * value[j];
+      weight += g;
+    }
+    worst = std::max(worst, std::abs(blurred[i] - sum / weight));
+  }
+  std::printf("largest difference from the pairwise sum: %.4f of the range\n", worst / (*hi - *lo));
+  EXPECT_LT(worst, 0.02 * (*hi - *lo));
+}
+
 // The grid smoothing runs on every thread (lines, rows, z-slabs of the splat): the same bits at
 // one, two and four threads, for the smoothed normals, the blur in space and the regions.
 TEST(Regions, TheGridSmoothingIsTheSameBitsAtOneTwoAndFourThreads) {

@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "pneuma/core/tsan.h"
 #include "pneuma/mesh/anatomy/regions.h"
@@ -131,20 +132,29 @@ std::vector<Point> possible_corners(const std::vector<Eigen::Vector3d>& points) 
 
 }  // namespace
 
-std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& points,
-                                            const std::vector<Eigen::Vector3d>& queries) {
+using Iterator = std::vector<Kernel::Triangle_3>::const_iterator;
+using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, CGAL::AABB_triangle_primitive<Kernel, Iterator>>>;
+
+struct ConvexHullDepth::Impl {
+  std::vector<Kernel::Triangle_3> triangles;
+  std::vector<std::pair<Eigen::Vector3d, double>> planes;  // per face: outward unit normal, offset
+  std::vector<std::array<double, 3>> corners;              // the hull's vertices, sorted
+  std::unique_ptr<Tree> tree;                              // null: no hull (flat or empty)
+};
+
+ConvexHullDepth::ConvexHullDepth(const std::vector<Eigen::Vector3d>& points) : impl_(std::make_unique<Impl>()) {
   std::vector<Point> hull_points;
   std::vector<Face> hull_faces;
   hull_of(possible_corners(points), hull_points, hull_faces);
-  std::vector<double> depth(queries.size(), 0.0);
-  if (hull_faces.empty()) return depth;
+  if (hull_faces.empty()) return;
   // Outward unit normal and offset of every hull face. Inside a convex polytope the depth,
   // min over faces of (offset - n.x), is the distance to the nearest face, whose plane gives it:
   // so the nearest face is found with an AABB tree (log of the faces per point, where a loop over
   // every plane took minutes at 10^5 points: a fine, mostly convex surface has 10^5 hull faces).
   // A degenerate face keeps the zero plane: the depth below it is 0 (the point is on the surface).
-  std::vector<std::pair<Eigen::Vector3d, double>> planes(hull_faces.size(), {Eigen::Vector3d::Zero(), 0.0});
-  std::vector<Kernel::Triangle_3> triangles;
+  auto& planes = impl_->planes;
+  auto& triangles = impl_->triangles;
+  planes.assign(hull_faces.size(), {Eigen::Vector3d::Zero(), 0.0});
   triangles.reserve(hull_faces.size());
   for (std::size_t f = 0; f < hull_faces.size(); ++f) {
     const Face& face = hull_faces[f];
@@ -168,28 +178,39 @@ std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& 
   }
   // The hull's vertices are input points (copies): their depth is 0, no query needed. On a fine,
   // mostly convex surface that is most of them.
-  std::vector<std::array<double, 3>> corners;
-  corners.reserve(hull_points.size());
-  for (const Point& p : hull_points) corners.push_back({p.x(), p.y(), p.z()});
-  std::sort(corners.begin(), corners.end());
-  using Iterator = std::vector<Kernel::Triangle_3>::const_iterator;
-  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, CGAL::AABB_triangle_primitive<Kernel, Iterator>>>;
-  Tree tree(triangles.cbegin(), triangles.cend());
-  tree.accelerate_distance_queries();  // built here: queries from several threads only read it
+  impl_->corners.reserve(hull_points.size());
+  for (const Point& p : hull_points) impl_->corners.push_back({p.x(), p.y(), p.z()});
+  std::sort(impl_->corners.begin(), impl_->corners.end());
+  impl_->tree = std::make_unique<Tree>(triangles.cbegin(), triangles.cend());
+  impl_->tree->accelerate_distance_queries();  // built here: queries from several threads only read it
+}
+
+ConvexHullDepth::~ConvexHullDepth() = default;
+
+std::vector<double> ConvexHullDepth::depth(const std::vector<Eigen::Vector3d>& queries) const {
+  std::vector<double> depth(queries.size(), 0.0);
+  if (!impl_->tree) return depth;
+  const Impl& h = *impl_;
   const tsan::Region region;
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, queries.size(), 256),
       region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
         for (std::size_t i = range.begin(); i < range.end(); ++i) {
           const Eigen::Vector3d& q = queries[i];
-          if (std::binary_search(corners.begin(), corners.end(), std::array<double, 3>{q.x(), q.y(), q.z()})) continue;
-          const Iterator face = tree.closest_point_and_primitive(Point(q.x(), q.y(), q.z())).second;
-          const auto& [n, offset] = planes[static_cast<std::size_t>(face - triangles.cbegin())];
+          if (std::binary_search(h.corners.begin(), h.corners.end(), std::array<double, 3>{q.x(), q.y(), q.z()}))
+            continue;
+          const Iterator face = h.tree->closest_point_and_primitive(Point(q.x(), q.y(), q.z())).second;
+          const auto& [n, offset] = h.planes[static_cast<std::size_t>(face - h.triangles.cbegin())];
           depth[i] = std::max(0.0, offset - n.dot(q));
         }
       }));
   region.join();
   return depth;
+}
+
+std::vector<double> depth_below_convex_hull(const std::vector<Eigen::Vector3d>& points,
+                                            const std::vector<Eigen::Vector3d>& queries) {
+  return ConvexHullDepth(points).depth(queries);
 }
 
 }  // namespace pneuma::mesh
