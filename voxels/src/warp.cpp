@@ -47,10 +47,14 @@ void for_each_sample(const DisplacementField& field, const Grid& source, const F
 // surface (docs/voxels.md, "The scan's place on the breath").
 constexpr long kFarthestRing = 16;
 
-// `on_side(index)` says whether a voxel is on the wanted side.
-template <typename OnSide>
-std::optional<std::size_t> nearest_where(const std::array<std::size_t, 3>& size, const Eigen::Vector3d& q,
-                                         const OnSide& on_side) {
+// A corner with less of the trilinear weight than this does not count for the tissue rule: a
+// sample that close to a voxel centre is on it (a NIfTI CT's float32 affine moves the samples of a
+// zero field by about 1e-6 voxel, which would otherwise pick a neighbour of the other tissue).
+constexpr double kNegligibleWeight = 1e-4;
+
+std::optional<std::size_t> nearest_on_side(const std::vector<std::uint8_t>& rest_lung,
+                                           const std::array<std::size_t, 3>& size, const Eigen::Vector3d& q,
+                                           std::uint8_t side) {
   std::array<long, 3> centre{}, n{};
   for (std::size_t a = 0; a < 3; ++a) {
     centre[a] = static_cast<long>(std::floor(q[static_cast<Eigen::Index>(a)] + 0.5));
@@ -65,7 +69,7 @@ std::optional<std::size_t> nearest_where(const std::array<std::size_t, 3>& size,
           const long chebyshev = std::max({std::abs(i - centre[0]), std::abs(j - centre[1]), std::abs(k - centre[2])});
           if (chebyshev != ring) continue;  // inner rings were searched already
           const auto index = static_cast<std::size_t>(i + n[0] * (j + n[1] * k));
-          if (!on_side(index)) continue;
+          if (rest_lung[index] != side) continue;
           const double d = (Eigen::Vector3d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)) - q)
                                .squaredNorm();
           if (d < best) best = d, found = index;
@@ -73,12 +77,6 @@ std::optional<std::size_t> nearest_where(const std::array<std::size_t, 3>& size,
     if (found) return found;
   }
   return std::nullopt;
-}
-
-std::optional<std::size_t> nearest_on_side(const std::vector<std::uint8_t>& rest_lung,
-                                           const std::array<std::size_t, 3>& size, const Eigen::Vector3d& q,
-                                           std::uint8_t side) {
-  return nearest_where(size, q, [&](std::size_t index) { return rest_lung[index] == side; });
 }
 
 }  // namespace
@@ -187,8 +185,9 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
     };
     // With the rest lungs, only the corners on x's side of the pleura count (renormalised): the
     // tissue at x is that side's, and the pleura slides, so nothing is blended across it.
-    // With the tissue masks, a corner must show x's tissue as well; where none does, the nearest
-    // voxel on x's side that does, else the corners on x's side alone.
+    // With the tissue masks, a corner must show x's tissue as well; where none of those with
+    // kNegligibleWeight or more does, the corners on x's side as without them (so that a zero
+    // field gives the image back where the warped label map and the image's own disagree).
     const std::uint8_t side = pullback.lung[v];
     const std::uint8_t lung_tissue = by_tissue ? (*tissue.warped)[v] : 0;
     double value = 0.0, same_side_value = 0.0, same_side_weight = 0.0, same_tissue_value = 0.0,
@@ -203,22 +202,15 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
       if (rest_lung && (*rest_lung)[c] == side) {
         same_side_value += weight * at(i, j, k);
         same_side_weight += weight;
-        if (by_tissue && (*tissue.rest)[c] == lung_tissue) {
+        if (by_tissue && weight >= kNegligibleWeight && (*tissue.rest)[c] == lung_tissue) {
           same_tissue_value += weight * at(i, j, k);
           same_tissue_weight += weight;
         }
       }
     }
-    if (by_tissue) {
-      if (same_tissue_weight > 0.0) {
-        out.values[v] = static_cast<float>(same_tissue_value / same_tissue_weight);
-        return;
-      }
-      if (const auto far = nearest_where(
-              size, q, [&](std::size_t c) { return (*rest_lung)[c] == side && (*tissue.rest)[c] == lung_tissue; })) {
-        out.values[v] = image.values[*far];
-        return;
-      }
+    if (same_tissue_weight > 0.0) {
+      out.values[v] = static_cast<float>(same_tissue_value / same_tissue_weight);
+      return;
     }
     if (rest_lung && same_side_weight == 0.0) {
       // Every corner across the pleura: the nearest voxel on x's side, where there is one.

@@ -55,10 +55,11 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
 // `image` and per voxel of the DVF's grid, the latter from the warped label map), the corners
 // must also show x's tissue: a lung voxel is interpolated from lung voxels only, and tissue the
 // lung's mesh holds but the label map does not call lung (the tissue under a dome the smoothed
-// surface reaches below, a vessel's hole) from that tissue only; where none of the eight does,
-// the nearest voxel on x's side that does (ring by ring, as above), else the corners on x's side
-// as without it. Soft tissue's HU + 1000 is 7 times the parenchyma's, so a quarter of a corner's
-// weight blended into a lung voxel adds 1.5 times its mass (docs/voxels.md, "The lungs' mass").
+// surface reaches below, a vessel's hole) from that tissue only; where none of the corners with a
+// weight of at least 1e-4 does, the corners on x's side as without it (so that a zero field gives
+// the image back where the warped label map and the image's own disagree at the pleura). Soft
+// tissue's HU + 1000 is 7 times the parenchyma's: blended into the lung voxels beside it, it
+// added 0.7-1.6 % to the lungs' mass at end-inspiration (docs/voxels.md, "The lungs' mass").
 struct Tissue {
   const std::vector<std::uint8_t>* rest = nullptr;    // per voxel of the image
   const std::vector<std::uint8_t>* warped = nullptr;  // per voxel of the pull-back DVF's grid
