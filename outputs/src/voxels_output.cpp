@@ -642,6 +642,7 @@ void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> sc
   voxels::TimePointInputs inputs;
   inputs.labels = labels_.get();
   inputs.rest_lung = &rest_lung_;
+  inputs.lung_labels = lung_labels_;
   inputs.ct = with_image ? spec_.image.get() : nullptr;
   inputs.mass_preserving = spec_.mass_preserving;
   inputs.jacobian_map = spec_.jacobian || with_jacobian;

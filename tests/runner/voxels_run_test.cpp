@@ -137,7 +137,8 @@ INSTANTIATE_TEST_SUITE_P(Meshers, VoxelsRunByMesher, ::testing::Values("delaunay
 // every time point the lung's mass, (HU + 1000) summed over its voxels times their volume, is the
 // rest scan's within 1 %, and the mean lung HU at end-inspiration is the mass-preserving
 // prediction -1000 + 150.5 V0 / V within 2 HU; the soft tissue keeps its HU; the Jacobian image
-// inside the lung averages V / V0. With `density: unchanged` the lung keeps its HU instead.
+// inside the lung averages V / V0; the warped CT is the same bytes at one and two threads. With
+// `density: unchanged` the lung keeps its HU instead.
 TEST(VoxelsRun, TheWarpedCtsLungKeepsItsMass) {
   TempDir dir;
   // The rest lung on the run's grid: end-expiration of this breath is the rest shape (s = 0).
@@ -168,8 +169,17 @@ TEST(VoxelsRun, TheWarpedCtsLungKeepsItsMass) {
                      (preserving ? "}" : ", density: unchanged}"));
     const std::string out = preserving ? "preserving" : "unchanged";
     const auto scenario = dir.write(out + ".yaml", text);
-    const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / out).string(), "--quiet"});
+    const auto r = run_pneuma({"--threads", "2", "run", scenario.string(), "-o", (dir / out).string(), "--quiet"});
     ASSERT_EQ(r.exit_code, 0) << r.err;
+    if (preserving) {  // the warped CT is the same bytes at one thread
+      const auto one =
+          run_pneuma({"--threads", "1", "run", scenario.string(), "-o", (dir / "one").string(), "--quiet"});
+      ASSERT_EQ(one.exit_code, 0) << one.err;
+      for (const std::string tag : {"end_inspiration", "1.000s"}) {
+        const std::string name = "voxels/ct-" + tag + ".nii.gz";
+        EXPECT_TRUE(pneuma::test::read_text(dir / out / name) == pneuma::test::read_text(dir / "one" / name)) << name;
+      }
+    }
     const auto rows = read_voxels_csv(dir / out / "voxels/voxels.csv");
     ASSERT_EQ(rows.size(), 3u);
     for (const CsvRow& row : rows) {

@@ -29,13 +29,21 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
   if (inputs.ct != nullptr) {
     if (!point.ct) point.ct.emplace();
     // Pulled back with the rest lungs on the CT's grid, so that nothing is blended across the
-    // sliding pleura; the mass-preserving rule finds them on its way.
+    // sliding pleura (the mass-preserving rule finds them on its way), and with the label map's
+    // lung tissue on both grids, so that no tissue is blended into the lung and the warped CT's
+    // lung is the warped label map's.
+    Tissue tissue;
+    if (point.labels && !inputs.lung_labels.empty()) {
+      lung_tissue(*inputs.labels, inputs.lung_labels, inputs.ct->grid, point.ct_tissue);
+      lung_tissue(*point.labels, inputs.lung_labels, point.warped_tissue);
+      tissue = {&point.ct_tissue, &point.warped_tissue};
+    }
     if (inputs.mass_preserving) {
       mass_preserving_ct(*inputs.ct, lungs, point.rest_ct, point.ct_lung);
-      warp_image(point.rest_ct, point.pullback, *point.ct, kOutsideHu, &point.ct_lung);
+      warp_image(point.rest_ct, point.pullback, *point.ct, kOutsideHu, &point.ct_lung, tissue);
     } else {
       point.ct_lung = rest_lungs(inputs.ct->grid, lungs);
-      warp_image(*inputs.ct, point.pullback, *point.ct, kOutsideHu, &point.ct_lung);
+      warp_image(*inputs.ct, point.pullback, *point.ct, kOutsideHu, &point.ct_lung, tissue);
     }
   } else {
     point.ct.reset();

@@ -47,6 +47,11 @@ void for_each_sample(const DisplacementField& field, const Grid& source, const F
 // surface (docs/voxels.md, "The scan's place on the breath").
 constexpr long kFarthestRing = 16;
 
+// A corner with less of the trilinear weight than this does not count for the tissue rule: a
+// sample that close to a voxel centre is on it (a NIfTI CT's float32 affine moves the samples of a
+// zero field by about 1e-6 voxel, which would otherwise pick a neighbour of the other tissue).
+constexpr double kNegligibleWeight = 1e-4;
+
 std::optional<std::size_t> nearest_on_side(const std::vector<std::uint8_t>& rest_lung,
                                            const std::array<std::size_t, 3>& size, const Eigen::Vector3d& q,
                                            std::uint8_t side) {
@@ -140,14 +145,22 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
 }
 
 Image warp_image(const Image& image, const DisplacementField& pullback, float outside,
-                 const std::vector<std::uint8_t>* rest_lung) {
+                 const std::vector<std::uint8_t>* rest_lung, const Tissue& tissue) {
   Image out;
-  warp_image(image, pullback, out, outside, rest_lung);
+  warp_image(image, pullback, out, outside, rest_lung, tissue);
   return out;
 }
 
 void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside,
-                const std::vector<std::uint8_t>* rest_lung) {
+                const std::vector<std::uint8_t>* rest_lung, const Tissue& tissue) {
+  if (rest_lung && rest_lung->size() != image.values.size()) {
+    throw ValueError("warp_image: the rest lungs' voxels are not those of the image");
+  }
+  const bool by_tissue = rest_lung && tissue.rest && tissue.warped;
+  if (by_tissue &&
+      (tissue.rest->size() != image.values.size() || tissue.warped->size() != pullback.grid.voxel_count())) {
+    throw ValueError("warp_image: the tissue masks are not on the image's and the field's grids");
+  }
   out.grid = pullback.grid;
   out.values.resize(pullback.grid.voxel_count());
   const std::array<std::size_t, 3> size = image.grid.size;
@@ -172,18 +185,32 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
     };
     // With the rest lungs, only the corners on x's side of the pleura count (renormalised): the
     // tissue at x is that side's, and the pleura slides, so nothing is blended across it.
+    // With the tissue masks, a corner must show x's tissue as well; where none of those with
+    // kNegligibleWeight or more does, the corners on x's side as without them (so that a zero
+    // field gives the image back where the warped label map and the image's own disagree).
     const std::uint8_t side = pullback.lung[v];
-    double value = 0.0, same_side_value = 0.0, same_side_weight = 0.0;
+    const std::uint8_t lung_tissue = by_tissue ? (*tissue.warped)[v] : 0;
+    double value = 0.0, same_side_value = 0.0, same_side_weight = 0.0, same_tissue_value = 0.0,
+           same_tissue_weight = 0.0;
     for (int corner = 0; corner < 8; ++corner) {
       const bool bi = (corner & 1) != 0, bj = (corner & 2) != 0, bk = (corner & 4) != 0;
       const double weight = (bi ? w[0] : 1.0 - w[0]) * (bj ? w[1] : 1.0 - w[1]) * (bk ? w[2] : 1.0 - w[2]);
       if (weight == 0.0) continue;
       const std::size_t i = bi ? hi[0] : lo[0], j = bj ? hi[1] : lo[1], k = bk ? hi[2] : lo[2];
+      const std::size_t c = i + size[0] * (j + size[1] * k);
       value += weight * at(i, j, k);
-      if (rest_lung && (*rest_lung)[i + size[0] * (j + size[1] * k)] == side) {
+      if (rest_lung && (*rest_lung)[c] == side) {
         same_side_value += weight * at(i, j, k);
         same_side_weight += weight;
+        if (by_tissue && weight >= kNegligibleWeight && (*tissue.rest)[c] == lung_tissue) {
+          same_tissue_value += weight * at(i, j, k);
+          same_tissue_weight += weight;
+        }
       }
+    }
+    if (same_tissue_weight > 0.0) {
+      out.values[v] = static_cast<float>(same_tissue_value / same_tissue_weight);
+      return;
     }
     if (rest_lung && same_side_weight == 0.0) {
       // Every corner across the pleura: the nearest voxel on x's side, where there is one.
@@ -194,6 +221,45 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
     }
     out.values[v] = static_cast<float>(same_side_weight > 0.0 ? same_side_value / same_side_weight : value);
   });
+}
+
+}  // namespace pneuma::voxels
+
+namespace pneuma::voxels {
+
+void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, const Grid& grid,
+                 std::vector<std::uint8_t>& out) {
+  out.resize(grid.voxel_count());
+  const Eigen::Matrix4d to_labels = grid_of(labels).lps_to_ijk() * grid.ijk_to_lps;
+  const std::array<double, 3> n{static_cast<double>(labels.size[0]), static_cast<double>(labels.size[1]),
+                                static_cast<double>(labels.size[2])};
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, grid.size[2]), region.wrap([&](const auto& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k)
+      for (std::size_t j = 0; j < grid.size[1]; ++j)
+        for (std::size_t i = 0; i < grid.size[0]; ++i) {
+          const Eigen::Vector4d q =
+              to_labels * Eigen::Vector4d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k), 1.0);
+          std::array<std::size_t, 3> at{};
+          bool inside = true;
+          for (std::size_t a = 0; a < 3; ++a) {
+            const double rounded = std::floor(q[static_cast<Eigen::Index>(a)] + 0.5);
+            inside = inside && rounded >= 0.0 && rounded < n[a];
+            at[a] = inside ? static_cast<std::size_t>(rounded) : 0;
+          }
+          const std::int32_t label =
+              inside ? labels.labels[at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2])] : 0;
+          out[grid.index(i, j, k)] =
+              inside && std::find(lung_labels.begin(), lung_labels.end(), label) != lung_labels.end() ? 1 : 0;
+        }
+  }));
+  region.join();
+}
+
+void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, std::vector<std::uint8_t>& out) {
+  out.resize(labels.labels.size());
+  for (std::size_t v = 0; v < out.size(); ++v)
+    out[v] = std::find(lung_labels.begin(), lung_labels.end(), labels.labels[v]) != lung_labels.end() ? 1 : 0;
 }
 
 }  // namespace pneuma::voxels

@@ -25,6 +25,9 @@ struct TimePointInputs {
   const image::LabelMap* labels = nullptr;  // warped when given
   // Per voxel of `labels`: 1 + the lung whose rest mesh holds it, else 0 (warp_labels); may be null.
   const std::vector<std::uint8_t>* rest_lung = nullptr;
+  // The label values that are lung in `labels`: with them, the CT's lung voxels (those the label
+  // map calls lung) are interpolated from lung voxels only (warp_image's Tissue); empty: by side.
+  std::span<const int> lung_labels;
   const Image* ct = nullptr;      // warped when given
   bool mass_preserving = true;    // the CT's lung parenchyma keeps its mass (density.h); false: its HU
   bool jacobian_map = true;       // the Jacobian image of the forward map (TimePoint::jacobian_map)
@@ -40,6 +43,8 @@ struct TimePoint {
   std::optional<Image> jacobian_map;  // det(I + grad u) of the forward map, on the grid (density.h)
   Image rest_ct;                      // scratch: the mass-preserving rest CT (reused between time points)
   std::vector<std::uint8_t> ct_lung;  // scratch: the rest lungs on the CT grid
+  // scratch: the label map's lung tissue on the CT grid and in the warped label map
+  std::vector<std::uint8_t> ct_tissue, warped_tissue;
 };
 
 TimePoint compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs = {});

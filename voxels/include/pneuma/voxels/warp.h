@@ -3,6 +3,7 @@
 // centre x of the DVF's grid, whatever the input's own grid (both in LPS metres).
 #include <cstdint>
 #include <limits>
+#include <span>
 #include <vector>
 
 #include "pneuma/image/label_map.h"
@@ -49,10 +50,32 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
 // of the pleura (pullback.lung[x]) are interpolated, where there is one (else the nearest voxel on
 // that side, as warp_labels): no chest wall is blended into a lung voxel, and no lung into the
 // chest wall.
+//
+// With `tissue` as well (lung_tissue: 1 where the label map calls a voxel lung, per voxel of
+// `image` and per voxel of the DVF's grid, the latter from the warped label map), the corners
+// must also show x's tissue: a lung voxel is interpolated from lung voxels only, and tissue the
+// lung's mesh holds but the label map does not call lung (the tissue under a dome the smoothed
+// surface reaches below, a vessel's hole) from that tissue only; where none of the corners with a
+// weight of at least 1e-4 does, the corners on x's side as without it (so that a zero field gives
+// the image back where the warped label map and the image's own disagree at the pleura). Soft
+// tissue's HU + 1000 is 7 times the parenchyma's: blended into the lung voxels beside it, it
+// added 0.7-1.6 % to the lungs' mass at end-inspiration (docs/voxels.md, "The lungs' mass").
+struct Tissue {
+  const std::vector<std::uint8_t>* rest = nullptr;    // per voxel of the image
+  const std::vector<std::uint8_t>* warped = nullptr;  // per voxel of the pull-back DVF's grid
+};
 Image warp_image(const Image& image, const DisplacementField& pullback, float outside = kOutsideHu,
-                 const std::vector<std::uint8_t>* rest_lung = nullptr);
+                 const std::vector<std::uint8_t>* rest_lung = nullptr, const Tissue& tissue = {});
 // The same into `out` (its storage reused).
 void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside = kOutsideHu,
-                const std::vector<std::uint8_t>* rest_lung = nullptr);
+                const std::vector<std::uint8_t>* rest_lung = nullptr, const Tissue& tissue = {});
+
+// Per voxel of `grid`: 1 where the nearest voxel of `labels` (index coordinates rounded half up,
+// as warp_labels) holds one of `lung_labels`, else 0 (also outside the label map). Parallel over
+// k: the same bytes at any thread count. Into `out`, its storage reused.
+void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, const Grid& grid,
+                 std::vector<std::uint8_t>& out);
+// The same on the label map's own grid (a warped label map on its DVF's grid).
+void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, std::vector<std::uint8_t>& out);
 
 }  // namespace pneuma::voxels
