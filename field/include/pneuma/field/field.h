@@ -57,8 +57,8 @@ struct FieldOptions {
   // The lung sliding along the chest wall (mesh/sliding.h): a tangential field added to the
   // normalised displacement, in units of the diaphragm's mean descent; none by default.
   mesh::Sliding sliding;
-  // The lung's face on the heart descends with it (field/heart.h): the normal part of the
-  // heart's descent, in units of the diaphragm's mean descent; none by default.
+  // The lung's face on the heart descends with it (field/heart.h), as far as it looks down onto
+  // it, in units of the diaphragm's mean descent; none by default.
   HeartDescent heart;
   std::vector<double> load;  // per vertex (>= 0, not all 0); empty: 1 everywhere (the paper)
   // The surface's regions in `frame`, when already found (with_tissue finds them once per

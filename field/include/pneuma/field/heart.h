@@ -4,9 +4,12 @@
 // 0.6 of the diaphragm's descent (Wang et al., Magn Reson Med 33:713, 1995: the correction
 // factor of MRI's diaphragm navigator for the coronary arteries). The lung's face on the heart
 // (the cardiac impression: the mediastinal face below the hilum that looks down onto the heart)
-// follows the heart across the pleura and slides along it: it takes the normal part of the
-// heart's descent. Without it that face stands still while the lung above it descends with the
-// chest wall's slide, and the lingula between them shrinks (#45).
+// descends with it, as far as it looks down: fully where it lies flat on the heart, not at all
+// where it stands beside it (there the heart slides past). One direction (-up) for the whole
+// face: moving the concave face along its own normals (the normal part of the descent) made
+// them converge, and the surface of case008's and case009's left lungs self-intersected at a
+// 1.5 L breath. Without it that face stands still while the lung above it descends, and the
+// lingula between them shrinks (#45).
 #include <Eigen/Core>
 #include <vector>
 
@@ -25,10 +28,10 @@ struct HeartDescent {
 };
 
 // Per vertex: the lung's motion per unit of diaphragm descent where it lies on the heart,
-//   descent w_mediastinal g(h) max(0, -up.N) N,
+//   descent w_mediastinal g(h) max(0, -up.N) (-up),
 // N the outward normal smoothed in space at `sigma` (mesh::smoothed_normals), w the mediastinal
-// region weight, g the smooth step of the height h at `top`: the normal part of a caudal motion
-// (-up) on the mediastinal face that looks down; 0 elsewhere. Smooth in space (every factor is).
+// region weight, g the smooth step of the height h at `top`: 0 off the mediastinal face, above
+// the heart and where the face does not look down. Smooth in space (every factor is).
 // Throws ValueError for a descent outside [0, 1], a top outside (0.1, 0.9), or regions of
 // another surface.
 std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
