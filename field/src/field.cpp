@@ -116,14 +116,21 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
     field.force = mesh::blurred_in_space(mesh, field.force, options.magnitude_smoothing);
   const std::vector<Eigen::Vector3d> direction = displacement_directions(mesh, options);
   auto [u, scale] = normalise_displacement(mesh, field.force, direction, options.area_unit);
-  if (options.sliding.active()) {
-    // The slide in units of this field's own diaphragm descent, so it follows the load; then the
-    // whole field scaled back to one area unit (the slide is tangential: a factor near 1).
+  if (options.sliding.active() || options.heart.active()) {
+    // The slide and the heart's descent in units of this field's own diaphragm descent, so they
+    // follow the load; then the whole field scaled back to one area unit.
     const auto regions = regions_for(mesh, options, "compute_field");
-    const std::vector<Eigen::Vector3d> slide =
-        mesh::sliding_field(mesh, *regions, options.sliding, options.direction_smoothing);
     const double descent = mesh::diaphragm_descent(mesh, *regions, u);
-    for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * slide[i];
+    if (options.sliding.active()) {
+      const std::vector<Eigen::Vector3d> slide =
+          mesh::sliding_field(mesh, *regions, options.sliding, options.direction_smoothing);
+      for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * slide[i];
+    }
+    if (options.heart.active()) {
+      const std::vector<Eigen::Vector3d> heart =
+          heart_descent_field(mesh, *regions, options.heart, options.direction_smoothing);
+      for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * heart[i];
+    }
     const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
     double area_rate = 0.0;
     for (std::size_t i = 0; i < u.size(); ++i) area_rate += gradient[i].dot(u[i]);

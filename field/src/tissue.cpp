@@ -105,9 +105,11 @@ FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh:
   options.magnitude_smoothing = tissue.magnitude_smoothing_m;
   options.axes = body_axes(tissue);
   options.sliding = tissue.sliding;
+  options.heart = tissue.heart;
   const auto* stiffness = std::get_if<RegionStiffness>(&tissue.stiffness);
   const bool needs_regions = tissue.regional_load || (stiffness && stiffness->anatomical) ||
-                             tissue.direction == DirectionKind::anatomical || tissue.sliding.active();
+                             tissue.direction == DirectionKind::anatomical || tissue.sliding.active() ||
+                             tissue.heart.active();
   options.regions = needs_regions ? std::make_shared<const mesh::SurfaceRegions>(regions_of(tissue, mesh)) : nullptr;
   if (tissue.regional_load) {
     options.load = mesh::regional_load(mesh, *options.regions, *tissue.regional_load, tissue.dome_load);

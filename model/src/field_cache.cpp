@@ -430,6 +430,13 @@ void hash_options(Hasher& h, const field::FieldOptions& o) {
     h.bytes(o.axes.up.data(), 3 * sizeof(double));
     h.bytes(o.axes.anterior.data(), 3 * sizeof(double));
   }
+  if (o.heart.active()) {  // absent: the keys of fields made before the heart's descent stay valid
+    h.text("heart");
+    h.value(o.heart.descent);
+    h.value(o.heart.top);
+    h.value(o.direction_smoothing);
+    h.bytes(o.axes.up.data(), 3 * sizeof(double));
+  }
   if (o.direction != field::DirectionKind::vertex_normal) {
     h.value(o.direction_smoothing);
     h.bytes(o.axes.up.data(), 3 * sizeof(double));

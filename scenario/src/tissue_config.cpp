@@ -240,6 +240,16 @@ field::Tissue read_tissue(const scenario::Node& root) {
     }
     sl->finish();
   }
+  if (auto hd = root.optional_map("heart")) {
+    t.heart.descent = hd->quantity("descent", kind::fraction);
+    if (!(t.heart.descent >= 0.0 && t.heart.descent <= 1.0))
+      hd->fail_at("descent", "expected a factor from 0 to 1 (of the diaphragm's descent)");
+    if (hd->has("top")) {
+      t.heart.top = hd->quantity("top", kind::fraction);
+      if (!(t.heart.top > 0.1 && t.heart.top < 0.9)) hd->fail_at("top", "expected a height above 0.1 and below 0.9");
+    }
+    hd->finish();
+  }
   root.finish();
   return t;
 }

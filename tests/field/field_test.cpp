@@ -229,7 +229,7 @@ TEST(Tissue, SlidingIsReadInUnitsOfTheDiaphragmsDescent) {
   const Tissue slide = preset("healthy-supine-slide");
   EXPECT_DOUBLE_EQ(slide.sliding.caudal, 1.2);
   EXPECT_DOUBLE_EQ(slide.sliding.exponent, 0.5);
-  EXPECT_DOUBLE_EQ(slide.sliding.anterior, 0.5);
+  EXPECT_DOUBLE_EQ(slide.sliding.anterior, 0.0);  // #45: it squeezed the lingula's margin
   EXPECT_DOUBLE_EQ(slide.sliding.mediastinal, 0.0);
   EXPECT_TRUE(slide.sliding.active());
   EXPECT_FALSE(preset("healthy-upright").sliding.active());
@@ -238,6 +238,51 @@ TEST(Tissue, SlidingIsReadInUnitsOfTheDiaphragmsDescent) {
   EXPECT_EQ(supine.name, "healthy-supine");
   EXPECT_EQ(slide.name, "healthy-supine");
   EXPECT_DOUBLE_EQ(supine.sliding.caudal, slide.sliding.caudal);
+  // The heart descends with the diaphragm (#45): 0.6 of it, below half the lung's height.
+  EXPECT_DOUBLE_EQ(supine.heart.descent, 0.6);
+  EXPECT_DOUBLE_EQ(supine.heart.top, 0.5);
+  EXPECT_TRUE(supine.heart.active());
+  EXPECT_FALSE(preset("healthy-upright").heart.active());
+}
+
+// The lung's face on the heart takes the heart's descent where it looks down onto it (#45,
+// field/heart.h). On a sphere of radius r that is all mediastinal face (regions made by hand),
+// the smoothed normal is radial, so the oracle is analytic: at height h = (z + r) / 2r,
+//   descent * g(h) * max(0, -z / r) * (-up),  g = 1 below top - 0.1, 0 above top + 0.1.
+TEST(HeartDescent, TheFaceOnTheHeartDescendsAsFarAsItLooksDown) {
+  const double r = 0.1;
+  const auto m = mesh::make_icosphere(r, 4);
+  mesh::SurfaceRegions regions;
+  const std::size_t n = m.vertices.size();
+  regions.label.assign(n, mesh::Region::mediastinal);
+  regions.weight.assign(n, {0.0, 0.0, 0.0, 1.0});
+  for (const Eigen::Vector3d& x : m.vertices) regions.height.push_back((x.z() + r) / (2.0 * r));
+  const HeartDescent heart{.descent = 0.6, .top = 0.5};
+  const auto moved = heart_descent_field(m, regions, heart, 0.01);
+  double worst = 0.0, largest = 0.0;
+  std::size_t below = 0, above = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double h = regions.height[i];
+    const double g = h <= 0.4 ? 1.0 : h >= 0.6 ? 0.0 : -1.0;  // the smooth step's ends, exactly
+    if (g < 0.0) continue;
+    const double expected = heart.descent * g * std::max(0.0, -m.vertices[i].z() / r);
+    worst = std::max(worst, (moved[i] - Eigen::Vector3d(0.0, 0.0, -expected)).norm());
+    largest = std::max(largest, expected);
+    (h < 0.4 ? below : above) += 1;
+  }
+  EXPECT_GT(below, 100u);
+  EXPECT_GT(above, 100u);
+  EXPECT_NEAR(largest, 0.6, 0.01);         // the lowest point descends with the heart
+  EXPECT_LT(worst, 0.01 * heart.descent);  // the smoothed normal of a sphere: radial to 1 %
+  // Linear in the descent; none at 0; the costal face (weights by hand) none either.
+  const auto half = heart_descent_field(m, regions, {.descent = 0.3, .top = 0.5}, 0.01);
+  for (std::size_t i = 0; i < n; ++i) EXPECT_NEAR((moved[i] - 2.0 * half[i]).norm(), 0.0, 1e-15);
+  for (const auto& v : heart_descent_field(m, regions, {.descent = 0.0, .top = 0.5}, 0.01)) EXPECT_EQ(v.norm(), 0.0);
+  mesh::SurfaceRegions costal = regions;
+  costal.weight.assign(n, {0.0, 1.0, 0.0, 0.0});
+  for (const auto& v : heart_descent_field(m, costal, heart, 0.01)) EXPECT_EQ(v.norm(), 0.0);
+  EXPECT_THROW(heart_descent_field(m, regions, {.descent = 1.5, .top = 0.5}, 0.01), ValueError);
+  EXPECT_THROW(heart_descent_field(mesh::make_icosphere(r, 2), regions, heart, 0.01), ValueError);
 }
 
 TEST(Tissue, BadFilesAreOneLine) {
@@ -285,6 +330,15 @@ TEST(Tissue, BadFilesAreOneLine) {
       {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
        "sliding: {caudal: 1, blur: 1 m}\n",
        "3:28: sliding.blur: expected a length from 0 to 200 mm"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "heart: {descent: 1.5}\n",
+       "3:18: heart.descent: expected a factor from 0 to 1 (of the diaphragm's descent)"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "heart: {descent: 0.6, top: 1}\n",
+       "3:28: heart.top: expected a height above 0.1 and below 0.9"},
+      {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "heart: {top: 0.5}\n",
+       "3:8: heart: missing key 'descent' (expected fraction such as '0.5 or 50 %')"},
   };
   for (const Bad& c : cases) {
     const auto file = dir.write("t.yaml", c.yaml);

@@ -148,6 +148,19 @@ TEST(Realism, SlidingEntersTheCacheKey) {
   EXPECT_NE(field_key(m, mu, "t", b), field_key(m, mu, "t", c));
 }
 
+TEST(Realism, TheHeartsDescentEntersTheCacheKey) {
+  mesh::PhantomOptions p;
+  p.edge_length_m = 8e-3;
+  const mesh::TriangleMesh m = mesh::make_lung_phantom(p);
+  const std::vector<double> mu(m.vertices.size(), 1e3);
+  FieldOptions a, b;
+  b.heart.descent = 0.6;
+  EXPECT_NE(field_key(m, mu, "t", a), field_key(m, mu, "t", b));
+  FieldOptions c = b;
+  c.heart.top = 0.4;
+  EXPECT_NE(field_key(m, mu, "t", b), field_key(m, mu, "t", c));
+}
+
 TEST(Realism, TheSlideLiesAcrossTheSmoothedNormalAndFollowsTheDiaphragm) {
   // Oracles: the slide is orthogonal to the smoothed normal (a tangential field), it is the
   // field's own diaphragm descent times mesh::sliding_field, and the whole still adds one area unit.

@@ -30,11 +30,14 @@ namespace {
 
 constexpr double kSpacingM = 4e-3;
 // The share of the lung voxels 6 mm inside that shrink by more than 5 % (J < 0.95): the issue
-// asks for 0.1 %; the elastic inside shrinks over the heart, whose face of the lung the surface
-// field holds still while the lung above it descends (docs/voxels.md, "Around the lungs"):
-// 0.4-0.8 % in the Jacobian image here (2026-11-27), where the unfolding's moves for a 1 L breath
-// left 2.6 % on case009 before #45's change.
-constexpr double kShrinkingFraction = 1e-2;
+// asks for 0.1 %, met by the forward DVF's finite differences since the lung's face on the heart
+// descends with it and the supine preset has no forward slide (docs/voxels.md, "The lung on the
+// heart"): 0.002-0.064 % here (2026-11-27; 0.11-0.38 % before). The Jacobian image, each
+// voxel its tetrahedron's exact Jacobian (6 mm tets here), is held at 0.5 %: 0.13-0.39 % here
+// (0.39-0.77 % before), single tets and a few lingula clusters beside the heart that the
+// differences over 8 mm average out.
+constexpr double kShrinkingFraction = 1e-3;
+constexpr double kShrinkingImage = 5e-3;
 // The share of the lungs' voxels outside the pleural band whose pull-back J leaves [0.5, 2]: the
 // issue asks for none; thin recesses that the surface field stretches as the dome descends
 // (forward J up to 3.2) leave a few: 0-5 voxels here (case009: 5, 1.7e-4; 12 before #45's change).
@@ -219,9 +222,10 @@ TEST_P(CtBreath, TheInsideDoesNotShrinkTheBodyDoesNotTearAndTheLungsKeepTheirMas
             << " voxels of the CT at rest not the input's\n";
   EXPECT_GT(k.deep_voxels, 10000u) << GetParam();
   EXPECT_GT(k.growth, 1.05) << GetParam();  // the breath is in the files
-  // Interior: few voxels 6 mm inside shrink by more than 5 % (kShrinkingFraction), none below 0.5.
+  // Interior: few voxels 6 mm inside shrink by more than 5 % (kShrinkingFraction, kShrinkingImage),
+  // none below 0.5.
   EXPECT_LT(k.below_095, kShrinkingFraction) << GetParam();
-  EXPECT_LT(k.image_below_095, kShrinkingFraction) << GetParam();
+  EXPECT_LT(k.image_below_095, kShrinkingImage) << GetParam();
   EXPECT_GT(k.min_j, 0.5) << GetParam();
   EXPECT_GT(k.image_min_j, 0.5) << GetParam();
   // No tear outside the pleural band: none in the body, and no two neighbours a voxel apart; in

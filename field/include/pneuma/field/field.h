@@ -10,7 +10,9 @@
 //   normalise:   u_i = c F_i n_i with c such that sum_i dA/dx_i . u_i = one area unit, i.e. the
 //                first-order surface-area increase of x + s u is s area units.
 //   slide:       optionally (FieldOptions::sliding), plus D_c * slide_i (mesh::sliding_field),
-//                D_c the diaphragm's mean descent of c F d, all scaled again to one area unit.
+//                D_c the diaphragm's mean descent of c F d; and optionally (FieldOptions::heart)
+//                plus D_c * heart_i, the face on the heart descending with it (field/heart.h);
+//                all scaled again to one area unit.
 // Only relative moduli matter: multiplying every mu by a constant leaves u unchanged.
 #include <Eigen/Core>
 #include <cstdint>
@@ -22,6 +24,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/field/field_graph.h"
 #include "pneuma/field/field_solver.h"
+#include "pneuma/field/heart.h"
 #include "pneuma/mesh/anatomy/regions.h"
 #include "pneuma/mesh/anatomy/sliding.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
@@ -54,6 +57,9 @@ struct FieldOptions {
   // The lung sliding along the chest wall (mesh/sliding.h): a tangential field added to the
   // normalised displacement, in units of the diaphragm's mean descent; none by default.
   mesh::Sliding sliding;
+  // The lung's face on the heart descends with it (field/heart.h), as far as it looks down onto
+  // it, in units of the diaphragm's mean descent; none by default.
+  HeartDescent heart;
   std::vector<double> load;  // per vertex (>= 0, not all 0); empty: 1 everywhere (the paper)
   // The surface's regions in `frame`, when already found (with_tissue finds them once per
   // surface: seconds on a fine one); the anatomical direction finds them itself otherwise.
@@ -66,7 +72,7 @@ struct ElastostaticField {
   std::vector<double> force;                       // F per vertex for f = 1 (before normalisation; blurred
                                                    // in space when options.magnitude_smoothing > 0)
   double normalisation = 0.0;  // c: unit_displacement_i = c * force_i * d_i (not the breathing scale s),
-                               // plus the slide when options.sliding is active
+                               // plus the slide and the heart's descent when active
   std::uint32_t mass_nodes = 0, spring_nodes = 0;
   SolveReport report;
   double graph_seconds = 0.0;  // building the graph and the solver (report.seconds: solving)

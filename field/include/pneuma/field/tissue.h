@@ -90,6 +90,9 @@ struct Tissue {
   // slides along the chest wall (mesh/sliding.h, docs/realism.md 7.), in units of its diaphragm's mean descent; none:
   // no slide. Independent of the load: it scales with whatever descent the load gives.
   mesh::Sliding sliding;
+  // `heart: {descent: 0.6, top: 0.5}` (optional): the lung's face on the heart descends with it
+  // (field/heart.h, docs/voxels.md), in units of the diaphragm's mean descent; none: it stands still.
+  HeartDescent heart;
 };
 
 // The body frame of the tissue's coordinates (up, anterior).
