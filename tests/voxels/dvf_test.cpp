@@ -152,8 +152,12 @@ TEST(Dvf, SameBytesAtAnyThreadCount) {
   const DisplacementField f = forward_dvf(cube.grid, cube.lungs());
   const DisplacementField p = pullback_dvf(cube.grid, cube.lungs());
   ASSERT_EQ(f.displacement_m.size(), f1.displacement_m.size());
-  EXPECT_EQ(std::memcmp(f.displacement_m.data(), f1.displacement_m.data(), f.displacement_m.size() * sizeof(Eigen::Vector3f)), 0);
-  EXPECT_EQ(std::memcmp(p.displacement_m.data(), p1.displacement_m.data(), p.displacement_m.size() * sizeof(Eigen::Vector3f)), 0);
+  EXPECT_EQ(
+      std::memcmp(f.displacement_m.data(), f1.displacement_m.data(), f.displacement_m.size() * sizeof(Eigen::Vector3f)),
+      0);
+  EXPECT_EQ(
+      std::memcmp(p.displacement_m.data(), p1.displacement_m.data(), p.displacement_m.size() * sizeof(Eigen::Vector3f)),
+      0);
   EXPECT_EQ(f.lung, f1.lung);
   EXPECT_EQ(p.lung, p1.lung);
 }
@@ -200,7 +204,8 @@ TEST(Dvf, TheOutsideCallbackIsGivenItsRowNeighboursValue) {
           EXPECT_EQ(given[v], Eigen::Vector3d::Constant(-1.0)) << "a voxel inside the cube was asked";
         } else if (i > 0 && field.lung[v - 1] == 0) {
           // The neighbour's value as the field holds it (float32).
-          EXPECT_EQ(given[v], cube.grid.centre_m(i - 1, j, k).cast<float>().cast<double>()) << i << " " << j << " " << k;
+          EXPECT_EQ(given[v], cube.grid.centre_m(i - 1, j, k).cast<float>().cast<double>())
+              << i << " " << j << " " << k;
           ++with;
         } else {
           EXPECT_EQ(given[v], Eigen::Vector3d::Constant(-2.0)) << i << " " << j << " " << k;

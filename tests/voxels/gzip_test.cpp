@@ -123,7 +123,8 @@ TEST(GzipMembers, NiftiOfSeveralMembersReadsBackInItkAndNibabel) {
       "t = v * 1e-5\n"
       "want = (np.stack([np.sin(t), np.cos(t), t], 1) * 1e-3 * 1e3).astype(np.float32)\n"
       "got = d.transpose(2, 1, 0, 3).reshape(-1, 3)\n"
-      "assert np.abs(got - want).max() <= 2.4e-7 * np.abs(want).max(), np.abs(got - want).max()\n";  // float32 m, then mm
+      "assert np.abs(got - want).max() <= 2.4e-7 * np.abs(want).max(), np.abs(got - want).max()\n";  // float32 m, then
+                                                                                                     // mm
   const auto r = run_program(
       "/usr/bin/python3", {"-c", script, (dir.path() / "ct2.nii.gz").string(), (dir.path() / "dvf2.nii.gz").string()});
   EXPECT_EQ(r.exit_code, 0) << r.err;

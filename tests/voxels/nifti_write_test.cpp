@@ -154,10 +154,10 @@ TEST(NiftiWrite, AFieldOfSeveralBatchesIsReadBackByNibabelAsTheFormulaMadeIt) {
   for (std::size_t k = 0; k < g.size[2]; ++k)
     for (std::size_t j = 0; j < g.size[1]; ++j)
       for (std::size_t i = 0; i < g.size[0]; ++i)
-        field.displacement_m[g.index(i, j, k)] = 1e-3 * Eigen::Vector3d(static_cast<double>(i) + 0.25,
-                                                                        -static_cast<double>(j) * 0.5,
-                                                                        static_cast<double>(k) * 2.0 - 1.0)
-                                                             .cast<float>();
+        field.displacement_m[g.index(i, j, k)] =
+            1e-3 * Eigen::Vector3d(static_cast<double>(i) + 0.25, -static_cast<double>(j) * 0.5,
+                                   static_cast<double>(k) * 2.0 - 1.0)
+                       .cast<float>();
   const TempDir dir;
   for (const std::string name : {"dvf.nii.gz", "dvf.nii"}) {
     write_dvf(dir / name, field);

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cstring>
 #include <fstream>
 #include <memory>
@@ -101,13 +102,14 @@ std::array<std::uint8_t, kHeaderBytes> header(const fs::path& path, const NiftiS
   for (int d = 4; d < 8; ++d) h.pixdim[d] = 0.0f;
   static_assert(sizeof(nifti_1_header) == 348);
   std::array<std::uint8_t, kHeaderBytes> bytes{};  // the last four zero: no extensions
-  std::memcpy(bytes.data(), &h, sizeof h);  // the host's byte order, little-endian (as ITK's writer)
+  std::memcpy(bytes.data(), &h, sizeof h);         // the host's byte order, little-endian (as ITK's writer)
   return bytes;
 }
 
 bool gzipped(const fs::path& path) {
   std::string name = path.filename().string();
-  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(name.begin(), name.end(), name.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return name.ends_with(".gz");
 }
 
@@ -134,7 +136,8 @@ void write_nifti(const fs::path& path, const NiftiSpec& spec, const NiftiFill& f
         header_part = kHeaderBytes - at;
         std::memcpy(buffer.data(), head.data() + at, header_part);
       }
-      if (n > header_part) fill((at + header_part - kHeaderBytes) / size, (n - header_part) / size, buffer.data() + header_part);
+      if (n > header_part)
+        fill((at + header_part - kHeaderBytes) / size, (n - header_part) / size, buffer.data() + header_part);
       const std::span<const std::uint8_t> bytes(buffer.data(), n);
       if (compress) {
         write_gzip_members(out, bytes, gzip);

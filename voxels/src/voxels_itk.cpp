@@ -35,10 +35,10 @@
 #include <string>
 #include <vector>
 
+#include "nifti_write.h"
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
 #include "pneuma/voxels/voxel_io.h"
-#include "nifti_write.h"
 
 namespace pneuma::voxels {
 namespace fs = std::filesystem;
@@ -211,7 +211,9 @@ void write_label_map(const fs::path& path, const image::LabelMap& map) {
   const Grid grid = grid_of(map);
   const auto [lo, hi] = std::minmax_element(map.labels.begin(), map.labels.end());
   const std::int32_t min = lo == map.labels.end() ? 0 : *lo, max = hi == map.labels.end() ? 0 : *hi;
-  const NiftiType type = min >= 0 && max <= 255 ? NiftiType::uint8 : min >= -32768 && max <= 32767 ? NiftiType::int16 : NiftiType::int32;
+  const NiftiType type = min >= 0 && max <= 255          ? NiftiType::uint8
+                         : min >= -32768 && max <= 32767 ? NiftiType::int16
+                                                         : NiftiType::int32;
   if (is_nifti(extension)) {
     const std::int32_t* labels = map.labels.data();
     write_nifti(path, {grid, type, 1, 0, {}}, [&](std::size_t first, std::size_t count, void* out) {
