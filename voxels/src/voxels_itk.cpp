@@ -7,7 +7,7 @@
 // NIfTI (.nii, .nii.gz) is written by nifti_write.h straight from the fields and images (#50):
 // the header by the NIfTI library ITK's writer uses, the data converted a batch at a time and
 // gzipped in parallel members (gzip.h). The layout is ITK 5.2's NiftiImageIO's for a vector image
-// (tests/voxels/voxel_io_test.cpp compares the two headers): dim = (5, nx, ny, nz, 1, 3),
+// (tests/voxels/nifti_write_test.cpp compares the two writers' files): dim = (5, nx, ny, nz, 1, 3),
 // intent_code 1007 (NIFTI_INTENT_VECTOR), the components in ITK's LPS (no flip to NIfTI's RAS+),
 // components the slowest axis, the qform/sform carrying the geometry in RAS+ (x and y negated)
 // as for any image: what ITK, plastimatch and ANTs read back. Unlike ITK's writer it also sets
