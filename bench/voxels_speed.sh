@@ -7,10 +7,12 @@
 #           forward and pull-back DVF, warped label map and warped CT (a stand-in CT made from the
 #           label map on its grid: lung -850 + 5 l HU for lobe l, everything else 40 HU), no report;
 #           then plastimatch warps that CT with the run's pull-back DVF (linear, the default)
+#   native-nii  the same with `format: nii` (no compression; the table of BENCHMARKS.md "Files"),
+#           and plastimatch warping the CT with that run's plain .nii pull-back DVF
 #   phases  ten phase bins at that grid over 24 s of breathing (DVFs, labels and Jacobian images,
 #           the defaults; no CT, no report)
 #   shipped scenarios/4d-from-labels.yaml as shipped (2 mm, two time points, report on)
-# Usage: bench/voxels_speed.sh [MODES (default "native phases shipped")] [WORK_DIR]
+# Usage: bench/voxels_speed.sh [MODES (default "native phases shipped"; also native-nii)] [WORK_DIR]
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 modes=${1:-native phases shipped}
@@ -67,6 +69,17 @@ PY
   ls -l native/voxels
   timed "native: plastimatch warp" plastimatch warp --input ct.nii.gz \
     --xf native/voxels/dvf-pullback-end_inspiration.nii.gz --output-img plastimatch-ct.nii.gz
+fi
+
+if [[ " $modes " == *" native-nii "* ]]; then
+  [ -f native.yaml ] || { echo "native-nii needs the native mode first (its CT and scenario)" >&2; exit 2; }
+  sed -e 's#^    jacobian: false#    jacobian: false\n    format: nii#' native.yaml > native-nii.yaml
+  rm -rf native-nii
+  timed "native-nii: pneuma run" "$pneuma" run native-nii.yaml -o native-nii --quiet
+  stages native-nii
+  ls -l native-nii/voxels
+  timed "native-nii: plastimatch warp" plastimatch warp --input ct.nii.gz \
+    --xf native-nii/voxels/dvf-pullback-end_inspiration.nii --output-img plastimatch-ct-nii.nii.gz
 fi
 
 if [[ " $modes " == *" phases "* ]]; then

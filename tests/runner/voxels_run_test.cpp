@@ -252,7 +252,7 @@ TEST(VoxelsRun, TheWarpedLungsBoundaryIsTheSurfaceFrames) {
   const std::vector<pneuma::voxels::LungMotion> lungs{{inside.mesh, inside.unit_displacement, scale}};
   const auto forward = pneuma::voxels::forward_dvf(grid, lungs);
   std::size_t checked = 0;
-  double largest_error = 0.0;
+  double largest_error = 0.0, largest_m = 0.0;
   for (std::size_t t = 0; t < inside.mesh.tet_count(); t += 5) {
     // The voxel centre nearest to the tet's centroid, where it lies in this tet.
     const auto& tet = inside.mesh.tets[t];
@@ -269,11 +269,12 @@ TEST(VoxelsRun, TheWarpedLungsBoundaryIsTheSurfaceFrames) {
                  l[1] * inside.unit_displacement[tet[2]] + l[2] * inside.unit_displacement[tet[3]]);
     const std::size_t at = grid.index(static_cast<std::size_t>(ijk.x()), static_cast<std::size_t>(ijk.y()),
                                       static_cast<std::size_t>(ijk.z()));
-    largest_error = std::max(largest_error, (forward.displacement_m[at] - expected).norm());
+    largest_error = std::max(largest_error, (forward.displacement_m[at].cast<double>() - expected).norm());
+    largest_m = std::max(largest_m, expected.norm());
     ++checked;
   }
   ASSERT_GT(checked, 50u);
-  EXPECT_LT(largest_error, 1e-9);
+  EXPECT_LT(largest_error, 1e-9 + 1.1e-7 * largest_m);  // the field's float32: half an ulp per component
 }
 
 // `at: [phases]`: a DVF pair and warped label map per respiratory bin of outputs.phases, each at

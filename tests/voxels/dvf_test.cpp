@@ -17,6 +17,10 @@
 namespace pneuma::voxels {
 namespace {
 
+// The fields are stored as float32 (dvf.h): half an ulp per component, sqrt(3) of it for a
+// vector, over the largest value, and the double computation's own 1e-12.
+constexpr double kFloat32 = 0.5 * 1.1920929e-7 * 1.7320508 + 1e-12;
+
 struct AffineCube {
   Eigen::Vector3d origin_m{0.010, -0.020, 0.030};
   double h_m = 5e-3;
@@ -69,11 +73,11 @@ TEST(ForwardDvf, AffineMotionIsReproducedAtEveryVoxelInside) {
           EXPECT_EQ(f.lung[v], 0) << i << " " << j << " " << k;
         }
         if (f.lung[v] == 0) {
-          EXPECT_EQ(f.displacement_m[v], Eigen::Vector3d::Zero());
+          EXPECT_EQ(f.displacement_m[v], Eigen::Vector3f::Zero());
           continue;
         }
         ++inside;
-        EXPECT_LE((f.displacement_m[v] - cube.s * (cube.a * x + cube.b)).norm(), 1e-12 * largest_m);
+        EXPECT_LE((f.displacement_m[v].cast<double>() - cube.s * (cube.a * x + cube.b)).norm(), kFloat32 * largest_m);
       }
   // About the cube's volume in voxels.
   const double expected = std::pow(cube.length_m(), 3) / cube.grid.voxel_volume_m3();
@@ -103,7 +107,7 @@ TEST(PullbackDvf, IsTheAnalyticInverseOfTheAffineMotion) {
         }
         if (v.lung[n] == 0) continue;
         ++inside;
-        EXPECT_LE((v.displacement_m[n] - (rest - x)).norm(), 1e-12 * largest_m);
+        EXPECT_LE((v.displacement_m[n].cast<double>() - (rest - x)).norm(), kFloat32 * largest_m);
       }
   const double expected = std::pow(cube.length_m(), 3) * (Eigen::Matrix3d::Identity() + cube.s * cube.a).determinant() /
                           cube.grid.voxel_volume_m3();
@@ -148,8 +152,12 @@ TEST(Dvf, SameBytesAtAnyThreadCount) {
   const DisplacementField f = forward_dvf(cube.grid, cube.lungs());
   const DisplacementField p = pullback_dvf(cube.grid, cube.lungs());
   ASSERT_EQ(f.displacement_m.size(), f1.displacement_m.size());
-  EXPECT_EQ(std::memcmp(f.displacement_m.data(), f1.displacement_m.data(), f.displacement_m.size() * 24), 0);
-  EXPECT_EQ(std::memcmp(p.displacement_m.data(), p1.displacement_m.data(), p.displacement_m.size() * 24), 0);
+  EXPECT_EQ(
+      std::memcmp(f.displacement_m.data(), f1.displacement_m.data(), f.displacement_m.size() * sizeof(Eigen::Vector3f)),
+      0);
+  EXPECT_EQ(
+      std::memcmp(p.displacement_m.data(), p1.displacement_m.data(), p.displacement_m.size() * sizeof(Eigen::Vector3f)),
+      0);
   EXPECT_EQ(f.lung, f1.lung);
   EXPECT_EQ(p.lung, p1.lung);
 }
@@ -163,7 +171,7 @@ TEST(Dvf, FirstLungWinsAndOutsideComesFromTheCallback) {
       cube.grid, lungs, [&](const Eigen::Vector3d&, const Eigen::Vector3d*) { return Eigen::Vector3d(body); });
   for (std::size_t v = 0; v < f.lung.size(); ++v) {
     EXPECT_NE(f.lung[v], 2);
-    EXPECT_EQ(f.displacement_m[v], f.lung[v] == 1 ? Eigen::Vector3d::Zero() : body);
+    EXPECT_EQ(f.displacement_m[v], f.lung[v] == 1 ? Eigen::Vector3f::Zero() : Eigen::Vector3f(body.cast<float>()));
   }
 }
 
@@ -195,7 +203,9 @@ TEST(Dvf, TheOutsideCallbackIsGivenItsRowNeighboursValue) {
         if (field.lung[v] != 0) {
           EXPECT_EQ(given[v], Eigen::Vector3d::Constant(-1.0)) << "a voxel inside the cube was asked";
         } else if (i > 0 && field.lung[v - 1] == 0) {
-          EXPECT_EQ(given[v], cube.grid.centre_m(i - 1, j, k)) << i << " " << j << " " << k;
+          // The neighbour's value as the field holds it (float32).
+          EXPECT_EQ(given[v], cube.grid.centre_m(i - 1, j, k).cast<float>().cast<double>())
+              << i << " " << j << " " << k;
           ++with;
         } else {
           EXPECT_EQ(given[v], Eigen::Vector3d::Constant(-2.0)) << i << " " << j << " " << k;

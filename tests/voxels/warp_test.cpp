@@ -90,7 +90,8 @@ TEST(WarpImage, LinearImageIsSampledExactlyAndOutsideIsAir) {
   const Eigen::Matrix4d to_ijk = ct.grid.lps_to_ijk();
   std::size_t inside = 0, outside = 0;
   for (std::size_t v = 0; v < warped.values.size(); ++v) {
-    const Eigen::Vector3d y = pull.grid.centre_m(v % 64, (v / 64) % 64, v / 4096) + pull.displacement_m[v];
+    const Eigen::Vector3d y =
+        pull.grid.centre_m(v % 64, (v / 64) % 64, v / 4096) + pull.displacement_m[v].cast<double>();
     const Eigen::Vector3d q = to_ijk.block<3, 3>(0, 0) * y + to_ijk.block<3, 1>(0, 3);
     if (q.minCoeff() >= 0 && q.maxCoeff() <= 63) {
       ++inside;

@@ -42,10 +42,10 @@ Eigen::Vector3d index_derivative(const DisplacementField& f, const std::vector<s
   std::array<std::size_t, 3> lo = at, hi = at;
   const bool has_lo = at[axis] > 0 && (--lo[axis], outside(index(lo)));
   const bool has_hi = at[axis] + 1 < f.grid.size[axis] && (++hi[axis], outside(index(hi)));
-  const Eigen::Vector3d& here = f.displacement_m[index(at)];
-  if (has_lo && has_hi) return 0.5 * (f.displacement_m[index(hi)] - f.displacement_m[index(lo)]);
-  if (has_hi) return f.displacement_m[index(hi)] - here;
-  if (has_lo) return here - f.displacement_m[index(lo)];
+  const auto u = [&](const std::array<std::size_t, 3>& p) { return f.displacement_m[index(p)].cast<double>(); };
+  if (has_lo && has_hi) return 0.5 * (u(hi) - u(lo));
+  if (has_hi) return u(hi) - u(at);
+  if (has_lo) return u(at) - u(lo);
   return Eigen::Vector3d::Zero();
 }
 

@@ -17,11 +17,13 @@ namespace {
 void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i, std::size_t j,
                  std::size_t k) {
   if (!outside) {
-    field.displacement_m[v] = Eigen::Vector3d::Zero();
+    field.displacement_m[v] = Eigen::Vector3f::Zero();
     return;
   }
-  const Eigen::Vector3d* previous = i > 0 && field.lung[v - 1] == 0 ? &field.displacement_m[v - 1] : nullptr;
-  field.displacement_m[v] = outside(field.grid.centre_m(i, j, k), previous);
+  const bool has_previous = i > 0 && field.lung[v - 1] == 0;
+  const Eigen::Vector3d previous =
+      has_previous ? Eigen::Vector3d(field.displacement_m[v - 1].cast<double>()) : Eigen::Vector3d::Zero();
+  field.displacement_m[v] = outside(field.grid.centre_m(i, j, k), has_previous ? &previous : nullptr).cast<float>();
 }
 
 }  // namespace
@@ -60,7 +62,7 @@ void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, Displaceme
   detail::rasterize(
       grid, std::span<const detail::TetSet>(sets), field.lung,
       [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
-          std::size_t) { field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l); },
+          std::size_t) { field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>(); },
       [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
 }
 
@@ -85,7 +87,7 @@ void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, Displacem
         // x = sum l_c (rest_c + s U_c), so the rest point is x - s sum l_c U_c: v = -s sum l_c U_c,
         // the same inverse without cancelling coordinates against each other (a time point at rest,
         // s = 0, is an exact zero field, not rounding noise).
-        field.displacement_m[v] = -detail::tet_displacement(lungs[s], t, l);
+        field.displacement_m[v] = (-detail::tet_displacement(lungs[s], t, l)).cast<float>();
       },
       [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
 }

@@ -86,6 +86,12 @@ std::vector<std::uint8_t> gzip_bytes(std::span<const std::uint8_t> data, const G
   return out;
 }
 
+void write_gzip_members(std::ostream& out, std::span<const std::uint8_t> data, const GzipSettings& settings) {
+  check_level(settings);
+  for (const auto& m : members(data, settings))
+    out.write(reinterpret_cast<const char*>(m.data()), static_cast<std::streamsize>(m.size()));
+}
+
 void gzip_file(const std::filesystem::path& from, const std::filesystem::path& to, const GzipSettings& settings) {
   check_level(settings);
   std::ifstream in(from, std::ios::binary);
@@ -102,8 +108,7 @@ void gzip_file(const std::filesystem::path& from, const std::filesystem::path& t
     const auto n = static_cast<std::size_t>(in.gcount());
     if (n == 0 && !first) break;  // an empty file is still one (empty) member
     first = false;
-    for (const auto& m : members(std::span(buffer.data(), n), settings))
-      out.write(reinterpret_cast<const char*>(m.data()), static_cast<std::streamsize>(m.size()));
+    write_gzip_members(out, std::span(buffer.data(), n), settings);
     if (n < buffer.size()) break;
   }
   if (in.bad()) throw IoError(from.string() + ": cannot read");

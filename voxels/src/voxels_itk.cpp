@@ -1,27 +1,26 @@
-// The module's one translation unit that includes ITK (5.2: ITKIONIFTI, ITKIOMeta, ITKIONRRD
-// over ITKIOImageBase), the writers (images are read by mesh/labels' reader), as
-// image/src/itk_read.cpp does: ImageIO classes used directly (no
-// itk::Image, no IO factories), each call alone and silent (itk_quiet.h), ITK's exceptions turned
-// into pneuma's one line.
+// The module's one translation unit that includes ITK's C++ (5.2: ITKIOMeta, ITKIONRRD over
+// ITKIOImageBase): the MetaImage and NRRD writers (images are read by image/'s reader), as
+// image/src/itk_read.cpp does: ImageIO classes used directly (no itk::Image, no IO factories),
+// each call alone and silent (itk_quiet.h), ITK's exceptions turned into pneuma's one line.
+// NRRD's key/values and measurement frame come from the metadata dictionary (NrrdImageIO::Write).
 //
-// What ITK 5.2's NiftiImageIO does with a vector image (measured: tests/voxels/voxel_io_test.cpp
-// reads the file back with nibabel): dim = (5, nx, ny, nz, 1, 3), intent_code 1007
-// (NIFTI_INTENT_VECTOR), and the components stored as given, in ITK's LPS (no flip to NIfTI's
-// RAS+), while the qform/sform carry the geometry in RAS+ (x and y negated) as for any image.
-// This is what ITK itself, plastimatch and ANTs read back. ITK 5.2's NIfTI writer sets neither
-// `descrip` (it ignores ITK_FileNotes; measured) nor another intent than 1007, so a DVF is written
-// by ITK uncompressed, its header's descrip (and, for the NIfTI standard's DISPVECT with RAS
-// components, intent_code 1006) patched, and then gzipped by pneuma (gzip.h: parallel members cut
-// at fixed offsets, no time stamp: the same bytes each run and at any thread count); label maps
-// and images too, so that every .nii.gz is compressed alike. NRRD's key/values and measurement frame come from the
-// metadata dictionary (NrrdImageIO::Write).
+// NIfTI (.nii, .nii.gz) is written by nifti_write.h straight from the fields and images (#50):
+// the header by the NIfTI library ITK's writer uses, the data converted a batch at a time and
+// gzipped in parallel members (gzip.h). The layout is ITK 5.2's NiftiImageIO's for a vector image
+// (tests/voxels/nifti_write_test.cpp compares the two writers' files): dim = (5, nx, ny, nz, 1, 3),
+// intent_code 1007 (NIFTI_INTENT_VECTOR), the components in ITK's LPS (no flip to NIfTI's RAS+),
+// components the slowest axis, the qform/sform carrying the geometry in RAS+ (x and y negated)
+// as for any image: what ITK, plastimatch and ANTs read back. Unlike ITK's writer it also sets
+// `descrip` (the DVF's direction) and, for the NIfTI standard's DISPVECT with RAS components,
+// intent_code 1006.
 // clang-format off
 #include "itk_clang.h"  // first: Debian's ITK headers under clang
 // clang-format on
 #include <itkMetaDataObject.h>
 #include <itkMetaImageIO.h>
-#include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "itk_quiet.h"
 
@@ -36,9 +35,9 @@
 #include <string>
 #include <vector>
 
+#include "nifti_write.h"
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
-#include "pneuma/voxels/gzip.h"
 #include "pneuma/voxels/voxel_io.h"
 
 namespace pneuma::voxels {
@@ -63,8 +62,6 @@ std::string written_extension(const fs::path& path) {
 
 // What a file says about itself beyond the grid (DVFs).
 struct FileNotes {
-  std::string nifti_description;                                 // NIfTI's descrip
-  std::int16_t nifti_intent = 0;                                 // 0: ITK's own intent_code
   std::vector<std::pair<std::string, std::string>> nrrd_fields;  // NRRD key:=value
   bool nrrd_measurement_frame = false;                           // the identity (components in LPS)
 };
@@ -75,42 +72,15 @@ const char* format_name(const std::string& extension) {
   return "NIfTI";
 }
 
-// NIfTI-1's header: intent_code a little-endian int16 at byte 68 (ITK writes the host's order,
-// little-endian on every platform pneuma builds for), descrip 80 bytes at 148 (NUL-terminated).
-void patch_nifti_header(const fs::path& nii, const FileNotes& notes) {
-  std::fstream file(nii, std::ios::in | std::ios::out | std::ios::binary);
-  if (notes.nifti_intent != 0) {
-    const std::array<char, 2> bytes{static_cast<char>(notes.nifti_intent & 0xff),
-                                    static_cast<char>((notes.nifti_intent >> 8) & 0xff)};
-    file.seekp(68);
-    file.write(bytes.data(), 2);
-  }
-  std::array<char, 80> descrip{};
-  std::copy_n(notes.nifti_description.begin(), std::min<std::size_t>(notes.nifti_description.size(), 79),
-              descrip.begin());
-  file.seekp(148);
-  file.write(descrip.data(), descrip.size());
-  if (!file) throw IoError(nii.string() + ": cannot patch the NIfTI header");
-}
-
 // Writes `components` values of `component` per voxel (`buffer`, component fastest, then i, j,
-// k) on `grid` to `path`, atomically: ITK writes a temporary name with the file's extension (it
-// chooses compression by it), which is renamed into place.
+// k) on `grid` to `path` (.mha or .nrrd), atomically: ITK writes a temporary name with the file's
+// extension (it chooses the format by it), which is renamed into place.
 void write_itk(const fs::path& path, const Grid& grid, itk::IOPixelEnum pixel, Component component, unsigned components,
                const void* buffer, const FileNotes& notes = {}) {
   const std::string extension = written_extension(path);
-  if (extension.empty()) {
-    throw ValueError(path.string() + ": expected a voxel file name ending in .nii.gz, .nii, .mha or .nrrd");
-  }
-  const bool nifti = extension == ".nii.gz" || extension == ".nii";
-  // NIfTI: ITK writes the plain .nii, pneuma patches its header (DVFs) and gzips it in parallel
-  // members (gzip.h; ITK's znzlib would compress in one thread).
-  const bool patch = nifti && (notes.nifti_intent != 0 || !notes.nifti_description.empty());
   const Eigen::Vector3d spacing_m = grid.spacing_m();
   write_atomically(path, [&](const fs::path& tmp) {
-    const fs::path itk_path = tmp.string() + (nifti ? ".nii" : extension);
-    // ITK alone under the lock: the gzip after it runs TBB tasks, which must not wait on a lock
-    // another task of the same thread may hold.
+    const fs::path itk_path = tmp.string() + extension;
     try {
       const std::lock_guard<std::mutex> lock(itk_quiet::mutex());
       itk::Object::SetGlobalWarningDisplay(false);
@@ -118,10 +88,8 @@ void write_itk(const fs::path& path, const Grid& grid, itk::IOPixelEnum pixel, C
       itk::ImageIOBase::Pointer io;
       if (extension == ".mha") {
         io = itk::MetaImageIO::New().GetPointer();
-      } else if (extension == ".nrrd") {
-        io = itk::NrrdImageIO::New().GetPointer();
       } else {
-        io = itk::NiftiImageIO::New().GetPointer();
+        io = itk::NrrdImageIO::New().GetPointer();
       }
       itk::MetaDataDictionary& dictionary = io->GetMetaDataDictionary();
       if (extension == ".nrrd") {
@@ -149,7 +117,7 @@ void write_itk(const fs::path& path, const Grid& grid, itk::IOPixelEnum pixel, C
       io->SetPixelType(pixel);
       io->SetComponentType(component);
       io->SetNumberOfComponents(components);
-      io->SetUseCompression(!nifti);
+      io->SetUseCompression(true);
       io->SetFileName(itk_path.string());
       io->WriteImageInformation();
       io->Write(buffer);
@@ -160,25 +128,33 @@ void write_itk(const fs::path& path, const Grid& grid, itk::IOPixelEnum pixel, C
                     " writer failed: is the folder writable, the disk full?)");
     }
     std::error_code ec;
-    if (nifti) {
-      try {
-        if (patch) patch_nifti_header(itk_path, notes);
-        if (extension == ".nii.gz") {
-          gzip_file(itk_path, tmp);
-          fs::remove(itk_path, ec);
-          return;
-        }
-      } catch (const Error&) {
-        fs::remove(itk_path, ec);
-        throw;
-      }
-    }
     fs::rename(itk_path, tmp, ec);
     if (ec) {
       fs::remove(itk_path, ec);
       throw IoError(path.string() + ": cannot write: " + ec.message());
     }
   });
+}
+
+// The extension, checked: ValueError for another one.
+std::string checked_extension(const fs::path& path) {
+  std::string extension = written_extension(path);
+  if (extension.empty()) {
+    throw ValueError(path.string() + ": expected a voxel file name ending in .nii.gz, .nii, .mha or .nrrd");
+  }
+  return extension;
+}
+
+bool is_nifti(const std::string& extension) { return extension == ".nii.gz" || extension == ".nii"; }
+
+// `values` converted to T, from value `first` on, in parallel (a batch of write_nifti's).
+template <typename T, typename From>
+void fill_as(const From* values, std::size_t first, std::size_t count, void* out) {
+  T* to = static_cast<T*>(out);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, std::size_t{1} << 16),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t q = r.begin(); q != r.end(); ++q) to[q] = static_cast<T>(values[first + q]);
+                    });
 }
 
 }  // namespace
@@ -192,22 +168,36 @@ std::string dvf_description(DvfDirection direction, DvfConvention convention) {
 }
 
 void write_dvf(const fs::path& path, const DisplacementField& field, DvfDirection direction, DvfConvention convention) {
-  const std::string extension = written_extension(path);
-  const bool nifti = extension == ".nii.gz" || extension == ".nii";
-  if (convention == DvfConvention::nifti && !nifti) {
+  const std::string extension = checked_extension(path);
+  if (convention == DvfConvention::nifti && !is_nifti(extension)) {
     throw ValueError(path.string() + ": the NIfTI standard's DVF convention needs a .nii.gz or .nii name");
   }
   // RAS components: x and y negated (the NIfTI standard's vectors live in the file's RAS world).
   const std::array<double, 3> sign = convention == DvfConvention::nifti ? std::array<double, 3>{-1e3, -1e3, 1e3}
                                                                         : std::array<double, 3>{1e3, 1e3, 1e3};
-  std::vector<float> mm(3 * field.displacement_m.size());
-  for (std::size_t v = 0; v < field.displacement_m.size(); ++v)
+  const std::size_t n = field.displacement_m.size();
+  if (is_nifti(extension)) {
+    // Component by component (NIfTI's slowest axis), a batch at a time: no copy of the field.
+    NiftiSpec spec{field.grid, NiftiType::float32, 3,
+                   convention == DvfConvention::nifti ? std::int16_t{1006} : std::int16_t{0},  // NIFTI_INTENT_DISPVECT
+                   dvf_description(direction, convention)};
+    write_nifti(path, spec, [&](std::size_t first, std::size_t count, void* out) {
+      float* to = static_cast<float*>(out);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, std::size_t{1} << 16),
+                        [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t q = r.begin(); q != r.end(); ++q) {
+                            const std::size_t c = (first + q) / n, v = first + q - c * n;
+                            to[q] = static_cast<float>(field.displacement_m[v][static_cast<Eigen::Index>(c)] * sign[c]);
+                          }
+                        });
+    });
+    return;
+  }
+  std::vector<float> mm(3 * n);
+  for (std::size_t v = 0; v < n; ++v)
     for (std::size_t c = 0; c < 3; ++c)
       mm[3 * v + c] = static_cast<float>(field.displacement_m[v][static_cast<Eigen::Index>(c)] * sign[c]);
   FileNotes notes;
-  notes.nifti_description = dvf_description(direction, convention);
-  notes.nifti_intent =
-      convention == DvfConvention::nifti ? std::int16_t{1006} : std::int16_t{0};  // NIFTI_INTENT_DISPVECT
   // Slicer's displacement-field NRRD (its Transforms docs): the direction, and intent_code 1006 so
   // that ITK-based readers see a displacement field.
   notes.nrrd_fields = {{"displacement field type", direction == DvfDirection::pullback ? "resampling" : "modeling"},
@@ -217,13 +207,24 @@ void write_dvf(const fs::path& path, const DisplacementField& field, DvfDirectio
 }
 
 void write_label_map(const fs::path& path, const image::LabelMap& map) {
+  const std::string extension = checked_extension(path);
   const Grid grid = grid_of(map);
   const auto [lo, hi] = std::minmax_element(map.labels.begin(), map.labels.end());
   const std::int32_t min = lo == map.labels.end() ? 0 : *lo, max = hi == map.labels.end() ? 0 : *hi;
-  if (min >= 0 && max <= 255) {
+  const NiftiType type = min >= 0 && max <= 255          ? NiftiType::uint8
+                         : min >= -32768 && max <= 32767 ? NiftiType::int16
+                                                         : NiftiType::int32;
+  if (is_nifti(extension)) {
+    const std::int32_t* labels = map.labels.data();
+    write_nifti(path, {grid, type, 1, 0, {}}, [&](std::size_t first, std::size_t count, void* out) {
+      if (type == NiftiType::uint8) fill_as<std::uint8_t>(labels, first, count, out);
+      else if (type == NiftiType::int16) fill_as<std::int16_t>(labels, first, count, out);
+      else fill_as<std::int32_t>(labels, first, count, out);
+    });
+  } else if (type == NiftiType::uint8) {
     const std::vector<std::uint8_t> values(map.labels.begin(), map.labels.end());
     write_itk(path, grid, itk::IOPixelEnum::SCALAR, Component::UCHAR, 1, values.data());
-  } else if (min >= -32768 && max <= 32767) {
+  } else if (type == NiftiType::int16) {
     const std::vector<std::int16_t> values(map.labels.begin(), map.labels.end());
     write_itk(path, grid, itk::IOPixelEnum::SCALAR, Component::SHORT, 1, values.data());
   } else {
@@ -232,6 +233,12 @@ void write_label_map(const fs::path& path, const image::LabelMap& map) {
 }
 
 void write_image(const fs::path& path, const Image& image) {
+  if (is_nifti(checked_extension(path))) {
+    write_nifti(path, {image.grid, NiftiType::float32, 1, 0, {}}, [&](std::size_t first, std::size_t count, void* out) {
+      fill_as<float>(image.values.data(), first, count, out);
+    });
+    return;
+  }
   write_itk(path, image.grid, itk::IOPixelEnum::SCALAR, Component::FLOAT, 1, image.values.data());
 }
 

@@ -31,7 +31,7 @@ void for_each_sample(const DisplacementField& field, const Grid& source, const F
       for (std::size_t j = 0; j < grid.size[1]; ++j)
         for (std::size_t i = 0; i < grid.size[0]; ++i) {
           const std::size_t v = grid.index(i, j, k);
-          const Eigen::Vector3d y = grid.centre_m(i, j, k) + field.displacement_m[v];
+          const Eigen::Vector3d y = grid.centre_m(i, j, k) + field.displacement_m[v].cast<double>();
           f(v, Eigen::Vector3d(linear * y + offset));
         }
   }));

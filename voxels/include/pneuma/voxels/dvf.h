@@ -38,7 +38,10 @@ using OutsideField = std::function<Eigen::Vector3d(const Eigen::Vector3d& x_lps_
 
 struct DisplacementField {
   Grid grid;
-  std::vector<Eigen::Vector3d> displacement_m;  // one per voxel, metres, LPS
+  // One per voxel, metres, LPS. float32, what every DVF file holds (computed in double and
+  // rounded once): half the memory of double at a CT's own grid (#50: 0.85 GB per field at
+  // 512 x 512 x 270), 1e-7 relative, far below a voxel.
+  std::vector<Eigen::Vector3f> displacement_m;
   // Per voxel: 0 outside every lung, else 1 + the index of the lung (in the list given) whose
   // tet holds it (rest tets for the forward field, deformed tets for the pull-back).
   std::vector<std::uint8_t> lung;

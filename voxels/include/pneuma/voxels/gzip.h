@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <ostream>
 #include <span>
 #include <vector>
 
@@ -27,6 +28,12 @@ inline constexpr GzipSettings kVoxelGzip{};
 
 // `data` as a gzip file (one or more members). Throws ValueError for a level out of range.
 std::vector<std::uint8_t> gzip_bytes(std::span<const std::uint8_t> data, const GzipSettings& settings = kVoxelGzip);
+
+// The members of `data` (cut every `member_bytes` from its start), compressed in parallel, written
+// to `out` one after the other: a piece of a gzip file whose earlier pieces were whole multiples of
+// `member_bytes` (a file written a batch at a time without holding it whole: nifti_write.h).
+void write_gzip_members(std::ostream& out, std::span<const std::uint8_t> data,
+                        const GzipSettings& settings = kVoxelGzip);
 
 // `from` gzipped into `to`, read and compressed a batch of members at a time (memory bounded by
 // the batch, not the file). Throws IoError when either cannot be read or written.

@@ -1,8 +1,9 @@
 #pragma once
-// Voxel files written through ITK 5.2 (voxels_itk.cpp, the module's one ITK translation unit), by the
-// name's ending: .nii / .nii.gz (NIfTI-1), .mha (MetaImage, one file) or .nrrd (NRRD, one file,
-// gzip). Every file is written atomically (a temporary name in the same folder, then a rename): a
-// failure leaves nothing.
+// Voxel files by the name's ending: .nii / .nii.gz (NIfTI-1, written from memory with ITK 5.2's
+// header: voxels/src/nifti_write.h), .mha (MetaImage, one file) or .nrrd (NRRD, one file, gzip),
+// these two through ITK 5.2 (voxels_itk.cpp, the module's one ITK C++ translation unit). Every
+// file is written atomically (a temporary name in the same folder, then a rename): a failure
+// leaves nothing.
 //
 // DVFs: 3 float32 components per voxel in millimetres, on the grid's geometry, each file saying
 // which way it points and in which frame its components are (docs/formats.md, "Which reader reads
