@@ -11,12 +11,12 @@
 #           the defaults; no CT, no report)
 #   shipped scenarios/4d-from-labels.yaml as shipped (2 mm, two time points, report on), cold (a
 #           fresh output folder) then warm (the same folder: the field cache hit), with CPU times
-# Usage: bench/voxels_speed.sh [MODES (default "native phases shipped")] [WORK_DIR]
+# Usage: [PNEUMA=path/to/pneuma] bench/voxels_speed.sh [MODES (default "native phases shipped")] [WORK_DIR]
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 modes=${1:-native phases shipped}
 work=${2:-$(mktemp -d /tmp/pneuma-voxels-speed.XXXXXX)}
-pneuma=$here/build/release/cli/pneuma
+pneuma=${PNEUMA:-$here/build/release/cli/pneuma}  # PNEUMA=...: another build (a baseline)
 labels=$(cd "$here/../shared/data/ct-lobes" && pwd)/case004_lobes.nii.gz
 mkdir -p "$work"
 cd "$work"

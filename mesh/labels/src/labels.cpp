@@ -420,6 +420,11 @@ std::string LabelSurfaceReport::provenance() const {
   return s;
 }
 
+double extraction_edge_m(double target_edge_m) {
+  constexpr double kWithoutTarget = 2e-3, kCoarsest = 4e-3;
+  return target_edge_m > 0.0 ? std::min(target_edge_m, kCoarsest) : kWithoutTarget;
+}
+
 std::filesystem::path provenance_path(const std::filesystem::path& mesh_path) {
   std::filesystem::path p = mesh_path;
   p += ".provenance.txt";

@@ -143,6 +143,9 @@ std::string SurfaceSource::key_text(std::size_t i) const {
                   spec_.metres_per_unit, spec_.repair, spec_.edge_m, fmt::join(values, ","));
   if (two_lungs() && !spec_.lungs[1 - i].label_values.empty())
     text += fmt::format(", apart from {}", fmt::join(spec_.lungs[1 - i].label_values, ","));
+  // The facet size it is meshed at (a field cached before that size followed the edge is not
+  // taken for one made now).
+  if (from_labels()) text += fmt::format(", meshed at {:.17g} m", extraction_edge_m(spec_.edge_m));
   return text;
 }
 
@@ -209,8 +212,8 @@ TriangleMesh SurfaceSource::original_surface(std::size_t i) const {
 }
 
 // A file with a remeshing target is repaired, remeshed, and only then judged: remeshing removes
-// slivers repair left. A label map is extracted at its own resolution (at most 2 mm, finer for a
-// finer target) and remeshed to the target.
+// slivers repair left. A label map is extracted at the target (at most 4 mm: extraction_edge_m)
+// and remeshed to it.
 TriangleMesh SurfaceSource::surface(std::size_t i) const {
   const LungSource& lung = spec_.lungs[i];
   const double edge_m = spec_.edge_m;
@@ -220,7 +223,7 @@ TriangleMesh SurfaceSource::surface(std::size_t i) const {
   }
   if (from_labels()) {
     LabelSurfaceOptions extract;
-    if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
+    extract.edge_length_m = extraction_edge_m(edge_m);
     const std::shared_ptr<const image::LabelMap> map = label_map();
     // A lung of two is extracted from the map with the contact band removed (its messages name
     // the file, where one lung's name the path).
