@@ -236,11 +236,11 @@ Model compile(const Scenario& s, const CompileOptions& options) {
   }
   for (std::size_t i = 0; i < count; ++i) {
     if (errors[i]) std::rethrow_exception(errors[i]);
+  }
+  for (std::size_t i = 0; i < count; ++i) {
     model.report.field_reused = model.report.field_reused && reports[i].field_reused;
     for (auto& t : reports[i].timings_s) model.report.timings_s.push_back(std::move(t));
     for (auto& w : reports[i].warnings) model.report.warnings.push_back(std::move(w));
-  }
-  for (std::size_t i = 0; i < count; ++i) {
     model.lungs.push_back(std::move(*made[i]));
     // Where the scan cut a lung flat, its surface is not the pleura: said also on a cached field
     // (the label map is read for it then).
