@@ -421,8 +421,10 @@ std::string LabelSurfaceReport::provenance() const {
 }
 
 double extraction_edge_m(double target_edge_m) {
-  constexpr double kWithoutTarget = 2e-3, kCoarsest = 4e-3;
-  return target_edge_m > 0.0 ? std::min(target_edge_m, kCoarsest) : kWithoutTarget;
+  // Above 4 mm the 2 mm meshing stays: remeshed to 12 mm, case004's right lung meshed at 4 mm
+  // cut into itself at rest (TwoLungs.TheDemoAndTheShippedScenarioRunWithBothLungs).
+  constexpr double kDefault = 2e-3, kCoarsest = 4e-3;
+  return target_edge_m > 0.0 && target_edge_m <= kCoarsest ? target_edge_m : kDefault;
 }
 
 std::filesystem::path provenance_path(const std::filesystem::path& mesh_path) {

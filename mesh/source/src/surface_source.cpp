@@ -212,8 +212,8 @@ TriangleMesh SurfaceSource::original_surface(std::size_t i) const {
 }
 
 // A file with a remeshing target is repaired, remeshed, and only then judged: remeshing removes
-// slivers repair left. A label map is extracted at the target (at most 4 mm: extraction_edge_m)
-// and remeshed to it.
+// slivers repair left. A label map is extracted at the target up to 4 mm (extraction_edge_m;
+// 2 mm for a coarser one) and remeshed to it.
 TriangleMesh SurfaceSource::surface(std::size_t i) const {
   const LungSource& lung = spec_.lungs[i];
   const double edge_m = spec_.edge_m;

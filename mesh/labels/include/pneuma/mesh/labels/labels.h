@@ -95,8 +95,8 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
                                  const LabelSurfaceOptions& options = {});
 
 // The facet size a lung is meshed at from a label map before it is remeshed to `target_edge_m`
-// (a run's `mesh.edge`): the target itself, at most 4 mm; 2 mm without a target. Mesh_3's cost
-// falls with the square of the facet size, and at 4 mm the remeshed surface lies within the
+// (a run's `mesh.edge`): the target itself up to 4 mm; 2 mm for a coarser target or none. Mesh_3's
+// cost falls with the square of the facet size, and at 4 mm the remeshed surface lies within the
 // remeshing's own deviation of the one meshed at 2 mm (BENCHMARKS.md, "The shipped 4D scenario").
 double extraction_edge_m(double target_edge_m);
 
