@@ -11,13 +11,14 @@
 #           and plastimatch warping the CT with that run's plain .nii pull-back DVF
 #   phases  ten phase bins at that grid over 24 s of breathing (DVFs, labels and Jacobian images,
 #           the defaults; no CT, no report)
-#   shipped scenarios/4d-from-labels.yaml as shipped (2 mm, two time points, report on)
-# Usage: bench/voxels_speed.sh [MODES (default "native phases shipped"; also native-nii)] [WORK_DIR]
+#   shipped scenarios/4d-from-labels.yaml as shipped (2 mm, two time points, report on), cold (a
+#           fresh output folder) then warm (the same folder: the field cache hit), with CPU times
+# Usage: [PNEUMA=path/to/pneuma] bench/voxels_speed.sh [MODES (default "native phases shipped"; also native-nii)] [WORK_DIR]
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 modes=${1:-native phases shipped}
 work=${2:-$(mktemp -d /tmp/pneuma-voxels-speed.XXXXXX)}
-pneuma=$here/build/release/cli/pneuma
+pneuma=${PNEUMA:-$here/build/release/cli/pneuma}  # PNEUMA=...: another build (a baseline)
 labels=$(cd "$here/../shared/data/ct-lobes" && pwd)/case004_lobes.nii.gz
 mkdir -p "$work"
 cd "$work"
@@ -93,8 +94,14 @@ if [[ " $modes " == *" phases "* ]]; then
 fi
 
 if [[ " $modes " == *" shipped "* ]]; then
+  # Cold: a fresh folder (surfaces, fields and insides computed). Warm: the same folder again, its
+  # field-*.h5 (the field cache, with each lung's inside) read back instead (docs/formats.md).
   scenario shipped.yaml
   rm -rf shipped
-  timed "shipped: pneuma run" "$pneuma" run shipped.yaml -o shipped --quiet
+  timed "shipped (cold): pneuma run" "$pneuma" run shipped.yaml -o shipped --quiet
+  grep -E 'User time|System time' "shipped (cold): pneuma run.time" | sed 's/^\s*/    /'
+  stages shipped
+  timed "shipped (warm): pneuma run" "$pneuma" run shipped.yaml -o shipped --quiet
+  grep -E 'User time|System time' "shipped (warm): pneuma run.time" | sed 's/^\s*/    /'
   stages shipped
 fi

@@ -2,16 +2,21 @@
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <cstddef>
+#include <exception>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/stopwatch.h"
+#include "pneuma/core/tsan.h"
 #include "pneuma/field/tissue.h"
 #include "pneuma/image/label_map.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
@@ -201,8 +206,42 @@ Model compile(const Scenario& s, const CompileOptions& options) {
   model.scenario_file = s.file;
   model.report.field_reused = true;
   const mesh::SurfaceSource surfaces(source_spec(s, options));
-  for (std::size_t i = 0; i < surfaces.lung_count(); ++i) {
-    model.lungs.push_back(lung_model(s, surfaces, i, options, model.report));
+  // Two lungs are made side by side: each one's surface, field and inside depend on nothing of
+  // the other's, and their largest steps (CGAL Mesh_3 on a label map, the tetrahedra) run on one
+  // thread each. Each lung reports into its own CompileReport, merged in lung order, and the
+  // first lung's error wins as it did when they were made one after the other, so the model,
+  // its messages and its files are the same at any thread count; only the stage times overlap.
+  const std::size_t count = surfaces.lung_count();
+  std::vector<std::optional<LungModel>> made(count);
+  std::vector<CompileReport> reports(count, CompileReport{.field_reused = true, .timings_s = {}, .warnings = {}});
+  std::vector<std::exception_ptr> errors(count);
+  // Isolated: a thread waiting inside one lung's parallel loops takes no work of the other lung's,
+  // which could otherwise start on top of it while it holds a lock (the label map's, HDF5's).
+  auto make = [&](std::size_t i) {
+    tbb::this_task_arena::isolate([&] {
+      try {
+        made[i] = lung_model(s, surfaces, i, options, reports[i]);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    });
+  };
+  {
+    const tsan::Region region;
+    tbb::task_group others;
+    for (std::size_t i = 1; i < count; ++i) others.run(region.wrap([&make, i] { make(i); }));
+    make(0);
+    others.wait();
+    region.join();
+  }
+  for (std::size_t i = 0; i < count; ++i) {
+    if (errors[i]) std::rethrow_exception(errors[i]);
+  }
+  for (std::size_t i = 0; i < count; ++i) {
+    model.report.field_reused = model.report.field_reused && reports[i].field_reused;
+    for (auto& t : reports[i].timings_s) model.report.timings_s.push_back(std::move(t));
+    for (auto& w : reports[i].warnings) model.report.warnings.push_back(std::move(w));
+    model.lungs.push_back(std::move(*made[i]));
     // Where the scan cut a lung flat, its surface is not the pleura: said also on a cached field
     // (the label map is read for it then).
     LungModel& lung = model.lungs.back();

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <mutex>
 #include <optional>
 #include <string_view>
 
@@ -496,7 +497,17 @@ FieldRecord compute_field_record(const mesh::TriangleMesh& rest, const field::Ti
   return compute_field_record(rest, field::tissue_field_inputs(rest, tissue, options));
 }
 
+// The Debian HDF5 library is built without its thread-safe option: two lungs compiled side by
+// side (compile.cpp) take turns with their cache files.
+namespace {
+std::mutex& hdf5_mutex() {
+  static std::mutex m;
+  return m;
+}
+}  // namespace
+
 void save_field(const std::filesystem::path& path, const FieldRecord& model) {
+  const std::lock_guard lock(hdf5_mutex());
   model::silence_hdf5_errors();
   write_atomically(path, [&](const std::filesystem::path& tmp) {
     write_file(tmp, path.string(), model);  // closes the file
@@ -505,6 +516,7 @@ void save_field(const std::filesystem::path& path, const FieldRecord& model) {
 }
 
 FieldRecord load_field(const std::filesystem::path& path) {
+  const std::lock_guard lock(hdf5_mutex());
   model::silence_hdf5_errors();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path.string() + ": cannot open file");

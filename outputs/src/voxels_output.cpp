@@ -627,16 +627,73 @@ void VoxelScene::compute(std::span<const double> scales, voxels::TimePoint& poin
   compute_on(grid_, scales, point);
 }
 
+std::vector<InsidePart> VoxelScene::parts_reaching(const voxels::Grid& grid,
+                                                   std::span<const std::array<double, 2>> scale_ranges) const {
+  if (scale_ranges.size() != model_.lungs.size()) {
+    throw ValueError(fmt::format("voxels: {} scale ranges for {} lungs", scale_ranges.size(), model_.lungs.size()));
+  }
+  // The grid's box (voxel centres) grown by a voxel's diagonal: far wider than the rasteriser's
+  // tolerance, so every tet that can hold a voxel is kept (a few more do no harm).
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d p =
+        grid.centre_m((c & 1) ? grid.size[0] - 1 : 0, (c & 2) ? grid.size[1] - 1 : 0, (c & 4) ? grid.size[2] - 1 : 0);
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double margin = grid.ijk_to_lps.block<3, 3>(0, 0).cwiseAbs().sum();
+  lo.array() -= margin;
+  hi.array() += margin;
+  std::vector<InsidePart> parts(model_.lungs.size());
+  for (std::size_t i = 0; i < model_.lungs.size(); ++i) {
+    const model::LungInterior& inside = *model_.lungs[i].interior;
+    const double s_lo = std::min(0.0, scale_ranges[i][0]), s_hi = std::max(0.0, scale_ranges[i][1]);
+    constexpr auto none = std::numeric_limits<std::uint32_t>::max();
+    std::vector<std::uint32_t> renumbered(inside.mesh.nodes.size(), none);
+    InsidePart& part = parts[i];
+    for (const mesh::Tetrahedron& tet : inside.mesh.tets) {
+      Eigen::Vector3d a = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), b = -a;
+      for (const std::uint32_t n : tet) {
+        for (const double s : {s_lo, s_hi}) {
+          const Eigen::Vector3d p = inside.mesh.nodes[n] + s * inside.unit_displacement[n];
+          a = a.cwiseMin(p);
+          b = b.cwiseMax(p);
+        }
+      }
+      if ((b.array() < lo.array()).any() || (a.array() > hi.array()).any()) continue;
+      mesh::Tetrahedron kept{};
+      for (std::size_t c = 0; c < 4; ++c) {
+        std::uint32_t& to = renumbered[tet[c]];
+        if (to == none) {
+          to = static_cast<std::uint32_t>(part.mesh.nodes.size());
+          part.mesh.nodes.push_back(inside.mesh.nodes[tet[c]]);
+          part.unit_displacement.push_back(inside.unit_displacement[tet[c]]);
+        }
+        kept[c] = to;
+      }
+      part.mesh.tets.push_back(kept);
+    }
+  }
+  return parts;
+}
+
 void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> scales_in, voxels::TimePoint& point,
-                            bool with_image, bool with_jacobian) const {
+                            bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts) const {
   if (scales_in.size() != model_.lungs.size()) {
     throw ValueError(fmt::format("voxels: {} scales for {} lungs", scales_in.size(), model_.lungs.size()));
+  }
+  if (parts != nullptr && parts->size() != model_.lungs.size()) {
+    throw ValueError(fmt::format("voxels: {} inside parts for {} lungs", parts->size(), model_.lungs.size()));
   }
   const std::vector<double> scales(scales_in.begin(), scales_in.end());
   std::vector<voxels::LungMotion> lungs;
   for (std::size_t i = 0; i < model_.lungs.size(); ++i) {
     const model::LungInterior& inside = *model_.lungs[i].interior;
-    lungs.push_back({inside.mesh, inside.unit_displacement, scales[i]});
+    if (parts != nullptr) {
+      lungs.push_back({(*parts)[i].mesh, (*parts)[i].unit_displacement, scales[i]});
+    } else {
+      lungs.push_back({inside.mesh, inside.unit_displacement, scales[i]});
+    }
   }
   const model::BodyMotion* body = model_.body.get();
   voxels::TimePointInputs inputs;
@@ -758,8 +815,16 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
   }
   const VoxelStructures* shared_structures = run.shared.find<VoxelStructures>();  // the ITVs
   image::LabelMap warped_mask;
+  // Each lung's lowest and highest scale of the run: the parts of the insides a plane needs.
+  std::vector<std::array<double, 2>> scale_ranges;
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    const auto [lowest, highest] = std::minmax_element(run.scales[i].begin(), run.scales[i].end());
+    scale_ranges.push_back(run.scales[i].empty() ? std::array<double, 2>{0.0, 0.0}
+                                                 : std::array<double, 2>{*lowest, *highest});
+  }
   for (const bool coronal : {true, false}) {
     const voxels::Grid grid = plane(coronal);
+    const std::vector<InsidePart> parts = scene.parts_reaching(grid, scale_ranges);
     LabelSlice slice;
     for (const StructureSpec& structure : spec.structures) slice.structures.push_back({structure.name, {}, {}});
     slice.name = coronal ? "coronal" : "sagittal";
@@ -784,7 +849,9 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
       std::vector<double> scales;
       for (std::size_t i = 0; i < model.lungs.size(); ++i) scales.push_back(run.scales[i][k]);
       const bool channels = max_channel_times > 0 && (t % stride == 0 || t + 1 == n);
-      scene.compute_on(grid, scales, point, channels && with_ct, channels);
+      // The CT's slices from the whole insides: its rest lungs are found on the CT's own grid.
+      const bool ct_now = channels && with_ct;
+      scene.compute_on(grid, scales, point, ct_now, channels, ct_now ? nullptr : &parts);
       // Pixel (row, c) of the plane: row 0 is the most superior.
       const auto voxel = [&](std::size_t row, std::size_t c) {
         const std::size_t z = slice.height - 1 - row;

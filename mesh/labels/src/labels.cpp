@@ -3,16 +3,18 @@
 // the meshing of the level set is in labels_cgal.cpp. Deterministic: every pass runs in
 // voxel order.
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <numbers>
-#include <set>
 #include <stdexcept>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
 #include "pneuma/mesh/geometry/validate.h"
 #include "pneuma/mesh/labels/labels.h"
 
@@ -35,6 +37,37 @@ std::size_t line_start(const Grid& g, int axis, std::size_t l) {
   if (axis == 1) return (l % g.n[0]) + (l / g.n[0]) * g.n[0] * g.n[1];
   return l;
 }
+
+// body(first voxel, scratch) for every line along `axis`, lines in parallel: each line is read and
+// written by one body only, so the result is the serial loop's at any thread count. `Scratch` is
+// one body's working memory, made once per block of lines.
+template <class Scratch, class Body>
+void for_each_line(const Grid& g, int axis, const Body& body) {
+  const std::size_t lines = g.count() / g.n[static_cast<std::size_t>(axis)];
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lines, 64),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
+                      Scratch scratch;
+                      for (std::size_t l = range.begin(); l < range.end(); ++l) body(line_start(g, axis, l), scratch);
+                    }));
+  region.join();
+}
+
+// Whether a label is one of a few wanted ones, remembering the last label asked about: a label
+// map is long runs of one label, so most voxels cost one comparison.
+class LabelTest {
+ public:
+  explicit LabelTest(const std::vector<int>& wanted) : wanted_(wanted) {}
+  bool operator()(std::int32_t label) {
+    if (label != last_) last_ = label, last_in_ = std::find(wanted_.begin(), wanted_.end(), label) != wanted_.end();
+    return last_in_;
+  }
+
+ private:
+  const std::vector<int>& wanted_;
+  std::int32_t last_ = 0;
+  bool last_in_ = std::find(wanted_.begin(), wanted_.end(), 0) != wanted_.end();
+};
 
 // Largest 26-connected component of `mask` (1 = inside); the others are cleared.
 // Returns {components dropped, voxels dropped}.
@@ -135,21 +168,21 @@ std::vector<float> squared_distance_to(const Grid& g, const std::vector<std::uin
                                        const Eigen::Vector3d& spacing) {
   std::vector<float> d(g.count());
   for (std::size_t v = 0; v < g.count(); ++v) d[v] = target[v] ? 0.0f : std::numeric_limits<float>::infinity();
-  std::vector<float> line_in, line_out;
-  std::vector<std::size_t> vv;
-  std::vector<double> zz;
+  struct Scratch {
+    std::vector<float> in, out;
+    std::vector<std::size_t> v;
+    std::vector<double> z;
+  };
   for (int axis = 0; axis < 3; ++axis) {
     const std::size_t n = g.n[static_cast<std::size_t>(axis)], stride = g.stride(axis);
-    line_in.resize(n);
-    line_out.resize(n);
     const double w = spacing[axis] * spacing[axis];
-    const std::size_t lines = g.count() / n;
-    for (std::size_t l = 0; l < lines; ++l) {
-      const std::size_t start = line_start(g, axis, l);
-      for (std::size_t q = 0; q < n; ++q) line_in[q] = d[start + q * stride];
-      edt_1d(line_in.data(), line_out.data(), n, w, vv, zz);
-      for (std::size_t q = 0; q < n; ++q) d[start + q * stride] = line_out[q];
-    }
+    for_each_line<Scratch>(g, axis, [&](std::size_t start, Scratch& s) {
+      s.in.resize(n);
+      s.out.resize(n);
+      for (std::size_t q = 0; q < n; ++q) s.in[q] = d[start + q * stride];
+      edt_1d(s.in.data(), s.out.data(), n, w, s.v, s.z);
+      for (std::size_t q = 0; q < n; ++q) d[start + q * stride] = s.out[q];
+    });
   }
   return d;
 }
@@ -265,7 +298,6 @@ std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, co
   std::vector<float> a(mask.begin(), mask.end());
   if (sigma <= 0.0) return a;
   std::vector<float> b(a.size());
-  std::vector<float> line;
   for (int axis = 0; axis < 3; ++axis) {
     const double s = sigma / spacing[axis];
     // Narrower than a twentieth of a voxel, the kernel is the identity (its side weights are
@@ -282,10 +314,8 @@ std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, co
     for (float& w : kernel) w = static_cast<float>(w / sum);
     const std::size_t n = g.n[static_cast<std::size_t>(axis)], stride = g.stride(axis);
     const auto nn = static_cast<std::ptrdiff_t>(n);
-    line.resize(n);
-    const std::size_t lines = g.count() / n;
-    for (std::size_t l = 0; l < lines; ++l) {
-      const std::size_t start = line_start(g, axis, l);
+    for_each_line<std::vector<float>>(g, axis, [&](std::size_t start, std::vector<float>& line) {
+      line.resize(n);
       for (std::size_t q = 0; q < n; ++q) line[q] = a[start + q * stride];
       for (std::ptrdiff_t q = 0; q < nn; ++q) {
         float acc = 0.0f;
@@ -295,7 +325,7 @@ std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, co
           acc += kernel[static_cast<std::size_t>(t - q + radius)] * line[static_cast<std::size_t>(t)];
         b[start + static_cast<std::size_t>(q) * stride] = acc;
       }
-    }
+    });
     std::swap(a, b);
   }
   return a;
@@ -390,6 +420,13 @@ std::string LabelSurfaceReport::provenance() const {
   return s;
 }
 
+double extraction_edge_m(double target_edge_m) {
+  // Above 4 mm the 2 mm meshing stays: remeshed to 12 mm, case004's right lung meshed at 4 mm
+  // cut into itself at rest (TwoLungs.TheDemoAndTheShippedScenarioRunWithBothLungs).
+  constexpr double kDefault = 2e-3, kCoarsest = 4e-3;
+  return target_edge_m > 0.0 && target_edge_m <= kCoarsest ? target_edge_m : kDefault;
+}
+
 std::filesystem::path provenance_path(const std::filesystem::path& mesh_path) {
   std::filesystem::path p = mesh_path;
   p += ".provenance.txt";
@@ -415,9 +452,9 @@ void check_label_surface_size(const image::LabelMap& map, const std::string& nam
                                  "most {:.3g} mm",
                                  name, closing_m * 1e3, dims, extent_m * 1e3));
   }
-  const std::set<int> wanted(labels.begin(), labels.end());
+  LabelTest wanted(labels);
   std::size_t count = 0;
-  for (const std::int32_t l : map.labels) count += wanted.count(l);
+  for (const std::int32_t l : map.labels) count += wanted(l) ? 1 : 0;
   const double volume_m3 = static_cast<double>(count) * map.voxel_volume_m3();
   const double area_m2 = 1.5 * std::cbrt(36.0 * std::numbers::pi * volume_m3 * volume_m3);
   const double vertices = vertex_count_at_edge(area_m2, options.edge_length_m);
@@ -464,22 +501,26 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
   rep.max_distance_m = options.max_distance_m > 0.0 ? options.max_distance_m : options.edge_length_m / 8.0;
 
   // 1. The union, its voxel bounds, and a check that every label is there.
-  const std::set<int> wanted(rep.labels.begin(), rep.labels.end());
+  LabelTest wanted(rep.labels);
   std::map<int, std::size_t> counts;
   Size3 lo{map.size[0], map.size[1], map.size[2]}, hi{0, 0, 0};
   {
-    std::size_t v = 0;
+    // Counted by runs of one label (a map is mostly long runs of background).
+    std::size_t v = 0, run = 0;
+    std::int32_t run_label = map.labels.empty() ? 0 : map.labels[0];
     for (std::size_t k = 0; k < map.size[2]; ++k) {
       for (std::size_t j = 0; j < map.size[1]; ++j) {
         for (std::size_t i = 0; i < map.size[0]; ++i, ++v) {
-          const int l = map.labels[v];
-          ++counts[l];
-          if (!wanted.count(l)) continue;
+          const std::int32_t l = map.labels[v];
+          if (l != run_label) counts[run_label] += run, run_label = l, run = 0;
+          ++run;
+          if (!wanted(l)) continue;
           const Size3 ijk{i, j, k};
           for (std::size_t a = 0; a < 3; ++a) lo[a] = std::min(lo[a], ijk[a]), hi[a] = std::max(hi[a], ijk[a]);
         }
       }
     }
+    if (run > 0) counts[run_label] += run;
   }
   for (int l : rep.labels) {
     if (counts.count(l)) continue;
@@ -517,7 +558,7 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
       for (std::size_t i = 0; i < g.n[0]; ++i) {
         const std::size_t fi = origin[0] + i;
         if (fi >= map.size[0]) break;
-        base[g.index(i, j, k)] = wanted.count(map.labels[fi + map.size[0] * (fj + map.size[1] * fk)]) ? 1 : 0;
+        base[g.index(i, j, k)] = wanted(map.labels[fi + map.size[0] * (fj + map.size[1] * fk)]) ? 1 : 0;
       }
     }
   }

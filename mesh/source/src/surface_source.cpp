@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <mutex>
 
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/anatomy/phantom.h"
@@ -56,7 +57,8 @@ TriangleMesh remeshed(TriangleMesh surface, double edge_m) {
 // Two lungs from one label map: where they touch (26-neighbour voxels), both lose those voxels,
 // so that their surfaces, each extracted and remeshed alone, keep a gap of about two voxels and
 // do not cut into each other at rest (they did on case007 at 4 mm). Only the contact band goes:
-// a few mL at most, against litres.
+// a few mL at most, against litres. The band is symmetric (a voxel of either lung with a neighbour
+// of the other), so the map is the same whichever lung is `one`.
 image::LabelMap separated_lungs(image::LabelMap map, const std::vector<int>& one, const std::vector<int>& other) {
   auto in = [](const std::vector<int>& values, std::int32_t label) {
     return std::find(values.begin(), values.end(), label) != values.end();
@@ -141,12 +143,26 @@ std::string SurfaceSource::key_text(std::size_t i) const {
                   spec_.metres_per_unit, spec_.repair, spec_.edge_m, fmt::join(values, ","));
   if (two_lungs() && !spec_.lungs[1 - i].label_values.empty())
     text += fmt::format(", apart from {}", fmt::join(spec_.lungs[1 - i].label_values, ","));
+  // The facet size it is meshed at (a field cached before that size followed the edge is not
+  // taken for one made now).
+  if (from_labels()) text += fmt::format(", meshed at {:.17g} m", extraction_edge_m(spec_.edge_m));
   return text;
 }
 
 std::shared_ptr<const image::LabelMap> SurfaceSource::label_map() const {
+  const std::lock_guard lock(lazy_mutex_);
   if (!map_ && from_labels()) map_ = std::make_shared<const image::LabelMap>(image::read_label_map(spec_.labels_file));
   return map_;
+}
+
+std::shared_ptr<const image::LabelMap> SurfaceSource::separated_map() const {
+  const std::shared_ptr<const image::LabelMap> map = label_map();
+  const std::lock_guard lock(lazy_mutex_);
+  if (!separated_) {
+    separated_ = std::make_shared<const image::LabelMap>(
+        separated_lungs(*map, spec_.lungs[0].label_values, spec_.lungs[1].label_values));
+  }
+  return separated_;
 }
 
 std::vector<std::string> SurfaceSource::edges_touched(std::size_t i) const {
@@ -196,8 +212,8 @@ TriangleMesh SurfaceSource::original_surface(std::size_t i) const {
 }
 
 // A file with a remeshing target is repaired, remeshed, and only then judged: remeshing removes
-// slivers repair left. A label map is extracted at its own resolution (at most 2 mm, finer for a
-// finer target) and remeshed to the target.
+// slivers repair left. A label map is extracted at the target up to 4 mm (extraction_edge_m;
+// 2 mm for a coarser one) and remeshed to it.
 TriangleMesh SurfaceSource::surface(std::size_t i) const {
   const LungSource& lung = spec_.lungs[i];
   const double edge_m = spec_.edge_m;
@@ -207,16 +223,15 @@ TriangleMesh SurfaceSource::surface(std::size_t i) const {
   }
   if (from_labels()) {
     LabelSurfaceOptions extract;
-    if (edge_m > 0.0) extract.edge_length_m = std::min(edge_m, extract.edge_length_m);
+    extract.edge_length_m = extraction_edge_m(edge_m);
     const std::shared_ptr<const image::LabelMap> map = label_map();
-    const std::vector<int>& other = two_lungs() ? spec_.lungs[1 - i].label_values : std::vector<int>{};
     // A lung of two is extracted from the map with the contact band removed (its messages name
     // the file, where one lung's name the path).
-    TriangleMesh surface = other.empty()
-                               ? surface_from_labels(*map, spec_.labels_file.string(), lung.label_values, extract).mesh
-                               : surface_from_labels(separated_lungs(*map, lung.label_values, other),
-                                                     spec_.labels_file.filename().string(), lung.label_values, extract)
-                                     .mesh;
+    TriangleMesh surface =
+        !two_lungs()
+            ? surface_from_labels(*map, spec_.labels_file.string(), lung.label_values, extract).mesh
+            : surface_from_labels(*separated_map(), spec_.labels_file.filename().string(), lung.label_values, extract)
+                  .mesh;
     check_surface_size(spec_, surface_area(surface), edge_m);
     return remeshed(std::move(surface), edge_m);
   }

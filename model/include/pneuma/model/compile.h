@@ -10,8 +10,10 @@
 //   model     make_model: normals, rest area, regions, the volume cubic
 //   interior  where asked: each lung's inside as tetrahedra and its interior field (LungInterior),
 //             and the body around the lungs
-// Two lungs (scenario::MeshSpec::lungs) are compiled one after the other, each with its own
-// surface, regions, field (its own cache file: lung_cache_path).
+// Two lungs (scenario::MeshSpec::lungs) are compiled side by side (two TBB tasks: their largest
+// steps, Mesh_3 on a label map and the tetrahedra, are sequential), each with its own surface,
+// regions, field (its own cache file: lung_cache_path) and inside; the model, its messages and
+// files are those of one lung after the other, at any thread count.
 #include <filesystem>
 #include <optional>
 

@@ -26,6 +26,7 @@
 // time ("2.400s") or the bin ("bin_03"), and voxels.csv (a bin's frame and time are empty). Label-map lungs warp the
 // label map; other lungs (the phantom, surface files) warp a label map of their rest tetrahedra (1 right or the only
 // lung, 2 left).
+#include <array>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -68,6 +69,13 @@ struct VoxelsSpec {
   std::optional<image::DicomSource> image_dicom;
 };
 
+// The part of a lung's inside that reaches a grid (VoxelScene::parts_reaching): its tetrahedra in
+// their order, their nodes renumbered in order of first use, each node's unit displacement.
+struct InsidePart {
+  mesh::TetMesh mesh;
+  std::vector<Eigen::Vector3d> unit_displacement;
+};
+
 // A run's voxel setting, made once from the compiled model (with the lungs' inside): the grid,
 // the label map to warp (the scenario's, or one of the rest tetrahedra), each lung's rest voxels
 // on it and the body's motion outside the lungs. `pneuma run` (the plugin) and the Python module
@@ -88,8 +96,18 @@ class VoxelScene {
   void compute(std::span<const double> scales, voxels::TimePoint& point) const;
   // The same on another grid (a plane for report.html's slices), the CT only if `with_image`.
   // The Jacobian image is made when the spec asks for it or `with_jacobian`.
+  // With `parts` (one per lung, parts_reaching(grid, ...)), only their tetrahedra are rasterised.
   void compute_on(const voxels::Grid& grid, std::span<const double> scales, voxels::TimePoint& point,
-                  bool with_image = true, bool with_jacobian = false) const;
+                  bool with_image = true, bool with_jacobian = false,
+                  const std::vector<InsidePart>* parts = nullptr) const;
+  // Each lung's tetrahedra that can hold a voxel of `grid` at rest or at any scale between
+  // `scale_ranges[lung]` (lowest, highest): their boxes over that range of `rest + s u` (linear
+  // in s, so the ends bound it) meet the grid's box grown by a voxel. A voxel's tet is the lowest
+  // that holds it and the parts keep the order, so on a one-voxel plane (report.html's slices)
+  // the DVFs, the warped labels and the Jacobian image are those of the whole inside, from a few
+  // per cent of its tetrahedra. Not for the CT: its rest lungs are rasterised on the CT's grid.
+  std::vector<InsidePart> parts_reaching(const voxels::Grid& grid,
+                                         std::span<const std::array<double, 2>> scale_ranges) const;
 
  private:
   const model::Model& model_;

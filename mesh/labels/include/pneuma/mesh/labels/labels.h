@@ -94,6 +94,12 @@ LabelSurface surface_from_labels(const std::filesystem::path& path, const std::v
 LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& name, const std::vector<int>& labels,
                                  const LabelSurfaceOptions& options = {});
 
+// The facet size a lung is meshed at from a label map before it is remeshed to `target_edge_m`
+// (a run's `mesh.edge`): the target itself up to 4 mm; 2 mm for a coarser target or none. Mesh_3's
+// cost falls with the square of the facet size, and at 4 mm the remeshed surface lies within the
+// remeshing's own deviation of the one meshed at 2 mm (BENCHMARKS.md, "The shipped 4D scenario").
+double extraction_edge_m(double target_edge_m);
+
 // The file beside a mesh that records how it was made ("right.stl" -> "right.stl.provenance.txt").
 std::filesystem::path provenance_path(const std::filesystem::path& mesh_path);
 

@@ -5,9 +5,11 @@
 // use, and shared: with the second lung, and with whoever asks for it (the voxel outputs).
 //
 // Surfaces are made lazily, lung by lung: a caller that finds a field cached under
-// surface_key() never pays for the reading, repair or remeshing.
+// surface_key() never pays for the reading, repair or remeshing. surface() may be called for the
+// two lungs on two threads at once.
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -76,8 +78,15 @@ class SurfaceSource {
   std::vector<std::string> edges_touched(std::size_t i) const;
 
  private:
+  // Two lungs' maps without the band where they touch, made for the first lung that asks and
+  // reused for the other (the band is the same seen from either lung).
+  std::shared_ptr<const image::LabelMap> separated_map() const;
+
   SurfaceSourceSpec spec_;
+  // The lazily made maps; the two lungs' surfaces may be made on two threads (model/compile.cpp).
+  mutable std::mutex lazy_mutex_;
   mutable std::shared_ptr<const image::LabelMap> map_;
+  mutable std::shared_ptr<const image::LabelMap> separated_;
 };
 
 }  // namespace pneuma::mesh
