@@ -274,56 +274,54 @@ BENCHMARK(BM_PngSequence)
 // 1280x720, 1: 1920x1080), MSAA samples, FXAA (0/1). EGL on this machine is Mesa's surfaceless
 // platform (llvmpipe, like OSMesa); on a GPU machine it takes the GPU through the device platform
 // (the label says which), so the same cases measure the GPU path there.
-void BM_DrawBackend(benchmark::State& state) {
-  const Model& m = model(8);
+
+// The backend cases' options from the arguments (backend, image size, MSAA samples, FXAA).
+render::RenderOptions backend_options(const benchmark::State& state) {
   render::RenderOptions o = options(state, 2);
   o.gl = state.range(0) ? render::GlBackend::egl : render::GlBackend::osmesa;
   if (state.range(1)) {
     o.width = 1920;
     o.height = 1080;
   }
-  render::Renderer renderer(m.rest, m.field, 1.0, o);
+  return o;
+}
+
+void name_backend(benchmark::State& state, const render::Renderer& renderer, const std::string& prefix) {
+  const render::RenderOptions& o = renderer.options();
+  state.SetLabel(prefix + renderer.gl_backend() + ", " + std::to_string(o.width) + "x" + std::to_string(o.height) +
+                 ", " + renderer.gl_renderer());
+}
+
+void backend_cases(benchmark::internal::Benchmark* b) {
+  b->Args({0, 0, 0, 1})
+      ->Args({1, 0, 0, 1})
+      ->Args({0, 0, 0, 0})
+      ->Args({1, 0, 0, 0})
+      ->Args({1, 1, 0, 0})
+      ->Args({1, 1, 0, 1})
+      ->Args({1, 1, 4, 0})
+      ->Unit(benchmark::kMillisecond)
+      ->UseRealTime();
+}
+
+void BM_DrawBackend(benchmark::State& state) {
+  const Model& m = model(8);
+  render::Renderer renderer(m.rest, m.field, 1.0, backend_options(state));
   name_antialiasing(state, 2);
-  state.SetLabel(renderer.gl_backend() + ", " + std::to_string(o.width) + "x" + std::to_string(o.height) + ", " +
-                 renderer.gl_renderer());
+  name_backend(state, renderer, "");
   time_frames(state, renderer, m);
 }
-BENCHMARK(BM_DrawBackend)
-    ->Args({0, 0, 0, 1})
-    ->Args({1, 0, 0, 1})
-    ->Args({0, 0, 0, 0})
-    ->Args({1, 0, 0, 0})
-    ->Args({1, 1, 0, 0})
-    ->Args({1, 1, 0, 1})
-    ->Args({1, 1, 4, 0})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
+BENCHMARK(BM_DrawBackend)->Apply(backend_cases);
 
 // BM_DrawBackend's cases with the frames pipelined (two in flight).
 void BM_DrawBackendPipelined(benchmark::State& state) {
   const Model& m = model(8);
-  render::RenderOptions o = options(state, 2);
-  o.gl = state.range(0) ? render::GlBackend::egl : render::GlBackend::osmesa;
-  if (state.range(1)) {
-    o.width = 1920;
-    o.height = 1080;
-  }
-  render::Renderer renderer(m.rest, m.field, 1.0, o);
+  render::Renderer renderer(m.rest, m.field, 1.0, backend_options(state));
   name_antialiasing(state, 2);
-  state.SetLabel("pipelined, " + renderer.gl_backend() + ", " + std::to_string(o.width) + "x" +
-                 std::to_string(o.height) + ", " + renderer.gl_renderer());
+  name_backend(state, renderer, "pipelined, ");
   time_pipelined_frames(state, renderer, m);
 }
-BENCHMARK(BM_DrawBackendPipelined)
-    ->Args({0, 0, 0, 1})
-    ->Args({1, 0, 0, 1})
-    ->Args({0, 0, 0, 0})
-    ->Args({1, 0, 0, 0})
-    ->Args({1, 1, 0, 0})
-    ->Args({1, 1, 0, 1})
-    ->Args({1, 1, 4, 0})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
+BENCHMARK(BM_DrawBackendPipelined)->Apply(backend_cases);
 
 // The empty scene pipelined (arguments: backend, MSAA samples, FXAA): the cost of getting pixels
 // out when read-backs overlap.
