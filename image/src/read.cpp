@@ -877,7 +877,7 @@ void check_meta_header(const fs::path& path, const std::string& name) {
       if (!dim_size || !element_type)
         throw InputError(where + key + ": expected NDims, DimSize and ElementType before it");
       // Compressed text data: MetaIO then inflates the file from its first byte, header and all;
-      // the voxels read as zeros without a word, or (a header that begins like a zlib stream) the
+      // the read goes on with voxels that are not the file's, or (a header that begins like a zlib stream) the
       // read never ends (fuzz_labels_mha). MetaIO writes compressed data only as binary.
       if (compressed_line > 0 && !binary) {
         throw InputError(fmt::format("{}:{}:1: CompressedData: expected BinaryData = True in the header (compressed "
