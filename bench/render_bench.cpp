@@ -108,21 +108,27 @@ void time_frames(benchmark::State& state, render::Renderer& renderer, const Mode
 
 // The same with the frames pipelined (Renderer::submit / collect, two in flight): the
 // read-back of one frame overlaps the drawing of the next, as in the PNG sink.
-void time_pipelined_frames(benchmark::State& state, render::Renderer& renderer, const Model& m) {
+// The loop of the pipelined benchmarks: a warm-up draw, then per iteration a frame submitted at a
+// moving s and, with two in flight, the oldest collected; frames/s.
+void run_pipelined_frames(benchmark::State& state, render::Renderer& renderer) {
   render::Image image;
   renderer.render(0.0, image);
   int k = 0;
-  const double cpu_start = process_cpu_ms();
   for (auto _ : state) {
     if (renderer.frames_in_flight() == render::Renderer::max_frames_in_flight) renderer.collect(image);
     renderer.submit(0.01 * (k++ % 100));
     benchmark::DoNotOptimize(image.rgba.data());
   }
   while (renderer.frames_in_flight() > 0) renderer.collect(image);
-  per_frame_cpu(state, cpu_start);
-  label(state, m);
   state.counters["frames_per_s"] =
       benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+void time_pipelined_frames(benchmark::State& state, render::Renderer& renderer, const Model& m) {
+  const double cpu_start = process_cpu_ms();
+  run_pipelined_frames(state, renderer);
+  per_frame_cpu(state, cpu_start);
+  label(state, m);
 }
 
 // Per frame: uniform s, draw, resolve, read back (the frame's pixels in memory).
@@ -331,16 +337,7 @@ void BM_ClearReadbackPipelined(benchmark::State& state) {
   render::Renderer renderer(mesh::TriangleMesh{}, {}, 1.0, o);
   name_antialiasing(state, 1);
   state.SetLabel("pipelined, " + renderer.gl_backend() + ", " + renderer.gl_renderer());
-  render::Image image;
-  renderer.render(0.0, image);
-  for (auto _ : state) {
-    if (renderer.frames_in_flight() == render::Renderer::max_frames_in_flight) renderer.collect(image);
-    renderer.submit(0.5);
-    benchmark::DoNotOptimize(image.rgba.data());
-  }
-  while (renderer.frames_in_flight() > 0) renderer.collect(image);
-  state.counters["frames_per_s"] =
-      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  run_pipelined_frames(state, renderer);  // nothing to draw: s changes nothing
 }
 BENCHMARK(BM_ClearReadbackPipelined)->Args({1, 0, 0})->Args({1, 0, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
 
