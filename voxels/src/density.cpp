@@ -23,7 +23,7 @@ namespace {
 
 // Each lung's tets at rest, and the Jacobian of each tet at the lung's scale: the mass-preserving
 // CT's, which keeps each tet's mass exactly (rest HU + 1000 over J, times J; the recovered
-// Jacobian lost 0.05-0.14 % more of the lungs' mass at end-inspiration on the six CT cases:
+// Jacobian lost 0.04-0.14 % more of the lungs' mass at end-inspiration on the six CT cases:
 // docs/voxels.md, "Density and ventilation").
 struct RestTets {
   std::vector<detail::TetSet> sets;
