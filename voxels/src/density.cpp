@@ -1,5 +1,6 @@
 // The Jacobian image and the mass-preserving CT (density.h): the lungs' rest tets rasterised
-// (rasterize.h) with each tet's exact Jacobian; outside them, central differences of the field.
+// (rasterize.h), the image with the recovered gradient's Jacobian at each voxel's rest point, the
+// CT with each tet's exact Jacobian; outside the lungs, central differences of the field.
 #include "pneuma/voxels/density.h"
 
 #include <tbb/blocked_range.h>
@@ -20,7 +21,10 @@
 namespace pneuma::voxels {
 namespace {
 
-// Each lung's tets at rest, and the Jacobian of each tet at the lung's scale.
+// Each lung's tets at rest, and the Jacobian of each tet at the lung's scale: the mass-preserving
+// CT's, which keeps each tet's mass exactly (rest HU + 1000 over J, times J; the recovered
+// Jacobian lost 0.04-0.14 % more of the lungs' mass at end-inspiration on the six CT cases:
+// docs/voxels.md, "Density and ventilation").
 struct RestTets {
   std::vector<detail::TetSet> sets;
   std::vector<std::vector<double>> jacobians;
@@ -29,6 +33,14 @@ struct RestTets {
 RestTets rest_tets(std::span<const LungMotion> lungs) {
   RestTets out{detail::rest_tet_sets(lungs), {}};
   for (const LungMotion& lung : lungs) out.jacobians.push_back(tet_jacobians(lung));
+  return out;
+}
+
+// Each lung's recovered gradients, each lung's own: nothing is averaged across the pleura.
+std::vector<std::vector<Eigen::Matrix3d>> lung_gradients(std::span<const LungMotion> lungs) {
+  std::vector<std::vector<Eigen::Matrix3d>> out;
+  out.reserve(lungs.size());
+  for (const LungMotion& lung : lungs) out.push_back(recovered_gradients(lung));
   return out;
 }
 
@@ -58,7 +70,8 @@ float mass_preserving_hu(float hu, double jacobian) {
 }
 
 void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& forward, Image& out) {
-  const RestTets tets = rest_tets(lungs);
+  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
+  const std::vector<std::vector<Eigen::Matrix3d>> gradients = lung_gradients(lungs);
   const Grid& grid = forward.grid;
   if (forward.displacement_m.size() != grid.voxel_count())
     throw ValueError("jacobian_image: the forward field does not fill its grid");
@@ -66,10 +79,9 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
   out.values.resize(grid.voxel_count());
   std::vector<std::uint8_t> owner;
   detail::rasterize(
-      grid, std::span<const detail::TetSet>(tets.sets), owner,
-      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d&, std::size_t, std::size_t, std::size_t) {
-        out.values[v] = static_cast<float>(tets.jacobians[s][t]);
-      },
+      grid, std::span<const detail::TetSet>(sets), owner,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
+          std::size_t) { out.values[v] = static_cast<float>(recovered_jacobian(gradients[s], sets[s].tets[t], l)); },
       [&](std::size_t, std::size_t, std::size_t, std::size_t) {});
   // grad u = (du/d index) (d index/dx): the grid's direction and spacing, inverted once.
   const Eigen::Matrix3d to_index = grid.ijk_to_lps.block<3, 3>(0, 0).inverse();

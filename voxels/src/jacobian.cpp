@@ -1,8 +1,10 @@
 #include "pneuma/voxels/jacobian.h"
 
 #include <Eigen/Geometry>  // cross(), used by tet_mesh.h's tet_volume6
+#include <Eigen/LU>        // determinant(), inverse()
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 namespace pneuma::voxels {
@@ -21,6 +23,39 @@ std::vector<double> tet_jacobians(const LungMotion& lung) {
     out[t] = deformed6 / rest6;
   }
   return out;
+}
+
+std::vector<Eigen::Matrix3d> recovered_gradients(const LungMotion& lung) {
+  check_lung_motion(lung);
+  const mesh::TetMesh& m = lung.mesh;
+  std::vector<Eigen::Matrix3d> sum(m.node_count(), Eigen::Matrix3d::Zero());
+  std::vector<double> weight(m.node_count(), 0.0);
+  for (const mesh::Tetrahedron& tet : m.tets) {
+    Eigen::Matrix3d edges, moves;
+    for (Eigen::Index c = 0; c < 3; ++c) {
+      const std::uint32_t n = tet[static_cast<std::size_t>(c) + 1];
+      edges.col(c) = m.nodes[n] - m.nodes[tet[0]];
+      moves.col(c) = lung.unit_displacement_m[n] - lung.unit_displacement_m[tet[0]];
+    }
+    const double rest6 = edges.determinant();
+    if (!(rest6 > 0.0)) continue;  // a degenerate rest tet has no gradient (and holds no voxel)
+    // grad U maps each rest edge to its displacement difference: moves = grad U edges.
+    const Eigen::Matrix3d gradient = lung.scale * moves * edges.inverse();
+    for (const std::uint32_t n : tet) {
+      sum[n] += rest6 * gradient;
+      weight[n] += rest6;
+    }
+  }
+  for (std::size_t n = 0; n < sum.size(); ++n)
+    if (weight[n] > 0.0) sum[n] /= weight[n];
+  return sum;
+}
+
+double recovered_jacobian(std::span<const Eigen::Matrix3d> gradients, const mesh::Tetrahedron& tet,
+                          const Eigen::Vector4d& l) {
+  Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
+  for (std::size_t c = 0; c < 4; ++c) g += l[static_cast<Eigen::Index>(c)] * gradients[tet[c]];
+  return g.determinant();
 }
 
 JacobianStats jacobian_stats(std::span<const LungMotion> lungs) {

@@ -20,10 +20,12 @@ inline constexpr float kAirHu = -1000.0f;
 inline constexpr float kWaterHu = 0.0f;
 
 // The forward map's Jacobian det(I + grad u) at every voxel centre of `forward`'s grid: in a
-// lung's rest tet its exact P1 value (tet_jacobians), elsewhere from central differences of
-// `forward`'s displacement over the neighbours outside the lungs (one-sided beside a lung or the
-// grid's edge; no derivative along an axis with no such neighbour). `lungs` are those `forward`
-// was made from, at the same scales. Deterministic at any thread count.
+// lung's rest tet the Jacobian of that lung's recovered gradient at the voxel's rest point
+// (recovered_gradients, recovered_jacobian: continuous across the tets, without the steps of the
+// per-tet exact value, tet_jacobians), elsewhere from central differences of `forward`'s
+// displacement over the neighbours outside the lungs (one-sided beside a lung or the grid's edge;
+// no derivative along an axis with no such neighbour). `lungs` are those `forward` was made from,
+// at the same scales. Deterministic at any thread count.
 void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& forward, Image& out);
 
 // `rest_ct` with its lung parenchyma made to keep its mass at the lungs' scales: a voxel whose
