@@ -167,13 +167,37 @@ void edt_1d(const float* f, float* d, std::size_t n, double w, std::vector<std::
 std::vector<float> squared_distance_to(const Grid& g, const std::vector<std::uint8_t>& target,
                                        const Eigen::Vector3d& spacing) {
   std::vector<float> d(g.count());
-  for (std::size_t v = 0; v < g.count(); ++v) d[v] = target[v] ? 0.0f : std::numeric_limits<float>::infinity();
+  // Along x, from the 0/1 target straight: the nearest target voxel of the row (what the
+  // envelope of equal parabolas gives, in the same arithmetic: w dq^2 + 0), infinity without one.
+  {
+    const std::size_t n = g.n[0];
+    const double w = spacing[0] * spacing[0];
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    for_each_line<std::vector<std::size_t>>(g, 0, [&](std::size_t start, std::vector<std::size_t>& last) {
+      // last[q]: the nearest target at or before q (n: none), then the nearer of it and the next.
+      last.resize(n);
+      std::size_t seen = n;
+      for (std::size_t q = 0; q < n; ++q) last[q] = seen = target[start + q] ? q : seen;
+      std::size_t next = n;
+      for (std::size_t q = n; q-- > 0;) {
+        if (target[start + q]) next = q;
+        const std::size_t before = last[q];
+        if (before == n && next == n) {
+          d[start + q] = inf;
+          continue;
+        }
+        const std::size_t dq = std::min(before == n ? n : q - before, next == n ? n : next - q);
+        const auto dqd = static_cast<double>(dq);
+        d[start + q] = static_cast<float>(w * dqd * dqd);
+      }
+    });
+  }
   struct Scratch {
     std::vector<float> in, out;
     std::vector<std::size_t> v;
     std::vector<double> z;
   };
-  for (int axis = 0; axis < 3; ++axis) {
+  for (int axis = 1; axis < 3; ++axis) {
     const std::size_t n = g.n[static_cast<std::size_t>(axis)], stride = g.stride(axis);
     const double w = spacing[axis] * spacing[axis];
     for_each_line<Scratch>(g, axis, [&](std::size_t start, Scratch& s) {
