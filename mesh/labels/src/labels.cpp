@@ -338,18 +338,46 @@ std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, co
     for (float& w : kernel) w = static_cast<float>(w / sum);
     const std::size_t n = g.n[static_cast<std::size_t>(axis)], stride = g.stride(axis);
     const auto nn = static_cast<std::ptrdiff_t>(n);
-    for_each_line<std::vector<float>>(g, axis, [&](std::size_t start, std::vector<float>& line) {
-      line.resize(n);
-      for (std::size_t q = 0; q < n; ++q) line[q] = a[start + q * stride];
-      for (std::ptrdiff_t q = 0; q < nn; ++q) {
-        float acc = 0.0f;
-        const std::ptrdiff_t lo = std::max<std::ptrdiff_t>(0, q - radius),
-                             hi = std::min<std::ptrdiff_t>(nn - 1, q + radius);
-        for (std::ptrdiff_t t = lo; t <= hi; ++t)
-          acc += kernel[static_cast<std::size_t>(t - q + radius)] * line[static_cast<std::size_t>(t)];
-        b[start + static_cast<std::size_t>(q) * stride] = acc;
-      }
-    });
+    const auto window = [&](std::ptrdiff_t q) {
+      return std::pair{std::max<std::ptrdiff_t>(0, q - radius), std::min<std::ptrdiff_t>(nn - 1, q + radius)};
+    };
+    if (axis == 0) {
+      for_each_line<std::vector<float>>(g, axis, [&](std::size_t start, std::vector<float>& line) {
+        line.assign(a.begin() + static_cast<std::ptrdiff_t>(start), a.begin() + static_cast<std::ptrdiff_t>(start + n));
+        for (std::ptrdiff_t q = 0; q < nn; ++q) {
+          float acc = 0.0f;
+          const auto [lo, hi] = window(q);
+          for (std::ptrdiff_t t = lo; t <= hi; ++t)
+            acc += kernel[static_cast<std::size_t>(t - q + radius)] * line[static_cast<std::size_t>(t)];
+          b[start + static_cast<std::size_t>(q)] = acc;
+        }
+      });
+    } else {
+      // Across y or z, a whole row of x at once (contiguous, so it vectorises): each voxel's sum
+      // still runs over t in the same order as along one line, so the bits are the same.
+      const int other = axis == 1 ? 2 : 1;
+      const std::size_t rows = g.n[static_cast<std::size_t>(other)], row_step = g.stride(other), nx = g.n[0];
+      const tsan::Region region;
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(0, rows), region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
+            std::vector<float> acc(nx);
+            for (std::size_t o = range.begin(); o < range.end(); ++o) {
+              const std::size_t base = o * row_step;
+              for (std::ptrdiff_t q = 0; q < nn; ++q) {
+                std::fill(acc.begin(), acc.end(), 0.0f);
+                const auto [lo, hi] = window(q);
+                for (std::ptrdiff_t t = lo; t <= hi; ++t) {
+                  const float k = kernel[static_cast<std::size_t>(t - q + radius)];
+                  const float* row = a.data() + base + static_cast<std::size_t>(t) * stride;
+                  for (std::size_t i = 0; i < nx; ++i) acc[i] += k * row[i];
+                }
+                std::copy(acc.begin(), acc.end(),
+                          b.begin() + static_cast<std::ptrdiff_t>(base + static_cast<std::size_t>(q) * stride));
+              }
+            }
+          }));
+      region.join();
+    }
     std::swap(a, b);
   }
   return a;
