@@ -562,14 +562,20 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
     std::int32_t run_label = map.labels.empty() ? 0 : map.labels[0];
     for (std::size_t k = 0; k < map.size[2]; ++k) {
       for (std::size_t j = 0; j < map.size[1]; ++j) {
+        // The row's first and last wanted voxel; the box grows once per row.
+        std::size_t first = map.size[0], last = 0;
         for (std::size_t i = 0; i < map.size[0]; ++i, ++v) {
           const std::int32_t l = map.labels[v];
           if (l != run_label) counts[run_label] += run, run_label = l, run = 0;
           ++run;
           if (!wanted(l)) continue;
-          const Size3 ijk{i, j, k};
-          for (std::size_t a = 0; a < 3; ++a) lo[a] = std::min(lo[a], ijk[a]), hi[a] = std::max(hi[a], ijk[a]);
+          first = std::min(first, i);
+          last = i;
         }
+        if (first == map.size[0]) continue;
+        lo[0] = std::min(lo[0], first), hi[0] = std::max(hi[0], last);
+        lo[1] = std::min(lo[1], j), hi[1] = std::max(hi[1], j);
+        lo[2] = std::min(lo[2], k), hi[2] = std::max(hi[2], k);
       }
     }
     if (run > 0) counts[run_label] += run;
