@@ -30,6 +30,11 @@ struct Grid {
   std::size_t stride(int axis) const { return axis == 0 ? 1 : axis == 1 ? n[0] : n[0] * n[1]; }
 };
 
+// A voxel's indices on a flood's stack (the index of each neighbour without a division).
+struct Ijk {
+  std::uint32_t i, j, k;
+};
+
 // The first voxel of line l of the lines along `axis` (count() / n[axis] of them): for axis 0,
 // l indexes (j, k); for axis 1, (i, k); for axis 2, (i, j).
 std::size_t line_start(const Grid& g, int axis, std::size_t l) {
@@ -75,29 +80,32 @@ std::pair<std::size_t, std::size_t> keep_largest_component(const Grid& g, std::v
   constexpr std::uint32_t none = ~std::uint32_t{0};
   std::vector<std::uint32_t> component(g.count(), none);
   std::vector<std::size_t> sizes;
-  std::vector<std::size_t> stack;
+  std::vector<Ijk> stack;
   for (std::size_t seed = 0; seed < g.count(); ++seed) {
     if (!mask[seed] || component[seed] != none) continue;
     const auto id = static_cast<std::uint32_t>(sizes.size());
     std::size_t size = 0;
-    stack.assign(1, seed);
+    stack.assign(1, Ijk{static_cast<std::uint32_t>(seed % g.n[0]), static_cast<std::uint32_t>((seed / g.n[0]) % g.n[1]),
+                        static_cast<std::uint32_t>(seed / (g.n[0] * g.n[1]))});
     component[seed] = id;
     while (!stack.empty()) {
-      const std::size_t v = stack.back();
+      const Ijk at = stack.back();
       stack.pop_back();
       ++size;
-      const std::size_t i = v % g.n[0], j = (v / g.n[0]) % g.n[1], k = v / (g.n[0] * g.n[1]);
+      const std::size_t i = at.i, j = at.j, k = at.k;
       for (int dk = -1; dk <= 1; ++dk) {
         if ((k == 0 && dk < 0) || (k + 1 == g.n[2] && dk > 0)) continue;
         for (int dj = -1; dj <= 1; ++dj) {
           if ((j == 0 && dj < 0) || (j + 1 == g.n[1] && dj > 0)) continue;
           for (int di = -1; di <= 1; ++di) {
             if ((i == 0 && di < 0) || (i + 1 == g.n[0] && di > 0)) continue;
-            const std::size_t w = g.index(i + static_cast<std::size_t>(di), j + static_cast<std::size_t>(dj),
-                                          k + static_cast<std::size_t>(dk));
+            const std::size_t wi = i + static_cast<std::size_t>(di), wj = j + static_cast<std::size_t>(dj),
+                              wk = k + static_cast<std::size_t>(dk);
+            const std::size_t w = g.index(wi, wj, wk);
             if (mask[w] && component[w] == none) {
               component[w] = id;
-              stack.push_back(w);
+              stack.push_back(
+                  {static_cast<std::uint32_t>(wi), static_cast<std::uint32_t>(wj), static_cast<std::uint32_t>(wk)});
             }
           }
         }
@@ -232,28 +240,31 @@ std::size_t close_mask(const Grid& g, std::vector<std::uint8_t>& mask, const Eig
 // Background not 6-connected to the border of the crop becomes inside. Returns {cavities, voxels}.
 std::pair<std::size_t, std::size_t> fill_cavities(const Grid& g, std::vector<std::uint8_t>& mask) {
   // 0: background not yet reached, 1: inside, 2: outside (reached from the border), 3: cavity.
-  std::vector<std::size_t> stack;
+  std::vector<Ijk> stack;
   std::uint8_t marker = 2;
-  auto push = [&](std::size_t v) {
-    if (mask[v] == 0) mask[v] = marker, stack.push_back(v);
+  auto push = [&](std::size_t i, std::size_t j, std::size_t k) {
+    std::uint8_t& m = mask[g.index(i, j, k)];
+    if (m == 0)
+      m = marker,
+      stack.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j), static_cast<std::uint32_t>(k)});
   };
   auto flood = [&] {
     while (!stack.empty()) {
-      const std::size_t v = stack.back();
+      const Ijk at = stack.back();
       stack.pop_back();
-      const std::size_t i = v % g.n[0], j = (v / g.n[0]) % g.n[1], k = v / (g.n[0] * g.n[1]);
-      if (i > 0) push(v - 1);
-      if (i + 1 < g.n[0]) push(v + 1);
-      if (j > 0) push(v - g.n[0]);
-      if (j + 1 < g.n[1]) push(v + g.n[0]);
-      if (k > 0) push(v - g.n[0] * g.n[1]);
-      if (k + 1 < g.n[2]) push(v + g.n[0] * g.n[1]);
+      const std::size_t i = at.i, j = at.j, k = at.k;
+      if (i > 0) push(i - 1, j, k);
+      if (i + 1 < g.n[0]) push(i + 1, j, k);
+      if (j > 0) push(i, j - 1, k);
+      if (j + 1 < g.n[1]) push(i, j + 1, k);
+      if (k > 0) push(i, j, k - 1);
+      if (k + 1 < g.n[2]) push(i, j, k + 1);
     }
   };
   for (std::size_t k = 0; k < g.n[2]; ++k) {
     for (std::size_t j = 0; j < g.n[1]; ++j) {
       for (std::size_t i = 0; i < g.n[0]; ++i) {
-        if (i == 0 || j == 0 || k == 0 || i + 1 == g.n[0] || j + 1 == g.n[1] || k + 1 == g.n[2]) push(g.index(i, j, k));
+        if (i == 0 || j == 0 || k == 0 || i + 1 == g.n[0] || j + 1 == g.n[1] || k + 1 == g.n[2]) push(i, j, k);
       }
     }
   }
@@ -263,7 +274,7 @@ std::pair<std::size_t, std::size_t> fill_cavities(const Grid& g, std::vector<std
   for (std::size_t v = 0; v < g.count(); ++v) {
     if (mask[v] != 0) continue;
     ++cavities;
-    push(v);
+    push(v % g.n[0], (v / g.n[0]) % g.n[1], v / (g.n[0] * g.n[1]));
     flood();
   }
   for (std::uint8_t& m : mask) {
