@@ -678,7 +678,8 @@ std::vector<InsidePart> VoxelScene::parts_reaching(const voxels::Grid& grid,
 }
 
 void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> scales_in, voxels::TimePoint& point,
-                            bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts) const {
+                            bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts,
+                            const voxels::Image* image) const {
   if (scales_in.size() != model_.lungs.size()) {
     throw ValueError(fmt::format("voxels: {} scales for {} lungs", scales_in.size(), model_.lungs.size()));
   }
@@ -700,7 +701,7 @@ void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> sc
   inputs.labels = labels_.get();
   inputs.rest_lung = &rest_lung_;
   inputs.lung_labels = lung_labels_;
-  inputs.ct = with_image ? spec_.image.get() : nullptr;
+  inputs.ct = with_image ? (image != nullptr ? image : spec_.image.get()) : nullptr;
   inputs.mass_preserving = spec_.mass_preserving;
   inputs.jacobian_map = spec_.jacobian || with_jacobian;
   if (body) {
@@ -746,6 +747,52 @@ namespace {
 // (log scale, 1 in the middle).
 constexpr std::array<double, 2> kCtWindowHu{-1000.0, 200.0};
 constexpr std::array<double, 2> kJacobianRange{0.5, 2.0};
+
+// The box of `ct` that the pull-back `field` samples (each voxel's x + v(x), its trilinear
+// corners and two voxels more for rounding), as an image of its own on the same lattice: a
+// slice plane's warped CT from it is the whole scan's, and the mass-preserving CT, made anew
+// at each channel time, is made on a slab of the scan instead of all of it.
+voxels::Image ct_reached(const voxels::Image& ct, const voxels::DisplacementField& field) {
+  const Eigen::Matrix4d to_ijk = ct.grid.lps_to_ijk();
+  std::array<double, 3> lo{}, hi{};
+  lo.fill(std::numeric_limits<double>::infinity());
+  hi.fill(-std::numeric_limits<double>::infinity());
+  const auto& n = field.grid.size;
+  for (std::size_t k = 0, v = 0; k < n[2]; ++k)
+    for (std::size_t j = 0; j < n[1]; ++j)
+      for (std::size_t i = 0; i < n[0]; ++i, ++v) {
+        const Eigen::Vector3d x = field.grid.centre_m(i, j, k) + field.displacement_m[v].cast<double>();
+        const Eigen::Vector3d q = (to_ijk * x.homogeneous()).head<3>();
+        if (!q.allFinite()) continue;
+        for (std::size_t a = 0; a < 3; ++a) {
+          lo[a] = std::min(lo[a], q[static_cast<Eigen::Index>(a)]);
+          hi[a] = std::max(hi[a], q[static_cast<Eigen::Index>(a)]);
+        }
+      }
+  std::array<std::size_t, 3> first{}, size{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const double top = static_cast<double>(ct.grid.size[a] - 1);
+    // Nothing reached (an empty plane): one voxel, which no sample reads.
+    if (!(lo[a] <= hi[a])) lo[a] = hi[a] = 0.0;
+    const double from = std::clamp(std::floor(lo[a]) - 2.0, 0.0, top),
+                 to = std::clamp(std::ceil(hi[a]) + 2.0, 0.0, top);
+    first[a] = static_cast<std::size_t>(from);
+    size[a] = static_cast<std::size_t>(to) - first[a] + 1;
+  }
+  voxels::Image crop;
+  crop.grid.size = size;
+  Eigen::Matrix4d shift = Eigen::Matrix4d::Identity();
+  shift.block<3, 1>(0, 3) << static_cast<double>(first[0]), static_cast<double>(first[1]),
+      static_cast<double>(first[2]);
+  crop.grid.ijk_to_lps = ct.grid.ijk_to_lps * shift;
+  crop.values.resize(crop.grid.voxel_count());
+  for (std::size_t k = 0, v = 0; k < size[2]; ++k)
+    for (std::size_t j = 0; j < size[1]; ++j, v += size[0]) {
+      const float* row = ct.values.data() + ct.grid.index(first[0], first[1] + j, first[2] + k);
+      std::copy(row, row + size[0], crop.values.begin() + static_cast<std::ptrdiff_t>(v));
+    }
+  return crop;
+}
 
 std::uint8_t channel_byte(double value, const LabelSlice::Channel& channel) {
   const double lo = channel.log ? std::log(channel.lo) : channel.lo;
@@ -849,9 +896,16 @@ std::vector<LabelSlice> report_label_slices(const model::Model& model, const Run
       std::vector<double> scales;
       for (std::size_t i = 0; i < model.lungs.size(); ++i) scales.push_back(run.scales[i][k]);
       const bool channels = max_channel_times > 0 && (t % stride == 0 || t + 1 == n);
-      // The CT's slices from the whole insides: its rest lungs are found on the CT's own grid.
+      // The CT's slices from the whole insides (its rest lungs are found on the CT's own grid),
+      // on the part of the scan this plane's pull-back reaches: the field first, from the parts.
       const bool ct_now = channels && with_ct;
-      scene.compute_on(grid, scales, point, ct_now, channels, ct_now ? nullptr : &parts);
+      if (ct_now) {
+        scene.compute_on(grid, scales, point, false, false, &parts);
+        const voxels::Image ct = ct_reached(*spec.image, point.pullback);
+        scene.compute_on(grid, scales, point, true, true, nullptr, &ct);
+      } else {
+        scene.compute_on(grid, scales, point, false, channels, &parts);
+      }
       // Pixel (row, c) of the plane: row 0 is the most superior.
       const auto voxel = [&](std::size_t row, std::size_t c) {
         const std::size_t z = slice.height - 1 - row;

@@ -157,8 +157,84 @@ TEST(Labels, HandlesAreRemovedOrReported) {
   expect_valid_genus0(removed.mesh, "torus");
   EXPECT_TRUE(removed.report.filled_slice_holes);
   EXPECT_EQ(removed.report.attempts, 2);
+  // The handle was seen on the first mask's samples: only the filled one was meshed.
+  EXPECT_EQ(removed.report.meshings, 1);
+  EXPECT_EQ(kept.report.meshings, 1);
   EXPECT_NEAR(enclosed_volume(removed.mesh) / (kPi * (R + r) * (R + r) * 2 * r * 1e-9), 1.0,
               0.35);  // filled: a disc-like cake
+}
+
+// The Euler characteristics of sampled shapes against their Betti numbers (b0 - b1 + b2):
+// where the thin (6-connected) and thick (26-connected) models part, at samples touching only
+// diagonally, each gives its own count.
+TEST(Labels, LevelSetEulerCharacteristicsCountComponentsHandlesAndCavities) {
+  using pneuma::mesh::detail::level_set_euler_characteristics;
+  using pneuma::mesh::detail::ScalarGrid;
+  const std::array<std::size_t, 3> n{24, 24, 16};
+  auto grid_of = [&](auto&& inside) {
+    ScalarGrid g;
+    g.size = n;
+    g.values.assign(n[0] * n[1] * n[2], 0.0f);
+    for (std::size_t k = 0; k < n[2]; ++k)
+      for (std::size_t j = 0; j < n[1]; ++j)
+        for (std::size_t i = 0; i < n[0]; ++i)
+          if (inside(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)))
+            g.values[i + n[0] * (j + n[1] * k)] = 1.0f;
+    return g;
+  };
+  auto expect_chi = [&](const char* what, auto&& inside, long long thin, long long thick) {
+    const auto chi = level_set_euler_characteristics(grid_of(inside));
+    EXPECT_EQ(chi.thin, thin) << what;
+    EXPECT_EQ(chi.thick, thick) << what;
+  };
+  auto r = [](double x, double y, double z, double cx, double cy, double cz) {
+    return std::sqrt((x - cx) * (x - cx) + (y - cy) * (y - cy) + (z - cz) * (z - cz));
+  };
+  expect_chi(
+      "nothing", [](double, double, double) { return false; }, 0, 0);
+  expect_chi(
+      "ball", [&](double x, double y, double z) { return r(x, y, z, 11.5, 11.5, 7.5) <= 6.0; }, 1, 1);
+  expect_chi(
+      "two balls",
+      [&](double x, double y, double z) { return r(x, y, z, 6, 6, 7) <= 4.0 || r(x, y, z, 17, 17, 7) <= 4.0; }, 2, 2);
+  expect_chi(
+      "a shell (one cavity)",
+      [&](double x, double y, double z) {
+        const double d = r(x, y, z, 11.5, 11.5, 7.5);
+        return d <= 7.0 && d >= 4.0;
+      },
+      2, 2);
+  auto torus = [&](double x, double y, double z, double cx) {
+    const double q = std::hypot(x - cx, y - 11.5) - 5.0;
+    return q * q + (z - 7.5) * (z - 7.5) <= 2.2 * 2.2;
+  };
+  expect_chi(
+      "torus (one handle)", [&](double x, double y, double z) { return torus(x, y, z, 11.5); }, 0, 0);
+  expect_chi(
+      "a block with two holes (genus 2)",
+      [&](double x, double y, double z) {
+        const bool block = x >= 3 && x <= 20 && y >= 5 && y <= 18 && z >= 4 && z <= 11;
+        const bool hole = y >= 10 && y <= 13 && ((x >= 7 && x <= 9) || (x >= 14 && x <= 16));
+        return block && !hole;
+      },
+      -1, -1);
+  // Two single samples touching at a corner: two points (thin), one joined blob (thick).
+  expect_chi(
+      "corner contact",
+      [](double x, double y, double z) { return (x == 5 && y == 5 && z == 5) || (x == 6 && y == 6 && z == 6); }, 2, 1);
+  // A square ring of samples in one plane, one corner replaced by a diagonal step: open (thin),
+  // a loop (thick).
+  expect_chi(
+      "ring closed diagonally",
+      [](double x, double y, double z) {
+        if (z != 5) return false;
+        const bool on_ring = (x >= 4 && x <= 12 && y >= 4 && y <= 12) && (x == 4 || x == 12 || y == 4 || y == 12);
+        return on_ring && !(x == 4 && y == 4);
+      },
+      1, 0);
+  // The last sample of each axis is background, as Mesh_3's sampler reads it.
+  expect_chi(
+      "last layer", [&](double x, double, double) { return x == static_cast<double>(n[0] - 1); }, 0, 0);
 }
 
 TEST(LabelsCli, WritesTheSurfaceAndItsProvenance) {
@@ -304,6 +380,13 @@ TEST_P(CtLobes, BothLungsExtractRepairAndRemesh) {
       ASSERT_EQ(extraction_edge_m(edge), 4e-3);
       const LabelSurface coarse =
           surface_from_labels(map, file.string(), labels, {.edge_length_m = extraction_edge_m(edge)});
+      // The first attempt's surface, meshed whatever its genus: a later attempt was needed
+      // exactly when it has a handle, and a handle seen on the samples skipped its meshing, so
+      // every lung is meshed once (#50: case004's left lung was meshed twice).
+      const LabelSurface first = surface_from_labels(
+          map, file.string(), labels, {.edge_length_m = extraction_edge_m(edge), .remove_handles = false});
+      EXPECT_EQ(coarse.report.attempts > 1, first.report.genus > 0) << what << ": genus " << first.report.genus;
+      EXPECT_EQ(coarse.report.meshings, 1) << what << ", " << coarse.report.attempts << " attempts";
       const TriangleMesh route =
           remesh_isotropic(coarse.mesh, {.target_edge_length_m = edge, .measure_deviation = false}).mesh;
       expect_valid_genus0(route, what + " meshed and remeshed at 4 mm");

@@ -30,6 +30,11 @@ struct Grid {
   std::size_t stride(int axis) const { return axis == 0 ? 1 : axis == 1 ? n[0] : n[0] * n[1]; }
 };
 
+// A voxel's indices on a flood's stack (the index of each neighbour without a division).
+struct Ijk {
+  std::uint32_t i, j, k;
+};
+
 // The first voxel of line l of the lines along `axis` (count() / n[axis] of them): for axis 0,
 // l indexes (j, k); for axis 1, (i, k); for axis 2, (i, j).
 std::size_t line_start(const Grid& g, int axis, std::size_t l) {
@@ -75,29 +80,32 @@ std::pair<std::size_t, std::size_t> keep_largest_component(const Grid& g, std::v
   constexpr std::uint32_t none = ~std::uint32_t{0};
   std::vector<std::uint32_t> component(g.count(), none);
   std::vector<std::size_t> sizes;
-  std::vector<std::size_t> stack;
+  std::vector<Ijk> stack;
   for (std::size_t seed = 0; seed < g.count(); ++seed) {
     if (!mask[seed] || component[seed] != none) continue;
     const auto id = static_cast<std::uint32_t>(sizes.size());
     std::size_t size = 0;
-    stack.assign(1, seed);
+    stack.assign(1, Ijk{static_cast<std::uint32_t>(seed % g.n[0]), static_cast<std::uint32_t>((seed / g.n[0]) % g.n[1]),
+                        static_cast<std::uint32_t>(seed / (g.n[0] * g.n[1]))});
     component[seed] = id;
     while (!stack.empty()) {
-      const std::size_t v = stack.back();
+      const Ijk at = stack.back();
       stack.pop_back();
       ++size;
-      const std::size_t i = v % g.n[0], j = (v / g.n[0]) % g.n[1], k = v / (g.n[0] * g.n[1]);
+      const std::size_t i = at.i, j = at.j, k = at.k;
       for (int dk = -1; dk <= 1; ++dk) {
         if ((k == 0 && dk < 0) || (k + 1 == g.n[2] && dk > 0)) continue;
         for (int dj = -1; dj <= 1; ++dj) {
           if ((j == 0 && dj < 0) || (j + 1 == g.n[1] && dj > 0)) continue;
           for (int di = -1; di <= 1; ++di) {
             if ((i == 0 && di < 0) || (i + 1 == g.n[0] && di > 0)) continue;
-            const std::size_t w = g.index(i + static_cast<std::size_t>(di), j + static_cast<std::size_t>(dj),
-                                          k + static_cast<std::size_t>(dk));
+            const std::size_t wi = i + static_cast<std::size_t>(di), wj = j + static_cast<std::size_t>(dj),
+                              wk = k + static_cast<std::size_t>(dk);
+            const std::size_t w = g.index(wi, wj, wk);
             if (mask[w] && component[w] == none) {
               component[w] = id;
-              stack.push_back(w);
+              stack.push_back(
+                  {static_cast<std::uint32_t>(wi), static_cast<std::uint32_t>(wj), static_cast<std::uint32_t>(wk)});
             }
           }
         }
@@ -167,13 +175,37 @@ void edt_1d(const float* f, float* d, std::size_t n, double w, std::vector<std::
 std::vector<float> squared_distance_to(const Grid& g, const std::vector<std::uint8_t>& target,
                                        const Eigen::Vector3d& spacing) {
   std::vector<float> d(g.count());
-  for (std::size_t v = 0; v < g.count(); ++v) d[v] = target[v] ? 0.0f : std::numeric_limits<float>::infinity();
+  // Along x, from the 0/1 target straight: the nearest target voxel of the row (what the
+  // envelope of equal parabolas gives, in the same arithmetic: w dq^2 + 0), infinity without one.
+  {
+    const std::size_t n = g.n[0];
+    const double w = spacing[0] * spacing[0];
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    for_each_line<std::vector<std::size_t>>(g, 0, [&](std::size_t start, std::vector<std::size_t>& last) {
+      // last[q]: the nearest target at or before q (n: none), then the nearer of it and the next.
+      last.resize(n);
+      std::size_t seen = n;
+      for (std::size_t q = 0; q < n; ++q) last[q] = seen = target[start + q] ? q : seen;
+      std::size_t next = n;
+      for (std::size_t q = n; q-- > 0;) {
+        if (target[start + q]) next = q;
+        const std::size_t before = last[q];
+        if (before == n && next == n) {
+          d[start + q] = inf;
+          continue;
+        }
+        const std::size_t dq = std::min(before == n ? n : q - before, next == n ? n : next - q);
+        const auto dqd = static_cast<double>(dq);
+        d[start + q] = static_cast<float>(w * dqd * dqd);
+      }
+    });
+  }
   struct Scratch {
     std::vector<float> in, out;
     std::vector<std::size_t> v;
     std::vector<double> z;
   };
-  for (int axis = 0; axis < 3; ++axis) {
+  for (int axis = 1; axis < 3; ++axis) {
     const std::size_t n = g.n[static_cast<std::size_t>(axis)], stride = g.stride(axis);
     const double w = spacing[axis] * spacing[axis];
     for_each_line<Scratch>(g, axis, [&](std::size_t start, Scratch& s) {
@@ -208,28 +240,31 @@ std::size_t close_mask(const Grid& g, std::vector<std::uint8_t>& mask, const Eig
 // Background not 6-connected to the border of the crop becomes inside. Returns {cavities, voxels}.
 std::pair<std::size_t, std::size_t> fill_cavities(const Grid& g, std::vector<std::uint8_t>& mask) {
   // 0: background not yet reached, 1: inside, 2: outside (reached from the border), 3: cavity.
-  std::vector<std::size_t> stack;
+  std::vector<Ijk> stack;
   std::uint8_t marker = 2;
-  auto push = [&](std::size_t v) {
-    if (mask[v] == 0) mask[v] = marker, stack.push_back(v);
+  auto push = [&](std::size_t i, std::size_t j, std::size_t k) {
+    std::uint8_t& m = mask[g.index(i, j, k)];
+    if (m == 0)
+      m = marker,
+      stack.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j), static_cast<std::uint32_t>(k)});
   };
   auto flood = [&] {
     while (!stack.empty()) {
-      const std::size_t v = stack.back();
+      const Ijk at = stack.back();
       stack.pop_back();
-      const std::size_t i = v % g.n[0], j = (v / g.n[0]) % g.n[1], k = v / (g.n[0] * g.n[1]);
-      if (i > 0) push(v - 1);
-      if (i + 1 < g.n[0]) push(v + 1);
-      if (j > 0) push(v - g.n[0]);
-      if (j + 1 < g.n[1]) push(v + g.n[0]);
-      if (k > 0) push(v - g.n[0] * g.n[1]);
-      if (k + 1 < g.n[2]) push(v + g.n[0] * g.n[1]);
+      const std::size_t i = at.i, j = at.j, k = at.k;
+      if (i > 0) push(i - 1, j, k);
+      if (i + 1 < g.n[0]) push(i + 1, j, k);
+      if (j > 0) push(i, j - 1, k);
+      if (j + 1 < g.n[1]) push(i, j + 1, k);
+      if (k > 0) push(i, j, k - 1);
+      if (k + 1 < g.n[2]) push(i, j, k + 1);
     }
   };
   for (std::size_t k = 0; k < g.n[2]; ++k) {
     for (std::size_t j = 0; j < g.n[1]; ++j) {
       for (std::size_t i = 0; i < g.n[0]; ++i) {
-        if (i == 0 || j == 0 || k == 0 || i + 1 == g.n[0] || j + 1 == g.n[1] || k + 1 == g.n[2]) push(g.index(i, j, k));
+        if (i == 0 || j == 0 || k == 0 || i + 1 == g.n[0] || j + 1 == g.n[1] || k + 1 == g.n[2]) push(i, j, k);
       }
     }
   }
@@ -239,7 +274,7 @@ std::pair<std::size_t, std::size_t> fill_cavities(const Grid& g, std::vector<std
   for (std::size_t v = 0; v < g.count(); ++v) {
     if (mask[v] != 0) continue;
     ++cavities;
-    push(v);
+    push(v % g.n[0], (v / g.n[0]) % g.n[1], v / (g.n[0] * g.n[1]));
     flood();
   }
   for (std::uint8_t& m : mask) {
@@ -314,18 +349,46 @@ std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, co
     for (float& w : kernel) w = static_cast<float>(w / sum);
     const std::size_t n = g.n[static_cast<std::size_t>(axis)], stride = g.stride(axis);
     const auto nn = static_cast<std::ptrdiff_t>(n);
-    for_each_line<std::vector<float>>(g, axis, [&](std::size_t start, std::vector<float>& line) {
-      line.resize(n);
-      for (std::size_t q = 0; q < n; ++q) line[q] = a[start + q * stride];
-      for (std::ptrdiff_t q = 0; q < nn; ++q) {
-        float acc = 0.0f;
-        const std::ptrdiff_t lo = std::max<std::ptrdiff_t>(0, q - radius),
-                             hi = std::min<std::ptrdiff_t>(nn - 1, q + radius);
-        for (std::ptrdiff_t t = lo; t <= hi; ++t)
-          acc += kernel[static_cast<std::size_t>(t - q + radius)] * line[static_cast<std::size_t>(t)];
-        b[start + static_cast<std::size_t>(q) * stride] = acc;
-      }
-    });
+    const auto window = [&](std::ptrdiff_t q) {
+      return std::pair{std::max<std::ptrdiff_t>(0, q - radius), std::min<std::ptrdiff_t>(nn - 1, q + radius)};
+    };
+    if (axis == 0) {
+      for_each_line<std::vector<float>>(g, axis, [&](std::size_t start, std::vector<float>& line) {
+        line.assign(a.begin() + static_cast<std::ptrdiff_t>(start), a.begin() + static_cast<std::ptrdiff_t>(start + n));
+        for (std::ptrdiff_t q = 0; q < nn; ++q) {
+          float acc = 0.0f;
+          const auto [lo, hi] = window(q);
+          for (std::ptrdiff_t t = lo; t <= hi; ++t)
+            acc += kernel[static_cast<std::size_t>(t - q + radius)] * line[static_cast<std::size_t>(t)];
+          b[start + static_cast<std::size_t>(q)] = acc;
+        }
+      });
+    } else {
+      // Across y or z, a whole row of x at once (contiguous, so it vectorises): each voxel's sum
+      // still runs over t in the same order as along one line, so the bits are the same.
+      const int other = axis == 1 ? 2 : 1;
+      const std::size_t rows = g.n[static_cast<std::size_t>(other)], row_step = g.stride(other), nx = g.n[0];
+      const tsan::Region region;
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(0, rows), region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
+            std::vector<float> acc(nx);
+            for (std::size_t o = range.begin(); o < range.end(); ++o) {
+              const std::size_t base = o * row_step;
+              for (std::ptrdiff_t q = 0; q < nn; ++q) {
+                std::fill(acc.begin(), acc.end(), 0.0f);
+                const auto [lo, hi] = window(q);
+                for (std::ptrdiff_t t = lo; t <= hi; ++t) {
+                  const float k = kernel[static_cast<std::size_t>(t - q + radius)];
+                  const float* row = a.data() + base + static_cast<std::size_t>(t) * stride;
+                  for (std::size_t i = 0; i < nx; ++i) acc[i] += k * row[i];
+                }
+                std::copy(acc.begin(), acc.end(),
+                          b.begin() + static_cast<std::ptrdiff_t>(base + static_cast<std::size_t>(q) * stride));
+              }
+            }
+          }));
+      region.join();
+    }
     std::swap(a, b);
   }
   return a;
@@ -510,14 +573,20 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
     std::int32_t run_label = map.labels.empty() ? 0 : map.labels[0];
     for (std::size_t k = 0; k < map.size[2]; ++k) {
       for (std::size_t j = 0; j < map.size[1]; ++j) {
+        // The row's first and last wanted voxel; the box grows once per row.
+        std::size_t first = map.size[0], last = 0;
         for (std::size_t i = 0; i < map.size[0]; ++i, ++v) {
           const std::int32_t l = map.labels[v];
           if (l != run_label) counts[run_label] += run, run_label = l, run = 0;
           ++run;
           if (!wanted(l)) continue;
-          const Size3 ijk{i, j, k};
-          for (std::size_t a = 0; a < 3; ++a) lo[a] = std::min(lo[a], ijk[a]), hi[a] = std::max(hi[a], ijk[a]);
+          first = std::min(first, i);
+          last = i;
         }
+        if (first == map.size[0]) continue;
+        lo[0] = std::min(lo[0], first), hi[0] = std::max(hi[0], last);
+        lo[1] = std::min(lo[1], j), hi[1] = std::max(hi[1], j);
+        lo[2] = std::min(lo[2], k), hi[2] = std::max(hi[2], k);
       }
     }
     if (run > 0) counts[run_label] += run;
@@ -577,24 +646,49 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
   field.lps_to_index = field.index_to_lps.inverse();
 
   // Attempts: the closing radius asked for; then with slice holes filled; then a doubled
-  // radius (with slice holes) while the genus is above 0 and the radius allows.
+  // radius (with slice holes) while the genus is above 0 and the radius allows. The closed mask
+  // is kept while the radius stays (the second attempt closes as the first did).
   double radius = options.closing_radius_m;
   bool slice_holes = false;
+  std::vector<std::uint8_t> closed;
+  double closed_radius = -1.0;
+  rep.meshings = 0;
   for (int attempt = 1;; ++attempt) {
-    std::vector<std::uint8_t> mask = base;
     // 3. Closing (and tunnels), 4. cavities.
+    if (radius != closed_radius) {
+      closed = base;
+      rep.closing_added_voxels = close_mask(g, closed, spacing, radius);
+      closed_radius = radius;
+    }
+    std::vector<std::uint8_t> mask = closed;
     rep.closing_radius_m = radius;
-    rep.closing_added_voxels = close_mask(g, mask, spacing, radius);
     rep.slice_hole_voxels = slice_holes ? fill_slice_holes(g, mask) : 0;
     rep.filled_slice_holes = slice_holes;
     rep.filled_cavities = rep.filled_cavity_voxels = 0;
     if (options.fill_cavities) std::tie(rep.filled_cavities, rep.filled_cavity_voxels) = fill_cavities(g, mask);
     rep.mask_voxels = static_cast<std::size_t>(std::count(mask.begin(), mask.end(), std::uint8_t{1}));
+    rep.attempts = attempt;
     // 5. Smoothing, 6. meshing.
     field.values = blur(g, mask, spacing, options.smoothing_m);
     mask.clear();
     mask.shrink_to_fit();
+    const bool can_grow = radius > 0.0 && 2.0 * radius <= options.max_closing_radius_m * (1.0 + 1e-9);
+    const bool last = !options.remove_handles || (slice_holes && !can_grow);
+    // Handles on the blurred mask's samples, in both cubical models between which the trilinear
+    // level set lies (islands and cavities only raise the characteristic), are handles of the
+    // surface Mesh_3 would make: the next attempt, without meshing this one. On the twelve CT
+    // lungs this skips exactly the meshings whose surface had a handle (BENCHMARKS.md, #50).
+    if (!last) {
+      const detail::LevelSetEuler chi = detail::level_set_euler_characteristics(field);
+      if (chi.thin < 1 && chi.thick < 1) {
+        field.values.clear();
+        if (slice_holes) radius *= 2.0;
+        slice_holes = true;
+        continue;
+      }
+    }
     TriangleMesh mesh = detail::mesh_level_set(field, rep.edge_length_m, rep.max_distance_m);
+    ++rep.meshings;
     field.values.clear();
     if (mesh.triangles.empty()) {
       throw InputError(
@@ -605,10 +699,8 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
     rep.dropped_surface_components = keep_largest_surface(mesh);
     // 7. Genus.
     const ValidationReport check = validate(mesh, {.check_self_intersections = false});
-    rep.attempts = attempt;
     rep.genus = check.genus.value_or(-1);
-    const bool can_grow = radius > 0.0 && 2.0 * radius <= options.max_closing_radius_m * (1.0 + 1e-9);
-    const bool done = rep.genus == 0 || !options.remove_handles || (slice_holes && !can_grow);
+    const bool done = rep.genus == 0 || last;
     if (done || !check.genus) {
       rep.volume_m3 = enclosed_volume(mesh);
       rep.area_m2 = surface_area(mesh);

@@ -97,9 +97,10 @@ class VoxelScene {
   // The same on another grid (a plane for report.html's slices), the CT only if `with_image`.
   // The Jacobian image is made when the spec asks for it or `with_jacobian`.
   // With `parts` (one per lung, parts_reaching(grid, ...)), only their tetrahedra are rasterised.
+  // With `image`, that CT (a crop of the spec's: ct_reached()) is pulled back instead of the spec's.
   void compute_on(const voxels::Grid& grid, std::span<const double> scales, voxels::TimePoint& point,
-                  bool with_image = true, bool with_jacobian = false,
-                  const std::vector<InsidePart>* parts = nullptr) const;
+                  bool with_image = true, bool with_jacobian = false, const std::vector<InsidePart>* parts = nullptr,
+                  const voxels::Image* image = nullptr) const;
   // Each lung's tetrahedra that can hold a voxel of `grid` at rest or at any scale between
   // `scale_ranges[lung]` (lowest, highest): their boxes over that range of `rest + s u` (linear
   // in s, so the ends bound it) meet the grid's box grown by a voxel. A voxel's tet is the lowest

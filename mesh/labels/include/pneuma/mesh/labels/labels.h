@@ -15,7 +15,9 @@
 //   6. meshing: CGAL Mesh_3 (Delaunay refinement of the implicit surface, facet criteria:
 //      angle >= 30 degrees, size `edge_length_m`, distance to the level set `max_distance_m`,
 //      manifold topology), then the largest surface component, oriented outward;
-//   7. genus: checked by the Euler characteristic; while it is above 0, steps 3-6 are redone,
+//   7. genus: checked by the Euler characteristic, first on the blurred mask's samples (a handle
+//      seen there skips the meshing: it would be thrown away), then on the surface; while it is
+//      above 0, steps 3-6 are redone,
 //      first with tunnels filled (background enclosed within a slice across x, y or z, which is
 //      how a tunnel shows), then with the closing radius doubled up to `max_closing_radius_m`.
 //      A genus still above 0 is reported (LabelSurfaceReport::genus), not an error.
@@ -63,7 +65,8 @@ struct LabelSurfaceReport {
   double smoothing_m = 0.0, edge_length_m = 0.0, max_distance_m = 0.0;
   std::size_t dropped_surface_components = 0;
   int genus = 0;
-  int attempts = 1;        // meshing runs (more when closing grew to reach genus 0)
+  int attempts = 1;        // masks made (more when closing grew to reach genus 0)
+  int meshings = 1;        // Mesh_3 runs: attempts less those whose mask showed a handle on its samples
   double volume_m3 = 0.0;  // enclosed by the surface
   double area_m2 = 0.0;
 
@@ -114,6 +117,16 @@ struct ScalarGrid {
 // The 0.5 level set of the trilinear field (values > 0.5 inside), meshed by CGAL Mesh_3 in
 // labels_cgal.cpp. Returns a soup-free TriangleMesh (every component Mesh_3 found).
 TriangleMesh mesh_level_set(const ScalarGrid& grid, double edge_length_m, double max_distance_m);
+// The Euler characteristic (V - E + F - C) of the samples above 0.5, the last sample of each
+// axis and all outside the grid read as background (as mesh_level_set() reads them), in the two
+// cubical models between which the trilinear level set lies: `thin`, the grid cells whose
+// corners are all inside (6-connected); `thick`, the union of the inside samples' voxel cubes
+// (26-connected). For one solid without cavities either is 1 - its handles; islands and
+// cavities add 1 each. Where the two differ, a sample pair touching only diagonally decides.
+struct LevelSetEuler {
+  long long thin = 0, thick = 0;
+};
+LevelSetEuler level_set_euler_characteristics(const ScalarGrid& grid);  // level_set_topology.cpp
 }  // namespace detail
 
 }  // namespace pneuma::mesh
