@@ -52,6 +52,18 @@ constexpr long kFarthestRing = 16;
 // zero field by about 1e-6 voxel, which would otherwise pick a neighbour of the other tissue).
 constexpr double kNegligibleWeight = 1e-4;
 
+// The index of the voxel nearest to the continuous index q in a grid of `size`, if q rounds to
+// one inside it (a q that is not finite rounds to none).
+std::optional<std::size_t> nearest_voxel(const Eigen::Vector3d& q, const std::array<std::size_t, 3>& size) {
+  std::array<std::size_t, 3> at{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const double rounded = std::floor(q[static_cast<Eigen::Index>(a)] + 0.5);
+    if (!(rounded >= 0.0 && rounded < static_cast<double>(size[a]))) return std::nullopt;
+    at[a] = static_cast<std::size_t>(rounded);
+  }
+  return at[0] + size[0] * (at[1] + size[1] * at[2]);
+}
+
 std::optional<std::size_t> nearest_on_side(const std::vector<std::uint8_t>& rest_lung,
                                            const std::array<std::size_t, 3>& size, const Eigen::Vector3d& q,
                                            std::uint8_t side) {
@@ -102,16 +114,12 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
   const std::array<double, 3> n{static_cast<double>(labels.size[0]), static_cast<double>(labels.size[1]),
                                 static_cast<double>(labels.size[2])};
   for_each_sample(pullback, source, [&](std::size_t v, const Eigen::Vector3d& q) {
-    std::array<std::size_t, 3> at{};
-    for (std::size_t a = 0; a < 3; ++a) {
-      const double r = std::floor(q[static_cast<Eigen::Index>(a)] + 0.5);
-      if (!(r >= 0.0 && r < n[a])) {  // outside the label map (or not finite)
-        out.labels[v] = 0;
-        return;
-      }
-      at[a] = static_cast<std::size_t>(r);
+    const std::optional<std::size_t> rounded = nearest_voxel(q, labels.size);
+    if (!rounded) {  // outside the label map (or not finite)
+      out.labels[v] = 0;
+      return;
     }
-    std::size_t nearest = at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2]);
+    std::size_t nearest = *rounded;
     const std::uint8_t lung = pullback.lung[v];
     if (rest_lung && (*rest_lung)[nearest] != lung) {
       // The nearest of the eight voxels around q on x's side of the pleura: inside this lung's
@@ -223,16 +231,10 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
   });
 }
 
-}  // namespace pneuma::voxels
-
-namespace pneuma::voxels {
-
 void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, const Grid& grid,
                  std::vector<std::uint8_t>& out) {
   out.resize(grid.voxel_count());
   const Eigen::Matrix4d to_labels = grid_of(labels).lps_to_ijk() * grid.ijk_to_lps;
-  const std::array<double, 3> n{static_cast<double>(labels.size[0]), static_cast<double>(labels.size[1]),
-                                static_cast<double>(labels.size[2])};
   const tsan::Region region;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, grid.size[2]), region.wrap([&](const auto& r) {
     for (std::size_t k = r.begin(); k != r.end(); ++k)
@@ -240,17 +242,11 @@ void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels
         for (std::size_t i = 0; i < grid.size[0]; ++i) {
           const Eigen::Vector4d q =
               to_labels * Eigen::Vector4d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k), 1.0);
-          std::array<std::size_t, 3> at{};
-          bool inside = true;
-          for (std::size_t a = 0; a < 3; ++a) {
-            const double rounded = std::floor(q[static_cast<Eigen::Index>(a)] + 0.5);
-            inside = inside && rounded >= 0.0 && rounded < n[a];
-            at[a] = inside ? static_cast<std::size_t>(rounded) : 0;
-          }
-          const std::int32_t label =
-              inside ? labels.labels[at[0] + labels.size[0] * (at[1] + labels.size[1] * at[2])] : 0;
+          const std::optional<std::size_t> nearest = nearest_voxel(q.head<3>(), labels.size);
           out[grid.index(i, j, k)] =
-              inside && std::find(lung_labels.begin(), lung_labels.end(), label) != lung_labels.end() ? 1 : 0;
+              nearest && std::find(lung_labels.begin(), lung_labels.end(), labels.labels[*nearest]) != lung_labels.end()
+                  ? 1
+                  : 0;
         }
   }));
   region.join();
