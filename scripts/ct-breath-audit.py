@@ -27,10 +27,13 @@ the written files (each file's own affine; none of pneuma's arithmetic):
 - mass: at each time point off the scan, per lung and for both, the sum of (HU + 1000) over the
   lung voxels showing parenchyma (-1000 to -500 HU) against the scan's that stays in view; the
   mean lung HU at the breath's other end against the mass-preserving prediction.
+- the surface: per lung, the mediastinum's mean motion and the diaphragm's mean caudal motion
+  over the breath (series.h5; the realism criteria of docs/realism.md: <= 1 mm, >= 8 mm).
 - the reference: the lungs' volume (warped label voxels) at the breath's other end against the
   scan's plus or minus 500 mL.
 
-One line per run is printed as it finishes (JSON with every number); `--json` collects them.
+One line per run is printed as it finishes (JSON with every number); `--json` collects them,
+`--table FILE` prints the markdown table of docs/voxels.md from them.
 """
 import argparse
 import json
@@ -196,6 +199,29 @@ def measure(d, input_ct, reference):
     return r
 
 
+def surface_motion(series):
+    """Per lung, the surface's motion over the breath (the run's smallest to largest scale) by
+    region (series.h5's labels), area-weighted: the mediastinum's mean |motion| and the
+    diaphragm's mean caudal motion, in mm (docs/realism.md's criteria: <= 1 mm, >= 8 mm)."""
+    import h5py
+    out = {}
+    with h5py.File(series, "r") as f:
+        for side in ("right", "left"):
+            g = f[side]
+            x, t = g["rest/positions"][:], g["rest/triangles"][:]
+            u, region, scale = g["field/unit_displacement"][:], g["rest/region"][:], g["frames/scale"][:]
+            area = np.zeros(len(x))
+            a = 0.5 * np.linalg.norm(np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]]), axis=1)
+            for c in range(3):
+                np.add.at(area, t[:, c], a / 3.0)
+            motion = (scale.max() - scale.min()) * u * 1e3
+            def mean(values, where):
+                return float((values * area)[where].sum() / area[where].sum())
+            out[side] = {"mediastinum_mm": mean(np.linalg.norm(motion, axis=1), region == 3),
+                         "diaphragm_caudal_mm": mean(-motion[:, 2], region == 2)}
+    return out
+
+
 def run(pneuma, case, tissue, breath, work):
     labels = CT_LOBES / f"{case}_lobes.nii.gz"
     work.mkdir(parents=True, exist_ok=True)
@@ -208,7 +234,7 @@ def run(pneuma, case, tissue, breath, work):
         f"mesh: {{labels: {labels}, lungs: {{right: [3, 4, 5], left: [1, 2]}}, edge: 5 mm, breath: {breath}}}\n"
         f"field: {{tissue: {tissue}, interior: {{edge: 6 mm}}}}\n"
         "physiology: {preset: healthy-adult}\n"
-        "outputs: {gltf: false, report: false, hdf5: false, physiology_csv: false,\n"
+        "outputs: {gltf: false, report: false, hdf5: true, physiology_csv: false,\n"
         "  voxels: {at: [end_expiration, 1 s, end_inspiration], spacing: 4 mm, image: ct.nii.gz}}\n")
     out = work / f"{tissue}-{breath}"
     start = time.time()
@@ -218,7 +244,31 @@ def run(pneuma, case, tissue, breath, work):
         result["error"] = p.stderr.strip()
         return result
     result.update(measure(out / "voxels", ct, breath))
+    result["surface"] = surface_motion(out / "series.h5")
     return result
+
+
+def table(results):
+    """The docs' table (docs/voxels.md, "The issue's checks, measured"): one row per run."""
+    rows = ["| case | tissue | scan at | deep J < 0.95, % (differences / image) | smallest deep J (differences / image) "
+            "| DIR-Lab, largest offset | pull-back J outside the band | outside [0.5, 2]: body / lungs (R / L) "
+            "| pairs | mass, farthest from 1 | mean HU - prediction | the other end's volume | smallest J image "
+            "| mediastinum, mm (R / L) |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in results:
+        head = f"| {r['case']} | {r['tissue']} | {r['breath']} |"
+        if r["exit"] != 0:
+            rows.append(head + f" exit {r['exit']}: {r.get('error', '')} |" + " |" * 10)
+            continue
+        t = r["worst_tear"]
+        profile = f"{r['profile_offset']:.2f}" if r["tissue"] != "healthy-upright" else f"({r['profile_offset']:.2f})"
+        rows.append(head + f" {100 * r['deep_below_095']:.3f} / {100 * r['image_below_095']:.2f} |"
+                    f" {r['deep_min_j']:.2f} / {r['image_min_j']:.2f} | {profile} |"
+                    f" {t['pull_min']:.2f}-{t['pull_max']:.2f} | {t['body_torn']} / {t['right_torn']} / {t['left_torn']} |"
+                    f" {t['pairs']} | {100 * (r['worst_mass'] - 1):+.2f} % | {r['hu_offset']:+.2f} |"
+                    f" {100 * r['volume_error']:+.2f} % | {r['smallest_image_j']:.2f} |"
+                    f" {r['surface']['right']['mediastinum_mm']:.2f} / {r['surface']['left']['mediastinum_mm']:.2f} |")
+    return "\n".join(rows)
 
 
 def main():
@@ -229,7 +279,11 @@ def main():
     ap.add_argument("--breath", default="end_expiration,end_inspiration")
     ap.add_argument("--keep", help="keep the runs' folders here (default: a temporary folder)")
     ap.add_argument("--json", help="write every run's numbers here")
+    ap.add_argument("--table", help="print the docs' table of a --json file, and run nothing")
     args = ap.parse_args()
+    if args.table:
+        print(table(json.loads(Path(args.table).read_text())))
+        return 0
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(args.keep) if args.keep else Path(tmp)
