@@ -267,7 +267,8 @@ def table(results):
                     f" {t['pull_min']:.2f}-{t['pull_max']:.2f} | {t['body_torn']} / {t['right_torn']} / {t['left_torn']} |"
                     f" {t['pairs']} | {100 * (r['worst_mass'] - 1):+.2f} % | {r['hu_offset']:+.2f} |"
                     f" {100 * r['volume_error']:+.2f} % | {r['smallest_image_j']:.2f} |"
-                    f" {r['surface']['right']['mediastinum_mm']:.2f} / {r['surface']['left']['mediastinum_mm']:.2f} |")
+                    + (f" {r['surface']['right']['mediastinum_mm']:.2f} / {r['surface']['left']['mediastinum_mm']:.2f} |"
+                       if "surface" in r else " - |"))
     return "\n".join(rows)
 
 
@@ -279,10 +280,10 @@ def main():
     ap.add_argument("--breath", default="end_expiration,end_inspiration")
     ap.add_argument("--keep", help="keep the runs' folders here (default: a temporary folder)")
     ap.add_argument("--json", help="write every run's numbers here")
-    ap.add_argument("--table", help="print the docs' table of a --json file, and run nothing")
+    ap.add_argument("--table", help="print the docs' table of --json files (comma-separated), and run nothing")
     args = ap.parse_args()
     if args.table:
-        print(table(json.loads(Path(args.table).read_text())))
+        print(table([r for f in args.table.split(",") for r in json.loads(Path(f).read_text())]))
         return 0
     results = []
     with tempfile.TemporaryDirectory() as tmp:
