@@ -285,6 +285,57 @@ TEST(HeartDescent, TheFaceOnTheHeartDescendsAsFarAsItLooksDown) {
   EXPECT_THROW(heart_descent_field(mesh::make_icosphere(r, 2), regions, heart, 0.01), ValueError);
 }
 
+// A face below the dome's top that looks up lies under the diaphragm (case009's stretched
+// recess, #45) and moves with the surface around it, as far as it looks up. On a sphere of radius
+// r the smoothed normal is radial, so the oracle is analytic. All of it diaphragmatic by label (no
+// normals given: the dome's top is then the highest diaphragmatic vertex, the sphere's top):
+// below 0.95 of the height the weight is max(0, z / r). Diaphragmatic below the equator only
+// (normals given, radial): the dome's top is the highest vertex whose normal lies within 30
+// degrees of straight down (h = (1 - cos 30) / 2 = 0.067), and nothing below it looks up: no
+// weight anywhere, and the field is left as it was, bit for bit. A uniform field is its own
+// mean: unchanged.
+TEST(HeartDescent, AFaceUnderTheDiaphragmMovesWithTheSurfaceAroundIt) {
+  const double r = 0.1;
+  const auto m = mesh::make_icosphere(r, 4);
+  const std::size_t n = m.vertices.size();
+  mesh::SurfaceRegions regions;
+  regions.label.assign(n, mesh::Region::diaphragmatic);
+  regions.weight.assign(n, {0.0, 0.0, 1.0, 0.0});
+  for (const Eigen::Vector3d& x : m.vertices) regions.height.push_back((x.z() + r) / (2.0 * r));
+  const std::vector<double> under = under_diaphragm(m, regions);
+  double worst = 0.0, largest = 0.0;
+  std::size_t checked = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (regions.height[i] > 0.95) continue;  // the band below the dome's top
+    const double expected = std::max(0.0, m.vertices[i].z() / r);
+    worst = std::max(worst, std::abs(under[i] - expected));
+    largest = std::max(largest, under[i]);
+    ++checked;
+  }
+  EXPECT_GT(checked, 2000u);
+  EXPECT_GT(largest, 0.85);  // the face looking nearly straight up, at 0.95 of the height
+  EXPECT_LT(worst, 0.01);    // the smoothed normal of a sphere: radial to 1 %
+  std::vector<Eigen::Vector3d> uniform(n, Eigen::Vector3d(0.001, -0.002, -0.01));
+  follow_the_diaphragm_over(m, regions, uniform);
+  for (const Eigen::Vector3d& v : uniform) EXPECT_NEAR((v - Eigen::Vector3d(0.001, -0.002, -0.01)).norm(), 0.0, 1e-12);
+
+  mesh::SurfaceRegions base = regions;
+  for (std::size_t i = 0; i < n; ++i) {
+    base.normal.push_back(m.vertices[i].normalized());
+    if (m.vertices[i].z() > 0.0) {
+      base.label[i] = mesh::Region::costal;
+      base.weight[i] = {0.0, 1.0, 0.0, 0.0};
+    }
+  }
+  for (const double w : under_diaphragm(m, base)) EXPECT_EQ(w, 0.0);
+  std::vector<Eigen::Vector3d> radial(n);
+  for (std::size_t i = 0; i < n; ++i) radial[i] = 0.01 * m.vertices[i];
+  std::vector<Eigen::Vector3d> moved = radial;
+  follow_the_diaphragm_over(m, base, moved);
+  EXPECT_EQ(moved, radial);
+  EXPECT_THROW(under_diaphragm(mesh::make_icosphere(r, 2), regions), ValueError);
+}
+
 TEST(Tissue, BadFilesAreOneLine) {
   test::TempDir dir;
   struct Bad {

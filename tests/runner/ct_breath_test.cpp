@@ -13,6 +13,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -38,10 +39,10 @@ constexpr double kSpacingM = 4e-3;
 // here) gave 0.16-0.41 % (single tets and a few lingula clusters beside the heart).
 constexpr double kShrinkingFraction = 1e-3;
 constexpr double kShrinkingImage = 1e-3;
-// The share of the lungs' voxels outside the pleural band whose pull-back J leaves [0.5, 2]: the
-// issue asks for none; thin recesses that the surface field stretches as the dome descends
-// (forward J up to 3.2) leave a few: 0-5 voxels here (case009: 5, 1.7e-4; 12 before #45's change).
-constexpr double kStretchedLung = 3e-4;
+// No lung voxel outside the pleural band has a pull-back J outside [0.5, 2] (the issue's none):
+// case009's thin recess under the diaphragm left 2 (6.6e-5 of the lungs' voxels, forward J up to
+// 3.2) until its upper face moved with the diaphragm around it (field/heart.h; docs/voxels.md,
+// "The stretched recess of case009").
 // The lungs' mass at every time point against the rest scan's (the issue's 1 %), and the mean lung
 // HU at end-inspiration against the mass-preserving prediction (the issue's 2 HU): docs/voxels.md,
 // "The lungs' mass" (+0.35 to +1.61 % before the warped CT's lung was interpolated from lung
@@ -79,10 +80,15 @@ void write_synthetic_ct(const std::filesystem::path& labels, const std::filesyst
   pneuma::voxels::write_image(out, ct);
 }
 
-// The checks of #45 on one run's voxels folder (end_expiration is the rest scan: s = 0).
+// The checks of #45 on one run's voxels folder; argv[3] is the scan's place on the breath (the
+// rest, s = 0), end_expiration or end_inspiration, and the checks are made at the breath's other
+// end. With the scan at end-inspiration the forward map goes to end-expiration, and the
+// inspiration's Jacobian at a voxel is the inverse of its Jacobian.
 constexpr const char* kChecks = R"(import sys, numpy as np, nibabel as nib
 from scipy import ndimage
 d = sys.argv[1]
+ref = sys.argv[3]
+other = "end_inspiration" if ref == "end_expiration" else "end_expiration"
 def load(name):
     img = nib.load(f"{d}/{name}.nii.gz")
     return img, np.asarray(img.dataobj).squeeze().astype(np.float64)
@@ -91,13 +97,13 @@ def jacobian(img, v):
     m = np.diag([-1.0, -1.0, 1.0]) @ img.affine[:3, :3]
     g = np.stack([np.stack(np.gradient(v[..., c]), -1) for c in range(3)], -2)  # d v_c / d index_a
     return np.linalg.det(np.eye(3) + g @ np.linalg.inv(m))
-_, rest_labels = load("labels-end_expiration")
-_, labels = load("labels-end_inspiration")
-fimg, forward = load("dvf-forward-end_inspiration")
-pimg, pullback = load("dvf-pullback-end_inspiration")
-_, ct_rest = load("ct-end_expiration")
-_, ct = load("ct-end_inspiration")
-_, jimage = load("jacobian-end_inspiration")
+_, rest_labels = load(f"labels-{ref}")
+_, labels = load(f"labels-{other}")
+fimg, forward = load(f"dvf-forward-{other}")
+pimg, pullback = load(f"dvf-pullback-{other}")
+_, ct_rest = load(f"ct-{ref}")
+_, ct = load(f"ct-{other}")
+_, jimage = load(f"jacobian-{other}")
 spacing = np.array(fimg.header.get_zooms()[:3], dtype=float)
 voxel = spacing.min()
 # Interior: the rest lung 6 mm inside the pleura; the forward map's Jacobian, by finite differences
@@ -107,6 +113,8 @@ deep = ndimage.distance_transform_edt(rest, sampling=spacing) > 6.0
 deep[[0, -1], :, :] = deep[:, [0, -1], :] = deep[:, :, [0, -1]] = False
 jf = jacobian(fimg, forward)[deep]
 ji = jimage[deep]
+if ref == "end_inspiration":
+    jf, ji = 1.0 / jf, 1.0 / ji
 # No tear: outside a 2-voxel band at the pleura of the warped lungs, and off the grid's faces.
 lung = labels > 0
 ok = ~(ndimage.binary_dilation(lung, iterations=2) & ~ndimage.binary_erosion(lung, iterations=2))
@@ -143,13 +151,13 @@ def in_view(img, u):
 lungs = {"both": lambda l: l > 0, "right": lambda l: np.isin(l, [3, 4, 5]), "left": lambda l: np.isin(l, [1, 2])}
 mass = lambda c, l: float(((c + 1000.0) * ((c >= -1000.0) & (c < -500.0) & l)).sum())
 worst = 1.0
-for tag in ("1.000s", "end_inspiration"):
+for tag in ("1.000s", other):
     view = in_view(*load(f"dvf-forward-{tag}"))
     c, l = load(f"ct-{tag}")[1], load(f"labels-{tag}")[1]
     for name, in_lung in lungs.items():
         ratio = mass(c, in_lung(l)) / mass(ct_rest, in_lung(rest_labels) & view)
         worst = ratio if abs(ratio - 1.0) > abs(worst - 1.0) else worst
-        if tag == "end_inspiration" and name == "both": mass_ratio, end_view = ratio, view
+        if tag == other and name == "both": mass_ratio, end_view = ratio, view
 lung_mean, predicted = mean_and_prediction(lungs["both"], end_view)
 offsets = [m - p for m, p in (mean_and_prediction(lungs[n], end_view) for n in ("right", "left"))]
 worst_offset = max(offsets, key=abs)
@@ -157,7 +165,8 @@ worst_offset = max(offsets, key=abs)
 rest_changed = int((np.abs(ct_rest - np.asarray(nib.load(sys.argv[2]).dataobj).squeeze()) > 0.01).sum())
 print(deep.sum(), (jf < 0.95).mean(), jf.min(), (ji < 0.95).mean(), ji.min(), (torn & ~lung).sum(),
       (torn & lung).sum() / (ok & lung).sum(), jp.min(), jp.max(), pairs, widest,
-      mass_ratio, worst, lung_mean, predicted, worst_offset, rest_changed, (lung.sum() / rest.sum()))
+      mass_ratio, worst, lung_mean, predicted, worst_offset, rest_changed, (lung.sum() / rest.sum()),
+      rest.sum() * spacing.prod() * 1e-3, lung.sum() * spacing.prod() * 1e-3)
 )";
 
 struct Checks {
@@ -174,73 +183,133 @@ struct Checks {
   double lung_hu_offset = 0;             // the larger of the two lungs' mean minus its prediction
   std::size_t rest_changed = 0;          // voxels of the warped CT at rest that are not the input's
   double growth = 0;
+  double scan_ml = 0, other_ml = 0;  // the lungs' volume at rest and at the breath's other end
 };
 
-}  // namespace
-
-class CtBreath : public ::testing::TestWithParam<const char*> {};
-
-TEST_P(CtBreath, TheInsideDoesNotShrinkTheBodyDoesNotTearAndTheLungsKeepTheirMass) {
-  const auto file = pneuma::test::ct_lobes_dir() / (std::string(GetParam()) + "_lobes.nii.gz");
+// One case's run at the test's settings, the scan at `breath` (mesh.breath), and its checks;
+// nothing (after a GTEST_SKIP or a failed run) when there is nothing to check.
+std::optional<Checks> run_and_check(const std::string& name, const std::string& breath) {
+  const auto file = pneuma::test::ct_lobes_dir() / (name + "_lobes.nii.gz");
   if (!std::filesystem::exists(file)) {
-    GTEST_SKIP() << "no CT lobe maps at " << file.parent_path()
-                 << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)";
-  }
-  const std::filesystem::path python = "/usr/bin/python3";
-  if (run_program(python, {"-c", "import nibabel, scipy.ndimage"}).exit_code != 0) {
-    GTEST_SKIP() << "nibabel or scipy is not importable by /usr/bin/python3 (install-deps: python3-nibabel "
-                    "python3-scipy)";
+    ADD_FAILURE() << "unreachable: the caller checks " << file;
+    return std::nullopt;
   }
   TempDir dir;
   write_synthetic_ct(file, dir / "ct.nii.gz");
   // A quiet breath (healthy-adult: 500 mL) with the scenario's tissue (4d-from-labels.yaml).
   const auto scenario = dir.write(
       "ct.yaml", "duration: 8 s\nframes: {rate: 5 Hz}\nmesh: {labels: " + file.string() +
-                     ", lungs: {right: [3, 4, 5], left: [1, 2]}, edge: 5 mm}\n"
+                     ", lungs: {right: [3, 4, 5], left: [1, 2]}, edge: 5 mm, breath: " + breath +
+                     "}\n"
                      "field: {tissue: healthy-supine, interior: {edge: 6 mm}}\n"
                      "physiology: {preset: healthy-adult}\n"
                      "outputs: {gltf: false, report: false, hdf5: false, physiology_csv: false,\n"
                      "  voxels: {at: [end_expiration, 1 s, end_inspiration], spacing: 4 mm, image: ct.nii.gz}}\n");
   const auto r = run_pneuma({"run", scenario.string(), "-o", (dir / "out").string(), "--quiet"});
-  ASSERT_EQ(r.exit_code, 0) << GetParam() << ": " << r.err;
-  const auto c = run_program(python, {"-c", kChecks, (dir / "out/voxels").string(), (dir / "ct.nii.gz").string()});
-  ASSERT_EQ(c.exit_code, 0) << c.err;
+  if (r.exit_code != 0) {
+    ADD_FAILURE() << name << ": " << r.err;
+    return std::nullopt;
+  }
+  const auto c = run_program("/usr/bin/python3",
+                             {"-c", kChecks, (dir / "out/voxels").string(), (dir / "ct.nii.gz").string(), breath});
+  if (c.exit_code != 0) {
+    ADD_FAILURE() << c.err;
+    return std::nullopt;
+  }
   Checks k;
   std::istringstream in(c.out);
   in >> k.deep_voxels >> k.below_095 >> k.min_j >> k.image_below_095 >> k.image_min_j >> k.body_torn >> k.lung_torn >>
       k.pull_min >> k.pull_max >> k.pairs >> k.widest_mm >> k.mass_ratio >> k.worst_mass >> k.mean_hu >>
-      k.predicted_hu >> k.lung_hu_offset >> k.rest_changed >> k.growth;
-  ASSERT_FALSE(in.fail()) << c.out;
-  std::cout << GetParam() << ": " << k.deep_voxels << " lung voxels 6 mm inside; forward J < 0.95 in "
-            << 100 * k.below_095 << " % (image " << 100 * k.image_below_095 << " %), smallest " << k.min_j << " (image "
-            << k.image_min_j << "); pull-back J outside the band " << k.pull_min << "-" << k.pull_max << ", "
+      k.predicted_hu >> k.lung_hu_offset >> k.rest_changed >> k.growth >> k.scan_ml >> k.other_ml;
+  if (in.fail()) {
+    ADD_FAILURE() << c.out;
+    return std::nullopt;
+  }
+  std::cout << name << ", scan at " << breath << ": " << k.deep_voxels
+            << " lung voxels 6 mm inside; inspiration's J < 0.95 in " << 100 * k.below_095 << " % (image "
+            << 100 * k.image_below_095 << " %), smallest " << k.min_j << " (image " << k.image_min_j
+            << "); pull-back J outside the band " << k.pull_min << "-" << k.pull_max << ", "
             << "outside [0.5, 2] " << k.body_torn << " voxels of the body, " << 100 * k.lung_torn
             << " % of the lungs'; " << k.pairs << " neighbours more than a voxel apart (widest " << k.widest_mm
-            << " mm); lungs x" << k.growth << ", mass x" << k.mass_ratio << " (farthest from 1 x" << k.worst_mass
+            << " mm); lungs x" << k.growth << " (" << k.scan_ml << " -> " << k.other_ml << " mL), mass x"
+            << k.mass_ratio << " (farthest from 1 x" << k.worst_mass
             << " over the time points and the lungs), mean lung " << k.mean_hu << " HU (predicted " << k.predicted_hu
             << "; a lung's " << k.lung_hu_offset << " HU from its own); " << k.rest_changed
             << " voxels of the CT at rest not the input's\n";
-  EXPECT_GT(k.deep_voxels, 10000u) << GetParam();
-  EXPECT_GT(k.growth, 1.05) << GetParam();  // the breath is in the files
+  return k;
+}
+
+bool have_inputs(const std::string& name) {
+  const auto file = pneuma::test::ct_lobes_dir() / (name + "_lobes.nii.gz");
+  if (!std::filesystem::exists(file)) {
+    std::cout << "no CT lobe maps at " << file.parent_path()
+              << " (set PNEUMA_CT_LOBES to the folder of case00N_lobes.nii.gz)\n";
+    return false;
+  }
+  if (run_program("/usr/bin/python3", {"-c", "import nibabel, scipy.ndimage"}).exit_code != 0) {
+    std::cout << "nibabel or scipy is not importable by /usr/bin/python3 (install-deps: python3-nibabel "
+                 "python3-scipy)\n";
+    return false;
+  }
+  return true;
+}
+
+// The checks both places of the scan share: the issue's interior, no tear and mass.
+void expect_the_issues_checks(const std::string& name, const Checks& k) {
+  EXPECT_GT(k.deep_voxels, 10000u) << name;
   // Interior: few voxels 6 mm inside shrink by more than 5 % (kShrinkingFraction, kShrinkingImage),
   // none below 0.5.
-  EXPECT_LT(k.below_095, kShrinkingFraction) << GetParam();
-  EXPECT_LT(k.image_below_095, kShrinkingImage) << GetParam();
-  EXPECT_GT(k.min_j, 0.5) << GetParam();
-  EXPECT_GT(k.image_min_j, 0.5) << GetParam();
-  // No tear outside the pleural band: none in the body, and no two neighbours a voxel apart; in
-  // the lungs a few voxels in thin recesses that the surface field stretches (kStretchedLung).
-  EXPECT_EQ(k.body_torn, 0u) << GetParam();
-  EXPECT_LT(k.lung_torn, kStretchedLung) << GetParam();
-  EXPECT_EQ(k.pairs, 0u) << GetParam();
-  // The lungs keep their mass at every time point, and darken as the mass-preserving rule says.
-  EXPECT_NEAR(k.mass_ratio, 1.0, kMass) << GetParam();
-  EXPECT_NEAR(k.worst_mass, 1.0, kMass) << GetParam();
-  EXPECT_NEAR(k.mean_hu, k.predicted_hu, kMeanHu) << GetParam();
-  EXPECT_LT(std::abs(k.lung_hu_offset), kMeanHu) << GetParam();
-  EXPECT_EQ(k.rest_changed, 0u) << GetParam();
-  EXPECT_LT(k.mean_hu, -855.0) << GetParam();  // darker than the rest lung's -849.5 HU
+  EXPECT_LT(k.below_095, kShrinkingFraction) << name;
+  EXPECT_LT(k.image_below_095, kShrinkingImage) << name;
+  EXPECT_GT(k.min_j, 0.5) << name;
+  EXPECT_GT(k.image_min_j, 0.5) << name;
+  // No tear outside the pleural band: none in the body or the lungs, and no two neighbours a
+  // voxel apart.
+  EXPECT_EQ(k.body_torn, 0u) << name;
+  EXPECT_EQ(k.lung_torn, 0.0) << name;
+  EXPECT_EQ(k.pairs, 0u) << name;
+  // The lungs keep their mass at every time point, and their mean HU follows the mass-preserving rule.
+  EXPECT_NEAR(k.mass_ratio, 1.0, kMass) << name;
+  EXPECT_NEAR(k.worst_mass, 1.0, kMass) << name;
+  EXPECT_NEAR(k.mean_hu, k.predicted_hu, kMeanHu) << name;
+  EXPECT_LT(std::abs(k.lung_hu_offset), kMeanHu) << name;
+  EXPECT_EQ(k.rest_changed, 0u) << name;
+}
+
+}  // namespace
+
+class CtBreath : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(CtBreath, TheInsideDoesNotShrinkTheBodyDoesNotTearAndTheLungsKeepTheirMass) {
+  if (!have_inputs(GetParam())) GTEST_SKIP() << "no inputs (above)";
+  const std::optional<Checks> k = run_and_check(GetParam(), "end_expiration");
+  if (!k) return;
+  expect_the_issues_checks(GetParam(), *k);
+  EXPECT_GT(k->growth, 1.05) << GetParam();     // the breath is in the files
+  EXPECT_LT(k->mean_hu, -855.0) << GetParam();  // darker than the rest lung's -849.5 HU
 }
 
 INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtBreath,
                          ::testing::Values("case004", "case005", "case006", "case007", "case008", "case009"));
+
+// The scan at end-inspiration (`mesh.breath: end_inspiration`, a breath-hold CT as the shared
+// cases are): the lungs deflate from it by the breath and come back. The same checks at
+// end-expiration, the inspiration's Jacobian the inverse of the forward map's there, and the
+// issue's reference check: the end-expiration lungs hold the scan's volume less the 500 mL breath
+// within 2 % (their warped label voxels against the scan's; the warped breath is about 90 % of
+// the physiology's, docs/voxels.md "What a run measures", which 2 % of the lungs' volume allows).
+// Two cases keep it under 40 s of CPU: case004 (its dome pairs, docs/voxels.md) and case009
+// (the smallest lungs, the largest motion). The other four are measured by
+// scripts/ct-breath-audit.py (docs/voxels.md, "The issue's checks, measured").
+class CtBreathFromInspiration : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(CtBreathFromInspiration, TheLungsDeflateByTheBreathWithoutTearOrFoldAndKeepTheirMass) {
+  if (!have_inputs(GetParam())) GTEST_SKIP() << "no inputs (above)";
+  const std::optional<Checks> k = run_and_check(GetParam(), "end_inspiration");
+  if (!k) return;
+  expect_the_issues_checks(GetParam(), *k);
+  EXPECT_NEAR(k->other_ml / (k->scan_ml - 500.0), 1.0, 0.02) << GetParam();
+  EXPECT_GT(k->mean_hu, -845.0) << GetParam();  // brighter than the scan's -849.5 HU
+}
+
+INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtBreathFromInspiration, ::testing::Values("case004", "case009"));

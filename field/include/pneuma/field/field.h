@@ -11,7 +11,8 @@
 //                first-order surface-area increase of x + s u is s area units.
 //   slide:       optionally (FieldOptions::sliding), plus D_c * slide_i (mesh::sliding_field),
 //                D_c the diaphragm's mean descent of c F d; and optionally (FieldOptions::heart)
-//                plus D_c * heart_i, the face on the heart descending with it (field/heart.h);
+//                plus D_c * heart_i, the face on the heart descending with it, and a face
+//                under the diaphragm's slope moving with the surface around it (field/heart.h);
 //                all scaled again to one area unit.
 // Only relative moduli matter: multiplying every mu by a constant leaves u unchanged.
 #include <Eigen/Core>
@@ -58,7 +59,8 @@ struct FieldOptions {
   // normalised displacement, in units of the diaphragm's mean descent; none by default.
   mesh::Sliding sliding;
   // The lung's face on the heart descends with it (field/heart.h), as far as it looks down onto
-  // it, in units of the diaphragm's mean descent; none by default.
+  // it, in units of the diaphragm's mean descent, and a face under the diaphragm's slope moves
+  // with the surface around it; none by default.
   HeartDescent heart;
   std::vector<double> load;  // per vertex (>= 0, not all 0); empty: 1 everywhere (the paper)
   // The surface's regions in `frame`, when already found (with_tissue finds them once per

@@ -10,6 +10,17 @@
 // them converge, and the surface of case008's and case009's left lungs self-intersected at a
 // 1.5 L breath. Without it that face stands still while the lung above it descends, and the
 // lingula between them shrinks (#45).
+//
+// The diaphragm is one sheet: where the lung reaches under its slope (a recess below the dome's
+// rim or under the heart), the face of the lung that looks up lies under the same sheet that
+// the lung's diaphragmatic face below it lies on, a recess's thickness away, and moves with it.
+// Without that, such a face kept the costal region's motion (2 mm at 500 mL) while the
+// diaphragmatic face under it descended 10-12 mm: case009's left lung has such a recess, 8-12 mm
+// thick, stretched to a forward Jacobian of 2-3.2 (#45, docs/voxels.md "The stretched recess").
+// A face under the diaphragm therefore takes the motion of the surface around it in space (the
+// field blurred at 10 mm, which holds both faces of the recess), as far as it lies under it.
+// Adding the heart's descent to that face instead stretched it less but self-intersected the
+// surfaces of case007-009 at a 1.5 L breath: its own descent overtook the face below it.
 #include <Eigen/Core>
 #include <vector>
 
@@ -36,5 +47,18 @@ struct HeartDescent {
 // another surface.
 std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
                                                  const HeartDescent& heart, double sigma);
+
+// Per vertex: how far the face lies under the diaphragm, in [0, 1]: b(h) max(0, up.n), n the
+// outward normal smoothed in space at 3 mm (a thin recess's two faces keep their own), b a smooth
+// step of the height from 1 below the dome's top (mesh::dome_top_vertices) less 0.05 of the
+// lung's height to 0 at it. 0 everywhere on a surface without a dome. Throws ValueError for
+// regions of another surface.
+std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions);
+
+// A face under the diaphragm moves with the surface around it: u_i += w_i (ubar_i - u_i), w
+// from under_diaphragm(), ubar the field blurred in space at 10 mm (mesh::blurred_in_space). In
+// place; the caller scales the field back to its area unit.
+void follow_the_diaphragm_over(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
+                               std::vector<Eigen::Vector3d>& u);
 
 }  // namespace pneuma::field
