@@ -736,18 +736,10 @@ void VoxelScene::with_inputs(std::span<const double> scales_in, bool with_image,
     inputs.forward_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
       return frame->displacement(x);
     };
-    // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L),
-    // started from the row's previous voxel (its v differs by a voxel's worth of a smooth field,
-    // so fewer steps reach the tolerance than from -u(x)).
+    // The inverse of x -> x + u(x) outside the lungs (BodyMotion::Frame::inverse), started from
+    // the row's previous voxel (its v differs by a voxel's worth of a smooth field).
     inputs.pullback_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d* previous) {
-      Eigen::Vector3d v = previous ? *previous : Eigen::Vector3d(-frame->displacement(x));
-      for (int it = 0; it < 50; ++it) {
-        const Eigen::Vector3d next = -frame->displacement(x + v);
-        const double change = (next - v).norm();
-        v = next;
-        if (change < 1e-9) break;
-      }
-      return v;
+      return frame->inverse(x, previous ? *previous : Eigen::Vector3d(-frame->displacement(x)));
     };
   }
   compute(lungs, inputs);
