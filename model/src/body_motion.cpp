@@ -299,10 +299,19 @@ Eigen::Vector3d BodyMotion::Frame::displacement(const Eigen::Vector3d& x) const 
 Eigen::Vector3d BodyMotion::Frame::inverse(const Eigen::Vector3d& x, const Eigen::Vector3d& guess) const {
   if (u_.empty()) return Eigen::Vector3d::Zero();
   constexpr double kTolerance_m = 1e-9;
-  constexpr int kMostSteps = 50;
+  constexpr int kFixedPointSteps = 12, kNewtonSteps = 50;
   const Lattice fine(origin_, h_, size_);
+  // The fixed-point iteration first: one lookup per step, and from a row neighbour's guess it
+  // converges in a few wherever |du/dx| is well below 1, nearly everywhere.
   Eigen::Vector3d v = guess;
-  for (int step = 0; step < kMostSteps; ++step) {
+  for (int step = 0; step < kFixedPointSteps; ++step) {
+    const Eigen::Vector3d next = -displacement(x + v);
+    const double change = (next - v).norm();
+    v = next;
+    if (change < kTolerance_m) return v;
+  }
+  // Newton's method where it has not converged (|du/dz| near or above 1 under the diaphragm).
+  for (int step = 0; step < kNewtonSteps; ++step) {
     // u and its gradient at x + v: the trilinear interpolation in its cell (0 outside the lattice).
     Eigen::Vector3d u = Eigen::Vector3d::Zero();
     Eigen::Matrix3d du = Eigen::Matrix3d::Zero();  // du(r, a) = d u_r / d x_a

@@ -737,9 +737,9 @@ void VoxelScene::with_inputs(std::span<const double> scales_in, bool with_image,
       return frame->displacement(x);
     };
     // The inverse of x -> x + u(x) outside the lungs (BodyMotion::Frame::inverse), started from
-    // the row's previous voxel (its v differs by a voxel's worth of a smooth field).
-    inputs.pullback_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d* previous) {
-      return frame->inverse(x, previous ? *previous : Eigen::Vector3d(-frame->displacement(x)));
+    // the row's previous voxels (the line through their v: a smooth field's next v to second order).
+    inputs.pullback_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d* guess) {
+      return frame->inverse(x, guess ? *guess : Eigen::Vector3d(-frame->displacement(x)));
     };
   }
   compute(lungs, inputs);
