@@ -701,10 +701,9 @@ voxels::TimePointFiles VoxelScene::compute_and_write(std::span<const double> sca
   return files;
 }
 
-void VoxelScene::with_inputs(std::span<const double> scales_in, bool with_image,
-                             bool with_jacobian, const std::vector<InsidePart>* parts,
-                             const std::function<void(std::span<const voxels::LungMotion>,
-                                                      const voxels::TimePointInputs&)>& compute) const {
+void VoxelScene::with_inputs(
+    std::span<const double> scales_in, bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts,
+    const std::function<void(std::span<const voxels::LungMotion>, const voxels::TimePointInputs&)>& compute) const {
   if (scales_in.size() != model_.lungs.size()) {
     throw ValueError(fmt::format("voxels: {} scales for {} lungs", scales_in.size(), model_.lungs.size()));
   }

@@ -296,7 +296,8 @@ TEST(BodyMotion, TheInverseUndoesTheBodyFieldWhereTheFixedPointIterationDidNot) 
         for (int it = 0; it < 300; ++it) fixed = -frame.displacement(p + fixed);
         const double fixed_residual = (fixed + frame.displacement(p + fixed)).norm();
         worst_fixed_residual = std::max(worst_fixed_residual, fixed_residual);
-        for (const Eigen::Vector3d& guess : std::array<Eigen::Vector3d, 2>{-frame.displacement(p), Eigen::Vector3d::Zero()}) {
+        for (const Eigen::Vector3d& guess :
+             std::array<Eigen::Vector3d, 2>{-frame.displacement(p), Eigen::Vector3d::Zero()}) {
           const Eigen::Vector3d v = frame.inverse(p, guess);
           worst_residual = std::max(worst_residual, (v + frame.displacement(p + v)).norm());
           if (fixed_residual < 1e-12) worst_difference = std::max(worst_difference, (v - fixed).norm());

@@ -145,39 +145,34 @@ void write_nifti(const fs::path& path, const NiftiSpec& spec, const NiftiFill& f
     std::size_t next = 0;
     tbb::parallel_pipeline(
         kSlots,
-        tbb::make_filter<void, Slot*>(tbb::filter_mode::serial_in_order,
-                                      [&](tbb::flow_control& control) -> Slot* {
-                                        if (next == chunks) {
-                                          control.stop();
-                                          return nullptr;
-                                        }
-                                        // Live chunks leave in order, so this slot's last one has left.
-                                        Slot& slot = slots[next % kSlots];
-                                        const std::size_t at = next * chunk_bytes;
-                                        slot.size = std::min(chunk_bytes, total - at);
-                                        slot.raw.resize(chunk_bytes);
-                                        std::size_t header_part = 0;
-                                        if (at < kHeaderBytes) {
-                                          header_part = kHeaderBytes - at;
-                                          std::memcpy(slot.raw.data(), head.data() + at, header_part);
-                                        }
-                                        if (slot.size > header_part)
-                                          fill((at + header_part - kHeaderBytes) / size,
-                                               (slot.size - header_part) / size, slot.raw.data() + header_part);
-                                        ++next;
-                                        return &slot;
-                                      }) &
-            tbb::make_filter<Slot*, Slot*>(tbb::filter_mode::parallel,
-                                           [&](Slot* slot) {
-                                             if (compress)
-                                               gzip_member(std::span(slot->raw.data(), slot->size), slot->packed, gzip);
-                                             return slot;
-                                           }) &
-            tbb::make_filter<Slot*, void>(tbb::filter_mode::serial_in_order, [&](Slot* slot) {
-              const std::vector<std::uint8_t>& bytes = compress ? slot->packed : slot->raw;
-              const std::size_t n = compress ? bytes.size() : slot->size;
-              if (out) out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(n));
-            }));
+        tbb::make_filter<void, Slot*>(tbb::filter_mode::serial_in_order, [&](tbb::flow_control& control) -> Slot* {
+          if (next == chunks) {
+            control.stop();
+            return nullptr;
+          }
+          // Live chunks leave in order, so this slot's last one has left.
+          Slot& slot = slots[next % kSlots];
+          const std::size_t at = next * chunk_bytes;
+          slot.size = std::min(chunk_bytes, total - at);
+          slot.raw.resize(chunk_bytes);
+          std::size_t header_part = 0;
+          if (at < kHeaderBytes) {
+            header_part = kHeaderBytes - at;
+            std::memcpy(slot.raw.data(), head.data() + at, header_part);
+          }
+          if (slot.size > header_part)
+            fill((at + header_part - kHeaderBytes) / size, (slot.size - header_part) / size,
+                 slot.raw.data() + header_part);
+          ++next;
+          return &slot;
+        }) & tbb::make_filter<Slot*, Slot*>(tbb::filter_mode::parallel, [&](Slot* slot) {
+          if (compress) gzip_member(std::span(slot->raw.data(), slot->size), slot->packed, gzip);
+          return slot;
+        }) & tbb::make_filter<Slot*, void>(tbb::filter_mode::serial_in_order, [&](Slot* slot) {
+          const std::vector<std::uint8_t>& bytes = compress ? slot->packed : slot->raw;
+          const std::size_t n = compress ? bytes.size() : slot->size;
+          if (out) out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(n));
+        }));
     if (!out) throw IoError(path.string() + ": cannot write (disk full?)");
     out.close();
     if (!out) throw IoError(path.string() + ": cannot write (disk full?)");

@@ -22,8 +22,8 @@ enum class Part { forward, pullback, labels, ct, jacobian };
 
 // compute_time_point, calling ready(part) as each part's buffer becomes final.
 template <typename Ready>
-void compute_parts(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs,
-                   TimePoint& point, const Ready& ready) {
+void compute_parts(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs, TimePoint& point,
+                   const Ready& ready) {
   forward_dvf(grid, lungs, point.forward, inputs.forward_outside);
   ready(Part::forward);
   pullback_dvf(grid, lungs, point.pullback, inputs.pullback_outside);

@@ -118,10 +118,9 @@ class VoxelScene {
 
  private:
   // The lungs at `scales` (their `parts` when given) and the inputs compute_time_point takes, handed to `compute`.
-  void with_inputs(std::span<const double> scales, bool with_image, bool with_jacobian,
-                   const std::vector<InsidePart>* parts,
-                   const std::function<void(std::span<const voxels::LungMotion>, const voxels::TimePointInputs&)>&
-                       compute) const;
+  void with_inputs(
+      std::span<const double> scales, bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts,
+      const std::function<void(std::span<const voxels::LungMotion>, const voxels::TimePointInputs&)>& compute) const;
   const model::Model& model_;
   const VoxelsSpec& spec_;
   std::shared_ptr<const image::LabelMap> labels_;  // the model's (read once by compile), or made here
