@@ -5,6 +5,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -293,6 +294,49 @@ Eigen::Vector3d BodyMotion::Frame::displacement(const Eigen::Vector3d& x) const 
   const Lattice fine(origin_, h_, size_);
   fine.corners(x, [&](std::size_t node, double w) { u += w * u_[node]; });
   return u;
+}
+
+Eigen::Vector3d BodyMotion::Frame::inverse(const Eigen::Vector3d& x, const Eigen::Vector3d& guess) const {
+  if (u_.empty()) return Eigen::Vector3d::Zero();
+  constexpr double kTolerance_m = 1e-9;
+  constexpr int kFixedPointSteps = 12, kNewtonSteps = 50;
+  const Lattice fine(origin_, h_, size_);
+  // The fixed-point iteration first: one lookup per step, and from a row neighbour's guess it
+  // converges in a few wherever |du/dx| is well below 1, nearly everywhere.
+  Eigen::Vector3d v = guess;
+  for (int step = 0; step < kFixedPointSteps; ++step) {
+    const Eigen::Vector3d next = -displacement(x + v);
+    const double change = (next - v).norm();
+    v = next;
+    if (change < kTolerance_m) return v;
+  }
+  // Newton's method where it has not converged (|du/dz| near or above 1 under the diaphragm).
+  for (int step = 0; step < kNewtonSteps; ++step) {
+    // u and its gradient at x + v: the trilinear interpolation in its cell (0 outside the lattice).
+    Eigen::Vector3d u = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d du = Eigen::Matrix3d::Zero();  // du(r, a) = d u_r / d x_a
+    std::array<std::size_t, 3> b{};
+    Eigen::Vector3d t;
+    if (fine.cell(x + v, b, t)) {
+      for (std::size_t c = 0; c < 8; ++c) {
+        const std::size_t di = c & 1u, dj = (c >> 1) & 1u, dk = (c >> 2) & 1u;
+        const double wx = di ? t.x() : 1.0 - t.x(), wy = dj ? t.y() : 1.0 - t.y(), wz = dk ? t.z() : 1.0 - t.z();
+        const double sx = di ? 1.0 : -1.0, sy = dj ? 1.0 : -1.0, sz = dk ? 1.0 : -1.0;
+        const Eigen::Vector3d& node = u_[fine.at(b[0] + di, b[1] + dj, b[2] + dk)];
+        u += (wx * wy * wz) * node;
+        du.col(0) += (sx * wy * wz / h_) * node;
+        du.col(1) += (wx * sy * wz / h_) * node;
+        du.col(2) += (wx * wy * sz / h_) * node;
+      }
+    }
+    const Eigen::Vector3d residual = v + u;  // 0 at the pull-back
+    const Eigen::Matrix3d jacobian = Eigen::Matrix3d::Identity() + du;
+    const Eigen::Vector3d change =
+        jacobian.determinant() > 0.1 ? Eigen::Vector3d(jacobian.inverse() * residual) : residual;
+    v -= change;
+    if (change.norm() < kTolerance_m) break;
+  }
+  return v;
 }
 
 }  // namespace pneuma::model

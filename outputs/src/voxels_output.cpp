@@ -307,10 +307,15 @@ class VoxelsOutput final : public Output {
     }();
     std::optional<DicomRun> dicom;
     if (spec_.dicom) dicom.emplace(*run.scenario, *spec_.image, spec_.image_dicom, dicom_structures(model, scene));
+    // Each time point's files are written by `writes` while the next one's buffers are computed,
+    // and while the sequences, structures and DICOM files below read this one's. Declared after
+    // `point`: its destructor waits before the buffers go.
+    voxels::WriteQueue writes;
     for (std::size_t step = 0; step < order.size(); ++step) {
       const std::size_t i = order[step];
       const VoxelPoint& at = time_points[i];
-      scene.compute(at.scales, point);
+      writes.wait();  // the last time point's files, before its buffers are reused
+      const voxels::TimePointFiles written = scene.compute_and_write(at.scales, point, dir_ / "voxels", at.tag, writes);
       if (sequences && in_sequence(at)) sequences->append(point);
       for (StructureTracker& structure : structures) {
         const double weight = !spec_.phase_bins ? 1.0
@@ -318,8 +323,6 @@ class VoxelsOutput final : public Output {
                                                 : static_cast<double>(at.bin_samples) / total_samples;
         structure.add(at.tag, point, weight);
       }
-      const voxels::TimePointFiles written =
-          voxels::write_time_point(dir_ / "voxels", at.tag, point, spec_.extension, spec_.dvf_convention);
       for (const auto& f : {written.forward, written.pullback, written.labels, written.ct, written.jacobian}) {
         if (!f.empty()) files.push_back(f);
       }
@@ -347,6 +350,7 @@ class VoxelsOutput final : public Output {
       figures[i] = {at.tag, at.frame ? std::optional<double>(series.time_s[*at.frame]) : std::nullopt, error * 100.0,
                     point.jacobian.min, point.jacobian.folded_tets};
     }
+    writes.wait();
     run.shared.get<VoxelFigures>([&] { return std::make_shared<const VoxelFigures>(VoxelFigures{figures}); });
     if (sequences) {
       for (const auto& f : sequences->finish()) files.push_back(f);
@@ -677,9 +681,31 @@ std::vector<InsidePart> VoxelScene::parts_reaching(const voxels::Grid& grid,
   return parts;
 }
 
-void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> scales_in, voxels::TimePoint& point,
+void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> scales, voxels::TimePoint& point,
                             bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts,
                             const voxels::Image* image) const {
+  with_inputs(scales, with_image, with_jacobian, parts, image,
+              [&](std::span<const voxels::LungMotion> lungs, const voxels::TimePointInputs& inputs) {
+                voxels::compute_time_point(grid, lungs, inputs, point);
+              });
+}
+
+voxels::TimePointFiles VoxelScene::compute_and_write(std::span<const double> scales, voxels::TimePoint& point,
+                                                     const std::filesystem::path& folder, const std::string& tag,
+                                                     voxels::WriteQueue& writes) const {
+  voxels::TimePointFiles files;
+  with_inputs(scales, true, false, nullptr, nullptr,
+              [&](std::span<const voxels::LungMotion> lungs, const voxels::TimePointInputs& inputs) {
+                files = voxels::compute_and_write_time_point(grid_, lungs, inputs, point, folder, tag, writes,
+                                                             spec_.extension, spec_.dvf_convention);
+              });
+  return files;
+}
+
+void VoxelScene::with_inputs(
+    std::span<const double> scales_in, bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts,
+    const voxels::Image* image,
+    const std::function<void(std::span<const voxels::LungMotion>, const voxels::TimePointInputs&)>& compute) const {
   if (scales_in.size() != model_.lungs.size()) {
     throw ValueError(fmt::format("voxels: {} scales for {} lungs", scales_in.size(), model_.lungs.size()));
   }
@@ -711,21 +737,13 @@ void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> sc
     inputs.forward_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
       return frame->displacement(x);
     };
-    // The inverse of x -> x + u(x) outside the lungs: v = -u(x + v), a contraction (|du/dh| <= |u| / L),
-    // started from the row's previous voxel (its v differs by a voxel's worth of a smooth field,
-    // so fewer steps reach the tolerance than from -u(x)).
-    inputs.pullback_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d* previous) {
-      Eigen::Vector3d v = previous ? *previous : Eigen::Vector3d(-frame->displacement(x));
-      for (int it = 0; it < 50; ++it) {
-        const Eigen::Vector3d next = -frame->displacement(x + v);
-        const double change = (next - v).norm();
-        v = next;
-        if (change < 1e-9) break;
-      }
-      return v;
+    // The inverse of x -> x + u(x) outside the lungs (BodyMotion::Frame::inverse), started from
+    // the row's previous voxels (the line through their v: a smooth field's next v to second order).
+    inputs.pullback_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d* guess) {
+      return frame->inverse(x, guess ? *guess : Eigen::Vector3d(-frame->displacement(x)));
     };
   }
-  voxels::compute_time_point(grid, lungs, inputs, point);
+  compute(lungs, inputs);
 }
 
 const VoxelsSpec* requested_voxels(const scenario::Scenario& scenario) {

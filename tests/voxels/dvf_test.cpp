@@ -176,9 +176,10 @@ TEST(Dvf, FirstLungWinsAndOutsideComesFromTheCallback) {
 }
 
 // The outside callback's starting guess (dvf.h, OutsideField): for each voxel outside the
-// deformed cube, the value given to its row neighbour i - 1 when that one is outside too (here the
-// neighbour's centre, from the grid itself), else none; the same at 1 and 2 threads.
-TEST(Dvf, TheOutsideCallbackIsGivenItsRowNeighboursValue) {
+// deformed cube, the line through the values given to its row neighbours i - 2 and i - 1 when both
+// are outside too, the value of i - 1 when only it is (here the neighbours' centres, from the grid
+// itself), else none; the same at 1 and 2 threads.
+TEST(Dvf, TheOutsideCallbackIsGivenItsRowNeighboursValues) {
   const AffineCube cube;
   const Eigen::Matrix4d to_ijk = cube.grid.lps_to_ijk();
   const auto run = [&] {
@@ -195,25 +196,37 @@ TEST(Dvf, TheOutsideCallbackIsGivenItsRowNeighboursValue) {
     return std::pair(std::move(field), std::move(given));
   };
   const auto [field, given] = run();
-  std::size_t with = 0, without = 0;
+  std::size_t with = 0, with_one = 0, without = 0;
   for (std::size_t k = 0; k < cube.grid.size[2]; ++k)
     for (std::size_t j = 0; j < cube.grid.size[1]; ++j)
       for (std::size_t i = 0; i < cube.grid.size[0]; ++i) {
         const std::size_t v = cube.grid.index(i, j, k);
         if (field.lung[v] != 0) {
           EXPECT_EQ(given[v], Eigen::Vector3d::Constant(-1.0)) << "a voxel inside the cube was asked";
-        } else if (i > 0 && field.lung[v - 1] == 0) {
-          // The neighbour's value as the field holds it (float32).
-          EXPECT_EQ(given[v], cube.grid.centre_m(i - 1, j, k).cast<float>().cast<double>())
-              << i << " " << j << " " << k;
+        } else if (i > 1 && field.lung[v - 1] == 0 && field.lung[v - 2] == 0) {
+          // The neighbours' values as the field holds them (float32), extended along the row.
+          const Eigen::Vector3d one = field.displacement_m[v - 1].cast<double>();
+          const Eigen::Vector3d two = field.displacement_m[v - 2].cast<double>();
+          EXPECT_EQ(given[v], 2.0 * one - two) << i << " " << j << " " << k;
           ++with;
+        } else if (i > 0 && field.lung[v - 1] == 0) {
+          EXPECT_EQ(given[v], field.displacement_m[v - 1].cast<double>()) << i << " " << j << " " << k;
+          ++with_one;
         } else {
           EXPECT_EQ(given[v], Eigen::Vector3d::Constant(-2.0)) << i << " " << j << " " << k;
           ++without;
         }
       }
+  for (std::size_t v = 0; v < field.lung.size(); ++v) {
+    if (field.lung[v] == 0) {
+      const std::size_t i = v % cube.grid.size[0], j = (v / cube.grid.size[0]) % cube.grid.size[1],
+                        k = v / (cube.grid.size[0] * cube.grid.size[1]);
+      ASSERT_LT((field.displacement_m[v].cast<double>() - cube.grid.centre_m(i, j, k)).norm(), 2e-8);  // float32
+    }
+  }
   EXPECT_GT(with, 1000u);
-  EXPECT_GT(without, 100u);  // each row's first voxel, and the first after the cube
+  EXPECT_GT(with_one, 100u);  // each row's second voxel, and the second after the cube
+  EXPECT_GT(without, 100u);   // each row's first voxel, and the first after the cube
   const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
   const auto [field1, given1] = run();
   EXPECT_EQ(given1, given);

@@ -9,12 +9,16 @@
 #include <itkNiftiImageIO.h>
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
+#include <cmath>
 #include <cstring>
 #include <fstream>
 
 #include "pneuma/core/error.h"
+#include "pneuma/voxels/gzip.h"
 #include "pneuma/voxels/voxel_io.h"
+#include "pneuma/voxels/write_queue.h"
 #include "test_support.h"
 #include "tet_fixtures.h"
 
@@ -171,6 +175,64 @@ TEST(NiftiWrite, AFieldOfSeveralBatchesIsReadBackByNibabelAsTheFormulaMadeIt) {
                   (dir / name).string()});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(r.out, "(200, 181, 175, 1, 3) True\n") << name;  // two float32 roundings (m, then mm)
+  }
+}
+
+// The .nii.gz is filled, compressed and written by a pipeline, a member at a time (#50): its bytes
+// are the plain .nii's cut into 4 MiB members from the file's start and each compressed on its own
+// (gzip_bytes, the members' own function, over the whole plain file: the oracle; GNU gzip gives
+// the plain file back), the same at one and two threads. 12.6 MB: four members, the last short.
+TEST(NiftiWrite, TheNiftiGzIsThePlainFileInMembersAtAnyThreadCount) {
+  DisplacementField field;
+  field.grid = oblique_grid(100, 90, 117);
+  const Grid& g = field.grid;
+  field.displacement_m.resize(g.voxel_count());
+  for (std::size_t v = 0; v < field.displacement_m.size(); ++v) {
+    const auto x = static_cast<double>(v);
+    field.displacement_m[v] = Eigen::Vector3d(std::sin(x * 1e-4), std::cos(x * 3e-5), 1e-7 * x).cast<float>() * 0.01f;
+  }
+  const TempDir dir;
+  std::string one, two;
+  for (const int threads : {1, 2}) {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+    write_dvf(dir / "dvf.nii.gz", field);
+    (threads == 1 ? one : two) = bytes_of(dir / "dvf.nii.gz");
+  }
+  EXPECT_EQ(one, two);
+  write_dvf(dir / "dvf.nii", field);
+  const std::string plain = bytes_of(dir / "dvf.nii");
+  ASSERT_EQ(plain.size(), 352 + 12 * g.voxel_count());
+  ASSERT_GT(plain.size(), 3 * kVoxelGzip.member_bytes);
+  const std::vector<std::uint8_t> members =
+      gzip_bytes(std::span(reinterpret_cast<const std::uint8_t*>(plain.data()), plain.size()));
+  EXPECT_TRUE(one == std::string(members.begin(), members.end())) << one.size() << " against " << members.size();
+  EXPECT_EQ(run_program("/bin/sh", {"-c", "gzip -dc '" + (dir / "dvf.nii.gz").string() + "' | cmp - '" +
+                                              (dir / "dvf.nii").string() + "'"})
+                .exit_code,
+            0);
+}
+
+// A write's error reaches the caller at wait(), the writes queued after it are not run, and the
+// queue works again afterwards; writes run in the order queued.
+TEST(WriteQueue, WritesRunInOrderAndTheFirstErrorReachesWait) {
+  for (const int threads : {1, 2}) {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+    WriteQueue queue;
+    std::vector<int> done;
+    for (int i = 0; i < 5; ++i) queue.add([&done, i] { done.push_back(i); });
+    queue.wait();
+    EXPECT_EQ(done, (std::vector<int>{0, 1, 2, 3, 4}));
+    if (threads == 1) {
+      EXPECT_THROW(queue.add([] { throw IoError("disk full"); }), IoError);  // at once on one thread
+    } else {
+      queue.add([] { throw IoError("disk full"); });
+      queue.add([&done] { done.push_back(99); });
+      EXPECT_THROW(queue.wait(), IoError);
+      EXPECT_EQ(done.size(), 5u);
+    }
+    queue.add([&done] { done.push_back(5); });
+    queue.wait();
+    EXPECT_EQ(done.back(), 5);
   }
 }
 

@@ -49,14 +49,20 @@ std::vector<std::uint8_t> zlib_member(std::span<const std::uint8_t> data, int le
   return out;
 }
 
-std::vector<std::uint8_t> libdeflate_member(std::span<const std::uint8_t> data, int level) {
+// libdeflate into `out`, its storage reused (no fresh pages per member).
+void libdeflate_member_into(std::span<const std::uint8_t> data, int level, std::vector<std::uint8_t>& out) {
   const std::unique_ptr<libdeflate_compressor, void (*)(libdeflate_compressor*)> c(libdeflate_alloc_compressor(level),
                                                                                    libdeflate_free_compressor);
   if (!c) throw IoError("libdeflate: out of memory");
-  std::vector<std::uint8_t> out(libdeflate_gzip_compress_bound(c.get(), data.size()));
+  out.resize(libdeflate_gzip_compress_bound(c.get(), data.size()));
   const std::size_t size = libdeflate_gzip_compress(c.get(), data.data(), data.size(), out.data(), out.size());
   if (size == 0) throw IoError("libdeflate: compression failed");
   out.resize(size);
+}
+
+std::vector<std::uint8_t> libdeflate_member(std::span<const std::uint8_t> data, int level) {
+  std::vector<std::uint8_t> out;
+  libdeflate_member_into(data, level, out);
   return out;
 }
 
@@ -84,6 +90,15 @@ std::vector<std::uint8_t> gzip_bytes(std::span<const std::uint8_t> data, const G
   std::vector<std::uint8_t> out;
   for (const auto& m : members(data, settings)) out.insert(out.end(), m.begin(), m.end());
   return out;
+}
+
+void gzip_member(std::span<const std::uint8_t> data, std::vector<std::uint8_t>& out, const GzipSettings& settings) {
+  check_level(settings);
+  if (settings.library == GzipLibrary::zlib) {
+    out = zlib_member(data, settings.level);
+  } else {
+    libdeflate_member_into(data, settings.level, out);
+  }
 }
 
 void write_gzip_members(std::ostream& out, std::span<const std::uint8_t> data, const GzipSettings& settings) {

@@ -27,12 +27,13 @@ struct NiftiSpec {
 };
 
 // Fills `count` values from value number `first` on, in the file's order (i fastest, then j, k,
-// then the component), into `out` (count values of the spec's type). Called in order, from one
-// thread (it may start TBB tasks).
+// then the component), into `out` (count values of the spec's type). Called in order, one call at a
+// time, from a TBB pipeline's thread (it may start TBB tasks).
 using NiftiFill = std::function<void(std::size_t first, std::size_t count, void* out)>;
 
 // Writes `path` atomically (core/atomic_file.h), gzipped when the name ends in .nii.gz, holding at
-// most one batch of 16 gzip members (64 MiB) of data at a time. Throws ValueError for a grid side
+// most 8 gzip members (4 MiB each, with their compressed copies) of data at a time: filled in order,
+// compressed in parallel and written in order, all three at once. Throws ValueError for a grid side
 // over 32767 voxels (NIfTI-1's int16) and IoError when the file cannot be written.
 void write_nifti(const std::filesystem::path& path, const NiftiSpec& spec, const NiftiFill& fill);
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <functional>
 #include <tuple>
 
 #include "pneuma/core/error.h"
@@ -15,14 +16,23 @@ TimePoint compute_time_point(const Grid& grid, std::span<const LungMotion> lungs
   return point;
 }
 
-void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs,
-                        TimePoint& point) {
+namespace {
+
+enum class Part { forward, pullback, labels, ct, jacobian };
+
+// compute_time_point, calling ready(part) as each part's buffer becomes final.
+template <typename Ready>
+void compute_parts(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs, TimePoint& point,
+                   const Ready& ready) {
   forward_dvf(grid, lungs, point.forward, inputs.forward_outside);
+  ready(Part::forward);
   pullback_dvf(grid, lungs, point.pullback, inputs.pullback_outside);
+  ready(Part::pullback);
   point.jacobian = jacobian_stats(lungs);
   if (inputs.labels != nullptr) {
     if (!point.labels) point.labels.emplace();
     warp_labels(*inputs.labels, point.pullback, *point.labels, inputs.rest_lung);
+    ready(Part::labels);
   } else {
     point.labels.reset();
   }
@@ -45,39 +55,81 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
       point.ct_lung = rest_lungs(inputs.ct->grid, lungs);
       warp_image(*inputs.ct, point.pullback, *point.ct, kOutsideHu, &point.ct_lung, tissue);
     }
+    ready(Part::ct);
   } else {
     point.ct.reset();
   }
   if (inputs.jacobian_map) {
     if (!point.jacobian_map) point.jacobian_map.emplace();
     jacobian_image(lungs, point.forward, *point.jacobian_map);
+    ready(Part::jacobian);
   } else {
     point.jacobian_map.reset();
   }
 }
 
-TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
-                                const std::string& extension, DvfConvention convention) {
+void check_extension(const std::string& extension) {
   if (extension != ".nii.gz" && extension != ".nii" && extension != ".mha" && extension != ".nrrd") {
     throw ValueError("voxel file extension '" + extension + "': expected .nii.gz, .nii, .mha or .nrrd");
   }
+}
+
+// The file of one part, its name in `files`; the writing itself returned, to run now or later.
+std::function<void()> part_file(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
+                                Part part, const std::string& extension, DvfConvention convention,
+                                TimePointFiles& files) {
+  switch (part) {
+    case Part::forward:
+      files.forward = folder / ("dvf-forward-" + tag + extension);
+      return [path = files.forward, &point, convention] {
+        write_dvf(path, point.forward, DvfDirection::forward, convention);
+      };
+    case Part::pullback:
+      files.pullback = folder / ("dvf-pullback-" + tag + extension);
+      return [path = files.pullback, &point, convention] {
+        write_dvf(path, point.pullback, DvfDirection::pullback, convention);
+      };
+    case Part::labels:
+      files.labels = folder / ("labels-" + tag + extension);
+      return [path = files.labels, &point] { write_label_map(path, *point.labels); };
+    case Part::ct:
+      files.ct = folder / ("ct-" + tag + extension);
+      return [path = files.ct, &point] { write_image(path, *point.ct); };
+    case Part::jacobian:
+      files.jacobian = folder / ("jacobian-" + tag + extension);
+      return [path = files.jacobian, &point] { write_image(path, *point.jacobian_map); };
+  }
+  return [] {};
+}
+
+}  // namespace
+
+void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs,
+                        TimePoint& point) {
+  compute_parts(grid, lungs, inputs, point, [](Part) {});
+}
+
+TimePointFiles compute_and_write_time_point(const Grid& grid, std::span<const LungMotion> lungs,
+                                            const TimePointInputs& inputs, TimePoint& point,
+                                            const std::filesystem::path& folder, const std::string& tag,
+                                            WriteQueue& writes, const std::string& extension,
+                                            DvfConvention convention) {
+  check_extension(extension);
   TimePointFiles files;
-  files.forward = folder / ("dvf-forward-" + tag + extension);
-  files.pullback = folder / ("dvf-pullback-" + tag + extension);
-  write_dvf(files.forward, point.forward, DvfDirection::forward, convention);
-  write_dvf(files.pullback, point.pullback, DvfDirection::pullback, convention);
-  if (point.labels) {
-    files.labels = folder / ("labels-" + tag + extension);
-    write_label_map(files.labels, *point.labels);
-  }
-  if (point.ct) {
-    files.ct = folder / ("ct-" + tag + extension);
-    write_image(files.ct, *point.ct);
-  }
-  if (point.jacobian_map) {
-    files.jacobian = folder / ("jacobian-" + tag + extension);
-    write_image(files.jacobian, *point.jacobian_map);
-  }
+  compute_parts(grid, lungs, inputs, point,
+                [&](Part part) { writes.add(part_file(folder, tag, point, part, extension, convention, files)); });
+  return files;
+}
+
+TimePointFiles write_time_point(const std::filesystem::path& folder, const std::string& tag, const TimePoint& point,
+                                const std::string& extension, DvfConvention convention) {
+  check_extension(extension);
+  TimePointFiles files;
+  std::vector<Part> parts{Part::forward, Part::pullback};
+  if (point.labels) parts.push_back(Part::labels);
+  if (point.ct) parts.push_back(Part::ct);
+  if (point.jacobian_map) parts.push_back(Part::jacobian);
+  for (const Part part : parts) part_file(folder, tag, point, part, extension, convention, files)();
   return files;
 }
 

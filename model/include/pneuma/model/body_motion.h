@@ -53,6 +53,13 @@ class BodyMotion {
   class Frame {
    public:
     Eigen::Vector3d displacement(const Eigen::Vector3d& x) const;
+    // The pull-back at x outside the lungs: the v with v = -u(x + v) (x + v is the body point the
+    // forward field carries to x), to 1e-9 m, started from `guess` (from the row's previous
+    // voxels, or -u(x)). The fixed-point iteration v <- -u(x + v) for up to 12 steps (one lookup
+    // each), then Newton's method on the trilinear field (its exact gradient in the cell; a
+    // fixed-point step where det(I + du/dx) <= 0.1): the iteration is a contraction only where
+    // |du/dx| < 1, and below the diaphragm it is not everywhere (#50). 0 where u is 0.
+    Eigen::Vector3d inverse(const Eigen::Vector3d& x, const Eigen::Vector3d& guess) const;
 
    private:
     friend class BodyMotion;

@@ -28,6 +28,7 @@
 // lung, 2 left).
 #include <array>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -94,6 +95,12 @@ class VoxelScene {
   double lung_volume_m3(const image::LabelMap& map) const;
   // The DVFs, the Jacobian, the warped label map (and CT) at the lungs' scales (one per model lung).
   void compute(std::span<const double> scales, voxels::TimePoint& point) const;
+  // compute(), each of the time point's files (voxels::write_time_point's, in the spec's format)
+  // queued on `writes` as soon as its buffer is final, so that it is written while the next is
+  // computed; `point` must not change until writes.wait() has returned.
+  voxels::TimePointFiles compute_and_write(std::span<const double> scales, voxels::TimePoint& point,
+                                           const std::filesystem::path& folder, const std::string& tag,
+                                           voxels::WriteQueue& writes) const;
   // The same on another grid (a plane for report.html's slices), the CT only if `with_image`.
   // The Jacobian image is made when the spec asks for it or `with_jacobian`.
   // With `parts` (one per lung, parts_reaching(grid, ...)), only their tetrahedra are rasterised.
@@ -111,6 +118,12 @@ class VoxelScene {
                                          std::span<const std::array<double, 2>> scale_ranges) const;
 
  private:
+  // The lungs at `scales` (their `parts` when given) and the inputs compute_time_point takes (the
+  // CT `image` in place of the spec's when given), handed to `compute`.
+  void with_inputs(
+      std::span<const double> scales, bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts,
+      const voxels::Image* image,
+      const std::function<void(std::span<const voxels::LungMotion>, const voxels::TimePointInputs&)>& compute) const;
   const model::Model& model_;
   const VoxelsSpec& spec_;
   std::shared_ptr<const image::LabelMap> labels_;  // the model's (read once by compile), or made here

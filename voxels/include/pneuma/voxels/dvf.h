@@ -30,11 +30,12 @@ namespace pneuma::voxels {
 inline constexpr double kBarycentricTolerance = 1e-10;
 
 // The value at a voxel centre x (LPS metres) outside every lung, in the field's own direction.
-// `previous`: the value just given to the voxel before x in its row (i - 1) when that voxel is
-// outside every lung too, else null; a starting guess for a field found by iteration (the
-// pull-back field's inverse), the same at any thread count (a row is filled in order, by one task).
-// Called from several threads at once.
-using OutsideField = std::function<Eigen::Vector3d(const Eigen::Vector3d& x_lps_m, const Eigen::Vector3d* previous)>;
+// `guess`: from the values just given to the voxels before x in its row, when they are outside
+// every lung too, else null: 2 f(i - 1) - f(i - 2) (the line through them: a smooth field's next
+// value to second order) when both are, f(i - 1) when only that one is. A starting guess for a
+// field found by iteration (the pull-back field's inverse), the same at any thread count (a row is
+// filled in order, by one task). Called from several threads at once.
+using OutsideField = std::function<Eigen::Vector3d(const Eigen::Vector3d& x_lps_m, const Eigen::Vector3d* guess)>;
 
 struct DisplacementField {
   Grid grid;

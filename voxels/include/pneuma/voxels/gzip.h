@@ -29,6 +29,11 @@ inline constexpr GzipSettings kVoxelGzip{};
 // `data` as a gzip file (one or more members). Throws ValueError for a level out of range.
 std::vector<std::uint8_t> gzip_bytes(std::span<const std::uint8_t> data, const GzipSettings& settings = kVoxelGzip);
 
+// `data` as one gzip member into `out` (its storage reused): a piece of a file that its caller cuts
+// and compresses in parallel itself (nifti_write.h's pipeline).
+void gzip_member(std::span<const std::uint8_t> data, std::vector<std::uint8_t>& out,
+                 const GzipSettings& settings = kVoxelGzip);
+
 // The members of `data` (cut every `member_bytes` from its start), compressed in parallel, written
 // to `out` one after the other: a piece of a gzip file whose earlier pieces were whole multiples of
 // `member_bytes` (a file written a batch at a time without holding it whole: nifti_write.h).

@@ -18,6 +18,7 @@
 #include "pneuma/voxels/sequence_io.h"
 #include "pneuma/voxels/voxel_io.h"
 #include "pneuma/voxels/warp.h"
+#include "pneuma/voxels/write_queue.h"
 
 namespace pneuma::voxels {
 
@@ -56,6 +57,17 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
 struct TimePointFiles {
   std::filesystem::path forward, pullback, labels, ct, jacobian;  // empty when not written
 };
+
+// compute_time_point and write_time_point in one: each file is queued on `writes` as soon as its
+// buffer is final, so that it is compressed and written while the next one is computed (the
+// forward DVF while the pull-back is, the pull-back while the labels, CT and Jacobian image are).
+// The same files and bytes as the two calls. `point` must not change until writes.wait() has
+// returned (the files exist then); the paths are returned at once.
+TimePointFiles compute_and_write_time_point(const Grid& grid, std::span<const LungMotion> lungs,
+                                            const TimePointInputs& inputs, TimePoint& point,
+                                            const std::filesystem::path& folder, const std::string& tag,
+                                            WriteQueue& writes, const std::string& extension = ".nii.gz",
+                                            DvfConvention convention = DvfConvention::itk);
 
 // dvf-forward-<tag>.nii.gz, dvf-pullback-<tag>.nii.gz, labels-<tag>.nii.gz, ct-<tag>.nii.gz and
 // jacobian-<tag>.nii.gz in `folder` (the last three when the time point has them); `extension`
