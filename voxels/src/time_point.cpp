@@ -22,7 +22,7 @@ void compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, con
   point.jacobian = jacobian_stats(lungs);
   if (inputs.labels != nullptr) {
     if (!point.labels) point.labels.emplace();
-    warp_labels(*inputs.labels, point.pullback, *point.labels, inputs.rest_lung);
+    warp_labels(*inputs.labels, point.pullback, *point.labels, inputs.rest_lung, inputs.lung_labels);
   } else {
     point.labels.reset();
   }
