@@ -134,8 +134,35 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
     // body's own nearest tissue, never the lobe map's lung rim outside the rest mesh (a lung
     // deflating below its scan leaves a gap the lagging body field pulls back into the rest lung,
     // and the rim's lung labels filled it: docs/voxels.md, "The warped lung below the scan").
+    // Only where x + v(x) itself lies in a rest mesh (its eight voxels' trilinear share of the
+    // rest meshes above one half): a voxel just outside the pleura whose nearest voxel is inside
+    // (grids that do not coincide, a zero field) keeps the rim's label, as the label map has it.
+    bool carried_in = false;
+    if (rest_lung && lung == 0 && !lung_labels.empty() && (*rest_lung)[nearest] != 0) {
+      double share = 0.0;
+      for (int corner = 0; corner < 8; ++corner) {
+        double weight = 1.0;
+        std::array<double, 3> c{};
+        bool inside = true;
+        for (std::size_t a = 0; a < 3; ++a) {
+          const double base = std::floor(q[static_cast<Eigen::Index>(a)]);
+          const double t = q[static_cast<Eigen::Index>(a)] - base;
+          const bool up = ((corner >> a) & 1) != 0;
+          c[a] = base + (up ? 1.0 : 0.0);
+          weight *= up ? t : 1.0 - t;
+          inside = inside && c[a] >= 0.0 && c[a] < n[a];
+        }
+        if (!inside) continue;
+        const std::size_t candidate =
+            static_cast<std::size_t>(c[0]) +
+            labels.size[0] * (static_cast<std::size_t>(c[1]) + labels.size[1] * static_cast<std::size_t>(c[2]));
+        if ((*rest_lung)[candidate] != 0) share += weight;
+      }
+      carried_in = share > 0.5;
+    }
     const auto takes = [&](std::size_t index) {
-      return lung != 0 || std::find(lung_labels.begin(), lung_labels.end(), labels.labels[index]) == lung_labels.end();
+      return !carried_in ||
+             std::find(lung_labels.begin(), lung_labels.end(), labels.labels[index]) == lung_labels.end();
     };
     if (rest_lung && (*rest_lung)[nearest] != lung) {
       // The nearest of the eight voxels around q on x's side of the pleura: inside this lung's

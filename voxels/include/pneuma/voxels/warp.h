@@ -44,7 +44,8 @@ inline constexpr float kOutsideHu = -1024.0f;
 // outside the rest mesh is then not copied into the gap a deflating lung leaves, which made the
 // warped lung 0.6-1.7 % larger than the deformed lungs below a breath-hold scan.
 image::LabelMap warp_labels(const image::LabelMap& labels, const DisplacementField& pullback,
-                            const std::vector<std::uint8_t>* rest_lung = nullptr, std::span<const int> lung_labels = {});
+                            const std::vector<std::uint8_t>* rest_lung = nullptr,
+                            std::span<const int> lung_labels = {});
 // The same into `out` (its storage reused).
 void warp_labels(const image::LabelMap& labels, const DisplacementField& pullback, image::LabelMap& out,
                  const std::vector<std::uint8_t>* rest_lung = nullptr, std::span<const int> lung_labels = {});
