@@ -298,9 +298,12 @@ INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtBreath,
 // issue's reference check: the end-expiration lungs hold the scan's volume less the 500 mL breath
 // within 2 % (their warped label voxels against the scan's; the warped breath is about 90 % of
 // the physiology's, docs/voxels.md "What a run measures", which 2 % of the lungs' volume allows).
-// Two cases keep it under 40 s of CPU: case004 (its dome pairs, docs/voxels.md) and case009
-// (the smallest lungs, the largest motion). The other four are measured by
-// scripts/ct-breath-audit.py (docs/voxels.md, "The issue's checks, measured").
+// Three cases keep it about a minute of CPU: case004 (its dome pairs, docs/voxels.md), case009
+// (the smallest lungs, the largest motion) and case007 (whose mean HU failed the 2 HU while the
+// gap the deflating lung leaves took the rim's lung labels: docs/voxels.md, "The warped lung
+// below the scan"). The other three are measured by scripts/ct-breath-audit.py (docs/voxels.md,
+// "The issue's checks, measured"). Since that rule the end-expiration lungs are the scan's less
+// 500 mL within 1 % (audit: +0.33, +0.25, -0.06 %; +1.02, +1.33, +0.91 % before).
 class CtBreathFromInspiration : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(CtBreathFromInspiration, TheLungsDeflateByTheBreathWithoutTearOrFoldAndKeepTheirMass) {
@@ -308,8 +311,8 @@ TEST_P(CtBreathFromInspiration, TheLungsDeflateByTheBreathWithoutTearOrFoldAndKe
   const std::optional<Checks> k = run_and_check(GetParam(), "end_inspiration");
   if (!k) return;
   expect_the_issues_checks(GetParam(), *k);
-  EXPECT_NEAR(k->other_ml / (k->scan_ml - 500.0), 1.0, 0.02) << GetParam();
+  EXPECT_NEAR(k->other_ml / (k->scan_ml - 500.0), 1.0, 0.01) << GetParam();
   EXPECT_GT(k->mean_hu, -845.0) << GetParam();  // brighter than the scan's -849.5 HU
 }
 
-INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtBreathFromInspiration, ::testing::Values("case004", "case009"));
+INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtBreathFromInspiration, ::testing::Values("case004", "case007", "case009"));

@@ -31,7 +31,7 @@ void compute_parts(const Grid& grid, std::span<const LungMotion> lungs, const Ti
   point.jacobian = jacobian_stats(lungs);
   if (inputs.labels != nullptr) {
     if (!point.labels) point.labels.emplace();
-    warp_labels(*inputs.labels, point.pullback, *point.labels, inputs.rest_lung);
+    warp_labels(*inputs.labels, point.pullback, *point.labels, inputs.rest_lung, inputs.lung_labels);
     ready(Part::labels);
   } else {
     point.labels.reset();

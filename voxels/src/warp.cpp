@@ -64,9 +64,12 @@ std::optional<std::size_t> nearest_voxel(const Eigen::Vector3d& q, const std::ar
   return at[0] + size[0] * (at[1] + size[1] * at[2]);
 }
 
+// `takes(index)`: whether a voxel on `side` may be taken (the label warp refuses lung labels outside
+// every lung); every voxel on the side where it is not given.
+template <typename Takes>
 std::optional<std::size_t> nearest_on_side(const std::vector<std::uint8_t>& rest_lung,
                                            const std::array<std::size_t, 3>& size, const Eigen::Vector3d& q,
-                                           std::uint8_t side) {
+                                           std::uint8_t side, const Takes& takes) {
   std::array<long, 3> centre{}, n{};
   for (std::size_t a = 0; a < 3; ++a) {
     centre[a] = static_cast<long>(std::floor(q[static_cast<Eigen::Index>(a)] + 0.5));
@@ -81,7 +84,7 @@ std::optional<std::size_t> nearest_on_side(const std::vector<std::uint8_t>& rest
           const long chebyshev = std::max({std::abs(i - centre[0]), std::abs(j - centre[1]), std::abs(k - centre[2])});
           if (chebyshev != ring) continue;  // inner rings were searched already
           const auto index = static_cast<std::size_t>(i + n[0] * (j + n[1] * k));
-          if (rest_lung[index] != side) continue;
+          if (rest_lung[index] != side || !takes(index)) continue;
           const double d = (Eigen::Vector3d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)) - q)
                                .squaredNorm();
           if (d < best) best = d, found = index;
@@ -91,17 +94,23 @@ std::optional<std::size_t> nearest_on_side(const std::vector<std::uint8_t>& rest
   return std::nullopt;
 }
 
+std::optional<std::size_t> nearest_on_side(const std::vector<std::uint8_t>& rest_lung,
+                                           const std::array<std::size_t, 3>& size, const Eigen::Vector3d& q,
+                                           std::uint8_t side) {
+  return nearest_on_side(rest_lung, size, q, side, [](std::size_t) { return true; });
+}
+
 }  // namespace
 
 image::LabelMap warp_labels(const image::LabelMap& labels, const DisplacementField& pullback,
-                            const std::vector<std::uint8_t>* rest_lung) {
+                            const std::vector<std::uint8_t>* rest_lung, std::span<const int> lung_labels) {
   image::LabelMap out;
-  warp_labels(labels, pullback, out, rest_lung);
+  warp_labels(labels, pullback, out, rest_lung, lung_labels);
   return out;
 }
 
 void warp_labels(const image::LabelMap& labels, const DisplacementField& pullback, image::LabelMap& out,
-                 const std::vector<std::uint8_t>* rest_lung) {
+                 const std::vector<std::uint8_t>* rest_lung, std::span<const int> lung_labels) {
   if (rest_lung && rest_lung->size() != labels.labels.size()) {
     throw ValueError("warp_labels: the rest lungs' voxels are not those of the label map");
   }
@@ -121,10 +130,44 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
     }
     std::size_t nearest = *rounded;
     const std::uint8_t lung = pullback.lung[v];
+    // Outside every deformed lung, a voxel carried across the pleura is the body's: it takes the
+    // body's own nearest tissue, never the lobe map's lung rim outside the rest mesh (a lung
+    // deflating below its scan leaves a gap the lagging body field pulls back into the rest lung,
+    // and the rim's lung labels filled it: docs/voxels.md, "The warped lung below the scan").
+    // Only where x + v(x) itself lies in a rest mesh (its eight voxels' trilinear share of the
+    // rest meshes above one half): a voxel just outside the pleura whose nearest voxel is inside
+    // (grids that do not coincide, a zero field) keeps the rim's label, as the label map has it.
+    bool carried_in = false;
+    if (rest_lung && lung == 0 && !lung_labels.empty() && (*rest_lung)[nearest] != 0) {
+      double share = 0.0;
+      for (int corner = 0; corner < 8; ++corner) {
+        double weight = 1.0;
+        std::array<double, 3> c{};
+        bool inside = true;
+        for (std::size_t a = 0; a < 3; ++a) {
+          const double base = std::floor(q[static_cast<Eigen::Index>(a)]);
+          const double t = q[static_cast<Eigen::Index>(a)] - base;
+          const bool up = ((corner >> a) & 1) != 0;
+          c[a] = base + (up ? 1.0 : 0.0);
+          weight *= up ? t : 1.0 - t;
+          inside = inside && c[a] >= 0.0 && c[a] < n[a];
+        }
+        if (!inside) continue;
+        const std::size_t candidate =
+            static_cast<std::size_t>(c[0]) +
+            labels.size[0] * (static_cast<std::size_t>(c[1]) + labels.size[1] * static_cast<std::size_t>(c[2]));
+        if ((*rest_lung)[candidate] != 0) share += weight;
+      }
+      carried_in = share > 0.5;
+    }
+    const auto takes = [&](std::size_t index) {
+      return !carried_in ||
+             std::find(lung_labels.begin(), lung_labels.end(), labels.labels[index]) == lung_labels.end();
+    };
     if (rest_lung && (*rest_lung)[nearest] != lung) {
       // The nearest of the eight voxels around q on x's side of the pleura: inside this lung's
       // rest mesh, or (x outside every deformed lung: tissue the body field carries) outside
-      // every rest mesh.
+      // every rest mesh and not lung.
       double best = std::numeric_limits<double>::infinity();
       for (int corner = 0; corner < 8; ++corner) {
         std::array<double, 3> c{};
@@ -138,13 +181,17 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
             static_cast<std::size_t>(c[0]) +
             labels.size[0] * (static_cast<std::size_t>(c[1]) + labels.size[1] * static_cast<std::size_t>(c[2]));
         const double d = (Eigen::Vector3d(c[0], c[1], c[2]) - q).squaredNorm();
-        if ((*rest_lung)[candidate] == lung && d < best) {
+        if ((*rest_lung)[candidate] == lung && takes(candidate) && d < best) {
           best = d;
           nearest = candidate;
         }
       }
       if (std::isinf(best)) {
-        if (const auto far = nearest_on_side(*rest_lung, labels.size, q, lung)) nearest = *far;
+        if (const auto far = nearest_on_side(*rest_lung, labels.size, q, lung, takes)) {
+          nearest = *far;
+        } else if (const auto any = nearest_on_side(*rest_lung, labels.size, q, lung)) {
+          nearest = *any;  // no tissue of the body near: its side as before
+        }
       }
     }
     const std::int32_t label = labels.labels[nearest];

@@ -37,11 +37,18 @@ inline constexpr float kOutsideHu = -1024.0f;
 // rim (a quarter voxel times its area: 2.3 % of the phantom at 3 mm) and the chest wall takes lung labels where it
 // slides past the pleura; with it, the warped lung's voxels are those of the deformed mesh, and labels inside the mesh
 // (lobes, holes) are kept as they are.
+//
+// With `lung_labels` as well (the label values that are lung), a voxel outside every deformed lung
+// that is carried across the pleura takes the nearest voxel outside every rest mesh that is not
+// lung (the body's own tissue), where there is one within 16 voxels: the lobe map's lung rim
+// outside the rest mesh is then not copied into the gap a deflating lung leaves, which made the
+// warped lung 0.6-1.7 % larger than the deformed lungs below a breath-hold scan.
 image::LabelMap warp_labels(const image::LabelMap& labels, const DisplacementField& pullback,
-                            const std::vector<std::uint8_t>* rest_lung = nullptr);
+                            const std::vector<std::uint8_t>* rest_lung = nullptr,
+                            std::span<const int> lung_labels = {});
 // The same into `out` (its storage reused).
 void warp_labels(const image::LabelMap& labels, const DisplacementField& pullback, image::LabelMap& out,
-                 const std::vector<std::uint8_t>* rest_lung = nullptr);
+                 const std::vector<std::uint8_t>* rest_lung = nullptr, std::span<const int> lung_labels = {});
 
 // Trilinear interpolation of the voxel values at x + v(x); `outside` where that point is more
 // than half a voxel outside the image (between the outer voxel centres and the image's edge the
