@@ -13,7 +13,10 @@
 #           the defaults; no CT, no report)
 #   shipped scenarios/4d-from-labels.yaml as shipped (2 mm, two time points, report on), cold (a
 #           fresh output folder) then warm (the same folder: the field cache hit), with CPU times
-# Usage: [PNEUMA=path/to/pneuma] bench/voxels_speed.sh [MODES (default "native phases shipped"; also native-nii)] [WORK_DIR]
+#   spacing one time point (end-inspiration, no CT, no report) at case004's own grid and at the
+#           shipped `spacing: 2 mm`, each run twice into its folder (the second reuses the field
+#           cache): the `output voxels` stage's time per Mvoxel at each grid ("in proportion")
+# Usage: [PNEUMA=path/to/pneuma] bench/voxels_speed.sh [MODES (default "native phases shipped"; also native-nii, spacing)] [WORK_DIR]
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 modes=${1:-native phases shipped}
@@ -104,4 +107,25 @@ if [[ " $modes " == *" shipped "* ]]; then
   timed "shipped (warm): pneuma run" "$pneuma" run shipped.yaml -o shipped --quiet
   grep -E 'User time|System time' "shipped (warm): pneuma run.time" | sed 's/^\s*/    /'
   stages shipped
+fi
+
+if [[ " $modes " == *" spacing "* ]]; then
+  for grid in native 2mm; do
+    if [ $grid = native ]; then drop_spacing=(-e "/^    spacing: 2 mm/d"); else drop_spacing=(); fi
+    scenario "spacing-$grid.yaml" -e 's#at: \[end_expiration, end_inspiration\]#at: [end_inspiration]#' \
+      "${drop_spacing[@]}" -e 's#^  physiology_csv: true#  physiology_csv: true\n  report: false#'
+    rm -rf "spacing-$grid"
+    "$pneuma" run "spacing-$grid.yaml" -o "spacing-$grid" --quiet # the field cache, not timed
+    timed "spacing $grid: pneuma run" "$pneuma" run "spacing-$grid.yaml" -o "spacing-$grid" --quiet
+    /usr/bin/python3 - "spacing-$grid" <<'PY'
+import json, sys
+import nibabel
+folder = sys.argv[1]
+seconds = json.load(open(f"{folder}/manifest.json"))["timings_s"]["output voxels"]
+shape = nibabel.load(f"{folder}/voxels/labels-end_inspiration.nii.gz").shape
+mvoxels = shape[0] * shape[1] * shape[2] / 1e6
+print(f"    grid {shape[0]} x {shape[1]} x {shape[2]} = {mvoxels:.2f} Mvoxels; output voxels {seconds:.2f} s, "
+      f"{1e3 * seconds / mvoxels:.1f} ms per Mvoxel")
+PY
+  done
 fi
