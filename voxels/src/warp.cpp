@@ -64,6 +64,30 @@ std::optional<std::size_t> nearest_voxel(const Eigen::Vector3d& q, const std::ar
   return at[0] + size[0] * (at[1] + size[1] * at[2]);
 }
 
+// Calls f(index, weight, corner) for each of the eight voxels around the continuous index q that
+// lie inside a grid of `size` (corner by corner, i fastest): its index, its trilinear weight at q
+// and its own continuous index.
+template <typename F>
+void for_each_corner(const Eigen::Vector3d& q, const std::array<std::size_t, 3>& size, const F& f) {
+  for (int corner = 0; corner < 8; ++corner) {
+    double weight = 1.0;
+    Eigen::Vector3d c;
+    bool inside = true;
+    for (Eigen::Index a = 0; a < 3; ++a) {
+      const double base = std::floor(q[a]);
+      const double t = q[a] - base;
+      const bool up = ((corner >> a) & 1) != 0;
+      c[a] = base + (up ? 1.0 : 0.0);
+      weight *= up ? t : 1.0 - t;
+      inside = inside && c[a] >= 0.0 && c[a] < static_cast<double>(size[static_cast<std::size_t>(a)]);
+    }
+    if (!inside) continue;
+    f(static_cast<std::size_t>(c[0]) +
+          size[0] * (static_cast<std::size_t>(c[1]) + size[1] * static_cast<std::size_t>(c[2])),
+      weight, c);
+  }
+}
+
 // `takes(index)`: whether a voxel on `side` may be taken (the label warp refuses lung labels outside
 // every lung); every voxel on the side where it is not given.
 template <typename Takes>
@@ -120,8 +144,6 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
   out.segments = labels.segments;
   out.labels.resize(pullback.grid.voxel_count());
   const Grid source = grid_of(labels);
-  const std::array<double, 3> n{static_cast<double>(labels.size[0]), static_cast<double>(labels.size[1]),
-                                static_cast<double>(labels.size[2])};
   for_each_sample(pullback, source, [&](std::size_t v, const Eigen::Vector3d& q) {
     const std::optional<std::size_t> rounded = nearest_voxel(q, labels.size);
     if (!rounded) {  // outside the label map (or not finite)
@@ -140,24 +162,9 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
     bool carried_in = false;
     if (rest_lung && lung == 0 && !lung_labels.empty() && (*rest_lung)[nearest] != 0) {
       double share = 0.0;
-      for (int corner = 0; corner < 8; ++corner) {
-        double weight = 1.0;
-        std::array<double, 3> c{};
-        bool inside = true;
-        for (std::size_t a = 0; a < 3; ++a) {
-          const double base = std::floor(q[static_cast<Eigen::Index>(a)]);
-          const double t = q[static_cast<Eigen::Index>(a)] - base;
-          const bool up = ((corner >> a) & 1) != 0;
-          c[a] = base + (up ? 1.0 : 0.0);
-          weight *= up ? t : 1.0 - t;
-          inside = inside && c[a] >= 0.0 && c[a] < n[a];
-        }
-        if (!inside) continue;
-        const std::size_t candidate =
-            static_cast<std::size_t>(c[0]) +
-            labels.size[0] * (static_cast<std::size_t>(c[1]) + labels.size[1] * static_cast<std::size_t>(c[2]));
+      for_each_corner(q, labels.size, [&](std::size_t candidate, double weight, const Eigen::Vector3d&) {
         if ((*rest_lung)[candidate] != 0) share += weight;
-      }
+      });
       carried_in = share > 0.5;
     }
     const auto takes = [&](std::size_t index) {
@@ -169,28 +176,20 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
       // rest mesh, or (x outside every deformed lung: tissue the body field carries) outside
       // every rest mesh and not lung.
       double best = std::numeric_limits<double>::infinity();
-      for (int corner = 0; corner < 8; ++corner) {
-        std::array<double, 3> c{};
-        bool inside = true;
-        for (std::size_t a = 0; a < 3; ++a) {
-          c[a] = std::floor(q[static_cast<Eigen::Index>(a)]) + static_cast<double>((corner >> a) & 1);
-          inside = inside && c[a] >= 0.0 && c[a] < n[a];
-        }
-        if (!inside) continue;
-        const std::size_t candidate =
-            static_cast<std::size_t>(c[0]) +
-            labels.size[0] * (static_cast<std::size_t>(c[1]) + labels.size[1] * static_cast<std::size_t>(c[2]));
-        const double d = (Eigen::Vector3d(c[0], c[1], c[2]) - q).squaredNorm();
+      for_each_corner(q, labels.size, [&](std::size_t candidate, double, const Eigen::Vector3d& c) {
+        const double d = (c - q).squaredNorm();
         if ((*rest_lung)[candidate] == lung && takes(candidate) && d < best) {
           best = d;
           nearest = candidate;
         }
-      }
+      });
       if (std::isinf(best)) {
         if (const auto far = nearest_on_side(*rest_lung, labels.size, q, lung, takes)) {
           nearest = *far;
-        } else if (const auto any = nearest_on_side(*rest_lung, labels.size, q, lung)) {
-          nearest = *any;  // no tissue of the body near: its side as before
+        } else if (carried_in) {  // otherwise `takes` refused nothing: the search above was this one
+          if (const auto any = nearest_on_side(*rest_lung, labels.size, q, lung)) {
+            nearest = *any;  // no tissue of the body near: its side as before
+          }
         }
       }
     }
