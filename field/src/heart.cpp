@@ -34,8 +34,7 @@ std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh,
   const std::vector<Eigen::Vector3d> normal = mesh::smoothed_normals(mesh, sigma);
   constexpr auto kMediastinal = static_cast<std::size_t>(mesh::Region::mediastinal);
   for (std::size_t i = 0; i < n; ++i) {
-    const double u = std::clamp((regions.height[i] - (heart.top - 0.1)) / 0.2, 0.0, 1.0);
-    const double below_top = 1.0 - u * u * (3.0 - 2.0 * u);
+    const double below_top = step_down((regions.height[i] - (heart.top - 0.1)) / 0.2);
     const double facing_down = std::max(0.0, -regions.axes.up.dot(normal[i]));
     moved[i] = heart.descent * regions.weight[i][kMediastinal] * below_top * facing_down * -regions.axes.up;
   }
