@@ -305,7 +305,9 @@ def table(results):
             rows.append(head + f" exit {r['exit']}: {r.get('error', '')} |" + " |" * 10)
             continue
         t = r["worst_tear"]
-        profile = f"{r['profile_offset']:.2f}" if r["tissue"] != "healthy-upright" else f"({r['profile_offset']:.2f})"
+        # In brackets where DIR-Lab's supine patients' profile is not asked: upright, and the phantom.
+        applies = r["tissue"] != "healthy-upright" and r["case"] != "phantom"
+        profile = f"{r['profile_offset']:.2f}" if applies else f"({r['profile_offset']:.2f})"
         rows.append(head + f" {100 * r['deep_below_095']:.3f} / {100 * r['image_below_095']:.2f} |"
                     f" {r['deep_min_j']:.2f} / {r['image_min_j']:.2f} | {profile} |"
                     f" {t['pull_min']:.2f}-{t['pull_max']:.2f} | {t['body_torn']} / {t['right_torn']} / {t['left_torn']} |"

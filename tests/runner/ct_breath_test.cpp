@@ -1,10 +1,10 @@
-// The breath in voxels on every shared CT case (#45, docs/voxels.md "What a run measures"): at
-// end-inspiration of a quiet breath the lungs' inside does not shrink (the forward map's Jacobian
-// 6 mm inside the pleura), the body does not tear (outside a 2-voxel band at the pleura the
-// pull-back field's Jacobian lies in [0.5, 2] and no voxel's displacement differs from a
-// neighbour's by more than a voxel) and the warped CT keeps each lung's mass at every time point,
-// darkening as the mass-preserving rule predicts. The oracle is nibabel
-// + numpy + scipy reading the written files (their own affine, their own finite differences and
+// The breath in voxels on every shared CT case and the built-in phantom (#45, docs/voxels.md "What
+// a run measures", "The issue's checks, measured"): at end-inspiration of a quiet breath the
+// lungs' inside does not shrink (the forward map's Jacobian 6 mm inside the pleura), the body does
+// not tear (outside a 2-voxel band at the pleura the pull-back field's Jacobian lies in [0.5, 2]
+// and no voxel's displacement differs from a neighbour's by more than a voxel) and the warped CT
+// keeps each lung's mass at every time point, darkening as the mass-preserving rule predicts. The
+// oracle is nibabel + numpy + scipy reading the written files (their own affine, their own finite differences and
 // distance transform): none of it is pneuma's arithmetic. Cheap settings (5 mm surfaces, 6 mm
 // tets, 4 mm voxels) keep each run near 20 s of CPU; the scenario's own (4 mm, 3 mm voxels) are
 // measured in docs/voxels.md.
