@@ -137,7 +137,6 @@ double smoothstep(double x) {
   return t * t * (3.0 - 2.0 * t);
 }
 
-
 // A surface vertex as the body sees it: where it is, its area, the motion the tissue beside it
 // follows (per unit scale), how much of it is diaphragm, and its lung.
 struct Sample {
@@ -273,8 +272,8 @@ std::vector<char> outside_lungs(const Model& model, const Lattice& g) {
            j <= std::min<std::ptrdiff_t>(static_cast<std::ptrdiff_t>(g.n[1]) - 1, last(1) + 1); ++j) {
         for (std::ptrdiff_t i = std::max<std::ptrdiff_t>(0, first(0) - 1);
              i <= std::min<std::ptrdiff_t>(static_cast<std::ptrdiff_t>(g.n[0]) - 1, last(0) + 1); ++i) {
-          const Eigen::Vector2d p = g.origin.head<2>() +
-                                    g.h * Eigen::Vector2d(static_cast<double>(i), static_cast<double>(j)) + shift;
+          const Eigen::Vector2d p =
+              g.origin.head<2>() + g.h * Eigen::Vector2d(static_cast<double>(i), static_cast<double>(j)) + shift;
           // Barycentric coordinates of the column in the triangle's projection.
           const double wa = ((b.x() - p.x()) * (c.y() - p.y()) - (c.x() - p.x()) * (b.y() - p.y())) / area2;
           const double wb = ((c.x() - p.x()) * (a.y() - p.y()) - (a.x() - p.x()) * (c.y() - p.y())) / area2;
@@ -306,29 +305,32 @@ std::vector<char> outside_lungs(const Model& model, const Lattice& g) {
 // corners are all `judged` (the gradient at a corner: the differences along the cell's edges there).
 double steepest_gradient(const std::vector<Eigen::Vector3d>& u, const Lattice& g, const std::vector<char>& judged) {
   if (u.empty()) return 0.0;
+  // The steepest of one cell's eight corners; 0 for a cell not wholly judged.
+  const auto cell_steepest = [&](std::size_t i, std::size_t j, std::size_t k) {
+    for (std::size_t c = 0; c < 8; ++c)
+      if (!judged[g.at(i + (c & 1u), j + ((c >> 1) & 1u), k + ((c >> 2) & 1u))]) return 0.0;
+    double most = 0.0;
+    for (std::size_t c = 0; c < 8; ++c) {
+      const std::size_t di = c & 1u, dj = (c >> 1) & 1u, dk = (c >> 2) & 1u;
+      Eigen::Matrix3d grad;
+      grad.col(0) = (u[g.at(i + 1, j + dj, k + dk)] - u[g.at(i, j + dj, k + dk)]) / g.h;
+      grad.col(1) = (u[g.at(i + di, j + 1, k + dk)] - u[g.at(i + di, j, k + dk)]) / g.h;
+      grad.col(2) = (u[g.at(i + di, j + dj, k + 1)] - u[g.at(i + di, j + dj, k)]) / g.h;
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+      eigen.computeDirect(grad.transpose() * grad, Eigen::EigenvaluesOnly);
+      most = std::max(most, std::sqrt(std::max(0.0, eigen.eigenvalues()[2])));
+    }
+    return most;
+  };
   std::vector<double> per_slab(g.n[2] - 1, 0.0);  // one per k-slab: the same maximum at any thread count
   const tsan::Region region;
-  tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, g.n[2] - 1), region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t k = r.begin(); k != r.end(); ++k)
-          for (std::size_t j = 0; j + 1 < g.n[1]; ++j)
-            for (std::size_t i = 0; i + 1 < g.n[0]; ++i) {
-              bool all = true;
-              for (std::size_t c = 0; c < 8 && all; ++c)
-                all = judged[g.at(i + (c & 1u), j + ((c >> 1) & 1u), k + ((c >> 2) & 1u))] != 0;
-              if (!all) continue;
-              for (std::size_t c = 0; c < 8; ++c) {
-                const std::size_t di = c & 1u, dj = (c >> 1) & 1u, dk = (c >> 2) & 1u;
-                Eigen::Matrix3d grad;
-                grad.col(0) = (u[g.at(i + 1, j + dj, k + dk)] - u[g.at(i, j + dj, k + dk)]) / g.h;
-                grad.col(1) = (u[g.at(i + di, j + 1, k + dk)] - u[g.at(i + di, j, k + dk)]) / g.h;
-                grad.col(2) = (u[g.at(i + di, j + dj, k + 1)] - u[g.at(i + di, j + dj, k)]) / g.h;
-                Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
-                eigen.computeDirect(grad.transpose() * grad, Eigen::EigenvaluesOnly);
-                per_slab[k] = std::max(per_slab[k], std::sqrt(std::max(0.0, eigen.eigenvalues()[2])));
-              }
-            }
-      }));
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, g.n[2] - 1),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t k = r.begin(); k != r.end(); ++k)
+                        for (std::size_t j = 0; j + 1 < g.n[1]; ++j)
+                          for (std::size_t i = 0; i + 1 < g.n[0]; ++i)
+                            per_slab[k] = std::max(per_slab[k], cell_steepest(i, j, k));
+                    }));
   region.join();
   return *std::max_element(per_slab.begin(), per_slab.end());
 }
@@ -377,7 +379,8 @@ BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : o
   // room to spare at the breath's ends, judged on the nodes outside the lungs beyond a cell from
   // the pleura (nearer, a node's cells reach into the lung, whose own field moves it there).
   std::vector<char> judged = outside_lungs(model, fine);
-  for (std::size_t node = 0; node < nodes; ++node) judged[node] = judged[node] && distance[node] >= 1.0;
+  for (std::size_t node = 0; node < nodes; ++node)
+    judged[node] = static_cast<char>(judged[node] && distance[node] >= 1.0);
   std::array<std::vector<double>, 2> ends;  // the lungs' scales at each end, times the margin
   for (std::size_t l = 0; l < model.lungs.size(); ++l) {
     const std::array<double, 2> range = l < options.scale_range.size() ? options.scale_range[l] : std::array{0.0, 0.0};

@@ -60,9 +60,9 @@ struct BodyMotionOptions {
   // "The narrowest blur"), and `smallest_sigma_m` is ignored; empty: `smallest_sigma_m` as given.
   std::vector<std::array<double, 2>> scale_range = {};
   std::vector<double> sigma_ladder_m = {0.012, 0.016, 0.024, 0.032, 0.048};
-  double margin = 1.5;          // as the deflation's smoothing checks 1.5 times its depth
-  double steepest_allowed = 0.75; // the bound on |grad u| (spectral norm) at `margin` times the scales
-  double margin_m = 0.08;           // the field's box around the lungs (below them: `below_m`)
+  double margin = 1.5;             // as the deflation's smoothing checks 1.5 times its depth
+  double steepest_allowed = 0.75;  // the bound on |grad u| (spectral norm) at `margin` times the scales
+  double margin_m = 0.08;          // the field's box around the lungs (below them: `below_m`)
   double below_m = 0.20;
   double taper_m = 0.048;  // the field fades to 0 over this much at the box's faces
   double cell_m = 6e-3;    // the precomputed grid's spacing
