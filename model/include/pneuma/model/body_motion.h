@@ -12,7 +12,7 @@
 //   E_lung(x) = sum_v K(x - y_v) A_v (n_v . u_v) n_v  /  sum over all lungs' v of K(x - y_v) A_v
 //
 // with y_v, n_v, A_v and u_v a rest surface vertex, its outward normal, its area and its unit
-// displacement; K a sum of Gaussians of sigma 12, 24, 48 and 96 mm weighted 1/sigma^3 (near the
+// displacement; K a sum of Gaussians of sigma 12, 24, 48 and 96 mm weighted 1/sigma^5 (near the
 // pleura the narrowest decides, so E is the local normal motion, blurred over about 12 mm; far
 // away the wider ones take over, so E is defined and smooth everywhere); d(x) the distance to the
 // nearest lung surface; L(x) blended from 40 mm (chest wall, mediastinum and heart) to 120 mm
@@ -21,7 +21,8 @@
 // 48 mm of the field's box (80 mm around the lungs, 200 mm below them). Between two lungs each
 // point follows the nearer lung's face most: the heart and mediastinum move with the medial
 // faces and, near it, the diaphragm. E, L and the fade are smooth on the scale of 12 mm, so the
-// field has no bands and no tears; its Jacobian is measured (docs/voxels.md), not bounded.
+// field has no bands and no tears; where the surface's motion is too sharp for a 12 mm blur, the
+// run widens it (below), so that the field's gradient is bounded in the body.
 //
 // The narrowest blur. Where a lung's surface motion changes sharply (the diaphragm's or a
 // recess tip's descent of 20-30 mm beside a chest wall that moves 1 mm across it), a 12 mm blur
