@@ -371,13 +371,14 @@ BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : o
   }
   distance_transform(distance, fine);
 
-  if (options.scale_range.empty()) {
+  if (options.scale_range.empty() || options.sigma_ladder_m.empty()) {
     unit_ = unit_fields(model.lungs.size(), samples, distance, fine, lo, hi, options, options.smallest_sigma_m);
     return;
   }
   // The narrowest blur (body_motion.h): the least of the ladder whose field is a contraction with
   // room to spare at the breath's ends, judged on the nodes outside the lungs beyond a cell from
-  // the pleura (nearer, a node's cells reach into the lung, whose own field moves it there).
+  // the pleura (nearer, a node's cells reach into the lung, whose own field moves it there); the
+  // widest when none is (steepest() then says by how much it is not).
   std::vector<char> judged = outside_lungs(model, fine);
   for (std::size_t node = 0; node < nodes; ++node)
     judged[node] = static_cast<char>(judged[node] && distance[node] >= 1.0);
