@@ -5,10 +5,12 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "pneuma/core/tsan.h"
 #include "pneuma/model/model.h"
@@ -135,37 +137,17 @@ double smoothstep(double x) {
   return t * t * (3.0 - 2.0 * t);
 }
 
-}  // namespace
+// A surface vertex as the body sees it: where it is, its area, the motion the tissue beside it
+// follows (per unit scale), how much of it is diaphragm, and its lung.
+struct Sample {
+  Eigen::Vector3d at, normal_motion;
+  double area = 0.0, diaphragm = 0.0;
+  std::size_t lung = 0;
+};
 
-BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : options_(options) {
-  if (model.lungs.empty()) return;
-  const mesh::BodyAxes& axes = model.lungs.front().regions.axes;
-  const Eigen::Vector3d up = axes.up.normalized();
-  // The box: the lungs with a margin, and further below them (the abdomen).
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (const LungModel& lung : model.lungs) {
-    for (const auto& v : lung.rest.vertices) {
-      lo = lo.cwiseMin(v);
-      hi = hi.cwiseMax(v);
-    }
-  }
-  lo -= Eigen::Vector3d::Constant(options.margin_m);
-  hi += Eigen::Vector3d::Constant(options.margin_m);
-  lo = lo.cwiseMin(lo - options.below_m * up);
-  hi = hi.cwiseMax(hi - options.below_m * up);
-  const Lattice fine(lo, hi, options.cell_m);
-  origin_ = fine.origin;
-  size_ = fine.n;
-  const std::size_t nodes = fine.count(), lungs = model.lungs.size();
-
-  // The surface samples: area, the normal part of the unit motion, on the diaphragm or not.
-  struct Sample {
-    Eigen::Vector3d at, normal_motion;
-    double area = 0.0, diaphragm = 0.0;
-    std::size_t lung = 0;
-  };
+std::vector<Sample> surface_samples(const Model& model, const Eigen::Vector3d& up) {
   std::vector<Sample> samples;
-  for (std::size_t l = 0; l < lungs; ++l) {
+  for (std::size_t l = 0; l < model.lungs.size(); ++l) {
     const LungModel& lung = model.lungs[l];
     const std::vector<double> area = mesh::vertex_areas(lung.rest);
     for (std::size_t v = 0; v < lung.rest.vertices.size(); ++v) {
@@ -180,14 +162,22 @@ BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : o
       samples.push_back({lung.rest.vertices[v], followed, area[v], on_diaphragm, l});
     }
   }
+  return samples;
+}
 
+// Each lung's field at s = 1 on the nodes of `fine` for K's narrowest Gaussian `sigma` (body_motion.h).
+std::vector<std::vector<Eigen::Vector3d>> unit_fields(std::size_t lungs, const std::vector<Sample>& samples,
+                                                      const std::vector<double>& distance, const Lattice& fine,
+                                                      const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                                                      const BodyMotionOptions& options, double smallest_sigma) {
+  const std::size_t nodes = fine.count();
   // E and the diaphragm's share at every fine node: normalised convolutions with K, one Gaussian
   // at a time on a lattice of half its sigma, sampled back onto the fine nodes.
   std::vector<Eigen::Vector3d> numerator(lungs * nodes, Eigen::Vector3d::Zero());
   std::vector<double> weight(nodes, 0.0), diaphragm(nodes, 0.0);
   for (int scale = 0; scale < 4; ++scale) {
-    const double sigma = options.smallest_sigma_m * std::ldexp(1.0, scale);
-    const double factor = std::pow(options.smallest_sigma_m / sigma, 5.0);
+    const double sigma = smallest_sigma * std::ldexp(1.0, scale);
+    const double factor = std::pow(smallest_sigma / sigma, 5.0);
     const Lattice g(lo, hi, 0.5 * sigma);
     std::vector<std::vector<double>> arrays(3 * lungs + 2, std::vector<double>(g.count(), 0.0));
     for (const Sample& s : samples) {
@@ -230,18 +220,7 @@ BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : o
     region.join();
   }
 
-  // The distance to the nearest surface vertex: exact at the nodes around each vertex, then the
-  // distance transform (in lattice units) carries it everywhere.
-  std::vector<double> distance(nodes, std::numeric_limits<double>::infinity());
-  for (const Sample& s : samples) {
-    fine.corners(s.at, [&](std::size_t node, double) {
-      const std::size_t i = node % fine.n[0], j = (node / fine.n[0]) % fine.n[1], k = node / (fine.n[0] * fine.n[1]);
-      distance[node] = std::min(distance[node], (fine.node(i, j, k) - s.at).squaredNorm() / (fine.h * fine.h));
-    });
-  }
-  distance_transform(distance, fine);
-
-  unit_.assign(lungs, std::vector<Eigen::Vector3d>(nodes, Eigen::Vector3d::Zero()));
+  std::vector<std::vector<Eigen::Vector3d>> unit(lungs, std::vector<Eigen::Vector3d>(nodes, Eigen::Vector3d::Zero()));
   const double tiny = 1e-12 * weight[0] + std::numeric_limits<double>::min();
   for (std::size_t k = 0; k < fine.n[2]; ++k) {
     for (std::size_t j = 0; j < fine.n[1]; ++j) {
@@ -260,9 +239,161 @@ BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : o
           taper *= smoothstep(from_face / options.taper_m);
         }
         const double fade = std::exp(-d / decay) * taper;
-        for (std::size_t l = 0; l < lungs; ++l) unit_[l][node] = numerator[l * nodes + node] / weight[node] * fade;
+        for (std::size_t l = 0; l < lungs; ++l) unit[l][node] = numerator[l * nodes + node] / weight[node] * fade;
       }
     }
+  }
+  return unit;
+}
+
+// 1 at the nodes of `g` outside every lung's rest surface: along each column of nodes (the third
+// axis) the surface's crossings, counted with the sign of their normal, give the winding number
+// below each node. The column is shifted by a tiny odd fraction of a cell so that it passes
+// through no vertex or edge.
+std::vector<char> outside_lungs(const Model& model, const Lattice& g) {
+  std::vector<std::vector<std::pair<double, int>>> crossings(g.n[0] * g.n[1]);
+  const Eigen::Vector2d shift = g.h * Eigen::Vector2d(3.1e-7, 1.7e-7);
+  for (const LungModel& lung : model.lungs) {
+    for (const mesh::Triangle& t : lung.rest.triangles) {
+      const Eigen::Vector3d& a = lung.rest.vertices[t[0]];
+      const Eigen::Vector3d& b = lung.rest.vertices[t[1]];
+      const Eigen::Vector3d& c = lung.rest.vertices[t[2]];
+      const double area2 = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
+      if (area2 == 0.0) continue;  // edge-on to the columns: no column crosses it
+      const auto first = [&](int axis) {
+        const double least = std::min({a[axis], b[axis], c[axis]}) - g.origin[axis];
+        return static_cast<std::ptrdiff_t>(std::ceil(least / g.h));
+      };
+      const auto last = [&](int axis) {
+        const double most = std::max({a[axis], b[axis], c[axis]}) - g.origin[axis];
+        return static_cast<std::ptrdiff_t>(std::floor(most / g.h));
+      };
+      for (std::ptrdiff_t j = std::max<std::ptrdiff_t>(0, first(1) - 1);
+           j <= std::min<std::ptrdiff_t>(static_cast<std::ptrdiff_t>(g.n[1]) - 1, last(1) + 1); ++j) {
+        for (std::ptrdiff_t i = std::max<std::ptrdiff_t>(0, first(0) - 1);
+             i <= std::min<std::ptrdiff_t>(static_cast<std::ptrdiff_t>(g.n[0]) - 1, last(0) + 1); ++i) {
+          const Eigen::Vector2d p =
+              g.origin.head<2>() + g.h * Eigen::Vector2d(static_cast<double>(i), static_cast<double>(j)) + shift;
+          // Barycentric coordinates of the column in the triangle's projection.
+          const double wa = ((b.x() - p.x()) * (c.y() - p.y()) - (c.x() - p.x()) * (b.y() - p.y())) / area2;
+          const double wb = ((c.x() - p.x()) * (a.y() - p.y()) - (a.x() - p.x()) * (c.y() - p.y())) / area2;
+          const double wc = 1.0 - wa - wb;
+          if (wa < 0.0 || wb < 0.0 || wc < 0.0) continue;
+          // Outward normals: a face seen from below (its normal's third component < 0) is entered.
+          crossings[static_cast<std::size_t>(i) + g.n[0] * static_cast<std::size_t>(j)].emplace_back(
+              wa * a.z() + wb * b.z() + wc * c.z(), area2 > 0.0 ? -1 : 1);
+        }
+      }
+    }
+  }
+  std::vector<char> outside(g.count(), 1);
+  for (std::size_t column = 0; column < crossings.size(); ++column) {
+    auto& list = crossings[column];
+    std::sort(list.begin(), list.end());
+    std::size_t next = 0;
+    int winding = 0;
+    for (std::size_t k = 0; k < g.n[2]; ++k) {
+      const double z = g.origin.z() + g.h * static_cast<double>(k);
+      while (next < list.size() && list[next].first < z) winding += list[next++].second;
+      if (winding != 0) outside[column + g.n[0] * g.n[1] * k] = 0;
+    }
+  }
+  return outside;
+}
+
+// The largest spectral norm of the trilinear field's gradient at the corners of every cell whose
+// corners are all `judged` (the gradient at a corner: the differences along the cell's edges there).
+double steepest_gradient(const std::vector<Eigen::Vector3d>& u, const Lattice& g, const std::vector<char>& judged) {
+  if (u.empty()) return 0.0;
+  // The steepest of one cell's eight corners; 0 for a cell not wholly judged.
+  const auto cell_steepest = [&](std::size_t i, std::size_t j, std::size_t k) {
+    for (std::size_t c = 0; c < 8; ++c)
+      if (!judged[g.at(i + (c & 1u), j + ((c >> 1) & 1u), k + ((c >> 2) & 1u))]) return 0.0;
+    double most = 0.0;
+    for (std::size_t c = 0; c < 8; ++c) {
+      const std::size_t di = c & 1u, dj = (c >> 1) & 1u, dk = (c >> 2) & 1u;
+      Eigen::Matrix3d grad;
+      grad.col(0) = (u[g.at(i + 1, j + dj, k + dk)] - u[g.at(i, j + dj, k + dk)]) / g.h;
+      grad.col(1) = (u[g.at(i + di, j + 1, k + dk)] - u[g.at(i + di, j, k + dk)]) / g.h;
+      grad.col(2) = (u[g.at(i + di, j + dj, k + 1)] - u[g.at(i + di, j + dj, k)]) / g.h;
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+      eigen.computeDirect(grad.transpose() * grad, Eigen::EigenvaluesOnly);
+      most = std::max(most, std::sqrt(std::max(0.0, eigen.eigenvalues()[2])));
+    }
+    return most;
+  };
+  std::vector<double> per_slab(g.n[2] - 1, 0.0);  // one per k-slab: the same maximum at any thread count
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, g.n[2] - 1),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t k = r.begin(); k != r.end(); ++k)
+                        for (std::size_t j = 0; j + 1 < g.n[1]; ++j)
+                          for (std::size_t i = 0; i + 1 < g.n[0]; ++i)
+                            per_slab[k] = std::max(per_slab[k], cell_steepest(i, j, k));
+                    }));
+  region.join();
+  return *std::max_element(per_slab.begin(), per_slab.end());
+}
+
+}  // namespace
+
+BodyMotion::BodyMotion(const Model& model, const BodyMotionOptions& options) : options_(options) {
+  if (model.lungs.empty()) return;
+  const mesh::BodyAxes& axes = model.lungs.front().regions.axes;
+  const Eigen::Vector3d up = axes.up.normalized();
+  // The box: the lungs with a margin, and further below them (the abdomen).
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const LungModel& lung : model.lungs) {
+    for (const auto& v : lung.rest.vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+  }
+  lo -= Eigen::Vector3d::Constant(options.margin_m);
+  hi += Eigen::Vector3d::Constant(options.margin_m);
+  lo = lo.cwiseMin(lo - options.below_m * up);
+  hi = hi.cwiseMax(hi - options.below_m * up);
+  const Lattice fine(lo, hi, options.cell_m);
+  origin_ = fine.origin;
+  size_ = fine.n;
+  const std::size_t nodes = fine.count();
+
+  const std::vector<Sample> samples = surface_samples(model, up);
+
+  // The distance to the nearest surface vertex: exact at the nodes around each vertex, then the
+  // distance transform (in lattice units) carries it everywhere.
+  std::vector<double> distance(nodes, std::numeric_limits<double>::infinity());
+  for (const Sample& s : samples) {
+    fine.corners(s.at, [&](std::size_t node, double) {
+      const std::size_t i = node % fine.n[0], j = (node / fine.n[0]) % fine.n[1], k = node / (fine.n[0] * fine.n[1]);
+      distance[node] = std::min(distance[node], (fine.node(i, j, k) - s.at).squaredNorm() / (fine.h * fine.h));
+    });
+  }
+  distance_transform(distance, fine);
+
+  if (options.scale_range.empty() || options.sigma_ladder_m.empty()) {
+    unit_ = unit_fields(model.lungs.size(), samples, distance, fine, lo, hi, options, options.smallest_sigma_m);
+    return;
+  }
+  // The narrowest blur (body_motion.h): the least of the ladder whose field is a contraction with
+  // room to spare at the breath's ends, judged on the nodes outside the lungs beyond a cell from
+  // the pleura (nearer, a node's cells reach into the lung, whose own field moves it there); the
+  // widest when none is (steepest() then says by how much it is not).
+  std::vector<char> judged = outside_lungs(model, fine);
+  for (std::size_t node = 0; node < nodes; ++node)
+    judged[node] = static_cast<char>(judged[node] && distance[node] >= 1.0);
+  std::array<std::vector<double>, 2> ends;  // the lungs' scales at each end, times the margin
+  for (std::size_t l = 0; l < model.lungs.size(); ++l) {
+    const std::array<double, 2> range = l < options.scale_range.size() ? options.scale_range[l] : std::array{0.0, 0.0};
+    for (std::size_t e = 0; e < 2; ++e) ends[e].push_back(options.margin * range[e]);
+  }
+  for (const double sigma : options.sigma_ladder_m) {
+    unit_ = unit_fields(model.lungs.size(), samples, distance, fine, lo, hi, options, sigma);
+    options_.smallest_sigma_m = sigma;
+    steepest_ = 0.0;
+    for (const std::vector<double>& scales : ends)
+      steepest_ = std::max(steepest_, steepest_gradient(frame(scales).u_, fine, judged));
+    if (steepest_ <= options.steepest_allowed) break;
   }
 }
 

@@ -255,7 +255,21 @@ Model compile(const Scenario& s, const CompileOptions& options) {
   }
   if (options.interior) {
     model.label_map = surfaces.label_map();  // the rest label map, for the voxel outputs (read once)
-    model.body = std::make_shared<const BodyMotion>(model);
+    // The body's narrowest blur is chosen for the breath the lungs follow (body_motion.h): its
+    // ends are each lung's lowest and highest scales. A drive the lungs cannot follow gives none
+    // (the run then stops naming the frame, Model::scales, before any output asks the body).
+    const auto start = Clock::now();
+    BodyMotionOptions body_options;
+    if (options.drive) {
+      try {
+        for (const LungScales& lung : model.scales(*options.drive))
+          body_options.scale_range.push_back({lung.min_scale, lung.max_scale});
+      } catch (const UnsupportedError&) {
+        body_options.scale_range.clear();
+      }
+    }
+    model.body = std::make_shared<const BodyMotion>(model, body_options);
+    model.report.timings_s.emplace_back("body field", seconds_since(start));
   }
   return model;
 }

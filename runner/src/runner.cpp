@@ -83,6 +83,11 @@ std::vector<std::pair<std::string, std::string>> run_facts(const scenario::Scena
       if (lung.compartment >= 0) facts.emplace_back(prefix + "compartment", s.mesh.lungs[i].compartment_name);
     }
   }
+  if (model.body && model.body->steepest() > 0.0) {
+    // The body's narrowest blur, as its ladder chose it for this breath (model/body_motion.h).
+    facts.emplace_back("body_smoothing_m", fmt::format("{:.9g}", model.body->options().smallest_sigma_m));
+    facts.emplace_back("body_steepest_gradient", fmt::format("{:.3g}", model.body->steepest()));
+  }
   facts.emplace_back("field", result.field_reused ? "reused from cache" : "computed");
   return facts;
 }

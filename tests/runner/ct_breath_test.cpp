@@ -383,12 +383,15 @@ INSTANTIATE_TEST_SUITE_P(RealAnatomy, CtBreathUpright, ::testing::Values("case00
 // scan at end-expiration and at end-inspiration (the phantom is an FRC shape; put at the breath's
 // peak it deflates by 500 mL as a breath-hold scan does): the interior, the mass and mean HU, and
 // the end-expiration or end-inspiration volume within 1 % (measured: -0.20 to +0.21 %). The tear
-// checks are held for the body with the scan at end-expiration only: with it at end-inspiration
-// the body beside the supine phantom's posterior recess is compressed past a pull-back J of 2 (221
-// voxels, J up to 2.65) and upright two neighbours lie 4.1 mm apart at 4 mm voxels, and supine
-// six lung voxels of the recess's tip leave [0.5, 2] at end-inspiration (J 0.47-0.50): the
-// posterior recess's tip descends 29 mm, twice the CT lungs' (docs/voxels.md, "The issue's
-// checks, measured"). About 4 s of CPU per cell.
+// checks of the body (no voxel outside the lungs with a pull-back J outside [0.5, 2]) in every
+// cell: with the scan at end-inspiration the supine body beside the posterior recesses was
+// compressed to a pull-back J of 2.65 (221 voxels) until the body field's narrowest blur became
+// the least that keeps it a contraction (model/body_motion.h; 24 mm supine, 12 mm upright). No
+// two neighbours a voxel apart in every cell but one: upright with the scan at end-inspiration two
+// neighbours inside the right lung lie 4.1 mm apart at 4 mm voxels; and supine six lung voxels of
+// the recess's tip leave [0.5, 2] at end-inspiration (J 0.47-0.50), not held: the lung's inside,
+// stretched at the recess (docs/voxels.md, "The issue's checks, measured"). About 4 s of CPU per
+// cell.
 class PhantomBreath : public ::testing::TestWithParam<std::tuple<const char*, const char*>> {};
 
 TEST_P(PhantomBreath, TheInsideDoesNotShrinkAndTheLungsKeepTheirMassAndTheBreathsVolume) {
@@ -404,7 +407,9 @@ TEST_P(PhantomBreath, TheInsideDoesNotShrinkAndTheLungsKeepTheirMassAndTheBreath
     EXPECT_GT(k->mean_hu, -845.0) << name;  // brighter than the scan's -849.5 HU
   } else {
     EXPECT_LT(k->mean_hu, -855.0) << name;  // darker
-    EXPECT_EQ(k->body_torn, 0u) << name;
+  }
+  EXPECT_EQ(k->body_torn, 0u) << name;
+  if (!(from_inspiration && std::string(tissue) == "healthy-upright")) {
     EXPECT_EQ(k->pairs, 0u) << name;
   }
 }

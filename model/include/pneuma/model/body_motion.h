@@ -12,7 +12,7 @@
 //   E_lung(x) = sum_v K(x - y_v) A_v (n_v . u_v) n_v  /  sum over all lungs' v of K(x - y_v) A_v
 //
 // with y_v, n_v, A_v and u_v a rest surface vertex, its outward normal, its area and its unit
-// displacement; K a sum of Gaussians of sigma 12, 24, 48 and 96 mm weighted 1/sigma^3 (near the
+// displacement; K a sum of Gaussians of sigma 12, 24, 48 and 96 mm weighted 1/sigma^5 (near the
 // pleura the narrowest decides, so E is the local normal motion, blurred over about 12 mm; far
 // away the wider ones take over, so E is defined and smooth everywhere); d(x) the distance to the
 // nearest lung surface; L(x) blended from 40 mm (chest wall, mediastinum and heart) to 120 mm
@@ -21,8 +21,23 @@
 // 48 mm of the field's box (80 mm around the lungs, 200 mm below them). Between two lungs each
 // point follows the nearer lung's face most: the heart and mediastinum move with the medial
 // faces and, near it, the diaphragm. E, L and the fade are smooth on the scale of 12 mm, so the
-// field has no bands and no tears; its Jacobian is measured (docs/voxels.md), not bounded.
+// field has no bands and no tears; where the surface's motion is too sharp for a 12 mm blur, the
+// run widens it (below), so that the field's gradient is bounded in the body.
 //
+// The narrowest blur. Where a lung's surface motion changes sharply (the diaphragm's or a
+// recess tip's descent of 20-30 mm beside a chest wall that moves 1 mm across it), a 12 mm blur
+// leaves |grad u| of 0.6 to 1 in the body below the lungs' bases. At |grad u| >= 1 the body can
+// fold; and a deflation (the scan at end-inspiration) turns the same gradient into a compression,
+// whose pull-back J = 1 / (1 - g) leaves [0.5, 2] already at g = 0.5 (a stretch reaches 2 only at
+// g = 1). So the blur is chosen per run, as the deflation's smoothing is (model.h,
+// field_for_deflation): the least sigma of a short ladder for which u, at `margin` (1.5) times
+// each end of the breath, has |grad u| <= `steepest_allowed` (0.75; the spectral norm, the most
+// any direction's length changes) on every node of the grid outside the lungs and a cell or more
+// from their surface. At the run's own scales |grad u| <= 0.5 there: u is a contraction, so
+// x -> x + u(x) is one-to-one and the fixed-point pull-back converges; every principal stretch
+// lies in [0.5, 1.5]; a compression along one direction keeps the pull-back J <= 2; and no two
+// points a voxel apart move more than half a voxel apart. A field that passes at 12 mm is kept
+// as it was. The price of a wider blur: the body follows the pleura less closely across it.
 // The field is precomputed per lung for s = 1 on a grid of `cell_m` (6 mm) and interpolated
 // trilinearly; a frame's field is the lungs' scales times theirs. A voxel output asks it at tens of
 // millions of points per time point: BodyMotion::Frame sums the lungs' grids with their scales
@@ -40,7 +55,15 @@ struct BodyMotionOptions {
   double wall_decay_m = 0.04;       // L beside the chest wall, the mediastinum and the heart
   double abdomen_decay_m = 0.12;    // L under the diaphragm
   double smallest_sigma_m = 0.012;  // the narrowest of K's four Gaussians (then 2x, 4x, 8x)
-  double margin_m = 0.08;           // the field's box around the lungs (below them: `below_m`)
+  // The lungs' scales at the run's two ends of the breath, per model lung {lowest, highest}
+  // (compile() sets them from the drive). Given, the narrowest Gaussian is the least of
+  // `sigma_ladder_m` whose field is steep nowhere in the body at `margin` times them (below,
+  // "The narrowest blur"), and `smallest_sigma_m` is ignored; empty: `smallest_sigma_m` as given.
+  std::vector<std::array<double, 2>> scale_range = {};
+  std::vector<double> sigma_ladder_m = {0.012, 0.016, 0.024, 0.032, 0.048};
+  double margin = 1.5;             // as the deflation's smoothing checks 1.5 times its depth
+  double steepest_allowed = 0.75;  // the bound on |grad u| (spectral norm) at `margin` times the scales
+  double margin_m = 0.08;          // the field's box around the lungs (below them: `below_m`)
   double below_m = 0.20;
   double taper_m = 0.048;  // the field fades to 0 over this much at the box's faces
   double cell_m = 6e-3;    // the precomputed grid's spacing
@@ -79,10 +102,15 @@ class BodyMotion {
   Eigen::Vector3d displacement(const Eigen::Vector3d& x, std::span<const double> scales) const;
   // The field at these scales, for many points.
   Frame frame(std::span<const double> scales) const;
+  // The options, `smallest_sigma_m` the narrowest blur used (the ladder's choice, where it chose).
   const BodyMotionOptions& options() const { return options_; }
+  // The largest |grad u| (spectral norm) in the body beyond one cell from the pleura, on the
+  // grid's nodes, at `margin` times the scale range's ends; 0 where no range was given.
+  double steepest() const { return steepest_; }
 
  private:
   BodyMotionOptions options_;
+  double steepest_ = 0.0;
   Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();  // the grid's first node (LPS, axis-aligned)
   std::array<std::size_t, 3> size_{0, 0, 0};
   std::vector<std::vector<Eigen::Vector3d>> unit_;  // per lung: u at s = 1 per node, i fastest
