@@ -12,9 +12,10 @@ STAGES = [  # (stage, pattern on a frame's symbol or library), first match from 
     ("body pull-back: lattice (inverse_field)", r"inverse_field"),
     ("body pull-back: per-voxel inverse", r"BodyMotion::Frame::inverse"),
     ("body field lookups (Frame::displacement)", r"BodyMotion::Frame::displacement"),
+    ("rasterising tets (forward, pull-back, rest lungs, Jacobian inside)", r"rasterize"),
+    ("Jacobian image outside the lungs", r"jacobian_image\("),
     ("CT warp (warp_image)", r"warp_image"),
     ("label warp, lung tissue masks", r"warp_labels|lung_tissue"),
-    ("rasterising tets (forward, pull-back, rest lungs)", r"rasterize"),
     ("converting fields for files", r"to_file|convert|nifti|Nifti|write_"),
 ]
 KERNEL = r"\[kernel|kallsyms"  # a sample in the kernel (page faults, page-cache writes) is its own stage
