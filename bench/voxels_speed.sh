@@ -11,12 +11,13 @@
 #           and plastimatch warping the CT with that run's plain .nii pull-back DVF
 #   phases  ten phase bins at that grid over 24 s of breathing (DVFs, labels and Jacobian images,
 #           the defaults; no CT, no report)
+#   phases-nii  the same with `format: nii`
 #   shipped scenarios/4d-from-labels.yaml as shipped (2 mm, two time points, report on), cold (a
 #           fresh output folder) then warm (the same folder: the field cache hit), with CPU times
 #   spacing one time point (end-inspiration, no CT, no report) at case004's own grid and at the
 #           shipped `spacing: 2 mm`, each run twice into its folder (the second reuses the field
 #           cache): the `output voxels` stage's time per Mvoxel at each grid ("in proportion")
-# Usage: [PNEUMA=path/to/pneuma] bench/voxels_speed.sh [MODES (default "native phases shipped"; also native-nii, spacing)] [WORK_DIR]
+# Usage: [PNEUMA=path/to/pneuma] bench/voxels_speed.sh [MODES (default "native phases shipped"; also native-nii, phases-nii, spacing)] [WORK_DIR]
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 modes=${1:-native phases shipped}
@@ -32,11 +33,12 @@ timed() {
   local name=$1
   shift
   /usr/bin/time -v "$@" > "$name.out" 2> "$name.time"
-  local wall rss
+  local wall rss cpu
   wall=$(grep 'Elapsed (wall clock)' "$name.time" | awk '{print $NF}')
   rss=$(grep 'Maximum resident' "$name.time" | awk '{print $NF}')
-  printf '%-28s wall %9s  peak %6.2f GiB  (load %s)\n' "$name" "$wall" "$(echo "$rss / 1048576" | bc -l)" \
-    "$(cut -d' ' -f1 /proc/loadavg)"
+  cpu=$(grep -E '(User|System) time' "$name.time" | awk '{s += $NF} END {print s}')  # the figure to compare
+  printf '%-28s wall %9s  cpu %7.1f s  peak %6.2f GiB  (load %s)\n' "$name" "$wall" "$cpu" \
+    "$(echo "$rss / 1048576" | bc -l)" "$(cut -d' ' -f1 /proc/loadavg)"
 }
 # The manifest's stage times, and each one's share of their sum.
 stages() {
@@ -94,6 +96,15 @@ if [[ " $modes " == *" phases "* ]]; then
   timed "phases: pneuma run" "$pneuma" run phases.yaml -o phases --quiet
   stages phases
   ls phases/voxels | wc -l
+fi
+
+if [[ " $modes " == *" phases-nii "* ]]; then
+  [ -f phases.yaml ] || { echo "phases-nii needs the phases mode first (its scenario)" >&2; exit 2; }
+  sed -e 's#^    at: \[phases\]#    at: [phases]\n    format: nii#' phases.yaml > phases-nii.yaml
+  rm -rf phases-nii
+  timed "phases-nii: pneuma run" "$pneuma" run phases-nii.yaml -o phases-nii --quiet
+  stages phases-nii
+  ls phases-nii/voxels | wc -l
 fi
 
 if [[ " $modes " == *" shipped "* ]]; then

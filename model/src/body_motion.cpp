@@ -420,11 +420,24 @@ BodyMotion::Frame BodyMotion::frame(std::span<const double> scales) const {
 }
 
 Eigen::Vector3d BodyMotion::Frame::displacement(const Eigen::Vector3d& x) const {
-  Eigen::Vector3d u = Eigen::Vector3d::Zero();
-  if (u_.empty()) return u;
-  const Lattice fine(origin_, h_, size_);
-  fine.corners(x, [&](std::size_t node, double w) { u += w * u_[node]; });
-  return u;
+  if (u_.empty()) return Eigen::Vector3d::Zero();
+  // Lattice::cell and then the trilinear blend as three rounds of linear ones (x, then y, then z):
+  // the voxel outputs call this twice per voxel (#50), so the corners are not walked one by one.
+  const Eigen::Vector3d f = (x - origin_) / h_;
+  std::array<std::size_t, 3> b{};
+  Eigen::Vector3d t;
+  for (std::size_t a = 0; a < 3; ++a) {
+    const double fa = f[static_cast<Eigen::Index>(a)];
+    if (!(fa >= 0.0) || !(fa <= static_cast<double>(size_[a] - 1))) return Eigen::Vector3d::Zero();
+    b[a] = std::min(static_cast<std::size_t>(fa), size_[a] - 2);
+    t[static_cast<Eigen::Index>(a)] = fa - static_cast<double>(b[a]);
+  }
+  const std::size_t row = size_[0], slab = size_[0] * size_[1];
+  const Eigen::Vector3d* p = u_.data() + b[0] + row * (b[1] + size_[1] * b[2]);
+  const auto along_x = [&](const Eigen::Vector3d* q) -> Eigen::Vector3d { return (1.0 - t.x()) * q[0] + t.x() * q[1]; };
+  const Eigen::Vector3d near = (1.0 - t.y()) * along_x(p) + t.y() * along_x(p + row);
+  const Eigen::Vector3d far = (1.0 - t.y()) * along_x(p + slab) + t.y() * along_x(p + slab + row);
+  return (1.0 - t.z()) * near + t.z() * far;
 }
 
 Eigen::Vector3d BodyMotion::Frame::inverse(const Eigen::Vector3d& x, const Eigen::Vector3d& guess) const {
@@ -468,6 +481,57 @@ Eigen::Vector3d BodyMotion::Frame::inverse(const Eigen::Vector3d& x, const Eigen
     if (change.norm() < kTolerance_m) break;
   }
   return v;
+}
+
+BodyMotion::Frame BodyMotion::Frame::inverse_field(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                                                   std::size_t refine) const {
+  Frame out;
+  if (u_.empty() || refine == 0) return out;
+  out.h_ = h_ / static_cast<double>(refine);
+  // The fine lattice's node range per axis: from the last node at or below lo to the first at or
+  // above hi, within u's lattice (beyond it u is 0 and so is v), and at least two nodes (a cell).
+  std::array<std::size_t, 3> first{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const auto e = static_cast<Eigen::Index>(a);
+    const std::size_t last = (size_[a] - 1) * refine;
+    const double top = static_cast<double>(last);
+    const double from = std::floor((lo[e] - origin_[e]) / out.h_), to = std::ceil((hi[e] - origin_[e]) / out.h_);
+    if (!(from <= top) || !(to >= 0.0)) return Frame{};  // the box misses u's lattice: v = 0
+    std::size_t begin = static_cast<std::size_t>(std::max(from, 0.0)),
+                end = static_cast<std::size_t>(std::min(to, top));
+    if (end == begin) {
+      if (end < last) {
+        ++end;
+      } else {
+        --begin;
+      }
+    }
+    first[a] = begin;
+    out.size_[a] = end - begin + 1;
+  }
+  out.origin_ = origin_ + out.h_ * Eigen::Vector3d(static_cast<double>(first[0]), static_cast<double>(first[1]),
+                                                   static_cast<double>(first[2]));
+  const Lattice lattice(out.origin_, out.h_, out.size_);
+  out.u_.resize(lattice.count());
+  // Each row in order by one task, each node started from the line through the two before it (a
+  // smooth field's next value to second order): the same nodes' values at any thread count.
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, out.size_[1] * out.size_[2]),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& rows) {
+                      for (std::size_t row = rows.begin(); row != rows.end(); ++row) {
+                        const std::size_t j = row % out.size_[1], k = row / out.size_[1];
+                        for (std::size_t i = 0; i < out.size_[0]; ++i) {
+                          const Eigen::Vector3d x = lattice.node(i, j, k);
+                          const std::size_t at = lattice.at(i, j, k);
+                          const Eigen::Vector3d guess = i >= 2 ? Eigen::Vector3d(2.0 * out.u_[at - 1] - out.u_[at - 2])
+                                                        : i == 1 ? out.u_[at - 1]
+                                                                 : Eigen::Vector3d(-displacement(x));
+                          out.u_[at] = inverse(x, guess);
+                        }
+                      }
+                    }));
+  region.join();
+  return out;
 }
 
 }  // namespace pneuma::model

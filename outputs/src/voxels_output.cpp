@@ -30,6 +30,10 @@ namespace {
 
 namespace kind = units::kind;
 
+// The pull-back outside the lungs is solved on a lattice this many times finer than the body
+// field's 6 mm cells (BodyMotion::Frame::inverse_field) and interpolated at the voxels.
+constexpr std::size_t kInverseRefine = 2;
+
 constexpr const char* kAtExpected =
     "expected end_expiration, end_inspiration, phases or a time >= 0 with its unit, such as '2.4 s'";
 
@@ -684,7 +688,7 @@ std::vector<InsidePart> VoxelScene::parts_reaching(const voxels::Grid& grid,
 void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> scales, voxels::TimePoint& point,
                             bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts,
                             const voxels::Image* image) const {
-  with_inputs(scales, with_image, with_jacobian, parts, image,
+  with_inputs(grid, scales, with_image, with_jacobian, parts, image,
               [&](std::span<const voxels::LungMotion> lungs, const voxels::TimePointInputs& inputs) {
                 voxels::compute_time_point(grid, lungs, inputs, point);
               });
@@ -694,7 +698,7 @@ voxels::TimePointFiles VoxelScene::compute_and_write(std::span<const double> sca
                                                      const std::filesystem::path& folder, const std::string& tag,
                                                      voxels::WriteQueue& writes) const {
   voxels::TimePointFiles files;
-  with_inputs(scales, true, false, nullptr, nullptr,
+  with_inputs(grid_, scales, true, false, nullptr, nullptr,
               [&](std::span<const voxels::LungMotion> lungs, const voxels::TimePointInputs& inputs) {
                 files = voxels::compute_and_write_time_point(grid_, lungs, inputs, point, folder, tag, writes,
                                                              spec_.extension, spec_.dvf_convention);
@@ -703,8 +707,8 @@ voxels::TimePointFiles VoxelScene::compute_and_write(std::span<const double> sca
 }
 
 void VoxelScene::with_inputs(
-    std::span<const double> scales_in, bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts,
-    const voxels::Image* image,
+    const voxels::Grid& grid, std::span<const double> scales_in, bool with_image, bool with_jacobian,
+    const std::vector<InsidePart>* parts, const voxels::Image* image,
     const std::function<void(std::span<const voxels::LungMotion>, const voxels::TimePointInputs&)>& compute) const {
   if (scales_in.size() != model_.lungs.size()) {
     throw ValueError(fmt::format("voxels: {} scales for {} lungs", scales_in.size(), model_.lungs.size()));
@@ -737,10 +741,19 @@ void VoxelScene::with_inputs(
     inputs.forward_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
       return frame->displacement(x);
     };
-    // The inverse of x -> x + u(x) outside the lungs (BodyMotion::Frame::inverse), started from
-    // the row's previous voxels (the line through their v: a smooth field's next v to second order).
-    inputs.pullback_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d* guess) {
-      return frame->inverse(x, guess ? *guess : Eigen::Vector3d(-frame->displacement(x)));
+    // The inverse of x -> x + u(x) outside the lungs (BodyMotion::Frame::inverse) solved on a
+    // lattice of half u's cell (3 mm) over the grid's box and interpolated: one lookup per
+    // voxel, not an iteration (#50; docs/voxels.md gives its largest difference from the exact one).
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d p =
+          grid.centre_m((c & 1) ? grid.size[0] - 1 : 0, (c & 2) ? grid.size[1] - 1 : 0, (c & 4) ? grid.size[2] - 1 : 0);
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    auto inverse = std::make_shared<const model::BodyMotion::Frame>(frame->inverse_field(lo, hi, kInverseRefine));
+    inputs.pullback_outside = [inverse](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
+      return inverse->displacement(x);
     };
   }
   compute(lungs, inputs);

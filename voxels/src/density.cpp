@@ -44,23 +44,6 @@ std::vector<std::vector<Eigen::Matrix3d>> lung_gradients(std::span<const LungMot
   return out;
 }
 
-// d(displacement)/d(index) along `axis` at voxel (i, j, k), from the neighbours outside the lungs.
-Eigen::Vector3d index_derivative(const DisplacementField& f, const std::vector<std::uint8_t>& owner, std::size_t axis,
-                                 std::size_t i, std::size_t j, std::size_t k) {
-  const std::array<std::size_t, 3> at{i, j, k};
-  const std::size_t nx = f.grid.size[0], ny = f.grid.size[1];
-  const auto index = [&](const std::array<std::size_t, 3>& p) { return p[0] + nx * (p[1] + ny * p[2]); };
-  const auto outside = [&](std::size_t v) { return owner[v] == 0; };
-  std::array<std::size_t, 3> lo = at, hi = at;
-  const bool has_lo = at[axis] > 0 && (--lo[axis], outside(index(lo)));
-  const bool has_hi = at[axis] + 1 < f.grid.size[axis] && (++hi[axis], outside(index(hi)));
-  const auto u = [&](const std::array<std::size_t, 3>& p) { return f.displacement_m[index(p)].cast<double>(); };
-  if (has_lo && has_hi) return 0.5 * (u(hi) - u(lo));
-  if (has_hi) return u(hi) - u(at);
-  if (has_lo) return u(at) - u(lo);
-  return Eigen::Vector3d::Zero();
-}
-
 }  // namespace
 
 float mass_preserving_hu(float hu, double jacobian) {
@@ -86,6 +69,7 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
   // grad u = (du/d index) (d index/dx): the grid's direction and spacing, inverted once.
   const Eigen::Matrix3d to_index = grid.ijk_to_lps.block<3, 3>(0, 0).inverse();
   const std::size_t nx = grid.size[0], ny = grid.size[1], nz = grid.size[2];
+  const std::array<std::size_t, 3> stride{1, nx, nx * ny};
   const tsan::Region region;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nz), region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t k = r.begin(); k != r.end(); ++k) {
@@ -93,9 +77,26 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
         for (std::size_t i = 0; i < nx; ++i) {
           const std::size_t v = i + nx * (j + ny * k);
           if (owner[v] != 0) continue;
+          // index_derivative's rule with the neighbours found by their strides (the voxel stage
+          // runs this at every voxel outside the lungs of every time point, #50).
+          const std::array<std::size_t, 3> at{i, j, k};
           Eigen::Matrix3d d;
-          for (std::size_t a = 0; a < 3; ++a)
-            d.col(static_cast<Eigen::Index>(a)) = index_derivative(forward, owner, a, i, j, k);
+          for (std::size_t a = 0; a < 3; ++a) {
+            const std::size_t step = stride[a];
+            const bool has_lo = at[a] > 0 && owner[v - step] == 0;
+            const bool has_hi = at[a] + 1 < grid.size[a] && owner[v + step] == 0;
+            const auto u = [&](std::size_t w) { return forward.displacement_m[w].cast<double>(); };
+            const auto col = static_cast<Eigen::Index>(a);
+            if (has_lo && has_hi) {
+              d.col(col) = 0.5 * (u(v + step) - u(v - step));
+            } else if (has_hi) {
+              d.col(col) = u(v + step) - u(v);
+            } else if (has_lo) {
+              d.col(col) = u(v) - u(v - step);
+            } else {
+              d.col(col).setZero();
+            }
+          }
           out.values[v] = static_cast<float>((Eigen::Matrix3d::Identity() + d * to_index).determinant());
         }
       }

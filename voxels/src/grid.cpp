@@ -9,12 +9,6 @@
 
 namespace pneuma::voxels {
 
-Eigen::Vector3d Grid::centre_m(std::size_t i, std::size_t j, std::size_t k) const {
-  return ijk_to_lps.block<3, 3>(0, 0) *
-             Eigen::Vector3d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)) +
-         ijk_to_lps.block<3, 1>(0, 3);
-}
-
 Eigen::Vector3d Grid::spacing_m() const {
   return {ijk_to_lps.block<3, 1>(0, 0).norm(), ijk_to_lps.block<3, 1>(0, 1).norm(),
           ijk_to_lps.block<3, 1>(0, 2).norm()};

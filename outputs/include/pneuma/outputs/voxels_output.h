@@ -118,11 +118,11 @@ class VoxelScene {
                                          std::span<const std::array<double, 2>> scale_ranges) const;
 
  private:
-  // The lungs at `scales` (their `parts` when given) and the inputs compute_time_point takes (the
-  // CT `image` in place of the spec's when given), handed to `compute`.
+  // The lungs at `scales` (their `parts` when given) and the inputs compute_time_point takes on
+  // `grid` (the CT `image` in place of the spec's when given), handed to `compute`.
   void with_inputs(
-      std::span<const double> scales, bool with_image, bool with_jacobian, const std::vector<InsidePart>* parts,
-      const voxels::Image* image,
+      const voxels::Grid& grid, std::span<const double> scales, bool with_image, bool with_jacobian,
+      const std::vector<InsidePart>* parts, const voxels::Image* image,
       const std::function<void(std::span<const voxels::LungMotion>, const voxels::TimePointInputs&)>& compute) const;
   const model::Model& model_;
   const VoxelsSpec& spec_;

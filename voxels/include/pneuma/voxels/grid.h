@@ -16,7 +16,12 @@ struct Grid {
 
   std::size_t voxel_count() const { return size[0] * size[1] * size[2]; }
   std::size_t index(std::size_t i, std::size_t j, std::size_t k) const { return i + size[0] * (j + size[1] * k); }
-  Eigen::Vector3d centre_m(std::size_t i, std::size_t j, std::size_t k) const;
+  // Inline: the voxel loops ask it at every voxel (#50).
+  Eigen::Vector3d centre_m(std::size_t i, std::size_t j, std::size_t k) const {
+    return ijk_to_lps.block<3, 3>(0, 0) *
+               Eigen::Vector3d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)) +
+           ijk_to_lps.block<3, 1>(0, 3);
+  }
   // Lengths of the voxel edges along i, j, k (metres).
   Eigen::Vector3d spacing_m() const;
   double voxel_volume_m3() const;
