@@ -77,16 +77,17 @@ std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::
   }
   const std::vector<Eigen::Vector3d> normal = mesh::smoothed_normals(mesh, kFaceSigma);
   const bool with_margin = margin == Margin::moved;
-  const std::vector<double> costal = with_margin ? blurred_weight(mesh, regions, mesh::Region::costal) : std::vector<double>{};
+  const std::vector<double> costal =
+      with_margin ? blurred_weight(mesh, regions, mesh::Region::costal) : std::vector<double>{};
   const std::vector<double> diaphragmatic =
       with_margin ? blurred_weight(mesh, regions, mesh::Region::diaphragmatic) : std::vector<double>{};
   const std::vector<double> thin = with_margin ? thinness(mesh) : std::vector<double>{};
   std::vector<double> under(n);
   for (std::size_t i = 0; i < n; ++i) {
     const double looks_up = std::max(0.0, regions.axes.up.dot(normal[i]));
-    const double on_the_margin =
-        with_margin ? std::min(1.0, 4.0 * costal[i] * diaphragmatic[i]) * thin[i] : 0.0;
-    under[i] = step_down((regions.height[i] - (dome_top - kUnderBand)) / kUnderBand) * std::max(looks_up, on_the_margin);
+    const double on_the_margin = with_margin ? std::min(1.0, 4.0 * costal[i] * diaphragmatic[i]) * thin[i] : 0.0;
+    under[i] =
+        step_down((regions.height[i] - (dome_top - kUnderBand)) / kUnderBand) * std::max(looks_up, on_the_margin);
   }
   return under;
 }

@@ -414,8 +414,8 @@ TEST(HeartDescent, AThinCostophrenicMarginMovesWithTheSurfaceAroundIt) {
   std::cout << "thin margin: weight against the direct sum within " << worst << ", on the border >= " << on_border
             << ", motion within " << worst_moved * 1e3 << " mm\n";
   EXPECT_GT(checked, 500u);
-  EXPECT_GT(on_border, 0.5);      // the thin edge's faces move most of the way together
-  EXPECT_LT(worst, 0.12);         // the grid's blur (splat, blur, sample) against the direct sum: 0.10
+  EXPECT_GT(on_border, 0.5);       // the thin edge's faces move most of the way together
+  EXPECT_LT(worst, 0.12);          // the grid's blur (splat, blur, sample) against the direct sum: 0.10
   EXPECT_LT(worst_moved, 0.5e-3);  // of a 20 mm step
 
   // The same border on a thick lung: its faces' normals do not cancel, it keeps its motion.
