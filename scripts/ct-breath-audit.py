@@ -1,16 +1,23 @@
 #!/usr/bin/python3
 """Every check of #45 on the shared CT lungs, measured on the files a run writes.
 
-    nice scripts/ct-breath-audit.py [--pneuma build/release/cli/pneuma] [--cases case004,...]
+    nice scripts/ct-breath-audit.py [--pneuma build/release/cli/pneuma] [--cases case004,...|phantom]
         [--tissue healthy-supine,healthy-upright] [--breath end_expiration,end_inspiration]
-        [--keep DIR] [--json FILE]
+        [--spacing 4] [--keep DIR] [--json FILE]
 
 For each case x tissue x breath (the scan's place on the breath, `mesh.breath`) it writes a
 synthetic CT (lung -849.5 HU where the label map's nearest voxel is a lobe, 40 HU elsewhere, on
 the label map's extent at 4 mm, as tests/runner/ct_breath_test.cpp makes it), runs `pneuma run`
 at the test's settings (5 mm surfaces, 6 mm tets, 4 mm voxels, healthy-adult's 500 mL breath,
 voxels at end_expiration, 1 s and end_inspiration) and measures, with nibabel, numpy and scipy on
-the written files (each file's own affine; none of pneuma's arithmetic):
+the written files (each file's own affine; none of pneuma's arithmetic). `--spacing` sets the
+voxels' (and the CT's) spacing in mm instead of 4.
+
+The case `phantom` is the built-in pair of phantom lungs (`mesh: {phantom: both}`) at the same
+settings. It has no label map: its CT is made from the label map pneuma writes at the scan (a
+run without a CT, its `labels-end_expiration` on the run's grid, a box around the lungs: the
+rest tetrahedra as labels, right 1, left 2), lung -849.5 HU where that map is a lung and 40 HU
+elsewhere, on that grid (as `VoxelsRun.TheWarpedCtsLungKeepsItsMass` makes the right lung's).
 
 - interior: the inspiration's Jacobian 6 mm inside the scan's lungs, by finite differences of the
   forward DVF and as the written Jacobian image: the share below 0.95 and the smallest. With the
@@ -51,36 +58,64 @@ from scipy import ndimage
 ROOT = Path(__file__).resolve().parent.parent
 CT_LOBES = Path(os.environ.get("PNEUMA_CT_LOBES", ROOT.parent / "shared" / "data" / "ct-lobes"))
 CASES = ["case004", "case005", "case006", "case007", "case008", "case009"]
-SPACING_MM = 4.0
 BREATH_ML = 500.0
 DIRLAB = np.array([0.21, 0.36, 0.56, 0.80])
-LUNGS = {"right": [3, 4, 5], "left": [1, 2]}
+LOBES = {"right": [3, 4, 5], "left": [1, 2]}  # the shared lobe maps'
+PHANTOM = {"right": [1], "left": [2]}  # the phantom's rest label map: lung i + 1, right then left
 TAGS = ["end_expiration", "1.000s", "end_inspiration"]
 
 
-def synthetic_ct(labels_file, out):
-    """The test's CT: the label map's extent at 4 mm, lung where the nearest label voxel is a lobe."""
+def lungs_of(case):
+    return PHANTOM if case == "phantom" else LOBES
+
+
+def synthetic_ct(labels_file, out, spacing_mm):
+    """The test's CT: the label map's extent at spacing_mm, lung where the nearest label voxel is a lobe."""
     src = nib.load(str(labels_file))
     labels = np.asarray(src.dataobj).squeeze()
     a = src.affine
     spacing = np.linalg.norm(a[:3, :3], axis=0)
     axes = a[:3, :3] / spacing
     corner = a[:3, :3] @ np.full(3, -0.5) + a[:3, 3]
-    size = np.maximum(1, np.ceil(np.array(labels.shape[:3]) * spacing / SPACING_MM - 1e-9)).astype(int)
+    size = np.maximum(1, np.ceil(np.array(labels.shape[:3]) * spacing / spacing_mm - 1e-9)).astype(int)
     affine = np.eye(4)
-    affine[:3, :3] = axes * SPACING_MM
-    affine[:3, 3] = corner + axes @ np.full(3, 0.5 * SPACING_MM)
+    affine[:3, :3] = axes * spacing_mm
+    affine[:3, 3] = corner + axes @ np.full(3, 0.5 * spacing_mm)
     ijk = np.indices(size).reshape(3, -1)
     centres = affine[:3, :3] @ ijk + affine[:3, 3:4]
-    q = np.rint(np.linalg.inv(a)[:3, :3] @ centres + np.linalg.inv(a)[:3, 3:4]).astype(int)
+    # The nearest voxel as pneuma and the test take it (floor(q + 0.5), not numpy's half to even: at 2 mm
+    # every centre of case004's 1 mm slices lies half-way, and rint took the slice below pneuma's).
+    q = np.floor(np.linalg.inv(a)[:3, :3] @ centres + np.linalg.inv(a)[:3, 3:4] + 0.5).astype(int)
     inside = np.all((q >= 0) & (q < np.array(labels.shape[:3])[:, None]), axis=0)
     label = np.zeros(q.shape[1], dtype=labels.dtype)
     label[inside] = labels[q[0, inside], q[1, inside], q[2, inside]]
-    ct = np.where((label >= 1) & (label <= 5), -849.5, 40.0).astype(np.float32).reshape(size)
-    img = nib.Nifti1Image(ct, affine)
+    write_ct(np.where((label >= 1) & (label <= 5), -849.5, 40.0).reshape(size), affine, out)
+
+
+def write_ct(ct, affine, out):
+    img = nib.Nifti1Image(ct.astype(np.float32), affine)
     img.set_qform(affine, code=1)
     img.set_sform(affine, code=1)
     nib.save(img, str(out))
+
+
+def phantom_ct(pneuma, spacing_mm, work):
+    """The phantom's CT: lung where pneuma's label map at the scan (its rest tetrahedra on the
+    run's grid) is a lung, 40 HU elsewhere, on that grid. The grid and the rest lungs do not
+    depend on the tissue or on the scan's place on the breath, so one CT serves every run."""
+    probe = work / "probe.yaml"
+    probe.write_text(
+        "duration: 8 s\nframes: {rate: 5 Hz}\nmesh: {phantom: both, edge: 5 mm}\n"
+        "field: {tissue: healthy-supine, interior: {edge: 6 mm}}\nphysiology: {preset: healthy-adult}\n"
+        "outputs: {gltf: false, report: false, hdf5: false, physiology_csv: false,\n"
+        f"  voxels: {{at: [end_expiration], spacing: {spacing_mm:g} mm}}}}\n")
+    p = subprocess.run([str(pneuma), "run", str(probe), "-o", str(work / "probe"), "--quiet"], capture_output=True,
+                       text=True)
+    if p.returncode != 0:
+        raise SystemExit(f"{probe}: the run for the phantom's label map failed: {p.stderr.strip()}")
+    img = nib.load(str(work / "probe" / "voxels" / "labels-end_expiration.nii.gz"))
+    labels = np.asarray(img.dataobj).squeeze()
+    write_ct(np.where(labels > 0, -849.5, 40.0), img.affine, work / "ct.nii.gz")
 
 
 def load(d, name):
@@ -103,11 +138,11 @@ def in_view(img, u):
     return np.all((q >= -0.5) & (q <= np.array(u.shape[:3]) - 0.5), axis=-1)
 
 
-def lung_mask(labels, side):
-    return labels > 0 if side == "both" else np.isin(labels, LUNGS[side])
+def lung_mask(labels, side, lungs):
+    return labels > 0 if side == "both" else np.isin(labels, lungs[side])
 
 
-def measure(d, input_ct, reference):
+def measure(d, input_ct, reference, lungs):
     other = "end_inspiration" if reference == "end_expiration" else "end_expiration"
     rimg, rest_labels = load(d, f"labels-{reference}")
     spacing = np.array(rimg.header.get_zooms()[:3], dtype=float)
@@ -133,8 +168,8 @@ def measure(d, input_ct, reference):
     z = (rimg.affine[:3, :3] @ np.indices(rest.shape).reshape(3, -1) + rimg.affine[:3, 3:4])[2].reshape(rest.shape)
     magnitude = np.linalg.norm(forward, axis=-1)
     r["profile"] = {}
-    for side in LUNGS:
-        m = lung_mask(rest_labels, side)
+    for side in lungs:
+        m = lung_mask(rest_labels, side, lungs)
         h = (z[m] - z[m].min()) / (z[m].max() - z[m].min())
         fifth = np.clip(((1.0 - h) * 5.0).astype(int), 0, 4)
         mean = np.array([magnitude[m][fifth == f].mean() for f in range(5)])
@@ -164,8 +199,8 @@ def measure(d, input_ct, reference):
             widest = max(widest, float(apart.max()))
         t = {"body_torn": int((torn & ~lung).sum()), "pull_min": float(jp[ok].min()), "pull_max": float(jp[ok].max()),
              "pairs": pairs, "widest_mm": widest}
-        for side in LUNGS:
-            m = lung_mask(labels, side) & ok
+        for side in lungs:
+            m = lung_mask(labels, side, lungs) & ok
             t[f"{side}_torn"] = int((torn & m).sum())
             t[f"{side}_torn_share"] = float((torn & m).sum() / m.sum())
         t["lung_torn_share"] = float((torn & lung).sum() / (ok & lung).sum())
@@ -175,8 +210,8 @@ def measure(d, input_ct, reference):
         parenchyma, rest_parenchyma = (ct >= -1000.0) & (ct < -500.0), (ct_rest >= -1000.0) & (ct_rest < -500.0)
         mass = {}
         for side in ("both", "right", "left"):
-            now = lung_mask(labels, side)
-            then = lung_mask(rest_labels, side) & view
+            now = lung_mask(labels, side, lungs)
+            then = lung_mask(rest_labels, side, lungs) & view
             ratio = float(((ct + 1000.0) * (parenchyma & now)).sum() / ((ct_rest + 1000.0) * (rest_parenchyma & then)).sum())
             rest_mean = float(ct_rest[then & rest_parenchyma].mean())
             mean = float(ct[now & parenchyma].mean())
@@ -222,28 +257,35 @@ def surface_motion(series):
     return out
 
 
-def run(pneuma, case, tissue, breath, work):
-    labels = CT_LOBES / f"{case}_lobes.nii.gz"
+def run(pneuma, case, tissue, breath, work, spacing_mm):
     work.mkdir(parents=True, exist_ok=True)
     ct = work / "ct.nii.gz"
-    if not ct.exists():
-        synthetic_ct(labels, ct)
+    if case == "phantom":
+        mesh = "phantom: both"
+        if not ct.exists():
+            phantom_ct(pneuma, spacing_mm, work)
+    else:
+        labels = CT_LOBES / f"{case}_lobes.nii.gz"
+        mesh = f"labels: {labels}, lungs: {{right: [3, 4, 5], left: [1, 2]}}"
+        if not ct.exists():
+            synthetic_ct(labels, ct, spacing_mm)
     scenario = work / f"{tissue}-{breath}.yaml"
     scenario.write_text(
         "duration: 8 s\nframes: {rate: 5 Hz}\n"
-        f"mesh: {{labels: {labels}, lungs: {{right: [3, 4, 5], left: [1, 2]}}, edge: 5 mm, breath: {breath}}}\n"
+        f"mesh: {{{mesh}, edge: 5 mm, breath: {breath}}}\n"
         f"field: {{tissue: {tissue}, interior: {{edge: 6 mm}}}}\n"
         "physiology: {preset: healthy-adult}\n"
         "outputs: {gltf: false, report: false, hdf5: true, physiology_csv: false,\n"
-        "  voxels: {at: [end_expiration, 1 s, end_inspiration], spacing: 4 mm, image: ct.nii.gz}}\n")
+        f"  voxels: {{at: [end_expiration, 1 s, end_inspiration], spacing: {spacing_mm:g} mm, image: ct.nii.gz}}}}\n")
     out = work / f"{tissue}-{breath}"
     start = time.time()
     p = subprocess.run([str(pneuma), "run", str(scenario), "-o", str(out), "--quiet"], capture_output=True, text=True)
-    result = {"case": case, "tissue": tissue, "breath": breath, "exit": p.returncode, "run_s": round(time.time() - start, 1)}
+    result = {"case": case, "tissue": tissue, "breath": breath, "spacing_mm": spacing_mm, "exit": p.returncode,
+              "run_s": round(time.time() - start, 1)}
     if p.returncode != 0:
         result["error"] = p.stderr.strip()
         return result
-    result.update(measure(out / "voxels", ct, breath))
+    result.update(measure(out / "voxels", ct, breath, lungs_of(case)))
     result["surface"] = surface_motion(out / "series.h5")
     return result
 
@@ -256,12 +298,16 @@ def table(results):
             "| mediastinum, mm (R / L) |",
             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in results:
-        head = f"| {r['case']} | {r['tissue']} | {r['breath']} |"
+        spacing = r.get("spacing_mm", 4.0)
+        case = r["case"] if spacing == 4.0 else f"{r['case']} ({spacing:g} mm voxels)"
+        head = f"| {case} | {r['tissue']} | {r['breath']} |"
         if r["exit"] != 0:
             rows.append(head + f" exit {r['exit']}: {r.get('error', '')} |" + " |" * 10)
             continue
         t = r["worst_tear"]
-        profile = f"{r['profile_offset']:.2f}" if r["tissue"] != "healthy-upright" else f"({r['profile_offset']:.2f})"
+        # In brackets where DIR-Lab's supine patients' profile is not asked: upright, and the phantom.
+        applies = r["tissue"] != "healthy-upright" and r["case"] != "phantom"
+        profile = f"{r['profile_offset']:.2f}" if applies else f"({r['profile_offset']:.2f})"
         rows.append(head + f" {100 * r['deep_below_095']:.3f} / {100 * r['image_below_095']:.2f} |"
                     f" {r['deep_min_j']:.2f} / {r['image_min_j']:.2f} | {profile} |"
                     f" {t['pull_min']:.2f}-{t['pull_max']:.2f} | {t['body_torn']} / {t['right_torn']} / {t['left_torn']} |"
@@ -278,6 +324,7 @@ def main():
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--tissue", default="healthy-supine,healthy-upright")
     ap.add_argument("--breath", default="end_expiration,end_inspiration")
+    ap.add_argument("--spacing", type=float, default=4.0, help="the voxels' spacing in mm (default 4, the test's)")
     ap.add_argument("--keep", help="keep the runs' folders here (default: a temporary folder)")
     ap.add_argument("--json", help="write every run's numbers here")
     ap.add_argument("--table", help="print the docs' table of --json files (comma-separated), and run nothing")
@@ -291,7 +338,8 @@ def main():
         for case in args.cases.split(","):
             for tissue in args.tissue.split(","):
                 for breath in args.breath.split(","):
-                    r = run(args.pneuma, case, tissue, breath, base / case)
+                    work = base / (case if args.spacing == 4.0 else f"{case}-{args.spacing:g}mm")
+                    r = run(args.pneuma, case, tissue, breath, work, args.spacing)
                     results.append(r)
                     print(json.dumps(r), flush=True)
     if args.json:
