@@ -85,11 +85,7 @@ std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::
   std::vector<double> under(n);
   for (std::size_t i = 0; i < n; ++i) {
     const double looks_up = std::max(0.0, regions.axes.up.dot(normal[i]));
-    // The costal face of a thin margin slides down with the diaphragm (1 on it and on the border,
-    // falling to 0 on the diaphragmatic face, which keeps its own descent).
-    const double on_the_margin =
-        with_margin ? std::min(1.0, 4.0 * costal[i] * diaphragmatic[i]) * thin[i] * std::min(1.0, 2.0 * costal[i])
-                    : 0.0;
+    const double on_the_margin = with_margin ? std::min(1.0, 4.0 * costal[i] * diaphragmatic[i]) * thin[i] : 0.0;
     under[i] =
         step_down((regions.height[i] - (dome_top - kUnderBand)) / kUnderBand) * std::max(looks_up, on_the_margin);
   }

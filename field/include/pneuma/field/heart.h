@@ -27,14 +27,12 @@
 // it curves down to meet the chest wall (the costophrenic recess), and the lung's edge slides
 // down into the recess as the diaphragm descends. Without it, upright, the dome's piston moved
 // the diaphragmatic face of case009's right lung 17-19.5 mm down beside an anterior costal face
-// 10-15 mm away that moved 1-4 mm: the edge between them was stretched to a forward Jacobian of
-// 2.1 (2-3 voxels above the base; #45, docs/voxels.md "The costophrenic margin"). So the costal
-// face of the margin (where the costal and diaphragmatic weights, blurred at 10 mm, meet) also
-// moves with the surface around it, as far as the edge is thin (its two faces' normals cancel
-// in space), and the diaphragm keeps its own descent: moving the diaphragmatic face toward the
-// costal one as well, or any border however thick, took descent from the diaphragm's rim, and
-// the area unit raised the rest: the phantom's dome top past 21 mm, its posterior recess past a
-// pull-back J of 0.5. Not where the tissue has a slide (healthy-supine): there the
+// 10-15 mm away that moved 1-3 mm: the edge between them was stretched to a forward Jacobian of
+// 2.1 (2-3 voxels above the base; #45, docs/voxels.md "The costophrenic margin"). So both faces
+// of the margin (where the costal and diaphragmatic weights, blurred at 10 mm, meet) also move
+// with the surface around them, as far as the edge is thin (its two faces' normals cancel
+// in space): a right-angled border moved as well raised the phantom's dome top past 21 mm
+// (the breath's volume taken from the diaphragm's rim). Not where the tissue has a slide (healthy-supine): there the
 // costal face at the base already descends with the diaphragm (mesh/sliding.h), and moving the
 // margin as well made the body under case009's posterior recess leave [0.5, 2] (J 2.006, 3
 // voxels) with the scan at end-inspiration.
@@ -66,11 +64,10 @@ std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh,
                                                  const HeartDescent& heart, double sigma);
 
 // Per vertex: how far the face lies under the diaphragm or (Margin::moved) on a thin
-// costophrenic margin, in [0, 1]: b(h) max(max(0, up.n), min(1, 4 c d) t min(1, 2 c))
-// (Margin::kept: b(h) max(0, up.n)), n the outward normal smoothed in space at 3 mm (a thin
-// recess's two faces keep their own), c and d the costal and diaphragmatic region weights blurred
-// in space at 10 mm (4 c d is 1 on their border, where c = d = 1/2, and falls off over about the
-// blur's width; min(1, 2 c) keeps it on the costal side: the diaphragm keeps its descent),
+// costophrenic margin, in [0, 1]: b(h) max(max(0, up.n), min(1, 4 c d) t) (Margin::kept:
+// b(h) max(0, up.n)), n the outward normal smoothed in space at 3 mm (a thin recess's two faces
+// keep their own), c and d the costal and diaphragmatic region weights blurred in space at 10 mm
+// (4 c d is 1 on their border, where c = d = 1/2, and falls off over about the blur's width),
 // t = 1 - |the vertex normals blurred in space at 10 mm| (0 on a flat face, 0.3 at a right-angled
 // edge, about 0.7 at an edge of 30 degrees, 1 between opposite faces: how thin the lung is
 // there), b a smooth step of the height from 1 below the dome's top (mesh::dome_top_vertices)
