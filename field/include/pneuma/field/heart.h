@@ -26,16 +26,17 @@
 // between its costal face, on the chest wall, and its diaphragmatic face, on the diaphragm where
 // it curves down to meet the chest wall (the costophrenic recess), and the lung's edge slides
 // down into the recess as the diaphragm descends. Without it, upright, the dome's piston moved
-// the diaphragmatic face of case009's right lung 17-19.5 mm down beside an anterior costal face
-// 10-15 mm away that moved 1-3 mm: the edge between them was stretched to a forward Jacobian of
+// the diaphragmatic face of case009's right lung 16-19.5 mm down beside an anterior costal face
+// 10-15 mm away that moved 1-4 mm: the edge between them was stretched to a forward Jacobian of
 // 2.1 (2-3 voxels above the base; #45, docs/voxels.md "The costophrenic margin"). So both faces
 // of the margin (where the costal and diaphragmatic weights, blurred at 10 mm, meet) also move
-// with the surface around them, as far as the edge is thin (its two faces' normals cancel
-// in space): a right-angled border moved as well raised the phantom's dome top past 21 mm
-// (the breath's volume taken from the diaphragm's rim). Not where the tissue has a slide (healthy-supine): there the
-// costal face at the base already descends with the diaphragm (mesh/sliding.h), and moving the
-// margin as well made the body under case009's posterior recess leave [0.5, 2] (J 2.006, 3
-// voxels) with the scan at end-inspiration.
+// with the surface around them, as far as the edge is thin (its two faces' normals cancel in
+// space): a border however thick moved as well raised the phantom's dome top past 21 mm (the
+// breath's volume taken from the diaphragm's rim), and moving the costal face alone
+// self-intersected case008's left lung at a 1.5 L breath. Not where the tissue has a slide
+// (healthy-supine): there the costal face at the base already descends with the diaphragm
+// (mesh/sliding.h), and moving the margin as well made the body under case009's posterior recess
+// leave [0.5, 2] (J 2.006, 3 voxels) with the scan at end-inspiration.
 #include <Eigen/Core>
 #include <vector>
 
