@@ -130,7 +130,8 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
       const std::vector<Eigen::Vector3d> heart =
           heart_descent_field(mesh, *regions, options.heart, options.direction_smoothing);
       for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * heart[i];
-      follow_the_diaphragm_over(mesh, *regions, u);
+      // With a slide the costal face at the margin already descends with the diaphragm.
+      follow_the_diaphragm_over(mesh, *regions, u, options.sliding.active() ? Margin::kept : Margin::moved);
     }
     const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
     double area_rate = 0.0;

@@ -16,10 +16,35 @@ constexpr double kUnderBand = 0.05;
 constexpr double kFaceSigma = 3e-3;
 // The surface around a face under the diaphragm, in space: about a recess's thickness.
 constexpr double kUnderSigma = 1e-2;
+// The costophrenic margin: the costal and diaphragmatic weights, and the normals, blurred in
+// space at about the thickness of the lung's edge there (10-15 mm on case009's anterior recess),
+// so both faces of the edge see the border between them and each other's normal.
+constexpr double kMarginSigma = 1e-2;
 
 double step_down(double x) {  // 1 below 0, 0 above 1, smooth between
   const double u = std::clamp(x, 0.0, 1.0);
   return 1.0 - u * u * (3.0 - 2.0 * u);
+}
+std::vector<double> blurred_weight(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
+                                   mesh::Region region) {
+  std::vector<double> weight(mesh.vertices.size());
+  for (std::size_t i = 0; i < weight.size(); ++i) weight[i] = regions.weight[i][static_cast<std::size_t>(region)];
+  return mesh::blurred_in_space(mesh, weight, kMarginSigma);
+}
+// Per vertex: 1 - |the outward normal averaged in space|, 0 on a flat face, 0.3 at a right-angled
+// edge, about 0.7 in an edge of 30 degrees (case009's anterior recess), 1 between opposite faces.
+std::vector<double> thinness(const mesh::TriangleMesh& mesh) {
+  const std::vector<Eigen::Vector3d> normal = mesh::vertex_normals(mesh);
+  std::array<std::vector<double>, 3> around;
+  std::vector<double> component(normal.size());
+  for (int c = 0; c < 3; ++c) {
+    for (std::size_t i = 0; i < normal.size(); ++i) component[i] = normal[i][c];
+    around[static_cast<std::size_t>(c)] = mesh::blurred_in_space(mesh, component, kMarginSigma);
+  }
+  std::vector<double> thin(normal.size());
+  for (std::size_t i = 0; i < normal.size(); ++i)
+    thin[i] = std::clamp(1.0 - Eigen::Vector3d(around[0][i], around[1][i], around[2][i]).norm(), 0.0, 1.0);
+  return thin;
 }
 }  // namespace
 
@@ -41,7 +66,8 @@ std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh,
   return moved;
 }
 
-std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions) {
+std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
+                                    Margin margin) {
   mesh::require_regions_of(regions, mesh, regions.axes, "under_diaphragm");
   const std::size_t n = mesh.vertices.size();
   const std::vector<bool> on_top = mesh::dome_top_vertices(mesh, regions);
@@ -50,18 +76,26 @@ std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::
     if (on_top[i]) dome_top = std::max(dome_top, regions.height[i]);
   }
   const std::vector<Eigen::Vector3d> normal = mesh::smoothed_normals(mesh, kFaceSigma);
+  const bool with_margin = margin == Margin::moved;
+  const std::vector<double> costal =
+      with_margin ? blurred_weight(mesh, regions, mesh::Region::costal) : std::vector<double>{};
+  const std::vector<double> diaphragmatic =
+      with_margin ? blurred_weight(mesh, regions, mesh::Region::diaphragmatic) : std::vector<double>{};
+  const std::vector<double> thin = with_margin ? thinness(mesh) : std::vector<double>{};
   std::vector<double> under(n);
   for (std::size_t i = 0; i < n; ++i) {
-    under[i] = step_down((regions.height[i] - (dome_top - kUnderBand)) / kUnderBand) *
-               std::max(0.0, regions.axes.up.dot(normal[i]));
+    const double looks_up = std::max(0.0, regions.axes.up.dot(normal[i]));
+    const double on_the_margin = with_margin ? std::min(1.0, 4.0 * costal[i] * diaphragmatic[i]) * thin[i] : 0.0;
+    under[i] =
+        step_down((regions.height[i] - (dome_top - kUnderBand)) / kUnderBand) * std::max(looks_up, on_the_margin);
   }
   return under;
 }
 
 void follow_the_diaphragm_over(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
-                               std::vector<Eigen::Vector3d>& u) {
+                               std::vector<Eigen::Vector3d>& u, Margin margin) {
   if (u.size() != mesh.vertices.size()) throw ValueError("follow_the_diaphragm_over: one displacement per vertex");
-  const std::vector<double> under = under_diaphragm(mesh, regions);
+  const std::vector<double> under = under_diaphragm(mesh, regions, margin);
   std::array<std::vector<double>, 3> around;
   std::vector<double> component(u.size());
   for (int c = 0; c < 3; ++c) {

@@ -12,8 +12,9 @@
 //   slide:       optionally (FieldOptions::sliding), plus D_c * slide_i (mesh::sliding_field),
 //                D_c the diaphragm's mean descent of c F d; and optionally (FieldOptions::heart)
 //                plus D_c * heart_i, the face on the heart descending with it, and a face
-//                under the diaphragm's slope moving with the surface around it (field/heart.h);
-//                all scaled again to one area unit.
+//                under the diaphragm's slope (and, without a slide, a thin costophrenic margin)
+//                moving with the surface around it (field/heart.h); all scaled again to one
+//                area unit.
 // Only relative moduli matter: multiplying every mu by a constant leaves u unchanged.
 #include <Eigen/Core>
 #include <cstdint>

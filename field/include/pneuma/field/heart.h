@@ -21,6 +21,22 @@
 // field blurred at 10 mm, which holds both faces of the recess), as far as it lies under it.
 // Adding the heart's descent to that face instead stretched it less but self-intersected the
 // surfaces of case007-009 at a 1.5 L breath: its own descent overtook the face below it.
+//
+// The costophrenic margin is such a place too: below the dome's top the lung ends in an edge
+// between its costal face, on the chest wall, and its diaphragmatic face, on the diaphragm where
+// it curves down to meet the chest wall (the costophrenic recess), and the lung's edge slides
+// down into the recess as the diaphragm descends. Without it, upright, the dome's piston moved
+// the diaphragmatic face of case009's right lung 16-19.5 mm down beside an anterior costal face
+// 10-15 mm away that moved 1-4 mm: the edge between them was stretched to a forward Jacobian of
+// 2.1 (2-3 voxels above the base; #45, docs/voxels.md "The costophrenic margin"). So both faces
+// of the margin (where the costal and diaphragmatic weights, blurred at 10 mm, meet) also move
+// with the surface around them, as far as the edge is thin (its two faces' normals cancel in
+// space): a border however thick moved as well raised the phantom's dome top past 21 mm (the
+// breath's volume taken from the diaphragm's rim), and moving the costal face alone
+// self-intersected case008's left lung at a 1.5 L breath. Not where the tissue has a slide
+// (healthy-supine): there the costal face at the base already descends with the diaphragm
+// (mesh/sliding.h), and moving the margin as well made the body under case009's posterior recess
+// leave [0.5, 2] (J 2.006, 3 voxels) with the scan at end-inspiration.
 #include <Eigen/Core>
 #include <vector>
 
@@ -48,17 +64,27 @@ struct HeartDescent {
 std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
                                                  const HeartDescent& heart, double sigma);
 
-// Per vertex: how far the face lies under the diaphragm, in [0, 1]: b(h) max(0, up.n), n the
-// outward normal smoothed in space at 3 mm (a thin recess's two faces keep their own), b a smooth
-// step of the height from 1 below the dome's top (mesh::dome_top_vertices) less 0.05 of the
-// lung's height to 0 at it. 0 everywhere on a surface without a dome. Throws ValueError for
-// regions of another surface.
-std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions);
+// Per vertex: how far the face lies under the diaphragm or (Margin::moved) on a thin
+// costophrenic margin, in [0, 1]: b(h) max(max(0, up.n), min(1, 4 c d) t) (Margin::kept:
+// b(h) max(0, up.n)), n the outward normal smoothed in space at 3 mm (a thin recess's two faces
+// keep their own), c and d the costal and diaphragmatic region weights blurred in space at 10 mm
+// (4 c d is 1 on their border, where c = d = 1/2, and falls off over about the blur's width),
+// t = 1 - |the vertex normals blurred in space at 10 mm| (0 on a flat face, 0.3 at a right-angled
+// edge, about 0.7 at an edge of 30 degrees, 1 between opposite faces: how thin the lung is
+// there), b a smooth step of the height from 1 below the dome's top (mesh::dome_top_vertices)
+// less 0.05 of the lung's height to 0 at it. 0 everywhere on a surface without a dome. Throws
+// ValueError for regions of another surface.
+enum class Margin {
+  kept,   // the costophrenic margin keeps its own motion (the tissue slides: it moves already)
+  moved,  // the margin moves with the surface around it too
+};
+std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
+                                    Margin margin = Margin::moved);
 
 // A face under the diaphragm moves with the surface around it: u_i += w_i (ubar_i - u_i), w
 // from under_diaphragm(), ubar the field blurred in space at 10 mm (mesh::blurred_in_space). In
 // place; the caller scales the field back to its area unit.
 void follow_the_diaphragm_over(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
-                               std::vector<Eigen::Vector3d>& u);
+                               std::vector<Eigen::Vector3d>& u, Margin margin = Margin::moved);
 
 }  // namespace pneuma::field
