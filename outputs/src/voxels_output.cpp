@@ -642,13 +642,7 @@ std::vector<InsidePart> VoxelScene::parts_reaching(const voxels::Grid& grid,
   }
   // The grid's box (voxel centres) grown by a voxel's diagonal: far wider than the rasteriser's
   // tolerance, so every tet that can hold a voxel is kept (a few more do no harm).
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (int c = 0; c < 8; ++c) {
-    const Eigen::Vector3d p =
-        grid.centre_m((c & 1) ? grid.size[0] - 1 : 0, (c & 2) ? grid.size[1] - 1 : 0, (c & 4) ? grid.size[2] - 1 : 0);
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
+  auto [lo, hi] = grid.centres_box_m();
   const double margin = grid.ijk_to_lps.block<3, 3>(0, 0).cwiseAbs().sum();
   lo.array() -= margin;
   hi.array() += margin;
@@ -744,13 +738,7 @@ void VoxelScene::with_inputs(
     // The inverse of x -> x + u(x) outside the lungs (BodyMotion::Frame::inverse) solved on a
     // lattice of half u's cell (3 mm) over the grid's box and interpolated: one lookup per
     // voxel, not an iteration (#50; docs/voxels.md gives its largest difference from the exact one).
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-    for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3d p =
-          grid.centre_m((c & 1) ? grid.size[0] - 1 : 0, (c & 2) ? grid.size[1] - 1 : 0, (c & 4) ? grid.size[2] - 1 : 0);
-      lo = lo.cwiseMin(p);
-      hi = hi.cwiseMax(p);
-    }
+    const auto [lo, hi] = grid.centres_box_m();
     auto inverse = std::make_shared<const model::BodyMotion::Frame>(frame->inverse_field(lo, hi, kInverseRefine));
     inputs.pullback_outside = [inverse](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
       return inverse->displacement(x);

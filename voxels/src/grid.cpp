@@ -3,11 +3,23 @@
 #include <Eigen/LU>  // inverse()
 
 #include <cmath>
+#include <limits>
 #include <string>
+#include <utility>
 
 #include "pneuma/core/error.h"
 
 namespace pneuma::voxels {
+
+std::pair<Eigen::Vector3d, Eigen::Vector3d> Grid::centres_box_m() const {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d p = centre_m((c & 1) ? size[0] - 1 : 0, (c & 2) ? size[1] - 1 : 0, (c & 4) ? size[2] - 1 : 0);
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  return {lo, hi};
+}
 
 Eigen::Vector3d Grid::spacing_m() const {
   return {ijk_to_lps.block<3, 1>(0, 0).norm(), ijk_to_lps.block<3, 1>(0, 1).norm(),

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstddef>
+#include <utility>
 
 #include "pneuma/image/label_map.h"
 
@@ -22,6 +23,8 @@ struct Grid {
                Eigen::Vector3d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)) +
            ijk_to_lps.block<3, 1>(0, 3);
   }
+  // The axis-aligned box (LPS metres) of the voxel centres: the least and the greatest corner.
+  std::pair<Eigen::Vector3d, Eigen::Vector3d> centres_box_m() const;
   // Lengths of the voxel edges along i, j, k (metres).
   Eigen::Vector3d spacing_m() const;
   double voxel_volume_m3() const;
