@@ -423,15 +423,9 @@ Eigen::Vector3d BodyMotion::Frame::displacement(const Eigen::Vector3d& x) const 
   if (u_.empty()) return Eigen::Vector3d::Zero();
   // Lattice::cell and then the trilinear blend as three rounds of linear ones (x, then y, then z):
   // the voxel outputs call this twice per voxel (#50), so the corners are not walked one by one.
-  const Eigen::Vector3d f = (x - origin_) / h_;
   std::array<std::size_t, 3> b{};
   Eigen::Vector3d t;
-  for (std::size_t a = 0; a < 3; ++a) {
-    const double fa = f[static_cast<Eigen::Index>(a)];
-    if (!(fa >= 0.0) || !(fa <= static_cast<double>(size_[a] - 1))) return Eigen::Vector3d::Zero();
-    b[a] = std::min(static_cast<std::size_t>(fa), size_[a] - 2);
-    t[static_cast<Eigen::Index>(a)] = fa - static_cast<double>(b[a]);
-  }
+  if (!Lattice(origin_, h_, size_).cell(x, b, t)) return Eigen::Vector3d::Zero();
   const std::size_t row = size_[0], slab = size_[0] * size_[1];
   const Eigen::Vector3d* p = u_.data() + b[0] + row * (b[1] + size_[1] * b[2]);
   const auto along_x = [&](const Eigen::Vector3d* q) -> Eigen::Vector3d { return (1.0 - t.x()) * q[0] + t.x() * q[1]; };
