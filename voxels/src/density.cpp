@@ -77,8 +77,9 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
         for (std::size_t i = 0; i < nx; ++i) {
           const std::size_t v = i + nx * (j + ny * k);
           if (owner[v] != 0) continue;
-          // index_derivative's rule with the neighbours found by their strides (the voxel stage
-          // runs this at every voxel outside the lungs of every time point, #50).
+          // Central differences between the neighbours outside the lungs, one-sided where only one
+          // is, 0 where neither is; the neighbours found by their strides (the voxel stage runs
+          // this at every voxel outside the lungs of every time point, #50).
           const std::array<std::size_t, 3> at{i, j, k};
           Eigen::Matrix3d d;
           for (std::size_t a = 0; a < 3; ++a) {
