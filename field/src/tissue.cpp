@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "pneuma/core/error.h"
 
@@ -92,6 +93,25 @@ std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::T
   return mu;
 }
 
+std::vector<double> load_gravity_factor(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
+  const double a = tissue.load_nondependent, b = tissue.load_dependent;
+  std::vector<double> factor = dependent_position(tissue, mesh);
+  if (!(tissue.load_gravity_depth_m > 0.0)) {
+    for (double& x : factor) x = a + x * (b - a);
+    return factor;
+  }
+  // The same gradient per metre on any lung: its depth along the axis scales the span a..b.
+  const Eigen::Vector3d d = dependent_direction(tissue);
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const Eigen::Vector3d& v : mesh.vertices) {
+    lo = std::min(lo, d.dot(v));
+    hi = std::max(hi, d.dot(v));
+  }
+  const double span = hi > lo ? (hi - lo) / tissue.load_gravity_depth_m : 0.0;
+  for (double& x : factor) x = std::max(0.0, 0.5 * (a + b) + (x - 0.5) * span * (b - a));
+  return factor;
+}
+
 mesh::BodyAxes body_axes(const Tissue& tissue) {
   mesh::BodyAxes axes;
   axes.up = tissue.up;
@@ -113,9 +133,8 @@ FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh:
   options.regions = needs_regions ? std::make_shared<const mesh::SurfaceRegions>(regions_of(tissue, mesh)) : nullptr;
   if (tissue.regional_load) {
     options.load = mesh::regional_load(mesh, *options.regions, *tissue.regional_load, tissue.dome_load);
-    const std::vector<double> position = dependent_position(tissue, mesh);
-    for (std::size_t i = 0; i < options.load.size(); ++i)
-      options.load[i] *= tissue.load_nondependent + position[i] * (tissue.load_dependent - tissue.load_nondependent);
+    const std::vector<double> factor = load_gravity_factor(tissue, mesh);
+    for (std::size_t i = 0; i < options.load.size(); ++i) options.load[i] *= factor[i];
   }
   return options;
 }

@@ -188,6 +188,7 @@ field::Tissue read_tissue(const scenario::Node& root) {
       t.load_dependent = g->quantity("dependent", kind::fraction);
       if (!(t.load_nondependent > 0.0)) g->fail_at("nondependent", "expected a positive factor");
       if (!(t.load_dependent > 0.0)) g->fail_at("dependent", "expected a positive factor");
+      if (g->has("depth")) t.load_gravity_depth_m = g->positive_quantity("depth", kind::length);
       g->finish();
     }
     if (auto d = l->optional_map("dome")) {

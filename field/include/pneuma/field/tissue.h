@@ -81,8 +81,12 @@ struct Tissue {
   // per anatomical region, relative (mesh::regional_load); none: the same load everywhere.
   // Optional `gravity: {nondependent: a, dependent: b}` inside `load`: the load times a factor
   // running linearly from a to b along the posture's axis (dependent regions ventilate more).
+  // With `depth: D` the factors are those of a lung D deep: the gradient is (b - a) / D per metre
+  // whatever the lung's depth (the pleural pressure's gradient per cm of height is the same in a
+  // small lung as in a large one), about the lung's middle, where the factor is (a + b) / 2.
   std::optional<std::array<double, mesh::kRegionCount>> regional_load;
   double load_nondependent = 1.0, load_dependent = 1.0;
+  double load_gravity_depth_m = 0.0;  // D above; 0: a and b at the lung's own ends, whatever its depth
   // Optional `dome: {radius: 60 mm, falloff: 20 mm, rim: 0.3}` inside `load`: the diaphragm's load
   // concentrated at its dome, its total kept (mesh::DomeLoad); none: no concentration.
   mesh::DomeLoad dome_load;
@@ -106,6 +110,10 @@ FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh:
 Eigen::Vector3d dependent_direction(const Tissue& tissue);
 // Per vertex: 0 at the most non-dependent vertex, 1 at the most dependent (all 0 if flat).
 std::vector<double> dependent_position(const Tissue& tissue, const mesh::TriangleMesh& mesh);
+// Per vertex: the factor `load: {gravity: ...}` puts on the load (1 without it): from a to b
+// across the lung, or with `depth` the gradient (b - a) / depth about (a + b) / 2 at the lung's
+// middle along the posture's axis (never below 0).
+std::vector<double> load_gravity_factor(const Tissue& tissue, const mesh::TriangleMesh& mesh);
 
 // The shear modulus (Pa) of every vertex. Throws InputError when a per-vertex or label file
 // does not hold one entry per vertex, or a label has no modulus.
