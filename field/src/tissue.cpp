@@ -86,17 +86,22 @@ std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::T
     for (std::size_t i = 0; i < n; ++i) mu[i] = r.shear_modulus_pa.at(r.labels[i]);
   }
   if (r.gravity_nondependent != 1.0 || r.gravity_dependent != 1.0) {
-    const std::vector<double> position = dependent_position(tissue, mesh);
-    for (std::size_t i = 0; i < n; ++i)
-      mu[i] *= r.gravity_nondependent + position[i] * (r.gravity_dependent - r.gravity_nondependent);
+    const std::vector<double> factor =
+        gravity_factor(tissue, mesh, r.gravity_nondependent, r.gravity_dependent, r.gravity_depth_m);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!(factor[i] > 0.0))
+        throw InputError(tissue.name + ": stiffness.gravity.depth: the lung is too deep for these factors (the "
+                         "modulus reaches 0 at its " + (r.gravity_dependent < r.gravity_nondependent ? "dependent" : "non-dependent") + " end)");
+      mu[i] *= factor[i];
+    }
   }
   return mu;
 }
 
-std::vector<double> load_gravity_factor(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
-  const double a = tissue.load_nondependent, b = tissue.load_dependent;
+std::vector<double> gravity_factor(const Tissue& tissue, const mesh::TriangleMesh& mesh, double a, double b,
+                                   double depth_m) {
   std::vector<double> factor = dependent_position(tissue, mesh);
-  if (!(tissue.load_gravity_depth_m > 0.0)) {
+  if (!(depth_m > 0.0)) {
     for (double& x : factor) x = a + x * (b - a);
     return factor;
   }
@@ -107,9 +112,13 @@ std::vector<double> load_gravity_factor(const Tissue& tissue, const mesh::Triang
     lo = std::min(lo, d.dot(v));
     hi = std::max(hi, d.dot(v));
   }
-  const double span = hi > lo ? (hi - lo) / tissue.load_gravity_depth_m : 0.0;
+  const double span = hi > lo ? (hi - lo) / depth_m : 0.0;
   for (double& x : factor) x = std::max(0.0, 0.5 * (a + b) + (x - 0.5) * span * (b - a));
   return factor;
+}
+
+std::vector<double> load_gravity_factor(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
+  return gravity_factor(tissue, mesh, tissue.load_nondependent, tissue.load_dependent, tissue.load_gravity_depth_m);
 }
 
 mesh::BodyAxes body_axes(const Tissue& tissue) {

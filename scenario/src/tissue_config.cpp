@@ -117,6 +117,7 @@ field::RegionStiffness read_regions(const scenario::Node& s) {
     r.gravity_dependent = g->quantity("dependent", kind::fraction);
     if (!(r.gravity_nondependent > 0.0)) g->fail_at("nondependent", "expected a positive factor");
     if (!(r.gravity_dependent > 0.0)) g->fail_at("dependent", "expected a positive factor");
+    if (g->has("depth")) r.gravity_depth_m = g->positive_quantity("depth", kind::length);
     g->finish();
   }
   if (!s.has("labels")) {

@@ -228,6 +228,56 @@ TEST(Tissue, DomeProfileIsReadWithItsUnits) {
   EXPECT_EQ(plain.dome_load.radius_m, 0.0);
 }
 
+// The supine preset's load grows from front to back by the same gradient per metre on any lung
+// (`load: {gravity: {..., depth: 175 mm}}`): the pleural pressure's gradient per cm of height
+// does not depend on the lung's size, so a lung shallower than 175 mm gets a smaller front-to-back
+// ratio, not the same one. Oracle: the line 1 + (b - a) (y - y_mid) / D through each sphere's
+// vertices (y the dependent axis, posterior +y in LPS), written out here.
+TEST(Tissue, TheLoadsGravityGradientIsPerMetreWhateverTheLungsDepth) {
+  const Tissue supine = preset("healthy-supine");
+  ASSERT_DOUBLE_EQ(supine.load_gravity_depth_m, 0.175);
+  ASSERT_DOUBLE_EQ(supine.load_nondependent, 0.5);
+  ASSERT_DOUBLE_EQ(supine.load_dependent, 1.5);
+  for (const double radius : {0.0625, 0.0875, 0.1}) {  // 125, 175 and 200 mm deep
+    const auto m = mesh::make_icosphere(radius, 3);
+    const std::vector<double> factor = load_gravity_factor(supine, m);
+    double lo = 1.0, hi = -1.0;
+    for (const Eigen::Vector3d& v : m.vertices) {
+      lo = std::min(lo, v.y());
+      hi = std::max(hi, v.y());
+    }
+    double front = 1e9, back = -1e9;
+    for (std::size_t i = 0; i < m.vertex_count(); ++i) {
+      const double expected = 1.0 + (m.vertices[i].y() - 0.5 * (lo + hi)) / 0.175;
+      EXPECT_NEAR(factor[i], expected, 1e-12) << radius << " m, vertex " << i;
+      front = std::min(front, factor[i]);
+      back = std::max(back, factor[i]);
+    }
+    // The ends: 0.5 and 1.5 on a lung 175 mm deep, 1 -/+ 0.5 depth / 175 mm on the others.
+    EXPECT_NEAR(front, 1.0 - radius / 0.175, 1e-12) << radius;
+    EXPECT_NEAR(back, 1.0 + radius / 0.175, 1e-12) << radius;
+  }
+  // Without `depth` the factors are a and b at the lung's own ends, whatever its depth (the rule
+  // before #45's phantom audit; the upright preset has no load gravity at all).
+  Tissue by_ends = supine;
+  by_ends.load_gravity_depth_m = 0.0;
+  for (const double radius : {0.0625, 0.1}) {
+    const std::vector<double> factor = load_gravity_factor(by_ends, mesh::make_icosphere(radius, 3));
+    EXPECT_NEAR(*std::min_element(factor.begin(), factor.end()), 0.5, 1e-12);
+    EXPECT_NEAR(*std::max_element(factor.begin(), factor.end()), 1.5, 1e-12);
+  }
+  const std::vector<double> upright = load_gravity_factor(preset("healthy-upright"), mesh::make_icosphere(0.1, 3));
+  EXPECT_EQ(*std::min_element(upright.begin(), upright.end()), 1.0);
+  EXPECT_EQ(*std::max_element(upright.begin(), upright.end()), 1.0);
+  // The load the field takes is the regional load times these factors.
+  const auto m = mesh::make_icosphere(0.0625, 3);
+  const FieldOptions with = with_tissue({}, supine, m), without = with_tissue({}, by_ends, m);
+  const std::vector<double> factor = load_gravity_factor(supine, m), ends = load_gravity_factor(by_ends, m);
+  for (std::size_t i = 0; i < m.vertex_count(); ++i) {
+    EXPECT_NEAR(with.load[i] * ends[i], without.load[i] * factor[i], 1e-12 * (1.0 + without.load[i])) << i;
+  }
+}
+
 TEST(Tissue, SlidingIsReadInUnitsOfTheDiaphragmsDescent) {
   const Tissue slide = preset("healthy-supine-slide");
   EXPECT_DOUBLE_EQ(slide.sliding.caudal, 1.2);
@@ -474,6 +524,10 @@ TEST(Tissue, BadFilesAreOneLine) {
       {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
        "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, dome: {area: -1 cm^2, falloff: 2 cm, rim: 0.3}}\n",
        "3:75: load.dome.area: expected a positive area, got '-1 cm^2'"},
+      {"posture: supine\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
+       "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, gravity: {nondependent: 0.5, dependent: 1.5, "
+       "depth: 175}}\n",
+       "3:114: load.gravity.depth: expected a length such as '3 mm', got '175'"},
       {"alias: healthy-upright\nposture: upright\n", "2:1: posture: unknown key; expected one of: alias"},
       {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
        "sliding: {caudal: 7}\n",

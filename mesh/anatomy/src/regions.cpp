@@ -586,7 +586,7 @@ double dome_radius_for_area(std::size_t n, const std::vector<double>& area, cons
     covered += a;
     if (covered >= target_m2) return d;
   }
-  return by_distance.empty() ? std::numeric_limits<double>::infinity() : by_distance.back().first;
+  return std::numeric_limits<double>::infinity();
 }
 }  // namespace
 

@@ -66,6 +66,7 @@ struct RegionStiffness {
   std::string source;
   bool anatomical = false;                                     // the regions are found on the surface
   double gravity_nondependent = 1.0, gravity_dependent = 1.0;  // factors on mu along the posture's axis
+  double gravity_depth_m = 0.0;  // > 0: the factors of a lung this deep, the gradient per metre (gravity_factor)
 };
 
 struct Tissue {
@@ -110,14 +111,20 @@ FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh:
 Eigen::Vector3d dependent_direction(const Tissue& tissue);
 // Per vertex: 0 at the most non-dependent vertex, 1 at the most dependent (all 0 if flat).
 std::vector<double> dependent_position(const Tissue& tissue, const mesh::TriangleMesh& mesh);
-// Per vertex: the factor `load: {gravity: ...}` puts on the load (1 without it): from a to b
-// across the lung, or with `depth` the gradient (b - a) / depth about (a + b) / 2 at the lung's
-// middle along the posture's axis (never below 0).
+// Per vertex: a gravity factor running from `nondependent` (a) to `dependent` (b) along the
+// posture's axis. depth_m <= 0: a and b at the lung's own ends, whatever its depth. depth_m > 0:
+// the factors of a lung that deep, i.e. the gradient (b - a) / depth_m per metre about (a + b) / 2
+// at the lung's middle, never below 0: the pleural pressure changes by about 0.25 cmH2O per cm of
+// height in any lung (West; Agostoni 1972), so a shallower lung spans a smaller range.
+std::vector<double> gravity_factor(const Tissue& tissue, const mesh::TriangleMesh& mesh, double nondependent,
+                                   double dependent, double depth_m);
+// The factor `load: {gravity: ...}` puts on the load (1 without it).
 std::vector<double> load_gravity_factor(const Tissue& tissue, const mesh::TriangleMesh& mesh);
 
 // The shear modulus (Pa) of every vertex. Throws InputError when a per-vertex or label file
 // does not hold one entry per vertex, or a label has no modulus.
 // `regions`: the surface's regions when already found (with_tissue's), else found here if needed.
+// Throws InputError when a `gravity` with `depth` leaves no positive modulus on a lung this deep.
 std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::TriangleMesh& mesh,
                                              const mesh::SurfaceRegions* regions = nullptr);
 
