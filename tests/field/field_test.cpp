@@ -161,9 +161,12 @@ TEST(Tissue, PresetsFollowPosture) {
   const auto upright = shear_modulus_per_vertex(preset("healthy-upright"), m);
   EXPECT_NEAR(upright[extreme({0, 0, 1})], 3000.0 * 1.5, 1e-9);   // apex, top
   EXPECT_NEAR(upright[extreme({0, 0, -1})], 500.0 * 0.75, 1e-9);  // diaphragmatic, bottom
+  // Supine, 1.8 to 0.6 over 175 mm, the gradient per metre (Tissue.TheGravityGradientsArePerMetre...):
+  // this sphere is 2 r deep front to back.
   const auto supine = shear_modulus_per_vertex(preset("healthy-supine"), m);
-  EXPECT_NEAR(supine[extreme({0, -1, 0})], 1500.0 * 1.8, 1e-9);  // costal, anterior (LPS: -y)
-  EXPECT_NEAR(supine[extreme({0, 1, 0})], 1500.0 * 0.6, 1e-9);   // costal, posterior
+  const double span = (m.vertices[extreme({0, 1, 0})].y() - m.vertices[extreme({0, -1, 0})].y()) / 0.175;
+  EXPECT_NEAR(supine[extreme({0, -1, 0})], 1500.0 * (1.2 + 0.6 * span), 1e-9);  // costal, anterior (LPS: -y)
+  EXPECT_NEAR(supine[extreme({0, 1, 0})], 1500.0 * (1.2 - 0.6 * span), 1e-9);   // costal, posterior
   // Both healthy presets blur the force in space at 3 mm (docs/realism.md).
   EXPECT_DOUBLE_EQ(with_tissue({}, preset("healthy-upright"), m).magnitude_smoothing, 3e-3);
   EXPECT_DOUBLE_EQ(with_tissue({}, preset("healthy-supine"), m).magnitude_smoothing, 3e-3);
@@ -228,37 +231,47 @@ TEST(Tissue, DomeProfileIsReadWithItsUnits) {
   EXPECT_EQ(plain.dome_load.radius_m, 0.0);
 }
 
-// The supine preset's load grows from front to back by the same gradient per metre on any lung
-// (`load: {gravity: {..., depth: 175 mm}}`): the pleural pressure's gradient per cm of height
-// does not depend on the lung's size, so a lung shallower than 175 mm gets a smaller front-to-back
-// ratio, not the same one. Oracle: the line 1 + (b - a) (y - y_mid) / D through each sphere's
-// vertices (y the dependent axis, posterior +y in LPS), written out here.
-TEST(Tissue, TheLoadsGravityGradientIsPerMetreWhateverTheLungsDepth) {
+// The supine preset's gravity factors (on the load: dependent regions ventilate more; on the
+// modulus: mu ~ 0.7 P_L) change by the same amount per metre on any lung (`gravity: {..., depth:
+// 175 mm}`): the pleural pressure's gradient per cm of height does not depend on the lung's size,
+// so a lung shallower than 175 mm spans a smaller front-to-back range, not the same ratio (#45:
+// the phantom, 129-141 mm deep, had the CT lungs' 3:1 and its recesses' tips tore). Oracle: the
+// line (a + b) / 2 + (b - a) (y - y_mid) / D through each sphere's vertices (y the dependent axis,
+// posterior +y in LPS), written out here.
+TEST(Tissue, TheGravityGradientsArePerMetreWhateverTheLungsDepth) {
   const Tissue supine = preset("healthy-supine");
   ASSERT_DOUBLE_EQ(supine.load_gravity_depth_m, 0.175);
   ASSERT_DOUBLE_EQ(supine.load_nondependent, 0.5);
   ASSERT_DOUBLE_EQ(supine.load_dependent, 1.5);
+  const auto& stiffness = std::get<RegionStiffness>(supine.stiffness);
+  ASSERT_DOUBLE_EQ(stiffness.gravity_depth_m, 0.175);
   for (const double radius : {0.0625, 0.0875, 0.1}) {  // 125, 175 and 200 mm deep
     const auto m = mesh::make_icosphere(radius, 3);
-    const std::vector<double> factor = load_gravity_factor(supine, m);
+    const std::vector<double> load = load_gravity_factor(supine, m);
+    const std::vector<double> mu =
+        gravity_factor(supine, m, stiffness.gravity_nondependent, stiffness.gravity_dependent, stiffness.gravity_depth_m);
     double lo = 1.0, hi = -1.0;
     for (const Eigen::Vector3d& v : m.vertices) {
       lo = std::min(lo, v.y());
       hi = std::max(hi, v.y());
     }
-    double front = 1e9, back = -1e9;
     for (std::size_t i = 0; i < m.vertex_count(); ++i) {
-      const double expected = 1.0 + (m.vertices[i].y() - 0.5 * (lo + hi)) / 0.175;
-      EXPECT_NEAR(factor[i], expected, 1e-12) << radius << " m, vertex " << i;
-      front = std::min(front, factor[i]);
-      back = std::max(back, factor[i]);
+      const double along = (m.vertices[i].y() - 0.5 * (lo + hi)) / 0.175;  // metres from the middle, in depths
+      EXPECT_NEAR(load[i], 1.0 + 1.0 * along, 1e-12) << radius << " m, vertex " << i;
+      EXPECT_NEAR(mu[i], 1.2 - 1.2 * along, 1e-12) << radius << " m, vertex " << i;
     }
-    // The ends: 0.5 and 1.5 on a lung 175 mm deep, 1 -/+ 0.5 depth / 175 mm on the others.
-    EXPECT_NEAR(front, 1.0 - radius / 0.175, 1e-12) << radius;
-    EXPECT_NEAR(back, 1.0 + radius / 0.175, 1e-12) << radius;
+    // The ends: 0.5 and 1.5 (1.8 and 0.6) on a lung 175 mm deep, narrower on a shallower one.
+    EXPECT_NEAR(*std::min_element(load.begin(), load.end()), 1.0 - radius / 0.175, 1e-12) << radius;
+    EXPECT_NEAR(*std::max_element(load.begin(), load.end()), 1.0 + radius / 0.175, 1e-12) << radius;
+    // The modulus per vertex is the regions' blend times that factor.
+    Tissue flat = supine;
+    std::get<RegionStiffness>(flat.stiffness).gravity_nondependent = 1.0;
+    std::get<RegionStiffness>(flat.stiffness).gravity_dependent = 1.0;
+    const std::vector<double> with = shear_modulus_per_vertex(supine, m), without = shear_modulus_per_vertex(flat, m);
+    for (std::size_t i = 0; i < m.vertex_count(); ++i) EXPECT_NEAR(with[i], without[i] * mu[i], 1e-9 * with[i]) << i;
   }
   // Without `depth` the factors are a and b at the lung's own ends, whatever its depth (the rule
-  // before #45's phantom audit; the upright preset has no load gravity at all).
+  // before; the upright preset keeps it for its modulus and has no load gravity).
   Tissue by_ends = supine;
   by_ends.load_gravity_depth_m = 0.0;
   for (const double radius : {0.0625, 0.1}) {
@@ -269,13 +282,17 @@ TEST(Tissue, TheLoadsGravityGradientIsPerMetreWhateverTheLungsDepth) {
   const std::vector<double> upright = load_gravity_factor(preset("healthy-upright"), mesh::make_icosphere(0.1, 3));
   EXPECT_EQ(*std::min_element(upright.begin(), upright.end()), 1.0);
   EXPECT_EQ(*std::max_element(upright.begin(), upright.end()), 1.0);
-  // The load the field takes is the regional load times these factors.
+  // The load the field takes is the regional load times the load's factor.
   const auto m = mesh::make_icosphere(0.0625, 3);
   const FieldOptions with = with_tissue({}, supine, m), without = with_tissue({}, by_ends, m);
   const std::vector<double> factor = load_gravity_factor(supine, m), ends = load_gravity_factor(by_ends, m);
   for (std::size_t i = 0; i < m.vertex_count(); ++i) {
     EXPECT_NEAR(with.load[i] * ends[i], without.load[i] * factor[i], 1e-12 * (1.0 + without.load[i])) << i;
   }
+  // A lung too deep for the modulus's factors (1.8 to 0.6 over 10 mm on a 200 mm sphere): one line.
+  Tissue steep = supine;
+  std::get<RegionStiffness>(steep.stiffness).gravity_depth_m = 0.01;
+  EXPECT_THROW(shear_modulus_per_vertex(steep, mesh::make_icosphere(0.1, 3)), InputError);
 }
 
 TEST(Tissue, SlidingIsReadInUnitsOfTheDiaphragmsDescent) {
@@ -528,6 +545,9 @@ TEST(Tissue, BadFilesAreOneLine) {
        "load: {apex: 0, costal: 0, diaphragmatic: 1, mediastinal: 0, gravity: {nondependent: 0.5, dependent: 1.5, "
        "depth: 175}}\n",
        "3:114: load.gravity.depth: expected a length such as '3 mm', got '175'"},
+      {"posture: supine\nstiffness: {model: regions, moduli: {apex: 3 kPa, costal: 1.5 kPa, diaphragmatic: 0.5 kPa, "
+       "mediastinal: 20 kPa}, gravity: {nondependent: 1.8, dependent: 0.6, depth: -1 mm}}\n",
+       "2:166: stiffness.gravity.depth: expected a positive length, got '-1 mm'"},
       {"alias: healthy-upright\nposture: upright\n", "2:1: posture: unknown key; expected one of: alias"},
       {"posture: upright\nstiffness: {model: gradient, profile: linear, nondependent: 3 kPa, dependent: 1 kPa}\n"
        "sliding: {caudal: 7}\n",
