@@ -90,8 +90,10 @@ std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::T
         gravity_factor(tissue, mesh, r.gravity_nondependent, r.gravity_dependent, r.gravity_depth_m);
     for (std::size_t i = 0; i < n; ++i) {
       if (!(factor[i] > 0.0))
-        throw InputError(tissue.name + ": stiffness.gravity.depth: the lung is too deep for these factors (the "
-                         "modulus reaches 0 at its " + (r.gravity_dependent < r.gravity_nondependent ? "dependent" : "non-dependent") + " end)");
+        throw InputError(tissue.name +
+                         ": stiffness.gravity.depth: the lung is too deep for these factors (the "
+                         "modulus reaches 0 at its " +
+                         (r.gravity_dependent < r.gravity_nondependent ? "dependent" : "non-dependent") + " end)");
       mu[i] *= factor[i];
     }
   }

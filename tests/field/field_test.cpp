@@ -248,8 +248,8 @@ TEST(Tissue, TheGravityGradientsArePerMetreWhateverTheLungsDepth) {
   for (const double radius : {0.0625, 0.0875, 0.1}) {  // 125, 175 and 200 mm deep
     const auto m = mesh::make_icosphere(radius, 3);
     const std::vector<double> load = load_gravity_factor(supine, m);
-    const std::vector<double> mu =
-        gravity_factor(supine, m, stiffness.gravity_nondependent, stiffness.gravity_dependent, stiffness.gravity_depth_m);
+    const std::vector<double> mu = gravity_factor(supine, m, stiffness.gravity_nondependent,
+                                                  stiffness.gravity_dependent, stiffness.gravity_depth_m);
     double lo = 1.0, hi = -1.0;
     for (const Eigen::Vector3d& v : m.vertices) {
       lo = std::min(lo, v.y());
