@@ -67,6 +67,9 @@ struct BodyMotionOptions {
   double below_m = 0.20;
   double taper_m = 0.048;  // the field fades to 0 over this much at the box's faces
   double cell_m = 6e-3;    // the precomputed grid's spacing
+  // Rounds of successive correction that bring the body at the pleura to the lung's followed
+  // motion (below, "At the pleura"); 0: the blur alone, as before #45's 2 mm check.
+  int pleura_corrections = 1;
 };
 
 class BodyMotion {
