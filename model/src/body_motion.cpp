@@ -140,7 +140,7 @@ double smoothstep(double x) {
 // A surface vertex as the body sees it: where it is, its area, the motion the tissue beside it
 // follows (per unit scale), how much of it is diaphragm, and its lung.
 struct Sample {
-  Eigen::Vector3d at, normal_motion;
+  Eigen::Vector3d at, normal, normal_motion;
   double area = 0.0, diaphragm = 0.0;
   std::size_t lung = 0;
 };
@@ -159,7 +159,7 @@ std::vector<Sample> surface_samples(const Model& model, const Eigen::Vector3d& u
       // lung slides along); under the diaphragm it follows the diaphragm (the liver in its dome).
       const Eigen::Vector3d& u = lung.unit_displacement[v];
       const Eigen::Vector3d followed = on_diaphragm * u + (1.0 - on_diaphragm) * n.dot(u) * n;
-      samples.push_back({lung.rest.vertices[v], followed, area[v], on_diaphragm, l});
+      samples.push_back({lung.rest.vertices[v], n, followed, area[v], on_diaphragm, l});
     }
   }
   return samples;
@@ -263,18 +263,15 @@ std::vector<std::vector<Eigen::Vector3d>> unit_fields(std::size_t lungs, const s
       }
     }
   }
-  // The body at the pleura moves with the lung's followed motion (body_motion.h, "At the
-  // pleura"): K's blur is an average, not an interpolant, and where that motion changes within
-  // the blur (the diaphragm's full descent beside the costal face's normal part) the body at the
-  // pleura fell 20-30 % short of it, a jump across the pleura the tear check sees at 2 mm voxels.
-  // One round of successive correction (Barnes): each vertex's shortfall, m_v - u(y_v), blurred
-  // by the same K and added, so that the blur's error at the pleura shrinks to its square.
+  // The body at the pleura moves across it as the lung does (body_motion.h, "At the pleura"):
+  // each vertex's shortfall along its normal, blurred by the same K and added, faded as E is.
   for (int round = 0; round < options.pleura_corrections; ++round) {
     std::vector<Eigen::Vector3d> shortfall(samples.size());
     for (std::size_t v = 0; v < samples.size(); ++v) {
       Eigen::Vector3d at = Eigen::Vector3d::Zero();
       fine.corners(samples[v].at, [&](std::size_t node, double w) { at += w * unit[samples[v].lung][node]; });
-      shortfall[v] = samples[v].normal_motion - at;
+      const Eigen::Vector3d& n = samples[v].normal;
+      shortfall[v] = n.dot(samples[v].normal_motion - at) * n;
     }
     const std::vector<Eigen::Vector3d> correction =
         convolve(lungs, samples, shortfall, fine, lo, hi, smallest_sigma, nullptr, nullptr);
