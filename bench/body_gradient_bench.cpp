@@ -61,7 +61,10 @@ int main(int argc, char** argv) {
     const std::size_t v = queue.front();
     queue.pop_front();
     const std::size_t i = v % n[0], j = (v / n[0]) % n[1], k = v / (n[0] * n[1]);
-    const std::array<std::ptrdiff_t, 6> step{-1, 1, -static_cast<std::ptrdiff_t>(n[0]), static_cast<std::ptrdiff_t>(n[0]),
+    const std::array<std::ptrdiff_t, 6> step{-1,
+                                             1,
+                                             -static_cast<std::ptrdiff_t>(n[0]),
+                                             static_cast<std::ptrdiff_t>(n[0]),
                                              -static_cast<std::ptrdiff_t>(n[0] * n[1]),
                                              static_cast<std::ptrdiff_t>(n[0] * n[1])};
     const std::array<bool, 6> can{i > 0, i + 1 < n[0], j > 0, j + 1 < n[1], k > 0, k + 1 < n[2]};
@@ -76,25 +79,27 @@ int main(int argc, char** argv) {
   }
   for (int a = 4; a + 2 < argc; a += 3)
     for (const bool highest : {false, true}) {
-    const Eigen::Vector3d x(std::atof(argv[a]) * 1e-3, std::atof(argv[a + 1]) * 1e-3, std::atof(argv[a + 2]) * 1e-3);
-    voxels::Grid one = grid;
-    one.size = {1, 1, 1};
-    one.ijk_to_lps.block<3, 1>(0, 3) = x;
-    std::vector<double> scales;
-    std::vector<voxels::LungMotion> moving;
-    for (std::size_t l = 0; l < c.model.lungs.size(); ++l) {
-      scales.push_back(highest ? c.scales[l].max_scale : c.scales[l].min_scale);
-      moving.push_back({c.model.lungs[l].interior->mesh, c.model.lungs[l].interior->unit_displacement, scales.back()});
-    }
-    const model::BodyMotion::Frame frame = c.model.body->frame(scales);
-    const voxels::DisplacementField tets = voxels::pullback_dvf(one, moving);
-    const Eigen::Vector3d body = frame.inverse(x, -frame.displacement(x));
-    fmt::print("{} point ({:.1f}, {:.1f}, {:.1f}) mm: lung {}, pull-back ({:.2f}, {:.2f}, {:.2f}) mm; body's inverse ({:.2f}, "
-               "{:.2f}, {:.2f}) mm; body u at the rest point ({:.2f}, {:.2f}, {:.2f})\n",
-               highest ? "highest" : "lowest", x.x() * 1e3, x.y() * 1e3, x.z() * 1e3, tets.lung[0], tets.displacement_m[0].x() * 1e3,
-               tets.displacement_m[0].y() * 1e3, tets.displacement_m[0].z() * 1e3, body.x() * 1e3, body.y() * 1e3,
-               body.z() * 1e3, frame.displacement(x + body).x() * 1e3, frame.displacement(x + body).y() * 1e3,
-               frame.displacement(x + body).z() * 1e3);
+      const Eigen::Vector3d x(std::atof(argv[a]) * 1e-3, std::atof(argv[a + 1]) * 1e-3, std::atof(argv[a + 2]) * 1e-3);
+      voxels::Grid one = grid;
+      one.size = {1, 1, 1};
+      one.ijk_to_lps.block<3, 1>(0, 3) = x;
+      std::vector<double> scales;
+      std::vector<voxels::LungMotion> moving;
+      for (std::size_t l = 0; l < c.model.lungs.size(); ++l) {
+        scales.push_back(highest ? c.scales[l].max_scale : c.scales[l].min_scale);
+        moving.push_back(
+            {c.model.lungs[l].interior->mesh, c.model.lungs[l].interior->unit_displacement, scales.back()});
+      }
+      const model::BodyMotion::Frame frame = c.model.body->frame(scales);
+      const voxels::DisplacementField tets = voxels::pullback_dvf(one, moving);
+      const Eigen::Vector3d body = frame.inverse(x, -frame.displacement(x));
+      fmt::print(
+          "{} point ({:.1f}, {:.1f}, {:.1f}) mm: lung {}, pull-back ({:.2f}, {:.2f}, {:.2f}) mm; body's inverse ({:.2f}, "
+          "{:.2f}, {:.2f}) mm; body u at the rest point ({:.2f}, {:.2f}, {:.2f})\n",
+          highest ? "highest" : "lowest", x.x() * 1e3, x.y() * 1e3, x.z() * 1e3, tets.lung[0],
+          tets.displacement_m[0].x() * 1e3, tets.displacement_m[0].y() * 1e3, tets.displacement_m[0].z() * 1e3,
+          body.x() * 1e3, body.y() * 1e3, body.z() * 1e3, frame.displacement(x + body).x() * 1e3,
+          frame.displacement(x + body).y() * 1e3, frame.displacement(x + body).z() * 1e3);
     }
   constexpr int kBins = 6;  // rings 1, 2, 3, 4-6, 7-12, beyond
   const auto bin_of = [](int r) { return r <= 3 ? r - 1 : r <= 6 ? 3 : r <= 12 ? 4 : 5; };

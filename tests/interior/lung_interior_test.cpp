@@ -451,9 +451,10 @@ TEST(BodyMotion, TheBodyAtThePleuraMovesWithTheLungAcrossIt) {
   std::cout << "blur " << corrected.options().smallest_sigma_m * 1e3 << " mm; across the pleura mean relative error "
             << before.mean_error << " -> " << after.mean_error << ", largest shortfall "
             << before.largest_shortfall * 1e3 << " -> " << after.largest_shortfall * 1e3 << " mm (without the "
-            << "correction the run chose " << uncorrected.options().smallest_sigma_m * 1e3 << " mm: "
-            << before_rule.mean_error << ", " << before_rule.largest_shortfall * 1e3 << " mm); 1-12 mm from it ("
-            << points << " points) |grad u| up to " << steepest << ", Jacobian " << least << " to " << most << "\n";
+            << "correction the run chose " << uncorrected.options().smallest_sigma_m * 1e3
+            << " mm: " << before_rule.mean_error << ", " << before_rule.largest_shortfall * 1e3
+            << " mm); 1-12 mm from it (" << points << " points) |grad u| up to " << steepest << ", Jacobian " << least
+            << " to " << most << "\n";
 }
 
 // BodyMotion::Frame (one time point's field, the lungs' grids summed once) gives what

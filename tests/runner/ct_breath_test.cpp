@@ -52,8 +52,8 @@ constexpr double kShrinkingImage = 1e-3;
 constexpr double kMass = 0.01;
 constexpr double kMeanHu = 2.0;
 
-// A synthetic CT on the run's grid (the label map's extent at `spacing_m`, kSpacingM but for the 2 mm test): lung parenchyma
-// -849.5 HU where the label map's nearest voxel is a lobe, soft tissue 40 HU elsewhere.
+// A synthetic CT on the run's grid (the label map's extent at `spacing_m`, kSpacingM but for the 2 mm test): lung
+// parenchyma -849.5 HU where the label map's nearest voxel is a lobe, soft tissue 40 HU elsewhere.
 void write_synthetic_ct(const std::filesystem::path& labels, const std::filesystem::path& out, double spacing_m) {
   const pneuma::image::LabelMap map = pneuma::image::read_label_map(labels);
   const pneuma::voxels::Grid source = pneuma::voxels::grid_of(map);
