@@ -11,6 +11,8 @@
 //
 //   E_lung(x) = sum_v K(x - y_v) A_v (n_v . u_v) n_v  /  sum over all lungs' v of K(x - y_v) A_v
 //
+// (the diaphragm's vertices contribute their whole motion, docs/voxels.md; and E then gains one
+// round of correction at the pleura, below, "At the pleura")
 // with y_v, n_v, A_v and u_v a rest surface vertex, its outward normal, its area and its unit
 // displacement; K a sum of Gaussians of sigma 12, 24, 48 and 96 mm weighted 1/sigma^5 (near the
 // pleura the narrowest decides, so E is the local normal motion, blurred over about 12 mm; far
