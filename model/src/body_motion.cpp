@@ -140,7 +140,7 @@ double smoothstep(double x) {
 // A surface vertex as the body sees it: where it is, its area, the motion the tissue beside it
 // follows (per unit scale), how much of it is diaphragm, and its lung.
 struct Sample {
-  Eigen::Vector3d at, normal_motion;
+  Eigen::Vector3d at, normal, normal_motion;
   double area = 0.0, diaphragm = 0.0;
   std::size_t lung = 0;
 };
@@ -159,31 +159,34 @@ std::vector<Sample> surface_samples(const Model& model, const Eigen::Vector3d& u
       // lung slides along); under the diaphragm it follows the diaphragm (the liver in its dome).
       const Eigen::Vector3d& u = lung.unit_displacement[v];
       const Eigen::Vector3d followed = on_diaphragm * u + (1.0 - on_diaphragm) * n.dot(u) * n;
-      samples.push_back({lung.rest.vertices[v], followed, area[v], on_diaphragm, l});
+      samples.push_back({lung.rest.vertices[v], n, followed, area[v], on_diaphragm, l});
     }
   }
   return samples;
 }
 
-// Each lung's field at s = 1 on the nodes of `fine` for K's narrowest Gaussian `sigma` (body_motion.h).
-std::vector<std::vector<Eigen::Vector3d>> unit_fields(std::size_t lungs, const std::vector<Sample>& samples,
-                                                      const std::vector<double>& distance, const Lattice& fine,
-                                                      const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
-                                                      const BodyMotionOptions& options, double smallest_sigma) {
+// K's normalised convolution on the nodes of `fine` (body_motion.h), one Gaussian at a time on a
+// lattice of half its sigma, sampled back onto the fine nodes: per lung, the sum over its samples
+// of K A_v value_v (`values`, one per sample); and, where `weight` is given, the sums of K A_v and
+// of K A_v times the diaphragm's share over all samples.
+std::vector<Eigen::Vector3d> convolve(std::size_t lungs, const std::vector<Sample>& samples,
+                                      const std::vector<Eigen::Vector3d>& values, const Lattice& fine,
+                                      const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, double smallest_sigma,
+                                      std::vector<double>* weight, std::vector<double>* diaphragm) {
   const std::size_t nodes = fine.count();
-  // E and the diaphragm's share at every fine node: normalised convolutions with K, one Gaussian
-  // at a time on a lattice of half its sigma, sampled back onto the fine nodes.
   std::vector<Eigen::Vector3d> numerator(lungs * nodes, Eigen::Vector3d::Zero());
-  std::vector<double> weight(nodes, 0.0), diaphragm(nodes, 0.0);
+  const std::size_t sums = weight != nullptr ? 2 : 0;
   for (int scale = 0; scale < 4; ++scale) {
     const double sigma = smallest_sigma * std::ldexp(1.0, scale);
     const double factor = std::pow(smallest_sigma / sigma, 5.0);
     const Lattice g(lo, hi, 0.5 * sigma);
-    std::vector<std::vector<double>> arrays(3 * lungs + 2, std::vector<double>(g.count(), 0.0));
-    for (const Sample& s : samples) {
+    std::vector<std::vector<double>> arrays(3 * lungs + sums, std::vector<double>(g.count(), 0.0));
+    for (std::size_t v = 0; v < samples.size(); ++v) {
+      const Sample& s = samples[v];
       g.corners(s.at, [&](std::size_t node, double w) {
         for (std::size_t c = 0; c < 3; ++c)
-          arrays[3 * s.lung + c][node] += w * s.area * s.normal_motion[static_cast<Eigen::Index>(c)];
+          arrays[3 * s.lung + c][node] += w * s.area * values[v][static_cast<Eigen::Index>(c)];
+        if (sums == 0) return;
         arrays[3 * lungs][node] += w * s.area;
         arrays[3 * lungs + 1][node] += w * s.area * s.diaphragm;
       });
@@ -213,14 +216,31 @@ std::vector<std::vector<Eigen::Vector3d>> unit_fields(std::size_t lungs, const s
                 for (std::size_t l = 0; l < lungs; ++l)
                   for (std::size_t c = 0; c < 3; ++c)
                     numerator[l * nodes + node][static_cast<Eigen::Index>(c)] += factor * sample(arrays[3 * l + c]);
-                weight[node] += factor * sample(arrays[3 * lungs]);
-                diaphragm[node] += factor * sample(arrays[3 * lungs + 1]);
+                if (sums == 0) continue;
+                (*weight)[node] += factor * sample(arrays[3 * lungs]);
+                (*diaphragm)[node] += factor * sample(arrays[3 * lungs + 1]);
               }
         }));
     region.join();
   }
+  return numerator;
+}
+
+// Each lung's field at s = 1 on the nodes of `fine` for K's narrowest Gaussian `sigma` (body_motion.h).
+std::vector<std::vector<Eigen::Vector3d>> unit_fields(std::size_t lungs, const std::vector<Sample>& samples,
+                                                      const std::vector<double>& distance, const Lattice& fine,
+                                                      const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                                                      const BodyMotionOptions& options, double smallest_sigma) {
+  const std::size_t nodes = fine.count();
+  // E and the diaphragm's share at every fine node.
+  std::vector<Eigen::Vector3d> followed(samples.size());
+  for (std::size_t v = 0; v < samples.size(); ++v) followed[v] = samples[v].normal_motion;
+  std::vector<double> weight(nodes, 0.0), diaphragm(nodes, 0.0);
+  const std::vector<Eigen::Vector3d> numerator =
+      convolve(lungs, samples, followed, fine, lo, hi, smallest_sigma, &weight, &diaphragm);
 
   std::vector<std::vector<Eigen::Vector3d>> unit(lungs, std::vector<Eigen::Vector3d>(nodes, Eigen::Vector3d::Zero()));
+  std::vector<double> fade(nodes, 0.0);
   const double tiny = 1e-12 * weight[0] + std::numeric_limits<double>::min();
   for (std::size_t k = 0; k < fine.n[2]; ++k) {
     for (std::size_t j = 0; j < fine.n[1]; ++j) {
@@ -238,10 +258,25 @@ std::vector<std::vector<Eigen::Vector3d>> unit_fields(std::size_t lungs, const s
           const double from_face = static_cast<double>(std::min(ijk[a], fine.n[a] - 1 - ijk[a])) * fine.h;
           taper *= smoothstep(from_face / options.taper_m);
         }
-        const double fade = std::exp(-d / decay) * taper;
-        for (std::size_t l = 0; l < lungs; ++l) unit[l][node] = numerator[l * nodes + node] / weight[node] * fade;
+        fade[node] = std::exp(-d / decay) * taper / weight[node];
+        for (std::size_t l = 0; l < lungs; ++l) unit[l][node] = numerator[l * nodes + node] * fade[node];
       }
     }
+  }
+  // The body at the pleura moves across it as the lung does (body_motion.h, "At the pleura"):
+  // each vertex's shortfall along its normal, blurred by the same K and added, faded as E is.
+  for (int round = 0; round < options.pleura_corrections; ++round) {
+    std::vector<Eigen::Vector3d> shortfall(samples.size());
+    for (std::size_t v = 0; v < samples.size(); ++v) {
+      Eigen::Vector3d at = Eigen::Vector3d::Zero();
+      fine.corners(samples[v].at, [&](std::size_t node, double w) { at += w * unit[samples[v].lung][node]; });
+      const Eigen::Vector3d& n = samples[v].normal;
+      shortfall[v] = n.dot(samples[v].normal_motion - at) * n;
+    }
+    const std::vector<Eigen::Vector3d> correction =
+        convolve(lungs, samples, shortfall, fine, lo, hi, smallest_sigma, nullptr, nullptr);
+    for (std::size_t l = 0; l < lungs; ++l)
+      for (std::size_t node = 0; node < nodes; ++node) unit[l][node] += correction[l * nodes + node] * fade[node];
   }
   return unit;
 }
