@@ -10,25 +10,6 @@
 #include "rasterize.h"
 
 namespace pneuma::voxels {
-namespace {
-
-// The value of a voxel that no tet holds: outside(x), or 0. rasterize() calls this in row order
-// after the slab's tets, so voxels v - 1 and v - 2 (same row) are final when they are outside too.
-void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i, std::size_t j,
-                 std::size_t k) {
-  if (!outside) {
-    field.displacement_m[v] = Eigen::Vector3f::Zero();
-    return;
-  }
-  const bool has_previous = i > 0 && field.lung[v - 1] == 0;
-  const bool has_two = has_previous && i > 1 && field.lung[v - 2] == 0;
-  Eigen::Vector3d guess = Eigen::Vector3d::Zero();
-  if (has_previous) guess = field.displacement_m[v - 1].cast<double>();
-  if (has_two) guess = 2.0 * guess - field.displacement_m[v - 2].cast<double>();
-  field.displacement_m[v] = outside(field.grid.centre_m(i, j, k), has_previous ? &guess : nullptr).cast<float>();
-}
-
-}  // namespace
 
 std::size_t DisplacementField::inside_count() const {
   return static_cast<std::size_t>(std::count_if(lung.begin(), lung.end(), [](std::uint8_t l) { return l != 0; }));
@@ -65,7 +46,9 @@ void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, Displaceme
       grid, std::span<const detail::TetSet>(sets), field.lung,
       [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
           std::size_t) { field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>(); },
-      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
+      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
+        detail::set_outside(field, outside, v, i, j, k);
+      });
 }
 
 void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
@@ -91,7 +74,9 @@ void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, Displacem
         // s = 0, is an exact zero field, not rounding noise).
         field.displacement_m[v] = (-detail::tet_displacement(lungs[s], t, l)).cast<float>();
       },
-      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
+      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
+        detail::set_outside(field, outside, v, i, j, k);
+      });
 }
 
 }  // namespace pneuma::voxels

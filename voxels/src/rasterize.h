@@ -186,4 +186,20 @@ void rasterize(const Grid& grid, std::span<const TetSet> sets, std::vector<std::
   region.join();
 }
 
+// The value of a voxel that no tet holds: outside(x), or 0. rasterize() calls this in row order
+// after the slab's tets, so voxels v - 1 and v - 2 (same row) are final when they are outside too.
+inline void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i,
+                        std::size_t j, std::size_t k) {
+  if (!outside) {
+    field.displacement_m[v] = Eigen::Vector3f::Zero();
+    return;
+  }
+  const bool has_previous = i > 0 && field.lung[v - 1] == 0;
+  const bool has_two = has_previous && i > 1 && field.lung[v - 2] == 0;
+  Eigen::Vector3d guess = Eigen::Vector3d::Zero();
+  if (has_previous) guess = field.displacement_m[v - 1].cast<double>();
+  if (has_two) guess = 2.0 * guess - field.displacement_m[v - 2].cast<double>();
+  field.displacement_m[v] = outside(field.grid.centre_m(i, j, k), has_previous ? &guess : nullptr).cast<float>();
+}
+
 }  // namespace pneuma::voxels::detail
