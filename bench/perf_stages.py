@@ -13,7 +13,7 @@ STAGES = [  # (stage, pattern on a frame's symbol or library), first match from 
     ("body pull-back: per-voxel inverse", r"BodyMotion::Frame::inverse"),
     ("body field lookups (Frame::displacement)", r"BodyMotion::Frame::displacement"),
     ("rasterising tets (forward, pull-back, rest lungs, Jacobian inside)", r"rasterize"),
-    ("Jacobian image outside the lungs", r"jacobian_image\("),
+    ("Jacobian image outside the lungs", r"jacobian_image\(|jacobian_outside"),
     ("CT warp (warp_image)", r"warp_image"),
     ("label warp, lung tissue masks", r"warp_labels|lung_tissue"),
     ("converting fields for files", r"to_file|convert|nifti|Nifti|write_"),

@@ -117,23 +117,29 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
 }
 
 void forward_dvf_with_jacobian(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
-                               const OutsideField& outside, Image& jacobian) {
-  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
-  const std::vector<std::vector<Eigen::Matrix3d>> gradients = lung_gradients(lungs);
+                               const OutsideField& outside, Image& jacobian, RestRaster* rest) {
+  const std::vector<std::vector<Eigen::Matrix3d>> gradients = lung_gradients(lungs);  // checks each lung
   field.grid = grid;
   field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
   jacobian.grid = grid;
   jacobian.values.resize(grid.voxel_count());  // the lungs' voxels here, the rest by jacobian_image_outside
+  const auto visit = [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l) {
+    field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>();
+    jacobian.values[v] = static_cast<float>(recovered_jacobian(gradients[s], lungs[s].mesh.tets[t], l));
+  };
+  const auto empty = [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
+    detail::set_outside(field, outside, v, i, j, k);
+  };
+  if (rest != nullptr) {
+    detail::rasterize_rest(grid, lungs, *rest, field.lung, visit, empty);
+    return;
+  }
+  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
   detail::rasterize(
       grid, std::span<const detail::TetSet>(sets), field.lung,
       [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
-          std::size_t) {
-        field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>();
-        jacobian.values[v] = static_cast<float>(recovered_jacobian(gradients[s], sets[s].tets[t], l));
-      },
-      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
-        detail::set_outside(field, outside, v, i, j, k);
-      });
+          std::size_t) { visit(v, s, t, l); },
+      empty);
 }
 
 void jacobian_image_outside(const DisplacementField& forward, Image& out) {

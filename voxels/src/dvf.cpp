@@ -37,18 +37,38 @@ std::vector<std::uint8_t> rest_lungs(const Grid& grid, std::span<const LungMotio
   return owner;
 }
 
+bool RestRaster::holds(const Grid& on, std::span<const LungMotion> lungs) const {
+  if (on.size != grid.size || on.ijk_to_lps != grid.ijk_to_lps || lungs.size() != tets.size() ||
+      grid.voxel_count() == 0)
+    return false;
+  for (std::size_t s = 0; s < lungs.size(); ++s) {
+    if (!std::equal(lungs[s].mesh.tets.begin(), lungs[s].mesh.tets.end(), tets[s].begin(), tets[s].end()) ||
+        !std::equal(lungs[s].mesh.nodes.begin(), lungs[s].mesh.nodes.end(), nodes[s].begin(), nodes[s].end()))
+      return false;
+  }
+  return true;
+}
+
 void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
-                 const OutsideField& outside) {
-  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
+                 const OutsideField& outside, RestRaster* rest) {
   field.grid = grid;
   field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  const auto visit = [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l) {
+    field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>();
+  };
+  const auto empty = [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
+    detail::set_outside(field, outside, v, i, j, k);
+  };
+  if (rest != nullptr) {
+    detail::rasterize_rest(grid, lungs, *rest, field.lung, visit, empty);
+    return;
+  }
+  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
   detail::rasterize(
       grid, std::span<const detail::TetSet>(sets), field.lung,
       [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
-          std::size_t) { field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>(); },
-      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
-        detail::set_outside(field, outside, v, i, j, k);
-      });
+          std::size_t) { visit(v, s, t, l); },
+      empty);
 }
 
 void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,

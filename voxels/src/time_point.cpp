@@ -28,9 +28,10 @@ void compute_parts(const Grid& grid, std::span<const LungMotion> lungs, const Ti
   if (inputs.jacobian_map) {
     // The Jacobian image's lung voxels from the forward field's rasterisation of the rest tets.
     if (!point.jacobian_map) point.jacobian_map.emplace();
-    forward_dvf_with_jacobian(grid, lungs, point.forward, inputs.forward_outside, *point.jacobian_map);
+    forward_dvf_with_jacobian(grid, lungs, point.forward, inputs.forward_outside, *point.jacobian_map,
+                              &point.rest_raster);
   } else {
-    forward_dvf(grid, lungs, point.forward, inputs.forward_outside);
+    forward_dvf(grid, lungs, point.forward, inputs.forward_outside, &point.rest_raster);
   }
   ready(Part::forward);
   pullback_dvf(grid, lungs, point.pullback, inputs.pullback_outside);

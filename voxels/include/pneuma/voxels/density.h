@@ -32,8 +32,9 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
 // outputs rasterised them twice, #50): `field` as forward_dvf makes it, `jacobian` with the lungs'
 // voxels as jacobian_image gives them; jacobian_image_outside(field, jacobian) then gives the others
 // (central differences: after the field is whole). The same values, bit for bit, as the two apart.
+// With `rest`, replayed from it or kept there (forward_dvf's RestRaster).
 void forward_dvf_with_jacobian(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
-                               const OutsideField& outside, Image& jacobian);
+                               const OutsideField& outside, Image& jacobian, RestRaster* rest = nullptr);
 void jacobian_image_outside(const DisplacementField& forward, Image& out);
 
 // `rest_ct` with its lung parenchyma made to keep its mass at the lungs' scales: a voxel whose
