@@ -9,11 +9,14 @@ from collections import Counter
 
 STAGES = [  # (stage, pattern on a frame's symbol or library), first match from the leaf wins
     ("compression (libdeflate, gzip members)", r"libdeflate|gzip|deflate"),
+    ("SHA-256 of the files (manifest.json's digests)", r"libcrypto|sha256|Sha256|EVP_Digest"),
     ("body pull-back: lattice (inverse_field)", r"inverse_field"),
     ("body pull-back: per-voxel inverse", r"BodyMotion::Frame::inverse"),
     ("body field lookups (Frame::displacement)", r"BodyMotion::Frame::displacement"),
-    ("rasterising tets (forward, pull-back, rest lungs, Jacobian inside)", r"rasterize"),
-    ("Jacobian image outside the lungs", r"jacobian_image\("),
+    ("the rest tets: forward DVF, Jacobian inside (once a run since the fifth round)",
+     r"rasterize_rest|rasterize<pneuma::voxels::forward_dvf|rasterize<pneuma::voxels::jacobian_image"),
+    ("rasterising the deformed tets (pull-back), the rest lungs' masks", r"rasterize"),
+    ("Jacobian image outside the lungs", r"jacobian_image\(|jacobian_outside"),
     ("CT warp (warp_image)", r"warp_image"),
     ("label warp, lung tissue masks", r"warp_labels|lung_tissue"),
     ("converting fields for files", r"to_file|convert|nifti|Nifti|write_"),

@@ -9,14 +9,21 @@
 #include <algorithm>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
+#include "pneuma/voxels/written_digest.h"
 #include "sha256.h"
 
 namespace pneuma::outputs {
 
-std::string sha256_file(const std::filesystem::path& file) { return to_hex(sha256_of_file(file)); }
+// A voxel file's digest from its writing (voxels/written_digest.h), when it is still that file:
+// ten phases at a label map's own grid are 20 GB that would otherwise be read back (#50).
+std::string sha256_file(const std::filesystem::path& file) {
+  if (std::optional<std::string> written = voxels::written_sha256(file)) return *std::move(written);
+  return to_hex(sha256_of_file(file));
+}
 
 std::vector<std::pair<std::string, std::string>> library_versions() {
   auto dotted = [](int a, int b, int c) {

@@ -4,8 +4,10 @@
 // after a radial dilation of known Jacobian.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
+#include "pneuma/core/error.h"
 #include "pneuma/voxels/density.h"
 #include "pneuma/voxels/dvf.h"
 #include "pneuma/voxels/jacobian.h"
@@ -50,6 +52,39 @@ TEST(JacobianImage, AnAffineFieldHasItsDeterminantInsideAndOutsideTheLung) {
   }
   EXPECT_GT(inside, 10000u);
   EXPECT_LT(inside, ball.grid.voxel_count() / 2);
+}
+
+// The voxel outputs' one rasterisation for both (forward_dvf_with_jacobian, then
+// jacobian_image_outside): det(I + s A) at every voxel as above, and the same field and image, bit
+// for bit, as forward_dvf and jacobian_image apart (the files of a run must not change).
+TEST(JacobianImage, MadeWithTheForwardFieldItIsTheSameImage) {
+  const test::Ball ball = test::make_ball();
+  Eigen::Matrix3d a;
+  a << 0.10, 0.02, -0.01, 0.00, 0.05, 0.03, 0.01, -0.02, 0.20;
+  const Eigen::Vector3d b(0.001, -0.002, 0.003);
+  const double s = 0.8;
+  const std::vector<Eigen::Vector3d> u = test::affine_field(ball.mesh, a, b);
+  const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, s}};
+  const OutsideField outside = [&](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
+    return Eigen::Vector3d(s * (a * x + b));
+  };
+  DisplacementField fused;
+  Image jacobian;
+  forward_dvf_with_jacobian(ball.grid, lungs, fused, outside, jacobian);
+  jacobian_image_outside(fused, jacobian);
+  const double expected = (Eigen::Matrix3d::Identity() + s * a).determinant();
+  ASSERT_EQ(jacobian.values.size(), ball.grid.voxel_count());
+  for (std::size_t v = 0; v < jacobian.values.size(); ++v) EXPECT_NEAR(jacobian.values[v], expected, 1e-5) << v;
+
+  const DisplacementField apart = forward_dvf(ball.grid, lungs, outside);
+  Image apart_jacobian;
+  jacobian_image(lungs, apart, apart_jacobian);
+  EXPECT_EQ(fused.lung, apart.lung);
+  EXPECT_TRUE(std::equal(fused.displacement_m.begin(), fused.displacement_m.end(), apart.displacement_m.begin()));
+  EXPECT_EQ(jacobian.values, apart_jacobian.values);
+  // A field and image that do not belong together are refused.
+  Image other;
+  EXPECT_THROW(jacobian_image_outside(fused, other), ValueError);
 }
 
 // A ball of parenchyma (-850 HU) in soft tissue (40 HU), dilated radially by (1 + s c)^3: the

@@ -85,6 +85,52 @@ TEST(ForwardDvf, AffineMotionIsReproducedAtEveryVoxelInside) {
   EXPECT_EQ(f.inside_count(), inside);
 }
 
+// The rest tets kept between time points (RestRaster): the second scale's field, replayed, is
+// s (A x + b) at every lung voxel as the first's is, and bit for bit the field rasterised afresh;
+// other lungs (a node moved) are rasterised again, not replayed, and kept in place of the first.
+TEST(ForwardDvf, ARestRasterReplayedGivesTheFieldRasterisedAfresh) {
+  const AffineCube cube;
+  RestRaster rest;
+  DisplacementField kept;
+  for (const double s : {0.7, -0.4, 1.3}) {
+    std::vector<LungMotion> lungs = cube.lungs();
+    lungs[0].scale = s;
+    forward_dvf(cube.grid, lungs, kept, {}, &rest);
+    ASSERT_TRUE(rest.holds(cube.grid, lungs));
+    const DisplacementField fresh = forward_dvf(cube.grid, lungs);
+    EXPECT_EQ(kept.lung, fresh.lung) << s;
+    ASSERT_EQ(kept.displacement_m.size(), fresh.displacement_m.size());
+    EXPECT_EQ(std::memcmp(kept.displacement_m.data(), fresh.displacement_m.data(),
+                          fresh.displacement_m.size() * sizeof(Eigen::Vector3f)),
+              0)
+        << s;
+    double largest_m = 0.0;
+    for (const Eigen::Vector3d& x : cube.mesh.nodes)
+      largest_m = std::max(largest_m, (s * (cube.a * x + cube.b)).norm());
+    std::size_t inside = 0;
+    for (std::size_t v = 0; v < kept.lung.size(); ++v) {
+      if (kept.lung[v] == 0) continue;
+      ++inside;
+      const std::size_t i = v % cube.grid.size[0], j = (v / cube.grid.size[0]) % cube.grid.size[1],
+                        k = v / (cube.grid.size[0] * cube.grid.size[1]);
+      const Eigen::Vector3d x = cube.grid.centre_m(i, j, k);
+      EXPECT_LE((kept.displacement_m[v].cast<double>() - s * (cube.a * x + cube.b)).norm(), kFloat32 * largest_m) << v;
+    }
+    EXPECT_GT(inside, 1000u);
+  }
+  mesh::TetMesh moved = cube.mesh;
+  moved.nodes[0].x() += 1e-3;
+  const std::vector<LungMotion> other{LungMotion{moved, cube.u, cube.s}};
+  EXPECT_FALSE(rest.holds(cube.grid, other));
+  forward_dvf(cube.grid, other, kept, {}, &rest);
+  EXPECT_TRUE(rest.holds(cube.grid, other));
+  const DisplacementField fresh = forward_dvf(cube.grid, other);
+  EXPECT_EQ(kept.lung, fresh.lung);
+  EXPECT_EQ(std::memcmp(kept.displacement_m.data(), fresh.displacement_m.data(),
+                        fresh.displacement_m.size() * sizeof(Eigen::Vector3f)),
+            0);
+}
+
 TEST(PullbackDvf, IsTheAnalyticInverseOfTheAffineMotion) {
   const AffineCube cube;
   const DisplacementField v = pullback_dvf(cube.grid, cube.lungs());

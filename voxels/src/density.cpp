@@ -52,20 +52,11 @@ float mass_preserving_hu(float hu, double jacobian) {
   return static_cast<float>(std::clamp(moved, static_cast<double>(kAirHu), static_cast<double>(kWaterHu)));
 }
 
-void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& forward, Image& out) {
-  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
-  const std::vector<std::vector<Eigen::Matrix3d>> gradients = lung_gradients(lungs);
+namespace {
+
+// jacobian_image's voxels outside the lungs (`owner` 0): central differences of the field.
+void jacobian_outside(const DisplacementField& forward, const std::vector<std::uint8_t>& owner, Image& out) {
   const Grid& grid = forward.grid;
-  if (forward.displacement_m.size() != grid.voxel_count())
-    throw ValueError("jacobian_image: the forward field does not fill its grid");
-  out.grid = grid;
-  out.values.resize(grid.voxel_count());
-  std::vector<std::uint8_t> owner;
-  detail::rasterize(
-      grid, std::span<const detail::TetSet>(sets), owner,
-      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
-          std::size_t) { out.values[v] = static_cast<float>(recovered_jacobian(gradients[s], sets[s].tets[t], l)); },
-      [&](std::size_t, std::size_t, std::size_t, std::size_t) {});
   // grad u = (du/d index) (d index/dx): the grid's direction and spacing, inverted once.
   const Eigen::Matrix3d to_index = grid.ijk_to_lps.block<3, 3>(0, 0).inverse();
   const std::size_t nx = grid.size[0], ny = grid.size[1], nz = grid.size[2];
@@ -104,6 +95,59 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
     }
   }));
   region.join();
+}
+
+}  // namespace
+
+void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& forward, Image& out) {
+  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
+  const std::vector<std::vector<Eigen::Matrix3d>> gradients = lung_gradients(lungs);
+  const Grid& grid = forward.grid;
+  if (forward.displacement_m.size() != grid.voxel_count())
+    throw ValueError("jacobian_image: the forward field does not fill its grid");
+  out.grid = grid;
+  out.values.resize(grid.voxel_count());
+  std::vector<std::uint8_t> owner;
+  detail::rasterize(
+      grid, std::span<const detail::TetSet>(sets), owner,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
+          std::size_t) { out.values[v] = static_cast<float>(recovered_jacobian(gradients[s], sets[s].tets[t], l)); },
+      [&](std::size_t, std::size_t, std::size_t, std::size_t) {});
+  jacobian_outside(forward, owner, out);
+}
+
+void forward_dvf_with_jacobian(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                               const OutsideField& outside, Image& jacobian, RestRaster* rest) {
+  const std::vector<std::vector<Eigen::Matrix3d>> gradients = lung_gradients(lungs);  // checks each lung
+  field.grid = grid;
+  field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  jacobian.grid = grid;
+  jacobian.values.resize(grid.voxel_count());  // the lungs' voxels here, the rest by jacobian_image_outside
+  const auto visit = [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l) {
+    field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>();
+    jacobian.values[v] = static_cast<float>(recovered_jacobian(gradients[s], lungs[s].mesh.tets[t], l));
+  };
+  const auto empty = [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
+    detail::set_outside(field, outside, v, i, j, k);
+  };
+  if (rest != nullptr) {
+    detail::rasterize_rest(grid, lungs, *rest, field.lung, visit, empty);
+    return;
+  }
+  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
+  detail::rasterize(
+      grid, std::span<const detail::TetSet>(sets), field.lung,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
+          std::size_t) { visit(v, s, t, l); },
+      empty);
+}
+
+void jacobian_image_outside(const DisplacementField& forward, Image& out) {
+  if (forward.displacement_m.size() != forward.grid.voxel_count() ||
+      forward.lung.size() != forward.grid.voxel_count() || out.grid.size != forward.grid.size ||
+      out.values.size() != forward.grid.voxel_count())
+    throw ValueError("jacobian_image_outside: expected forward_dvf_with_jacobian's field and image");
+  jacobian_outside(forward, forward.lung, out);
 }
 
 void mass_preserving_ct(const Image& rest_ct, std::span<const LungMotion> lungs, Image& out,

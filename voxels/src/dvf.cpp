@@ -10,25 +10,6 @@
 #include "rasterize.h"
 
 namespace pneuma::voxels {
-namespace {
-
-// The value of a voxel that no tet holds: outside(x), or 0. rasterize() calls this in row order
-// after the slab's tets, so voxels v - 1 and v - 2 (same row) are final when they are outside too.
-void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i, std::size_t j,
-                 std::size_t k) {
-  if (!outside) {
-    field.displacement_m[v] = Eigen::Vector3f::Zero();
-    return;
-  }
-  const bool has_previous = i > 0 && field.lung[v - 1] == 0;
-  const bool has_two = has_previous && i > 1 && field.lung[v - 2] == 0;
-  Eigen::Vector3d guess = Eigen::Vector3d::Zero();
-  if (has_previous) guess = field.displacement_m[v - 1].cast<double>();
-  if (has_two) guess = 2.0 * guess - field.displacement_m[v - 2].cast<double>();
-  field.displacement_m[v] = outside(field.grid.centre_m(i, j, k), has_previous ? &guess : nullptr).cast<float>();
-}
-
-}  // namespace
 
 std::size_t DisplacementField::inside_count() const {
   return static_cast<std::size_t>(std::count_if(lung.begin(), lung.end(), [](std::uint8_t l) { return l != 0; }));
@@ -56,16 +37,38 @@ std::vector<std::uint8_t> rest_lungs(const Grid& grid, std::span<const LungMotio
   return owner;
 }
 
+bool RestRaster::holds(const Grid& on, std::span<const LungMotion> lungs) const {
+  if (on.size != grid.size || on.ijk_to_lps != grid.ijk_to_lps || lungs.size() != tets.size() ||
+      grid.voxel_count() == 0)
+    return false;
+  for (std::size_t s = 0; s < lungs.size(); ++s) {
+    if (!std::equal(lungs[s].mesh.tets.begin(), lungs[s].mesh.tets.end(), tets[s].begin(), tets[s].end()) ||
+        !std::equal(lungs[s].mesh.nodes.begin(), lungs[s].mesh.nodes.end(), nodes[s].begin(), nodes[s].end()))
+      return false;
+  }
+  return true;
+}
+
 void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
-                 const OutsideField& outside) {
-  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
+                 const OutsideField& outside, RestRaster* rest) {
   field.grid = grid;
   field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  const auto visit = [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l) {
+    field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>();
+  };
+  const auto empty = [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
+    detail::set_outside(field, outside, v, i, j, k);
+  };
+  if (rest != nullptr) {
+    detail::rasterize_rest(grid, lungs, *rest, field.lung, visit, empty);
+    return;
+  }
+  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
   detail::rasterize(
       grid, std::span<const detail::TetSet>(sets), field.lung,
       [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
-          std::size_t) { field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>(); },
-      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
+          std::size_t) { visit(v, s, t, l); },
+      empty);
 }
 
 void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
@@ -91,7 +94,9 @@ void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, Displacem
         // s = 0, is an exact zero field, not rounding noise).
         field.displacement_m[v] = (-detail::tet_displacement(lungs[s], t, l)).cast<float>();
       },
-      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) { set_outside(field, outside, v, i, j, k); });
+      [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
+        detail::set_outside(field, outside, v, i, j, k);
+      });
 }
 
 }  // namespace pneuma::voxels

@@ -11,11 +11,11 @@
 #include <array>
 #include <cctype>
 #include <cstring>
-#include <fstream>
 #include <memory>
 #include <span>
 #include <vector>
 
+#include "direct_file.h"
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
 #include "pneuma/voxels/gzip.h"
@@ -134,14 +134,15 @@ void write_nifti(const fs::path& path, const NiftiSpec& spec, const NiftiFill& f
   // while both cores waited). At most kSlots chunks live at a time, each in its own slot: memory
   // bounded by the slots, never by the file, and no fresh pages per chunk.
   constexpr std::size_t kSlots = 8;
+  // A slot's raw chunk is block-aligned: a plain .nii's chunks go to the disk from it (DirectFile).
   struct Slot {
-    std::vector<std::uint8_t> raw, packed;
+    detail::AlignedBytes raw;
+    std::vector<std::uint8_t> packed;
     std::size_t size = 0;
   };
   std::array<Slot, kSlots> slots;
   write_atomically(path, [&](const fs::path& tmp) {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw IoError(path.string() + ": cannot write (is the folder writable?)");
+    detail::DirectFile out(tmp, path);
     std::size_t next = 0;
     tbb::parallel_pipeline(
         kSlots,
@@ -154,28 +155,28 @@ void write_nifti(const fs::path& path, const NiftiSpec& spec, const NiftiFill& f
           Slot& slot = slots[next % kSlots];
           const std::size_t at = next * chunk_bytes;
           slot.size = std::min(chunk_bytes, total - at);
-          slot.raw.resize(chunk_bytes);
+          if (!slot.raw) slot.raw = detail::aligned_bytes(chunk_bytes);
           std::size_t header_part = 0;
           if (at < kHeaderBytes) {
             header_part = kHeaderBytes - at;
-            std::memcpy(slot.raw.data(), head.data() + at, header_part);
+            std::memcpy(slot.raw.get(), head.data() + at, header_part);
           }
           if (slot.size > header_part)
             fill((at + header_part - kHeaderBytes) / size, (slot.size - header_part) / size,
-                 slot.raw.data() + header_part);
+                 slot.raw.get() + header_part);
           ++next;
           return &slot;
         }) & tbb::make_filter<Slot*, Slot*>(tbb::filter_mode::parallel, [&](Slot* slot) {
-          if (compress) gzip_member(std::span(slot->raw.data(), slot->size), slot->packed, gzip);
+          if (compress) gzip_member(std::span<const std::uint8_t>(slot->raw.get(), slot->size), slot->packed, gzip);
           return slot;
         }) & tbb::make_filter<Slot*, void>(tbb::filter_mode::serial_in_order, [&](Slot* slot) {
-          const std::vector<std::uint8_t>& bytes = compress ? slot->packed : slot->raw;
-          const std::size_t n = compress ? bytes.size() : slot->size;
-          if (out) out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(n));
+          if (compress) {
+            out.write(slot->packed.data(), slot->packed.size());
+          } else {
+            out.write(slot->raw.get(), slot->size);
+          }
         }));
-    if (!out) throw IoError(path.string() + ": cannot write (disk full?)");
     out.close();
-    if (!out) throw IoError(path.string() + ": cannot write (disk full?)");
   });
 }
 

@@ -186,4 +186,76 @@ void rasterize(const Grid& grid, std::span<const TetSet> sets, std::vector<std::
   region.join();
 }
 
+// rasterize(grid, rest sets, owner, visit, empty) through `rest` (RestRaster): replayed when it
+// holds this grid and these lungs, else rasterised and kept there. visit(voxel, set, tet, l)
+// (without i, j, k); empty as rasterize's, after each slab's lung voxels, in index order. The same
+// calls with the same arguments either way (in another order within a slab's lung voxels).
+template <typename Visit, typename Empty>
+void rasterize_rest(const Grid& grid, std::span<const LungMotion> lungs, RestRaster& rest,
+                    std::vector<std::uint8_t>& owner, const Visit& visit, const Empty& empty) {
+  const std::size_t nx = grid.size[0], ny = grid.size[1], nz = grid.size[2];
+  const std::size_t slabs = (nz + kSlabVoxels - 1) / kSlabVoxels;
+  if (rest.holds(grid, lungs)) {
+    owner = rest.owner;
+    const tsan::Region region;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, slabs, 1), region.wrap([&](const auto& r) {
+      for (std::size_t b = r.begin(); b != r.end(); ++b) {
+        for (const RestRaster::Entry& e : rest.slabs[b]) {
+          const Eigen::Vector4d l(1.0 - e.l123.sum(), e.l123.x(), e.l123.y(), e.l123.z());  // as rasterize()
+          visit(std::size_t{e.voxel}, std::size_t{owner[e.voxel]} - 1u, std::size_t{e.tet}, l);
+        }
+        for (std::size_t k = b * kSlabVoxels; k < std::min(nz, (b + 1) * kSlabVoxels); ++k)
+          for (std::size_t j = 0; j < ny; ++j)
+            for (std::size_t i = 0; i < nx; ++i) {
+              const std::size_t v = i + nx * (j + ny * k);
+              if (owner[v] == 0) empty(v, i, j, k);
+            }
+      }
+    }));
+    region.join();
+    return;
+  }
+  const std::vector<TetSet> sets = rest_tet_sets(lungs);
+  // Kept only where a voxel's index fits the entry (4 G voxels).
+  const bool keep = grid.voxel_count() <= std::size_t{0xffffffffu};
+  rest.grid = Grid{};  // not valid until complete (an exception leaves it empty)
+  rest.tets.clear();
+  rest.nodes.clear();
+  rest.slabs.assign(keep ? slabs : 0, {});
+  rasterize(
+      grid, std::span<const TetSet>(sets), owner,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
+          std::size_t k) {
+        visit(v, s, t, l);
+        if (keep)
+          rest.slabs[k / kSlabVoxels].push_back(
+              {static_cast<std::uint32_t>(v), static_cast<std::uint32_t>(t), Eigen::Vector3d(l[1], l[2], l[3])});
+      },
+      empty);
+  if (!keep) return;
+  for (std::vector<RestRaster::Entry>& slab : rest.slabs) slab.shrink_to_fit();
+  rest.owner = owner;
+  for (const LungMotion& lung : lungs) {
+    rest.tets.emplace_back(lung.mesh.tets.begin(), lung.mesh.tets.end());
+    rest.nodes.emplace_back(lung.mesh.nodes.begin(), lung.mesh.nodes.end());
+  }
+  rest.grid = grid;
+}
+
+// The value of a voxel that no tet holds: outside(x), or 0. rasterize() calls this in row order
+// after the slab's tets, so voxels v - 1 and v - 2 (same row) are final when they are outside too.
+inline void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i,
+                        std::size_t j, std::size_t k) {
+  if (!outside) {
+    field.displacement_m[v] = Eigen::Vector3f::Zero();
+    return;
+  }
+  const bool has_previous = i > 0 && field.lung[v - 1] == 0;
+  const bool has_two = has_previous && i > 1 && field.lung[v - 2] == 0;
+  Eigen::Vector3d guess = Eigen::Vector3d::Zero();
+  if (has_previous) guess = field.displacement_m[v - 1].cast<double>();
+  if (has_two) guess = 2.0 * guess - field.displacement_m[v - 2].cast<double>();
+  field.displacement_m[v] = outside(field.grid.centre_m(i, j, k), has_previous ? &guess : nullptr).cast<float>();
+}
+
 }  // namespace pneuma::voxels::detail

@@ -6,6 +6,7 @@
 #include <tuple>
 
 #include "pneuma/core/error.h"
+#include "pneuma/voxels/density.h"
 #include "pneuma/voxels/voxel_io.h"
 
 namespace pneuma::voxels {
@@ -24,7 +25,14 @@ enum class Part { forward, pullback, labels, ct, jacobian };
 template <typename Ready>
 void compute_parts(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs, TimePoint& point,
                    const Ready& ready) {
-  forward_dvf(grid, lungs, point.forward, inputs.forward_outside);
+  if (inputs.jacobian_map) {
+    // The Jacobian image's lung voxels from the forward field's rasterisation of the rest tets.
+    if (!point.jacobian_map) point.jacobian_map.emplace();
+    forward_dvf_with_jacobian(grid, lungs, point.forward, inputs.forward_outside, *point.jacobian_map,
+                              &point.rest_raster);
+  } else {
+    forward_dvf(grid, lungs, point.forward, inputs.forward_outside, &point.rest_raster);
+  }
   ready(Part::forward);
   pullback_dvf(grid, lungs, point.pullback, inputs.pullback_outside);
   ready(Part::pullback);
@@ -60,8 +68,7 @@ void compute_parts(const Grid& grid, std::span<const LungMotion> lungs, const Ti
     point.ct.reset();
   }
   if (inputs.jacobian_map) {
-    if (!point.jacobian_map) point.jacobian_map.emplace();
-    jacobian_image(lungs, point.forward, *point.jacobian_map);
+    jacobian_image_outside(point.forward, *point.jacobian_map);
     ready(Part::jacobian);
   } else {
     point.jacobian_map.reset();

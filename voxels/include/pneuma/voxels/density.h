@@ -28,6 +28,15 @@ inline constexpr float kWaterHu = 0.0f;
 // at the same scales. Deterministic at any thread count.
 void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& forward, Image& out);
 
+// forward_dvf and jacobian_image in one rasterisation of the rest tets (a time point's voxel
+// outputs rasterised them twice, #50): `field` as forward_dvf makes it, `jacobian` with the lungs'
+// voxels as jacobian_image gives them; jacobian_image_outside(field, jacobian) then gives the others
+// (central differences: after the field is whole). The same values, bit for bit, as the two apart.
+// With `rest`, replayed from it or kept there (forward_dvf's RestRaster).
+void forward_dvf_with_jacobian(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                               const OutsideField& outside, Image& jacobian, RestRaster* rest = nullptr);
+void jacobian_image_outside(const DisplacementField& forward, Image& out);
+
 // `rest_ct` with its lung parenchyma made to keep its mass at the lungs' scales: a voxel whose
 // centre lies in a lung's rest tet of Jacobian J and whose value lies between air and water
 // becomes (HU + 1000) / J - 1000, clamped to [air, water]; every other voxel keeps its value.

@@ -46,6 +46,7 @@ struct TimePoint {
   std::vector<std::uint8_t> ct_lung;  // scratch: the rest lungs on the CT grid
   // scratch: the label map's lung tissue on the CT grid and in the warped label map
   std::vector<std::uint8_t> ct_tissue, warped_tissue;
+  RestRaster rest_raster;  // scratch: the rest tets on the grid, replayed by the next time point
 };
 
 TimePoint compute_time_point(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs = {});
