@@ -130,16 +130,7 @@ void forward_dvf_with_jacobian(const Grid& grid, std::span<const LungMotion> lun
   const auto empty = [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
     detail::set_outside(field, outside, v, i, j, k);
   };
-  if (rest != nullptr) {
-    detail::rasterize_rest(grid, lungs, *rest, field.lung, visit, empty);
-    return;
-  }
-  const std::vector<detail::TetSet> sets = detail::rest_tet_sets(lungs);
-  detail::rasterize(
-      grid, std::span<const detail::TetSet>(sets), field.lung,
-      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
-          std::size_t) { visit(v, s, t, l); },
-      empty);
+  detail::rasterize_rest_tets(grid, lungs, rest, field.lung, visit, empty);
 }
 
 void jacobian_image_outside(const DisplacementField& forward, Image& out) {

@@ -242,6 +242,23 @@ void rasterize_rest(const Grid& grid, std::span<const LungMotion> lungs, RestRas
   rest.grid = grid;
 }
 
+// The rest tets rasterised through `rest` where one is given (rasterize_rest), else afresh
+// (rasterize): visit(voxel, set, tet, l) and empty as rasterize_rest's, the same calls either way.
+template <typename Visit, typename Empty>
+void rasterize_rest_tets(const Grid& grid, std::span<const LungMotion> lungs, RestRaster* rest,
+                         std::vector<std::uint8_t>& owner, const Visit& visit, const Empty& empty) {
+  if (rest != nullptr) {
+    rasterize_rest(grid, lungs, *rest, owner, visit, empty);
+    return;
+  }
+  const std::vector<TetSet> sets = rest_tet_sets(lungs);
+  rasterize(
+      grid, std::span<const TetSet>(sets), owner,
+      [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,
+          std::size_t) { visit(v, s, t, l); },
+      empty);
+}
+
 // The value of a voxel that no tet holds: outside(x), or 0. rasterize() calls this in row order
 // after the slab's tets, so voxels v - 1 and v - 2 (same row) are final when they are outside too.
 inline void set_outside(DisplacementField& field, const OutsideField& outside, std::size_t v, std::size_t i,
