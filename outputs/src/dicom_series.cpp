@@ -9,8 +9,8 @@
 #include <sstream>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/sha256.h"
 #include "pneuma/model/model.h"
-#include "sha256.h"
 
 namespace pneuma::outputs {
 namespace {
@@ -53,8 +53,8 @@ constexpr std::array<std::array<int, 3>, 8> kColours{{{128, 174, 128},
 }  // namespace
 
 std::string derived_uid(const std::string& key, const std::string& what) {
-  const Sha256Digest digest =
-      Sha256().update(key.data(), key.size()).update("\0", 1).update(what.data(), what.size()).finish();
+  const core::Sha256Digest digest =
+      core::Sha256().update(key.data(), key.size()).update("\0", 1).update(what.data(), what.size()).finish();
   std::array<unsigned char, 16> uuid{};
   std::copy_n(digest.begin(), 16, uuid.begin());
   uuid[6] = static_cast<unsigned char>((uuid[6] & 0x0F) | 0x80);  // version 8
@@ -92,13 +92,13 @@ DicomRun::DicomRun(const scenario::Scenario& scenario, const voxels::Image& ct,
                    const std::optional<image::DicomSource>& source, std::vector<voxels::Structure> structures)
     : structures_(std::move(structures)) {
   const std::string text = file_bytes(scenario.file);
-  key_ = to_hex(Sha256()
-                    .update(text.data(), text.size())
-                    .update(scenario.name.data(), scenario.name.size())
-                    .update(ct.grid.size.data(), sizeof(ct.grid.size))
-                    .update(ct.grid.ijk_to_lps.data(), sizeof(double) * 16)
-                    .update(ct.values.data(), ct.values.size() * sizeof(float))
-                    .finish());
+  key_ = core::to_hex(core::Sha256()
+                          .update(text.data(), text.size())
+                          .update(scenario.name.data(), scenario.name.size())
+                          .update(ct.grid.size.data(), sizeof(ct.grid.size))
+                          .update(ct.grid.ijk_to_lps.data(), sizeof(double) * 16)
+                          .update(ct.values.data(), ct.values.size() * sizeof(float))
+                          .finish());
   if (source) {
     study_ = *source;
     key_ += source->study_instance_uid + source->frame_of_reference_uid + source->series_instance_uid;
@@ -120,7 +120,8 @@ std::vector<std::filesystem::path> DicomRun::write(const std::filesystem::path& 
   const voxels::Image& ct = *point.ct;
   // The series' content in its UIDs: the same phase written again gets the same UIDs, another
   // content others.
-  const std::string content = to_hex(Sha256().update(ct.values.data(), ct.values.size() * sizeof(float)).finish());
+  const std::string content =
+      core::to_hex(core::Sha256().update(ct.values.data(), ct.values.size() * sizeof(float)).finish());
   const std::string phase = phase_percent >= 0.0 ? fmt::format("{:g}%", phase_percent) : tag;
   voxels::CtSeriesSpec spec;
   spec.study = study_;

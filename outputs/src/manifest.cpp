@@ -13,8 +13,8 @@
 
 #include "pneuma/core/atomic_file.h"
 #include "pneuma/core/error.h"
+#include "pneuma/core/sha256.h"
 #include "pneuma/voxels/written_digest.h"
-#include "sha256.h"
 
 namespace pneuma::outputs {
 
@@ -22,7 +22,7 @@ namespace pneuma::outputs {
 // ten phases at a label map's own grid are 20 GB that would otherwise be read back (#50).
 std::string sha256_file(const std::filesystem::path& file) {
   if (std::optional<std::string> written = voxels::written_sha256(file)) return *std::move(written);
-  return to_hex(sha256_of_file(file));
+  return core::to_hex(core::sha256_of_file(file));
 }
 
 std::vector<std::pair<std::string, std::string>> library_versions() {

@@ -2,11 +2,9 @@
 #include "direct_file.h"
 
 #include <fcntl.h>
-#include <openssl/evp.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <array>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -46,8 +44,6 @@ std::pair<long long, long long> file_mtime(const struct stat& s) {
 
 }  // namespace
 
-void DirectFile::FreeHash::operator()(evp_md_ctx_st* context) const { EVP_MD_CTX_free(context); }
-
 void AlignedFree::operator()(std::uint8_t* p) const { std::free(p); }
 
 AlignedBytes aligned_bytes(std::size_t bytes) {
@@ -57,9 +53,7 @@ AlignedBytes aligned_bytes(std::size_t bytes) {
 }
 
 DirectFile::DirectFile(const std::filesystem::path& path, std::filesystem::path name)
-    : name_(std::move(name)), hash_(EVP_MD_CTX_new()), held_(aligned_bytes(kHeldBytes)) {
-  if (!hash_ || EVP_DigestInit_ex(hash_.get(), EVP_sha256(), nullptr) != 1)
-    throw Error(ExitCode::failure, "SHA-256: OpenSSL could not start a digest");
+    : name_(std::move(name)), held_(aligned_bytes(kHeldBytes)) {
   constexpr int kFlags = O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC;
   fd_ = ::open(path.c_str(), kFlags | O_DIRECT, 0666);
   if (fd_ < 0 && errno == EINVAL) fd_ = ::open(path.c_str(), kFlags, 0666);  // no O_DIRECT here (tmpfs)
@@ -95,7 +89,7 @@ void DirectFile::flush_blocks() {
 }
 
 void DirectFile::write(const std::uint8_t* data, std::size_t size) {
-  EVP_DigestUpdate(hash_.get(), data, size);
+  hash_.update(data, size);
   if (held_size_ == 0 && reinterpret_cast<std::uintptr_t>(data) % kDirectAlign == 0) {
     const std::size_t whole = size / kDirectAlign * kDirectAlign;
     write_at(data, whole);
@@ -122,12 +116,7 @@ void DirectFile::close() {
   }
   if (::ftruncate(fd_, static_cast<off_t>(length)) != 0)
     throw IoError(name_.string() + ": cannot write (" + std::strerror(errno) + ")");
-  std::array<unsigned char, 32> digest{};
-  unsigned digest_length = 0;
-  EVP_DigestFinal_ex(hash_.get(), digest.data(), &digest_length);
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string hex;
-  for (const unsigned char byte : digest) hex += {kHex[byte >> 4], kHex[byte & 15]};
+  std::string hex = core::to_hex(hash_.finish());
   struct stat s {};
   if (::fstat(fd_, &s) == 0) {
     const std::lock_guard lock(written_mutex);

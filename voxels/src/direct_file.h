@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <memory>
 
-struct evp_md_ctx_st;  // OpenSSL's EVP_MD_CTX, kept out of this header
+#include "pneuma/core/sha256.h"
 
 namespace pneuma::voxels::detail {
 
@@ -42,12 +42,9 @@ class DirectFile {
  private:
   void write_at(const std::uint8_t* data, std::size_t size);  // whole blocks (or the padded tail)
   void flush_blocks();
-  struct FreeHash {
-    void operator()(evp_md_ctx_st* context) const;
-  };
   int fd_ = -1;
   std::filesystem::path name_;
-  std::unique_ptr<evp_md_ctx_st, FreeHash> hash_;
+  core::Sha256 hash_;
   std::size_t offset_ = 0;  // bytes on disk
   AlignedBytes held_;       // bytes not yet written (at most 4 MiB)
   std::size_t held_size_ = 0;

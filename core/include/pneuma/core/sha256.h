@@ -1,5 +1,6 @@
-// SHA-256 through OpenSSL's EVP interface, for the manifest's file checksums and the DICOM
-// output's content-derived UIDs (one implementation, so both hash the same way).
+// SHA-256 through OpenSSL's EVP interface, for the manifest's file checksums, the DICOM output's
+// content-derived UIDs and the voxel files hashed as they are written (one implementation, so all
+// hash the same way).
 #pragma once
 
 #include <array>
@@ -10,7 +11,7 @@
 
 struct evp_md_ctx_st;  // OpenSSL's EVP_MD_CTX, kept out of this header
 
-namespace pneuma::outputs {
+namespace pneuma::core {
 
 using Sha256Digest = std::array<unsigned char, 32>;
 
@@ -35,4 +36,4 @@ std::string to_hex(const Sha256Digest& digest);
 // The digest of a file's bytes, read in 64 KiB chunks. Throws IoError when it cannot be read.
 Sha256Digest sha256_of_file(const std::filesystem::path& file);
 
-}  // namespace pneuma::outputs
+}  // namespace pneuma::core

@@ -1,4 +1,4 @@
-#include "sha256.h"
+#include "pneuma/core/sha256.h"
 
 #include <openssl/evp.h>
 
@@ -7,7 +7,7 @@
 
 #include "pneuma/core/error.h"
 
-namespace pneuma::outputs {
+namespace pneuma::core {
 
 void Sha256::Free::operator()(evp_md_ctx_st* context) const { EVP_MD_CTX_free(context); }
 
@@ -52,4 +52,4 @@ Sha256Digest sha256_of_file(const std::filesystem::path& file) {
   return hash.finish();
 }
 
-}  // namespace pneuma::outputs
+}  // namespace pneuma::core
