@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "pneuma/core/error.h"
 
@@ -14,6 +15,29 @@ mesh::SurfaceRegions regions_of(const Tissue& tissue, const mesh::TriangleMesh& 
   mesh::RegionOptions options;
   options.axes = body_axes(tissue);
   return mesh::find_regions(mesh, options);
+}
+
+// Each vertex's height along the posture's dependent direction (metres), and their range.
+struct Heights {
+  std::vector<double> at_m;
+  double lo_m = 0.0, hi_m = 0.0;
+};
+Heights dependent_heights(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
+  const Eigen::Vector3d d = dependent_direction(tissue);
+  Heights h{std::vector<double>(mesh.vertices.size()), std::numeric_limits<double>::infinity(),
+            -std::numeric_limits<double>::infinity()};
+  for (std::size_t i = 0; i < h.at_m.size(); ++i) {
+    h.at_m[i] = d.dot(mesh.vertices[i]);
+    h.lo_m = std::min(h.lo_m, h.at_m[i]);
+    h.hi_m = std::max(h.hi_m, h.at_m[i]);
+  }
+  return h;
+}
+
+// 0 at the most non-dependent vertex, 1 at the most dependent (all 0 if flat).
+std::vector<double> dependent_position(Heights h) {
+  for (double& v : h.at_m) v = h.hi_m > h.lo_m ? (v - h.lo_m) / (h.hi_m - h.lo_m) : 0.0;
+  return std::move(h.at_m);
 }
 
 }  // namespace
@@ -28,16 +52,7 @@ Eigen::Vector3d dependent_direction(const Tissue& tissue) {
 }
 
 std::vector<double> dependent_position(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
-  const Eigen::Vector3d d = dependent_direction(tissue);
-  std::vector<double> depth(mesh.vertices.size());
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  for (std::size_t i = 0; i < depth.size(); ++i) {
-    depth[i] = d.dot(mesh.vertices[i]);
-    lo = std::min(lo, depth[i]);
-    hi = std::max(hi, depth[i]);
-  }
-  for (double& v : depth) v = hi > lo ? (v - lo) / (hi - lo) : 0.0;
-  return depth;
+  return dependent_position(dependent_heights(tissue, mesh));
 }
 
 std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::TriangleMesh& mesh,
@@ -102,18 +117,14 @@ std::vector<double> shear_modulus_per_vertex(const Tissue& tissue, const mesh::T
 
 std::vector<double> gravity_factor(const Tissue& tissue, const mesh::TriangleMesh& mesh, double a, double b,
                                    double depth_m) {
-  std::vector<double> factor = dependent_position(tissue, mesh);
+  Heights heights = dependent_heights(tissue, mesh);
+  const double lo = heights.lo_m, hi = heights.hi_m;
+  std::vector<double> factor = dependent_position(std::move(heights));
   if (!(depth_m > 0.0)) {
     for (double& x : factor) x = a + x * (b - a);
     return factor;
   }
   // The same gradient per metre on any lung: its depth along the axis scales the span a..b.
-  const Eigen::Vector3d d = dependent_direction(tissue);
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  for (const Eigen::Vector3d& v : mesh.vertices) {
-    lo = std::min(lo, d.dot(v));
-    hi = std::max(hi, d.dot(v));
-  }
   const double span = hi > lo ? (hi - lo) / depth_m : 0.0;
   for (double& x : factor) x = std::max(0.0, 0.5 * (a + b) + (x - 0.5) * span * (b - a));
   return factor;
