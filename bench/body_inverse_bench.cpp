@@ -64,13 +64,7 @@ int main(int argc, char** argv) {
   if (spacing_m > 0.0) grid = voxels::grid_with_spacing(grid, spacing_m);
   fmt::print("grid {} x {} x {} ({:.1f} Mvoxels)\n", grid.size[0], grid.size[1], grid.size[2],
              static_cast<double>(grid.voxel_count()) * 1e-6);
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (int corner = 0; corner < 8; ++corner) {
-    const Eigen::Vector3d p = grid.centre_m((corner & 1) ? grid.size[0] - 1 : 0, (corner & 2) ? grid.size[1] - 1 : 0,
-                                            (corner & 4) ? grid.size[2] - 1 : 0);
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
+  const auto [lo, hi] = grid.centres_box_m();
 
   for (const bool highest : {false, true}) {
     std::vector<double> scales;
