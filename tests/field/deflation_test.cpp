@@ -86,6 +86,20 @@ TEST(DeflationField, SizesThatDoNotMatchAreRefused) {
   EXPECT_THROW(steepest_pair_slope(sphere.vertices, std::vector<Eigen::Vector3d>(3), 1.0), ValueError);
 }
 
+// d(x) for each point, as a new vector.
+template <typename F>
+std::vector<Eigen::Vector3d> field_at(const std::vector<Eigen::Vector3d>& x, F&& d) {
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(x.size());
+  for (const Eigen::Vector3d& p : x) out.push_back(d(p));
+  return out;
+}
+
+// s u, per vertex.
+std::vector<Eigen::Vector3d> times(double s, const std::vector<Eigen::Vector3d>& u) {
+  return field_at(u, [s](const Eigen::Vector3d& v) -> Eigen::Vector3d { return s * v; });
+}
+
 // The largest |d_i - d_j| / |x_i - x_j| over every pair, counted directly: the oracle.
 double slope_over_all_pairs(const std::vector<Eigen::Vector3d>& x, const std::vector<Eigen::Vector3d>& d) {
   double steepest = 0.0;
@@ -116,8 +130,8 @@ TEST(Contraction, ALinearMapsSlopeIsItsLargestSingularValue) {
   rotation << 1, 0, 0, 0, std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a);
   for (const double sigma : {0.5, 0.99, 1.01, 1.5}) {
     const Eigen::Matrix3d map = rotation * Eigen::Vector3d(sigma, 0.4, -0.3).asDiagonal();
-    std::vector<Eigen::Vector3d> d;
-    for (const Eigen::Vector3d& p : x) d.push_back(map * p);
+    const std::vector<Eigen::Vector3d> d =
+        field_at(x, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return map * p; });
     EXPECT_NEAR(steepest_pair_slope(x, d, 1.0), sigma, 1e-12) << sigma;
     EXPECT_EQ(is_contraction(x, d), sigma < 1.0) << sigma;
   }
@@ -130,8 +144,9 @@ TEST(Contraction, AWaveSlopeIsItsAmplitudeTimesItsWavenumber) {
   const std::vector<Eigen::Vector3d> x = lattice();
   const double k = 2.0 * std::numbers::pi / 0.06;  // one wavelength across the lattice
   for (const double lipschitz : {0.8, 1.2}) {
-    std::vector<Eigen::Vector3d> d;
-    for (const Eigen::Vector3d& p : x) d.emplace_back(0.0, lipschitz / k * std::sin(k * (p.x() - 2.5e-3)), 0.0);
+    const std::vector<Eigen::Vector3d> d = field_at(x, [&](const Eigen::Vector3d& p) {
+      return Eigen::Vector3d(0.0, lipschitz / k * std::sin(k * (p.x() - 2.5e-3)), 0.0);
+    });
     const double slope = steepest_pair_slope(x, d, 1.0);
     EXPECT_NEAR(slope, lipschitz * std::sin(k * 2.5e-3) / (k * 2.5e-3), 1e-12);
     EXPECT_EQ(is_contraction(x, d), lipschitz < 1.0) << lipschitz;
@@ -143,13 +158,15 @@ TEST(Contraction, AWaveSlopeIsItsAmplitudeTimesItsWavenumber) {
 // the grid; random fields agree with every pair counted directly, at one thread and at all.
 TEST(Contraction, FarPairsAreFoundAndEveryPairAgreesWithTheDirectCount) {
   std::vector<Eigen::Vector3d> x;
-  for (int i = 0; i < 20; ++i) {
-    x.emplace_back(1e-3 * (i % 4), 1e-3 * (i / 4), 0.0);
-    x.emplace_back(1e-3 * (i % 4), 1e-3 * (i / 4), 0.04);
+  for (int a = 0; a < 4; ++a) {
+    for (int b = 0; b < 5; ++b) {
+      x.emplace_back(1e-3 * a, 1e-3 * b, 0.0);
+      x.emplace_back(1e-3 * a, 1e-3 * b, 0.04);
+    }
   }
   for (const double push : {0.0195, 0.0205}) {
-    std::vector<Eigen::Vector3d> d;
-    for (const Eigen::Vector3d& p : x) d.emplace_back(0.0, 0.0, p.z() > 0.0 ? -push : push);
+    const std::vector<Eigen::Vector3d> d =
+        field_at(x, [&](const Eigen::Vector3d& p) { return Eigen::Vector3d(0.0, 0.0, p.z() > 0.0 ? -push : push); });
     EXPECT_NEAR(slope_over_all_pairs(x, d), 2.0 * push / 0.04, 1e-12);
     EXPECT_EQ(is_contraction(x, d), 2.0 * push < 0.04) << push;
   }
@@ -192,13 +209,12 @@ TEST(DeflationLadder, AFieldThatStretchesPairsApartIsSmoothedUntilItContracts) {
   const double depth_m3 = 100e-6;                                   // 100 mL of its 524 mL
   const double k = 2.0 * std::numbers::pi / 0.02;                   // a shear of 20 mm wavelength
   for (const double shear : {0.0, 1.5e-3}) {
-    std::vector<Eigen::Vector3d> u;
-    for (const Eigen::Vector3d& p : sphere.vertices)
-      u.push_back(1e-3 * p.normalized() + shear * std::sin(k * p.z()) * Eigen::Vector3d(-p.y(), p.x(), 0.0) / 0.05);
+    const std::vector<Eigen::Vector3d> u = field_at(sphere.vertices, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+      return 1e-3 * p.normalized() + shear * std::sin(k * p.z()) * Eigen::Vector3d(-p.y(), p.x(), 0.0) / 0.05;
+    });
     const double s = scale_at_depth(sphere, u, 1.5 * depth_m3);
     ASSERT_LT(s, -4.0);  // the radius shrinks by about 5 mm
-    std::vector<Eigen::Vector3d> d;
-    for (const Eigen::Vector3d& v : u) d.push_back(s * v);
+    const std::vector<Eigen::Vector3d> d = times(s, u);
     mesh::TriangleMesh moved = sphere;
     for (std::size_t i = 0; i < d.size(); ++i) moved.vertices[i] += d[i];
     ASSERT_FALSE(mesh::self_intersects(moved)) << shear;
@@ -214,17 +230,14 @@ TEST(DeflationLadder, AFieldThatStretchesPairsApartIsSmoothedUntilItContracts) {
     ASSERT_GT(field.sigma_m, 0.0);
     std::cout << "the sheared sphere's field is smoothed at " << field.sigma_m * 1e3 << " mm\n";
     const double s_kept = scale_at_depth(sphere, field.unit_displacement, 1.5 * depth_m3);
-    std::vector<Eigen::Vector3d> kept;
-    for (const Eigen::Vector3d& v : field.unit_displacement) kept.push_back(s_kept * v);
-    EXPECT_LT(slope_over_all_pairs(sphere.vertices, kept), 1.0) << field.sigma_m * 1e3 << " mm";
+    EXPECT_LT(slope_over_all_pairs(sphere.vertices, times(s_kept, field.unit_displacement)), 1.0)
+        << field.sigma_m * 1e3 << " mm";
     // The least smoothing that works: the ladder's step below it still stretches a pair apart.
     const double below =
         field.sigma_m > 2.1e-3 ? (field.sigma_m > 8.1e-3 ? field.sigma_m - 4e-3 : field.sigma_m - 2e-3) : 0.0;
     const std::vector<Eigen::Vector3d> less = smooth_field_in_space(sphere, u, below);
     const double s_less = scale_at_depth(sphere, less, 1.5 * depth_m3);
-    std::vector<Eigen::Vector3d> d_less;
-    for (const Eigen::Vector3d& v : less) d_less.push_back(s_less * v);
-    EXPECT_GE(slope_over_all_pairs(sphere.vertices, d_less), 1.0) << below * 1e3 << " mm";
+    EXPECT_GE(slope_over_all_pairs(sphere.vertices, times(s_less, less)), 1.0) << below * 1e3 << " mm";
   }
 }
 
