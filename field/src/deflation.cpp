@@ -3,9 +3,11 @@
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <unordered_map>
@@ -29,7 +31,45 @@ struct Grid {
             static_cast<std::int64_t>(std::floor(q.z()))};
   }
   static std::int64_t key(std::int64_t i, std::int64_t j, std::int64_t k) { return (i * 4096 + j) * 4096 + k; }
+
+  // The grid of `points` with cells of `size` (keys that collide only put more points in a cell).
+  static Grid of(const std::vector<Eigen::Vector3d>& points, double size) {
+    Grid grid;
+    grid.cell = size;
+    grid.origin = points.front();
+    for (const Eigen::Vector3d& p : points) grid.origin = grid.origin.cwiseMin(p);
+    for (std::uint32_t v = 0; v < points.size(); ++v) {
+      const auto [i, j, k] = grid.index(points[v]);
+      grid.cells[key(i, j, k)].push_back(v);
+    }
+    return grid;
+  }
 };
+
+void require_sizes(const char* what, std::size_t fields, std::size_t points) {
+  if (fields != points) throw ValueError(fmt::format("{}: {} displacements for {} points", what, fields, points));
+}
+
+// Calls visit(w, |x_w - x_v|^2) for every point w > v of the grid's cells around v's (each pair
+// once, in ascending order of cell and index) until it returns false; false then.
+template <typename Visit>
+bool visit_later_neighbours(const Grid& grid, const std::vector<Eigen::Vector3d>& points, std::size_t v,
+                            Visit&& visit) {
+  const Eigen::Vector3d& x = points[v];
+  const auto [ci, cj, ck] = grid.index(x);
+  for (std::int64_t i = ci - 1; i <= ci + 1; ++i) {
+    for (std::int64_t j = cj - 1; j <= cj + 1; ++j) {
+      for (std::int64_t k = ck - 1; k <= ck + 1; ++k) {
+        const auto cell = grid.cells.find(Grid::key(i, j, k));
+        if (cell == grid.cells.end()) continue;
+        for (const std::uint32_t w : cell->second) {
+          if (w > v && !visit(w, (points[w] - x).squaredNorm())) return false;
+        }
+      }
+    }
+  }
+  return true;
+}
 
 }  // namespace
 
@@ -40,14 +80,8 @@ std::vector<Eigen::Vector3d> smooth_field_in_space(const mesh::TriangleMesh& res
         fmt::format("smooth_field_in_space: {} displacements for {} vertices", u.size(), rest.vertices.size()));
   if (!(sigma_m > 0.0) || rest.vertices.empty()) return u;
   const std::vector<double> area = mesh::vertex_areas(rest);  // a third of each triangle to its corners
-  Grid grid;
-  grid.cell = 4.0 * sigma_m;  // the kernel's reach: exp(-8) of the centre weight beyond it
-  grid.origin = rest.vertices.front();
-  for (const Eigen::Vector3d& p : rest.vertices) grid.origin = grid.origin.cwiseMin(p);
-  for (std::uint32_t v = 0; v < rest.vertices.size(); ++v) {
-    const auto [i, j, k] = grid.index(rest.vertices[v]);
-    grid.cells[Grid::key(i, j, k)].push_back(v);
-  }
+  // Cells of the kernel's reach: exp(-8) of the centre weight beyond it.
+  const Grid grid = Grid::of(rest.vertices, 4.0 * sigma_m);
   const double reach2 = grid.cell * grid.cell;
   const double inv_two_sigma2 = 1.0 / (2.0 * sigma_m * sigma_m);
   std::vector<Eigen::Vector3d> out(u.size());
@@ -90,6 +124,57 @@ std::vector<Eigen::Vector3d> smooth_field_in_space(const mesh::TriangleMesh& res
                                  sigma_m * 1e3));
   for (Eigen::Vector3d& d : out) d *= before / after;
   return out;
+}
+
+double steepest_pair_slope(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& d,
+                           double radius_m) {
+  require_sizes("steepest_pair_slope", d.size(), points.size());
+  if (!(radius_m > 0.0) || points.size() < 2) return 0.0;
+  const Grid grid = Grid::of(points, radius_m);
+  const double reach2 = radius_m * radius_m;
+  const tsan::Region region;
+  // A maximum does not depend on the order it is taken in: the same answer at any thread count.
+  const double steepest =
+      tbb::parallel_reduce(tbb::blocked_range<std::size_t>(0, points.size(), 128), 0.0,
+                           region.wrap([&](const tbb::blocked_range<std::size_t>& r, double most) {
+                             for (std::size_t v = r.begin(); v != r.end(); ++v) {
+                               visit_later_neighbours(grid, points, v, [&](std::uint32_t w, double d2) {
+                                 // Every pair's own ratio (no shortcut whose rounding could depend on the order).
+                                 if (d2 <= reach2 && d2 > 0.0)
+                                   most = std::max(most, std::sqrt((d[w] - d[v]).squaredNorm() / d2));
+                                 return true;
+                               });
+                             }
+                             return most;
+                           }),
+                           [](double a, double b) { return std::max(a, b); });
+  region.join();
+  return steepest;
+}
+
+bool is_contraction(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& d) {
+  require_sizes("is_contraction", d.size(), points.size());
+  double largest = 0.0;
+  for (const Eigen::Vector3d& v : d) largest = std::max(largest, v.norm());
+  if (!(largest > 0.0) || points.size() < 2) return true;
+  // |d_v - d_w| <= |d_v| + largest: a pair farther apart than that cannot fail, so each point
+  // visits the cells within 2 largest and tests only the pairs within its own bound.
+  const Grid grid = Grid::of(points, 2.0 * largest);
+  std::atomic<bool> stretched{false};  // the answer, whichever pair finds it first
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 64),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t v = r.begin(); v != r.end(); ++v) {
+                        if (stretched.load(std::memory_order_relaxed)) return;
+                        const double bound = d[v].norm() + largest;
+                        const bool contracts = visit_later_neighbours(grid, points, v, [&](std::uint32_t w, double d2) {
+                          return !(d2 <= bound * bound && d2 > 0.0) || (d[w] - d[v]).squaredNorm() < d2;
+                        });
+                        if (!contracts) stretched.store(true, std::memory_order_relaxed);
+                      }
+                    }));
+  region.join();
+  return !stretched.load();
 }
 
 }  // namespace pneuma::field

@@ -1,6 +1,7 @@
 // The field of a lung that breathes below its rest shape (docs/voxels.md, "The scan's place on
 // the breath"): the inflation's field, smoothed in space just enough that its mirror does not
-// pass one face of a thin part of the lung through the other.
+// pass one face of a thin part of the lung through the other nor stretch the surface between two
+// of its points by more than their distance.
 #include <array>
 
 #include "pneuma/core/error.h"
@@ -13,12 +14,20 @@ namespace pneuma::model {
 namespace {
 
 // True when rest + s u, at the scale whose volume is `depth_m3` below rest's, is a surface
-// without self-intersection (false also when u cannot deflate that far).
+// without self-intersection whose displacement s u is a contraction on the surface (false also
+// when u cannot deflate that far). The contraction keeps the inside from tearing where the
+// surface alone does not cross itself: s u with a Lipschitz constant below 1 on the surface
+// extends into the lung with the same constant (Kirszbraun), so no two of the inside's
+// neighbours need part by more than their distance (the upright phantom's lateral base, where the
+// still costal face meets the rising dome 10-40 mm away, did: docs/voxels.md).
 bool deflates_cleanly(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& u, double depth_m3) {
   const VolumeScaleMap map(rest.vertices, u, rest.triangles);
   const double target = map.volume(0.0) - depth_m3;
   if (!map.reachable(target)) return false;
   const double s = map.scale_for(target);
+  std::vector<Eigen::Vector3d> displacement(u.size());
+  for (std::size_t i = 0; i < u.size(); ++i) displacement[i] = s * u[i];
+  if (!field::is_contraction(rest.vertices, displacement)) return false;
   mesh::TriangleMesh moved = rest;
   for (std::size_t i = 0; i < moved.vertices.size(); ++i) moved.vertices[i] += s * u[i];
   return !mesh::self_intersects(moved);

@@ -3,16 +3,26 @@
 // radial (symmetry) with the same first-order area rate (the area unit kept, mesh::area_gradient);
 // a field with a step across the equator gets a spatial slope of at most its range over sigma
 // (the bound the smoothing is for) where it had one of its range over an edge; the same bits at
-// one and at two threads; sigma 0 returns the field untouched.
+// one and at two threads; sigma 0 returns the field untouched. The contraction test
+// (field::is_contraction, steepest_pair_slope) against displacements whose Lipschitz constant is
+// known in closed form and against the slope over every pair counted directly; the deflation's
+// ladder (model::field_for_deflation) on a sphere sheared along itself, which never
+// self-intersects but stretches pairs of points apart.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
+#include <iostream>
+#include <numbers>
+#include <random>
 
 #include "pneuma/core/error.h"
 #include "pneuma/field/deflation.h"
+#include "pneuma/mesh/geometry/surface_queries.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/model/model.h"
+#include "pneuma/model/volume_scale.h"
 
 namespace pneuma::field {
 namespace {
@@ -72,6 +82,163 @@ TEST(DeflationField, AStepGetsASlopeOfAtMostItsRangeOverSigmaTheSameAtAnyThreadC
 TEST(DeflationField, SizesThatDoNotMatchAreRefused) {
   const mesh::TriangleMesh sphere = mesh::make_icosphere(0.05, 1);
   EXPECT_THROW(smooth_field_in_space(sphere, std::vector<Eigen::Vector3d>(3), 1e-3), ValueError);
+  EXPECT_THROW(is_contraction(sphere.vertices, std::vector<Eigen::Vector3d>(3)), ValueError);
+  EXPECT_THROW(steepest_pair_slope(sphere.vertices, std::vector<Eigen::Vector3d>(3), 1.0), ValueError);
+}
+
+// d(x) for each point, as a new vector.
+template <typename F>
+std::vector<Eigen::Vector3d> field_at(const std::vector<Eigen::Vector3d>& x, F&& d) {
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(x.size());
+  for (const Eigen::Vector3d& p : x) out.push_back(d(p));
+  return out;
+}
+
+// s u, per vertex.
+std::vector<Eigen::Vector3d> times(double s, const std::vector<Eigen::Vector3d>& u) {
+  return field_at(u, [s](const Eigen::Vector3d& v) -> Eigen::Vector3d { return s * v; });
+}
+
+// The largest |d_i - d_j| / |x_i - x_j| over every pair, counted directly: the oracle.
+double slope_over_all_pairs(const std::vector<Eigen::Vector3d>& x, const std::vector<Eigen::Vector3d>& d) {
+  double steepest = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    for (std::size_t j = i + 1; j < x.size(); ++j)
+      steepest = std::max(steepest, (d[i] - d[j]).norm() / (x[i] - x[j]).norm());
+  }
+  return steepest;
+}
+
+// A 13 x 13 x 13 lattice of 5 mm (60 mm across).
+std::vector<Eigen::Vector3d> lattice() {
+  std::vector<Eigen::Vector3d> x;
+  for (int i = 0; i < 13; ++i) {
+    for (int j = 0; j < 13; ++j) {
+      for (int k = 0; k < 13; ++k) x.emplace_back(5e-3 * i, 5e-3 * j, 5e-3 * k);
+    }
+  }
+  return x;
+}
+
+// d(x) = A x has the Lipschitz constant of A's largest singular value, reached by every pair
+// along its right singular vector (the lattice's x axis here): the contraction test flips there.
+TEST(Contraction, ALinearMapsSlopeIsItsLargestSingularValue) {
+  const std::vector<Eigen::Vector3d> x = lattice();
+  Eigen::Matrix3d rotation;  // about x, so that x stays A's top right singular vector
+  const double a = 0.7;
+  rotation << 1, 0, 0, 0, std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a);
+  for (const double sigma : {0.5, 0.99, 1.01, 1.5}) {
+    const Eigen::Matrix3d map = rotation * Eigen::Vector3d(sigma, 0.4, -0.3).asDiagonal();
+    const std::vector<Eigen::Vector3d> d =
+        field_at(x, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return map * p; });
+    EXPECT_NEAR(steepest_pair_slope(x, d, 1.0), sigma, 1e-12) << sigma;
+    EXPECT_EQ(is_contraction(x, d), sigma < 1.0) << sigma;
+  }
+}
+
+// d = a sin(k (x - h / 2)) along y: Lipschitz constant a k, which the pairs of the h = 5 mm lattice
+// straddling a zero of the sine reach to within the chord's shortfall (sin(k h / 2) / (k h / 2),
+// 0.9886 here).
+TEST(Contraction, AWaveSlopeIsItsAmplitudeTimesItsWavenumber) {
+  const std::vector<Eigen::Vector3d> x = lattice();
+  const double k = 2.0 * std::numbers::pi / 0.06;  // one wavelength across the lattice
+  for (const double lipschitz : {0.8, 1.2}) {
+    const std::vector<Eigen::Vector3d> d = field_at(x, [&](const Eigen::Vector3d& p) {
+      return Eigen::Vector3d(0.0, lipschitz / k * std::sin(k * (p.x() - 2.5e-3)), 0.0);
+    });
+    const double slope = steepest_pair_slope(x, d, 1.0);
+    EXPECT_NEAR(slope, lipschitz * std::sin(k * 2.5e-3) / (k * 2.5e-3), 1e-12);
+    EXPECT_EQ(is_contraction(x, d), lipschitz < 1.0) << lipschitz;
+  }
+}
+
+// Only pairs closer than 2 max |d| can fail, and is_contraction visits no other: two clusters
+// 40 mm apart pushed towards each other fail exactly when their gap closes (2 a >= 40 mm), whatever
+// the grid; random fields agree with every pair counted directly, at one thread and at all.
+TEST(Contraction, FarPairsAreFoundAndEveryPairAgreesWithTheDirectCount) {
+  std::vector<Eigen::Vector3d> x;
+  for (int a = 0; a < 4; ++a) {
+    for (int b = 0; b < 5; ++b) {
+      x.emplace_back(1e-3 * a, 1e-3 * b, 0.0);
+      x.emplace_back(1e-3 * a, 1e-3 * b, 0.04);
+    }
+  }
+  for (const double push : {0.0195, 0.0205}) {
+    const std::vector<Eigen::Vector3d> d =
+        field_at(x, [&](const Eigen::Vector3d& p) { return Eigen::Vector3d(0.0, 0.0, p.z() > 0.0 ? -push : push); });
+    EXPECT_NEAR(slope_over_all_pairs(x, d), 2.0 * push / 0.04, 1e-12);
+    EXPECT_EQ(is_contraction(x, d), 2.0 * push < 0.04) << push;
+  }
+  std::mt19937 random(45);
+  std::uniform_real_distribution<double> place(-0.05, 0.05);
+  std::normal_distribution<double> wobble(0.0, 1.0);
+  for (const double scale : {0.002, 0.004, 0.006, 0.01}) {
+    std::vector<Eigen::Vector3d> points, d;
+    for (int i = 0; i < 600; ++i) {
+      const Eigen::Vector3d p(place(random), place(random), place(random));
+      points.push_back(p);
+      // Smooth (a slope of about scale / 0.02 m) plus a little noise, so that the ratios spread.
+      d.push_back(scale * Eigen::Vector3d(std::sin(p.y() / 0.02), std::cos(p.z() / 0.02), std::sin(p.x() / 0.02)) +
+                  1e-4 * Eigen::Vector3d(wobble(random), wobble(random), wobble(random)));
+    }
+    const double every_pair = slope_over_all_pairs(points, d);
+    double largest = 0.0;
+    for (const Eigen::Vector3d& v : d) largest = std::max(largest, v.norm());
+    EXPECT_EQ(steepest_pair_slope(points, d, 1.0), every_pair) << scale;
+    EXPECT_EQ(is_contraction(points, d), every_pair < 1.0) << scale << ": " << every_pair;
+    const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    EXPECT_EQ(steepest_pair_slope(points, d, 2.0 * largest), steepest_pair_slope(points, d, 1.0)) << scale;
+    EXPECT_EQ(is_contraction(points, d), every_pair < 1.0) << scale;
+  }
+}
+
+// The sphere's volume `depth_m3` below its rest volume under rest + s u: s.
+double scale_at_depth(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& u, double depth_m3) {
+  const model::VolumeScaleMap map(rest.vertices, u, rest.triangles);
+  return map.scale_for(map.volume(0.0) - depth_m3);
+}
+
+// The deflation's ladder asks for a contraction: a sphere whose field shrinks it radially and
+// shears it along itself (each ring of latitude turned about the axis by a wave in z, a map
+// that is one to one at any amplitude: the surface never crosses itself) is smoothed once the
+// shear stretches pairs apart at 1.5 times the depth, and the field it keeps is then a contraction
+// there by every pair counted directly; without the shear the field is kept as it is.
+TEST(DeflationLadder, AFieldThatStretchesPairsApartIsSmoothedUntilItContracts) {
+  const mesh::TriangleMesh sphere = mesh::make_icosphere(0.05, 4);  // 2562 vertices, edges about 4 mm
+  const double depth_m3 = 100e-6;                                   // 100 mL of its 524 mL
+  const double k = 2.0 * std::numbers::pi / 0.02;                   // a shear of 20 mm wavelength
+  for (const double shear : {0.0, 1.5e-3}) {
+    const std::vector<Eigen::Vector3d> u = field_at(sphere.vertices, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+      return 1e-3 * p.normalized() + shear * std::sin(k * p.z()) * Eigen::Vector3d(-p.y(), p.x(), 0.0) / 0.05;
+    });
+    const double s = scale_at_depth(sphere, u, 1.5 * depth_m3);
+    ASSERT_LT(s, -4.0);  // the radius shrinks by about 5 mm
+    const std::vector<Eigen::Vector3d> d = times(s, u);
+    mesh::TriangleMesh moved = sphere;
+    for (std::size_t i = 0; i < d.size(); ++i) moved.vertices[i] += d[i];
+    ASSERT_FALSE(mesh::self_intersects(moved)) << shear;
+    const double unsmoothed = slope_over_all_pairs(sphere.vertices, d);
+    const model::DeflationField field = model::field_for_deflation(sphere, u, depth_m3);
+    if (shear == 0.0) {
+      EXPECT_LT(unsmoothed, 0.2);  // |s| / radius: about 0.1
+      EXPECT_EQ(field.sigma_m, 0.0);
+      EXPECT_EQ(field.unit_displacement, u);
+      continue;
+    }
+    EXPECT_GT(unsmoothed, 2.0);  // |s| shear k: about 2.5 at the equator
+    ASSERT_GT(field.sigma_m, 0.0);
+    std::cout << "the sheared sphere's field is smoothed at " << field.sigma_m * 1e3 << " mm\n";
+    const double s_kept = scale_at_depth(sphere, field.unit_displacement, 1.5 * depth_m3);
+    EXPECT_LT(slope_over_all_pairs(sphere.vertices, times(s_kept, field.unit_displacement)), 1.0)
+        << field.sigma_m * 1e3 << " mm";
+    // The least smoothing that works: the ladder's step below it still stretches a pair apart.
+    const double below =
+        field.sigma_m > 2.1e-3 ? (field.sigma_m > 8.1e-3 ? field.sigma_m - 4e-3 : field.sigma_m - 2e-3) : 0.0;
+    const std::vector<Eigen::Vector3d> less = smooth_field_in_space(sphere, u, below);
+    const double s_less = scale_at_depth(sphere, less, 1.5 * depth_m3);
+    EXPECT_GE(slope_over_all_pairs(sphere.vertices, times(s_less, less)), 1.0) << below * 1e3 << " mm";
+  }
 }
 
 }  // namespace

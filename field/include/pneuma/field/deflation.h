@@ -25,4 +25,20 @@ namespace pneuma::field {
 std::vector<Eigen::Vector3d> smooth_field_in_space(const mesh::TriangleMesh& rest,
                                                    const std::vector<Eigen::Vector3d>& u, double sigma_m);
 
+// Whether the displacement `d` (per point of `points`) is a contraction on them:
+// |d_i - d_j| < |x_i - x_j| for every pair of distinct points. A displacement whose Lipschitz
+// constant is below 1 maps the points one to one (x + d(x) is then bi-Lipschitz), and by
+// Kirszbraun's theorem it extends into the space between them with the same constant, so the
+// lung's inside can follow it with no two neighbours more than their distance apart. Only pairs
+// closer than 2 max |d| can fail (|d_i - d_j| <= 2 max |d|), so only those are visited, through a
+// grid of that size: about a lung's neighbourhood instead of all pairs. Exact, in parallel, the
+// same answer at any thread count. Throws ValueError when the sizes do not match.
+bool is_contraction(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& d);
+
+// The largest |d_i - d_j| / |x_i - x_j| over the pairs of distinct points closer than `radius_m`
+// (0 when there is none): the displacement's Lipschitz constant on them where radius_m reaches
+// every pair. is_contraction's measure, for tests and probes.
+double steepest_pair_slope(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& d,
+                           double radius_m);
+
 }  // namespace pneuma::field

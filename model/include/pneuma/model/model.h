@@ -129,10 +129,11 @@ void check_no_fold(const Model& model, std::span<const LungScales> scales);
 const std::vector<double>& lung_volumes(const physiology::SimulationResult& drive, int compartment);
 
 // The surface field for a lung that deflates `depth_m3` below its rest shape (a scan above FRC):
-// `u` itself where rest + s u does not self-intersect at 1.5 times that depth, else u smoothed in
-// space (field::smooth_field_in_space) at the first of 2, 4, 6, 8, 12, 16 mm whose deflation does not
-// (the largest when none does: check_no_fold then names the scale). docs/voxels.md, "The scan's
-// place on the breath".
+// `u` itself where rest + s u at 1.5 times that depth neither self-intersects nor stretches two
+// surface points apart by more than their distance (s u a contraction: field::is_contraction),
+// else u smoothed in space (field::smooth_field_in_space) at the first of 2, 4, 6, 8, 12, 16 mm
+// whose deflation passes both (the largest when none does: check_no_fold then names the scale).
+// docs/voxels.md, "The scan's place on the breath".
 struct DeflationField {
   std::vector<Eigen::Vector3d> unit_displacement;
   double sigma_m = 0.0;
