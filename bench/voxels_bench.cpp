@@ -101,7 +101,8 @@ void BM_ForwardDvf(benchmark::State& state) {
 // about a voxel, the per-tet set-up against the voxels (#50, "The 2 mm grid's fixed costs").
 void BM_RestLungs(benchmark::State& state) {
   const Scene& s = scene();
-  const Grid grid = state.range(0) == 0 ? s.grid : grid_with_spacing(s.grid, 1e-4 * static_cast<double>(state.range(0)));
+  const Grid grid =
+      state.range(0) == 0 ? s.grid : grid_with_spacing(s.grid, 1e-4 * static_cast<double>(state.range(0)));
   for (auto _ : state) benchmark::DoNotOptimize(rest_lungs(grid, s.lungs()).data());
   state.counters["tets"] = static_cast<double>(s.mesh.tet_count());
   state.counters["voxels"] = static_cast<double>(grid.voxel_count());

@@ -336,7 +336,8 @@ TEST(Dvf, EachVoxelOfACoarseGridTakesTheLowestTetHoldingItsCentre) {
   const mesh::TetMesh cube = test::cube_cells(origin, 5e-3, 4);
   std::vector<Eigen::Vector3d> u;  // a field with no pattern (not affine): each tet's own values
   for (std::size_t n = 0; n < cube.nodes.size(); ++n)
-    u.emplace_back(std::sin(1.3 * double(n)) * 1e-3, std::cos(2.1 * double(n)) * 1e-3, std::sin(0.7 * double(n) + 1.0) * 1e-3);
+    u.emplace_back(std::sin(1.3 * double(n)) * 1e-3, std::cos(2.1 * double(n)) * 1e-3,
+                   std::sin(0.7 * double(n) + 1.0) * 1e-3);
   const std::vector<LungMotion> lungs{LungMotion{cube, u, 1.0}};
   const Eigen::Matrix3d r = Eigen::AngleAxisd(0.4, Eigen::Vector3d(2, -1, 3).normalized()).toRotationMatrix();
   const Grid grid = test::oblique_grid({14, 13, 15}, r, Eigen::Vector3d(2.1e-3, 1.9e-3, 2.3e-3),
