@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 using namespace pneuma::mesh;
 
@@ -86,5 +88,50 @@ TEST(SurfaceQueries, ParallelSelfIntersectionFindsIntersectionsBetweenComponents
     const bool expected = gap < 0.0;
     EXPECT_EQ(self_intersects(two, Concurrency::serial), expected) << gap;
     EXPECT_EQ(self_intersects(two, Concurrency::parallel), expected) << gap;
+  }
+}
+
+// Two surfaces tested against each other give the answer of the two as one mesh's
+// self-intersection test (CGAL's own, over every face: the oracle), for spheres apart, with
+// overlapping boxes but apart, crossing, one inside the other (no face meets a face), coincident,
+// and touching at one shared point.
+TEST(SurfaceQueries, TwoSurfacesIntersectWhenTheirUnionSelfIntersects) {
+  const TriangleMesh one = make_icosphere(0.1, 3);
+  const auto union_of = [](const TriangleMesh& a, const TriangleMesh& b) {
+    TriangleMesh both = a;
+    const auto offset = static_cast<std::uint32_t>(a.vertex_count());
+    both.vertices.insert(both.vertices.end(), b.vertices.begin(), b.vertices.end());
+    for (const auto& t : b.triangles) both.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+    return both;
+  };
+  const auto moved = [](TriangleMesh m, const Eigen::Vector3d& by, double scale) {
+    for (auto& v : m.vertices) v = scale * v + by;
+    return m;
+  };
+  struct Case {
+    const char* what;
+    TriangleMesh other;
+    bool expected;
+  };
+  // The vertex of `one` farthest along +x, and the same point as another sphere's farthest along -x.
+  const Eigen::Vector3d tip = *std::max_element(one.vertices.begin(), one.vertices.end(),
+                                                [](const auto& p, const auto& q) { return p.x() < q.x(); });
+  const TriangleMesh mirrored = [&] {
+    TriangleMesh m = one;
+    for (auto& v : m.vertices) v.x() = -v.x();
+    return moved(m, 2.0 * tip.x() * Eigen::Vector3d::UnitX(), 1.0);
+  }();
+  const std::vector<Case> cases{
+      {"apart", moved(one, {0.5, 0.0, 0.0}, 1.0), false},
+      {"boxes overlap, surfaces apart", moved(one, {0.15, 0.15, 0.15}, 1.0), false},
+      {"crossing", moved(one, {0.15, 0.01, 0.0}, 1.0), true},
+      {"inside", moved(one, {0.01, 0.0, 0.0}, 0.5), false},
+      {"coincident", one, true},
+      {"touching at a point", mirrored, true},
+  };
+  for (const Case& c : cases) {
+    EXPECT_EQ(self_intersects(union_of(one, c.other), Concurrency::serial), c.expected) << c.what;
+    EXPECT_EQ(surfaces_intersect(one, c.other), c.expected) << c.what;
+    EXPECT_EQ(surfaces_intersect(c.other, one), c.expected) << c.what;
   }
 }

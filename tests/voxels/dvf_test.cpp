@@ -7,6 +7,7 @@
 #include <Eigen/LU>
 #include <cmath>
 #include <cstring>
+#include <optional>
 #include <utility>
 
 #include "pneuma/core/error.h"
@@ -323,6 +324,57 @@ TEST(Dvf, RestLungsAreTheVoxelsOfTheRestCube) {
         ++checked;
       }
   EXPECT_GT(checked, 100u);
+}
+
+// Tets of a voxel or two (a 2 mm grid under 4 mm tets; each tet's set-up made once and read by
+// every slab of k it crosses, #50): every voxel belongs to the lowest tet whose closed simplex
+// holds its centre, found here by brute force over all tets with barycentric coordinates of
+// their own (an LU solve in metres); the field there is that tet's P1 value of a field that
+// differs from tet to tet. Slabs of four k-slices, and tets across their borders.
+TEST(Dvf, EachVoxelOfACoarseGridTakesTheLowestTetHoldingItsCentre) {
+  const Eigen::Vector3d origin(0.010, -0.020, 0.030);
+  const mesh::TetMesh cube = test::cube_cells(origin, 5e-3, 4);
+  std::vector<Eigen::Vector3d> u;  // a field with no pattern (not affine): each tet's own values
+  for (std::size_t n = 0; n < cube.nodes.size(); ++n)
+    u.emplace_back(std::sin(1.3 * double(n)) * 1e-3, std::cos(2.1 * double(n)) * 1e-3,
+                   std::sin(0.7 * double(n) + 1.0) * 1e-3);
+  const std::vector<LungMotion> lungs{LungMotion{cube, u, 1.0}};
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(0.4, Eigen::Vector3d(2, -1, 3).normalized()).toRotationMatrix();
+  const Grid grid = test::oblique_grid({14, 13, 15}, r, Eigen::Vector3d(2.1e-3, 1.9e-3, 2.3e-3),
+                                       origin - r * Eigen::Vector3d(2e-3, 3e-3, 1e-3));
+  const DisplacementField f = forward_dvf(grid, lungs);
+  const std::vector<std::uint8_t> rest = rest_lungs(grid, lungs);
+  std::size_t inside = 0, checked = 0;
+  for (std::size_t k = 0; k < grid.size[2]; ++k)
+    for (std::size_t j = 0; j < grid.size[1]; ++j)
+      for (std::size_t i = 0; i < grid.size[0]; ++i) {
+        const std::size_t v = grid.index(i, j, k);
+        const Eigen::Vector3d x = grid.centre_m(i, j, k);
+        std::optional<std::size_t> owner;
+        Eigen::Vector4d owner_l;
+        bool near_a_face = false;  // within 1e-9 of a tet's face: the tolerance decides, either way
+        for (std::size_t t = 0; t < cube.tets.size(); ++t) {
+          const auto& tet = cube.tets[t];
+          Eigen::Matrix3d edges;
+          edges << cube.nodes[tet[1]] - cube.nodes[tet[0]], cube.nodes[tet[2]] - cube.nodes[tet[0]],
+              cube.nodes[tet[3]] - cube.nodes[tet[0]];
+          const Eigen::Vector3d l123 = edges.fullPivLu().solve(x - cube.nodes[tet[0]]);
+          const Eigen::Vector4d l(1.0 - l123.sum(), l123.x(), l123.y(), l123.z());
+          near_a_face = near_a_face || std::abs(l.minCoeff()) < 1e-9;
+          if (!owner && l.minCoeff() >= 0.0) owner = t, owner_l = l;
+        }
+        if (near_a_face) continue;
+        ++checked;
+        ASSERT_EQ(f.lung[v], owner ? 1 : 0) << i << " " << j << " " << k;
+        ASSERT_EQ(rest[v], f.lung[v]) << i << " " << j << " " << k;
+        if (!owner) continue;
+        ++inside;
+        Eigen::Vector3d expected = Eigen::Vector3d::Zero();
+        for (std::size_t c = 0; c < 4; ++c) expected += owner_l[Eigen::Index(c)] * u[cube.tets[*owner][c]];
+        EXPECT_LE((f.displacement_m[v].cast<double>() - expected).norm(), 1e-6 * 1e-3 * 2) << i << " " << j << " " << k;
+      }
+  EXPECT_GT(inside, 700u);  // the cube, 8000 mm^3, holds about 870 of these 9.2 mm^3 voxels
+  EXPECT_GT(checked, grid.voxel_count() / 2);
 }
 
 TEST(Dvf, RefusesADisplacementCountThatIsNotTheNodeCount) {

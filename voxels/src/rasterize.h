@@ -71,9 +71,20 @@ void rasterize(const Grid& grid, std::span<const TetSet> sets, std::vector<std::
   const Eigen::Vector3d offset = to_ijk.block<3, 1>(0, 3);
   constexpr double kPad = 1e-6;  // index units: the boxes are a little larger than the tets
 
-  const auto corners = [&](const TetSet& set, std::size_t t) {
+  // The nodes in index space, each once (a node is a corner of about twenty tets, and each tet's
+  // corners are read again by every slab it crosses: #50). The same arithmetic as per corner.
+  std::vector<std::vector<Eigen::Vector3d>> ijk(sets.size());
+  for (std::size_t s = 0; s < sets.size(); ++s) {
+    ijk[s].resize(sets[s].nodes.size());
+    const tsan::Region region;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ijk[s].size(), 16384), region.wrap([&](const auto& r) {
+      for (std::size_t n = r.begin(); n != r.end(); ++n) ijk[s][n] = linear * sets[s].nodes[n] + offset;
+    }));
+    region.join();
+  }
+  const auto corners = [&](std::size_t s, std::size_t t) {
     std::array<Eigen::Vector3d, 4> p;
-    for (std::size_t c = 0; c < 4; ++c) p[c] = linear * set.nodes[set.tets[t][c]] + offset;
+    for (std::size_t c = 0; c < 4; ++c) p[c] = ijk[s][sets[s].tets[t][c]];
     return p;
   };
 
@@ -86,7 +97,7 @@ void rasterize(const Grid& grid, std::span<const TetSet> sets, std::vector<std::
     const tsan::Region region;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, sets[s].tets.size(), 4096), region.wrap([&](const auto& r) {
       for (std::size_t t = r.begin(); t != r.end(); ++t) {
-        const auto p = corners(sets[s], t);
+        const auto p = corners(s, t);
         Eigen::Vector3d lo = p[0], hi = p[0];
         for (const auto& q : p) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
         // A tet beside the grid along i or j holds none of its voxels (the bounds of the voxel
@@ -129,7 +140,7 @@ void rasterize(const Grid& grid, std::span<const TetSet> sets, std::vector<std::
         const std::size_t g = slab_tets[e];
         while (g >= first_tet[s + 1]) ++s;
         const std::size_t t = g - first_tet[s];
-        const auto p = corners(sets[s], t);
+        const auto p = corners(s, t);
         Eigen::Vector3d lo = p[0], hi = p[0];
         for (const auto& q : p) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
         Eigen::Matrix3d edges;

@@ -7,6 +7,7 @@
 #include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/box_intersection_d.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -101,6 +102,50 @@ bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency) {
   }));
   region.join();
   return found.load();
+}
+
+bool surfaces_intersect(const TriangleMesh& a, const TriangleMesh& b) {
+  using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, std::size_t>;
+  const auto face_box = [](const TriangleMesh& mesh, std::size_t f) {
+    const auto& t = mesh.triangles[f];
+    const Eigen::Vector3d lo = mesh.vertices[t[0]].cwiseMin(mesh.vertices[t[1]]).cwiseMin(mesh.vertices[t[2]]);
+    const Eigen::Vector3d hi = mesh.vertices[t[0]].cwiseMax(mesh.vertices[t[1]]).cwiseMax(mesh.vertices[t[2]]);
+    return CGAL::Bbox_3(lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z());
+  };
+  const auto mesh_box = [&](const TriangleMesh& mesh) {
+    CGAL::Bbox_3 box;  // empty
+    for (std::size_t f = 0; f < mesh.triangle_count(); ++f) box += face_box(mesh, f);
+    return box;
+  };
+  const CGAL::Bbox_3 box_a = mesh_box(a), box_b = mesh_box(b);
+  // The faces that can meet the other surface: those whose box meets its box (closed boxes).
+  const auto near = [&](const TriangleMesh& mesh, const CGAL::Bbox_3& other) {
+    std::vector<Box> boxes;
+    for (std::size_t f = 0; f < mesh.triangle_count(); ++f) {
+      const CGAL::Bbox_3 box = face_box(mesh, f);
+      if (CGAL::do_overlap(box, other)) boxes.emplace_back(box, f);
+    }
+    return boxes;
+  };
+  std::vector<Box> near_a = near(a, box_b), near_b = near(b, box_a);
+  if (near_a.empty() || near_b.empty()) return false;
+  const auto triangle = [](const TriangleMesh& mesh, std::size_t f) {
+    const auto& t = mesh.triangles[f];
+    const auto point = [&](std::uint32_t v) {
+      return Point(mesh.vertices[v].x(), mesh.vertices[v].y(), mesh.vertices[v].z());
+    };
+    return Kernel::Triangle_3(point(t[0]), point(t[1]), point(t[2]));
+  };
+  struct Found {};  // stops the box intersection at the first pair
+  try {
+    CGAL::box_intersection_d(near_a.begin(), near_a.end(), near_b.begin(), near_b.end(),
+                             [&](const Box& x, const Box& y) {
+                               if (CGAL::do_intersect(triangle(a, x.info()), triangle(b, y.info()))) throw Found{};
+                             });
+  } catch (const Found&) {
+    return true;
+  }
+  return false;
 }
 
 std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source,

@@ -34,6 +34,13 @@ enum class Concurrency { serial, parallel };
 // BENCHMARKS.md, "Frame kernel").
 bool self_intersects(const TriangleMesh& mesh, Concurrency concurrency = Concurrency::parallel);
 
+// True when a face of `a` and a face of `b` intersect (closed triangles, CGAL's exact test; two
+// surfaces that share no vertex, such as two lungs): what self_intersects() of the two as one
+// mesh answers when neither intersects itself, without testing each one's faces against its own
+// again (#50: the two lungs' check at half the work). Only the faces whose box meets the other
+// surface's box are sorted into CGAL's box intersection.
+bool surfaces_intersect(const TriangleMesh& a, const TriangleMesh& b);
+
 // A per-vertex field of `source` carried to `targets`: each target point takes the value
 // interpolated (barycentrically) at its closest point on the source surface (CGAL AABB tree).
 std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source,
