@@ -219,6 +219,7 @@ bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector
 
 std::vector<KeptBreath> unfolding_breaths(double scale, double min_jacobian, double sign) {
   std::vector<KeptBreath> breaths;
+  breaths.reserve(kFractions.size());
   for (const double fraction : kFractions)
     breaths.push_back({sign * fraction * scale, lighter_floor(fraction, min_jacobian)});
   return breaths;

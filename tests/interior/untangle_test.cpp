@@ -105,6 +105,7 @@ TEST(Untangle, AMoveForTheInflationDoesNotSteepenTheKeptDeflation) {
   std::vector<KeptBreath> kept;
   for (const double f : {0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0}) kept.push_back({-f * deflation, 1.0});
   std::vector<double> before;
+  before.reserve(kept.size());
   for (const KeptBreath& b : kept) before.push_back(smallest_jacobian(m, u, b.scale));
   ASSERT_GT(before.back(), 0.8);
 
