@@ -11,7 +11,10 @@ the label map's extent at 4 mm, as tests/runner/ct_breath_test.cpp makes it), ru
 at the test's settings (5 mm surfaces, 6 mm tets, 4 mm voxels, healthy-adult's 500 mL breath,
 voxels at end_expiration, 1 s and end_inspiration) and measures, with nibabel, numpy and scipy on
 the written files (each file's own affine; none of pneuma's arithmetic). `--spacing` sets the
-voxels' (and the CT's) spacing in mm instead of 4.
+voxels' (and the CT's) spacing in mm instead of 4, `--tets` and `--surfaces` the tets' and the
+surfaces' edge instead of 6 and 5 mm; `--where` adds, per lung, where the torn voxels and the
+neighbour pairs lie (torn_where: distance to the pleura, the vertical line through the lung and the
+stretch the surface field alone imposes on it, the rest tets' nodes on the surface).
 
 The case `phantom` is the built-in pair of phantom lungs (`mesh: {phantom: both}`) at the same
 settings. It has no label map: its CT is made from the label map pneuma writes at the scan (a
@@ -257,7 +260,105 @@ def surface_motion(series):
     return out
 
 
-def run(pneuma, case, tissue, breath, work, spacing_mm):
+def torn_where(out, reference, lungs):
+    """Where the lungs' tears lie at the breath's other end (docs/voxels.md, "The lungs' own inside
+    at 2 mm voxels"). Per lung, for the voxels outside the band whose pull-back J leaves [0.5, 2]
+    ("torn") and the first voxel of each neighbour pair more than a voxel apart ("pairs"): the
+    warped distance to the pleura; through each one's rest point (the pull-back's) the vertical line
+    across the rest surface (field-<side>.h5's triangles, ray-triangle): its length and the mean
+    vertical stretch that the surface field alone imposes on it, 1 + s (u_top - u_bottom)_z / length
+    (s the time point's scale, voxels.csv); and how many of the rest tetrahedron's nodes lie on the
+    surface (4: the surface field's own motion, whatever the inside does)."""
+    import csv
+    import h5py
+    d = out / "voxels"
+    other = "end_inspiration" if reference == "end_expiration" else "end_expiration"
+    with open(d / "voxels.csv") as fh:
+        scales = {row["time_point"]: [float(x) for x in row["scales"].split()] for row in csv.DictReader(fh)}[other]
+    pimg, pullback = load(d, f"dvf-pullback-{other}")
+    _, labels = load(d, f"labels-{other}")
+    lps = to_lps(pimg)
+    origin = np.diag([-1.0, -1.0, 1.0]) @ pimg.affine[:3, 3]
+    lung = labels > 0
+    ok = ~(ndimage.binary_dilation(lung, iterations=2) & ~ndimage.binary_erosion(lung, iterations=2))
+    ok[[0, -1], :, :] = ok[:, [0, -1], :] = ok[:, :, [0, -1]] = False
+    jp = jacobian(pimg, pullback)
+    spacing = np.array(pimg.header.get_zooms()[:3], dtype=float)
+    pleura = ndimage.distance_transform_edt(lung, sampling=spacing)
+    result = {}
+    for k, side in enumerate(lungs):  # voxels.csv's scales: right, then left
+        s = scales[k] if len(scales) == len(lungs) else scales[0]
+        mask = lung_mask(labels, side, lungs) & ok
+        found = {"torn": np.argwhere(mask & ((jp < 0.5) | (jp > 2.0)))}
+        paired = []
+        for ax in range(3):
+            lo, hi = [slice(None)] * 3, [slice(None)] * 3
+            lo[ax], hi[ax] = slice(0, -1), slice(1, None)
+            apart = np.linalg.norm(pullback[tuple(lo)] - pullback[tuple(hi)], axis=-1)
+            paired.append(np.argwhere(mask[tuple(lo)] & ok[tuple(hi)] & (apart > spacing.min())))
+        found["pairs"] = np.concatenate(paired)
+        if not any(len(v) for v in found.values()):
+            continue
+        with h5py.File(out / f"field-{side}.h5", "r") as f:
+            x = f["rest/positions"][:] * 1e3
+            tri = f["rest/triangles"][:].astype(np.int64)
+            u = f["field/unit_displacement"][:] * 1e3
+            nodes = f["interior/nodes"][:] * 1e3
+            tets = f["interior/tets"][:].astype(np.int64)
+            on_surface = np.zeros(len(nodes), bool)
+            on_surface[f["interior/boundary_nodes"][:]] = True
+        a, e1, e2 = x[tri[:, 0]], x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]]
+        corners = nodes[tets]
+        edges = np.stack([corners[:, i] - corners[:, 0] for i in (1, 2, 3)], -1)
+        centres = corners.mean(1)
+
+        def crossing(p, direction):  # the nearest crossing of the ray p + t direction (t > 0): (t, u there)
+            h = np.cross(direction, e2)
+            det = (e1 * h).sum(1)
+            inv = 1.0 / np.where(np.abs(det) > 1e-12, det, np.inf)
+            q = p - a
+            b1 = inv * (q * h).sum(1)
+            r = np.cross(q, e1)
+            b2 = inv * (r @ direction)
+            t = inv * (e2 * r).sum(1)
+            hit = np.where((b1 >= 0) & (b2 >= 0) & (b1 + b2 <= 1) & (t > 0))[0]
+            if len(hit) == 0:
+                return None
+            j = hit[np.argmin(t[hit])]
+            return t[j], (1 - b1[j] - b2[j]) * u[tri[j, 0]] + b1[j] * u[tri[j, 1]] + b2[j] * u[tri[j, 2]]
+
+        def surface_nodes(p):  # of the rest tet holding p
+            for t in np.argsort(np.linalg.norm(centres - p, axis=1))[:64]:
+                b = np.linalg.solve(edges[t], p - corners[t, 0])
+                if b.min() > -1e-9 and b.sum() < 1 + 1e-9:
+                    return int(on_surface[tets[t]].sum())
+            return -1
+
+        result[side] = {}
+        for name, voxels in found.items():
+            if len(voxels) == 0:
+                continue
+            rows = []
+            for v in voxels:
+                p = lps @ v + origin + pullback[tuple(v)]
+                above, below = crossing(p, np.array([0.0, 0.0, 1.0])), crossing(p, np.array([0.0, 0.0, -1.0]))
+                if above is None or below is None:
+                    continue
+                length = above[0] + below[0]
+                rows.append([float(jp[tuple(v)]), float(pleura[tuple(v)]), length,
+                             1.0 + s * (above[1][2] - below[1][2]) / length, surface_nodes(p), *p])
+            r = np.array(rows)
+            result[side][name] = {
+                "count": int(len(voxels)), "pull_j": [float(r[:, 0].min()), float(r[:, 0].max())],
+                "to_pleura_mm": [float(r[:, 1].min()), float(np.median(r[:, 1])), float(r[:, 1].max())],
+                "line_mm": [float(r[:, 2].min()), float(np.median(r[:, 2])), float(r[:, 2].max())],
+                "surface_stretch": [float(r[:, 3].min()), float(np.median(r[:, 3])), float(r[:, 3].max())],
+                "tet_surface_nodes": [int((r[:, 4] == n).sum()) for n in range(5)],
+                "rest_lps_mm": [[float(r[:, c].min()), float(r[:, c].max())] for c in (5, 6, 7)]}
+    return result
+
+
+def run(pneuma, case, tissue, breath, work, spacing_mm, tets_mm=6.0, surfaces_mm=5.0, where=False):
     work.mkdir(parents=True, exist_ok=True)
     ct = work / "ct.nii.gz"
     if case == "phantom":
@@ -272,21 +373,24 @@ def run(pneuma, case, tissue, breath, work, spacing_mm):
     scenario = work / f"{tissue}-{breath}.yaml"
     scenario.write_text(
         "duration: 8 s\nframes: {rate: 5 Hz}\n"
-        f"mesh: {{{mesh}, edge: 5 mm, breath: {breath}}}\n"
-        f"field: {{tissue: {tissue}, interior: {{edge: 6 mm}}}}\n"
+        f"mesh: {{{mesh}, edge: {surfaces_mm:g} mm, breath: {breath}}}\n"
+        f"field: {{tissue: {tissue}, interior: {{edge: {tets_mm:g} mm}}}}\n"
         "physiology: {preset: healthy-adult}\n"
         "outputs: {gltf: false, report: false, hdf5: true, physiology_csv: false,\n"
         f"  voxels: {{at: [end_expiration, 1 s, end_inspiration], spacing: {spacing_mm:g} mm, image: ct.nii.gz}}}}\n")
     out = work / f"{tissue}-{breath}"
     start = time.time()
     p = subprocess.run([str(pneuma), "run", str(scenario), "-o", str(out), "--quiet"], capture_output=True, text=True)
-    result = {"case": case, "tissue": tissue, "breath": breath, "spacing_mm": spacing_mm, "exit": p.returncode,
+    result = {"case": case, "tissue": tissue, "breath": breath, "spacing_mm": spacing_mm, "tets_mm": tets_mm,
+              "surfaces_mm": surfaces_mm, "exit": p.returncode,
               "run_s": round(time.time() - start, 1)}
     if p.returncode != 0:
         result["error"] = p.stderr.strip()
         return result
     result.update(measure(out / "voxels", ct, breath, lungs_of(case)))
     result["surface"] = surface_motion(out / "series.h5")
+    if where and case != "phantom":
+        result["where"] = torn_where(out, breath, lungs_of(case))
     return result
 
 
@@ -299,7 +403,10 @@ def table(results):
             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in results:
         spacing = r.get("spacing_mm", 4.0)
-        case = r["case"] if spacing == 4.0 else f"{r['case']} ({spacing:g} mm voxels)"
+        settings = ([] if spacing == 4.0 else [f"{spacing:g} mm voxels"]) + \
+            ([] if r.get("tets_mm", 6.0) == 6.0 else [f"{r['tets_mm']:g} mm tets"]) + \
+            ([] if r.get("surfaces_mm", 5.0) == 5.0 else [f"{r['surfaces_mm']:g} mm surfaces"])
+        case = r["case"] + (f" ({', '.join(settings)})" if settings else "")
         head = f"| {case} | {r['tissue']} | {r['breath']} |"
         if r["exit"] != 0:
             rows.append(head + f" exit {r['exit']}: {r.get('error', '')} |" + " |" * 10)
@@ -325,6 +432,10 @@ def main():
     ap.add_argument("--tissue", default="healthy-supine,healthy-upright")
     ap.add_argument("--breath", default="end_expiration,end_inspiration")
     ap.add_argument("--spacing", type=float, default=4.0, help="the voxels' spacing in mm (default 4, the test's)")
+    ap.add_argument("--tets", type=float, default=6.0, help="field.interior's edge in mm (default 6, the test's)")
+    ap.add_argument("--surfaces", type=float, default=5.0, help="mesh.edge in mm (default 5, the test's)")
+    ap.add_argument("--where", action="store_true",
+                    help="also say where the lungs' torn voxels and pairs lie (torn_where)")
     ap.add_argument("--keep", help="keep the runs' folders here (default: a temporary folder)")
     ap.add_argument("--json", help="write every run's numbers here")
     ap.add_argument("--table", help="print the docs' table of --json files (comma-separated), and run nothing")
@@ -339,7 +450,7 @@ def main():
             for tissue in args.tissue.split(","):
                 for breath in args.breath.split(","):
                     work = base / (case if args.spacing == 4.0 else f"{case}-{args.spacing:g}mm")
-                    r = run(args.pneuma, case, tissue, breath, work, args.spacing)
+                    r = run(args.pneuma, case, tissue, breath, work, args.spacing, args.tets, args.surfaces, args.where)
                     results.append(r)
                     print(json.dumps(r), flush=True)
     if args.json:

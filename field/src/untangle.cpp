@@ -217,14 +217,25 @@ bool maximise_smallest(const std::vector<AffineJacobian>& f, const Eigen::Vector
 
 }  // namespace
 
+std::vector<KeptBreath> unfolding_breaths(double scale, double min_jacobian, double sign) {
+  std::vector<KeptBreath> breaths;
+  breaths.reserve(kFractions.size());
+  for (const double fraction : kFractions)
+    breaths.push_back({sign * fraction * scale, lighter_floor(fraction, min_jacobian)});
+  return breaths;
+}
+
 UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std::uint32_t> boundary_nodes,
                                  std::vector<Eigen::Vector3d>& displacement, double scale, double min_jacobian,
-                                 std::size_t max_sweeps) {
+                                 std::size_t max_sweeps, std::span<const KeptBreath> kept) {
   const std::size_t n = mesh.node_count();
   if (displacement.size() != n) throw ValueError("untangle_interior: one displacement per node");
   if (!(scale > 0.0) || !std::isfinite(scale)) throw ValueError("untangle_interior: the scale must be positive");
   if (!(min_jacobian > 0.0 && min_jacobian < 1.0))
     throw ValueError("untangle_interior: the smallest Jacobian sought must lie in (0, 1)");
+  if (!std::all_of(kept.begin(), kept.end(),
+                   [](const KeptBreath& b) { return std::isfinite(b.scale) && std::isfinite(b.floor); }))
+    throw ValueError("untangle_interior: a kept breath must have a finite scale and floor");
   std::vector<char> fixed(n, 0);
   for (const std::uint32_t b : boundary_nodes) {
     if (b >= n) throw ValueError("untangle_interior: boundary node out of range");
@@ -293,6 +304,7 @@ UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std:
   census(report.tets_below_before, report.folded_before, report.min_jacobian_before);
   std::vector<char> touched(n, 0);
   std::vector<AffineJacobian> f;
+  std::vector<double> kept_floor;
   // The lightest breath first; a deeper one may not push a lighter one below the floor again.
   for (std::size_t level = 0; level < kFractions.size(); ++level) {
     const double s = kFractions[level] * scale;
@@ -334,31 +346,35 @@ UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std:
         // concave in lambda: go no further than the lighter breaths allow (not below their envelope, or
         // below where they are), and there as far as needed to reach the floor, else to the best.
         const Eigen::Vector3d u0 = displacement[v], u1 = (optimum - mesh.nodes[v]) / s;
-        auto smallest = [&](double lambda, std::size_t from, std::size_t to) {
+        auto smallest_at = [&](double lambda, double breath) {
           const Eigen::Vector3d u = u0 + lambda * (u1 - u0);
           double m = std::numeric_limits<double>::infinity();
           for (std::uint32_t k = start[v]; k < start[v + 1]; ++k) {
             const auto& q = mesh.tets[star[k]];
-            for (std::size_t l = from; l < to; ++l) {
-              std::array<Eigen::Vector3d, 4> x;
-              for (std::size_t c = 0; c < 4; ++c)
-                x[c] = mesh::moved_node(mesh.nodes[q[c]], q[c] == v ? u : displacement[q[c]], kFractions[l] * scale);
-              m = std::min(m, mesh::tet_volume6(x[0], x[1], x[2], x[3]) / rest6[star[k]]);
-            }
+            std::array<Eigen::Vector3d, 4> x;
+            for (std::size_t c = 0; c < 4; ++c)
+              x[c] = mesh::moved_node(mesh.nodes[q[c]], q[c] == v ? u : displacement[q[c]], breath);
+            m = std::min(m, mesh::tet_volume6(x[0], x[1], x[2], x[3]) / rest6[star[k]]);
           }
           return m;
         };
-        auto here = [&](double lambda) { return smallest(lambda, level, level + 1); };
+        auto smallest = [&](double lambda, std::size_t l) { return smallest_at(lambda, kFractions[l] * scale); };
+        auto here = [&](double lambda) { return smallest(lambda, level); };
         // A lighter breath l keeps the star's smallest Jacobian at or above lighter_floor (or where
         // it was, if lower): a quiet breath's inside, which the elastic field leaves near 1, is
         // not traded for a deep one's (a floor of 0.2 at every breath let the moves for 1 L leave
         // J = 0.25-0.55 in a 250 mL breath beside the heart).
+        // So does each kept breath of the other direction.
         std::array<double, kFractions.size()> keep{};
         for (std::size_t l = 0; l < level; ++l)
-          keep[l] = std::min(lighter_floor(kFractions[l], min_jacobian), smallest(0.0, l, l + 1));
+          keep[l] = std::min(lighter_floor(kFractions[l], min_jacobian), smallest(0.0, l));
+        kept_floor.clear();
+        for (const KeptBreath& b : kept) kept_floor.push_back(std::min(b.floor, smallest_at(0.0, b.scale)));
         auto lighter_keep = [&](double lambda) {
           for (std::size_t l = 0; l < level; ++l)
-            if (smallest(lambda, l, l + 1) < keep[l]) return false;
+            if (smallest(lambda, l) < keep[l]) return false;
+          for (std::size_t b = 0; b < kept.size(); ++b)
+            if (smallest_at(lambda, kept[b].scale) < kept_floor[b]) return false;
           return true;
         };
         const double start_here = here(0.0);

@@ -548,6 +548,9 @@ std::string interior_key(const std::string& field_key, double edge_m, const fiel
   h.value(static_cast<std::uint64_t>(options.max_iterations));
   h.value(options.unfold_volume_m3);
   if (options.unfold_deflation_m3 > 0.0) h.value(options.unfold_deflation_m3);  // earlier keys unchanged
+  // Each direction's unfolding keeps the other's breaths (#45 at 2 mm): an inside cached before is
+  // recomputed where both unfold (the only case it changes).
+  if (options.unfold_deflation_m3 > 0.0 && options.unfold_volume_m3 > 0.0) h.text("kept-both-directions");
   if (mesher != mesh::TetMesher::delaunay) h.text(mesh::tet_mesher_name(mesher));
   return h.hex();
 }

@@ -5,7 +5,9 @@
 // 1 + x/e.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "pneuma/core/error.h"
 #include "pneuma/field/untangle.h"
@@ -84,6 +86,53 @@ TEST(Untangle, AFoldThatNoFreeNodeCanMendIsLeftAndDropped) {
   EXPECT_NEAR(smallest_jacobian(m, u, 1.0), 3.0, 1e-12);  // the -x side: 1 + x/e at x = 2e
 }
 
+// One U serves the inflation (s > 0) and a breath-hold scan's deflation (s < 0): the centre's move
+// for a fold at the inflation may not push the deflation's tets below min(floor, where they were)
+// when the deflation's breaths are kept (#45 at 2 mm; docs/voxels.md, "No folded tetrahedron").
+// The corners' motion is arbitrary (found by a random search for a case where the move matters):
+// the oracle is the invariant itself, the smallest Jacobian over the eight tets at each kept breath
+// computed here from the deformed corners, and the control without kept breaths shows that the
+// same move lowers it (0.84 -> 0.58).
+TEST(Untangle, AMoveForTheInflationDoesNotSteepenTheKeptDeflation) {
+  const mesh::TetMesh m = octahedron();
+  const std::vector<std::uint32_t> corners{1, 2, 3, 4, 5, 6};
+  const double scale = 1.0, deflation = 0.5;
+  std::vector<Eigen::Vector3d> u{{-0.3401, -0.3425, 0.0314}, {-0.1697, -0.4611, -0.4293}, {-0.2401, 0.2064, 0.2239},
+                                 {0.1386, -0.4070, 0.0887},  {0.4915, 0.3269, -0.4990},   {0.1670, 0.4202, 0.4215},
+                                 {0.2677, -0.4280, 0.0293}};
+  for (Eigen::Vector3d& v : u) v *= kCorner;
+  ASSERT_LT(smallest_jacobian(m, u, scale), 0.0);  // folded at the inflation
+  std::vector<KeptBreath> kept;
+  for (const double f : {0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0}) kept.push_back({-f * deflation, 1.0});
+  std::vector<double> before;
+  before.reserve(kept.size());
+  for (const KeptBreath& b : kept) before.push_back(smallest_jacobian(m, u, b.scale));
+  ASSERT_GT(before.back(), 0.8);
+
+  std::vector<Eigen::Vector3d> unkept = u;
+  untangle_interior(m, corners, unkept, scale, 0.2);
+  EXPECT_LT(smallest_jacobian(m, unkept, -deflation), before.back() - 0.2);  // the control: the move steepens it
+
+  std::vector<Eigen::Vector3d> with_kept = u;
+  const UntangleReport r = untangle_interior(m, corners, with_kept, scale, 0.2, 20, kept);
+  for (std::size_t b = 0; b < kept.size(); ++b)
+    EXPECT_GE(smallest_jacobian(m, with_kept, kept[b].scale), std::min(1.0, before[b]) - 1e-12) << kept[b].scale;
+  EXPECT_LE(r.nodes_moved, 1u);
+  for (std::size_t c = 1; c < m.node_count(); ++c) EXPECT_EQ(with_kept[c], u[c]);  // the corners never move
+}
+
+// The breaths the unfolding keeps for a scale, as the other direction's call sees them.
+TEST(Untangle, TheUnfoldingsBreathsAreEighthsWithTheQuietHalfKeptWhole) {
+  const std::vector<KeptBreath> b = unfolding_breaths(2.0, 0.2, -1.0);
+  ASSERT_EQ(b.size(), 8u);
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    const double f = static_cast<double>(i + 1) / 8.0;
+    EXPECT_DOUBLE_EQ(b[i].scale, -2.0 * f);
+    // 1 up to half of the scale, then linearly to 0.2 at the whole (field/untangle.h)
+    EXPECT_NEAR(b[i].floor, f <= 0.5 ? 1.0 : 1.0 - 0.8 * (2.0 * f - 1.0), 1e-15);
+  }
+}
+
 TEST(Untangle, BadArgumentsAreRefused) {
   const mesh::TetMesh m = octahedron();
   std::vector<Eigen::Vector3d> u(m.node_count(), Eigen::Vector3d::Zero());
@@ -93,6 +142,8 @@ TEST(Untangle, BadArgumentsAreRefused) {
   std::vector<Eigen::Vector3d> short_u(3, Eigen::Vector3d::Zero());
   EXPECT_THROW(untangle_interior(m, corners, short_u, 1.0), ValueError);
   EXPECT_THROW(untangle_interior(m, std::vector<std::uint32_t>{99}, u, 1.0), ValueError);
+  const std::vector<KeptBreath> nan{{std::nan(""), 1.0}};
+  EXPECT_THROW(untangle_interior(m, corners, u, 1.0, 0.2, 20, nan), ValueError);
 }
 
 }  // namespace

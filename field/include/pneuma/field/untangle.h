@@ -16,6 +16,11 @@
 // all up to half of `scale` (a quiet breath keeps the elastic field's inside: #45, where the
 // moves for 1 L left J = 0.25-0.55 and tears of 3-5 mm inside a 250 mL breath), nor beyond it
 // below a floor that falls linearly to `min_jacobian` at `scale` (or below where it was).
+// `kept`: breaths of the same U outside (0, scale], each with a floor, which a move may not push below
+// min(floor, where the star was) either: one U serves the inflation (s > 0) and a breath-hold scan's
+// deflation (s < 0), and the moves for one direction must not steepen the other (#45 at 2 mm: the
+// moves made for 1 L above rest left a quiet deflation's inside at J = 0.27-0.37 under case004's
+// left base; docs/voxels.md, "No folded tetrahedron").
 // Sequential sweeps in node order: the same result at any thread count.
 // Boundary nodes are never moved (they carry the surface field), so a tetrahedron with all four
 // nodes on the surface that folds stays folded, and is counted.
@@ -36,12 +41,23 @@ struct UntangleReport {
   std::size_t nodes_moved = 0, sweeps = 0;
 };
 
+// A breath x + s U whose Jacobians a move may not lower below min(floor, where they were).
+struct KeptBreath {
+  double scale = 0.0;
+  double floor = 1.0;
+};
+
+// The breaths untangle_interior() keeps while it unfolds up to `scale` (> 0): 1/8, ..., 8/8 of it,
+// the floor 1 up to half of it and falling linearly to `min_jacobian` at the whole; each scale
+// times `sign` (-1: the same breaths as seen from the opposite direction's call).
+std::vector<KeptBreath> unfolding_breaths(double scale, double min_jacobian = 0.2, double sign = 1.0);
+
 // `displacement` per node (metres per unit of s), changed in place at free nodes only;
 // `boundary_nodes` ascending. Throws ValueError for sizes that do not match, a scale that is not
-// positive and finite, or min_jacobian outside (0, 1).
+// positive and finite, min_jacobian outside (0, 1), or a kept breath that is not finite.
 UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std::uint32_t> boundary_nodes,
                                  std::vector<Eigen::Vector3d>& displacement, double scale, double min_jacobian = 0.2,
-                                 std::size_t max_sweeps = 20);
+                                 std::size_t max_sweeps = 20, std::span<const KeptBreath> kept = {});
 
 struct DroppedTets {
   std::size_t count = 0;
