@@ -279,6 +279,12 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
 
 void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, const Grid& grid,
                  std::vector<std::uint8_t>& out) {
+  if (grid.size == labels.size && grid.ijk_to_lps == labels.ijk_to_lps) {
+    // The label map's own grid (a CT on it): each voxel's nearest is itself (the transform there
+    // and back is the identity to rounding, far from half a voxel).
+    lung_tissue(labels, lung_labels, out);
+    return;
+  }
   out.resize(grid.voxel_count());
   const Eigen::Matrix4d to_labels = grid_of(labels).lps_to_ijk() * grid.ijk_to_lps;
   const tsan::Region region;
@@ -300,8 +306,14 @@ void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels
 
 void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, std::vector<std::uint8_t>& out) {
   out.resize(labels.labels.size());
-  for (std::size_t v = 0; v < out.size(); ++v)
-    out[v] = std::find(lung_labels.begin(), lung_labels.end(), labels.labels[v]) != lung_labels.end() ? 1 : 0;
+  const tsan::Region region;
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, out.size(), std::size_t{1} << 16),
+      region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t v = r.begin(); v != r.end(); ++v)
+          out[v] = std::find(lung_labels.begin(), lung_labels.end(), labels.labels[v]) != lung_labels.end() ? 1 : 0;
+      }));
+  region.join();
 }
 
 }  // namespace pneuma::voxels
