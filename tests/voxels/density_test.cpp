@@ -297,6 +297,48 @@ TEST(TimePoint, ACtOnTheGridIsTheSeparateStepsWarpWithOrWithoutTheKeptRestTets) 
   }
 }
 
+// The label map and an image on its grid warped in one pass (warp_labels_and_image) are the two
+// warps made apart, bit for bit: by the pleura's side alone, and with no rest lungs at all. An
+// image on another grid is refused.
+TEST(WarpLabelsAndImage, OnePassIsTheTwoWarpsBitForBit) {
+  const test::Ball ball = test::make_ball();
+  const std::vector<int> lung_labels{1, 2};
+  const std::vector<Eigen::Vector3d> u = ball.radial(0.4, Eigen::Vector3d(1e-3, -2e-3, 0.5e-3));
+  const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, 0.5}};
+  const std::vector<LungMotion> at_rest{LungMotion{ball.mesh, u, 0.0}};
+  const std::vector<std::uint8_t> rest_lung = rest_lungs(ball.grid, at_rest);
+  const OutsideField outside = [](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
+    return Eigen::Vector3d(Eigen::Vector3d(5e-3, -3e-3, 0.0) - 0.02 * x);
+  };
+  const DisplacementField pull = pullback_dvf(ball.grid, lungs, outside);
+  Image image;
+  image.grid = ball.grid;
+  image.values.resize(ball.grid.voxel_count());
+  for (std::size_t v = 0; v < image.values.size(); ++v) image.values[v] = static_cast<float>(v % 1013) * 0.37f;
+
+  for (const bool with_rest : {true, false}) {
+    const std::vector<std::uint8_t>* rest = with_rest ? &rest_lung : nullptr;
+    const image::LabelMap labels_apart = warp_labels(ball.labels, pull, rest, lung_labels);
+    const Image image_apart = warp_image(image, pull, kOutsideHu, rest);
+    image::LabelMap labels_fused;
+    Image image_fused;
+    warp_labels_and_image(ball.labels, image, pull, labels_fused, image_fused, rest, lung_labels, kOutsideHu, rest,
+                          nullptr);
+    EXPECT_EQ(labels_fused.labels, labels_apart.labels) << with_rest;
+    EXPECT_EQ(image_fused.values, image_apart.values) << with_rest;
+    std::size_t outside_image = 0;
+    for (const float x : image_fused.values) outside_image += x == kOutsideHu;
+    EXPECT_GT(outside_image, 0u);  // some samples leave the image: its outside value
+  }
+  Image other = image;
+  other.grid.ijk_to_lps(2, 3) += 1e-3;
+  image::LabelMap labels_out;
+  Image image_out;
+  EXPECT_THROW(warp_labels_and_image(ball.labels, other, pull, labels_out, image_out, &rest_lung, lung_labels,
+                                     kOutsideHu, nullptr, nullptr),
+               ValueError);
+}
+
 // lung_tissue on the label map's own grid (the short way: each voxel its own nearest) is the rule
 // itself, voxel by voxel, and what the general way gives on a grid a millionth of a voxel off it.
 TEST(LungTissue, OnTheLabelMapsOwnGridEachVoxelIsItsOwnNearest) {
