@@ -13,12 +13,14 @@ STAGES = [  # (stage, pattern on a frame's symbol or library), first match from 
     ("body pull-back: lattice (inverse_field)", r"inverse_field"),
     ("body pull-back: per-voxel inverse", r"BodyMotion::Frame::inverse"),
     ("body field lookups (Frame::displacement)", r"BodyMotion::Frame::displacement"),
+    ("the CT's rest lungs, mass-preserving (mass_preserving_ct)", r"mass_preserving_ct"),
     ("the rest tets: forward DVF, Jacobian inside (once a run since the fifth round)",
      r"rasterize_rest|rasterize<pneuma::voxels::forward_dvf|rasterize<pneuma::voxels::jacobian_image"),
     ("rasterising the deformed tets (pull-back), the rest lungs' masks", r"rasterize"),
     ("Jacobian image outside the lungs", r"jacobian_image\(|jacobian_outside"),
     ("CT warp (warp_image)", r"warp_image"),
     ("label warp, lung tissue masks", r"warp_labels|lung_tissue"),
+    ("the warped lungs' volume (voxels.csv)", r"lung_volume"),
     ("converting fields for files", r"to_file|convert|nifti|Nifti|write_"),
 ]
 KERNEL = r"\[kernel|kallsyms"  # a sample in the kernel (page faults, page-cache writes) is its own stage

@@ -319,7 +319,8 @@ class VoxelsOutput final : public Output {
       const std::size_t i = order[step];
       const VoxelPoint& at = time_points[i];
       writes.wait();  // the last time point's files, before its buffers are reused
-      const voxels::TimePointFiles written = scene.compute_and_write(at.scales, point, dir_ / "voxels", at.tag, writes);
+      const voxels::TimePointFiles written =
+          scene.compute_and_write(at.scales, point, dir_ / "voxels", at.tag, writes, step + 1 < order.size());
       if (sequences && in_sequence(at)) sequences->append(point);
       for (StructureTracker& structure : structures) {
         const double weight = !spec_.phase_bins ? 1.0
@@ -690,10 +691,12 @@ void VoxelScene::compute_on(const voxels::Grid& grid, std::span<const double> sc
 
 voxels::TimePointFiles VoxelScene::compute_and_write(std::span<const double> scales, voxels::TimePoint& point,
                                                      const std::filesystem::path& folder, const std::string& tag,
-                                                     voxels::WriteQueue& writes) const {
+                                                     voxels::WriteQueue& writes, bool more_to_come) const {
   voxels::TimePointFiles files;
   with_inputs(grid_, scales, true, false, nullptr, nullptr,
-              [&](std::span<const voxels::LungMotion> lungs, const voxels::TimePointInputs& inputs) {
+              [&](std::span<const voxels::LungMotion> lungs, const voxels::TimePointInputs& given) {
+                voxels::TimePointInputs inputs = given;
+                inputs.keep_rest_raster = more_to_come;
                 files = voxels::compute_and_write_time_point(grid_, lungs, inputs, point, folder, tag, writes,
                                                              spec_.extension, spec_.dvf_convention);
               });

@@ -6,11 +6,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "pneuma/core/error.h"
 #include "pneuma/voxels/density.h"
 #include "pneuma/voxels/dvf.h"
 #include "pneuma/voxels/jacobian.h"
+#include "pneuma/voxels/time_point.h"
 #include "pneuma/voxels/warp.h"
 #include "tet_fixtures.h"
 
@@ -201,6 +203,161 @@ TEST(MassPreservingCt, ALungVoxelIsInterpolatedFromLungVoxelsOnly) {
   EXPECT_GT(lung_voxels, 40000u);
   EXPECT_GT(vessel_after, vessel_voxels);  // the vessel grew with the lung around it
   EXPECT_GT(blended_by_side, 100u);
+}
+
+// A CT on the forward field's own grid: its mass-preserving image made in the forward field's
+// rasterisation of the rest tets (forward_dvf_with_rest_images) is bit for bit the image that
+// mass_preserving_ct makes apart, its rest lungs the field's `lung`, the field and the Jacobian
+// image those made apart; the same when the rest tets are kept and when they are replayed. A CT on
+// another grid is refused.
+TEST(MassPreservingCt, MadeWithTheForwardFieldItIsTheSameImage) {
+  const test::Ball ball = test::make_ball();
+  const std::vector<Eigen::Vector3d> u = ball.radial(0.4);
+  const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, 0.5}};
+  Image ct;
+  ct.grid = ball.grid;
+  ct.values.resize(ball.grid.voxel_count());
+  // Air to bone: parenchyma the rule scales, values it clamps and values it keeps.
+  for (std::size_t v = 0; v < ct.values.size(); ++v) ct.values[v] = -1010.0f + static_cast<float>(v % 113) * 10.0f;
+  const OutsideField outside = [](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
+    return Eigen::Vector3d(0.01 * x);
+  };
+
+  const DisplacementField apart = forward_dvf(ball.grid, lungs, outside);
+  Image apart_ct, apart_jacobian;
+  std::vector<std::uint8_t> ct_lung;
+  mass_preserving_ct(ct, lungs, apart_ct, ct_lung);
+  jacobian_image(lungs, apart, apart_jacobian);
+  std::size_t changed = 0;
+  for (std::size_t v = 0; v < ct.values.size(); ++v) changed += apart_ct.values[v] != ct.values[v];
+  EXPECT_GT(changed, 5000u);  // the rule acted on the lung's parenchyma
+
+  RestRaster rest;
+  for (int pass = 0; pass < 2; ++pass) {  // the rest tets kept, then replayed
+    DisplacementField fused;
+    Image fused_ct, fused_jacobian;
+    forward_dvf_with_rest_images(ball.grid, lungs, fused, outside, RestImages{&fused_jacobian, &ct, &fused_ct}, &rest);
+    jacobian_image_outside(fused, fused_jacobian);
+    EXPECT_TRUE(rest.holds(ball.grid, lungs));
+    EXPECT_EQ(fused.lung, ct_lung) << pass;
+    EXPECT_EQ(fused_ct.values, apart_ct.values) << pass;
+    EXPECT_EQ(fused_jacobian.values, apart_jacobian.values) << pass;
+    EXPECT_EQ(std::memcmp(fused.displacement_m.data(), apart.displacement_m.data(),
+                          apart.displacement_m.size() * sizeof(Eigen::Vector3f)),
+              0)
+        << pass;
+  }
+  Image other = ct, out;
+  other.grid.ijk_to_lps(0, 3) += 1e-3;
+  DisplacementField field;
+  EXPECT_THROW(forward_dvf_with_rest_images(ball.grid, lungs, field, outside, RestImages{nullptr, &other, &out}),
+               ValueError);
+}
+
+// One time point with the label map and a CT on its grid (a run at the label map's own grid): the
+// warped CT is what the separate steps give (mass_preserving_ct, lung_tissue on both grids,
+// warp_image with the rest lungs), bit for bit, whether the rest tets are kept for a later time
+// point or not; a time point that keeps none holds no rest raster afterwards.
+TEST(TimePoint, ACtOnTheGridIsTheSeparateStepsWarpWithOrWithoutTheKeptRestTets) {
+  const test::Ball ball = test::make_ball();
+  const std::vector<int> lung_labels{1, 2};
+  const std::vector<Eigen::Vector3d> u = ball.radial(0.4);
+  const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, 0.5}};
+  const std::vector<LungMotion> at_rest{LungMotion{ball.mesh, u, 0.0}};
+  const std::vector<std::uint8_t> rest_lung = rest_lungs(ball.grid, at_rest);
+  Image ct;
+  ct.grid = ball.grid;
+  ct.values.resize(ball.grid.voxel_count());
+  for (std::size_t v = 0; v < ct.values.size(); ++v)
+    ct.values[v] =
+        (ball.labels.labels[v] == 1 || ball.labels.labels[v] == 2 ? -850.0f : 40.0f) + static_cast<float>(v % 7);
+
+  const DisplacementField pull = pullback_dvf(ball.grid, lungs);
+  const image::LabelMap warped_labels = warp_labels(ball.labels, pull, &rest_lung, lung_labels);
+  std::vector<std::uint8_t> ct_tissue, warped_tissue, ct_lung;
+  lung_tissue(ball.labels, lung_labels, ct.grid, ct_tissue);
+  lung_tissue(warped_labels, lung_labels, warped_tissue);
+  Image preserved;
+  mass_preserving_ct(ct, lungs, preserved, ct_lung);
+  const Image apart = warp_image(preserved, pull, kOutsideHu, &ct_lung, Tissue{&ct_tissue, &warped_tissue});
+
+  for (const bool keep : {false, true}) {
+    TimePointInputs inputs;
+    inputs.labels = &ball.labels;
+    inputs.rest_lung = &rest_lung;
+    inputs.lung_labels = lung_labels;
+    inputs.ct = &ct;
+    inputs.keep_rest_raster = keep;
+    TimePoint point;
+    compute_time_point(ball.grid, lungs, inputs, point);
+    ASSERT_TRUE(point.ct.has_value());
+    EXPECT_EQ(point.ct->values, apart.values) << keep;
+    EXPECT_EQ(point.labels->labels, warped_labels.labels) << keep;
+    EXPECT_EQ(point.rest_raster.holds(ball.grid, lungs), keep);
+  }
+}
+
+// The label map and an image on its grid warped in one pass (warp_labels_and_image) are the two
+// warps made apart, bit for bit: by the pleura's side alone, and with no rest lungs at all. An
+// image on another grid is refused.
+TEST(WarpLabelsAndImage, OnePassIsTheTwoWarpsBitForBit) {
+  const test::Ball ball = test::make_ball();
+  const std::vector<int> lung_labels{1, 2};
+  const std::vector<Eigen::Vector3d> u = ball.radial(0.4, Eigen::Vector3d(1e-3, -2e-3, 0.5e-3));
+  const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, 0.5}};
+  const std::vector<LungMotion> at_rest{LungMotion{ball.mesh, u, 0.0}};
+  const std::vector<std::uint8_t> rest_lung = rest_lungs(ball.grid, at_rest);
+  const OutsideField outside = [](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
+    return Eigen::Vector3d(Eigen::Vector3d(5e-3, -3e-3, 0.0) - 0.02 * x);
+  };
+  const DisplacementField pull = pullback_dvf(ball.grid, lungs, outside);
+  Image image;
+  image.grid = ball.grid;
+  image.values.resize(ball.grid.voxel_count());
+  for (std::size_t v = 0; v < image.values.size(); ++v) image.values[v] = static_cast<float>(v % 1013) * 0.37f;
+
+  for (const bool with_rest : {true, false}) {
+    const std::vector<std::uint8_t>* rest = with_rest ? &rest_lung : nullptr;
+    const image::LabelMap labels_apart = warp_labels(ball.labels, pull, rest, lung_labels);
+    const Image image_apart = warp_image(image, pull, kOutsideHu, rest);
+    image::LabelMap labels_fused;
+    Image image_fused;
+    warp_labels_and_image(ball.labels, image, pull, labels_fused, image_fused, rest, lung_labels, kOutsideHu, rest,
+                          nullptr);
+    EXPECT_EQ(labels_fused.labels, labels_apart.labels) << with_rest;
+    EXPECT_EQ(image_fused.values, image_apart.values) << with_rest;
+    std::size_t outside_image = 0;
+    for (const float x : image_fused.values) outside_image += x == kOutsideHu;
+    EXPECT_GT(outside_image, 0u);  // some samples leave the image: its outside value
+  }
+  Image other = image;
+  other.grid.ijk_to_lps(2, 3) += 1e-3;
+  image::LabelMap labels_out;
+  Image image_out;
+  EXPECT_THROW(warp_labels_and_image(ball.labels, other, pull, labels_out, image_out, &rest_lung, lung_labels,
+                                     kOutsideHu, nullptr, nullptr),
+               ValueError);
+}
+
+// lung_tissue on the label map's own grid (the short way: each voxel its own nearest) is the rule
+// itself, voxel by voxel, and what the general way gives on a grid a millionth of a voxel off it.
+TEST(LungTissue, OnTheLabelMapsOwnGridEachVoxelIsItsOwnNearest) {
+  const test::Ball ball = test::make_ball();
+  const std::vector<int> lung_labels{1, 2};
+  std::vector<std::uint8_t> own, shifted;
+  lung_tissue(ball.labels, lung_labels, grid_of(ball.labels), own);
+  Grid off = grid_of(ball.labels);
+  off.ijk_to_lps(0, 3) += 1e-9;  // 1 mm voxels: 1e-6 voxel
+  lung_tissue(ball.labels, lung_labels, off, shifted);
+  ASSERT_EQ(own.size(), ball.labels.labels.size());
+  std::size_t lung = 0;
+  for (std::size_t v = 0; v < own.size(); ++v) {
+    const std::int32_t l = ball.labels.labels[v];
+    EXPECT_EQ(own[v], l == 1 || l == 2 ? 1 : 0) << v;
+    lung += own[v];
+  }
+  EXPECT_GT(lung, 10000u);
+  EXPECT_EQ(own, shifted);
 }
 
 }  // namespace

@@ -118,17 +118,42 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
 
 void forward_dvf_with_jacobian(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
                                const OutsideField& outside, Image& jacobian, RestRaster* rest) {
-  const std::vector<std::vector<Eigen::Matrix3d>> gradients = lung_gradients(lungs);  // checks each lung
+  forward_dvf_with_rest_images(grid, lungs, field, outside, RestImages{&jacobian}, rest);
+}
+
+void forward_dvf_with_rest_images(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                                  const OutsideField& outside, const RestImages& images, RestRaster* rest) {
+  Image* const jacobian = images.jacobian;
+  const Image* const ct = images.mass_preserving_ct != nullptr ? images.ct : nullptr;
+  if (ct != nullptr &&
+      (ct->grid.size != grid.size || ct->grid.ijk_to_lps != grid.ijk_to_lps || ct->values.size() != grid.voxel_count()))
+    throw ValueError("forward_dvf_with_rest_images: the CT is not on the field's grid");
+  std::vector<std::vector<Eigen::Matrix3d>> gradients;
+  std::vector<std::vector<double>> tet_j;  // each tet's exact Jacobian, as mass_preserving_ct's
+  for (const LungMotion& lung : lungs) check_lung_motion(lung);
+  if (jacobian != nullptr) gradients = lung_gradients(lungs);
+  if (ct != nullptr)
+    for (const LungMotion& lung : lungs) tet_j.push_back(tet_jacobians(lung));
   field.grid = grid;
   field.displacement_m.resize(grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
-  jacobian.grid = grid;
-  jacobian.values.resize(grid.voxel_count());  // the lungs' voxels here, the rest by jacobian_image_outside
+  if (jacobian != nullptr) {
+    jacobian->grid = grid;
+    jacobian->values.resize(grid.voxel_count());  // the lungs' voxels here, the rest by jacobian_image_outside
+  }
+  Image* const preserved = ct != nullptr ? images.mass_preserving_ct : nullptr;
+  if (preserved != nullptr) {
+    preserved->grid = ct->grid;
+    preserved->values.resize(ct->values.size());
+  }
   const auto visit = [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l) {
     field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>();
-    jacobian.values[v] = static_cast<float>(recovered_jacobian(gradients[s], lungs[s].mesh.tets[t], l));
+    if (jacobian != nullptr)
+      jacobian->values[v] = static_cast<float>(recovered_jacobian(gradients[s], lungs[s].mesh.tets[t], l));
+    if (preserved != nullptr) preserved->values[v] = mass_preserving_hu(ct->values[v], tet_j[s][t]);
   };
   const auto empty = [&](std::size_t v, std::size_t i, std::size_t j, std::size_t k) {
     detail::set_outside(field, outside, v, i, j, k);
+    if (preserved != nullptr) preserved->values[v] = ct->values[v];
   };
   detail::rasterize_rest_tets(grid, lungs, rest, field.lung, visit, empty);
 }

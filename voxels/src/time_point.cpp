@@ -25,47 +25,74 @@ enum class Part { forward, pullback, labels, ct, jacobian };
 template <typename Ready>
 void compute_parts(const Grid& grid, std::span<const LungMotion> lungs, const TimePointInputs& inputs, TimePoint& point,
                    const Ready& ready) {
+  // A CT on the time point's own grid: its mass-preserving rest CT made in the forward field's
+  // rasterisation of the rest tets, and the rest lungs on its grid those of the forward field.
+  const bool ct_on_grid = inputs.ct != nullptr && inputs.ct->grid.size == grid.size &&
+                          inputs.ct->grid.ijk_to_lps == grid.ijk_to_lps &&
+                          inputs.ct->values.size() == grid.voxel_count();
+  // The rest tets kept for a later time point only when one will replay them (0.33 GB at
+  // case004's own grid); replayed when an earlier one kept them.
+  RestRaster* const raster =
+      inputs.keep_rest_raster || point.rest_raster.holds(grid, lungs) ? &point.rest_raster : nullptr;
+  RestImages images;
   if (inputs.jacobian_map) {
     // The Jacobian image's lung voxels from the forward field's rasterisation of the rest tets.
     if (!point.jacobian_map) point.jacobian_map.emplace();
-    forward_dvf_with_jacobian(grid, lungs, point.forward, inputs.forward_outside, *point.jacobian_map,
-                              &point.rest_raster);
+    images.jacobian = &*point.jacobian_map;
+  }
+  if (ct_on_grid && inputs.mass_preserving) {
+    images.ct = inputs.ct;
+    images.mass_preserving_ct = &point.rest_ct;
+  }
+  if (images.jacobian != nullptr || images.mass_preserving_ct != nullptr) {
+    forward_dvf_with_rest_images(grid, lungs, point.forward, inputs.forward_outside, images, raster);
   } else {
-    forward_dvf(grid, lungs, point.forward, inputs.forward_outside, &point.rest_raster);
+    forward_dvf(grid, lungs, point.forward, inputs.forward_outside, raster);
   }
   ready(Part::forward);
   pullback_dvf(grid, lungs, point.pullback, inputs.pullback_outside);
   ready(Part::pullback);
   point.jacobian = jacobian_stats(lungs);
-  if (inputs.labels != nullptr) {
-    if (!point.labels) point.labels.emplace();
+  if (inputs.labels == nullptr) point.labels.reset();
+  if (inputs.ct == nullptr) point.ct.reset();
+  if (inputs.labels != nullptr && !point.labels) point.labels.emplace();
+  if (inputs.ct != nullptr && !point.ct) point.ct.emplace();
+  // A CT on the label map's own grid: both warped in one pass (they sample the same points).
+  const bool fused = inputs.labels != nullptr && inputs.ct != nullptr && inputs.ct->grid.size == inputs.labels->size &&
+                     inputs.ct->grid.ijk_to_lps == inputs.labels->ijk_to_lps;
+  if (inputs.labels != nullptr && !fused) {
     warp_labels(*inputs.labels, point.pullback, *point.labels, inputs.rest_lung, inputs.lung_labels);
     ready(Part::labels);
-  } else {
-    point.labels.reset();
   }
   if (inputs.ct != nullptr) {
-    if (!point.ct) point.ct.emplace();
     // Pulled back with the rest lungs on the CT's grid, so that nothing is blended across the
     // sliding pleura (the mass-preserving rule finds them on its way), and with the label map's
     // lung tissue on both grids, so that no tissue is blended into the lung and the warped CT's
     // lung is the warped label map's.
-    Tissue tissue;
-    if (point.labels && !inputs.lung_labels.empty()) {
-      lung_tissue(*inputs.labels, inputs.lung_labels, inputs.ct->grid, point.ct_tissue);
-      lung_tissue(*point.labels, inputs.lung_labels, point.warped_tissue);
-      tissue = {&point.ct_tissue, &point.warped_tissue};
+    const bool by_tissue = inputs.labels != nullptr && !inputs.lung_labels.empty();
+    if (by_tissue) lung_tissue(*inputs.labels, inputs.lung_labels, inputs.ct->grid, point.ct_tissue);
+    if (!ct_on_grid) {
+      if (inputs.mass_preserving) {
+        mass_preserving_ct(*inputs.ct, lungs, point.rest_ct, point.ct_lung);
+      } else {
+        point.ct_lung = rest_lungs(inputs.ct->grid, lungs);
+      }
     }
-    if (inputs.mass_preserving) {
-      mass_preserving_ct(*inputs.ct, lungs, point.rest_ct, point.ct_lung);
-      warp_image(point.rest_ct, point.pullback, *point.ct, kOutsideHu, &point.ct_lung, tissue);
+    const std::vector<std::uint8_t>* const ct_lung = ct_on_grid ? &point.forward.lung : &point.ct_lung;
+    const Image& rest_ct = inputs.mass_preserving ? point.rest_ct : *inputs.ct;
+    if (fused) {
+      warp_labels_and_image(*inputs.labels, rest_ct, point.pullback, *point.labels, *point.ct, inputs.rest_lung,
+                            inputs.lung_labels, kOutsideHu, ct_lung, by_tissue ? &point.ct_tissue : nullptr);
+      ready(Part::labels);
     } else {
-      point.ct_lung = rest_lungs(inputs.ct->grid, lungs);
-      warp_image(*inputs.ct, point.pullback, *point.ct, kOutsideHu, &point.ct_lung, tissue);
+      Tissue tissue;
+      if (by_tissue) {
+        lung_tissue(*point.labels, inputs.lung_labels, point.warped_tissue);
+        tissue = {&point.ct_tissue, &point.warped_tissue};
+      }
+      warp_image(rest_ct, point.pullback, *point.ct, kOutsideHu, ct_lung, tissue);
     }
     ready(Part::ct);
-  } else {
-    point.ct.reset();
   }
   if (inputs.jacobian_map) {
     jacobian_image_outside(point.forward, *point.jacobian_map);

@@ -133,22 +133,15 @@ image::LabelMap warp_labels(const image::LabelMap& labels, const DisplacementFie
   return out;
 }
 
-void warp_labels(const image::LabelMap& labels, const DisplacementField& pullback, image::LabelMap& out,
-                 const std::vector<std::uint8_t>* rest_lung, std::span<const int> lung_labels) {
-  if (rest_lung && rest_lung->size() != labels.labels.size()) {
-    throw ValueError("warp_labels: the rest lungs' voxels are not those of the label map");
-  }
-  out.size = pullback.grid.size;
-  out.ijk_to_lps = pullback.grid.ijk_to_lps;
-  out.transform_source = labels.transform_source;
-  out.segments = labels.segments;
-  out.labels.resize(pullback.grid.voxel_count());
-  const Grid source = grid_of(labels);
-  for_each_sample(pullback, source, [&](std::size_t v, const Eigen::Vector3d& q) {
+namespace {
+
+// warp_labels' label at voxel v of the field, whose x + v(x) is at continuous index q of `labels`.
+auto label_rule(const image::LabelMap& labels, const DisplacementField& pullback,
+                const std::vector<std::uint8_t>* rest_lung, std::span<const int> lung_labels) {
+  return [&labels, &pullback, rest_lung, lung_labels](std::size_t v, const Eigen::Vector3d& q) {
     const std::optional<std::size_t> rounded = nearest_voxel(q, labels.size);
     if (!rounded) {  // outside the label map (or not finite)
-      out.labels[v] = 0;
-      return;
+      return std::int32_t{0};
     }
     std::size_t nearest = *rounded;
     const std::uint8_t lung = pullback.lung[v];
@@ -193,9 +186,33 @@ void warp_labels(const image::LabelMap& labels, const DisplacementField& pullbac
         }
       }
     }
-    const std::int32_t label = labels.labels[nearest];
-    out.labels[v] = label;
-  });
+    return labels.labels[nearest];
+  };
+}
+
+void check_labels_warp(const image::LabelMap& labels, const std::vector<std::uint8_t>* rest_lung) {
+  if (rest_lung && rest_lung->size() != labels.labels.size()) {
+    throw ValueError("warp_labels: the rest lungs' voxels are not those of the label map");
+  }
+}
+
+void labels_like(const image::LabelMap& labels, const DisplacementField& pullback, image::LabelMap& out) {
+  out.size = pullback.grid.size;
+  out.ijk_to_lps = pullback.grid.ijk_to_lps;
+  out.transform_source = labels.transform_source;
+  out.segments = labels.segments;
+  out.labels.resize(pullback.grid.voxel_count());
+}
+
+}  // namespace
+
+void warp_labels(const image::LabelMap& labels, const DisplacementField& pullback, image::LabelMap& out,
+                 const std::vector<std::uint8_t>* rest_lung, std::span<const int> lung_labels) {
+  check_labels_warp(labels, rest_lung);
+  labels_like(labels, pullback, out);
+  const auto rule = label_rule(labels, pullback, rest_lung, lung_labels);
+  for_each_sample(pullback, grid_of(labels),
+                  [&](std::size_t v, const Eigen::Vector3d& q) { out.labels[v] = rule(v, q); });
 }
 
 Image warp_image(const Image& image, const DisplacementField& pullback, float outside,
@@ -205,8 +222,93 @@ Image warp_image(const Image& image, const DisplacementField& pullback, float ou
   return out;
 }
 
-void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside,
-                const std::vector<std::uint8_t>* rest_lung, const Tissue& tissue) {
+namespace {
+
+// warp_image's value at voxel v of the field, whose x + v(x) is at continuous index q of `image`;
+// `lung_tissue` the warped label map's tissue at v (Tissue::warped), read when `rest_tissue` is
+// given (Tissue::rest).
+auto image_rule(const Image& image, const DisplacementField& pullback, float outside,
+                const std::vector<std::uint8_t>* rest_lung, const std::vector<std::uint8_t>* rest_tissue) {
+  return [&image, &pullback, outside, rest_lung, rest_tissue](std::size_t v, const Eigen::Vector3d& q,
+                                                              std::uint8_t lung_tissue) -> float {
+    const std::array<std::size_t, 3> size = image.grid.size;
+    std::array<std::size_t, 3> lo{}, hi{};
+    std::array<double, 3> w{};
+    for (std::size_t a = 0; a < 3; ++a) {
+      const double top = static_cast<double>(size[a] - 1);
+      const double c = q[static_cast<Eigen::Index>(a)];
+      if (!(c >= -0.5 && c <= top + 0.5)) {  // outside the image (or not finite)
+        return outside;
+      }
+      const double clamped = std::clamp(c, 0.0, top);
+      const double base = std::min(std::floor(clamped), std::max(top - 1.0, 0.0));
+      lo[a] = static_cast<std::size_t>(base);
+      hi[a] = std::min(lo[a] + 1, size[a] - 1);
+      w[a] = clamped - base;
+    }
+    // The eight corners' weights and indices from their axes' (the same products and sums as
+    // weighting and indexing each corner whole: the same bits).
+    const std::array<std::array<double, 2>, 3> wa{{{1.0 - w[0], w[0]}, {1.0 - w[1], w[1]}, {1.0 - w[2], w[2]}}};
+    const std::array<std::array<std::size_t, 2>, 3> ia{
+        {{lo[0], hi[0]}, {size[0] * lo[1], size[0] * hi[1]}, {size[0] * size[1] * lo[2], size[0] * size[1] * hi[2]}}};
+    const auto corner_weight = [&](int corner) {
+      return wa[0][static_cast<std::size_t>(corner & 1)] * wa[1][static_cast<std::size_t>((corner >> 1) & 1)] *
+             wa[2][static_cast<std::size_t>((corner >> 2) & 1)];
+    };
+    const auto corner_index = [&](int corner) {
+      return ia[0][static_cast<std::size_t>(corner & 1)] + ia[1][static_cast<std::size_t>((corner >> 1) & 1)] +
+             ia[2][static_cast<std::size_t>((corner >> 2) & 1)];
+    };
+    // Every corner blended: the value without the rest lungs (and their last resort).
+    const auto blended = [&] {
+      double value = 0.0;
+      for (int corner = 0; corner < 8; ++corner) {
+        const double weight = corner_weight(corner);
+        if (weight == 0.0) continue;
+        value += weight * static_cast<double>(image.values[corner_index(corner)]);
+      }
+      return value;
+    };
+    if (!rest_lung) {
+      return static_cast<float>(blended());
+    }
+    // With the rest lungs, only the corners on x's side of the pleura count (renormalised): the
+    // tissue at x is that side's, and the pleura slides, so nothing is blended across it.
+    // With the tissue masks, a corner must show x's tissue as well; where none of those with
+    // kNegligibleWeight or more does, the corners on x's side as without them (so that a zero
+    // field gives the image back where the warped label map and the image's own disagree).
+    const std::uint8_t side = pullback.lung[v];
+    double same_side_value = 0.0, same_side_weight = 0.0, same_tissue_value = 0.0, same_tissue_weight = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const double weight = corner_weight(corner);
+      if (weight == 0.0) continue;
+      const std::size_t c = corner_index(corner);
+      if ((*rest_lung)[c] != side) continue;
+      const double at = static_cast<double>(image.values[c]);
+      same_side_value += weight * at;
+      same_side_weight += weight;
+      if (rest_tissue != nullptr && weight >= kNegligibleWeight && (*rest_tissue)[c] == lung_tissue) {
+        same_tissue_value += weight * at;
+        same_tissue_weight += weight;
+      }
+    }
+    if (same_tissue_weight > 0.0) {
+      return static_cast<float>(same_tissue_value / same_tissue_weight);
+    }
+    if (same_side_weight == 0.0) {
+      // Every corner across the pleura: the nearest voxel on x's side, where there is one.
+      if (const auto far = nearest_on_side(*rest_lung, size, q, side)) {
+        return image.values[*far];
+      }
+      return static_cast<float>(blended());
+    }
+    return static_cast<float>(same_side_value / same_side_weight);
+  };
+}
+
+// Whether the tissue masks are used (Tissue), after checking the inputs' sizes.
+bool check_image_warp(const Image& image, const DisplacementField& pullback, const std::vector<std::uint8_t>* rest_lung,
+                      const Tissue& tissue) {
   if (rest_lung && rest_lung->size() != image.values.size()) {
     throw ValueError("warp_image: the rest lungs' voxels are not those of the image");
   }
@@ -215,70 +317,60 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
       (tissue.rest->size() != image.values.size() || tissue.warped->size() != pullback.grid.voxel_count())) {
     throw ValueError("warp_image: the tissue masks are not on the image's and the field's grids");
   }
+  return by_tissue;
+}
+
+}  // namespace
+
+void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside,
+                const std::vector<std::uint8_t>* rest_lung, const Tissue& tissue) {
+  const bool by_tissue = check_image_warp(image, pullback, rest_lung, tissue);
   out.grid = pullback.grid;
   out.values.resize(pullback.grid.voxel_count());
-  const std::array<std::size_t, 3> size = image.grid.size;
+  const auto rule = image_rule(image, pullback, outside, rest_lung, by_tissue ? tissue.rest : nullptr);
   for_each_sample(pullback, image.grid, [&](std::size_t v, const Eigen::Vector3d& q) {
-    std::array<std::size_t, 3> lo{}, hi{};
-    std::array<double, 3> w{};
-    for (std::size_t a = 0; a < 3; ++a) {
-      const double top = static_cast<double>(size[a] - 1);
-      const double c = q[static_cast<Eigen::Index>(a)];
-      if (!(c >= -0.5 && c <= top + 0.5)) {  // outside the image (or not finite)
-        out.values[v] = outside;
-        return;
-      }
-      const double clamped = std::clamp(c, 0.0, top);
-      const double base = std::min(std::floor(clamped), std::max(top - 1.0, 0.0));
-      lo[a] = static_cast<std::size_t>(base);
-      hi[a] = std::min(lo[a] + 1, size[a] - 1);
-      w[a] = clamped - base;
-    }
-    const auto at = [&](std::size_t i, std::size_t j, std::size_t k) {
-      return static_cast<double>(image.values[i + size[0] * (j + size[1] * k)]);
-    };
-    // With the rest lungs, only the corners on x's side of the pleura count (renormalised): the
-    // tissue at x is that side's, and the pleura slides, so nothing is blended across it.
-    // With the tissue masks, a corner must show x's tissue as well; where none of those with
-    // kNegligibleWeight or more does, the corners on x's side as without them (so that a zero
-    // field gives the image back where the warped label map and the image's own disagree).
-    const std::uint8_t side = pullback.lung[v];
-    const std::uint8_t lung_tissue = by_tissue ? (*tissue.warped)[v] : 0;
-    double value = 0.0, same_side_value = 0.0, same_side_weight = 0.0, same_tissue_value = 0.0,
-           same_tissue_weight = 0.0;
-    for (int corner = 0; corner < 8; ++corner) {
-      const bool bi = (corner & 1) != 0, bj = (corner & 2) != 0, bk = (corner & 4) != 0;
-      const double weight = (bi ? w[0] : 1.0 - w[0]) * (bj ? w[1] : 1.0 - w[1]) * (bk ? w[2] : 1.0 - w[2]);
-      if (weight == 0.0) continue;
-      const std::size_t i = bi ? hi[0] : lo[0], j = bj ? hi[1] : lo[1], k = bk ? hi[2] : lo[2];
-      const std::size_t c = i + size[0] * (j + size[1] * k);
-      value += weight * at(i, j, k);
-      if (rest_lung && (*rest_lung)[c] == side) {
-        same_side_value += weight * at(i, j, k);
-        same_side_weight += weight;
-        if (by_tissue && weight >= kNegligibleWeight && (*tissue.rest)[c] == lung_tissue) {
-          same_tissue_value += weight * at(i, j, k);
-          same_tissue_weight += weight;
-        }
-      }
-    }
-    if (same_tissue_weight > 0.0) {
-      out.values[v] = static_cast<float>(same_tissue_value / same_tissue_weight);
-      return;
-    }
-    if (rest_lung && same_side_weight == 0.0) {
-      // Every corner across the pleura: the nearest voxel on x's side, where there is one.
-      if (const auto far = nearest_on_side(*rest_lung, size, q, side)) {
-        out.values[v] = image.values[*far];
-        return;
-      }
-    }
-    out.values[v] = static_cast<float>(same_side_weight > 0.0 ? same_side_value / same_side_weight : value);
+    out.values[v] = rule(v, q, by_tissue ? (*tissue.warped)[v] : std::uint8_t{0});
+  });
+}
+
+void warp_labels_and_image(const image::LabelMap& labels, const Image& image, const DisplacementField& pullback,
+                           image::LabelMap& out_labels, Image& out_image, const std::vector<std::uint8_t>* rest_lung,
+                           std::span<const int> lung_labels, float outside,
+                           const std::vector<std::uint8_t>* image_rest_lung,
+                           const std::vector<std::uint8_t>* image_rest_tissue) {
+  const Grid source = grid_of(labels);
+  if (image.grid.size != source.size || image.grid.ijk_to_lps != source.ijk_to_lps)
+    throw ValueError("warp_labels_and_image: the image is not on the label map's grid");
+  if (image_rest_lung && image_rest_lung->size() != image.values.size()) {
+    throw ValueError("warp_labels_and_image: the rest lungs' voxels are not those of the image");
+  }
+  const bool by_tissue = image_rest_lung && image_rest_tissue;
+  if (by_tissue && image_rest_tissue->size() != image.values.size()) {
+    throw ValueError("warp_labels_and_image: the tissue mask is not on the image's grid");
+  }
+  check_labels_warp(labels, rest_lung);
+  labels_like(labels, pullback, out_labels);
+  out_image.grid = pullback.grid;
+  out_image.values.resize(pullback.grid.voxel_count());
+  const auto label = label_rule(labels, pullback, rest_lung, lung_labels);
+  const auto value = image_rule(image, pullback, outside, image_rest_lung, by_tissue ? image_rest_tissue : nullptr);
+  for_each_sample(pullback, source, [&](std::size_t v, const Eigen::Vector3d& q) {
+    const std::int32_t l = label(v, q);
+    out_labels.labels[v] = l;
+    // The warped label map's tissue at v, as lung_tissue of it gives it.
+    const bool lung = by_tissue && std::find(lung_labels.begin(), lung_labels.end(), l) != lung_labels.end();
+    out_image.values[v] = value(v, q, lung ? std::uint8_t{1} : std::uint8_t{0});
   });
 }
 
 void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, const Grid& grid,
                  std::vector<std::uint8_t>& out) {
+  if (grid.size == labels.size && grid.ijk_to_lps == labels.ijk_to_lps) {
+    // The label map's own grid (a CT on it): each voxel's nearest is itself (the transform there
+    // and back is the identity to rounding, far from half a voxel).
+    lung_tissue(labels, lung_labels, out);
+    return;
+  }
   out.resize(grid.voxel_count());
   const Eigen::Matrix4d to_labels = grid_of(labels).lps_to_ijk() * grid.ijk_to_lps;
   const tsan::Region region;
@@ -300,8 +392,14 @@ void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels
 
 void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, std::vector<std::uint8_t>& out) {
   out.resize(labels.labels.size());
-  for (std::size_t v = 0; v < out.size(); ++v)
-    out[v] = std::find(lung_labels.begin(), lung_labels.end(), labels.labels[v]) != lung_labels.end() ? 1 : 0;
+  const tsan::Region region;
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, out.size(), std::size_t{1} << 16),
+      region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t v = r.begin(); v != r.end(); ++v)
+          out[v] = std::find(lung_labels.begin(), lung_labels.end(), labels.labels[v]) != lung_labels.end() ? 1 : 0;
+      }));
+  region.join();
 }
 
 }  // namespace pneuma::voxels

@@ -97,10 +97,11 @@ class VoxelScene {
   void compute(std::span<const double> scales, voxels::TimePoint& point) const;
   // compute(), each of the time point's files (voxels::write_time_point's, in the spec's format)
   // queued on `writes` as soon as its buffer is final, so that it is written while the next is
-  // computed; `point` must not change until writes.wait() has returned.
+  // computed; `point` must not change until writes.wait() has returned. `more_to_come`: whether
+  // a later time point will reuse `point` (the rest tets' rasterisation is kept for it only then).
   voxels::TimePointFiles compute_and_write(std::span<const double> scales, voxels::TimePoint& point,
                                            const std::filesystem::path& folder, const std::string& tag,
-                                           voxels::WriteQueue& writes) const;
+                                           voxels::WriteQueue& writes, bool more_to_come = true) const;
   // The same on another grid (a plane for report.html's slices), the CT only if `with_image`.
   // The Jacobian image is made when the spec asks for it or `with_jacobian`.
   // With `parts` (one per lung, parts_reaching(grid, ...)), only their tetrahedra are rasterised.

@@ -35,6 +35,21 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
 // With `rest`, replayed from it or kept there (forward_dvf's RestRaster).
 void forward_dvf_with_jacobian(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
                                const OutsideField& outside, Image& jacobian, RestRaster* rest = nullptr);
+
+// What a time point makes from the rest tets besides its forward field, each made when its
+// pointer is given: the Jacobian image's lung voxels (as forward_dvf_with_jacobian), and the
+// mass-preserving CT of a `ct` on the field's own grid (as mass_preserving_ct, whose `rest_lung`
+// is then the field's `lung`: the same tets by the same rule on the same grid). A time point at
+// the CT's own grid rasterised the rest tets once for the field and again for the CT (#50).
+struct RestImages {
+  Image* jacobian = nullptr;
+  const Image* ct = nullptr;            // on the field's grid (Grid's size and transform, exactly)
+  Image* mass_preserving_ct = nullptr;  // with `ct`
+};
+// forward_dvf with `images` made in the same rasterisation, bit for bit what the separate calls
+// give. Throws ValueError for a `ct` not on `grid`.
+void forward_dvf_with_rest_images(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
+                                  const OutsideField& outside, const RestImages& images, RestRaster* rest = nullptr);
 void jacobian_image_outside(const DisplacementField& forward, Image& out);
 
 // `rest_ct` with its lung parenchyma made to keep its mass at the lungs' scales: a voxel whose

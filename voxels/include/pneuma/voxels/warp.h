@@ -77,12 +77,25 @@ Image warp_image(const Image& image, const DisplacementField& pullback, float ou
 void warp_image(const Image& image, const DisplacementField& pullback, Image& out, float outside = kOutsideHu,
                 const std::vector<std::uint8_t>* rest_lung = nullptr, const Tissue& tissue = {});
 
+// warp_labels(labels, pullback, out_labels, rest_lung, lung_labels) and warp_image(image, pullback,
+// out_image, outside, image_rest_lung, Tissue{image_rest_tissue, lung_tissue of out_labels}) in one
+// pass over the field, for an image on the label map's own grid (a CT and its label map at a time
+// point on their grid, #50: the two warps sampled the same points in two passes, and the warped
+// label map's tissue in a third). The same values as those calls, bit for bit; without
+// `image_rest_tissue` the image by the pleura's side alone. Throws
+// ValueError for an image on another grid, or masks of other sizes.
+void warp_labels_and_image(const image::LabelMap& labels, const Image& image, const DisplacementField& pullback,
+                           image::LabelMap& out_labels, Image& out_image, const std::vector<std::uint8_t>* rest_lung,
+                           std::span<const int> lung_labels, float outside,
+                           const std::vector<std::uint8_t>* image_rest_lung,
+                           const std::vector<std::uint8_t>* image_rest_tissue);
+
 // Per voxel of `grid`: 1 where the nearest voxel of `labels` (index coordinates rounded half up,
 // as warp_labels) holds one of `lung_labels`, else 0 (also outside the label map). Parallel over
 // k: the same bytes at any thread count. Into `out`, its storage reused.
 void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, const Grid& grid,
                  std::vector<std::uint8_t>& out);
-// The same on the label map's own grid (a warped label map on its DVF's grid).
+// The same on the label map's own grid (a warped label map on its DVF's grid); parallel too.
 void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, std::vector<std::uint8_t>& out);
 
 }  // namespace pneuma::voxels
