@@ -5,27 +5,28 @@
 // (the bound the smoothing is for) where it had one of its range over an edge; the same bits at
 // one and at two threads; sigma 0 returns the field untouched. The contraction test
 // (field::is_contraction, steepest_pair_slope) against displacements whose Lipschitz constant is
-// known in closed form and against the slope over every pair counted directly; the deflation's
-// ladder (model::field_for_deflation) on a sphere sheared along itself, which never
-// self-intersects but stretches pairs of points apart.
+// known in closed form and against the slope over every pair counted directly (the deflation's
+// ladder that uses it: tests/model/deflation_ladder_test.cpp).
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
-#include <iostream>
 #include <numbers>
 #include <random>
 
+#include "pair_slope.h"
 #include "pneuma/core/error.h"
 #include "pneuma/field/deflation.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
-#include "pneuma/model/model.h"
-#include "pneuma/model/volume_scale.h"
 
 namespace pneuma::field {
 namespace {
+
+using test::field_at;
+using test::slope_over_all_pairs;
+using test::times;
 
 double area_rate(const mesh::TriangleMesh& m, const std::vector<Eigen::Vector3d>& u) {
   const std::vector<Eigen::Vector3d> g = mesh::area_gradient(m);
@@ -84,30 +85,6 @@ TEST(DeflationField, SizesThatDoNotMatchAreRefused) {
   EXPECT_THROW(smooth_field_in_space(sphere, std::vector<Eigen::Vector3d>(3), 1e-3), ValueError);
   EXPECT_THROW(is_contraction(sphere.vertices, std::vector<Eigen::Vector3d>(3)), ValueError);
   EXPECT_THROW(steepest_pair_slope(sphere.vertices, std::vector<Eigen::Vector3d>(3), 1.0), ValueError);
-}
-
-// d(x) for each point, as a new vector.
-template <typename F>
-std::vector<Eigen::Vector3d> field_at(const std::vector<Eigen::Vector3d>& x, F&& d) {
-  std::vector<Eigen::Vector3d> out;
-  out.reserve(x.size());
-  for (const Eigen::Vector3d& p : x) out.push_back(d(p));
-  return out;
-}
-
-// s u, per vertex.
-std::vector<Eigen::Vector3d> times(double s, const std::vector<Eigen::Vector3d>& u) {
-  return field_at(u, [s](const Eigen::Vector3d& v) -> Eigen::Vector3d { return s * v; });
-}
-
-// The largest |d_i - d_j| / |x_i - x_j| over every pair, counted directly: the oracle.
-double slope_over_all_pairs(const std::vector<Eigen::Vector3d>& x, const std::vector<Eigen::Vector3d>& d) {
-  double steepest = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    for (std::size_t j = i + 1; j < x.size(); ++j)
-      steepest = std::max(steepest, (d[i] - d[j]).norm() / (x[i] - x[j]).norm());
-  }
-  return steepest;
 }
 
 // A 13 x 13 x 13 lattice of 5 mm (60 mm across).
@@ -190,54 +167,6 @@ TEST(Contraction, FarPairsAreFoundAndEveryPairAgreesWithTheDirectCount) {
     const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
     EXPECT_EQ(steepest_pair_slope(points, d, 2.0 * largest), steepest_pair_slope(points, d, 1.0)) << scale;
     EXPECT_EQ(is_contraction(points, d), every_pair < 1.0) << scale;
-  }
-}
-
-// The sphere's volume `depth_m3` below its rest volume under rest + s u: s.
-double scale_at_depth(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& u, double depth_m3) {
-  const model::VolumeScaleMap map(rest.vertices, u, rest.triangles);
-  return map.scale_for(map.volume(0.0) - depth_m3);
-}
-
-// The deflation's ladder asks for a contraction: a sphere whose field shrinks it radially and
-// shears it along itself (each ring of latitude turned about the axis by a wave in z, a map
-// that is one to one at any amplitude: the surface never crosses itself) is smoothed once the
-// shear stretches pairs apart at 1.5 times the depth, and the field it keeps is then a contraction
-// there by every pair counted directly; without the shear the field is kept as it is.
-TEST(DeflationLadder, AFieldThatStretchesPairsApartIsSmoothedUntilItContracts) {
-  const mesh::TriangleMesh sphere = mesh::make_icosphere(0.05, 4);  // 2562 vertices, edges about 4 mm
-  const double depth_m3 = 100e-6;                                   // 100 mL of its 524 mL
-  const double k = 2.0 * std::numbers::pi / 0.02;                   // a shear of 20 mm wavelength
-  for (const double shear : {0.0, 1.5e-3}) {
-    const std::vector<Eigen::Vector3d> u = field_at(sphere.vertices, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
-      return 1e-3 * p.normalized() + shear * std::sin(k * p.z()) * Eigen::Vector3d(-p.y(), p.x(), 0.0) / 0.05;
-    });
-    const double s = scale_at_depth(sphere, u, 1.5 * depth_m3);
-    ASSERT_LT(s, -4.0);  // the radius shrinks by about 5 mm
-    const std::vector<Eigen::Vector3d> d = times(s, u);
-    mesh::TriangleMesh moved = sphere;
-    for (std::size_t i = 0; i < d.size(); ++i) moved.vertices[i] += d[i];
-    ASSERT_FALSE(mesh::self_intersects(moved)) << shear;
-    const double unsmoothed = slope_over_all_pairs(sphere.vertices, d);
-    const model::DeflationField field = model::field_for_deflation(sphere, u, depth_m3);
-    if (shear == 0.0) {
-      EXPECT_LT(unsmoothed, 0.2);  // |s| / radius: about 0.1
-      EXPECT_EQ(field.sigma_m, 0.0);
-      EXPECT_EQ(field.unit_displacement, u);
-      continue;
-    }
-    EXPECT_GT(unsmoothed, 2.0);  // |s| shear k: about 2.5 at the equator
-    ASSERT_GT(field.sigma_m, 0.0);
-    std::cout << "the sheared sphere's field is smoothed at " << field.sigma_m * 1e3 << " mm\n";
-    const double s_kept = scale_at_depth(sphere, field.unit_displacement, 1.5 * depth_m3);
-    EXPECT_LT(slope_over_all_pairs(sphere.vertices, times(s_kept, field.unit_displacement)), 1.0)
-        << field.sigma_m * 1e3 << " mm";
-    // The least smoothing that works: the ladder's step below it still stretches a pair apart.
-    const double below =
-        field.sigma_m > 2.1e-3 ? (field.sigma_m > 8.1e-3 ? field.sigma_m - 4e-3 : field.sigma_m - 2e-3) : 0.0;
-    const std::vector<Eigen::Vector3d> less = smooth_field_in_space(sphere, u, below);
-    const double s_less = scale_at_depth(sphere, less, 1.5 * depth_m3);
-    EXPECT_GE(slope_over_all_pairs(sphere.vertices, times(s_less, less)), 1.0) << below * 1e3 << " mm";
   }
 }
 
