@@ -50,12 +50,10 @@ void require_sizes(const char* what, std::size_t fields, std::size_t points) {
   if (fields != points) throw ValueError(fmt::format("{}: {} displacements for {} points", what, fields, points));
 }
 
-// Calls visit(w, |x_w - x_v|^2) for every point w > v of the grid's cells around v's (each pair
-// once, in ascending order of cell and index) until it returns false; false then.
+// Calls visit(w) for every point w in the grid's 27 cells around x's (in ascending order of cell
+// and index: a sum taken in it is the same at any thread count) until it returns false; false then.
 template <typename Visit>
-bool visit_later_neighbours(const Grid& grid, const std::vector<Eigen::Vector3d>& points, std::size_t v,
-                            Visit&& visit) {
-  const Eigen::Vector3d& x = points[v];
+bool visit_cells_around(const Grid& grid, const Eigen::Vector3d& x, Visit&& visit) {
   const auto [ci, cj, ck] = grid.index(x);
   for (std::int64_t i = ci - 1; i <= ci + 1; ++i) {
     for (std::int64_t j = cj - 1; j <= cj + 1; ++j) {
@@ -63,12 +61,22 @@ bool visit_later_neighbours(const Grid& grid, const std::vector<Eigen::Vector3d>
         const auto cell = grid.cells.find(Grid::key(i, j, k));
         if (cell == grid.cells.end()) continue;
         for (const std::uint32_t w : cell->second) {
-          if (w > v && !visit(w, (points[w] - x).squaredNorm())) return false;
+          if (!visit(w)) return false;
         }
       }
     }
   }
   return true;
+}
+
+// Calls visit(w, |x_w - x_v|^2) for every point w > v of the grid's cells around v's (each pair
+// once) until it returns false; false then.
+template <typename Visit>
+bool visit_later_neighbours(const Grid& grid, const std::vector<Eigen::Vector3d>& points, std::size_t v,
+                            Visit&& visit) {
+  const Eigen::Vector3d& x = points[v];
+  return visit_cells_around(grid, x,
+                            [&](std::uint32_t w) { return w <= v || visit(w, (points[w] - x).squaredNorm()); });
 }
 
 }  // namespace
@@ -90,24 +98,17 @@ std::vector<Eigen::Vector3d> smooth_field_in_space(const mesh::TriangleMesh& res
                     region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
                       for (std::size_t v = r.begin(); v != r.end(); ++v) {
                         const Eigen::Vector3d& x = rest.vertices[v];
-                        const auto [ci, cj, ck] = grid.index(x);
                         Eigen::Vector3d sum = Eigen::Vector3d::Zero();
                         double weight = 0.0;
-                        for (std::int64_t i = ci - 1; i <= ci + 1; ++i) {
-                          for (std::int64_t j = cj - 1; j <= cj + 1; ++j) {
-                            for (std::int64_t k = ck - 1; k <= ck + 1; ++k) {
-                              const auto cell = grid.cells.find(Grid::key(i, j, k));
-                              if (cell == grid.cells.end()) continue;
-                              for (const std::uint32_t w : cell->second) {
-                                const double d2 = (rest.vertices[w] - x).squaredNorm();
-                                if (d2 > reach2) continue;
-                                const double kw = area[w] * std::exp(-d2 * inv_two_sigma2);
-                                sum += kw * u[w];
-                                weight += kw;
-                              }
-                            }
+                        visit_cells_around(grid, x, [&](std::uint32_t w) {
+                          const double d2 = (rest.vertices[w] - x).squaredNorm();
+                          if (d2 <= reach2) {
+                            const double kw = area[w] * std::exp(-d2 * inv_two_sigma2);
+                            sum += kw * u[w];
+                            weight += kw;
                           }
-                        }
+                          return true;
+                        });
                         out[v] = sum / weight;  // the vertex itself is within reach: weight > 0
                       }
                     }));
