@@ -32,12 +32,18 @@ struct Grid {
   }
   static std::int64_t key(std::int64_t i, std::int64_t j, std::int64_t k) { return (i * 4096 + j) * 4096 + k; }
 
-  // The grid of `points` with cells of `size` (keys that collide only put more points in a cell).
+  // The grid of `points` with cells of `size` (keys that collide only put more points in a cell),
+  // or of 2^-20 of the points' extent where `size` is smaller: an index then stays far inside the
+  // key's range, and larger cells only put more candidates before each distance test.
   static Grid of(const std::vector<Eigen::Vector3d>& points, double size) {
     Grid grid;
-    grid.cell = size;
     grid.origin = points.front();
-    for (const Eigen::Vector3d& p : points) grid.origin = grid.origin.cwiseMin(p);
+    Eigen::Vector3d top = points.front();
+    for (const Eigen::Vector3d& p : points) {
+      grid.origin = grid.origin.cwiseMin(p);
+      top = top.cwiseMax(p);
+    }
+    grid.cell = std::max(size, std::ldexp((top - grid.origin).maxCoeff(), -20));
     for (std::uint32_t v = 0; v < points.size(); ++v) {
       const auto [i, j, k] = grid.index(points[v]);
       grid.cells[key(i, j, k)].push_back(v);
@@ -48,6 +54,15 @@ struct Grid {
 
 void require_sizes(const char* what, std::size_t fields, std::size_t points) {
   if (fields != points) throw ValueError(fmt::format("{}: {} displacements for {} points", what, fields, points));
+}
+
+// Points and displacements must be finite: a NaN would drop its pairs from every comparison.
+void require_finite(const char* what, const std::vector<Eigen::Vector3d>& points,
+                    const std::vector<Eigen::Vector3d>& d) {
+  for (std::size_t v = 0; v < points.size(); ++v) {
+    if (!points[v].allFinite() || !d[v].allFinite())
+      throw ValueError(fmt::format("{}: point {} or its displacement is not finite", what, v));
+  }
 }
 
 // Calls visit(w) for every point w in the grid's 27 cells around x's (in ascending order of cell
@@ -130,6 +145,7 @@ std::vector<Eigen::Vector3d> smooth_field_in_space(const mesh::TriangleMesh& res
 double steepest_pair_slope(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& d,
                            double radius_m) {
   require_sizes("steepest_pair_slope", d.size(), points.size());
+  require_finite("steepest_pair_slope", points, d);
   if (!(radius_m > 0.0) || points.size() < 2) return 0.0;
   const Grid grid = Grid::of(points, radius_m);
   const double reach2 = radius_m * radius_m;
@@ -155,6 +171,7 @@ double steepest_pair_slope(const std::vector<Eigen::Vector3d>& points, const std
 
 bool is_contraction(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& d) {
   require_sizes("is_contraction", d.size(), points.size());
+  require_finite("is_contraction", points, d);
   double largest = 0.0;
   for (const Eigen::Vector3d& v : d) largest = std::max(largest, v.norm());
   if (!(largest > 0.0) || points.size() < 2) return true;

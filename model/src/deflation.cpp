@@ -49,8 +49,11 @@ DeflationField field_for_deflation(const mesh::TriangleMesh& rest, const std::ve
   constexpr std::array<double, 6> kSigmas_m{2e-3, 4e-3, 6e-3, 8e-3, 12e-3, 16e-3};
   DeflationField out;
   for (const double sigma : kSigmas_m) {
-    out = {field::smooth_field_in_space(rest, u, sigma), sigma};
-    if (deflates_cleanly(rest, out.unit_displacement, checked_m3)) break;
+    out = {field::smooth_field_in_space(rest, u, sigma), sigma, false};
+    if (deflates_cleanly(rest, out.unit_displacement, checked_m3)) {
+      out.passes = true;
+      break;
+    }
   }
   return out;
 }

@@ -54,10 +54,12 @@ TEST(DeflationLadder, AFieldThatStretchesPairsApartIsSmoothedUntilItContracts) {
       EXPECT_LT(unsmoothed, 0.2);  // |s| / radius: about 0.1
       EXPECT_EQ(field.sigma_m, 0.0);
       EXPECT_EQ(field.unit_displacement, u);
+      EXPECT_TRUE(field.passes);
       continue;
     }
     EXPECT_GT(unsmoothed, 2.0);  // |s| shear k: about 2.5 at the equator
     ASSERT_GT(field.sigma_m, 0.0);
+    EXPECT_TRUE(field.passes);
     std::cout << "the sheared sphere's field is smoothed at " << field.sigma_m * 1e3 << " mm\n";
     const double s_kept = scale_at_depth(sphere, field.unit_displacement, 1.5 * depth_m3);
     EXPECT_LT(slope_over_all_pairs(sphere.vertices, times(s_kept, field.unit_displacement)), 1.0)
@@ -69,6 +71,25 @@ TEST(DeflationLadder, AFieldThatStretchesPairsApartIsSmoothedUntilItContracts) {
     const double s_less = scale_at_depth(sphere, less, 1.5 * depth_m3);
     EXPECT_GE(slope_over_all_pairs(sphere.vertices, times(s_less, less)), 1.0) << below * 1e3 << " mm";
   }
+}
+
+// A field that no step of the ladder makes deflate cleanly says so (the run then warns): a shear
+// of a wavelength longer than the sphere (200 mm), which the last step (16 mm) leaves nearly
+// whole and whose swirl swells the sphere faster than its radial part shrinks it, so that the
+// sphere cannot reach 1.5 times the depth below its rest volume under any scale of the field kept
+// (the volume map's own reach says so, independently of the ladder).
+TEST(DeflationLadder, AFieldNoStepMakesDeflateCleanlySaysSo) {
+  const mesh::TriangleMesh sphere = mesh::make_icosphere(0.05, 3);  // 642 vertices
+  const double depth_m3 = 100e-6;
+  const double k = 2.0 * std::numbers::pi / 0.2;
+  const std::vector<Eigen::Vector3d> u = field_at(sphere.vertices, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return 1e-3 * p.normalized() + 1e-2 * std::sin(k * p.z()) * Eigen::Vector3d(-p.y(), p.x(), 0.0) / 0.05;
+  });
+  const DeflationField field = field_for_deflation(sphere, u, depth_m3);
+  EXPECT_FALSE(field.passes);
+  EXPECT_EQ(field.sigma_m, 16e-3);  // the last step's field
+  const VolumeScaleMap map(sphere.vertices, field.unit_displacement, sphere.triangles);
+  EXPECT_FALSE(map.reachable(map.volume(0.0) - 1.5 * depth_m3));
 }
 
 }  // namespace

@@ -32,12 +32,13 @@ std::vector<Eigen::Vector3d> smooth_field_in_space(const mesh::TriangleMesh& res
 // lung's inside can follow it with no two neighbours more than their distance apart. Only pairs
 // closer than 2 max |d| can fail (|d_i - d_j| <= 2 max |d|), so only those are visited, through a
 // grid of that size: about a lung's neighbourhood instead of all pairs. Exact, in parallel, the
-// same answer at any thread count. Throws ValueError when the sizes do not match.
+// same answer at any thread count. Throws ValueError when the sizes do not match or a point or
+// its displacement is not finite.
 bool is_contraction(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& d);
 
 // The largest |d_i - d_j| / |x_i - x_j| over the pairs of distinct points closer than `radius_m`
 // (0 when there is none): the displacement's Lipschitz constant on them where radius_m reaches
-// every pair. is_contraction's measure, for tests and probes.
+// every pair. is_contraction's measure, for tests and probes; the same errors.
 double steepest_pair_slope(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& d,
                            double radius_m);
 
