@@ -30,57 +30,65 @@ TEST(MassPreservingHu, ParenchymaScalesByOneOverTheJacobianWithinAirAndWater) {
   EXPECT_FLOAT_EQ(mass_preserving_hu(-500.0f, 0.0), -500.0f);    // a folded tet changes nothing
 }
 
-// u = s (A x + b) everywhere: inside the tets (P1 exact) and outside them (central differences
+// u = s (A x + b) on the ball: inside the tets (P1 exact) and outside them (central differences
 // of an affine field are exact), so every voxel's Jacobian is det(I + s A).
-TEST(JacobianImage, AnAffineFieldHasItsDeterminantInsideAndOutsideTheLung) {
-  const test::Ball ball = test::make_ball();
+struct AffineMotion {
+  test::Ball ball = test::make_ball();
   Eigen::Matrix3d a;
-  a << 0.10, 0.02, -0.01, 0.00, 0.05, 0.03, 0.01, -0.02, 0.20;
-  const Eigen::Vector3d b(0.001, -0.002, 0.003);
-  const double s = 0.8;
-  const std::vector<Eigen::Vector3d> u = test::affine_field(ball.mesh, a, b);
-  const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, s}};
-  const DisplacementField forward =
-      forward_dvf(ball.grid, lungs,
-                  [&](const Eigen::Vector3d& x, const Eigen::Vector3d*) { return Eigen::Vector3d(s * (a * x + b)); });
+  Eigen::Vector3d b{0.001, -0.002, 0.003};
+  double s = 0.8;
+  std::vector<Eigen::Vector3d> u;  // the unit field per node, which lungs' span views
+  std::vector<LungMotion> lungs;
+  OutsideField outside;
+  double jacobian = 0.0;
+
+  AffineMotion() {
+    a << 0.10, 0.02, -0.01, 0.00, 0.05, 0.03, 0.01, -0.02, 0.20;
+    u = test::affine_field(ball.mesh, a, b);
+    lungs.push_back(LungMotion{ball.mesh, u, s});
+    outside = [a = a, b = b, s = s](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
+      return Eigen::Vector3d(s * (a * x + b));
+    };
+    jacobian = (Eigen::Matrix3d::Identity() + s * a).determinant();
+  }
+  // lungs refers to ball and u: a copy would refer to the original's.
+  AffineMotion(const AffineMotion&) = delete;
+  AffineMotion& operator=(const AffineMotion&) = delete;
+  AffineMotion(AffineMotion&&) = delete;
+  AffineMotion& operator=(AffineMotion&&) = delete;
+  ~AffineMotion() = default;
+};
+
+TEST(JacobianImage, AnAffineFieldHasItsDeterminantInsideAndOutsideTheLung) {
+  const AffineMotion motion;
+  const DisplacementField forward = forward_dvf(motion.ball.grid, motion.lungs, motion.outside);
   Image jacobian;
-  jacobian_image(lungs, forward, jacobian);
-  const double expected = (Eigen::Matrix3d::Identity() + s * a).determinant();
-  ASSERT_EQ(jacobian.values.size(), ball.grid.voxel_count());
+  jacobian_image(motion.lungs, forward, jacobian);
+  ASSERT_EQ(jacobian.values.size(), motion.ball.grid.voxel_count());
   std::size_t inside = 0;
   for (std::size_t v = 0; v < jacobian.values.size(); ++v) {
-    EXPECT_NEAR(jacobian.values[v], expected, 1e-5) << v;
+    EXPECT_NEAR(jacobian.values[v], motion.jacobian, 1e-5) << v;
     inside += forward.lung[v] != 0;
   }
   EXPECT_GT(inside, 10000u);
-  EXPECT_LT(inside, ball.grid.voxel_count() / 2);
+  EXPECT_LT(inside, motion.ball.grid.voxel_count() / 2);
 }
 
 // The voxel outputs' one rasterisation for both (forward_dvf_with_jacobian, then
 // jacobian_image_outside): det(I + s A) at every voxel as above, and the same field and image, bit
 // for bit, as forward_dvf and jacobian_image apart (the files of a run must not change).
 TEST(JacobianImage, MadeWithTheForwardFieldItIsTheSameImage) {
-  const test::Ball ball = test::make_ball();
-  Eigen::Matrix3d a;
-  a << 0.10, 0.02, -0.01, 0.00, 0.05, 0.03, 0.01, -0.02, 0.20;
-  const Eigen::Vector3d b(0.001, -0.002, 0.003);
-  const double s = 0.8;
-  const std::vector<Eigen::Vector3d> u = test::affine_field(ball.mesh, a, b);
-  const std::vector<LungMotion> lungs{LungMotion{ball.mesh, u, s}};
-  const OutsideField outside = [&](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
-    return Eigen::Vector3d(s * (a * x + b));
-  };
+  const AffineMotion motion;
   DisplacementField fused;
   Image jacobian;
-  forward_dvf_with_jacobian(ball.grid, lungs, fused, outside, jacobian);
+  forward_dvf_with_jacobian(motion.ball.grid, motion.lungs, fused, motion.outside, jacobian);
   jacobian_image_outside(fused, jacobian);
-  const double expected = (Eigen::Matrix3d::Identity() + s * a).determinant();
-  ASSERT_EQ(jacobian.values.size(), ball.grid.voxel_count());
-  for (std::size_t v = 0; v < jacobian.values.size(); ++v) EXPECT_NEAR(jacobian.values[v], expected, 1e-5) << v;
+  ASSERT_EQ(jacobian.values.size(), motion.ball.grid.voxel_count());
+  for (std::size_t v = 0; v < jacobian.values.size(); ++v) EXPECT_NEAR(jacobian.values[v], motion.jacobian, 1e-5) << v;
 
-  const DisplacementField apart = forward_dvf(ball.grid, lungs, outside);
+  const DisplacementField apart = forward_dvf(motion.ball.grid, motion.lungs, motion.outside);
   Image apart_jacobian;
-  jacobian_image(lungs, apart, apart_jacobian);
+  jacobian_image(motion.lungs, apart, apart_jacobian);
   EXPECT_EQ(fused.lung, apart.lung);
   EXPECT_TRUE(std::equal(fused.displacement_m.begin(), fused.displacement_m.end(), apart.displacement_m.begin()));
   EXPECT_EQ(jacobian.values, apart_jacobian.values);
