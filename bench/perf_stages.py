@@ -19,7 +19,7 @@ STAGES = [  # (stage, pattern on a frame's symbol or library), first match from 
     ("rasterising the deformed tets (pull-back), the rest lungs' masks", r"rasterize"),
     ("Jacobian image outside the lungs", r"jacobian_image\(|jacobian_outside"),
     ("CT warp (warp_image)", r"warp_image"),
-    ("label warp, lung tissue masks", r"warp_labels|lung_tissue"),
+    ("label warp, lung tissue masks (and the fused warp's CT: warp_labels_and_image)", r"warp_labels|lung_tissue|across_corners"),
     ("the warped lungs' volume (voxels.csv)", r"lung_volume"),
     ("converting fields for files", r"to_file|convert|nifti|Nifti|write_"),
 ]

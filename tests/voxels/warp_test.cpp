@@ -1,7 +1,10 @@
 // Label maps and images pulled back through the DVF of a ball-like lung dilated radially.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <optional>
 
 #include "pneuma/voxels/dvf.h"
 #include "pneuma/voxels/jacobian.h"
@@ -103,6 +106,125 @@ TEST(WarpImage, LinearImageIsSampledExactlyAndOutsideIsAir) {
   }
   EXPECT_GT(inside, 10000u);
   EXPECT_GT(outside, 10000u);
+}
+
+// warp_image's rule with the rest lungs and the tissue masks, written out plainly (warp.h): the
+// trilinear corners on x's side of the pleura with a weight, and of x's tissue with a weight of
+// at least 1e-4, renormalised; null where every corner is across the pleura (the ring search,
+// not checked here). Each corner's weight is the product of its axes' in i, j, k order.
+std::optional<float> corner_rule(const Image& image, const Eigen::Vector3d& q, std::uint8_t side, std::uint8_t tissue,
+                                 const std::vector<std::uint8_t>& rest_lung,
+                                 const std::vector<std::uint8_t>& rest_tissue) {
+  std::array<std::size_t, 3> lo{}, hi{};
+  std::array<double, 3> t{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const double top = static_cast<double>(image.grid.size[a] - 1);
+    const double c = std::clamp(q[static_cast<Eigen::Index>(a)], 0.0, top);
+    const double base = std::min(std::floor(c), top - 1.0);
+    lo[a] = static_cast<std::size_t>(base);
+    hi[a] = lo[a] + 1;
+    t[a] = c - base;
+  }
+  double side_value = 0.0, side_weight = 0.0, tissue_value = 0.0, tissue_weight = 0.0;
+  for (int corner = 0; corner < 8; ++corner) {
+    const bool up[3] = {(corner & 1) != 0, (corner & 2) != 0, (corner & 4) != 0};
+    const double weight = (up[0] ? t[0] : 1.0 - t[0]) * (up[1] ? t[1] : 1.0 - t[1]) * (up[2] ? t[2] : 1.0 - t[2]);
+    const std::size_t c = image.grid.index(up[0] ? hi[0] : lo[0], up[1] ? hi[1] : lo[1], up[2] ? hi[2] : lo[2]);
+    if (weight == 0.0 || rest_lung[c] != side) continue;
+    side_value += weight * static_cast<double>(image.values[c]);
+    side_weight += weight;
+    if (weight >= 1e-4 && rest_tissue[c] == tissue) {
+      tissue_value += weight * static_cast<double>(image.values[c]);
+      tissue_weight += weight;
+    }
+  }
+  if (tissue_weight > 0.0) return static_cast<float>(tissue_value / tissue_weight);
+  if (side_weight == 0.0) return std::nullopt;
+  return static_cast<float>(side_value / side_weight);
+}
+
+// warp_image takes a short way where all eight corners are on x's side and of x's tissue (#50);
+// it gives the rule's bits there and elsewhere. A hand-made pull-back field on a 1 mm grid mixes
+// samples on voxel centres (a zero field: weights of exactly 0), samples a few 1e-5 voxel off
+// them (weights below the tissue rule's 1e-4), and general ones; a ball of lung and a shifted
+// ball of lung tissue put mixed corners along both boundaries.
+TEST(WarpImage, CornersAllOnOneSideAndTissueGiveTheCornerRuleBitForBit) {
+  Grid grid;
+  grid.size = {20, 18, 16};
+  grid.ijk_to_lps.block<3, 3>(0, 0) = 1e-3 * Eigen::Matrix3d::Identity();
+  grid.ijk_to_lps.block<3, 1>(0, 3) = Eigen::Vector3d(-0.02, 0.01, 0.3);
+  const auto inside = [&](std::size_t i, std::size_t j, std::size_t k, const Eigen::Vector3d& centre, double r) {
+    return (Eigen::Vector3d(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)) - centre).norm() <
+           r;
+  };
+  const Eigen::Vector3d lung_centre(9.5, 8.5, 7.5), tissue_centre(11.0, 8.0, 7.0);
+  Image image;
+  image.grid = grid;
+  image.values.resize(grid.voxel_count());
+  std::vector<std::uint8_t> rest_lung(grid.voxel_count()), rest_tissue(grid.voxel_count());
+  DisplacementField pull;
+  pull.grid = grid;
+  pull.displacement_m.resize(grid.voxel_count());
+  pull.lung.resize(grid.voxel_count());
+  std::vector<std::uint8_t> warped_tissue(grid.voxel_count());
+  for (std::size_t k = 0; k < grid.size[2]; ++k)
+    for (std::size_t j = 0; j < grid.size[1]; ++j)
+      for (std::size_t i = 0; i < grid.size[0]; ++i) {
+        const std::size_t v = grid.index(i, j, k);
+        image.values[v] = static_cast<float>(static_cast<int>((v * 2654435761u) % 2001u) - 1000) + 0.37f;
+        rest_lung[v] = inside(i, j, k, lung_centre, 6.0) ? 1 : 0;
+        rest_tissue[v] = inside(i, j, k, tissue_centre, 5.0) ? 1 : 0;
+        pull.lung[v] = inside(i, j, k, lung_centre, 6.5) ? 1 : 0;
+        warped_tissue[v] = inside(i, j, k, tissue_centre, 5.5) ? 1 : 0;
+        const double phase =
+            0.37 * static_cast<double>(i) + 0.61 * static_cast<double>(j) + 0.23 * static_cast<double>(k);
+        switch (v % 4) {
+          case 0:  // on a voxel centre
+            pull.displacement_m[v] = Eigen::Vector3f::Zero();
+            break;
+          case 1:  // 3e-5 voxel off one along i: that corner's weight below 1e-4
+            pull.displacement_m[v] = Eigen::Vector3f(3e-8f, 0.0f, 1e-3f);
+            break;
+          default:
+            pull.displacement_m[v] =
+                (0.9e-3 * Eigen::Vector3d(std::sin(phase), std::cos(1.3 * phase), std::sin(0.7 * phase))).cast<float>();
+        }
+      }
+  const Image warped = warp_image(image, pull, kOutsideHu, &rest_lung, Tissue{&rest_tissue, &warped_tissue});
+  const Eigen::Matrix4d to_ijk = grid.lps_to_ijk();
+  std::size_t uniform = 0, mixed = 0, uniform_with_negligible = 0;
+  for (std::size_t k = 0; k < grid.size[2]; ++k)
+    for (std::size_t j = 0; j < grid.size[1]; ++j)
+      for (std::size_t i = 0; i < grid.size[0]; ++i) {
+        const std::size_t v = grid.index(i, j, k);
+        const Eigen::Vector3d y = grid.centre_m(i, j, k) + pull.displacement_m[v].cast<double>();
+        const Eigen::Vector3d q = to_ijk.block<3, 3>(0, 0) * y + to_ijk.block<3, 1>(0, 3);
+        if (q.minCoeff() < 0.0 || q[0] > 19.0 || q[1] > 17.0 || q[2] > 15.0) continue;  // the edges: other tests
+        const std::optional<float> expected =
+            corner_rule(image, q, pull.lung[v], warped_tissue[v], rest_lung, rest_tissue);
+        if (!expected) continue;
+        EXPECT_EQ(warped.values[v], *expected) << i << " " << j << " " << k;
+        // Whether the short way applied: the eight corners of one side and tissue.
+        bool all = true, negligible = false;
+        for (int corner = 0; corner < 8; ++corner) {
+          const std::array<double, 3> c{std::floor(q[0]) + (corner & 1), std::floor(q[1]) + ((corner >> 1) & 1),
+                                        std::floor(q[2]) + ((corner >> 2) & 1)};
+          const std::size_t at =
+              grid.index(static_cast<std::size_t>(std::min(c[0], 19.0)), static_cast<std::size_t>(std::min(c[1], 17.0)),
+                         static_cast<std::size_t>(std::min(c[2], 15.0)));
+          all = all && rest_lung[at] == pull.lung[v] && rest_tissue[at] == warped_tissue[v];
+        }
+        for (std::size_t a = 0; a < 3; ++a) {
+          const double frac = q[static_cast<Eigen::Index>(a)] - std::floor(q[static_cast<Eigen::Index>(a)]);
+          negligible = negligible || (frac > 0.0 && (frac < 1e-4 || frac > 1.0 - 1e-4));
+        }
+        uniform += all;
+        mixed += !all;
+        uniform_with_negligible += all && negligible;
+      }
+  EXPECT_GT(uniform, 2000u);
+  EXPECT_GT(mixed, 200u);
+  EXPECT_GT(uniform_with_negligible, 300u);
 }
 
 // A lung deflating below its scan, with a lobe map whose lung reaches 2 voxels beyond the rest

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <vector>
@@ -57,9 +58,11 @@ constexpr double kNegligibleWeight = 1e-4;
 std::optional<std::size_t> nearest_voxel(const Eigen::Vector3d& q, const std::array<std::size_t, 3>& size) {
   std::array<std::size_t, 3> at{};
   for (std::size_t a = 0; a < 3; ++a) {
-    const double rounded = std::floor(q[static_cast<Eigen::Index>(a)] + 0.5);
-    if (!(rounded >= 0.0 && rounded < static_cast<double>(size[a]))) return std::nullopt;
-    at[a] = static_cast<std::size_t>(rounded);
+    // floor(x) lies in [0, n) exactly where x does (n a whole number), and is x truncated there:
+    // no floor() per axis and voxel (SSE2 has no rounding instruction; #50).
+    const double x = q[static_cast<Eigen::Index>(a)] + 0.5;
+    if (!(x >= 0.0 && x < static_cast<double>(size[a]))) return std::nullopt;
+    at[a] = static_cast<std::size_t>(static_cast<std::int64_t>(x));
   }
   return at[0] + size[0] * (at[1] + size[1] * at[2]);
 }
@@ -224,13 +227,69 @@ Image warp_image(const Image& image, const DisplacementField& pullback, float ou
 
 namespace {
 
+// A voxel's eight trilinear corners in `image`, corner by corner (i fastest): each one's weight
+// (the product of its axes', i then j then k) and index.
+struct Corners {
+  std::array<double, 8> weight{};
+  std::array<std::size_t, 8> index{};
+};
+
+// Every corner with a weight blended: the value without the rest lungs (and their last resort).
+double blended(const Image& image, const Corners& corners) {
+  double value = 0.0;
+  for (std::size_t corner = 0; corner < 8; ++corner) {
+    if (corners.weight[corner] == 0.0) continue;
+    value += corners.weight[corner] * static_cast<double>(image.values[corners.index[corner]]);
+  }
+  return value;
+}
+
+// image_rule's value where the corners are not all on x's side and of x's tissue (the pleura,
+// a tissue's edge): out of line, so that the loop keeps the short way's registers. With the rest
+// lungs, only the corners on x's side of the pleura count (renormalised): the tissue at x is that
+// side's, and the pleura slides, so nothing is blended across it. With the tissue masks, a corner
+// must show x's tissue as well; where none of those with kNegligibleWeight or more does, the
+// corners on x's side as without them (so that a zero field gives the image back where the warped
+// label map and the image's own disagree).
+[[gnu::noinline]] float across_corners(const Image& image, const Corners& corners, const Eigen::Vector3d& q,
+                                       std::uint8_t side, std::uint8_t lung_tissue,
+                                       const std::vector<std::uint8_t>& rest_lung,
+                                       const std::vector<std::uint8_t>* rest_tissue) {
+  double same_side_value = 0.0, same_side_weight = 0.0, same_tissue_value = 0.0, same_tissue_weight = 0.0;
+  for (std::size_t corner = 0; corner < 8; ++corner) {
+    const double weight = corners.weight[corner];
+    if (weight == 0.0) continue;
+    const std::size_t c = corners.index[corner];
+    if (rest_lung[c] != side) continue;
+    const double at = static_cast<double>(image.values[c]);
+    same_side_value += weight * at;
+    same_side_weight += weight;
+    if (rest_tissue != nullptr && weight >= kNegligibleWeight && (*rest_tissue)[c] == lung_tissue) {
+      same_tissue_value += weight * at;
+      same_tissue_weight += weight;
+    }
+  }
+  if (same_tissue_weight > 0.0) {
+    return static_cast<float>(same_tissue_value / same_tissue_weight);
+  }
+  if (same_side_weight == 0.0) {
+    // Every corner across the pleura: the nearest voxel on x's side, where there is one.
+    if (const auto far = nearest_on_side(rest_lung, image.grid.size, q, side)) {
+      return image.values[*far];
+    }
+    return static_cast<float>(blended(image, corners));
+  }
+  return static_cast<float>(same_side_value / same_side_weight);
+}
+
 // warp_image's value at voxel v of the field, whose x + v(x) is at continuous index q of `image`;
 // `lung_tissue` the warped label map's tissue at v (Tissue::warped), read when `rest_tissue` is
 // given (Tissue::rest).
 auto image_rule(const Image& image, const DisplacementField& pullback, float outside,
                 const std::vector<std::uint8_t>* rest_lung, const std::vector<std::uint8_t>* rest_tissue) {
-  return [&image, &pullback, outside, rest_lung, rest_tissue](std::size_t v, const Eigen::Vector3d& q,
-                                                              std::uint8_t lung_tissue) -> float {
+  return [&image, &pullback, outside, rest_lung, rest_tissue ](std::size_t v, const Eigen::Vector3d& q,
+                                                               std::uint8_t lung_tissue) __attribute__((always_inline))
+      ->float {
     const std::array<std::size_t, 3> size = image.grid.size;
     std::array<std::size_t, 3> lo{}, hi{};
     std::array<double, 3> w{};
@@ -241,7 +300,8 @@ auto image_rule(const Image& image, const DisplacementField& pullback, float out
         return outside;
       }
       const double clamped = std::clamp(c, 0.0, top);
-      const double base = std::min(std::floor(clamped), std::max(top - 1.0, 0.0));
+      // floor(clamped) as its truncation (clamped >= 0: the same value, without floor()).
+      const double base = std::min(static_cast<double>(static_cast<std::int64_t>(clamped)), std::max(top - 1.0, 0.0));
       lo[a] = static_cast<std::size_t>(base);
       hi[a] = std::min(lo[a] + 1, size[a] - 1);
       w[a] = clamped - base;
@@ -251,58 +311,37 @@ auto image_rule(const Image& image, const DisplacementField& pullback, float out
     const std::array<std::array<double, 2>, 3> wa{{{1.0 - w[0], w[0]}, {1.0 - w[1], w[1]}, {1.0 - w[2], w[2]}}};
     const std::array<std::array<std::size_t, 2>, 3> ia{
         {{lo[0], hi[0]}, {size[0] * lo[1], size[0] * hi[1]}, {size[0] * size[1] * lo[2], size[0] * size[1] * hi[2]}}};
-    const auto corner_weight = [&](int corner) {
-      return wa[0][static_cast<std::size_t>(corner & 1)] * wa[1][static_cast<std::size_t>((corner >> 1) & 1)] *
-             wa[2][static_cast<std::size_t>((corner >> 2) & 1)];
-    };
-    const auto corner_index = [&](int corner) {
-      return ia[0][static_cast<std::size_t>(corner & 1)] + ia[1][static_cast<std::size_t>((corner >> 1) & 1)] +
-             ia[2][static_cast<std::size_t>((corner >> 2) & 1)];
-    };
-    // Every corner blended: the value without the rest lungs (and their last resort).
-    const auto blended = [&] {
-      double value = 0.0;
-      for (int corner = 0; corner < 8; ++corner) {
-        const double weight = corner_weight(corner);
-        if (weight == 0.0) continue;
-        value += weight * static_cast<double>(image.values[corner_index(corner)]);
-      }
-      return value;
-    };
+    Corners corners;
+    for (std::size_t corner = 0; corner < 8; ++corner) {
+      const std::size_t a = corner & 1, b = (corner >> 1) & 1, c = (corner >> 2) & 1;
+      corners.weight[corner] = wa[0][a] * wa[1][b] * wa[2][c];
+      corners.index[corner] = ia[0][a] + ia[1][b] + ia[2][c];
+    }
     if (!rest_lung) {
-      return static_cast<float>(blended());
+      return static_cast<float>(blended(image, corners));
     }
-    // With the rest lungs, only the corners on x's side of the pleura count (renormalised): the
-    // tissue at x is that side's, and the pleura slides, so nothing is blended across it.
-    // With the tissue masks, a corner must show x's tissue as well; where none of those with
-    // kNegligibleWeight or more does, the corners on x's side as without them (so that a zero
-    // field gives the image back where the warped label map and the image's own disagree).
     const std::uint8_t side = pullback.lung[v];
-    double same_side_value = 0.0, same_side_weight = 0.0, same_tissue_value = 0.0, same_tissue_weight = 0.0;
-    for (int corner = 0; corner < 8; ++corner) {
-      const double weight = corner_weight(corner);
-      if (weight == 0.0) continue;
-      const std::size_t c = corner_index(corner);
-      if ((*rest_lung)[c] != side) continue;
-      const double at = static_cast<double>(image.values[c]);
-      same_side_value += weight * at;
-      same_side_weight += weight;
-      if (rest_tissue != nullptr && weight >= kNegligibleWeight && (*rest_tissue)[c] == lung_tissue) {
-        same_tissue_value += weight * at;
-        same_tissue_weight += weight;
-      }
+    // The short way (#50): all eight corners on x's side and of x's tissue, as almost every voxel
+    // away from the pleura and the tissues' edges is. across_corners then takes every corner
+    // (with the tissue masks, those of kNegligibleWeight or more) in the same order with the same
+    // products: the same bits here, without a branch per corner. A corner left out adds +0.0,
+    // which changes no sum here (a sum of products from +0.0 is never -0.0).
+    bool uniform = true;
+    for (std::size_t corner = 0; corner < 8; ++corner) {
+      uniform &= (*rest_lung)[corners.index[corner]] == side;
+      if (rest_tissue != nullptr) uniform &= (*rest_tissue)[corners.index[corner]] == lung_tissue;
     }
-    if (same_tissue_weight > 0.0) {
-      return static_cast<float>(same_tissue_value / same_tissue_weight);
+    if (!uniform) {
+      return across_corners(image, corners, q, side, lung_tissue, *rest_lung, rest_tissue);
     }
-    if (same_side_weight == 0.0) {
-      // Every corner across the pleura: the nearest voxel on x's side, where there is one.
-      if (const auto far = nearest_on_side(*rest_lung, size, q, side)) {
-        return image.values[*far];
-      }
-      return static_cast<float>(blended());
+    double value = 0.0, weight = 0.0;
+    for (std::size_t corner = 0; corner < 8; ++corner) {
+      const double cw = corners.weight[corner];
+      const bool counts = rest_tissue != nullptr ? cw >= kNegligibleWeight : cw != 0.0;
+      value += counts ? cw * static_cast<double>(image.values[corners.index[corner]]) : 0.0;
+      weight += counts ? cw : 0.0;
     }
-    return static_cast<float>(same_side_value / same_side_weight);
+    return static_cast<float>(value / weight);
   };
 }
 
