@@ -15,8 +15,10 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
+#include <span>
 #include <sstream>
 #include <string>
 
@@ -62,12 +64,15 @@ double file_bytes(const fs::path& path) {
 // its end, so that zlib checks its CRC-32 or Adler-32 (200 zeroed bytes in a gzip stream inflated
 // to other labels without a word, #49), up to twice `enough` bytes. `complete` is false when
 // fewer than `enough` bytes come out; a damaged stream throws "<name>: the gzip data is damaged".
+// With `keep` (room for `enough` bytes), the first `enough` bytes are kept there: the one read
+// of a .nii.gz (#50), whose voxels ITK then takes from memory instead of inflating the file again.
 struct Inflated {
   double bytes = 0.0;
   bool complete = false;
 };
 
-Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enough, const std::string& name) {
+Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enough, const std::string& name,
+                        std::span<unsigned char> keep = {}) {
   Inflated result;
   std::ifstream in(path, std::ios::binary);
   in.seekg(static_cast<std::streamoff>(offset));
@@ -87,10 +92,15 @@ Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enoug
   while (result.bytes < cap) {
     if (z.avail_in == 0 && more_input) refill();
     if (z.total_in == 0 && z.avail_in > 0) gzip = z.next_in[0] == 0x1f;
-    z.next_out = output.data();
-    z.avail_out = static_cast<unsigned>(output.size());
+    // Into `keep` while it has room (at most 1 GiB a call: avail_out is 32 bits), then counted only.
+    const auto produced = static_cast<std::size_t>(result.bytes);
+    const bool keeping = produced < keep.size();
+    const std::size_t room =
+        keeping ? std::min<std::size_t>(keep.size() - produced, std::size_t{1} << 30) : output.size();
+    z.next_out = keeping ? keep.data() + produced : output.data();
+    z.avail_out = static_cast<unsigned>(room);
     const int status = inflate(&z, Z_NO_FLUSH);
-    result.bytes += static_cast<double>(output.size() - z.avail_out);
+    result.bytes += static_cast<double>(room - z.avail_out);
     if (status == Z_STREAM_END) {
       // Another gzip member may follow.
       if (z.avail_in == 0 && more_input) refill();
@@ -176,7 +186,10 @@ struct NiftiHeader {
   double quatern_b = 0, quatern_c = 0, quatern_d = 0, qoffset_x = 0, qoffset_y = 0, qoffset_z = 0;
   double srow[3][4]{};
   int xyz_units = 0;
-  std::string extensions;  // the text of every header extension, one after another
+  double scl_slope = 0.0, scl_inter = 0.0;
+  std::size_t header_bytes = 0;  // 348 (NIfTI-1) or 540 (NIfTI-2)
+  bool swapped = false;          // stored in the other byte order than this machine's
+  std::string extensions;        // the text of every header extension, one after another
 };
 
 const char* nifti_type_name(int datatype) {
@@ -275,6 +288,7 @@ NiftiHeader read_nifti_header(const fs::path& path, const std::string& name) {
     n.datatype = b.get<std::int16_t>(70);
     for (std::size_t i = 0; i < 8; ++i) n.pixdim[i] = b.get<float>(76 + 4 * i);
     n.vox_offset = b.get<float>(108);
+    n.scl_slope = b.get<float>(112), n.scl_inter = b.get<float>(116);
     n.xyz_units = static_cast<unsigned char>(h[123]) & 0x07;
     n.qform_code = b.get<std::int16_t>(252);
     n.sform_code = b.get<std::int16_t>(254);
@@ -288,6 +302,7 @@ NiftiHeader read_nifti_header(const fs::path& path, const std::string& name) {
     for (std::size_t i = 0; i < 8; ++i) n.dim[i] = b.get<std::int64_t>(16 + 8 * i);
     for (std::size_t i = 0; i < 8; ++i) n.pixdim[i] = b.get<double>(104 + 8 * i);
     n.vox_offset = static_cast<double>(b.get<std::int64_t>(168));
+    n.scl_slope = b.get<double>(176), n.scl_inter = b.get<double>(184);
     n.qform_code = b.get<std::int32_t>(344);
     n.sform_code = b.get<std::int32_t>(348);
     n.quatern_b = b.get<double>(352), n.quatern_c = b.get<double>(360), n.quatern_d = b.get<double>(368);
@@ -298,6 +313,8 @@ NiftiHeader read_nifti_header(const fs::path& path, const std::string& name) {
   } else {
     throw InputError(not_nifti);
   }
+  n.header_bytes = header_bytes;
+  n.swapped = swap;
   // Header extensions (between the header and vox_offset): TotalSegmentator's label table.
   const double extension_bytes = n.vox_offset - static_cast<double>(header_bytes) - 4.0;
   if (extension_bytes >= 16.0 && extension_bytes <= 64.0 * 1024 * 1024) {
@@ -441,7 +458,28 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
   const std::string truncated = detail::truncated_message(name, size, 1, type, data_bytes, gzipped);
   if (!((gzipped ? 1032.0 * file_bytes(path) + 4096.0 : file_bytes(path)) >= needed)) throw InputError(truncated);
   detail::check_voxel_count(name, size, 1);  // before the stream is inflated to count it
-  if (gzipped && !inflated_bytes(path, 0, needed, name).complete) throw InputError(truncated);
+  // A .nii.gz is inflated once (#50): the stream checked whole here, its bytes kept, and ITK reads
+  // only the header and takes the voxels from them. Kept only where ITK's own read would give the
+  // stored values (no scl_slope rescale; the data after the header and its extension flag, where
+  // niftilib looks for it too), and where the room is to be had: the pages are touched only as
+  // the stream fills them, so a header claiming more than the stream holds costs no memory.
+  const bool as_stored = n.scl_slope == 0.0 || (n.scl_slope == 1.0 && n.scl_inter == 0.0);
+  std::unique_ptr<unsigned char[]> kept;
+  if (gzipped && as_stored && n.vox_offset >= static_cast<double>(n.header_bytes + 4)) {
+    try {
+      kept = std::make_unique_for_overwrite<unsigned char[]>(static_cast<std::size_t>(needed));
+    } catch (const std::bad_alloc&) {
+      kept.reset();  // counted without keeping; ITK reads the file again
+    }
+  }
+  const std::span<unsigned char> keep =
+      kept ? std::span<unsigned char>(kept.get(), static_cast<std::size_t>(needed)) : std::span<unsigned char>();
+  if (gzipped && !inflated_bytes(path, 0, needed, name, keep).complete) throw InputError(truncated);
+  std::optional<detail::VoxelBytes> in_memory;
+  if (kept) {
+    in_memory = detail::VoxelBytes{
+        .bytes = keep.subspan(static_cast<std::size_t>(n.vox_offset)), .swap = n.swapped, .type_name = type};
+  }
 
   // Checked above: what ITK finds in the header is there.
   NiftiVoxels read{n, detail::read_itk_image(
@@ -450,7 +488,7 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
                             return detail::StoredData{
                                 .compressed = gzipped, .exact = true, .bytes = header.data_bytes()};
                           },
-                          kind)};
+                          kind, in_memory ? &*in_memory : nullptr)};
   const detail::ItkImage& image = read.image;
   if (image.size != size || image.components != 1) {
     throw InputError(name + ": the voxels do not match the header (" + std::to_string(image.size[0]) + " x " +
