@@ -3,6 +3,7 @@
 // they were), the NIfTI transform by pneuma's rule from the header's own bytes, .seg.nrrd
 // segments and layers, and TotalSegmentator's mask folders. ITK itself is in itk_read.cpp.
 #include <fmt/format.h>
+#include <libdeflate.h>
 #include <zlib.h>
 
 #include <Eigen/LU>  // determinant()
@@ -122,6 +123,32 @@ Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enoug
   }
   result.complete = result.bytes >= enough;
   return result;
+}
+
+// A gzip file (members one after another, as pigz writes) inflated whole into `keep` by
+// libdeflate (its CRC-32 and length checked), 3-4 times zlib's speed on a label map (#50): true
+// when the members fill `keep` exactly. Anything else (a damaged or short stream, more data than
+// `keep` holds, a zlib stream) returns false and is left to inflated_bytes, whose zlib gives the
+// message.
+bool inflated_whole(const fs::path& path, std::span<unsigned char> keep) {
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return false;
+  std::vector<unsigned char> packed(static_cast<std::size_t>(std::max<std::streamoff>(in.tellg(), 0)));
+  in.seekg(0);
+  if (!in.read(reinterpret_cast<char*>(packed.data()), static_cast<std::streamsize>(packed.size()))) return false;
+  const std::unique_ptr<libdeflate_decompressor, void (*)(libdeflate_decompressor*)> inflater(
+      libdeflate_alloc_decompressor(), libdeflate_free_decompressor);
+  if (!inflater) return false;
+  std::size_t read = 0, written = 0;
+  while (read + 2 <= packed.size() && packed[read] == 0x1f && packed[read + 1] == 0x8b) {
+    std::size_t used = 0, made = 0;
+    if (libdeflate_gzip_decompress_ex(inflater.get(), packed.data() + read, packed.size() - read, keep.data() + written,
+                                      keep.size() - written, &used, &made) != LIBDEFLATE_SUCCESS)
+      return false;
+    read += used;
+    written += made;
+  }
+  return written == keep.size();
 }
 
 // A file that a header or a folder brings in (NRRD's `data file`, MetaImage's ElementDataFile):
@@ -474,7 +501,8 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
   }
   const std::span<unsigned char> keep =
       kept ? std::span<unsigned char>(kept.get(), static_cast<std::size_t>(needed)) : std::span<unsigned char>();
-  if (gzipped && !inflated_bytes(path, 0, needed, name, keep).complete) throw InputError(truncated);
+  if (gzipped && !(kept && inflated_whole(path, keep)) && !inflated_bytes(path, 0, needed, name, keep).complete)
+    throw InputError(truncated);
   std::optional<detail::VoxelBytes> in_memory;
   if (kept) {
     in_memory = detail::VoxelBytes{
