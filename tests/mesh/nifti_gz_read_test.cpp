@@ -99,7 +99,8 @@ void write(const fs::path& path, const Written& w) {
   bytes[123] = 2;             // xyzt_units: mm
   put(252, std::int16_t{1});  // qform_code: scanner, the identity rotation
   std::memcpy(bytes.data() + 344, "n+1\0", 4);
-  const std::size_t count = static_cast<std::size_t>(w.size[0] * w.size[1] * w.size[2]);
+  const std::size_t count =
+      static_cast<std::size_t>(w.size[0]) * static_cast<std::size_t>(w.size[1]) * static_cast<std::size_t>(w.size[2]);
   for (std::size_t v = 0; v < count; ++v) {
     std::string one = stored(*w.type, w.values.empty() ? value_at(v, w.type->is_signed) : w.values[v]);
     if (w.big_endian) std::reverse(one.begin(), one.end());
