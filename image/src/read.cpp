@@ -126,10 +126,10 @@ Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enoug
 }
 
 // A gzip file (members one after another, as pigz writes) inflated whole into `keep` by
-// libdeflate (its CRC-32 and length checked), 3-4 times zlib's speed on a label map (#50): true
-// when the members fill `keep` exactly. Anything else (a damaged or short stream, more data than
-// `keep` holds, a zlib stream) returns false and is left to inflated_bytes, whose zlib gives the
-// message.
+// libdeflate (its CRC-32 and length checked; 0.02 CPU-s for case004's label map against zlib's
+// 0.18, #50): true when the members fill `keep` exactly. Anything else (a damaged or short
+// stream, more data than `keep` holds, a zlib stream) returns false and is left to
+// inflated_bytes, whose zlib gives the message.
 bool inflated_whole(const fs::path& path, std::span<unsigned char> keep) {
   std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) return false;
@@ -490,7 +490,11 @@ NiftiVoxels read_nifti_voxels(const fs::path& path, const std::string& name, det
   // stored values (no scl_slope rescale; the data after the header and its extension flag, where
   // niftilib looks for it too), and where the room is to be had: the pages are touched only as
   // the stream fills them, so a header claiming more than the stream holds costs no memory.
-  const bool as_stored = n.scl_slope == 0.0 || (n.scl_slope == 1.0 && n.scl_inter == 0.0);
+  // niftilib's rule (FIXED_FLOAT): a slope or intercept that is not a number is 0 (a slope of 0:
+  // no rescale).
+  const auto fixed = [](double f) { return std::isfinite(f) ? f : 0.0; };
+  const double slope = fixed(n.scl_slope), intercept = fixed(n.scl_inter);
+  const bool as_stored = slope == 0.0 || (slope == 1.0 && intercept == 0.0);
   std::unique_ptr<unsigned char[]> kept;
   if (gzipped && as_stored && n.vox_offset >= static_cast<double>(n.header_bytes + 4)) {
     try {

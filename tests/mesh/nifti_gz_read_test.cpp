@@ -11,7 +11,9 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pneuma/core/error.h"
@@ -199,6 +201,26 @@ TEST(NiftiGzOneRead, ARescaledFileIsReadByItkWithItsSlopeAndIntercept) {
     for (std::size_t v = 0; v < 140; ++v)
       wrong += image.values[v] != static_cast<float>(2.0 * value_at(v, true) - 10.0);
     EXPECT_EQ(wrong, 0u) << "datatype " << type.code;
+  }
+}
+
+// A slope or intercept that is not a number is none (niftilib's rule): the stored values, as ITK
+// reads them from the .nii.
+TEST(NiftiGzOneRead, ASlopeOrInterceptThatIsNotANumberLeavesTheStoredValues) {
+  TempDir dir;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (const Type& type : {kTypes[2], kTypes[8]}) {
+    for (const auto& [slope, inter] : {std::pair{nan, 0.0f}, std::pair{nan, nan}, std::pair{1.0f, nan}}) {
+      const Written w{.type = &type, .slope = slope, .inter = inter};
+      write(dir / "n.nii.gz", w);
+      write(dir / "n.nii", w);
+      const pneuma::image::ScalarImage image = pneuma::image::read_scalar_image(dir / "n.nii.gz");
+      ASSERT_EQ(image.values.size(), 140u);
+      std::size_t wrong = 0;
+      for (std::size_t v = 0; v < 140; ++v) wrong += image.values[v] != static_cast<float>(value_at(v, true));
+      EXPECT_EQ(wrong, 0u) << "datatype " << type.code << ", slope " << slope << ", intercept " << inter;
+      EXPECT_EQ(image.values, pneuma::image::read_scalar_image(dir / "n.nii").values) << type.code;
+    }
   }
 }
 
