@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -46,14 +47,27 @@ struct StoredData {
   double bytes = 0.0;
 };
 
+// The voxels' bytes as the file stores them, already in memory (a .nii.gz that read.cpp inflated
+// once, its stream checked whole: #50), `swap` when their byte order is not this machine's, and
+// `type_name` the file's own type (NIfTI's spelling). read_itk_image takes them in place of ITK's
+// second read of the file when ITK's header gives that type and exactly that many bytes; the
+// caller passes none when ITK would change the values as it reads them (a rescale).
+struct VoxelBytes {
+  std::span<const unsigned char> bytes;
+  bool swap = false;
+  std::string type_name;
+};
+
 // Reads the header, asks `stored` where the data is (with the header filled in, values empty),
 // refuses sizes the file cannot hold before anything is allocated ("<file>: truncated or
 // corrupt: expected 48 x 40 x 32 voxels of INT16 (122880 bytes of data)"), then reads the voxels
 // and converts them to int32 ("<file>: voxel 7 holds 0.5: expected integer labels ...") or, for
 // VoxelKind::reals, to float. Every ITK exception becomes one InputError line; nothing of ITK's
-// text is passed on. Calls from several threads are safe (they take turns).
+// text is passed on. Calls from several threads are safe (they take turns). With `in_memory`
+// (above) the voxels are converted from those bytes, by the same rules and messages.
 ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
-                        const std::function<StoredData(const ItkImage&)>& stored, VoxelKind kind = VoxelKind::labels);
+                        const std::function<StoredData(const ItkImage&)>& stored, VoxelKind kind = VoxelKind::labels,
+                        const VoxelBytes* in_memory = nullptr);
 
 // "not a NRRD file: expected ...": what a file of `format` must begin with.
 const char* format_expectation(ImageFormat format);

@@ -14,7 +14,9 @@
 
 #include "itk_quiet.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <mutex>
 #include <sstream>
@@ -57,19 +59,19 @@ const char* type_name(Component c) {
   }
 }
 
-template <typename T>
-void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& image, VoxelKind kind) {
+// The voxels, value `at(v)` for v in [0, count), converted to int32 labels (refusing any that is
+// not a whole number) or to float.
+template <typename At>
+void convert(const At& at, const std::string& name, ItkImage& image, VoxelKind kind) {
   const std::size_t count = image.voxel_count() * image.components;
-  std::vector<T> buffer(count);
-  io.Read(buffer.data());
   if (kind == VoxelKind::reals) {
     image.reals.resize(count);
-    for (std::size_t v = 0; v < count; ++v) image.reals[v] = static_cast<float>(buffer[v]);
+    for (std::size_t v = 0; v < count; ++v) image.reals[v] = static_cast<float>(at(v));
     return;
   }
   image.values.resize(count);
   for (std::size_t v = 0; v < count; ++v) {
-    const double value = static_cast<double>(buffer[v]);
+    const double value = static_cast<double>(at(v));
     if (!(value == std::floor(value)) || std::abs(value) > 2147483647.0) {
       std::ostringstream text;
       text << name << ": voxel " << v / image.components << " holds " << std::to_string(value)
@@ -77,6 +79,52 @@ void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& i
       throw InputError(text.str());
     }
     image.values[v] = static_cast<std::int32_t>(value);
+  }
+}
+
+// ITK reads the file's voxels (its second pass over a compressed file), then they are converted.
+template <typename T>
+void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& image, VoxelKind kind) {
+  std::vector<T> buffer(image.voxel_count() * image.components);
+  io.Read(buffer.data());
+  convert([&buffer](std::size_t v) { return buffer[v]; }, name, image, kind);
+}
+
+// The same values from the file's bytes already in memory: what ITK's read gives (niftilib copies
+// the stored bytes and swaps them to this machine's order), without reading the file again.
+template <typename T>
+void convert_bytes(const VoxelBytes& stored, const std::string& name, ItkImage& image, VoxelKind kind) {
+  const unsigned char* bytes = stored.bytes.data();
+  if (stored.swap) {
+    convert(
+        [bytes](std::size_t v) {
+          unsigned char raw[sizeof(T)];
+          std::memcpy(raw, bytes + v * sizeof(T), sizeof(T));
+          std::reverse(raw, raw + sizeof(T));
+          T value;
+          std::memcpy(&value, raw, sizeof(T));
+          return value;
+        },
+        name, image, kind);
+  } else {
+    convert(
+        [bytes](std::size_t v) {
+          T value;
+          std::memcpy(&value, bytes + v * sizeof(T), sizeof(T));
+          return value;
+        },
+        name, image, kind);
+  }
+}
+
+// The voxels of component type T: from `in_memory` when it holds them, else by ITK.
+template <typename T>
+void voxels_of(itk::ImageIOBase& io, const VoxelBytes* in_memory, const std::string& name, ItkImage& image,
+               VoxelKind kind) {
+  if (in_memory) {
+    convert_bytes<T>(*in_memory, name, image, kind);
+  } else {
+    read_and_convert<T>(io, name, image, kind);
   }
 }
 
@@ -142,7 +190,8 @@ ItkImage read_header(itk::ImageIOBase& io, const std::string& name, ImageFormat 
 }  // namespace
 
 ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
-                        const std::function<StoredData(const ItkImage&)>& stored, VoxelKind kind) {
+                        const std::function<StoredData(const ItkImage&)>& stored, VoxelKind kind,
+                        const VoxelBytes* in_memory) {
   const std::string name = path.string();
   // One ITK call at a time: std::cerr's buffer and ITK's warning switch are process-wide.
   const std::lock_guard<std::mutex> lock(itk_quiet::mutex());
@@ -167,6 +216,11 @@ ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
   const std::string truncated =
       truncated_message(name, image.size, image.components, image.type_name, claimed, data.compressed);
   if (claimed > room) throw InputError(truncated);
+  // The bytes in memory only where ITK's header says what they hold: the same type, all of them.
+  if (in_memory &&
+      (in_memory->type_name != image.type_name || static_cast<double>(in_memory->bytes.size()) != image.data_bytes())) {
+    in_memory = nullptr;
+  }
   try {
     // The whole image (an ImageIO reads only its IO region, empty unless set).
     const unsigned dims = io->GetNumberOfDimensions();
@@ -177,18 +231,18 @@ ItkImage read_itk_image(const std::filesystem::path& path, ImageFormat format,
     }
     io->SetIORegion(region);
     switch (io->GetComponentType()) {
-      case Component::UCHAR: read_and_convert<unsigned char>(*io, name, image, kind); break;
-      case Component::CHAR: read_and_convert<signed char>(*io, name, image, kind); break;
-      case Component::USHORT: read_and_convert<unsigned short>(*io, name, image, kind); break;
-      case Component::SHORT: read_and_convert<short>(*io, name, image, kind); break;
-      case Component::UINT: read_and_convert<unsigned int>(*io, name, image, kind); break;
-      case Component::INT: read_and_convert<int>(*io, name, image, kind); break;
-      case Component::ULONG: read_and_convert<unsigned long>(*io, name, image, kind); break;
-      case Component::LONG: read_and_convert<long>(*io, name, image, kind); break;
-      case Component::ULONGLONG: read_and_convert<unsigned long long>(*io, name, image, kind); break;
-      case Component::LONGLONG: read_and_convert<long long>(*io, name, image, kind); break;
-      case Component::FLOAT: read_and_convert<float>(*io, name, image, kind); break;
-      case Component::DOUBLE: read_and_convert<double>(*io, name, image, kind); break;
+      case Component::UCHAR: voxels_of<unsigned char>(*io, in_memory, name, image, kind); break;
+      case Component::CHAR: voxels_of<signed char>(*io, in_memory, name, image, kind); break;
+      case Component::USHORT: voxels_of<unsigned short>(*io, in_memory, name, image, kind); break;
+      case Component::SHORT: voxels_of<short>(*io, in_memory, name, image, kind); break;
+      case Component::UINT: voxels_of<unsigned int>(*io, in_memory, name, image, kind); break;
+      case Component::INT: voxels_of<int>(*io, in_memory, name, image, kind); break;
+      case Component::ULONG: voxels_of<unsigned long>(*io, in_memory, name, image, kind); break;
+      case Component::LONG: voxels_of<long>(*io, in_memory, name, image, kind); break;
+      case Component::ULONGLONG: voxels_of<unsigned long long>(*io, in_memory, name, image, kind); break;
+      case Component::LONGLONG: voxels_of<long long>(*io, in_memory, name, image, kind); break;
+      case Component::FLOAT: voxels_of<float>(*io, in_memory, name, image, kind); break;
+      case Component::DOUBLE: voxels_of<double>(*io, in_memory, name, image, kind); break;
       default: throw InputError(truncated);  // excluded with the header
     }
   } catch (const itk::ExceptionObject&) {

@@ -6,7 +6,8 @@
 namespace pneuma::image::detail {
 
 ItkImage read_itk_image(const std::filesystem::path& /*path*/, ImageFormat /*format*/,
-                        const std::function<StoredData(const ItkImage&)>& /*stored*/, VoxelKind /*kind*/) {
+                        const std::function<StoredData(const ItkImage&)>& /*stored*/, VoxelKind /*kind*/,
+                        const VoxelBytes* /*in_memory*/) {
   throw_not_built("NIfTI, NRRD and MetaImage images (ITK)");
 }
 

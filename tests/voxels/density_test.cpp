@@ -305,6 +305,32 @@ TEST(TimePoint, ACtOnTheGridIsTheSeparateStepsWarpWithOrWithoutTheKeptRestTets) 
   }
 }
 
+// Two time points on one TimePoint, the first keeping the rest tets for the second: the second
+// replays them and then frees them (it keeps none for a later one), and its fields and Jacobian
+// image are those of a time point computed afresh at its scale.
+TEST(TimePoint, TheLastTimePointFreesTheKeptRestTetsOnceReplayed) {
+  const test::Ball ball = test::make_ball();
+  const std::vector<Eigen::Vector3d> u = ball.radial(0.4);
+  const std::vector<LungMotion> first{LungMotion{ball.mesh, u, 0.5}}, second{LungMotion{ball.mesh, u, 0.3}};
+  TimePointInputs inputs;
+  inputs.jacobian_map = true;
+  TimePoint point;
+  compute_time_point(ball.grid, first, inputs, point);
+  ASSERT_TRUE(point.rest_raster.holds(ball.grid, second));  // kept: the rest tets are the same
+  inputs.keep_rest_raster = false;
+  compute_time_point(ball.grid, second, inputs, point);
+  EXPECT_FALSE(point.rest_raster.holds(ball.grid, second));
+  EXPECT_TRUE(point.rest_raster.slabs.empty());
+  EXPECT_TRUE(point.rest_raster.owner.empty());
+
+  TimePoint fresh;
+  compute_time_point(ball.grid, second, inputs, fresh);
+  EXPECT_EQ(point.forward.displacement_m, fresh.forward.displacement_m);
+  EXPECT_EQ(point.pullback.displacement_m, fresh.pullback.displacement_m);
+  ASSERT_TRUE(point.jacobian_map.has_value() && fresh.jacobian_map.has_value());
+  EXPECT_EQ(point.jacobian_map->values, fresh.jacobian_map->values);
+}
+
 // The label map and an image on its grid warped in one pass (warp_labels_and_image) are the two
 // warps made apart, bit for bit: by the pleura's side alone, and with no rest lungs at all. An
 // image on another grid is refused.

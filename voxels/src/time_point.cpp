@@ -49,6 +49,9 @@ void compute_parts(const Grid& grid, std::span<const LungMotion> lungs, const Ti
   } else {
     forward_dvf(grid, lungs, point.forward, inputs.forward_outside, raster);
   }
+  // The last time point to replay the kept rest tets frees them once replayed (#50), not when the
+  // run ends: 0.33 GB at case004's own grid through the pull-back and the warps.
+  if (!inputs.keep_rest_raster) point.rest_raster = RestRaster{};
   ready(Part::forward);
   pullback_dvf(grid, lungs, point.pullback, inputs.pullback_outside);
   ready(Part::pullback);
