@@ -1,7 +1,8 @@
 // The field of a lung that breathes below its rest shape (docs/voxels.md, "The scan's place on
 // the breath"): the inflation's field, smoothed in space just enough that its mirror does not
 // pass one face of a thin part of the lung through the other nor stretch the surface between two
-// of its points by more than their distance.
+// of its points by more than their distance, and that its pull-back parts no two points by more
+// than theirs.
 #include <array>
 
 #include "pneuma/core/error.h"
