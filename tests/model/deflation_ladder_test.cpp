@@ -115,8 +115,8 @@ TEST(DeflationLadder, APullBackThatPartsNeighboursIsSmoothedUntilItDoesNot) {
   const DeflationField field = field_for_deflation(sphere, u, depth_m3);
   ASSERT_GT(field.sigma_m, 0.0);
   EXPECT_TRUE(field.passes);
-  const double kept =
-      pull_back_slope(sphere.vertices, times(scale_at_depth(sphere, field.unit_displacement, depth_m3), field.unit_displacement));
+  const double kept = pull_back_slope(
+      sphere.vertices, times(scale_at_depth(sphere, field.unit_displacement, depth_m3), field.unit_displacement));
   std::cout << "smoothed at " << field.sigma_m * 1e3 << " mm: pull-back slope " << kept << "\n";
   EXPECT_LE(kept, 1.0);
 }
