@@ -387,9 +387,15 @@ def run(pneuma, case, tissue, breath, work, spacing_mm, tets_mm=6.0, surfaces_mm
     if p.returncode != 0:
         result["error"] = p.stderr.strip()
         return result
+    # The run's warnings (a deflation no step of the ladder makes clean says so) and each lung's
+    # deflation smoothing (the manifest's facts; absent where the field was kept as it is).
+    result["warnings"] = [line for line in p.stderr.splitlines() if "warning" in line.lower()]
+    facts = json.loads((out / "manifest.json").read_text()).get("facts", {})
+    result["deflation_smoothing_mm"] = {side: round(1e3 * float(facts[f"lungs.{side}.deflation_smoothing_m"]), 3)
+                                        for side in ("right", "left") if f"lungs.{side}.deflation_smoothing_m" in facts}
     result.update(measure(out / "voxels", ct, breath, lungs_of(case)))
     result["surface"] = surface_motion(out / "series.h5")
-    if where and case != "phantom":
+    if where:
         result["where"] = torn_where(out, breath, lungs_of(case))
     return result
 

@@ -134,8 +134,9 @@ LungModel lung_model(const Scenario& s, const mesh::SurfaceSource& surfaces, std
   if (!deflation.passes) {
     report.warnings.push_back(
         fmt::format("the deflation field{} smoothed at {:.0f} mm still crosses itself or stretches two surface points "
-                    "apart by more than their distance at 1.5 times the {:.0f} mL it deflates: the lung's inside may "
-                    "tear below the scan (docs/voxels.md, \"The scan's place on the breath\")",
+                    "apart by more than their distance at 1.5 times the {:.0f} mL it deflates, or by more than half "
+                    "their distance at the depth: the lung's inside may tear below the scan (docs/voxels.md, \"The "
+                    "scan's place on the breath\")",
                     what, deflation.sigma_m * 1e3, deflation_m3 * 1e6));
   }
 

@@ -73,6 +73,54 @@ TEST(DeflationLadder, AFieldThatStretchesPairsApartIsSmoothedUntilItContracts) {
   }
 }
 
+// The pull-back of a deflation, counted on the deformed surface: the largest |v_i - v_j| / |y_i - y_j|
+// over every pair, y = x + d the deflated points and v = -d their pull-backs to the rest surface.
+double pull_back_slope(const std::vector<Eigen::Vector3d>& x, const std::vector<Eigen::Vector3d>& d) {
+  std::vector<Eigen::Vector3d> y(x.size()), v(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    y[i] = x[i] + d[i];
+    v[i] = -d[i];
+  }
+  return slope_over_all_pairs(y, v);
+}
+
+// The ladder asks, besides the contraction at 1.5 times the depth, that at the depth itself no two
+// pull-backs part by more than their points' distance (#45's neighbour check on the voxels' pull-back
+// DVF): a sphere shrunk radially whose field also compresses it along z by a wave (u_z = a sin(k z):
+// the belts where cos(k z) > 0 close to about half their height at the depth) passes the older
+// rules unsmoothed (no self-intersection and a contraction at 1.5 times the depth, both checked
+// here directly) while its pull-back, counted over every pair of the deflated sphere, parts
+// neighbours by more than their distance; the ladder smooths it until the pull-back of the field it
+// keeps does not, by the same count.
+TEST(DeflationLadder, APullBackThatPartsNeighboursIsSmoothedUntilItDoesNot) {
+  const mesh::TriangleMesh sphere = mesh::make_icosphere(0.05, 4);  // 2562 vertices, edges about 4 mm
+  const double depth_m3 = 100e-6;                                   // 100 mL of its 524 mL
+  const double k = 2.0 * std::numbers::pi / 0.04;                   // a wave of 40 mm along z
+  const std::vector<Eigen::Vector3d> u = field_at(sphere.vertices, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return 1e-3 * p.normalized() + Eigen::Vector3d(0.0, 0.0, 1e-3 * std::sin(k * p.z()));
+  });
+  // The older rules pass: at 1.5 times the depth the mirror neither crosses itself nor stretches a pair.
+  const double s_margin = scale_at_depth(sphere, u, 1.5 * depth_m3);
+  const std::vector<Eigen::Vector3d> d_margin = times(s_margin, u);
+  mesh::TriangleMesh moved = sphere;
+  for (std::size_t i = 0; i < d_margin.size(); ++i) moved.vertices[i] += d_margin[i];
+  ASSERT_FALSE(mesh::self_intersects(moved));
+  const double slope_margin = slope_over_all_pairs(sphere.vertices, d_margin);
+  EXPECT_LT(slope_margin, 1.0);
+  // But at the depth the pull-back parts neighbours by more than their distance.
+  const double unsmoothed = pull_back_slope(sphere.vertices, times(scale_at_depth(sphere, u, depth_m3), u));
+  EXPECT_GT(unsmoothed, 1.0);
+  std::cout << "unsmoothed: slope " << slope_margin << " at 1.5 times the depth, pull-back slope " << unsmoothed
+            << " at the depth\n";
+  const DeflationField field = field_for_deflation(sphere, u, depth_m3);
+  ASSERT_GT(field.sigma_m, 0.0);
+  EXPECT_TRUE(field.passes);
+  const double kept = pull_back_slope(
+      sphere.vertices, times(scale_at_depth(sphere, field.unit_displacement, depth_m3), field.unit_displacement));
+  std::cout << "smoothed at " << field.sigma_m * 1e3 << " mm: pull-back slope " << kept << "\n";
+  EXPECT_LE(kept, 1.0);
+}
+
 // A field that no step of the ladder makes deflate cleanly says so (the run then warns): a shear
 // of a wavelength longer than the sphere (200 mm), which the last step (16 mm) leaves nearly
 // whole and whose swirl swells the sphere faster than its radial part shrinks it, so that the

@@ -421,6 +421,30 @@ TEST(CtBreathAt2mm, Case004sLungDoesNotTearUnderTheLeftBaseWhenItDeflates) {
   EXPECT_GT(k->mean_hu, -845.0) << name;  // brighter than the scan's -849.5 HU
 }
 
+// case005 at 2 mm voxels with the scan at end-inspiration (supine): the lung deflates by 500 mL.
+// With the contraction at 1.5 times the depth (above) 3 neighbour pairs 2.03 mm apart were left
+// 4.5-6 mm inside the left base (pull-back J 1.73-1.78), in the wedge under the heart's overhang:
+// the surface field compressed the vertical line through them (21-24 mm) to 0.44-0.50, and the
+// deflated surface's own slope was 0.59 (|s (u_i - u_j)| / |x_i - x_j|), so pull-backs could part
+// by up to 0.59 / 0.41 times their distance. The ladder now also asks for a slope of at most 1/2 at
+// the depth itself (model::field_for_deflation), under which no two pull-backs part by more than
+// their points' distance. Held: the interior and mass checks, no body or lung voxel
+// outside [0.5, 2], no two neighbours a voxel apart, the end-expiration volume within 1 %.
+TEST(CtBreathAt2mm, Case005sLungDoesNotTearUnderTheHeartWhenItDeflates) {
+  if (!have_inputs("case005")) GTEST_SKIP() << "no inputs (above)";
+  const std::optional<Checks> k = run_and_check("case005", "end_inspiration", "healthy-supine", 2e-3);
+  if (!k) return;
+  const std::string name = "case005 at 2 mm, scan at end_inspiration";
+  expect_interior_and_mass(name, *k);
+  EXPECT_EQ(k->body_torn, 0u) << name;
+  EXPECT_EQ(k->lung_torn, 0.0) << name;
+  EXPECT_LT(k->pull_max, 2.0) << name;
+  EXPECT_GT(k->pull_min, 0.5) << name;
+  EXPECT_EQ(k->pairs, 0u) << name;
+  EXPECT_NEAR(k->other_ml / (k->scan_ml - 500.0), 1.0, 0.01) << name;
+  EXPECT_GT(k->mean_hu, -845.0) << name;  // brighter than the scan's -849.5 HU
+}
+
 // The built-in phantom (`phantom: both`), which has no label map: the voxels' grid is a box around
 // the lungs, the rest label map the lungs' rest tetrahedra on it (right 1, left 2), and its CT is
 // made from that map (write_phantom_ct). The same run and checks as above in both postures, the

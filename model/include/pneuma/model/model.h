@@ -130,15 +130,17 @@ const std::vector<double>& lung_volumes(const physiology::SimulationResult& driv
 
 // The surface field for a lung that deflates `depth_m3` below its rest shape (a scan above FRC):
 // `u` itself where rest + s u at 1.5 times that depth neither self-intersects nor stretches two
-// surface points apart by more than their distance (s u a contraction: field::is_contraction),
-// else u smoothed in space (field::smooth_field_in_space) at the first of 2, 4, 6, 8, 12, 16 mm
-// whose deflation passes both (the largest when none does: `passes` is then false; a surface that
-// crosses itself at the run's own scales fails check_no_fold, a stretch is the run's warning).
+// surface points apart by more than their distance (s u a contraction: field::is_contraction) and
+// where at the depth itself |s (u_i - u_j)| < |x_i - x_j| / 2, so that the pull-back moves no two
+// points apart by more than their distance; else u smoothed in space
+// (field::smooth_field_in_space) at the first of 2, 4, 6, 8, 12, 16 mm whose deflation passes all
+// three (the largest when none does: `passes` is then false; a surface that crosses itself at the
+// run's own scales fails check_no_fold, a stretch is the run's warning).
 // docs/voxels.md, "The scan's place on the breath".
 struct DeflationField {
   std::vector<Eigen::Vector3d> unit_displacement;
   double sigma_m = 0.0;
-  bool passes = true;  // the kept field deflates 1.5 times the depth cleanly
+  bool passes = true;  // the kept field deflates cleanly (1.5 times the depth, and the depth by half)
 };
 DeflationField field_for_deflation(const mesh::TriangleMesh& rest, const std::vector<Eigen::Vector3d>& u,
                                    double depth_m3);
