@@ -21,6 +21,7 @@
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
+#include <type_traits>
 
 #include "itk_image.h"
 #include "pneuma/core/error.h"
@@ -90,8 +91,19 @@ void read_and_convert(itk::ImageIOBase& io, const std::string& name, ItkImage& i
   convert([&buffer](std::size_t v) { return buffer[v]; }, name, image, kind);
 }
 
+// niftilib sets a stored NaN or infinity to 0 as it reads (nifti_read_buffer: "bad floats were set
+// to 0"), so the bytes read here do the same: a .nii.gz reads as the same .nii read by ITK.
+template <typename T>
+T as_niftilib_reads(T value) {
+  if constexpr (std::is_floating_point_v<T>) {
+    if (!std::isfinite(value)) return T(0);
+  }
+  return value;
+}
+
 // The same values from the file's bytes already in memory: what ITK's read gives (niftilib copies
-// the stored bytes and swaps them to this machine's order), without reading the file again.
+// the stored bytes, swaps them to this machine's order and zeroes bad floats), without reading the
+// file again.
 template <typename T>
 void convert_bytes(const VoxelBytes& stored, const std::string& name, ItkImage& image, VoxelKind kind) {
   const unsigned char* bytes = stored.bytes.data();
@@ -103,7 +115,7 @@ void convert_bytes(const VoxelBytes& stored, const std::string& name, ItkImage& 
           std::reverse(raw, raw + sizeof(T));
           T value;
           std::memcpy(&value, raw, sizeof(T));
-          return value;
+          return as_niftilib_reads(value);
         },
         name, image, kind);
   } else {
@@ -111,7 +123,7 @@ void convert_bytes(const VoxelBytes& stored, const std::string& name, ItkImage& 
         [bytes](std::size_t v) {
           T value;
           std::memcpy(&value, bytes + v * sizeof(T), sizeof(T));
-          return value;
+          return as_niftilib_reads(value);
         },
         name, image, kind);
   }

@@ -130,7 +130,7 @@ Inflated inflated_bytes(const fs::path& path, std::uint64_t offset, double enoug
 // 0.18, #50): true when the members fill `keep` exactly. Anything else (a damaged or short
 // stream, more data than `keep` holds, a zlib stream) returns false and is left to
 // inflated_bytes, whose zlib gives the message.
-bool inflated_whole(const fs::path& path, std::span<unsigned char> keep) {
+bool inflated_whole(const fs::path& path, std::span<unsigned char> keep) try {
   std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) return false;
   std::vector<unsigned char> packed(static_cast<std::size_t>(std::max<std::streamoff>(in.tellg(), 0)));
@@ -149,6 +149,8 @@ bool inflated_whole(const fs::path& path, std::span<unsigned char> keep) {
     written += made;
   }
   return written == keep.size();
+} catch (const std::bad_alloc&) {
+  return false;  // no room for the whole compressed file: zlib's pass streams it
 }
 
 // A file that a header or a folder brings in (NRRD's `data file`, MetaImage's ElementDataFile):

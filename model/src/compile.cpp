@@ -132,12 +132,12 @@ LungModel lung_model(const Scenario& s, const mesh::SurfaceSource& surfaces, std
   DeflationField deflation = field_for_deflation(computed.record.rest, computed.record.unit_displacement, deflation_m3);
   if (deflation_m3 > 0.0) report.timings_s.emplace_back("deflation field" + what, seconds_since(start));
   if (!deflation.passes) {
-    report.warnings.push_back(
-        fmt::format("the deflation field{} smoothed at {:.0f} mm still crosses itself or stretches two surface points "
-                    "apart by more than their distance at 1.5 times the {:.0f} mL it deflates, or by more than half "
-                    "their distance at the depth: the lung's inside may tear below the scan (docs/voxels.md, \"The "
-                    "scan's place on the breath\")",
-                    what, deflation.sigma_m * 1e3, deflation_m3 * 1e6));
+    report.warnings.push_back(fmt::format(
+        "the deflation field{} smoothed at {:.0f} mm still crosses itself or moves two surface points "
+        "relative to each other by more than their distance at 1.5 times the {:.0f} mL it deflates, or by "
+        "more than half their distance at the depth: the lung's inside may tear below the scan (docs/voxels.md, \"The "
+        "scan's place on the breath\")",
+        what, deflation.sigma_m * 1e3, deflation_m3 * 1e6));
   }
 
   // The inside, where an output needs it: kept in the field's cache file beside the field it

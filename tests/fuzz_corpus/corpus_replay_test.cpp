@@ -7,10 +7,12 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <string>
 #include <vector>
 
+#include "nifti_gz_input.h"  // fuzz/: the harness's own compression of its input
 #include "pneuma/core/error.h"
 #include "pneuma/field/tissue.h"
 #include "pneuma/mesh/geometry/validate.h"
@@ -31,6 +33,8 @@ struct Target {
   const char* corpus;     // fuzz/corpus/<corpus>
   const char* extension;  // the one its fuzzer gives the bytes
   std::function<void(const fs::path&)> load;
+  // The input as its fuzzer gives it to the loader (none: the file's bytes as they are).
+  std::function<std::string(const std::string&)> prepare = nullptr;
 };
 
 void read_and_validate(const fs::path& file) { (void)pneuma::mesh::validate(pneuma::mesh::read_mesh(file)); }
@@ -41,6 +45,10 @@ const std::vector<Target>& targets() {
       {"tissue", ".yaml", [](const fs::path& f) { (void)pneuma::scenario::load_tissue(f); }},
       {"field_cache", ".h5", [](const fs::path& f) { (void)pneuma::model::load_field(f); }},
       {"nifti", ".nii", [](const fs::path& f) { (void)pneuma::image::read_label_map(f); }},
+      {"nifti_gz", ".nii.gz", [](const fs::path& f) { (void)pneuma::image::read_label_map(f); },
+       [](const std::string& bytes) {
+         return pneuma::fuzz::nifti_gz_bytes(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+       }},
       {"labels_nrrd", ".nrrd", [](const fs::path& f) { (void)pneuma::image::read_label_map(f); }},
       {"labels_mha", ".mha", [](const fs::path& f) { (void)pneuma::image::read_label_map(f); }},
       {"mesh_stl", ".stl", read_and_validate},
@@ -67,7 +75,11 @@ TEST(FuzzCorpus, EveryInputLoadsOrFailsWithOneLine) {
       const std::string name = file.filename().string();
       regressions += name.starts_with("regression-");
       const fs::path input = dir / (std::string(target.corpus) + target.extension);
-      fs::copy_file(file, input, fs::copy_options::overwrite_existing);
+      if (target.prepare) {
+        std::ofstream(input, std::ios::binary | std::ios::trunc) << target.prepare(pneuma::test::read_text(file));
+      } else {
+        fs::copy_file(file, input, fs::copy_options::overwrite_existing);
+      }
       try {
         target.load(input);
       } catch (const pneuma::Error& e) {

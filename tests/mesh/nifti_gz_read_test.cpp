@@ -224,6 +224,33 @@ TEST(NiftiGzOneRead, ASlopeOrInterceptThatIsNotANumberLeavesTheStoredValues) {
   }
 }
 
+// A stored NaN or infinity: niftilib sets it to 0 as it reads ("bad floats were set to 0"), so the
+// one read does too, in either byte order: the .nii.gz reads as ITK reads the same .nii.
+TEST(NiftiGzOneRead, NotANumberOrInfinityReadsAsZeroAsItkReadsIt) {
+  TempDir dir;
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<double> values(140);
+  for (std::size_t v = 0; v < 140; ++v) values[v] = value_at(v, true);
+  values[3] = std::numeric_limits<double>::quiet_NaN();
+  values[50] = inf;
+  values[99] = -inf;
+  for (const Type& type : {kTypes[8], kTypes[9]}) {  // float32, float64
+    for (const bool big : {false, true}) {
+      const Written w{.type = &type, .big_endian = big, .values = values};
+      write(dir / "bad.nii.gz", w);
+      write(dir / "bad.nii", w);
+      const pneuma::image::ScalarImage image = pneuma::image::read_scalar_image(dir / "bad.nii.gz");
+      ASSERT_EQ(image.values.size(), 140u);
+      for (const std::size_t v : {3u, 50u, 99u}) EXPECT_EQ(image.values[v], 0.0f) << type.code << " voxel " << v;
+      EXPECT_EQ(image.values[4], static_cast<float>(value_at(4, true)));
+      EXPECT_EQ(image.values, pneuma::image::read_scalar_image(dir / "bad.nii").values) << type.code;
+      EXPECT_EQ(pneuma::image::read_label_map(dir / "bad.nii.gz").labels,
+                pneuma::image::read_label_map(dir / "bad.nii").labels)
+          << type.code;
+    }
+  }
+}
+
 // The integrity pass's messages on the one read: a label that is not whole (the same voxel named
 // as ITK's read of the .nii names), a CRC that does not match, a stream cut short.
 TEST(NiftiGzOneRead, DamagedOrNonIntegerFilesAreTheSameOneLineErrors) {
