@@ -151,6 +151,7 @@ TEST(Untangle, AMoveForTheDeepBreathDoesNotStretchAQuietOne) {
   ASSERT_LT(smallest_jacobian(m, u, 1.0), 0.0);  // folded at the deep breath
   const std::vector<double> quiet{0.125, 0.25, 0.375, 0.5};
   std::vector<double> before;
+  before.reserve(quiet.size());
   for (const double s : quiet) before.push_back(largest_jacobian(m, u, s));
   const std::vector<Eigen::Vector3d> given = u;
   const UntangleReport r = untangle_interior(m, corners, u, 1.0, 0.2);
