@@ -7,6 +7,7 @@
 #include <limits>
 #include <numeric>
 #include <optional>
+#include <utility>
 
 #include "fixed_blocks.h"
 #include "pneuma/core/error.h"
@@ -23,6 +24,17 @@ constexpr std::array<double, 8> kFractions{0.125, 0.25, 0.375, 0.5, 0.625, 0.75,
 // down to the floor at the whole of it.
 double lighter_floor(double f, double min_jacobian) {
   return f <= 0.5 ? 1.0 : 1.0 - (1.0 - min_jacobian) * (2.0 * f - 1.0);
+}
+
+// The mirror of lighter_floor: how far a move may raise the largest Jacobian in the star at its own
+// breath or a lighter one: to twice the rest volume (the no-tear check's pull-back J of 1/2) up to
+// half of `scale`, to 1 / the floor beyond. Without it a move that lifts a compressed tet stretched
+// the tet across the node instead: on the phantom the moves for 1 L left J = 2-3 inside a 500 mL
+// breath, 3.5-14 mm inside the base (#45 at 2 mm voxels; docs/voxels.md, "The phantom's interior
+// tears at 2 mm, diagnosed").
+constexpr double kQuietCeiling = 2.0;
+double lighter_ceiling(double f, double min_jacobian) {
+  return std::max(kQuietCeiling, 1.0 / lighter_floor(f, min_jacobian));
 }
 
 // Whether tet `q` folds at one of the breaths checked up to `scale`.
@@ -304,7 +316,7 @@ UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std:
   census(report.tets_below_before, report.folded_before, report.min_jacobian_before);
   std::vector<char> touched(n, 0);
   std::vector<AffineJacobian> f;
-  std::vector<double> kept_floor;
+  std::vector<double> kept_floor, kept_ceiling;
   // The lightest breath first; a deeper one may not push a lighter one below the floor again.
   for (std::size_t level = 0; level < kFractions.size(); ++level) {
     const double s = kFractions[level] * scale;
@@ -346,18 +358,23 @@ UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std:
         // concave in lambda: go no further than the lighter breaths allow (not below their envelope, or
         // below where they are), and there as far as needed to reach the floor, else to the best.
         const Eigen::Vector3d u0 = displacement[v], u1 = (optimum - mesh.nodes[v]) / s;
-        auto smallest_at = [&](double lambda, double breath) {
+        // The star's smallest and largest Jacobian at `breath`: each tet's is affine in lambda, so
+        // the smallest is concave and the largest convex in it.
+        auto extremes_at = [&](double lambda, double breath) {
           const Eigen::Vector3d u = u0 + lambda * (u1 - u0);
-          double m = std::numeric_limits<double>::infinity();
+          double lo = std::numeric_limits<double>::infinity(), hi = -lo;
           for (std::uint32_t k = start[v]; k < start[v + 1]; ++k) {
             const auto& q = mesh.tets[star[k]];
             std::array<Eigen::Vector3d, 4> x;
             for (std::size_t c = 0; c < 4; ++c)
               x[c] = mesh::moved_node(mesh.nodes[q[c]], q[c] == v ? u : displacement[q[c]], breath);
-            m = std::min(m, mesh::tet_volume6(x[0], x[1], x[2], x[3]) / rest6[star[k]]);
+            const double j = mesh::tet_volume6(x[0], x[1], x[2], x[3]) / rest6[star[k]];
+            lo = std::min(lo, j);
+            hi = std::max(hi, j);
           }
-          return m;
+          return std::pair{lo, hi};
         };
+        auto smallest_at = [&](double lambda, double breath) { return extremes_at(lambda, breath).first; };
         auto smallest = [&](double lambda, std::size_t l) { return smallest_at(lambda, kFractions[l] * scale); };
         auto here = [&](double lambda) { return smallest(lambda, level); };
         // A lighter breath l keeps the star's smallest Jacobian at or above lighter_floor (or where
@@ -365,16 +382,31 @@ UntangleReport untangle_interior(const mesh::TetMesh& mesh, std::span<const std:
         // not traded for a deep one's (a floor of 0.2 at every breath let the moves for 1 L leave
         // J = 0.25-0.55 in a 250 mL breath beside the heart).
         // So does each kept breath of the other direction.
-        std::array<double, kFractions.size()> keep{};
-        for (std::size_t l = 0; l < level; ++l)
-          keep[l] = std::min(lighter_floor(kFractions[l], min_jacobian), smallest(0.0, l));
+        // Nor, at this breath or a lighter one, its largest above lighter_ceiling (or where it was,
+        // if higher): a move does not tear the tets on the node's other side.
+        std::array<double, kFractions.size()> keep{}, keep_top{};
+        for (std::size_t l = 0; l <= level; ++l) {
+          const auto [lo, hi] = extremes_at(0.0, kFractions[l] * scale);
+          keep[l] = std::min(lighter_floor(kFractions[l], min_jacobian), lo);
+          keep_top[l] = std::max(lighter_ceiling(kFractions[l], min_jacobian), hi);
+        }
         kept_floor.clear();
-        for (const KeptBreath& b : kept) kept_floor.push_back(std::min(b.floor, smallest_at(0.0, b.scale)));
+        kept_ceiling.clear();
+        for (const KeptBreath& b : kept) {
+          const auto [lo, hi] = extremes_at(0.0, b.scale);
+          kept_floor.push_back(std::min(b.floor, lo));
+          kept_ceiling.push_back(
+              std::max({kQuietCeiling, b.floor > 0.0 ? 1.0 / b.floor : std::numeric_limits<double>::infinity(), hi}));
+        }
         auto lighter_keep = [&](double lambda) {
-          for (std::size_t l = 0; l < level; ++l)
-            if (smallest(lambda, l) < keep[l]) return false;
-          for (std::size_t b = 0; b < kept.size(); ++b)
-            if (smallest_at(lambda, kept[b].scale) < kept_floor[b]) return false;
+          for (std::size_t l = 0; l <= level; ++l) {
+            const auto [lo, hi] = extremes_at(lambda, kFractions[l] * scale);
+            if ((l < level && lo < keep[l]) || hi > keep_top[l]) return false;
+          }
+          for (std::size_t b = 0; b < kept.size(); ++b) {
+            const auto [lo, hi] = extremes_at(lambda, kept[b].scale);
+            if (lo < kept_floor[b] || hi > kept_ceiling[b]) return false;
+          }
           return true;
         };
         const double start_here = here(0.0);

@@ -551,6 +551,9 @@ std::string interior_key(const std::string& field_key, double edge_m, const fiel
   // Each direction's unfolding keeps the other's breaths (#45 at 2 mm): an inside cached before is
   // recomputed where both unfold (the only case it changes).
   if (options.unfold_deflation_m3 > 0.0 && options.unfold_volume_m3 > 0.0) h.text("kept-both-directions");
+  // Nor raise the lighter breaths' largest Jacobian (#45, the phantom at 2 mm): any unfolding
+  // cached before is recomputed.
+  if (options.unfold_deflation_m3 > 0.0 || options.unfold_volume_m3 > 0.0) h.text("kept-ceiling");
   if (mesher != mesh::TetMesher::delaunay) h.text(mesh::tet_mesher_name(mesher));
   return h.hex();
 }

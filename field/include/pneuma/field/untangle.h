@@ -15,7 +15,10 @@
 // and a move for a deeper one may not lower a lighter one's smallest Jacobian around the node at
 // all up to half of `scale` (a quiet breath keeps the elastic field's inside: #45, where the
 // moves for 1 L left J = 0.25-0.55 and tears of 3-5 mm inside a 250 mL breath), nor beyond it
-// below a floor that falls linearly to `min_jacobian` at `scale` (or below where it was).
+// below a floor that falls linearly to `min_jacobian` at `scale` (or below where it was). Nor may
+// it raise the largest Jacobian around the node, at its own breath or a lighter one, above 2 up
+// to half of `scale` and 1 / the floor beyond (or above where it was): a move that lifts a
+// compressed tet must not tear the tets across the node (#45, the phantom at 2 mm voxels).
 // `kept`: breaths of the same U outside (0, scale], each with a floor, which a move may not push below
 // min(floor, where the star was) either: one U serves the inflation (s > 0) and a breath-hold scan's
 // deflation (s < 0), and the moves for one direction must not steepen the other (#45 at 2 mm: the
