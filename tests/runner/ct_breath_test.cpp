@@ -395,6 +395,27 @@ TEST(CtBreathAt2mm, Case004sBodyDoesNotTearUnderTheLeftBase) {
   EXPECT_GT(k->growth, 1.05);
 }
 
+namespace {
+
+// A supine lung deflating 500 mL from a scan at end-inspiration, at 2 mm voxels: the issue's
+// interior and mass checks, no body or lung voxel outside [0.5, 2], no two neighbours a voxel
+// apart, the end-expiration volume within 1 %, the lung brighter than the scan.
+void expect_deflation_at_2mm_untorn(const std::string& case_name) {
+  const std::optional<Checks> k = run_and_check(case_name, "end_inspiration", "healthy-supine", 2e-3);
+  if (!k) return;
+  const std::string name = case_name + " at 2 mm, scan at end_inspiration";
+  expect_interior_and_mass(name, *k);
+  EXPECT_EQ(k->body_torn, 0u) << name;
+  EXPECT_EQ(k->lung_torn, 0.0) << name;
+  EXPECT_LT(k->pull_max, 2.0) << name;
+  EXPECT_GT(k->pull_min, 0.5) << name;
+  EXPECT_EQ(k->pairs, 0u) << name;
+  EXPECT_NEAR(k->other_ml / (k->scan_ml - 500.0), 1.0, 0.01) << name;
+  EXPECT_GT(k->mean_hu, -845.0) << name;  // brighter than the scan's -849.5 HU
+}
+
+}  // namespace
+
 // case004 at 2 mm voxels with the scan at end-inspiration (a breath-hold scan, supine): the lung
 // deflates by 500 mL. The interior's one U serves the inflation and this deflation, and the
 // unfolding for 1 L above rest moved free nodes under the left lung's anterior base that
@@ -408,17 +429,7 @@ TEST(CtBreathAt2mm, Case004sBodyDoesNotTearUnderTheLeftBase) {
 // end-expiration volume within 1 %. About 35 s of CPU.
 TEST(CtBreathAt2mm, Case004sLungDoesNotTearUnderTheLeftBaseWhenItDeflates) {
   if (!have_inputs("case004")) GTEST_SKIP() << "no inputs (above)";
-  const std::optional<Checks> k = run_and_check("case004", "end_inspiration", "healthy-supine", 2e-3);
-  if (!k) return;
-  const std::string name = "case004 at 2 mm, scan at end_inspiration";
-  expect_interior_and_mass(name, *k);
-  EXPECT_EQ(k->body_torn, 0u) << name;
-  EXPECT_EQ(k->lung_torn, 0.0) << name;
-  EXPECT_LT(k->pull_max, 2.0) << name;
-  EXPECT_GT(k->pull_min, 0.5) << name;
-  EXPECT_EQ(k->pairs, 0u) << name;
-  EXPECT_NEAR(k->other_ml / (k->scan_ml - 500.0), 1.0, 0.01) << name;
-  EXPECT_GT(k->mean_hu, -845.0) << name;  // brighter than the scan's -849.5 HU
+  expect_deflation_at_2mm_untorn("case004");
 }
 
 // case005 at 2 mm voxels with the scan at end-inspiration (supine): the lung deflates by 500 mL.
@@ -432,17 +443,7 @@ TEST(CtBreathAt2mm, Case004sLungDoesNotTearUnderTheLeftBaseWhenItDeflates) {
 // outside [0.5, 2], no two neighbours a voxel apart, the end-expiration volume within 1 %.
 TEST(CtBreathAt2mm, Case005sLungDoesNotTearUnderTheHeartWhenItDeflates) {
   if (!have_inputs("case005")) GTEST_SKIP() << "no inputs (above)";
-  const std::optional<Checks> k = run_and_check("case005", "end_inspiration", "healthy-supine", 2e-3);
-  if (!k) return;
-  const std::string name = "case005 at 2 mm, scan at end_inspiration";
-  expect_interior_and_mass(name, *k);
-  EXPECT_EQ(k->body_torn, 0u) << name;
-  EXPECT_EQ(k->lung_torn, 0.0) << name;
-  EXPECT_LT(k->pull_max, 2.0) << name;
-  EXPECT_GT(k->pull_min, 0.5) << name;
-  EXPECT_EQ(k->pairs, 0u) << name;
-  EXPECT_NEAR(k->other_ml / (k->scan_ml - 500.0), 1.0, 0.01) << name;
-  EXPECT_GT(k->mean_hu, -845.0) << name;  // brighter than the scan's -849.5 HU
+  expect_deflation_at_2mm_untorn("case005");
 }
 
 // The built-in phantom (`phantom: both`), which has no label map: the voxels' grid is a box around
