@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <limits>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "pneuma/core/error.h"
@@ -345,16 +346,24 @@ auto image_rule(const Image& image, const DisplacementField& pullback, float out
   };
 }
 
+// The image's rest masks (either may be null) on the image's own grid; `who` names the caller.
+void check_rest_masks(const char* who, const Image& image, const std::vector<std::uint8_t>* rest_lung,
+                      const std::vector<std::uint8_t>* rest_tissue) {
+  if (rest_lung && rest_lung->size() != image.values.size()) {
+    throw ValueError(std::string(who) + ": the rest lungs' voxels are not those of the image");
+  }
+  if (rest_tissue && rest_tissue->size() != image.values.size()) {
+    throw ValueError(std::string(who) + ": the tissue mask is not on the image's grid");
+  }
+}
+
 // Whether the tissue masks are used (Tissue), after checking the inputs' sizes.
 bool check_image_warp(const Image& image, const DisplacementField& pullback, const std::vector<std::uint8_t>* rest_lung,
                       const Tissue& tissue) {
-  if (rest_lung && rest_lung->size() != image.values.size()) {
-    throw ValueError("warp_image: the rest lungs' voxels are not those of the image");
-  }
   const bool by_tissue = rest_lung && tissue.rest && tissue.warped;
-  if (by_tissue &&
-      (tissue.rest->size() != image.values.size() || tissue.warped->size() != pullback.grid.voxel_count())) {
-    throw ValueError("warp_image: the tissue masks are not on the image's and the field's grids");
+  check_rest_masks("warp_image", image, rest_lung, by_tissue ? tissue.rest : nullptr);
+  if (by_tissue && tissue.warped->size() != pullback.grid.voxel_count()) {
+    throw ValueError("warp_image: the warped tissue mask is not on the field's grid");
   }
   return by_tissue;
 }
@@ -380,13 +389,8 @@ void warp_labels_and_image(const image::LabelMap& labels, const Image& image, co
   const Grid source = grid_of(labels);
   if (image.grid.size != source.size || image.grid.ijk_to_lps != source.ijk_to_lps)
     throw ValueError("warp_labels_and_image: the image is not on the label map's grid");
-  if (image_rest_lung && image_rest_lung->size() != image.values.size()) {
-    throw ValueError("warp_labels_and_image: the rest lungs' voxels are not those of the image");
-  }
   const bool by_tissue = image_rest_lung && image_rest_tissue;
-  if (by_tissue && image_rest_tissue->size() != image.values.size()) {
-    throw ValueError("warp_labels_and_image: the tissue mask is not on the image's grid");
-  }
+  check_rest_masks("warp_labels_and_image", image, image_rest_lung, by_tissue ? image_rest_tissue : nullptr);
   check_labels_warp(labels, rest_lung);
   labels_like(labels, pullback, out_labels);
   out_image.grid = pullback.grid;
