@@ -9,9 +9,15 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
+#include <optional>
 #include <utility>
 
+#include "pneuma/core/error.h"
+#include "pneuma/core/keyed_file.h"
+#include "pneuma/core/sha256.h"
 #include "pneuma/core/tsan.h"
 #include "pneuma/model/model.h"
 
@@ -561,6 +567,124 @@ BodyMotion::Frame BodyMotion::Frame::inverse_field(const Eigen::Vector3d& lo, co
                     }));
   region.join();
   return out;
+}
+
+}  // namespace pneuma::model
+
+namespace pneuma::model {
+namespace {
+
+constexpr std::string_view kBodyKind = "pneuma-body-field 1";
+constexpr std::uint32_t kByteOrder = 0x01020304;  // written natively: a file of the other order is refused
+
+template <typename T>
+void put(std::string& out, const T& value) {
+  out.append(reinterpret_cast<const char*>(&value), sizeof value);
+}
+template <typename T>
+T take(std::string_view bytes, std::size_t& at) {
+  if (bytes.size() - at < sizeof(T)) throw ValueError("body field: its bytes end early");
+  T value;
+  std::memcpy(&value, bytes.data() + at, sizeof value);
+  at += sizeof value;
+  return value;
+}
+
+}  // namespace
+
+std::string BodyMotion::to_bytes() const {
+  std::string out;
+  put(out, kByteOrder);
+  put(out, options_.smallest_sigma_m);
+  put(out, steepest_);
+  for (int a = 0; a < 3; ++a) put(out, origin_[a]);
+  for (const std::size_t n : size_) put(out, static_cast<std::uint64_t>(n));
+  put(out, static_cast<std::uint64_t>(unit_.size()));
+  for (const std::vector<Eigen::Vector3d>& u : unit_) {
+    put(out, static_cast<std::uint64_t>(u.size()));
+    out.append(reinterpret_cast<const char*>(u.data()), u.size() * sizeof(Eigen::Vector3d));
+  }
+  return out;
+}
+
+BodyMotion BodyMotion::from_bytes(std::string_view bytes, const BodyMotionOptions& options) {
+  BodyMotion body;
+  body.options_ = options;
+  std::size_t at = 0;
+  if (take<std::uint32_t>(bytes, at) != kByteOrder) throw ValueError("body field: another byte order");
+  body.options_.smallest_sigma_m = take<double>(bytes, at);
+  body.steepest_ = take<double>(bytes, at);
+  for (int a = 0; a < 3; ++a) body.origin_[a] = take<double>(bytes, at);
+  std::uint64_t nodes = 1;
+  for (std::size_t& n : body.size_) {
+    const auto count = take<std::uint64_t>(bytes, at);
+    if (count == 0 || count > (std::uint64_t{1} << 20)) throw ValueError("body field: a lattice side out of range");
+    n = static_cast<std::size_t>(count);
+    nodes *= count;
+  }
+  const auto lungs = take<std::uint64_t>(bytes, at);
+  if (lungs > 255) throw ValueError("body field: more than 255 lungs");
+  for (std::uint64_t l = 0; l < lungs; ++l) {
+    const auto count = take<std::uint64_t>(bytes, at);
+    if (count != nodes || (bytes.size() - at) / sizeof(Eigen::Vector3d) < count)
+      throw ValueError("body field: a lung's field does not fill the lattice");
+    std::vector<Eigen::Vector3d>& u = body.unit_.emplace_back(count);
+    std::memcpy(static_cast<void*>(u.data()), bytes.data() + at, count * sizeof(Eigen::Vector3d));
+    at += count * sizeof(Eigen::Vector3d);
+  }
+  if (at != bytes.size()) throw ValueError("body field: bytes beyond its lattice");
+  return body;
+}
+
+std::string body_motion_key(const Model& model, const BodyMotionOptions& o) {
+  core::Sha256 h;
+  const auto bytes = [&h](const void* data, std::size_t n) {
+    const auto size = static_cast<std::uint64_t>(n);
+    h.update(&size, sizeof size).update(data, n);
+  };
+  const auto number = [&h](double x) { h.update(&x, sizeof x); };
+  bytes(kBodyKind.data(), kBodyKind.size());
+  for (const double x : {o.wall_decay_m, o.abdomen_decay_m, o.smallest_sigma_m, o.margin, o.steepest_allowed,
+                         o.margin_m, o.below_m, o.taper_m, o.cell_m, static_cast<double>(o.pleura_corrections)})
+    number(x);
+  bytes(o.scale_range.data(), o.scale_range.size() * sizeof(o.scale_range[0]));
+  bytes(o.sigma_ladder_m.data(), o.sigma_ladder_m.size() * sizeof(double));
+  number(static_cast<double>(model.lungs.size()));
+  for (const LungModel& lung : model.lungs) {
+    bytes(lung.rest.vertices.data(), lung.rest.vertices.size() * sizeof(Eigen::Vector3d));
+    bytes(lung.rest.triangles.data(), lung.rest.triangles.size() * sizeof(mesh::Triangle));
+    bytes(lung.normals.data(), lung.normals.size() * sizeof(Eigen::Vector3d));
+    bytes(lung.regions.weight.data(), lung.regions.weight.size() * sizeof(lung.regions.weight[0]));
+    bytes(lung.regions.axes.up.data(), sizeof(Eigen::Vector3d));
+    bytes(lung.unit_displacement.data(), lung.unit_displacement.size() * sizeof(Eigen::Vector3d));
+  }
+  return core::to_hex(h.finish());
+}
+
+std::shared_ptr<const BodyMotion> body_motion_cached(const Model& model, const BodyMotionOptions& options,
+                                                     const std::filesystem::path& lookup,
+                                                     const std::filesystem::path& save_to) {
+  if (lookup.empty() && save_to.empty()) return std::make_shared<const BodyMotion>(model, options);
+  const std::string key = body_motion_key(model, options);
+  std::string discarded;  // a damaged file is computed again and replaced
+  if (!lookup.empty()) {
+    if (const std::optional<std::string> kept = core::load_keyed_file(lookup, kBodyKind, key, discarded)) {
+      try {
+        auto body = std::make_shared<const BodyMotion>(BodyMotion::from_bytes(*kept, options));
+        if (!save_to.empty() && save_to != lookup) {  // the file as it is (its tens of MB not hashed again)
+          std::error_code ec;
+          std::filesystem::copy_file(lookup, save_to, std::filesystem::copy_options::overwrite_existing, ec);
+          if (ec) throw IoError(save_to.string() + ": cannot write: " + ec.message());
+        }
+        return body;
+      } catch (const ValueError&) {
+        // sealed but not a field of this layout: computed again below
+      }
+    }
+  }
+  auto body = std::make_shared<const BodyMotion>(model, options);
+  if (!save_to.empty()) core::save_keyed_file(save_to, kBodyKind, key, body->to_bytes());
+  return body;
 }
 
 }  // namespace pneuma::model

@@ -276,7 +276,15 @@ Model compile(const Scenario& s, const CompileOptions& options) {
         body_options.scale_range.clear();
       }
     }
-    model.body = std::make_shared<const BodyMotion>(model, body_options);
+    // Kept beside the field cache (`cache: auto`) for a run into the same folder.
+    std::filesystem::path lookup, save_to;
+    if (s.field.cache == scenario::FieldCache::automatic && !options.auto_cache_file.empty()) {
+      lookup = options.auto_cache_file.parent_path() / kBodyFieldCacheFile;
+      save_to = options.auto_cache_write_file.empty()
+                    ? lookup
+                    : options.auto_cache_write_file.parent_path() / kBodyFieldCacheFile;
+    }
+    model.body = body_motion_cached(model, body_options, lookup, save_to);
     model.report.timings_s.emplace_back("body field", seconds_since(start));
   }
   return model;

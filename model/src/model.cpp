@@ -1,12 +1,16 @@
 #include "pneuma/model/model.h"
+#include "pneuma/model/no_fold_record.h"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <string_view>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/keyed_file.h"
+#include "pneuma/core/sha256.h"
 #include "pneuma/mesh/geometry/deformed_surface.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
 #include "pneuma/scenario/scenario.h"
@@ -56,6 +60,47 @@ void check_no_fold(const Model& model, std::span<const LungScales> scales) {
                                          model.scenario_file.string(), highest ? "highest" : "lowest", at[0], at[1]));
     }
   }
+}
+
+namespace {
+constexpr std::string_view kNoFoldMagic = "pneuma-no-fold 1";
+// Part of the key: raise it when check_no_fold() changes what it refuses.
+constexpr std::string_view kNoFoldRule = "each lung at its lowest and highest scale, then the two lungs; 1";
+}  // namespace
+
+std::string no_fold_key(const Model& model, std::span<const LungScales> scales) {
+  if (scales.size() != model.lungs.size())
+    throw ValueError(fmt::format("no_fold_key: {} scale ranges for {} lungs", scales.size(), model.lungs.size()));
+  core::Sha256 h;
+  h.update(kNoFoldMagic.data(), kNoFoldMagic.size()).update(kNoFoldRule.data(), kNoFoldRule.size());
+  const auto count = static_cast<std::uint64_t>(model.lungs.size());
+  h.update(&count, sizeof count);
+  for (std::size_t i = 0; i < model.lungs.size(); ++i) {
+    const LungModel& lung = model.lungs[i];
+    const std::array<std::uint64_t, 3> sizes{lung.rest.vertices.size(), lung.rest.triangles.size(),
+                                             lung.unit_displacement.size()};
+    h.update(sizes.data(), sizeof sizes);
+    h.update(lung.rest.vertices.data(), lung.rest.vertices.size() * sizeof(Eigen::Vector3d));
+    h.update(lung.rest.triangles.data(), lung.rest.triangles.size() * sizeof(mesh::Triangle));
+    h.update(lung.unit_displacement.data(), lung.unit_displacement.size() * sizeof(Eigen::Vector3d));
+    const std::array<double, 2> ends{scales[i].min_scale, scales[i].max_scale};
+    h.update(ends.data(), sizeof ends);
+  }
+  return core::to_hex(h.finish());
+}
+
+bool check_no_fold(const Model& model, std::span<const LungScales> scales, const NoFoldRecord& record) {
+  if (record.lookup.empty() && record.save_to.empty()) {
+    check_no_fold(model, scales);
+    return false;
+  }
+  const std::string key = no_fold_key(model, scales);
+  std::string discarded;  // a damaged file is checked again and replaced: nothing to say
+  const bool passed_before =
+      !record.lookup.empty() && core::load_keyed_file(record.lookup, kNoFoldMagic, key, discarded).has_value();
+  if (!passed_before) check_no_fold(model, scales);  // throws where it fails: nothing is kept then
+  if (!record.save_to.empty()) core::save_keyed_file(record.save_to, kNoFoldMagic, key, {});
+  return passed_before;
 }
 
 const std::vector<double>& LungModel::volumes(const physiology::SimulationResult& drive) const {

@@ -229,12 +229,10 @@ void check_image_covers_lungs(const model::Model& model, const VoxelsSpec& spec)
                   spec.image_where, spec.image_file.string(), box(image_lo, image_hi), box(lo, hi)));
 }
 
-// The rest tetrahedra on the grid as labels: lung i + 1 where its rest tets hold the voxel.
-image::LabelMap rest_label_map(const model::Model& model, const voxels::Grid& grid) {
-  std::vector<voxels::LungMotion> lungs;
-  for (const model::LungModel& lung : model.lungs)
-    lungs.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
-  const std::vector<std::uint8_t> rest = voxels::rest_lungs(grid, lungs);
+// The rest tetrahedra on the grid as labels: lung i + 1 where its rest tets hold the voxel (`rest`,
+// voxels::rest_lungs on `grid`).
+image::LabelMap rest_label_map(const model::Model& model, const voxels::Grid& grid,
+                               const std::vector<std::uint8_t>& rest) {
   image::LabelMap map;
   map.size = grid.size;
   map.ijk_to_lps = grid.ijk_to_lps;
@@ -245,10 +243,22 @@ image::LabelMap rest_label_map(const model::Model& model, const voxels::Grid& gr
   }
   return map;
 }
-// The volume of the voxels holding any of `values` (m^3).
+// The volume of the voxels holding any of `values` (m^3). A table of the values (labels are 0 to
+// 65535 where they are lung) in place of a search per voxel: the rest label map has 70.8M voxels
+// at case004's own grid, most of them not lung, each of which the search compared with every value.
 double lung_volume(const image::LabelMap& map, const std::vector<int>& values) {
+  int top = -1;
+  for (const int v : values) top = std::max(top, v);
+  std::vector<std::uint8_t> is_lung(static_cast<std::size_t>(top + 1), 0);
+  for (const int v : values) {
+    if (v >= 0) is_lung[static_cast<std::size_t>(v)] = 1;
+  }
+  const auto n = static_cast<std::uint32_t>(is_lung.size());
   std::size_t count = 0;
-  for (const std::int32_t v : map.labels) count += std::find(values.begin(), values.end(), v) != values.end();
+  for (const std::int32_t v : map.labels) {
+    const auto u = static_cast<std::uint32_t>(v);  // a negative label wraps beyond the table
+    count += u < n ? is_lung[u] : 0u;
+  }
   return static_cast<double>(count) * map.voxel_volume_m3();
 }
 
@@ -268,6 +278,8 @@ class VoxelsOutput final : public Output {
 
     std::filesystem::create_directories(dir_ / "voxels");
     std::vector<std::filesystem::path> files;
+    if (!run.cache_dir.empty()) files.push_back(dir_ / kRestLungsCacheFile);  // kept for the next run
+
     voxels::TimePoint point;
     double worst_volume_error = 0.0, min_jacobian = std::numeric_limits<double>::infinity(), folded = 0.0;
     std::size_t folded_tets = 0;
@@ -395,6 +407,11 @@ class VoxelsOutput final : public Output {
     facts_.emplace_back("voxels.unfolded_nodes", std::to_string(unfolded));
     facts_.emplace_back("voxels.dropped_tets", std::to_string(dropped));
     facts_.emplace_back("voxels.dropped_volume_mm3", fmt::format("{:.6g}", dropped_m3 * 1e9));
+    // Whether the rest lungs' mask came from the previous run's folder (and why a file there was not used).
+    facts_.emplace_back("voxels.rest_lungs", scene.rest_lungs_reused() ? "reused from cache"
+                                             : scene.rest_lungs_discarded().empty()
+                                                 ? "computed"
+                                                 : "computed; " + scene.rest_lungs_discarded());
     return files;
   }
   std::vector<std::pair<std::string, std::string>> facts() const override { return facts_; }
@@ -601,7 +618,8 @@ class VoxelsOutput final : public Output {
 
 }  // namespace
 
-VoxelScene::VoxelScene(const model::Model& model, const scenario::Scenario& scenario, const VoxelsSpec& spec)
+VoxelScene::VoxelScene(const model::Model& model, const scenario::Scenario& scenario, const VoxelsSpec& spec,
+                       const voxels::RestLungsCache& cache)
     : model_(model), spec_(spec) {
   for (const model::LungModel& lung : model.lungs) {
     if (!lung.interior) throw Error(ExitCode::failure, "voxels: the model was compiled without the lungs' inside");
@@ -618,16 +636,21 @@ VoxelScene::VoxelScene(const model::Model& model, const scenario::Scenario& scen
     }
   }
   grid_ = run_grid(model, labels_.get(), spec.spacing_m);
-  if (!from_labels) {
-    labels_ = std::make_shared<const image::LabelMap>(rest_label_map(model, grid_));
-    for (std::size_t i = 0; i < model.lungs.size(); ++i) lung_labels_.push_back(static_cast<int>(i) + 1);
-  }
-  // Which voxels of the label map each lung's rest mesh holds (warp_labels keeps its rim).
+  // Which voxels of the label map each lung's rest mesh holds (warp_labels keeps its rim): kept in
+  // the output folder for the next run (at a CT's own grid, a rasterisation of ten million voxels).
   std::vector<voxels::LungMotion> at_rest;
   for (const model::LungModel& lung : model.lungs) {
     at_rest.push_back({lung.interior->mesh, lung.interior->unit_displacement, 0.0});
   }
-  rest_lung_ = voxels::rest_lungs(voxels::grid_of(*labels_), at_rest);
+  voxels::RestLungsLookup rest =
+      voxels::cached_rest_lungs(from_labels ? voxels::grid_of(*labels_) : grid_, at_rest, cache);
+  rest_lung_ = std::move(rest.mask);
+  rest_lungs_reused_ = rest.reused;
+  rest_lungs_discarded_ = std::move(rest.discarded);
+  if (!from_labels) {  // the label map of the rest tets is that mask itself
+    labels_ = std::make_shared<const image::LabelMap>(rest_label_map(model, grid_, rest_lung_));
+    for (std::size_t i = 0; i < model.lungs.size(); ++i) lung_labels_.push_back(static_cast<int>(i) + 1);
+  }
 }
 
 double VoxelScene::lung_volume_m3(const image::LabelMap& map) const { return lung_volume(map, lung_labels_); }
@@ -759,7 +782,10 @@ const VoxelScene& run_voxel_scene(const model::Model& model, const RunRecord& ru
   return run.shared.get<VoxelScene>([&] {
     const VoxelsSpec* spec = requested_voxels(*run.scenario);
     if (spec == nullptr) throw Error(ExitCode::failure, "voxels: the scenario has no voxel output");
-    return std::make_shared<const VoxelScene>(model, *run.scenario, *spec);
+    voxels::RestLungsCache cache;
+    if (!run.cache_dir.empty())
+      cache = {run.cache_dir / kRestLungsCacheFile, run.info.output_dir / kRestLungsCacheFile};
+    return std::make_shared<const VoxelScene>(model, *run.scenario, *spec, cache);
   });
 }
 

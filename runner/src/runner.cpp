@@ -21,6 +21,9 @@
 namespace pneuma::runner {
 namespace {
 
+// The fold check's pass, kept in the output folder beside the field cache (model::NoFoldRecord).
+constexpr const char* kNoFoldFile = "self-intersection.check";
+
 // One output of the run with the seconds it took, over begin, every frame and finish.
 struct RunningOutput {
   std::unique_ptr<outputs::Output> output;
@@ -131,7 +134,7 @@ std::optional<std::string> unfollowable_trace_sample(const model::Model& model, 
 }  // namespace
 
 Prepared prepare(const scenario::Scenario& s, const physiology::SimulationResult& drive,
-                 const model::CompileOptions& options) {
+                 const model::CompileOptions& options, const model::NoFoldRecord& no_fold) {
   model::CompileOptions with_drive = options;
   with_drive.drive = &drive;  // places the scan on the breath (mesh.breath)
   Prepared prepared{model::compile(s, with_drive), {}, {}};
@@ -139,8 +142,9 @@ Prepared prepare(const scenario::Scenario& s, const physiology::SimulationResult
   try {
     prepared.scales = prepared.model.scales(drive);
     const auto start = Clock::now();
-    model::check_no_fold(prepared.model, prepared.scales);
-    prepared.timings_s.emplace_back("self-intersection check", seconds_since(start));
+    const bool passed_before = model::check_no_fold(prepared.model, prepared.scales, no_fold);
+    prepared.timings_s.emplace_back(passed_before ? "self-intersection check (cached)" : "self-intersection check",
+                                    seconds_since(start));
   } catch (const UnsupportedError&) {
     if (s.physiology.trace) {
       if (auto sample = unfollowable_trace_sample(prepared.model, *s.physiology.trace, s.duration_s))
@@ -172,11 +176,16 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
 
   // Compile: the model and the scale of every frame, checked. `cache: auto` looks in the folder
   // and writes into the stage.
-  const Prepared prepared = prepare(s, drive,
-                                    {.auto_cache_file = folder / "field.h5",
-                                     .auto_cache_write_file = out / "field.h5",
-                                     .edge_override_m = options.edge_override_m,
-                                     .interior = needs.interior});
+  // With the field cache in the folder, the fold check's pass is kept there too (the same surfaces
+  // and scales are not checked again).
+  const bool keep = s.field.cache == scenario::FieldCache::automatic;
+  const Prepared prepared =
+      prepare(s, drive,
+              {.auto_cache_file = folder / "field.h5",
+               .auto_cache_write_file = out / "field.h5",
+               .edge_override_m = options.edge_override_m,
+               .interior = needs.interior},
+              keep ? model::NoFoldRecord{folder / kNoFoldFile, out / kNoFoldFile} : model::NoFoldRecord{});
   const model::Model& model = prepared.model;
   for (const std::string& warning : model.report.warnings)
     std::fprintf(stderr, "pneuma: warning: %s\n", warning.c_str());
@@ -196,9 +205,11 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   }
   result.min_scale = prepared.scales.front().min_scale;
   result.max_scale = prepared.scales.front().max_scale;
-  if (s.field.cache == scenario::FieldCache::automatic) {
+  if (keep) {
     for (const model::LungModel& lung : model.lungs)  // lives with the outputs
       result.files.push_back(model::lung_cache_path("field.h5", lung.side, model.two_lungs()));
+    result.files.emplace_back(kNoFoldFile);
+    if (needs.interior) result.files.emplace_back(model::kBodyFieldCacheFile);
   }
 
   // The loop: every frame advanced once and handed to every output.
@@ -243,7 +254,10 @@ RunResult run_scenario(const scenario::Scenario& s, const RunOptions& options) {
   // The end of the run: what needs all of it, then the manifest.
   std::vector<outputs::BreathMotion> motion;
   if (needs.breath_motion) motion = outputs::breath_motion(model, drive, scales);
-  const outputs::RunRecord record{&s, info, &drive, &physiology, scales, &motion, model.report.field_reused, {}};
+  // The rest lungs' mask of the voxel outputs is kept beside the field cache, and as it is.
+  const std::filesystem::path cache_dir = keep ? folder : std::filesystem::path();
+  const outputs::RunRecord record{&s,        info, &drive, &physiology, scales, &motion, model.report.field_reused,
+                                  cache_dir, {}};
   outputs::ManifestInput manifest{s.file, s.name, {}, {}, run_facts(s, model, prepared.scales, result)};
   for (RunningOutput& o : running) {
     const auto begin = Clock::now();

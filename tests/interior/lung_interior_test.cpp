@@ -7,9 +7,11 @@
 
 #include <algorithm>
 #include <array>
+#include <fstream>
 #include <iostream>
 #include <string>
 
+#include "pneuma/core/keyed_file.h"
 #include "pneuma/field/interior.h"
 #include "pneuma/mesh/anatomy/regions.h"
 #include "pneuma/mesh/geometry/deformed_surface.h"
@@ -484,6 +486,56 @@ TEST(BodyMotion, AFramesFieldIsThePointwiseField) {
   EXPECT_GT(points, 10000u);
   EXPECT_GT(largest, 5e-3);  // the field moves by millimetres
   EXPECT_LE(worst, 1e-14 * largest + 1e-18) << "largest " << largest;
+}
+
+// The body's field kept beside the field cache (body_motion_cached, #50) is served only for the
+// inputs it was made from; in every other case (other options, a moved vertex, a damaged file)
+// the field is computed afresh. The oracle: BodyMotion(model, options) of the inputs at hand.
+TEST(BodyMotion, AKeptFieldIsServedOnlyForTheInputsItWasMadeFrom) {
+  test::TempDir dir;
+  const runner::Prepared c = phantom_with_inside(dir, "10 mm", "0.8 L");
+  model::BodyMotionOptions options;  // as compile() makes them
+  for (const model::LungScales& lung : c.scales) options.scale_range.push_back({lung.min_scale, lung.max_scale});
+  const std::string fresh = model::BodyMotion(c.model, options).to_bytes();
+  ASSERT_NE(c.model.body, nullptr);
+  EXPECT_EQ(c.model.body->to_bytes(), fresh);
+  const std::filesystem::path kept = dir / "body-field.cache";
+  ASSERT_TRUE(std::filesystem::exists(kept)) << "compile keeps it beside field.h5";
+  const auto read = model::body_motion_cached(c.model, options, kept, dir / "copy.cache");
+  EXPECT_EQ(read->to_bytes(), fresh);
+  EXPECT_EQ(read->options().smallest_sigma_m, c.model.body->options().smallest_sigma_m);
+  EXPECT_EQ(read->steepest(), c.model.body->steepest());
+  EXPECT_EQ(test::read_text(dir / "copy.cache"), test::read_text(kept));
+  // The file is what is served: another field kept under these inputs' key comes back as it is.
+  model::BodyMotionOptions wide = options;
+  wide.sigma_ladder_m = {0.048};
+  const std::string other = model::BodyMotion(c.model, wide).to_bytes();
+  ASSERT_NE(other, fresh);
+  core::save_keyed_file(dir / "other.cache", "pneuma-body-field 1", model::body_motion_key(c.model, options), other);
+  EXPECT_EQ(model::body_motion_cached(c.model, options, dir / "other.cache", {})->to_bytes(), other);
+
+  // Other options: the breath reaching further.
+  model::BodyMotionOptions deeper = options;
+  deeper.scale_range[0][1] *= 1.5;
+  const std::string fresh_deeper = model::BodyMotion(c.model, deeper).to_bytes();
+  ASSERT_NE(fresh_deeper, fresh);
+  EXPECT_EQ(model::body_motion_cached(c.model, deeper, kept, {})->to_bytes(), fresh_deeper);
+  // A vertex moved 5 mm.
+  model::Model moved = c.model;
+  moved.lungs[0].rest.vertices[0] += Eigen::Vector3d(5e-3, 0.0, 0.0);
+  const std::string fresh_moved = model::BodyMotion(moved, options).to_bytes();
+  ASSERT_NE(fresh_moved, fresh);
+  EXPECT_EQ(model::body_motion_cached(moved, options, kept, {})->to_bytes(), fresh_moved);
+  // A damaged file: computed afresh, and replaced by a good one.
+  std::string bytes = test::read_text(kept);
+  bytes[bytes.size() / 2] = static_cast<char>(bytes[bytes.size() / 2] ^ 0x10);
+  std::ofstream(kept, std::ios::binary | std::ios::trunc) << bytes;
+  EXPECT_EQ(model::body_motion_cached(c.model, options, kept, kept)->to_bytes(), fresh);
+  EXPECT_EQ(model::body_motion_cached(c.model, options, kept, {})->to_bytes(), fresh);
+  EXPECT_NE(test::read_text(kept), bytes);
+  // Bytes of another layout are refused.
+  EXPECT_THROW(model::BodyMotion::from_bytes(fresh.substr(0, fresh.size() - 8), options), ValueError);
+  EXPECT_THROW(model::BodyMotion::from_bytes(fresh + "x", options), ValueError);
 }
 
 // BodyMotion::Frame::inverse (the pull-back outside the lungs, by Newton's method): on an 8 mm

@@ -21,6 +21,7 @@
 #include "pneuma/mesh/labels/labels.h"
 #include "pneuma/physiology/simulate.h"
 #include "pneuma/runner/output_registry.h"
+#include "pneuma/runner/runner.h"
 #include "runner_fixture.h"
 #include "test_support.h"
 
@@ -347,6 +348,64 @@ physiology: {preset: healthy-adult}
       0u)
       << run.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "out/manifest.json"));
+}
+
+// The fold check's pass kept in the output folder (model::NoFoldRecord, #50) skips the check only
+// for the same surfaces at the same scales: in every other case the check runs afresh, and refuses
+// what check_no_fold() without the record (the oracle) refuses.
+TEST(TwoLungs, TheFoldChecksPassIsKeptOnlyForTheSameSurfacesAndScales) {
+  TempDir dir;
+  const auto r = run_pneuma({"phantom", "--lung", "right", "--edge", "12mm", "-o", (dir / "right.ply").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string head = "duration: 2 s\nframes: {rate: 10 Hz}\nphysiology: {preset: healthy-adult}\n";
+  const auto apart = pneuma::runner::load_scenario(
+      dir.write("apart.yaml", "name: apart\n" + head + "mesh: {phantom: both, edge: 12 mm}\n"));
+  const auto same = pneuma::runner::load_scenario(dir.write(
+      "same.yaml", "name: same\n" + head +
+                       "mesh: {lungs: {right: {file: right.ply}, left: {file: right.ply}}, unit: mm, edge: 12 mm}\n"));
+  const std::filesystem::path kept = dir / "self-intersection.check";
+  const pneuma::model::NoFoldRecord record{kept, kept};
+  const auto checked = [](const pneuma::runner::Prepared& p) {
+    for (const auto& [stage, seconds] : p.timings_s) {
+      if (stage.starts_with("self-intersection check")) return stage == "self-intersection check";
+    }
+    ADD_FAILURE() << "no fold check among the timings";
+    return false;
+  };
+  const auto drive = pneuma::scenario::simulate_physiology(apart, apart.frame_rate_hz);
+  const auto first = pneuma::runner::prepare(apart, drive, {.auto_cache_file = dir / "a" / "field.h5"}, record);
+  EXPECT_TRUE(checked(first));
+  const std::string empty_sha256 = "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855";
+  EXPECT_EQ(pneuma::test::read_text(kept), "pneuma-no-fold 1\nkey " +
+                                               pneuma::model::no_fold_key(first.model, first.scales) +
+                                               "\nbytes 0 sha256 " + empty_sha256 + "\n");
+  const auto second = pneuma::runner::prepare(apart, drive, {.auto_cache_file = dir / "a" / "field.h5"}, record);
+  EXPECT_FALSE(checked(second));  // the same surfaces and scales: kept
+  EXPECT_TRUE(pneuma::model::check_no_fold(second.model, second.scales, {kept, {}}));
+
+  // Two lungs on one surface, with apart's pass at hand: checked, and refused as without it.
+  const auto same_drive = pneuma::scenario::simulate_physiology(same, same.frame_rate_hz);
+  const std::string before = pneuma::test::read_text(kept);
+  EXPECT_THROW(pneuma::runner::prepare(same, same_drive, {.auto_cache_file = dir / "s" / "field.h5"}),
+               pneuma::UnsupportedError);
+  EXPECT_THROW(pneuma::runner::prepare(same, same_drive, {.auto_cache_file = dir / "s" / "field.h5"}, record),
+               pneuma::UnsupportedError);
+  EXPECT_EQ(pneuma::test::read_text(kept), before) << "a refused check keeps nothing";
+
+  // The same model at scales far beyond the run's (its surfaces cross themselves): checked.
+  std::vector<pneuma::model::LungScales> far = first.scales;
+  for (auto& lung : far) lung.max_scale = 60.0 * std::max(1.0, lung.max_scale);
+  EXPECT_THROW(pneuma::model::check_no_fold(first.model, far), pneuma::UnsupportedError);
+  EXPECT_THROW(pneuma::model::check_no_fold(first.model, far, {kept, {}}), pneuma::UnsupportedError);
+
+  // The right lung's surface moved onto the left's: checked, and refused.
+  pneuma::model::Model moved = first.model;
+  Eigen::Vector3d right_centre = Eigen::Vector3d::Zero(), left_centre = Eigen::Vector3d::Zero();
+  for (const auto& v : moved.lungs[0].rest.vertices) right_centre += v / double(moved.lungs[0].rest.vertex_count());
+  for (const auto& v : moved.lungs[1].rest.vertices) left_centre += v / double(moved.lungs[1].rest.vertex_count());
+  for (auto& v : moved.lungs[0].rest.vertices) v += 0.5 * (left_centre - right_centre);
+  EXPECT_THROW(pneuma::model::check_no_fold(moved, first.scales), pneuma::UnsupportedError);
+  EXPECT_THROW(pneuma::model::check_no_fold(moved, first.scales, {kept, {}}), pneuma::UnsupportedError);
 }
 
 // `phantom: both` runs the demo (quiet-breathing.yaml, every output it asks for, PNG frames

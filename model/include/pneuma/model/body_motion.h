@@ -57,7 +57,11 @@
 // once, so that each point costs one trilinear lookup (#50).
 #include <Eigen/Core>
 #include <array>
+#include <filesystem>
+#include <memory>
 #include <span>
+#include <string>
+#include <string_view>
 #include <vector>
 
 namespace pneuma::model {
@@ -132,6 +136,12 @@ class BodyMotion {
   // grid's nodes, at `margin` times the scale range's ends; 0 where no range was given.
   double steepest() const { return steepest_; }
 
+  // The field as bytes (native byte order; a keyed cache file's payload, body_motion_cached) and
+  // back, bit for bit, for the `options` it was made with. from_bytes throws ValueError where the
+  // bytes are not a field of this layout.
+  std::string to_bytes() const;
+  static BodyMotion from_bytes(std::string_view bytes, const BodyMotionOptions& options);
+
  private:
   BodyMotionOptions options_;
   double steepest_ = 0.0;
@@ -139,5 +149,18 @@ class BodyMotion {
   std::array<std::size_t, 3> size_{0, 0, 0};
   std::vector<std::vector<Eigen::Vector3d>> unit_;  // per lung: u at s = 1 per node, i fastest
 };
+
+// A digest (64 hex digits) of everything BodyMotion(model, options) reads: every lung's rest
+// surface, normals, region weights and unit displacement in order, the body axes and the options.
+std::string body_motion_key(const Model& model, const BodyMotionOptions& options);
+
+// BodyMotion(model, options) read from `lookup` where a run kept it for the same inputs
+// (body_motion_key), else computed; kept at `save_to` either way (empty: not kept). #50: two
+// convolutions of four Gaussians on a 6 mm lattice and the steepest-gradient check, 0.5 CPU-s for
+// two CT lungs, which a run into the same folder would repeat. A damaged file is never used.
+// Throws IoError where `save_to` cannot be written or `lookup` exists but cannot be read.
+std::shared_ptr<const BodyMotion> body_motion_cached(const Model& model, const BodyMotionOptions& options,
+                                                     const std::filesystem::path& lookup,
+                                                     const std::filesystem::path& save_to);
 
 }  // namespace pneuma::model

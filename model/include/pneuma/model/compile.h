@@ -38,6 +38,10 @@ struct CompileOptions {
   const physiology::SimulationResult* drive = nullptr;
 };
 
+// With `cache: auto` and the lungs' inside, the body's field (body_motion_cached) is kept in this
+// file beside auto_cache_file (written beside auto_cache_write_file).
+inline constexpr const char* kBodyFieldCacheFile = "body-field.cache";
+
 // Compiles `scenario`. A cache file found damaged is replaced (Model::report.warnings says so).
 // Throws pneuma::Error (one line): InputError / IoError for bad inputs, UnsupportedError for a
 // surface the field cannot take.

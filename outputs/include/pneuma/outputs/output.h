@@ -69,6 +69,9 @@ struct RunRecord {
   std::vector<std::span<const double>> scales;               // per model lung: s of every frame
   const std::vector<BreathMotion>* motion = nullptr;         // per breath and region (needs.breath_motion)
   bool field_reused = false;
+  // The output folder, where what a previous run kept for the next one is looked up (the rest
+  // lungs' mask: VoxelScene); RunInfo::output_dir is its stage. Empty: nothing is looked up.
+  std::filesystem::path cache_dir;
   RunShared shared;  // what outputs compute once and share
 };
 

@@ -41,6 +41,7 @@
 #include "pneuma/outputs/report.h"
 #include "pneuma/outputs/tracking.h"
 
+#include "pneuma/voxels/rest_lungs_cache.h"
 #include "pneuma/voxels/time_point.h"
 
 namespace pneuma::outputs {
@@ -84,13 +85,21 @@ struct InsidePart {
 class VoxelScene {
  public:
   // Throws Error(failure) when the model has no lungs' inside (compiled without it), InputError
-  // when the spec's CT does not cover the lungs at rest.
-  VoxelScene(const model::Model& model, const scenario::Scenario& scenario, const VoxelsSpec& spec);
+  // when the spec's CT does not cover the lungs at rest. With `cache`, the rest lungs' mask on
+  // the label map's grid is read from cache.lookup where a run kept it for this grid and these
+  // rest meshes, else rasterised, and kept at cache.save_to (rest_lungs_cache.h).
+  VoxelScene(const model::Model& model, const scenario::Scenario& scenario, const VoxelsSpec& spec,
+             const voxels::RestLungsCache& cache = {});
 
   const voxels::Grid& grid() const { return grid_; }
   const image::LabelMap& labels() const { return *labels_; }  // at rest, on its own grid
   // The label values that are lung (the scenario's lungs, or 1 and 2 for the rest tets' map).
   const std::vector<int>& lung_labels() const { return lung_labels_; }
+  // Per voxel of labels(): 0, or 1 + the lung whose rest tets hold its centre (voxels::rest_lungs).
+  const std::vector<std::uint8_t>& rest_lungs() const { return rest_lung_; }
+  // Whether rest_lungs() was read from the cache, and why a file found there was not used.
+  bool rest_lungs_reused() const { return rest_lungs_reused_; }
+  const std::string& rest_lungs_discarded() const { return rest_lungs_discarded_; }
   // The volume of the lung labels in `map` (m^3).
   double lung_volume_m3(const image::LabelMap& map) const;
   // The DVFs, the Jacobian, the warped label map (and CT) at the lungs' scales (one per model lung).
@@ -131,7 +140,12 @@ class VoxelScene {
   std::vector<int> lung_labels_;
   voxels::Grid grid_;
   std::vector<std::uint8_t> rest_lung_;
+  bool rest_lungs_reused_ = false;
+  std::string rest_lungs_discarded_;
 };
+
+// The rest lungs' mask's file in a run's output folder (rest_lungs_cache.h).
+inline constexpr const char* kRestLungsCacheFile = "rest-lungs.cache";
 
 // The key of the voxel outputs under `outputs:`.
 inline constexpr const char* kVoxelsKey = "voxels";

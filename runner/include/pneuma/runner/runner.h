@@ -11,6 +11,7 @@
 
 #include "pneuma/model/compile.h"
 #include "pneuma/model/model.h"
+#include "pneuma/model/no_fold_record.h"
 #include "pneuma/physiology/simulate.h"
 #include "pneuma/scenario/scenario.h"
 
@@ -27,8 +28,10 @@ struct Prepared {
 
 // Throws pneuma::Error (one line) as model::compile, Model::scales and model::check_no_fold; for a
 // trace-driven run the lungs cannot follow, InputError "<trace>:<line>: ..." naming the sample.
+// With `no_fold`, the fold check is skipped where an earlier run passed it for the same surfaces
+// and scales, and its pass kept (model::check_no_fold's record).
 Prepared prepare(const scenario::Scenario& scenario, const physiology::SimulationResult& drive,
-                 const model::CompileOptions& options);
+                 const model::CompileOptions& options, const model::NoFoldRecord& no_fold = {});
 
 struct RunOptions {
   std::filesystem::path output_dir;
