@@ -8,6 +8,8 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
+#include <atomic>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -23,6 +25,23 @@
 
 namespace pneuma::model {
 namespace {
+
+// A frame's key for the Cursors that keep its values: unique per frame made in this process.
+std::uint64_t next_frame_id() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+
+// The cell of one axis holding `f` (in cells from the first node) among `n` nodes, and the fraction
+// within it; false outside the lattice (Lattice::cell, one axis).
+bool axis_cell(double f, std::size_t n, std::size_t& base, double& t) {
+  if (!(f >= 0.0) || !(f <= static_cast<double>(n - 1))) return false;
+  base = std::min(static_cast<std::size_t>(f), n - 2);
+  t = f - static_cast<double>(base);
+  return true;
+}
+
+bool same_bits(double a, double b) { return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b); }
 
 // A regular axis-aligned grid of nodes (LPS), i fastest.
 struct Lattice {
@@ -451,8 +470,10 @@ Eigen::Vector3d BodyMotion::displacement(const Eigen::Vector3d& x, std::span<con
 BodyMotion::Frame BodyMotion::frame(std::span<const double> scales) const {
   Frame out;
   if (unit_.empty()) return out;
+  out.id_ = next_frame_id();
   out.origin_ = origin_;
   out.h_ = options_.cell_m;
+  out.inverse_h_ = 1.0 / out.h_;
   out.size_ = size_;
   out.u_.assign(unit_.front().size(), Eigen::Vector3d::Zero());
   for (std::size_t l = 0; l < unit_.size() && l < scales.size(); ++l)
@@ -460,19 +481,56 @@ BodyMotion::Frame BodyMotion::frame(std::span<const double> scales) const {
   return out;
 }
 
+Eigen::Vector3d BodyMotion::Frame::column_blend(const Eigen::Vector3d* p, double ty, double tz) const {
+  const std::size_t row = size_[0], slab = size_[0] * size_[1];
+  const Eigen::Vector3d near = (1.0 - ty) * p[0] + ty * p[row];
+  const Eigen::Vector3d far = (1.0 - ty) * p[slab] + ty * p[slab + row];
+  return (1.0 - tz) * near + tz * far;
+}
+
 Eigen::Vector3d BodyMotion::Frame::displacement(const Eigen::Vector3d& x) const {
   if (u_.empty()) return Eigen::Vector3d::Zero();
-  // Lattice::cell and then the trilinear blend as three rounds of linear ones (x, then y, then z):
-  // the voxel outputs call this twice per voxel (#50), so the corners are not walked one by one.
-  std::array<std::size_t, 3> b{};
-  Eigen::Vector3d t;
-  if (!Lattice(origin_, h_, size_).cell(x, b, t)) return Eigen::Vector3d::Zero();
-  const std::size_t row = size_[0], slab = size_[0] * size_[1];
-  const Eigen::Vector3d* p = u_.data() + b[0] + row * (b[1] + size_[1] * b[2]);
-  const auto along_x = [&](const Eigen::Vector3d* q) -> Eigen::Vector3d { return (1.0 - t.x()) * q[0] + t.x() * q[1]; };
-  const Eigen::Vector3d near = (1.0 - t.y()) * along_x(p) + t.y() * along_x(p + row);
-  const Eigen::Vector3d far = (1.0 - t.y()) * along_x(p + slab) + t.y() * along_x(p + slab + row);
-  return (1.0 - t.z()) * near + t.z() * far;
+  // The voxel outputs call this (or a Cursor) twice per voxel (#50): the corners are blended as
+  // two y-z blends and one along x, not walked one by one.
+  std::size_t bx = 0, by = 0, bz = 0;
+  double tx = 0.0, ty = 0.0, tz = 0.0;
+  if (!axis_cell((x.x() - origin_.x()) * inverse_h_, size_[0], bx, tx) ||
+      !axis_cell((x.y() - origin_.y()) * inverse_h_, size_[1], by, ty) ||
+      !axis_cell((x.z() - origin_.z()) * inverse_h_, size_[2], bz, tz)) {
+    return Eigen::Vector3d::Zero();
+  }
+  const Eigen::Vector3d* column = u_.data() + size_[0] * (by + size_[1] * bz);
+  return (1.0 - tx) * column_blend(column + bx, ty, tz) + tx * column_blend(column + bx + 1, ty, tz);
+}
+
+Eigen::Vector3d BodyMotion::Frame::Cursor::displacement(const Frame& frame, const Eigen::Vector3d& x) {
+  if (frame.u_.empty()) return Eigen::Vector3d::Zero();
+  if (frame_id_ != frame.id_ || !same_bits(x.y(), y_) || !same_bits(x.z(), z_)) {
+    // Another row (or frame): its y-z cell and fractions as displacement() finds them.
+    frame_id_ = frame.id_;
+    y_ = x.y();
+    z_ = x.z();
+    bx_ = kNoCell;
+    std::size_t by = 0, bz = 0;
+    inside_ = axis_cell((y_ - frame.origin_.y()) * frame.inverse_h_, frame.size_[1], by, ty_) &&
+              axis_cell((z_ - frame.origin_.z()) * frame.inverse_h_, frame.size_[2], bz, tz_);
+    column_ = inside_ ? frame.u_.data() + frame.size_[0] * (by + frame.size_[1] * bz) : nullptr;
+  }
+  std::size_t bx = 0;
+  double tx = 0.0;
+  if (!inside_ || !axis_cell((x.x() - frame.origin_.x()) * frame.inverse_h_, frame.size_[0], bx, tx)) {
+    return Eigen::Vector3d::Zero();
+  }
+  if (bx != bx_) {
+    // The next cell along the row shares a node with the last one (either way along x).
+    const bool next = bx_ != kNoCell && bx == bx_ + 1, previous = bx_ != kNoCell && bx + 1 == bx_;
+    const Eigen::Vector3d left = next ? right_ : frame.column_blend(column_ + bx, ty_, tz_);
+    const Eigen::Vector3d right = previous ? left_ : frame.column_blend(column_ + bx + 1, ty_, tz_);
+    left_ = left;
+    right_ = right;
+    bx_ = bx;
+  }
+  return (1.0 - tx) * left_ + tx * right_;
 }
 
 Eigen::Vector3d BodyMotion::Frame::inverse(const Eigen::Vector3d& x, const Eigen::Vector3d& guess) const {
@@ -523,6 +581,7 @@ BodyMotion::Frame BodyMotion::Frame::inverse_field(const Eigen::Vector3d& lo, co
   Frame out;
   if (u_.empty() || refine == 0) return out;
   out.h_ = h_ / static_cast<double>(refine);
+  out.inverse_h_ = 1.0 / out.h_;
   // The fine lattice's node range per axis: from the last node at or below lo to the first at or
   // above hi, within u's lattice (beyond it u is 0 and so is v), and at least two nodes (a cell).
   std::array<std::size_t, 3> first{};
@@ -547,6 +606,7 @@ BodyMotion::Frame BodyMotion::Frame::inverse_field(const Eigen::Vector3d& lo, co
   out.origin_ = origin_ + out.h_ * Eigen::Vector3d(static_cast<double>(first[0]), static_cast<double>(first[1]),
                                                    static_cast<double>(first[2]));
   const Lattice lattice(out.origin_, out.h_, out.size_);
+  out.id_ = next_frame_id();
   out.u_.resize(lattice.count());
   // Each row in order by one task, each node started from the line through the two before it (a
   // smooth field's next value to second order): the same nodes' values at any thread count.

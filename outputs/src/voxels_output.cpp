@@ -758,8 +758,11 @@ void VoxelScene::with_inputs(
     // The lungs' body grids summed with this time point's scales once (BodyMotion::Frame): each
     // voxel's lookup is then one trilinear interpolation, not one per lung.
     auto frame = std::make_shared<const model::BodyMotion::Frame>(body->frame(scales));
+    // Each thread's lookups through its own Cursor: the rasterisers ask row after row of voxels,
+    // which share the lattice's y-z blends (the same bits as frame->displacement).
     inputs.forward_outside = [frame](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
-      return frame->displacement(x);
+      thread_local model::BodyMotion::Frame::Cursor cursor;
+      return cursor.displacement(*frame, x);
     };
     // The inverse of x -> x + u(x) outside the lungs (BodyMotion::Frame::inverse) solved on a
     // lattice of half u's cell (3 mm) over the grid's box and interpolated: one lookup per
@@ -767,7 +770,8 @@ void VoxelScene::with_inputs(
     const auto [lo, hi] = grid.centres_box_m();
     auto inverse = std::make_shared<const model::BodyMotion::Frame>(frame->inverse_field(lo, hi, kInverseRefine));
     inputs.pullback_outside = [inverse](const Eigen::Vector3d& x, const Eigen::Vector3d*) {
-      return inverse->displacement(x);
+      thread_local model::BodyMotion::Frame::Cursor cursor;
+      return cursor.displacement(*inverse, x);
     };
   }
   compute(lungs, inputs);

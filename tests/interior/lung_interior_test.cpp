@@ -538,6 +538,56 @@ TEST(BodyMotion, AKeptFieldIsServedOnlyForTheInputsItWasMadeFrom) {
   EXPECT_THROW(model::BodyMotion::from_bytes(fresh + "x", options), ValueError);
 }
 
+// BodyMotion::Frame::Cursor (the voxel outputs' lookups along rows, #50): rows of points 0.7 mm
+// apart along x, both ways, through the field's box and beyond it, at y and z on and between the
+// lattice's planes, one cursor for all of them and for three frames asked in turn (the body field
+// at two scales and its inverse on a lattice of 3 mm): every value the frame's own lookup bit for
+// bit, whatever the cursor kept; and the body field's values the plain rule's
+// (BodyMotion::displacement: each lung's grid, the eight corners one by one), to rounding.
+TEST(BodyMotion, ACursorAlongRowsIsTheFramesLookup) {
+  test::TempDir dir;
+  const runner::Prepared c = phantom_with_inside(dir, "10 mm", "0.8 L");
+  ASSERT_NE(c.model.body, nullptr);
+  const model::BodyMotion& body = *c.model.body;
+  const std::vector<double> full{c.scales[0].max_scale}, half{0.5 * c.scales[0].max_scale};
+  const model::BodyMotion::Frame frame = body.frame(full), other = body.frame(half);
+  const auto box = mesh::bounding_box(c.model.lungs[0].rest.vertices);
+  const Eigen::Vector3d lo = box[0] - Eigen::Vector3d(0.1, 0.1, 0.25), hi = box[1] + Eigen::Vector3d::Constant(0.1);
+  const model::BodyMotion::Frame inverse = frame.inverse_field(lo, hi, 2);
+  const std::array<const model::BodyMotion::Frame*, 3> frames{&frame, &other, &inverse};
+  const std::array<const std::vector<double>*, 2> scales{&full, &half};
+  model::BodyMotion::Frame::Cursor cursor;
+  double largest = 0.0, worst = 0.0;
+  std::size_t rows = 0, moved = 0;
+  const double step = 0.7e-3;
+  const auto count = static_cast<std::size_t>((hi.x() - lo.x() + 0.1) / step);
+  for (double z = lo.z() - 0.02; z <= hi.z() + 0.02; z += 9e-3)
+    for (double y = lo.y() - 0.02; y <= hi.y() + 0.02; y += 9e-3)
+      for (const double direction : {1.0, -1.0}) {
+        const double x0 = direction > 0.0 ? lo.x() - 0.05 : hi.x() + 0.05;
+        for (std::size_t i = 0; i < count; ++i) {
+          const Eigen::Vector3d p(x0 + direction * step * static_cast<double>(i), y, z);
+          // One frame per row, or all three in turn at every point (the cursor's key changes).
+          const std::size_t first = rows % 4 == 3 ? 0 : rows % 3, last = rows % 4 == 3 ? 3 : first + 1;
+          for (std::size_t f = first; f < last; ++f) {
+            const Eigen::Vector3d u = cursor.displacement(*frames[f], p);
+            ASSERT_EQ(u, frames[f]->displacement(p)) << "frame " << f << " at " << p.transpose();
+            if (f < 2) {
+              const Eigen::Vector3d plain = body.displacement(p, *scales[f]);
+              largest = std::max(largest, plain.norm());
+              worst = std::max(worst, (u - plain).norm());
+            }
+            moved += u != Eigen::Vector3d::Zero();
+          }
+        }
+        ++rows;
+      }
+  EXPECT_GT(rows, 1000u);
+  EXPECT_GT(moved, rows * count / 4);  // most points are inside the lattices and move
+  EXPECT_GT(largest, 5e-3);
+  EXPECT_LE(worst, 1e-14 * largest + 1e-18) << "largest " << largest;
+}
+
 // BodyMotion::Frame::inverse (the pull-back outside the lungs, by Newton's method): on an 8 mm
 // grid around the lung and beyond the field's box, v + u(x + v) = 0 to 1e-9 m (the definition),
 // whether started from -u(x) or from 0, and v is what the plain fixed-point iteration
