@@ -9,10 +9,12 @@
 // lung is within a few times the lung's mean (more at the base than at the apex, never a
 // doubling of one part while the rest grows by a sixth). So across every thin part the strain
 // along the ray between its two faces (their relative displacement along the inward normal over
-// the distance between them) is held below (1 + spread) times the lung's mean volume strain; beyond it both faces give
-// up the excess in equal shares along the ray, so the part keeps its mean motion. Only where the part is thin (up to 10
-// mm fully, none from 20 mm): a thicker part's inside carries its own strain. The change is smoothed along the surface:
-// without that, neighbouring vertices stepped apart and every case's surface self-intersected at a 1.5 L breath.
+// the distance between them) is held below (1 + spread) times the lung's mean volume strain;
+// beyond it both faces give up the excess in equal shares along the ray, so the part keeps its
+// mean motion. Only where the part is thin (up to 10 mm fully, none from 20 mm): a thicker
+// part's inside carries its own strain. The change is smoothed along the surface: without that,
+// neighbouring vertices stepped apart and every case's surface self-intersected at a 1.5 L
+// breath.
 #include <Eigen/Core>
 #include <vector>
 
