@@ -7,6 +7,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/parameters.h"
 #include "pneuma/core/stopwatch.h"
+#include "pneuma/field/thin_lung.h"
 
 namespace pneuma::field {
 
@@ -132,6 +133,9 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
       for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * heart[i];
       // With a slide the costal face at the margin already descends with the diaphragm.
       follow_the_diaphragm_over(mesh, *regions, u, options.sliding.active() ? Margin::kept : Margin::moved);
+      // The diaphragm's faces (and the heart's) move by their own rules; where the lung between
+      // two of them is thin it is not stretched across its thickness more than the lung breathes.
+      limit_the_stretch_across_thin_lung(mesh, u);
     }
     const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
     double area_rate = 0.0;

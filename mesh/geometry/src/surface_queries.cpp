@@ -1,4 +1,5 @@
-// CGAL answers for the runner: per-frame area, self-intersection, closest-point transfer.
+// CGAL answers for the runner: per-frame area, self-intersection, closest-point transfer; and
+// for the field, the rays from the vertices to the face across (surface_hits.h).
 #include "pneuma/mesh/geometry/surface_queries.h"
 
 #include <CGAL/AABB_traits.h>
@@ -17,6 +18,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
 #include "pneuma/mesh/cgal/cgal_surface_mesh.h"
+#include "pneuma/mesh/geometry/surface_hits.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -184,6 +186,58 @@ std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source,
     out[i] = (1.0 - wb - wc) * field[t[0]] + wb * field[t[1]] + wc * field[t[2]];
   }
   return out;
+}
+
+std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
+                                                 const std::vector<Eigen::Vector3d>& direction, double reach) {
+  if (direction.size() != mesh.vertex_count()) throw ValueError("first_hits_from_vertices: one direction per vertex");
+  if (!(reach > 0.0)) throw ValueError("first_hits_from_vertices: expected a positive reach");
+  using Triangle3 = Kernel::Triangle_3;
+  using Iterator = std::vector<Triangle3>::const_iterator;
+  using Primitive = CGAL::AABB_triangle_primitive<Kernel, Iterator>;
+  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
+
+  auto point = [](const Eigen::Vector3d& v) { return Point(v.x(), v.y(), v.z()); };
+  std::vector<Triangle3> triangles;
+  triangles.reserve(mesh.triangle_count());
+  for (const auto& t : mesh.triangles) {
+    triangles.emplace_back(point(mesh.vertices[t[0]]), point(mesh.vertices[t[1]]), point(mesh.vertices[t[2]]));
+  }
+  const Tree tree(triangles.begin(), triangles.end());
+
+  std::vector<SurfaceHit> hits(mesh.vertex_count());
+  for (std::size_t i = 0; i < hits.size(); ++i) {
+    const Eigen::Vector3d& from = mesh.vertices[i];
+    if (!(direction[i].squaredNorm() > 0.0)) continue;
+    const auto around_this_vertex = [&](Iterator face) {
+      const auto& t = mesh.triangles[static_cast<std::size_t>(face - triangles.begin())];
+      return t[0] == i || t[1] == i || t[2] == i;
+    };
+    const Kernel::Ray_3 ray(point(from), point(from + direction[i]));
+    const auto hit = tree.first_intersection(ray, around_this_vertex);
+    if (!hit) continue;
+    const Point* crossing = boost::get<Point>(&hit->first);
+    if (crossing == nullptr) continue;  // along a face (the ray in its plane): no crossing
+    const Eigen::Vector3d p(crossing->x(), crossing->y(), crossing->z());
+    const double distance = (p - from).norm();
+    if (distance > reach) continue;
+    const auto face = static_cast<std::size_t>(hit->second - triangles.begin());
+    const auto& t = mesh.triangles[face];
+    const Eigen::Vector3d a = mesh.vertices[t[0]], b = mesh.vertices[t[1]], c = mesh.vertices[t[2]];
+    const Eigen::Vector3d area_normal = (b - a).cross(c - a);
+    if (!(area_normal.dot(direction[i]) > 0.0)) continue;  // entering the surface: it started outside
+    const Eigen::Vector3d v0 = b - a, v1 = c - a, v2 = p - a;
+    const double d00 = v0.dot(v0), d01 = v0.dot(v1), d11 = v1.dot(v1), d20 = v2.dot(v0), d21 = v2.dot(v1);
+    const double denominator = d00 * d11 - d01 * d01;
+    if (!(denominator > 0.0)) continue;
+    const double wb = std::clamp((d11 * d20 - d01 * d21) / denominator, 0.0, 1.0);
+    const double wc = std::clamp((d00 * d21 - d01 * d20) / denominator, 0.0, 1.0 - wb);
+    hits[i] = SurfaceHit{.found = true,
+                         .distance = distance,
+                         .face = static_cast<std::uint32_t>(face),
+                         .weights = {1.0 - wb - wc, wb, wc}};
+  }
+  return hits;
 }
 
 }  // namespace pneuma::mesh
