@@ -4,6 +4,7 @@
 #include <array>
 
 #include "pneuma/core/error.h"
+#include "step_down.h"
 
 namespace pneuma::field {
 
@@ -21,10 +22,7 @@ constexpr double kUnderSigma = 1e-2;
 // so both faces of the edge see the border between them and each other's normal.
 constexpr double kMarginSigma = 1e-2;
 
-double step_down(double x) {  // 1 below 0, 0 above 1, smooth between
-  const double u = std::clamp(x, 0.0, 1.0);
-  return 1.0 - u * u * (3.0 - 2.0 * u);
-}
+using detail::step_down;
 std::vector<double> blurred_weight(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
                                    mesh::Region region) {
   std::vector<double> weight(mesh.vertices.size());

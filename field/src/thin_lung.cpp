@@ -7,6 +7,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/anatomy/regions.h"
 #include "pneuma/mesh/geometry/surface_hits.h"
+#include "step_down.h"
 
 namespace pneuma::field {
 
@@ -23,10 +24,7 @@ constexpr int kRounds = 40;
 // self-intersected (CtLungRealism); with 4 passes case008's left lung upright still did.
 constexpr int kSmoothingPasses = 8;
 
-double step_down(double x) {  // 1 below 0, 0 above 1, smooth between
-  const double s = std::clamp(x, 0.0, 1.0);
-  return 1.0 - s * s * (3.0 - 2.0 * s);
-}
+using detail::step_down;
 
 std::vector<Eigen::Vector3d> umbrella_smoothed(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d> change) {
   const std::size_t n = change.size();
