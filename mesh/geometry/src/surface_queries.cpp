@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <optional>
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
@@ -30,6 +31,7 @@ constexpr std::size_t kSlabs = 16;
 using detail::Kernel;
 using detail::Point;
 using detail::SurfaceMesh;
+using detail::to_point;
 namespace PMP = CGAL::Polygon_mesh_processing;
 
 // Vertex i of `mesh` becomes vertex i of the Surface_mesh (indices are kept).
@@ -37,6 +39,44 @@ SurfaceMesh polygon_mesh_or_throw(const TriangleMesh& mesh) {
   std::optional<SurfaceMesh> sm = detail::to_surface_mesh(mesh);
   if (!sm) throw ValueError("the surface is not a polygon mesh (non-manifold edges or vertices); repair it first");
   return std::move(*sm);
+}
+
+// An AABB tree over the mesh's faces; the face a primitive stands for is its index in `triangles`.
+// Built in place and never moved: the tree holds iterators into `triangles`.
+struct FaceTree {
+  using Triangle3 = Kernel::Triangle_3;
+  using Iterator = std::vector<Triangle3>::const_iterator;
+  using Primitive = CGAL::AABB_triangle_primitive<Kernel, Iterator>;
+  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
+
+  explicit FaceTree(const TriangleMesh& mesh) : triangles(soup(mesh)), tree(triangles.begin(), triangles.end()) {}
+  FaceTree(const FaceTree&) = delete;
+  FaceTree& operator=(const FaceTree&) = delete;
+
+  std::size_t face(Iterator primitive) const { return static_cast<std::size_t>(primitive - triangles.begin()); }
+
+  const std::vector<Triangle3> triangles;
+  Tree tree;
+
+ private:
+  static std::vector<Triangle3> soup(const TriangleMesh& mesh) {
+    std::vector<Triangle3> out;
+    out.reserve(mesh.triangle_count());
+    for (const auto& t : mesh.triangles)
+      out.emplace_back(to_point(mesh.vertices[t[0]]), to_point(mesh.vertices[t[1]]), to_point(mesh.vertices[t[2]]));
+    return out;
+  }
+};
+
+// The barycentric weights (of b, of c) of p in triangle (a, b, c), unclamped; none where the
+// triangle is degenerate.
+std::optional<std::array<double, 2>> barycentric_bc(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                                    const Eigen::Vector3d& c, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d v0 = b - a, v1 = c - a, v2 = p - a;
+  const double d00 = v0.dot(v0), d01 = v0.dot(v1), d11 = v1.dot(v1), d20 = v2.dot(v0), d21 = v2.dot(v1);
+  const double denominator = d00 * d11 - d01 * d01;
+  if (!(denominator > 0.0)) return std::nullopt;
+  return std::array<double, 2>{(d11 * d20 - d01 * d21) / denominator, (d00 * d21 - d01 * d20) / denominator};
 }
 
 }  // namespace
@@ -153,36 +193,17 @@ bool surfaces_intersect(const TriangleMesh& a, const TriangleMesh& b) {
 std::vector<Eigen::Vector3d> transfer_vertex_field(const TriangleMesh& source,
                                                    const std::vector<Eigen::Vector3d>& field,
                                                    const std::vector<Eigen::Vector3d>& targets) {
-  using Triangle3 = Kernel::Triangle_3;
-  using Iterator = std::vector<Triangle3>::const_iterator;
-  using Primitive = CGAL::AABB_triangle_primitive<Kernel, Iterator>;
-  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
-
-  auto point = [](const Eigen::Vector3d& v) { return Point(v.x(), v.y(), v.z()); };
-  std::vector<Triangle3> triangles;
-  triangles.reserve(source.triangle_count());
-  for (const auto& t : source.triangles) {
-    triangles.emplace_back(point(source.vertices[t[0]]), point(source.vertices[t[1]]), point(source.vertices[t[2]]));
-  }
-  Tree tree(triangles.begin(), triangles.end());
-  tree.accelerate_distance_queries();
+  FaceTree faces(source);
+  faces.tree.accelerate_distance_queries();
 
   std::vector<Eigen::Vector3d> out(targets.size());
   for (std::size_t i = 0; i < targets.size(); ++i) {
-    const auto [closest, primitive] = tree.closest_point_and_primitive(point(targets[i]));
-    const auto face = static_cast<std::size_t>(primitive - triangles.begin());
-    const auto& t = source.triangles[face];
+    const auto [closest, primitive] = faces.tree.closest_point_and_primitive(to_point(targets[i]));
+    const auto& t = source.triangles[faces.face(primitive)];
     // Barycentric coordinates of the closest point in its triangle (it lies in the triangle).
-    const Eigen::Vector3d a = source.vertices[t[0]], b = source.vertices[t[1]], c = source.vertices[t[2]];
     const Eigen::Vector3d p(closest.x(), closest.y(), closest.z());
-    const Eigen::Vector3d v0 = b - a, v1 = c - a, v2 = p - a;
-    const double d00 = v0.dot(v0), d01 = v0.dot(v1), d11 = v1.dot(v1), d20 = v2.dot(v0), d21 = v2.dot(v1);
-    const double denominator = d00 * d11 - d01 * d01;
-    double wb = 0.0, wc = 0.0;
-    if (denominator > 0.0) {
-      wb = (d11 * d20 - d01 * d21) / denominator;
-      wc = (d00 * d21 - d01 * d20) / denominator;
-    }
+    const auto [wb, wc] = barycentric_bc(source.vertices[t[0]], source.vertices[t[1]], source.vertices[t[2]], p)
+                              .value_or(std::array<double, 2>{0.0, 0.0});
     out[i] = (1.0 - wb - wc) * field[t[0]] + wb * field[t[1]] + wc * field[t[2]];
   }
   return out;
@@ -192,46 +213,33 @@ std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
                                                  const std::vector<Eigen::Vector3d>& direction, double reach) {
   if (direction.size() != mesh.vertex_count()) throw ValueError("first_hits_from_vertices: one direction per vertex");
   if (!(reach > 0.0)) throw ValueError("first_hits_from_vertices: expected a positive reach");
-  using Triangle3 = Kernel::Triangle_3;
-  using Iterator = std::vector<Triangle3>::const_iterator;
-  using Primitive = CGAL::AABB_triangle_primitive<Kernel, Iterator>;
-  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
-
-  auto point = [](const Eigen::Vector3d& v) { return Point(v.x(), v.y(), v.z()); };
-  std::vector<Triangle3> triangles;
-  triangles.reserve(mesh.triangle_count());
-  for (const auto& t : mesh.triangles) {
-    triangles.emplace_back(point(mesh.vertices[t[0]]), point(mesh.vertices[t[1]]), point(mesh.vertices[t[2]]));
-  }
-  const Tree tree(triangles.begin(), triangles.end());
+  const FaceTree faces(mesh);
 
   std::vector<SurfaceHit> hits(mesh.vertex_count());
   for (std::size_t i = 0; i < hits.size(); ++i) {
     const Eigen::Vector3d& from = mesh.vertices[i];
     if (!(direction[i].squaredNorm() > 0.0)) continue;
-    const auto around_this_vertex = [&](Iterator face) {
-      const auto& t = mesh.triangles[static_cast<std::size_t>(face - triangles.begin())];
+    const auto around_this_vertex = [&](FaceTree::Iterator face) {
+      const auto& t = mesh.triangles[faces.face(face)];
       return t[0] == i || t[1] == i || t[2] == i;
     };
-    const Kernel::Ray_3 ray(point(from), point(from + direction[i]));
-    const auto hit = tree.first_intersection(ray, around_this_vertex);
+    const Kernel::Ray_3 ray(to_point(from), to_point(from + direction[i]));
+    const auto hit = faces.tree.first_intersection(ray, around_this_vertex);
     if (!hit) continue;
     const Point* crossing = boost::get<Point>(&hit->first);
     if (crossing == nullptr) continue;  // along a face (the ray in its plane): no crossing
     const Eigen::Vector3d p(crossing->x(), crossing->y(), crossing->z());
     const double distance = (p - from).norm();
     if (distance > reach) continue;
-    const auto face = static_cast<std::size_t>(hit->second - triangles.begin());
+    const std::size_t face = faces.face(hit->second);
     const auto& t = mesh.triangles[face];
     const Eigen::Vector3d a = mesh.vertices[t[0]], b = mesh.vertices[t[1]], c = mesh.vertices[t[2]];
     const Eigen::Vector3d area_normal = (b - a).cross(c - a);
     if (!(area_normal.dot(direction[i]) > 0.0)) continue;  // entering the surface: it started outside
-    const Eigen::Vector3d v0 = b - a, v1 = c - a, v2 = p - a;
-    const double d00 = v0.dot(v0), d01 = v0.dot(v1), d11 = v1.dot(v1), d20 = v2.dot(v0), d21 = v2.dot(v1);
-    const double denominator = d00 * d11 - d01 * d01;
-    if (!(denominator > 0.0)) continue;
-    const double wb = std::clamp((d11 * d20 - d01 * d21) / denominator, 0.0, 1.0);
-    const double wc = std::clamp((d00 * d21 - d01 * d20) / denominator, 0.0, 1.0 - wb);
+    const auto weights = barycentric_bc(a, b, c, p);
+    if (!weights) continue;
+    const double wb = std::clamp((*weights)[0], 0.0, 1.0);
+    const double wc = std::clamp((*weights)[1], 0.0, 1.0 - wb);
     hits[i] = SurfaceHit{.found = true,
                          .distance = distance,
                          .face = static_cast<std::uint32_t>(face),
