@@ -2,10 +2,14 @@
 #include "pneuma/mesh/geometry/surface_queries.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
+
+#include "pneuma/mesh/geometry/surface_hits.h"
 
 using namespace pneuma::mesh;
 
@@ -133,5 +137,91 @@ TEST(SurfaceQueries, TwoSurfacesIntersectWhenTheirUnionSelfIntersects) {
     EXPECT_EQ(self_intersects(union_of(one, c.other), Concurrency::serial), c.expected) << c.what;
     EXPECT_EQ(surfaces_intersect(one, c.other), c.expected) << c.what;
     EXPECT_EQ(surfaces_intersect(c.other, one), c.expected) << c.what;
+  }
+}
+
+namespace {
+
+// The nearest crossing of every face but those around vertex i, found by trying them all
+// (Moller-Trumbore in doubles): the oracle of first_hits_from_vertices.
+struct BruteHit {
+  bool found = false;
+  double distance = 0.0;
+};
+BruteHit nearest_crossing(const TriangleMesh& mesh, std::size_t i, const Eigen::Vector3d& d, double reach) {
+  const Eigen::Vector3d& o = mesh.vertices[i];
+  double best = std::numeric_limits<double>::infinity();
+  std::size_t best_face = 0;
+  for (std::size_t f = 0; f < mesh.triangle_count(); ++f) {
+    const auto& t = mesh.triangles[f];
+    if (t[0] == i || t[1] == i || t[2] == i) continue;
+    const Eigen::Vector3d a = mesh.vertices[t[0]], e1 = mesh.vertices[t[1]] - a, e2 = mesh.vertices[t[2]] - a;
+    const Eigen::Vector3d p = d.cross(e2);
+    const double det = e1.dot(p);
+    if (std::abs(det) < 1e-300) continue;
+    const Eigen::Vector3d s = o - a, q = s.cross(e1);
+    const double u = s.dot(p) / det, v = d.dot(q) / det, along = e2.dot(q) / det;
+    if (u < 0.0 || v < 0.0 || u + v > 1.0 || along <= 0.0) continue;
+    if (along < best) {
+      best = along;
+      best_face = f;
+    }
+  }
+  if (!std::isfinite(best) || best * d.norm() > reach) return {};
+  const auto& t = mesh.triangles[best_face];
+  const Eigen::Vector3d area_normal =
+      (mesh.vertices[t[1]] - mesh.vertices[t[0]]).cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]);
+  if (!(area_normal.dot(d) > 0.0)) return {};  // entering: the ray started outside
+  return {true, best * d.norm()};
+}
+
+// A closed, lumpy surface with thin and thick parts: a sphere squashed along z and dented.
+TriangleMesh lumpy_lens() {
+  TriangleMesh m = make_icosphere(0.05, 3);
+  for (Eigen::Vector3d& v : m.vertices) {
+    v.z() *= 0.2;
+    v.x() *= 1.0 + 0.3 * std::sin(40.0 * v.y());
+  }
+  return m;
+}
+
+}  // namespace
+
+// Inward from every vertex of a lens 20 mm thick at its centre, along its own inward normal and
+// tilted: each vertex's hit (found or not, and the distance) is the nearest crossing over every
+// face, within the reach, and the same at one thread as at all.
+TEST(SurfaceQueries, FirstHitsFromVerticesAreTheNearestCrossingOverEveryFace) {
+  const TriangleMesh lens = lumpy_lens();
+  const std::vector<Eigen::Vector3d> normal = vertex_normals(lens);
+  for (const double tilt : {0.0, 0.4}) {
+    std::vector<Eigen::Vector3d> inward(lens.vertex_count());
+    for (std::size_t i = 0; i < inward.size(); ++i)
+      inward[i] = (-normal[i] + tilt * Eigen::Vector3d(0.3, -0.5, 0.1).cross(normal[i])).normalized();
+    for (const double reach : {0.006, 0.015, 0.2}) {
+      const std::vector<SurfaceHit> hits = first_hits_from_vertices(lens, inward, reach);
+      std::size_t found = 0;
+      for (std::size_t i = 0; i < hits.size(); ++i) {
+        const BruteHit expected = nearest_crossing(lens, i, inward[i], reach);
+        ASSERT_EQ(hits[i].found, expected.found) << i << " tilt " << tilt << " reach " << reach;
+        if (!expected.found) continue;
+        ++found;
+        EXPECT_NEAR(hits[i].distance, expected.distance, 1e-12) << i;
+        const auto& t = lens.triangles[hits[i].face];
+        Eigen::Vector3d at = Eigen::Vector3d::Zero();
+        for (std::size_t k = 0; k < 3; ++k) at += hits[i].weights[k] * lens.vertices[t[k]];
+        EXPECT_NEAR((at - lens.vertices[i] - hits[i].distance * inward[i]).norm(), 0.0, 1e-12) << i;
+      }
+      // The lens is 20 mm thick at most: 15 mm finds some faces across, 200 mm nearly all.
+      if (reach > 0.01) {
+        EXPECT_GT(found, reach > 0.1 ? hits.size() * 9 / 10 : 0) << reach;
+      }
+      const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+      const std::vector<SurfaceHit> serial = first_hits_from_vertices(lens, inward, reach);
+      for (std::size_t i = 0; i < hits.size(); ++i) {
+        EXPECT_EQ(serial[i].found, hits[i].found);
+        EXPECT_EQ(serial[i].distance, hits[i].distance);
+        EXPECT_EQ(serial[i].face, hits[i].face);
+      }
+    }
   }
 }
