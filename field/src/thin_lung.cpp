@@ -48,36 +48,6 @@ std::vector<Eigen::Vector3d> umbrella_smoothed(const mesh::TriangleMesh& mesh, s
   }
   return change;
 }
-
-// Per vertex: the surface's first-order area strain under u's part along the surface (u less
-// its component along the smoothed normal: the change of the incident triangles' area over their
-// area), averaged in space at the rays' 3 mm so that a thin part's two faces and neighbouring
-// vertices read the same stretch. The motion along the normal is left out: across a thin part it
-// is the strain across, counted already, and at a curved rim (the costophrenic margin's edge)
-// it would read as a large area change of faces whose part is not stretched along itself.
-std::vector<double> area_strain(const mesh::TriangleMesh& mesh, const std::vector<Eigen::Vector3d>& normal,
-                                std::vector<Eigen::Vector3d> u) {
-  for (std::size_t i = 0; i < u.size(); ++i) u[i] -= u[i].dot(normal[i]) * normal[i];
-  const auto& p = mesh.vertices;
-  std::vector<double> change(p.size(), 0.0), area(p.size(), 0.0);
-  for (const mesh::Triangle& t : mesh.triangles) {
-    const Eigen::Vector3d cross = (p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]);
-    const double norm = cross.norm();
-    if (norm == 0.0) continue;  // a degenerate triangle has no area to change
-    const Eigen::Vector3d unit = cross / norm;
-    double rate = 0.0;  // d(area)/ds of the triangle x + s u, area_gradient()'s terms
-    for (int k = 0; k < 3; ++k) rate += 0.5 * unit.cross(p[t[(k + 2) % 3]] - p[t[(k + 1) % 3]]).dot(u[t[k]]);
-    for (int k = 0; k < 3; ++k) {
-      change[t[k]] += rate;
-      area[t[k]] += 0.5 * norm;
-    }
-  }
-  std::vector<double> strain(p.size(), 0.0);
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    if (area[i] > 0.0) strain[i] = change[i] / area[i];
-  }
-  return mesh::blurred_in_space(mesh, strain, kRaySigma);
-}
 }  // namespace
 
 double mean_volume_strain(const mesh::TriangleMesh& mesh, const std::vector<Eigen::Vector3d>& u) {
@@ -96,27 +66,10 @@ void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::ve
     throw ValueError("limit_the_stretch_across_thin_parts: one displacement per vertex");
   if (!(thin.thin > 0.0 && thin.thick > thin.thin))
     throw ValueError("limit_the_stretch_across_thin_parts: expected 0 < thin < thick");
-  if (!(high >= 0.0)) throw ValueError("limit_the_stretch_across_thin_parts: expected a bound >= 0");
   const std::size_t n = u.size();
   std::vector<Eigen::Vector3d> inward = mesh::smoothed_normals(mesh, kRaySigma);
   for (Eigen::Vector3d& d : inward) d = -d;
   const std::vector<mesh::SurfaceHit> hits = mesh::first_hits_from_vertices(mesh, inward, thin.thick);
-  // The part's volume strain is the strain across it plus its faces' area strain: where the
-  // surface is stretched along itself the strain across is held lower, down to none (the rule
-  // never presses a part thinner than it was), and never above `high` (the bound on its own).
-  const std::vector<double> along = area_strain(mesh, inward, u);
-  // Not pressed below a third of the bound (the lung's mean at spread 2): with a floor of 0,
-  // case004's and case005's surfaces self-intersected at 1.5 L (CtLungRealism).
-  const double floor = high / 3.0;
-  std::vector<double> bound(n, high);
-  for (std::size_t i = 0; i < n; ++i) {
-    const mesh::SurfaceHit& hit = hits[i];
-    if (!hit.found) continue;
-    const auto& face = mesh.triangles[hit.face];
-    double across = 0.0;
-    for (std::size_t k = 0; k < 3; ++k) across += hit.weights[k] * along[face[k]];
-    bound[i] = std::clamp(high - 0.5 * (along[i] + across), floor, high);
-  }
   const std::vector<Eigen::Vector3d> before = u;
   std::vector<Eigen::Vector3d> asked(n);
   std::vector<double> askers(n);
@@ -133,7 +86,7 @@ void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::ve
       const Eigen::Vector3d& d = inward[i];
       const double strain = (across - u[i]).dot(d) / hit.distance;
       // The excess fully where the part is thin, none where it is thick, a smooth step between.
-      const double excess = std::max(0.0, strain - bound[i]) * hit.distance *
+      const double excess = std::max(0.0, strain - high) * hit.distance *
                             step_down((hit.distance - thin.thin) / (thin.thick - thin.thin));
       // Every ray that finds a face across votes, so a vertex whose rays agree keeps its place.
       askers[i] += 1.0;

@@ -438,7 +438,6 @@ void hash_options(Hasher& h, const field::FieldOptions& o) {
     h.text("under the diaphragm");      // the face under the dome's slope descends too (field/heart.h)
     h.text("the costophrenic margin");  // and, without a slide, the margin moves as one (field/heart.h)
     h.text("the thin lung's stretch");  // and no thin part stretches past the lung's bound (field/thin_lung.h)
-    h.text("its volume strain");  // the bound on the strain across less the faces' area strain (field/thin_lung.h)
     h.value(o.direction_smoothing);
     h.bytes(o.axes.up.data(), 3 * sizeof(double));
   }

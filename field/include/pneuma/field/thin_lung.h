@@ -7,12 +7,12 @@
 // thickness at a 500 mL breath, though the lung as a whole grows by about a sixth. In life the
 // thin part's volume changes like the parenchyma around it: regional ventilation in a healthy
 // lung is within a few times the lung's mean (more at the base than at the apex, never a
-// doubling of one part while the rest grows by a sixth). So every thin part's volume strain, the
-// strain along the ray between its two faces (their relative displacement along the inward
-// normal over the distance between them) plus its faces' own area strain, is held below
-// (1 + spread) times the lung's mean volume strain; beyond it both faces give up the excess in
-// equal shares along the ray, so the part keeps its mean motion. Only where the part is thin (up to 10 mm fully, none
-// from 20 mm): a thicker part's inside carries its own strain. The change is smoothed along the surface: without that,
+// doubling of one part while the rest grows by a sixth). So across every thin part the strain
+// along the ray between its two faces (their relative displacement along the inward normal over
+// the distance between them) is held below (1 + spread) times the lung's mean volume strain;
+// beyond it both faces give up the excess in equal shares along the ray, so the part keeps its
+// mean motion. Only where the part is thin (up to 10 mm fully, none from 20 mm): a thicker
+// part's inside carries its own strain. The change is smoothed along the surface: without that,
 // neighbouring vertices stepped apart and every case's surface self-intersected at a 1.5 L
 // breath.
 #include <Eigen/Core>
@@ -34,22 +34,17 @@ struct ThinLung {
 // or one displacement per vertex missing.
 double mean_volume_strain(const mesh::TriangleMesh& mesh, const std::vector<Eigen::Vector3d>& u);
 
-// Holds the volume strain of the surface's thin parts below `high` (per unit of u's scale): from
+// Holds the strain across the surface's thin parts below `high` (per unit of u's scale): from
 // each vertex a ray along its inward normal (smoothed in space at 3 mm) finds the face across
 // (mesh::first_hits_from_vertices, within `thin.thick`), at distance t; the strain across is
 // e = (u_across - u_i) . d / t, u_across interpolated in the face across, d the ray's direction.
-// The part's volume strain is e plus the area strain of its faces along themselves, a (the mean
-// of the vertex's and the face across's first-order area change over area under u, averaged in
-// space at 3 mm): so e is held below b = clamp(high - a, high / 3, high) (a thin part whose
-// faces stretch along themselves is thickened less, but at least a third of the bound, the
-// lung's mean at spread 2; one whose faces shrink keeps the bound `high` on e alone). Where e > b, the vertex and the
-// face across are each asked to move by half the excess, s(t) (e - b) t / 2, along d toward each other's motion (s 1 up
-// to `thin.thin`, 0 from `thin.thick`); each vertex takes the mean of what its rays ask, and that is iterated; the
+// Where e > high, the vertex and the face across are each asked to move by half the excess,
+// s(t) (e - high) t / 2, along d toward each other's motion (s 1 up to `thin.thin`, 0 from
+// `thin.thick`); each vertex takes the mean of what its rays ask, and that is iterated; the
 // change is then averaged over the surface's edges (8 umbrella passes), so that neighbouring
 // vertices do not step apart. A thin part that is compressed is left alone (its faces approach:
-// no tear). Nothing moves where every ray's strain lies below its bound or where no ray finds a
-// face within reach. In place; the caller scales the field back to its unit. Throws ValueError
-// for high < 0.
+// no tear). Nothing moves where every ray's strain lies below `high` or where no ray finds a
+// face within reach. In place; the caller scales the field back to its unit.
 void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u, double high,
                                          const ThinLung& thin = {});
 
