@@ -3,7 +3,7 @@
 
     nice scripts/ct-breath-audit.py [--pneuma build/release/cli/pneuma] [--cases case004,...|phantom]
         [--tissue healthy-supine,healthy-upright] [--breath end_expiration,end_inspiration]
-        [--spacing 4] [--keep DIR] [--json FILE]
+        [--spacing 4] [--interior 'poisson_ratio: 0.45'] [--keep DIR] [--json FILE]
 
 For each case x tissue x breath (the scan's place on the breath, `mesh.breath`) it writes a
 synthetic CT (lung -849.5 HU where the label map's nearest voxel is a lobe, 40 HU elsewhere, on
@@ -358,7 +358,7 @@ def torn_where(out, reference, lungs):
     return result
 
 
-def run(pneuma, case, tissue, breath, work, spacing_mm, tets_mm=6.0, surfaces_mm=5.0, where=False):
+def run(pneuma, case, tissue, breath, work, spacing_mm, tets_mm=6.0, surfaces_mm=5.0, where=False, interior=""):
     work.mkdir(parents=True, exist_ok=True)
     ct = work / "ct.nii.gz"
     if case == "phantom":
@@ -374,7 +374,7 @@ def run(pneuma, case, tissue, breath, work, spacing_mm, tets_mm=6.0, surfaces_mm
     scenario.write_text(
         "duration: 8 s\nframes: {rate: 5 Hz}\n"
         f"mesh: {{{mesh}, edge: {surfaces_mm:g} mm, breath: {breath}}}\n"
-        f"field: {{tissue: {tissue}, interior: {{edge: {tets_mm:g} mm}}}}\n"
+        f"field: {{tissue: {tissue}, interior: {{edge: {tets_mm:g} mm{', ' + interior if interior else ''}}}}}\n"
         "physiology: {preset: healthy-adult}\n"
         "outputs: {gltf: false, report: false, hdf5: true, physiology_csv: false,\n"
         f"  voxels: {{at: [end_expiration, 1 s, end_inspiration], spacing: {spacing_mm:g} mm, image: ct.nii.gz}}}}\n")
@@ -383,6 +383,7 @@ def run(pneuma, case, tissue, breath, work, spacing_mm, tets_mm=6.0, surfaces_mm
     p = subprocess.run([str(pneuma), "run", str(scenario), "-o", str(out), "--quiet"], capture_output=True, text=True)
     result = {"case": case, "tissue": tissue, "breath": breath, "spacing_mm": spacing_mm, "tets_mm": tets_mm,
               "surfaces_mm": surfaces_mm, "exit": p.returncode,
+              **({"interior": interior} if interior else {}),
               "run_s": round(time.time() - start, 1)}
     if p.returncode != 0:
         result["error"] = p.stderr.strip()
@@ -411,7 +412,8 @@ def table(results):
         spacing = r.get("spacing_mm", 4.0)
         settings = ([] if spacing == 4.0 else [f"{spacing:g} mm voxels"]) + \
             ([] if r.get("tets_mm", 6.0) == 6.0 else [f"{r['tets_mm']:g} mm tets"]) + \
-            ([] if r.get("surfaces_mm", 5.0) == 5.0 else [f"{r['surfaces_mm']:g} mm surfaces"])
+            ([] if r.get("surfaces_mm", 5.0) == 5.0 else [f"{r['surfaces_mm']:g} mm surfaces"]) + \
+            ([f"interior {{{r['interior']}}}"] if r.get("interior") else [])
         case = r["case"] + (f" ({', '.join(settings)})" if settings else "")
         head = f"| {case} | {r['tissue']} | {r['breath']} |"
         if r["exit"] != 0:
@@ -440,6 +442,8 @@ def main():
     ap.add_argument("--spacing", type=float, default=4.0, help="the voxels' spacing in mm (default 4, the test's)")
     ap.add_argument("--tets", type=float, default=6.0, help="field.interior's edge in mm (default 6, the test's)")
     ap.add_argument("--surfaces", type=float, default=5.0, help="mesh.edge in mm (default 5, the test's)")
+    ap.add_argument("--interior", default="",
+                    help="more field.interior keys, YAML flow (e.g. 'poisson_ratio: 0.45'; default: none)")
     ap.add_argument("--where", action="store_true",
                     help="also say where the lungs' torn voxels and pairs lie (torn_where)")
     ap.add_argument("--keep", help="keep the runs' folders here (default: a temporary folder)")
@@ -456,7 +460,8 @@ def main():
             for tissue in args.tissue.split(","):
                 for breath in args.breath.split(","):
                     work = base / (case if args.spacing == 4.0 else f"{case}-{args.spacing:g}mm")
-                    r = run(args.pneuma, case, tissue, breath, work, args.spacing, args.tets, args.surfaces, args.where)
+                    r = run(args.pneuma, case, tissue, breath, work, args.spacing, args.tets, args.surfaces, args.where,
+                            args.interior)
                     results.append(r)
                     print(json.dumps(r), flush=True)
     if args.json:
