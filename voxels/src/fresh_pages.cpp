@@ -20,21 +20,21 @@ void map_for_writing(void* data, std::size_t bytes) {
   // One madvise per slice: few enough calls, enough slices for both cores to share.
   constexpr std::size_t kSlice = std::size_t{16} << 20;
   if (data == nullptr || bytes < kSmallest) return;
-  const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
   // Only whole pages inside the buffer: its first and last pages may hold other blocks' bytes
   // (madvise needs a page-aligned start; the kernel maps the partial ones on first touch).
-  const std::uintptr_t begin = (reinterpret_cast<std::uintptr_t>(data) + page - 1) / page * page;
-  const std::uintptr_t end = (reinterpret_cast<std::uintptr_t>(data) + bytes) / page * page;
-  if (end <= begin) return;
-  const std::size_t slices = (end - begin + kSlice - 1) / kSlice;
+  const std::size_t lead = (page - reinterpret_cast<std::uintptr_t>(data) % page) % page;
+  if (bytes <= lead) return;
+  char* const begin = static_cast<char*>(data) + lead;
+  const std::size_t whole = (bytes - lead) / page * page;
+  const std::size_t slices = (whole + kSlice - 1) / kSlice;
   const tsan::Region region;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, slices, 1), region.wrap([&](const auto& r) {
     for (std::size_t s = r.begin(); s != r.end(); ++s) {
-      const std::uintptr_t from = begin + s * kSlice;
-      const std::uintptr_t to = std::min<std::uintptr_t>(from + kSlice, end);
+      const std::size_t from = s * kSlice, length = std::min(kSlice, whole - from);
       // A refusal (EINVAL before Linux 5.14, ENOMEM, EFAULT) leaves the pages to be mapped on
       // first touch: nothing else changes, so the result is ignored.
-      (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_POPULATE_WRITE);
+      (void)madvise(begin + from, length, MADV_POPULATE_WRITE);
     }
   }));
   region.join();
