@@ -43,6 +43,9 @@ TEST(FreshPages, AFreshMappingIsMappedWholeAndReadsZero) {
   constexpr std::size_t kBytes = std::size_t{48} << 20;
   void* const data = mmap(nullptr, kBytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   ASSERT_NE(data, MAP_FAILED);
+  // Small pages only, whatever the machine's transparent huge pages: a huge page would map the
+  // partial pages at the ends below together with the whole ones.
+  madvise(data, kBytes, MADV_NOHUGEPAGE);
   const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
   EXPECT_EQ(mapped_pages(data, kBytes), 0U);  // an anonymous mapping is mapped on first touch
   map_for_writing(data, kBytes);
@@ -55,6 +58,7 @@ TEST(FreshPages, AFreshMappingIsMappedWholeAndReadsZero) {
   // it shares with whatever lies around it.
   void* const other = mmap(nullptr, kBytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   ASSERT_NE(other, MAP_FAILED);
+  madvise(other, kBytes, MADV_NOHUGEPAGE);
   map_for_writing(static_cast<unsigned char*>(other) + 100, kBytes - 200);
   EXPECT_EQ(mapped_pages(other, kBytes), can ? kBytes / page - 2 : 0U);
   EXPECT_EQ(mapped_pages(other, page), 0U);
