@@ -41,17 +41,23 @@ std::shared_ptr<const mesh::SurfaceRegions> regions_for(const mesh::TriangleMesh
   return std::make_shared<const mesh::SurfaceRegions>(mesh::find_regions(mesh, regions));
 }
 
+// The directions from the normals smoothed at options.direction_smoothing, when computed already.
+std::vector<Eigen::Vector3d> directions_from(const mesh::TriangleMesh& mesh, const FieldOptions& options,
+                                             const std::vector<Eigen::Vector3d>& smoothed) {
+  switch (options.direction) {
+    case DirectionKind::vertex_normal: return mesh::vertex_normals(mesh);
+    case DirectionKind::smoothed_normal: return smoothed;
+    case DirectionKind::anatomical:
+      return mesh::anatomical_directions(mesh, *regions_for(mesh, options, "displacement_directions"), smoothed);
+  }
+  return mesh::vertex_normals(mesh);
+}
+
 }  // namespace
 
 std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& mesh, const FieldOptions& options) {
-  switch (options.direction) {
-    case DirectionKind::vertex_normal: return mesh::vertex_normals(mesh);
-    case DirectionKind::smoothed_normal: return mesh::smoothed_normals(mesh, options.direction_smoothing);
-    case DirectionKind::anatomical:
-      return mesh::anatomical_directions(mesh, *regions_for(mesh, options, "displacement_directions"),
-                                         options.direction_smoothing);
-  }
-  return mesh::vertex_normals(mesh);
+  if (options.direction == DirectionKind::vertex_normal) return mesh::vertex_normals(mesh);
+  return directions_from(mesh, options, mesh::smoothed_normals(mesh, options.direction_smoothing));
 }
 
 std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
@@ -115,27 +121,34 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   field.force.assign(result.shot.begin(), result.shot.begin() + graph.mass_count());
   if (options.magnitude_smoothing > 0.0)
     field.force = mesh::blurred_in_space(mesh, field.force, options.magnitude_smoothing);
-  const std::vector<Eigen::Vector3d> direction = displacement_directions(mesh, options);
+  // The normals smoothed at the direction smoothing, computed once for every rule that reads them
+  // (the directions, the slide, the heart's descent): each computed its own before (#50).
+  const bool realistic = options.sliding.active() || options.heart.active();
+  const std::vector<Eigen::Vector3d> smoothed = options.direction != DirectionKind::vertex_normal || realistic
+                                                    ? mesh::smoothed_normals(mesh, options.direction_smoothing)
+                                                    : std::vector<Eigen::Vector3d>{};
+  const std::vector<Eigen::Vector3d> direction = directions_from(mesh, options, smoothed);
   auto [u, scale] = normalise_displacement(mesh, field.force, direction, options.area_unit);
-  if (options.sliding.active() || options.heart.active()) {
+  if (realistic) {
     // The slide and the heart's descent in units of this field's own diaphragm descent, so they
     // follow the load; then the whole field scaled back to one area unit.
     const auto regions = regions_for(mesh, options, "compute_field");
     const double descent = mesh::diaphragm_descent(mesh, *regions, u);
     if (options.sliding.active()) {
-      const std::vector<Eigen::Vector3d> slide =
-          mesh::sliding_field(mesh, *regions, options.sliding, options.direction_smoothing);
+      const std::vector<Eigen::Vector3d> slide = mesh::sliding_field(mesh, *regions, options.sliding, smoothed);
       for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * slide[i];
     }
     if (options.heart.active()) {
-      const std::vector<Eigen::Vector3d> heart =
-          heart_descent_field(mesh, *regions, options.heart, options.direction_smoothing);
+      const std::vector<Eigen::Vector3d> heart = heart_descent_field(mesh, *regions, options.heart, smoothed);
       for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * heart[i];
+      // The 3 mm normals, computed once for the recess rule and the thin lung's rays.
+      const std::vector<Eigen::Vector3d> face_normal = mesh::smoothed_normals(mesh, kFaceNormalSigma);
       // With a slide the costal face at the margin already descends with the diaphragm.
-      follow_the_diaphragm_over(mesh, *regions, u, options.sliding.active() ? Margin::kept : Margin::moved);
+      follow_the_diaphragm_over(mesh, *regions, u, options.sliding.active() ? Margin::kept : Margin::moved,
+                                face_normal);
       // The diaphragm's faces (and the heart's) move by their own rules; where the lung between
       // two of them is thin it is not stretched across its thickness more than the lung breathes.
-      limit_the_stretch_across_thin_lung(mesh, u);
+      limit_the_stretch_across_thin_lung(mesh, u, {}, face_normal);
     }
     const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
     double area_rate = 0.0;

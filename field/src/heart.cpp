@@ -12,9 +12,6 @@ namespace {
 // The band of the lung's height over which a face goes from under the diaphragm to not, below
 // the dome's top (0.05: 10-13 mm of a CT lung).
 constexpr double kUnderBand = 0.05;
-// Which way a face looks, from its normals smoothed at 3 mm: a thin recess's two faces (8-12 mm
-// apart on case009) keep their own; at 10 mm (the regions') or 20 mm they cancel.
-constexpr double kFaceSigma = 3e-3;
 // The surface around a face under the diaphragm, in space: about a recess's thickness.
 constexpr double kUnderSigma = 1e-2;
 // The costophrenic margin: the costal and diaphragmatic weights, and the normals, blurred in
@@ -48,13 +45,20 @@ std::vector<double> thinness(const mesh::TriangleMesh& mesh) {
 
 std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
                                                  const HeartDescent& heart, double sigma) {
+  return heart_descent_field(mesh, regions, heart,
+                             heart.active() ? mesh::smoothed_normals(mesh, sigma) : std::vector<Eigen::Vector3d>{});
+}
+
+std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
+                                                 const HeartDescent& heart,
+                                                 const std::vector<Eigen::Vector3d>& normal) {
   if (!(heart.descent >= 0.0 && heart.descent <= 1.0 && heart.top > 0.1 && heart.top < 0.9))
     throw ValueError("heart_descent_field: expected a descent in [0, 1] and a top in (0.1, 0.9)");
   mesh::require_regions_of(regions, mesh, regions.axes, "heart_descent_field");
   const std::size_t n = mesh.vertices.size();
   std::vector<Eigen::Vector3d> moved(n, Eigen::Vector3d::Zero());
   if (!heart.active()) return moved;
-  const std::vector<Eigen::Vector3d> normal = mesh::smoothed_normals(mesh, sigma);
+  if (normal.size() != n) throw ValueError("heart_descent_field: one smoothed normal per vertex");
   constexpr auto kMediastinal = static_cast<std::size_t>(mesh::Region::mediastinal);
   for (std::size_t i = 0; i < n; ++i) {
     const double below_top = step_down((regions.height[i] - (heart.top - 0.1)) / 0.2);
@@ -66,6 +70,11 @@ std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh,
 
 std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
                                     Margin margin) {
+  return under_diaphragm(mesh, regions, margin, mesh::smoothed_normals(mesh, kFaceNormalSigma));
+}
+
+std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions, Margin margin,
+                                    const std::vector<Eigen::Vector3d>& normal) {
   mesh::require_regions_of(regions, mesh, regions.axes, "under_diaphragm");
   const std::size_t n = mesh.vertices.size();
   const std::vector<bool> on_top = mesh::dome_top_vertices(mesh, regions);
@@ -73,7 +82,7 @@ std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::
   for (std::size_t i = 0; i < n; ++i) {
     if (on_top[i]) dome_top = std::max(dome_top, regions.height[i]);
   }
-  const std::vector<Eigen::Vector3d> normal = mesh::smoothed_normals(mesh, kFaceSigma);
+  if (normal.size() != n) throw ValueError("under_diaphragm: one smoothed normal per vertex");
   const bool with_margin = margin == Margin::moved;
   const std::vector<double> costal =
       with_margin ? blurred_weight(mesh, regions, mesh::Region::costal) : std::vector<double>{};
@@ -93,7 +102,14 @@ std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::
 void follow_the_diaphragm_over(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
                                std::vector<Eigen::Vector3d>& u, Margin margin) {
   if (u.size() != mesh.vertices.size()) throw ValueError("follow_the_diaphragm_over: one displacement per vertex");
-  const std::vector<double> under = under_diaphragm(mesh, regions, margin);
+  follow_the_diaphragm_over(mesh, regions, u, margin, mesh::smoothed_normals(mesh, kFaceNormalSigma));
+}
+
+void follow_the_diaphragm_over(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
+                               std::vector<Eigen::Vector3d>& u, Margin margin,
+                               const std::vector<Eigen::Vector3d>& face_normal) {
+  if (u.size() != mesh.vertices.size()) throw ValueError("follow_the_diaphragm_over: one displacement per vertex");
+  const std::vector<double> under = under_diaphragm(mesh, regions, margin, face_normal);
   std::array<std::vector<double>, 3> around;
   std::vector<double> component(u.size());
   for (int c = 0; c < 3; ++c) {

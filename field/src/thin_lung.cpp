@@ -1,20 +1,25 @@
 #include "pneuma/field/thin_lung.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
+#include "pneuma/field/heart.h"
 #include "pneuma/mesh/anatomy/regions.h"
 #include "pneuma/mesh/geometry/surface_hits.h"
+#include "pneuma/mesh/geometry/vertex_neighbours.h"
 #include "step_down.h"
 
 namespace pneuma::field {
 
 namespace {
 // The inward rays' directions: the normal smoothed in space at 3 mm, the recess rule's
-// (heart.cpp, kFaceSigma), so that a thin part's two faces keep their own normals.
-constexpr double kRaySigma = 3e-3;
+// (heart.h, kFaceNormalSigma), so that a thin part's two faces keep their own normals.
 // Rounds of asking and averaging: a pair whose vertices have no other request gives up its
 // full excess in one round; neighbouring rays' requests agree after a few tens.
 constexpr int kRounds = 40;
@@ -26,24 +31,34 @@ constexpr int kSmoothingPasses = 8;
 
 using detail::step_down;
 
+// Each vertex on its own thread, writing its own slot: the same bits at any thread count.
+template <class Body>
+void each_vertex_in_parallel(std::size_t n, const Body& body) {
+  const tsan::Region region;  // TBB's own synchronisation, told to ThreadSanitizer (core/tsan.h)
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t i = range.begin(); i < range.end(); ++i) body(i);
+                    }));
+  region.join();
+}
+
 std::vector<Eigen::Vector3d> umbrella_smoothed(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d> change) {
   const std::size_t n = change.size();
-  std::vector<std::vector<std::uint32_t>> around(n);
-  for (const auto& edge : mesh::unique_edges(mesh.triangles)) {
-    around[edge[0]].push_back(edge[1]);
-    around[edge[1]].push_back(edge[0]);
-  }
+  // Rows ascending, the order unique_edges gave the sums before (the same bits).
+  const mesh::VertexNeighbours around(mesh);
   std::vector<Eigen::Vector3d> next(n);
   for (int pass = 0; pass < kSmoothingPasses; ++pass) {
-    for (std::size_t i = 0; i < n; ++i) {
-      if (around[i].empty()) {
+    // Each vertex reads the previous pass only.
+    each_vertex_in_parallel(n, [&](std::size_t i) {
+      const std::span<const std::uint32_t> row = around(i);
+      if (row.empty()) {
         next[i] = change[i];
-        continue;
+        return;
       }
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      for (const std::uint32_t j : around[i]) sum += change[j];
-      next[i] = 0.5 * change[i] + 0.5 * sum / static_cast<double>(around[i].size());
-    }
+      for (const std::uint32_t j : row) sum += change[j];
+      next[i] = 0.5 * change[i] + 0.5 * sum / static_cast<double>(row.size());
+    });
     change.swap(next);
   }
   return change;
@@ -64,16 +79,37 @@ void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::ve
                                          const ThinLung& thin) {
   if (u.size() != mesh.vertices.size())
     throw ValueError("limit_the_stretch_across_thin_parts: one displacement per vertex");
+  limit_the_stretch_across_thin_parts(mesh, u, high, thin, mesh::smoothed_normals(mesh, kFaceNormalSigma));
+}
+
+void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u, double high,
+                                         const ThinLung& thin, const std::vector<Eigen::Vector3d>& face_normal) {
+  if (u.size() != mesh.vertices.size() || face_normal.size() != mesh.vertices.size())
+    throw ValueError("limit_the_stretch_across_thin_parts: one displacement and one smoothed normal per vertex");
   if (!(thin.thin > 0.0 && thin.thick > thin.thin))
     throw ValueError("limit_the_stretch_across_thin_parts: expected 0 < thin < thick");
   const std::size_t n = u.size();
-  std::vector<Eigen::Vector3d> inward = mesh::smoothed_normals(mesh, kRaySigma);
-  for (Eigen::Vector3d& d : inward) d = -d;
+  std::vector<Eigen::Vector3d> inward(n);
+  for (std::size_t i = 0; i < n; ++i) inward[i] = -face_normal[i];
   const std::vector<mesh::SurfaceHit> hits = mesh::first_hits_from_vertices(mesh, inward, thin.thick);
   const std::vector<Eigen::Vector3d> before = u;
   std::vector<Eigen::Vector3d> asked(n);
   std::vector<double> askers(n);
+  std::vector<double> excess(n);
   for (int round = 0; round < kRounds; ++round) {
+    // Each ray's excess reads this round's u only (on every thread); the requests are then
+    // gathered in vertex order on one, so the sums keep their order and their bits.
+    each_vertex_in_parallel(n, [&](std::size_t i) {
+      const mesh::SurfaceHit& hit = hits[i];
+      if (!hit.found) return;
+      const auto& face = mesh.triangles[hit.face];
+      Eigen::Vector3d across = Eigen::Vector3d::Zero();
+      for (std::size_t k = 0; k < 3; ++k) across += hit.weights[k] * u[face[k]];
+      const double strain = (across - u[i]).dot(inward[i]) / hit.distance;
+      // The excess fully where the part is thin, none where it is thick, a smooth step between.
+      excess[i] = std::max(0.0, strain - high) * hit.distance *
+                  step_down((hit.distance - thin.thin) / (thin.thick - thin.thin));
+    });
     std::fill(asked.begin(), asked.end(), Eigen::Vector3d::Zero());
     std::fill(askers.begin(), askers.end(), 0.0);
     bool any = false;
@@ -81,28 +117,22 @@ void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::ve
       const mesh::SurfaceHit& hit = hits[i];
       if (!hit.found) continue;
       const auto& face = mesh.triangles[hit.face];
-      Eigen::Vector3d across = Eigen::Vector3d::Zero();
-      for (std::size_t k = 0; k < 3; ++k) across += hit.weights[k] * u[face[k]];
       const Eigen::Vector3d& d = inward[i];
-      const double strain = (across - u[i]).dot(d) / hit.distance;
-      // The excess fully where the part is thin, none where it is thick, a smooth step between.
-      const double excess = std::max(0.0, strain - high) * hit.distance *
-                            step_down((hit.distance - thin.thin) / (thin.thick - thin.thin));
       // Every ray that finds a face across votes, so a vertex whose rays agree keeps its place.
       askers[i] += 1.0;
-      if (excess > 0.0) {
+      if (excess[i] > 0.0) {
         any = true;
-        asked[i] += 0.5 * excess * d;
+        asked[i] += 0.5 * excess[i] * d;
       }
       for (std::size_t k = 0; k < 3; ++k) {
         askers[face[k]] += hit.weights[k];
-        if (excess > 0.0) asked[face[k]] -= hit.weights[k] * 0.5 * excess * d;
+        if (excess[i] > 0.0) asked[face[k]] -= hit.weights[k] * 0.5 * excess[i] * d;
       }
     }
     if (!any) break;
-    for (std::size_t i = 0; i < n; ++i) {
+    each_vertex_in_parallel(n, [&](std::size_t i) {
       if (askers[i] > 0.0) u[i] += asked[i] / askers[i];
-    }
+    });
   }
   std::vector<Eigen::Vector3d> change(n);
   for (std::size_t i = 0; i < n; ++i) change[i] = u[i] - before[i];
@@ -116,6 +146,14 @@ void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, std::vec
   const double mean = mean_volume_strain(mesh, u);
   if (!(mean > 0.0)) return;  // a field that does not inflate the lung has no stretch to bound
   limit_the_stretch_across_thin_parts(mesh, u, mean * (1.0 + thin.spread), thin);
+}
+
+void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u,
+                                        const ThinLung& thin, const std::vector<Eigen::Vector3d>& face_normal) {
+  if (!(thin.spread >= 0.0)) throw ValueError("limit_the_stretch_across_thin_lung: expected a spread >= 0");
+  const double mean = mean_volume_strain(mesh, u);
+  if (!(mean > 0.0)) return;  // a field that does not inflate the lung has no stretch to bound
+  limit_the_stretch_across_thin_parts(mesh, u, mean * (1.0 + thin.spread), thin, face_normal);
 }
 
 }  // namespace pneuma::field

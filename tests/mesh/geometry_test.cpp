@@ -1,10 +1,14 @@
 // Plain Eigen area and volume against analytic shapes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
+#include "pneuma/core/error.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
+#include "pneuma/mesh/geometry/vertex_neighbours.h"
 
 using namespace pneuma::mesh;
 
@@ -46,4 +50,42 @@ TEST(Geometry, AreaGradientPredictsTheAreaChangeOfANormalDisplacement) {
   // Second-order terms are O(eps^2 * area) = 1e-11; the first-order change is ~1e-5.
   EXPECT_NEAR(surface_area(moved) - surface_area(s), area_change, 1e-4 * area_change);
   EXPECT_NEAR(enclosed_volume(moved) - enclosed_volume(s), volume_change, 1e-4 * volume_change);
+}
+
+TEST(Geometry, VertexNeighboursOfTwoTrianglesAreTheirEdges) {
+  // Two faces on the edge (1, 2): by hand, each row ascending.
+  const VertexNeighbours around(4, {{0, 1, 2}, {2, 1, 3}});
+  const std::vector<std::vector<std::uint32_t>> expected{{1, 2}, {0, 2, 3}, {0, 1, 3}, {1, 2}};
+  ASSERT_EQ(around.vertex_count(), 4u);
+  for (std::size_t v = 0; v < 4; ++v) {
+    const auto row = around(v);
+    EXPECT_EQ(std::vector<std::uint32_t>(row.begin(), row.end()), expected[v]) << "vertex " << v;
+  }
+  EXPECT_THROW(VertexNeighbours(3, {{0, 1, 3}}), pneuma::ValueError);
+}
+
+TEST(Geometry, VertexNeighboursAreUniqueEdgesAdjacencyInItsOrder) {
+  // The adjacency walked from the sorted unique edges (the umbrella average's order before
+  // VertexNeighbours), whatever order the faces come in; every row of a closed icosphere holds
+  // 5 (the 12 corners) or 6 vertices and the rows hold each edge twice.
+  TriangleMesh sphere = make_icosphere(1.0, 3);
+  std::reverse(sphere.triangles.begin(), sphere.triangles.end());
+  std::rotate(sphere.triangles[7].begin(), sphere.triangles[7].begin() + 1, sphere.triangles[7].end());
+  const auto edges = unique_edges(sphere.triangles);
+  std::vector<std::vector<std::uint32_t>> expected(sphere.vertex_count());
+  for (const auto& e : edges) {
+    expected[e[0]].push_back(e[1]);
+    expected[e[1]].push_back(e[0]);
+  }
+  const VertexNeighbours around(sphere);
+  ASSERT_EQ(around.vertex_count(), sphere.vertex_count());
+  EXPECT_EQ(around.list().size(), 2 * edges.size());
+  std::size_t fives = 0;
+  for (std::size_t v = 0; v < sphere.vertex_count(); ++v) {
+    const auto row = around(v);
+    EXPECT_EQ(std::vector<std::uint32_t>(row.begin(), row.end()), expected[v]) << "vertex " << v;
+    EXPECT_TRUE(row.size() == 5 || row.size() == 6) << "vertex " << v;
+    fives += row.size() == 5 ? 1 : 0;
+  }
+  EXPECT_EQ(fives, 12u);
 }

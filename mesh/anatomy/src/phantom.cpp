@@ -13,6 +13,7 @@
 #include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
 #include "pneuma/mesh/anatomy/phantom.h"
+#include "pneuma/mesh/geometry/vertex_neighbours.h"
 
 namespace pneuma::mesh {
 namespace {
@@ -227,17 +228,6 @@ TriangleMesh geodesic_sphere(int n) {
   return m;
 }
 
-// Vertex neighbours in compressed rows, from the sorted unique edges (deterministic order).
-void neighbours(const TriangleMesh& m, std::vector<std::uint32_t>& start, std::vector<std::uint32_t>& list) {
-  const auto edges = unique_edges(m.triangles);
-  start.assign(m.vertex_count() + 1, 0);
-  for (const auto& e : edges) ++start[e[0] + 1], ++start[e[1] + 1];
-  for (std::size_t v = 0; v < m.vertex_count(); ++v) start[v + 1] += start[v];
-  list.resize(start.back());
-  std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-  for (const auto& e : edges) list[fill[e[0]]++] = e[1], list[fill[e[1]]++] = e[0];
-}
-
 TriangleMesh sample_lung(const LungShape& s, int n, int passes) {
   TriangleMesh m = geodesic_sphere(n);
   const Eigen::Vector3d c = star_centre(s);
@@ -255,14 +245,13 @@ TriangleMesh sample_lung(const LungShape& s, int n, int passes) {
   each_vertex(
       [&](std::size_t v) { m.vertices[v] = c + ray_root(s, c, m.vertices[v], 0.0, kFarOutside) * m.vertices[v]; });
   if (passes <= 0) return m;
-  std::vector<std::uint32_t> start, list;
-  neighbours(m, start, list);
+  const VertexNeighbours around(m);  // rows ascending: a deterministic order
   std::vector<Eigen::Vector3d> next(m.vertex_count());
   for (int pass = 0; pass < passes; ++pass) {
     each_vertex([&](std::size_t v) {
       Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (std::uint32_t k = start[v]; k < start[v + 1]; ++k) mean += m.vertices[list[k]];
-      mean /= static_cast<double>(start[v + 1] - start[v]);
+      for (const std::uint32_t w : around(v)) mean += m.vertices[w];
+      mean /= static_cast<double>(around(v).size());
       const Eigen::Vector3d moved = m.vertices[v] + 0.5 * (mean - m.vertices[v]);
       const Eigen::Vector3d d = (moved - c).normalized();
       next[v] = c + ray_root_near(s, c, d, (moved - c).norm()) * d;

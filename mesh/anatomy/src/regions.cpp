@@ -648,7 +648,13 @@ std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions
 
 std::vector<Eigen::Vector3d> anatomical_directions(const TriangleMesh& mesh, const SurfaceRegions& regions,
                                                    double sigma) {
-  const std::vector<Eigen::Vector3d> normal = smoothed_normals(mesh, sigma);
+  return anatomical_directions(mesh, regions, smoothed_normals(mesh, sigma));
+}
+
+std::vector<Eigen::Vector3d> anatomical_directions(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                                   const std::vector<Eigen::Vector3d>& normal) {
+  if (normal.size() != mesh.vertices.size() || regions.weight.size() != mesh.vertices.size())
+    throw ValueError("anatomical_directions: one smoothed normal and one region weight per vertex");
   const Eigen::Vector3d up = regions.axes.up;
   std::vector<Eigen::Vector3d> d(normal.size());
   for (std::size_t i = 0; i < normal.size(); ++i) {

@@ -18,6 +18,12 @@ double smooth(double u) {
 
 std::vector<Eigen::Vector3d> sliding_field(const TriangleMesh& mesh, const SurfaceRegions& regions,
                                            const Sliding& sliding, double sigma) {
+  return sliding_field(mesh, regions, sliding,
+                       sliding.active() ? smoothed_normals(mesh, sigma) : std::vector<Eigen::Vector3d>{});
+}
+
+std::vector<Eigen::Vector3d> sliding_field(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                           const Sliding& sliding, const std::vector<Eigen::Vector3d>& normal) {
   if (!(sliding.caudal >= 0.0 && sliding.anterior >= 0.0 && sliding.mediastinal >= 0.0 && sliding.blur_m >= 0.0 &&
         sliding.exponent > 0.0 && sliding.base >= 0.0 && sliding.base < 1.0))
     throw ValueError("sliding_field: the amplitudes must be >= 0");
@@ -25,7 +31,7 @@ std::vector<Eigen::Vector3d> sliding_field(const TriangleMesh& mesh, const Surfa
   const std::size_t n = mesh.vertices.size();
   std::vector<Eigen::Vector3d> slide(n, Eigen::Vector3d::Zero());
   if (!sliding.active()) return slide;
-  const std::vector<Eigen::Vector3d> normal = smoothed_normals(mesh, sigma);
+  if (normal.size() != n) throw ValueError("sliding_field: one smoothed normal per vertex");
   const Eigen::Vector3d up = regions.axes.up, anterior = regions.axes.anterior;
   double back = std::numeric_limits<double>::infinity(), front = -back;
   for (const Eigen::Vector3d& x : mesh.vertices) {

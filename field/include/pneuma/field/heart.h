@@ -63,6 +63,17 @@ struct HeartDescent {
 // another surface.
 std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
                                                  const HeartDescent& heart, double sigma);
+// The same with N given: `smoothed_normal` is mesh::smoothed_normals(mesh, sigma), computed once
+// by a caller that needs it for other rules too (compute_field). Not read when the heart stands
+// still; else one per vertex (ValueError).
+std::vector<Eigen::Vector3d> heart_descent_field(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
+                                                 const HeartDescent& heart,
+                                                 const std::vector<Eigen::Vector3d>& smoothed_normal);
+
+// The sigma of the normals by which a face under the diaphragm is told (under_diaphragm) and
+// along which the thin lung's rays are cast (thin_lung.h): 3 mm, so that a thin recess's two
+// faces (8-12 mm apart on case009) keep their own; at 10 mm (the regions') or 20 mm they cancel.
+inline constexpr double kFaceNormalSigma = 3e-3;
 
 // Per vertex: how far the face lies under the diaphragm or (Margin::moved) on a thin
 // costophrenic margin, in [0, 1]: b(h) max(max(0, up.n), min(1, 4 c d) t) (Margin::kept:
@@ -80,11 +91,19 @@ enum class Margin {
 };
 std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
                                     Margin margin = Margin::moved);
+// The same with n given: `face_normal` is mesh::smoothed_normals(mesh, kFaceNormalSigma), one
+// per vertex (ValueError), computed once for this rule and the thin lung's rays (compute_field).
+std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions, Margin margin,
+                                    const std::vector<Eigen::Vector3d>& face_normal);
 
 // A face under the diaphragm moves with the surface around it: u_i += w_i (ubar_i - u_i), w
 // from under_diaphragm(), ubar the field blurred in space at 10 mm (mesh::blurred_in_space). In
 // place; the caller scales the field back to its area unit.
 void follow_the_diaphragm_over(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
                                std::vector<Eigen::Vector3d>& u, Margin margin = Margin::moved);
+// The same with the 3 mm normals given (under_diaphragm's `face_normal`).
+void follow_the_diaphragm_over(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
+                               std::vector<Eigen::Vector3d>& u, Margin margin,
+                               const std::vector<Eigen::Vector3d>& face_normal);
 
 }  // namespace pneuma::field

@@ -47,10 +47,16 @@ double mean_volume_strain(const mesh::TriangleMesh& mesh, const std::vector<Eige
 // face within reach. In place; the caller scales the field back to its unit.
 void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u, double high,
                                          const ThinLung& thin = {});
+// The same with the outward normals smoothed at 3 mm given (mesh::smoothed_normals(mesh,
+// kFaceNormalSigma), field/heart.h), computed once for this and the recess rule (compute_field).
+void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u, double high,
+                                         const ThinLung& thin, const std::vector<Eigen::Vector3d>& face_normal);
 
 // The lung's own bound: high = m (1 + spread), m = mean_volume_strain(mesh, u) (nothing where
 // m <= 0: a field that does not inflate the lung).
 void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u,
                                         const ThinLung& thin = {});
+void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u,
+                                        const ThinLung& thin, const std::vector<Eigen::Vector3d>& face_normal);
 
 }  // namespace pneuma::field

@@ -182,5 +182,9 @@ std::vector<double> regional_load(const TriangleMesh& mesh, const SurfaceRegions
 // with the normals smoothed at `sigma` (mesh units). Every part is a smooth field in space.
 std::vector<Eigen::Vector3d> anatomical_directions(const TriangleMesh& mesh, const SurfaceRegions& regions,
                                                    double sigma);
+// The same from `smoothed_normal` = smoothed_normals(mesh, sigma), one per vertex (ValueError),
+// computed once by a caller whose other rules use it too (field::compute_field).
+std::vector<Eigen::Vector3d> anatomical_directions(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                                   const std::vector<Eigen::Vector3d>& smoothed_normal);
 
 }  // namespace pneuma::mesh

@@ -41,6 +41,11 @@ struct Sliding {
 // Throws ValueError for negative amplitudes, or regions of another surface.
 std::vector<Eigen::Vector3d> sliding_field(const TriangleMesh& mesh, const SurfaceRegions& regions,
                                            const Sliding& sliding, double sigma);
+// The same with N given: `smoothed_normal` = smoothed_normals(mesh, sigma), computed once by a
+// caller whose other rules use it too (field::compute_field); not read when nothing slides, else
+// one per vertex (ValueError).
+std::vector<Eigen::Vector3d> sliding_field(const TriangleMesh& mesh, const SurfaceRegions& regions,
+                                           const Sliding& sliding, const std::vector<Eigen::Vector3d>& smoothed_normal);
 
 // The diaphragm's area-weighted mean descent (along -up) of a per-vertex displacement, weighted
 // by the diaphragmatic region weight; 0 when the surface has no diaphragm.
