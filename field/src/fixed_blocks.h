@@ -31,6 +31,15 @@ void for_blocks(std::size_t n, const Body& body) {
   region.join();
 }
 
+// body(i) for each i of [0, n), a block per task; body writes slot i only, so the result is the
+// same at any thread count.
+template <typename Body>
+void for_each_index(std::size_t n, const Body& body) {
+  for_blocks(n, [&](std::size_t /*block*/, std::size_t lo, std::size_t hi) {
+    for (std::size_t i = lo; i < hi; ++i) body(i);
+  });
+}
+
 // The partials added in block order.
 inline double sum_in_order(const std::vector<double>& partial) {
   double total = 0.0;

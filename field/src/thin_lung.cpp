@@ -1,14 +1,11 @@
 #include "pneuma/field/thin_lung.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 
+#include "fixed_blocks.h"
 #include "pneuma/core/error.h"
-#include "pneuma/core/tsan.h"
 #include "pneuma/field/heart.h"
 #include "pneuma/mesh/anatomy/regions.h"
 #include "pneuma/mesh/geometry/surface_hits.h"
@@ -18,8 +15,6 @@
 namespace pneuma::field {
 
 namespace {
-// The inward rays' directions: the normal smoothed in space at 3 mm, the recess rule's
-// (heart.h, kFaceNormalSigma), so that a thin part's two faces keep their own normals.
 // Rounds of asking and averaging: a pair whose vertices have no other request gives up its
 // full excess in one round; neighbouring rays' requests agree after a few tens.
 constexpr int kRounds = 40;
@@ -29,18 +24,8 @@ constexpr int kRounds = 40;
 // self-intersected (CtLungRealism); with 4 passes case008's left lung upright still did.
 constexpr int kSmoothingPasses = 8;
 
+using detail::for_each_index;  // each vertex writes its own slot: the same bits at any thread count
 using detail::step_down;
-
-// Each vertex on its own thread, writing its own slot: the same bits at any thread count.
-template <class Body>
-void each_vertex_in_parallel(std::size_t n, const Body& body) {
-  const tsan::Region region;  // TBB's own synchronisation, told to ThreadSanitizer (core/tsan.h)
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
-                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i < range.end(); ++i) body(i);
-                    }));
-  region.join();
-}
 
 std::vector<Eigen::Vector3d> umbrella_smoothed(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d> change) {
   const std::size_t n = change.size();
@@ -49,7 +34,7 @@ std::vector<Eigen::Vector3d> umbrella_smoothed(const mesh::TriangleMesh& mesh, s
   std::vector<Eigen::Vector3d> next(n);
   for (int pass = 0; pass < kSmoothingPasses; ++pass) {
     // Each vertex reads the previous pass only.
-    each_vertex_in_parallel(n, [&](std::size_t i) {
+    for_each_index(n, [&](std::size_t i) {
       const std::span<const std::uint32_t> row = around(i);
       if (row.empty()) {
         next[i] = change[i];
@@ -90,6 +75,7 @@ void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::ve
     throw ValueError("limit_the_stretch_across_thin_parts: expected 0 < thin < thick");
   const std::size_t n = u.size();
   std::vector<Eigen::Vector3d> inward(n);
+  // Inward along the 3 mm normals (heart.h, kFaceNormalSigma): a thin part's two faces keep their own.
   for (std::size_t i = 0; i < n; ++i) inward[i] = -face_normal[i];
   const std::vector<mesh::SurfaceHit> hits = mesh::first_hits_from_vertices(mesh, inward, thin.thick);
   const std::vector<Eigen::Vector3d> before = u;
@@ -99,7 +85,7 @@ void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::ve
   for (int round = 0; round < kRounds; ++round) {
     // Each ray's excess reads this round's u only (on every thread); the requests are then
     // gathered in vertex order on one, so the sums keep their order and their bits.
-    each_vertex_in_parallel(n, [&](std::size_t i) {
+    for_each_index(n, [&](std::size_t i) {
       const mesh::SurfaceHit& hit = hits[i];
       if (!hit.found) return;
       const auto& face = mesh.triangles[hit.face];
@@ -130,7 +116,7 @@ void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::ve
       }
     }
     if (!any) break;
-    each_vertex_in_parallel(n, [&](std::size_t i) {
+    for_each_index(n, [&](std::size_t i) {
       if (askers[i] > 0.0) u[i] += asked[i] / askers[i];
     });
   }

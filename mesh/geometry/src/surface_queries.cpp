@@ -296,7 +296,8 @@ std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
     const double length = direction[i].norm();
     if (!(length > 0.0)) return;
     candidates.clear();
-    const Eigen::Vector3d along = (reach_looked / length) * direction[i];
+    const double reach_along = reach_looked / length;  // in units of |direction[i]|
+    const Eigen::Vector3d along = reach_along * direction[i];
     const Kernel::Segment_3 reach_segment(to_point(from), to_point(from + along));
     BoxesMet boxes_met(from, along, candidates);
     faces.tree.traversal(reach_segment, boxes_met);
@@ -310,7 +311,7 @@ std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
       const auto& t = mesh.triangles[f];
       if (t[0] == i || t[1] == i || t[2] == i) continue;  // the faces around this vertex
       if (clearly_missed(from, direction[i], mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]],
-                         reach_looked / length))
+                         reach_along))
         continue;
       const auto meeting = CGAL::intersection(ray, *candidate);
       if (!meeting) continue;
