@@ -21,6 +21,7 @@
 #include "pneuma/core/keyed_file.h"
 #include "pneuma/core/sha256.h"
 #include "pneuma/core/tsan.h"
+#include "pneuma/image/label_map.h"
 #include "pneuma/model/model.h"
 
 namespace pneuma::model {
@@ -167,24 +168,66 @@ double smoothstep(double x) {
 struct Sample {
   Eigen::Vector3d at, normal, normal_motion;
   double area = 0.0, diaphragm = 0.0;
+  double off_lobes = 0.0;  // the share of the surface here that is not pleura (off_lobes())
   std::size_t lung = 0;
 };
+
+// Per vertex of a lung from a label map, how far its surface lies off the lung's labels (0 to 1;
+// body_motion.h, "Off the lobes"): the depth along the inward normal at which the label map first
+// shows this lung within a voxel (the 3 x 3 x 3 voxels around the point, so that a fissure's or a
+// small vessel's gap does not count), 0 up to kOnLobes, 1 from kOffLobes, a smooth step between.
+// Empty for a lung without a label map.
+constexpr double kOnLobes = 1.5e-3, kOffLobes = 3e-3, kDepthStep = 0.5e-3;
+std::vector<double> off_lobes(const Model& model, const LungModel& lung) {
+  if (model.label_map == nullptr || lung.label_values.empty()) return {};
+  const image::LabelMap& map = *model.label_map;
+  const Eigen::Matrix4d to_ijk = map.ijk_to_lps.inverse();
+  const auto is_lung = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+    if (i < 0 || j < 0 || k < 0 || i >= static_cast<std::int64_t>(map.size[0]) ||
+        j >= static_cast<std::int64_t>(map.size[1]) || k >= static_cast<std::int64_t>(map.size[2]))
+      return false;
+    const auto at = static_cast<std::size_t>(i) + map.size[0] * (static_cast<std::size_t>(j) + map.size[1] * static_cast<std::size_t>(k));
+    return std::find(lung.label_values.begin(), lung.label_values.end(), map.labels[at]) != lung.label_values.end();
+  };
+  const auto lung_near = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d f = (to_ijk * p.homogeneous()).head<3>();
+    const auto i = static_cast<std::int64_t>(std::lround(f.x())), j = static_cast<std::int64_t>(std::lround(f.y())),
+               k = static_cast<std::int64_t>(std::lround(f.z()));
+    for (std::int64_t c = -1; c <= 1; ++c)
+      for (std::int64_t b = -1; b <= 1; ++b)
+        for (std::int64_t a = -1; a <= 1; ++a)
+          if (is_lung(i + a, j + b, k + c)) return true;
+    return false;
+  };
+  std::vector<double> off(lung.rest.vertices.size(), 0.0);
+  for (std::size_t v = 0; v < off.size(); ++v) {
+    const Eigen::Vector3d inward = -lung.normals[v].normalized();
+    double depth = 0.0;
+    while (depth < kOffLobes && !lung_near(lung.rest.vertices[v] + depth * inward)) depth += kDepthStep;
+    off[v] = smoothstep((depth - kOnLobes) / (kOffLobes - kOnLobes));
+  }
+  return off;
+}
 
 std::vector<Sample> surface_samples(const Model& model, const Eigen::Vector3d& up) {
   std::vector<Sample> samples;
   for (std::size_t l = 0; l < model.lungs.size(); ++l) {
     const LungModel& lung = model.lungs[l];
     const std::vector<double> area = mesh::vertex_areas(lung.rest);
+    const std::vector<double> off = off_lobes(model, lung);
     for (std::size_t v = 0; v < lung.rest.vertices.size(); ++v) {
       const Eigen::Vector3d n = lung.normals[v].normalized();
       const double on_diaphragm = lung.regions.weight.size() == lung.rest.vertices.size()
                                       ? lung.regions.weight[v][static_cast<std::size_t>(mesh::Region::diaphragmatic)]
                                       : std::clamp(-n.dot(up), 0.0, 1.0);
       // Beside the chest wall and the mediastinum the tissue follows the pleura across it (the
-      // lung slides along); under the diaphragm it follows the diaphragm (the liver in its dome).
+      // lung slides along); under the diaphragm it follows the diaphragm (the liver in its dome),
+      // and where the surface lies off the lobes (the root at the hilum, filled to close the
+      // surface) there is no pleura to slide along: the tissue follows the whole motion too.
+      const double whole = off.empty() ? on_diaphragm : std::max(on_diaphragm, off[v]);
       const Eigen::Vector3d& u = lung.unit_displacement[v];
-      const Eigen::Vector3d followed = on_diaphragm * u + (1.0 - on_diaphragm) * n.dot(u) * n;
-      samples.push_back({lung.rest.vertices[v], n, followed, area[v], on_diaphragm, l});
+      const Eigen::Vector3d followed = whole * u + (1.0 - whole) * n.dot(u) * n;
+      samples.push_back({lung.rest.vertices[v], n, followed, area[v], on_diaphragm, off.empty() ? 0.0 : off[v], l});
     }
   }
   return samples;
@@ -296,7 +339,10 @@ std::vector<std::vector<Eigen::Vector3d>> unit_fields(std::size_t lungs, const s
       Eigen::Vector3d at = Eigen::Vector3d::Zero();
       fine.corners(samples[v].at, [&](std::size_t node, double w) { at += w * unit[samples[v].lung][node]; });
       const Eigen::Vector3d& n = samples[v].normal;
-      shortfall[v] = n.dot(samples[v].normal_motion - at) * n;
+      const Eigen::Vector3d missing = samples[v].normal_motion - at;
+      shortfall[v] = n.dot(missing) * n;
+      // Off the lobes the whole of it (no pleura to slide along): w missing + (1 - w) its normal part.
+      if (const double w = samples[v].off_lobes; w > 0.0) shortfall[v] += w * (missing - shortfall[v]);
     }
     const std::vector<Eigen::Vector3d> correction =
         convolve(lungs, samples, shortfall, fine, lo, hi, smallest_sigma, nullptr, nullptr);
@@ -634,7 +680,7 @@ BodyMotion::Frame BodyMotion::Frame::inverse_field(const Eigen::Vector3d& lo, co
 namespace pneuma::model {
 namespace {
 
-constexpr std::string_view kBodyKind = "pneuma-body-field 1";
+constexpr std::string_view kBodyKind = "pneuma-body-field 2";
 constexpr std::uint32_t kByteOrder = 0x01020304;  // written natively: a file of the other order is refused
 
 template <typename T>
@@ -717,6 +763,8 @@ std::string body_motion_key(const Model& model, const BodyMotionOptions& o) {
     bytes(lung.regions.weight.data(), lung.regions.weight.size() * sizeof(lung.regions.weight[0]));
     bytes(lung.regions.axes.up.data(), sizeof(Eigen::Vector3d));
     bytes(lung.unit_displacement.data(), lung.unit_displacement.size() * sizeof(Eigen::Vector3d));
+    const std::vector<double> off = off_lobes(model, lung);  // what the label map adds
+    bytes(off.data(), off.size() * sizeof(double));
   }
   return core::to_hex(h.finish());
 }

@@ -511,7 +511,7 @@ TEST(BodyMotion, AKeptFieldIsServedOnlyForTheInputsItWasMadeFrom) {
   wide.sigma_ladder_m = {0.048};
   const std::string other = model::BodyMotion(c.model, wide).to_bytes();
   ASSERT_NE(other, fresh);
-  core::save_keyed_file(dir / "other.cache", "pneuma-body-field 1", model::body_motion_key(c.model, options), other);
+  core::save_keyed_file(dir / "other.cache", "pneuma-body-field 2", model::body_motion_key(c.model, options), other);
   EXPECT_EQ(model::body_motion_cached(c.model, options, dir / "other.cache", {})->to_bytes(), other);
 
   // Other options: the breath reaching further.

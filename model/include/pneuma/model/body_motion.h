@@ -11,7 +11,8 @@
 //
 //   E_lung(x) = sum_v K(x - y_v) A_v (n_v . u_v) n_v  /  sum over all lungs' v of K(x - y_v) A_v
 //
-// (the diaphragm's vertices contribute their whole motion, docs/voxels.md; and E then gains one
+// (the diaphragm's vertices, and those off the lobes, contribute their whole motion, below, "Off
+// the lobes"; docs/voxels.md; and E then gains one
 // round of correction at the pleura, below, "At the pleura")
 // with y_v, n_v, A_v and u_v a rest surface vertex, its outward normal, its area and its unit
 // displacement; K a sum of Gaussians of sigma 12, 24, 48 and 96 mm weighted 1/sigma^5 (near the
@@ -47,10 +48,24 @@
 // the left lung's anterior base descended 8.3 mm where the lung's boundary descended 10.5 mm).
 // So the field gets `pleura_corrections` rounds (1) of successive correction (Barnes): at every
 // vertex the shortfall of the body's motion across the pleura, n_v . (m_v - u(y_v)) n_v (only the
-// normal part: along the pleura the lung slides), is blurred by the same normalised K and added
-// (faded as E is). The error across the pleura left by the blur shrinks to about its square; the
-// field gets steeper near the pleura, and the narrowest blur's rule (above) judges the corrected
-// field, so it stays a contraction where it judges.
+// normal part: along the pleura the lung slides; off the lobes, below, the whole of m_v - u(y_v)),
+// is blurred by the same normalised K and added (faded as E is). The error across the pleura left
+// by the blur shrinks to about its square; the field gets steeper near the pleura, and the
+// narrowest blur's rule (above) judges the corrected field, so it stays a contraction where it
+// judges. Tried, not kept (docs/voxels.md, "The body's pairs at 2 mm voxels"): the whole shortfall
+// under the diaphragm too (the phantom's field then needs a 24 mm blur, not 16 mm, and falls
+// further short across the pleura: 0.180 against 0.105), and two rounds (steeper than the rule
+// allows even at the ladder's widest blur).
+// Off the lobes. A surface made from a label map is closed where the lobes are not (the hilum's
+// vessels and airways, holes filled in slices to reach genus 0; mesh/labels.h): there the mesh
+// lies on tissue the label map does not call lung, and the voxel outputs move it with the lung
+// (docs/voxels.md, "Around the lungs"). There is no pleura there to slide along (the lung's root
+// is tethered to the mediastinum), so the body follows the whole of the surface's motion: w_v is
+// the larger of the diaphragm's share and the vertex's share off the lobes, the depth along the
+// inward normal at which the label map first shows the lung within a voxel (0 up to 1.5 mm, 1
+// from 3 mm, a smooth step between). Measured (2 mm voxels): case008's 4 and 23 neighbour pairs
+// at the right hilum (supine and upright, scan at end-inspiration), a 2.5 mm vertical slide
+// across the flat face the filled hilum leaves, are gone.
 // The field is precomputed per lung for s = 1 on a grid of `cell_m` (6 mm) and interpolated
 // trilinearly; a frame's field is the lungs' scales times theirs. A voxel output asks it at tens of
 // millions of points per time point: BodyMotion::Frame sums the lungs' grids with their scales
