@@ -293,7 +293,7 @@ TEST(NiftiGzOneRead, DamagedOrNonIntegerFilesAreTheSameOneLineErrors) {
 TEST(NiftiGzOneRead, AnImageOfManyBlocksIsEveryVoxelsValueAndItsFirstNonIntegerVoxelIsNamed) {
   TempDir dir;
   const std::array<int, 3> size{128, 96, 64};  // 786,432 voxels: three blocks and part of a fourth
-  const std::size_t count = 128u * 96u * 64u;
+  const std::size_t count = std::size_t{128} * 96 * 64;
   for (const Type& type : {kTypes[2], kTypes[5], kTypes[8]}) {  // int16, uint32, float32
     for (const char* name : {"v.nii.gz", "v.nii"}) {
       const std::string what = std::string(name) + " datatype " + std::to_string(type.code);
