@@ -21,6 +21,8 @@ STAGES = [  # (stage, pattern on a frame's symbol or library), first match from 
     ("CT warp (warp_image)", r"warp_image"),
     ("label warp, lung tissue masks (and the fused warp's CT: warp_labels_and_image)", r"warp_labels|lung_tissue|across_corners"),
     ("the warped lungs' volume (voxels.csv)", r"lung_volume"),
+    # Before "converting fields": image/'s own convert (int16 -> int32 / float) would match it.
+    ("reading the label map and the CT (image/: inflate, convert)", r"read_itk_image|read_nifti_voxels|image::detail"),
     ("converting fields for files", r"to_file|convert|nifti|Nifti|write_"),
 ]
 KERNEL = r"\[kernel|kallsyms"  # a sample in the kernel (page faults, page-cache writes) is its own stage

@@ -285,3 +285,44 @@ TEST(NiftiGzOneRead, DamagedOrNonIntegerFilesAreTheSameOneLineErrors) {
                      "decompression)");
   EXPECT_EQ(cut.find('\n'), std::string::npos);
 }
+
+// An image of several of the conversion's blocks (#50: converted a block at a time on every core):
+// every voxel the value this test wrote (the plain rule, voxel by voxel), through the inflated
+// bytes (.nii.gz) and through ITK's read (.nii); and of several voxels that are not whole numbers in
+// different blocks, the message names the first in the file, whichever block is converted first.
+TEST(NiftiGzOneRead, AnImageOfManyBlocksIsEveryVoxelsValueAndItsFirstNonIntegerVoxelIsNamed) {
+  TempDir dir;
+  const std::array<int, 3> size{128, 96, 64};  // 786,432 voxels: three blocks and part of a fourth
+  const std::size_t count = std::size_t{128} * 96 * 64;
+  for (const Type& type : {kTypes[2], kTypes[5], kTypes[8]}) {  // int16, uint32, float32
+    for (const char* name : {"v.nii.gz", "v.nii"}) {
+      const std::string what = std::string(name) + " datatype " + std::to_string(type.code);
+      write(dir / name, {.type = &type, .size = size});
+      const pneuma::image::LabelMap labels = pneuma::image::read_label_map(dir / name);
+      const pneuma::image::ScalarImage image = pneuma::image::read_scalar_image(dir / name);
+      ASSERT_EQ(labels.labels.size(), count) << what;
+      ASSERT_EQ(image.values.size(), count) << what;
+      std::size_t wrong = 0;
+      for (std::size_t v = 0; v < count; ++v) {
+        const double expected = value_at(v, type.is_signed);
+        wrong += labels.labels[v] != static_cast<std::int32_t>(expected);
+        wrong += image.values[v] != static_cast<float>(expected);
+      }
+      EXPECT_EQ(wrong, 0u) << what;
+    }
+  }
+  const Type float32 = kTypes[8];
+  std::vector<double> values(count, 3.0);
+  for (const std::size_t v : {700000u, 300001u, 262200u}) values[v] = 0.5;  // blocks 2, 1, 1
+  values[500000] = 3e9;                                                     // whole, but beyond int32
+  for (const char* name : {"half.nii.gz", "half.nii"}) {
+    write(dir / name, {.type = &float32, .values = values, .size = size});
+    EXPECT_EQ(error_of(dir / name), (dir / name).string() + ": voxel 262200 holds 0.500000: expected integer labels (a "
+                                                            "label map, not an image)");
+  }
+  values[262200] = 3.0, values[300001] = 3.0;  // the first left is the one beyond int32
+  write(dir / "big.nii.gz", {.type = &float32, .values = values, .size = size});
+  EXPECT_EQ(error_of(dir / "big.nii.gz"), (dir / "big.nii.gz").string() +
+                                              ": voxel 500000 holds 3000000000.000000: expected integer labels (a "
+                                              "label map, not an image)");
+}

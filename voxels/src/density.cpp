@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/fresh_pages.h"
 #include "pneuma/core/tsan.h"
-#include "pneuma/voxels/fresh_pages.h"
 #include "pneuma/voxels/jacobian.h"
 #include "rasterize.h"
 
@@ -107,7 +107,7 @@ void jacobian_image(std::span<const LungMotion> lungs, const DisplacementField& 
   if (forward.displacement_m.size() != grid.voxel_count())
     throw ValueError("jacobian_image: the forward field does not fill its grid");
   out.grid = grid;
-  detail::resize_mapped(out.values, grid.voxel_count());
+  core::resize_mapped(out.values, grid.voxel_count());
   std::vector<std::uint8_t> owner;
   detail::rasterize(
       grid, std::span<const detail::TetSet>(sets), owner,
@@ -136,16 +136,16 @@ void forward_dvf_with_rest_images(const Grid& grid, std::span<const LungMotion> 
   if (ct != nullptr)
     for (const LungMotion& lung : lungs) tet_j.push_back(tet_jacobians(lung));
   field.grid = grid;
-  detail::resize_mapped(field.displacement_m, grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  core::resize_mapped(field.displacement_m, grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
   if (jacobian != nullptr) {
     jacobian->grid = grid;
-    detail::resize_mapped(jacobian->values,
-                          grid.voxel_count());  // the lungs' voxels here, the rest by jacobian_image_outside
+    core::resize_mapped(jacobian->values,
+                        grid.voxel_count());  // the lungs' voxels here, the rest by jacobian_image_outside
   }
   Image* const preserved = ct != nullptr ? images.mass_preserving_ct : nullptr;
   if (preserved != nullptr) {
     preserved->grid = ct->grid;
-    detail::resize_mapped(preserved->values, ct->values.size());
+    core::resize_mapped(preserved->values, ct->values.size());
   }
   const auto visit = [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l) {
     field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>();
@@ -172,7 +172,7 @@ void mass_preserving_ct(const Image& rest_ct, std::span<const LungMotion> lungs,
                         std::vector<std::uint8_t>& rest_lung) {
   const RestTets tets = rest_tets(lungs);
   out.grid = rest_ct.grid;
-  detail::resize_mapped(out.values, rest_ct.values.size());
+  core::resize_mapped(out.values, rest_ct.values.size());
   detail::rasterize(
       rest_ct.grid, std::span<const detail::TetSet>(tets.sets), rest_lung,
       [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d&, std::size_t, std::size_t, std::size_t) {

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "pneuma/core/error.h"
-#include "pneuma/voxels/fresh_pages.h"
+#include "pneuma/core/fresh_pages.h"
 #include "rasterize.h"
 
 namespace pneuma::voxels {
@@ -53,7 +53,7 @@ bool RestRaster::holds(const Grid& on, std::span<const LungMotion> lungs) const 
 void forward_dvf(const Grid& grid, std::span<const LungMotion> lungs, DisplacementField& field,
                  const OutsideField& outside, RestRaster* rest) {
   field.grid = grid;
-  detail::resize_mapped(field.displacement_m, grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  core::resize_mapped(field.displacement_m, grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
   const auto visit = [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l) {
     field.displacement_m[v] = detail::tet_displacement(lungs[s], t, l).cast<float>();
   };
@@ -76,7 +76,7 @@ void pullback_dvf(const Grid& grid, std::span<const LungMotion> lungs, Displacem
     sets[s].nodes = deformed[s];
   }
   field.grid = grid;
-  detail::resize_mapped(field.displacement_m, grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
+  core::resize_mapped(field.displacement_m, grid.voxel_count());  // not zeroed: rasterize() writes every voxel once
   detail::rasterize(
       grid, std::span<const detail::TetSet>(sets), field.lung,
       [&](std::size_t v, std::size_t s, std::size_t t, const Eigen::Vector4d& l, std::size_t, std::size_t,

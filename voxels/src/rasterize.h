@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/fresh_pages.h"
 #include "pneuma/core/tsan.h"
 #include "pneuma/mesh/geometry/tet_mesh.h"
 #include "pneuma/voxels/dvf.h"
-#include "pneuma/voxels/fresh_pages.h"
 #include "pneuma/voxels/grid.h"
 
 namespace pneuma::voxels::detail {
@@ -65,7 +65,7 @@ template <typename Visit, typename Empty>
 void rasterize(const Grid& grid, std::span<const TetSet> sets, std::vector<std::uint8_t>& owner, const Visit& visit,
                const Empty& empty) {
   const std::size_t nx = grid.size[0], ny = grid.size[1], nz = grid.size[2];
-  assign_mapped(owner, grid.voxel_count(), std::uint8_t{0});
+  core::assign_mapped(owner, grid.voxel_count(), std::uint8_t{0});
   if (owner.empty()) return;
   const Eigen::Matrix4d to_ijk = grid.lps_to_ijk();
   const Eigen::Matrix3d linear = to_ijk.block<3, 3>(0, 0);

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/fresh_pages.h"
 #include "pneuma/core/tsan.h"
-#include "pneuma/voxels/fresh_pages.h"
 
 namespace pneuma::voxels {
 namespace {
@@ -206,7 +206,7 @@ void labels_like(const image::LabelMap& labels, const DisplacementField& pullbac
   out.ijk_to_lps = pullback.grid.ijk_to_lps;
   out.transform_source = labels.transform_source;
   out.segments = labels.segments;
-  detail::resize_mapped(out.labels, pullback.grid.voxel_count());
+  core::resize_mapped(out.labels, pullback.grid.voxel_count());
 }
 
 }  // namespace
@@ -375,7 +375,7 @@ void warp_image(const Image& image, const DisplacementField& pullback, Image& ou
                 const std::vector<std::uint8_t>* rest_lung, const Tissue& tissue) {
   const bool by_tissue = check_image_warp(image, pullback, rest_lung, tissue);
   out.grid = pullback.grid;
-  detail::resize_mapped(out.values, pullback.grid.voxel_count());
+  core::resize_mapped(out.values, pullback.grid.voxel_count());
   const auto rule = image_rule(image, pullback, outside, rest_lung, by_tissue ? tissue.rest : nullptr);
   for_each_sample(pullback, image.grid, [&](std::size_t v, const Eigen::Vector3d& q) {
     out.values[v] = rule(v, q, by_tissue ? (*tissue.warped)[v] : std::uint8_t{0});
@@ -395,7 +395,7 @@ void warp_labels_and_image(const image::LabelMap& labels, const Image& image, co
   check_labels_warp(labels, rest_lung);
   labels_like(labels, pullback, out_labels);
   out_image.grid = pullback.grid;
-  detail::resize_mapped(out_image.values, pullback.grid.voxel_count());
+  core::resize_mapped(out_image.values, pullback.grid.voxel_count());
   const auto label = label_rule(labels, pullback, rest_lung, lung_labels);
   const auto value = image_rule(image, pullback, outside, image_rest_lung, by_tissue ? image_rest_tissue : nullptr);
   for_each_sample(pullback, source, [&](std::size_t v, const Eigen::Vector3d& q) {
@@ -415,7 +415,7 @@ void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels
     lung_tissue(labels, lung_labels, out);
     return;
   }
-  detail::resize_mapped(out, grid.voxel_count());
+  core::resize_mapped(out, grid.voxel_count());
   const Eigen::Matrix4d to_labels = grid_of(labels).lps_to_ijk() * grid.ijk_to_lps;
   const tsan::Region region;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, grid.size[2]), region.wrap([&](const auto& r) {
@@ -435,7 +435,7 @@ void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels
 }
 
 void lung_tissue(const image::LabelMap& labels, std::span<const int> lung_labels, std::vector<std::uint8_t>& out) {
-  detail::resize_mapped(out, labels.labels.size());
+  core::resize_mapped(out, labels.labels.size());
   const tsan::Region region;
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, out.size(), std::size_t{1} << 16),

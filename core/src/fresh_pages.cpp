@@ -1,5 +1,5 @@
-// Large buffers mapped before they are first written (pneuma/voxels/fresh_pages.h).
-#include "pneuma/voxels/fresh_pages.h"
+// Large buffers mapped before they are first written (pneuma/core/fresh_pages.h).
+#include "pneuma/core/fresh_pages.h"
 
 #include <sys/mman.h>
 #include <tbb/blocked_range.h>
@@ -11,7 +11,7 @@
 
 #include "pneuma/core/tsan.h"
 
-namespace pneuma::voxels::detail {
+namespace pneuma::core {
 
 void map_for_writing(void* data, std::size_t bytes) {
 #ifdef MADV_POPULATE_WRITE
@@ -44,4 +44,4 @@ void map_for_writing(void* data, std::size_t bytes) {
 #endif
 }
 
-}  // namespace pneuma::voxels::detail
+}  // namespace pneuma::core

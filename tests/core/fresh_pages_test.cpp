@@ -1,7 +1,7 @@
-// Large buffers mapped before they are first written (pneuma/voxels/fresh_pages.h, #50). Oracles:
+// Large buffers mapped before they are first written (pneuma/core/fresh_pages.h, #50). Oracles:
 // the kernel's own account of which pages are mapped (mincore), and std::vector's resize and
 // assign for the contents.
-#include "pneuma/voxels/fresh_pages.h"
+#include "pneuma/core/fresh_pages.h"
 
 #include <gtest/gtest.h>
 #include <sys/mman.h>
@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace pneuma::voxels::detail {
+namespace pneuma::core {
 namespace {
 
 // How many of the pages of [data, data + bytes) (a page-aligned mapping) the kernel has mapped.
@@ -91,4 +91,4 @@ TEST(FreshPages, ResizeAndAssignGiveWhatTheVectorsOwnDo) {
 }
 
 }  // namespace
-}  // namespace pneuma::voxels::detail
+}  // namespace pneuma::core

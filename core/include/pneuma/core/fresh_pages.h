@@ -1,6 +1,7 @@
 #pragma once
 // Large buffers mapped before they are first written (#50). A fresh buffer of a native time point
-// (0.07-0.85 GB each, 3.6 GB in all at case004's own grid) is mapped by the kernel page by page
+// (0.07-0.85 GB each, 3.6 GB in all at case004's own grid; the label map and the CT as read, image/)
+// is mapped by the kernel page by page
 // as it is first touched: one fault per 4 KiB page (about 900k a time point), and where a
 // std::vector value-initialises it, all of them under one thread's memset while the other core
 // waits. Mapping the pages first, in slices from every core, takes the faults' entry costs away
@@ -9,7 +10,7 @@
 #include <cstddef>
 #include <vector>
 
-namespace pneuma::voxels::detail {
+namespace pneuma::core {
 
 // Asks the kernel to map [data, data + bytes) for writing now (Linux's MADV_POPULATE_WRITE, in
 // slices on every core). Does nothing below a few MB, or where the kernel cannot (before Linux
@@ -37,4 +38,4 @@ void assign_mapped(std::vector<T>& v, std::size_t n, const T& value) {
   v.assign(n, value);
 }
 
-}  // namespace pneuma::voxels::detail
+}  // namespace pneuma::core
