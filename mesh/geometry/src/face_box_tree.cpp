@@ -57,8 +57,9 @@ FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
   if (n == 0) return;
   if (n > std::numeric_limits<std::uint32_t>::max()) throw ValueError("FaceBoxTree: too many faces");
   const auto& p = mesh.vertices;
-  const auto [low, high] = bounding_box(p);
-  const Eigen::Vector3d extent = (high - low).cwiseMax(std::numeric_limits<double>::min());
+  const std::array<Eigen::Vector3d, 2> bounds = bounding_box(p);
+  const Eigen::Vector3d& low = bounds[0];
+  const Eigen::Vector3d extent = (bounds[1] - low).cwiseMax(std::numeric_limits<double>::min());
   constexpr double kCells = static_cast<double>(1U << kMortonBits);
   // Each face's key: its centre's Morton code, then its index, so that the order is total and
   // the sorted order the same whatever the sort's schedule.
