@@ -90,7 +90,9 @@ FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
   keys = {};
   if (n == 1) return;
   node_.resize(n - 1);
-  root_ = build(code, 0, n, mesh).child;
+  const Built root = build(code, 0, n, mesh);
+  root_ = root.child;
+  root_box_ = root.box;
 }
 
 FaceBoxTree::Built FaceBoxTree::leaf(std::size_t position, const TriangleMesh& mesh) const {
@@ -134,13 +136,14 @@ FaceBoxTree::Built FaceBoxTree::build(const std::vector<std::uint64_t>& code, st
   }
   const auto name = static_cast<std::uint32_t>(split - 1);
   Node& node = node_[name];
-  node.left = left.child;
-  node.right = right.child;
+  node.box = {left.box, right.box};
+  node.child = {left.child, right.child};
+  Built out{{}, name};
   for (std::size_t a = 0; a < 3; ++a) {
-    node.box.low[a] = std::min(left.box.low[a], right.box.low[a]);
-    node.box.high[a] = std::max(left.box.high[a], right.box.high[a]);
+    out.box.low[a] = std::min(left.box.low[a], right.box.low[a]);
+    out.box.high[a] = std::max(left.box.high[a], right.box.high[a]);
   }
-  return {node.box, name};
+  return out;
 }
 
 }  // namespace pneuma::mesh::detail

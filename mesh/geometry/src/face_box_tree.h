@@ -73,7 +73,7 @@ class FaceBoxTree {
     };
     std::array<Pending, 128> stack;  // one pending child per level: the depth is at most 64
     std::size_t top = 0;
-    const auto [enter, leave] = segment_in_box(node_[root_].box, from, inverse, limit, margin);
+    const auto [enter, leave] = segment_in_box(root_box_, from, inverse, limit, margin);
     if (enter > leave) return;
     stack[top++] = {root_, enter};
     while (top > 0) {
@@ -83,24 +83,21 @@ class FaceBoxTree {
         limit = visit(face_[next.child & ~kFace]);
         continue;
       }
+      // Both children's boxes lie in their parent (one read), a face's too: a face whose box
+      // the segment misses is not visited.
       const Node& node = node_[next.child];
-      // A face child is pushed with the node's entry: the caller tests its face's own box.
-      const auto entry = [&](std::uint32_t child) {
-        if (child & kFace) return std::pair<double, double>{next.enter, limit};
-        return segment_in_box(node_[child].box, from, inverse, limit, margin);
-      };
-      const auto [left_enter, left_leave] = entry(node.left);
-      const auto [right_enter, right_leave] = entry(node.right);
+      const auto [left_enter, left_leave] = segment_in_box(node.box[0], from, inverse, limit, margin);
+      const auto [right_enter, right_leave] = segment_in_box(node.box[1], from, inverse, limit, margin);
       const bool left_met = left_enter <= left_leave, right_met = right_enter <= right_leave;
       // The nearer child on top, walked first; ties: the left.
       if (left_met && right_met) {
         const bool left_first = left_enter <= right_enter;
-        stack[top++] = left_first ? Pending{node.right, right_enter} : Pending{node.left, left_enter};
-        stack[top++] = left_first ? Pending{node.left, left_enter} : Pending{node.right, right_enter};
+        stack[top++] = left_first ? Pending{node.child[1], right_enter} : Pending{node.child[0], left_enter};
+        stack[top++] = left_first ? Pending{node.child[0], left_enter} : Pending{node.child[1], right_enter};
       } else if (left_met) {
-        stack[top++] = {node.left, left_enter};
+        stack[top++] = {node.child[0], left_enter};
       } else if (right_met) {
-        stack[top++] = {node.right, right_enter};
+        stack[top++] = {node.child[1], right_enter};
       }
     }
   }
@@ -108,8 +105,8 @@ class FaceBoxTree {
  private:
   static constexpr std::uint32_t kFace = 0x80000000U;  // a child that is a face: its position in face_
   struct Node {
-    FloatBox box;
-    std::uint32_t left = 0, right = 0;  // node names, or kFace | position
+    std::array<FloatBox, 2> box;           // the children's
+    std::array<std::uint32_t, 2> child{};  // node names, or kFace | position
   };
   struct Built {
     FloatBox box;
@@ -122,6 +119,7 @@ class FaceBoxTree {
   std::vector<std::uint32_t> face_;  // the faces along the curve
   std::vector<Node> node_;           // node s splits after position s (n - 1 names, some unused)
   std::uint32_t root_ = 0;
+  FloatBox root_box_;
 };
 
 }  // namespace pneuma::mesh::detail
