@@ -20,26 +20,50 @@ constexpr double kUnderSigma = 1e-2;
 constexpr double kMarginSigma = 1e-2;
 
 using detail::step_down;
-std::vector<double> blurred_weight(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
-                                   mesh::Region region) {
-  std::vector<double> weight(mesh.vertices.size());
-  for (std::size_t i = 0; i < weight.size(); ++i) weight[i] = regions.weight[i][static_cast<std::size_t>(region)];
-  return mesh::blurred_in_space(mesh, weight, kMarginSigma);
+// The costal and diaphragmatic weights, blurred in space at kMarginSigma.
+std::vector<Eigen::Vector2d> blurred_costal_and_diaphragmatic(const mesh::TriangleMesh& mesh,
+                                                              const mesh::SurfaceRegions& regions,
+                                                              const std::vector<double>& area) {
+  std::vector<Eigen::Vector2d> weight(mesh.vertices.size());
+  for (std::size_t i = 0; i < weight.size(); ++i)
+    weight[i] = {regions.weight[i][static_cast<std::size_t>(mesh::Region::costal)],
+                 regions.weight[i][static_cast<std::size_t>(mesh::Region::diaphragmatic)]};
+  return mesh::blurred_in_space(mesh, area, weight, kMarginSigma);
 }
 // Per vertex: 1 - |the outward normal averaged in space|, 0 on a flat face, 0.3 at a right-angled
 // edge, about 0.7 in an edge of 30 degrees (case009's anterior recess), 1 between opposite faces.
-std::vector<double> thinness(const mesh::TriangleMesh& mesh) {
-  const std::vector<Eigen::Vector3d> normal = mesh::vertex_normals(mesh);
-  std::array<std::vector<double>, 3> around;
-  std::vector<double> component(normal.size());
-  for (int c = 0; c < 3; ++c) {
-    for (std::size_t i = 0; i < normal.size(); ++i) component[i] = normal[i][c];
-    around[static_cast<std::size_t>(c)] = mesh::blurred_in_space(mesh, component, kMarginSigma);
-  }
-  std::vector<double> thin(normal.size());
-  for (std::size_t i = 0; i < normal.size(); ++i)
-    thin[i] = std::clamp(1.0 - Eigen::Vector3d(around[0][i], around[1][i], around[2][i]).norm(), 0.0, 1.0);
+std::vector<double> thinness(const mesh::TriangleMesh& mesh, const std::vector<double>& area) {
+  const std::vector<Eigen::Vector3d> around =
+      mesh::blurred_in_space(mesh, area, mesh::vertex_normals(mesh), kMarginSigma);
+  std::vector<double> thin(around.size());
+  for (std::size_t i = 0; i < around.size(); ++i) thin[i] = std::clamp(1.0 - around[i].norm(), 0.0, 1.0);
   return thin;
+}
+// under_diaphragm() with the vertex areas given.
+std::vector<double> under_diaphragm_given_areas(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
+                                                Margin margin, const std::vector<Eigen::Vector3d>& normal,
+                                                const std::vector<double>& area) {
+  mesh::require_regions_of(regions, mesh, regions.axes, "under_diaphragm");
+  const std::size_t n = mesh.vertices.size();
+  const std::vector<bool> on_top = mesh::dome_top_vertices(mesh, regions);
+  double dome_top = -1.0;  // no dome: no face lies under it
+  for (std::size_t i = 0; i < n; ++i) {
+    if (on_top[i]) dome_top = std::max(dome_top, regions.height[i]);
+  }
+  if (normal.size() != n) throw ValueError("under_diaphragm: one smoothed normal per vertex");
+  const bool with_margin = margin == Margin::moved;
+  const std::vector<Eigen::Vector2d> costal_diaphragmatic =
+      with_margin ? blurred_costal_and_diaphragmatic(mesh, regions, area) : std::vector<Eigen::Vector2d>{};
+  const std::vector<double> thin = with_margin ? thinness(mesh, area) : std::vector<double>{};
+  std::vector<double> under(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double looks_up = std::max(0.0, regions.axes.up.dot(normal[i]));
+    const double on_the_margin =
+        with_margin ? std::min(1.0, 4.0 * costal_diaphragmatic[i][0] * costal_diaphragmatic[i][1]) * thin[i] : 0.0;
+    under[i] =
+        step_down((regions.height[i] - (dome_top - kUnderBand)) / kUnderBand) * std::max(looks_up, on_the_margin);
+  }
+  return under;
 }
 }  // namespace
 
@@ -75,28 +99,7 @@ std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::
 
 std::vector<double> under_diaphragm(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions, Margin margin,
                                     const std::vector<Eigen::Vector3d>& normal) {
-  mesh::require_regions_of(regions, mesh, regions.axes, "under_diaphragm");
-  const std::size_t n = mesh.vertices.size();
-  const std::vector<bool> on_top = mesh::dome_top_vertices(mesh, regions);
-  double dome_top = -1.0;  // no dome: no face lies under it
-  for (std::size_t i = 0; i < n; ++i) {
-    if (on_top[i]) dome_top = std::max(dome_top, regions.height[i]);
-  }
-  if (normal.size() != n) throw ValueError("under_diaphragm: one smoothed normal per vertex");
-  const bool with_margin = margin == Margin::moved;
-  const std::vector<double> costal =
-      with_margin ? blurred_weight(mesh, regions, mesh::Region::costal) : std::vector<double>{};
-  const std::vector<double> diaphragmatic =
-      with_margin ? blurred_weight(mesh, regions, mesh::Region::diaphragmatic) : std::vector<double>{};
-  const std::vector<double> thin = with_margin ? thinness(mesh) : std::vector<double>{};
-  std::vector<double> under(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const double looks_up = std::max(0.0, regions.axes.up.dot(normal[i]));
-    const double on_the_margin = with_margin ? std::min(1.0, 4.0 * costal[i] * diaphragmatic[i]) * thin[i] : 0.0;
-    under[i] =
-        step_down((regions.height[i] - (dome_top - kUnderBand)) / kUnderBand) * std::max(looks_up, on_the_margin);
-  }
-  return under;
+  return under_diaphragm_given_areas(mesh, regions, margin, normal, mesh::vertex_areas(mesh));
 }
 
 void follow_the_diaphragm_over(const mesh::TriangleMesh& mesh, const mesh::SurfaceRegions& regions,
@@ -109,17 +112,11 @@ void follow_the_diaphragm_over(const mesh::TriangleMesh& mesh, const mesh::Surfa
                                std::vector<Eigen::Vector3d>& u, Margin margin,
                                const std::vector<Eigen::Vector3d>& face_normal) {
   if (u.size() != mesh.vertices.size()) throw ValueError("follow_the_diaphragm_over: one displacement per vertex");
-  const std::vector<double> under = under_diaphragm(mesh, regions, margin, face_normal);
-  std::array<std::vector<double>, 3> around;
-  std::vector<double> component(u.size());
-  for (int c = 0; c < 3; ++c) {
-    for (std::size_t i = 0; i < u.size(); ++i) component[i] = u[i][c];
-    around[static_cast<std::size_t>(c)] = mesh::blurred_in_space(mesh, component, kUnderSigma);
-  }
-  for (std::size_t i = 0; i < u.size(); ++i) {
-    const Eigen::Vector3d mean(around[0][i], around[1][i], around[2][i]);
-    u[i] += under[i] * (mean - u[i]);
-  }
+  // The vertex areas once for the three blurs (each computed its own, #50).
+  const std::vector<double> area = mesh::vertex_areas(mesh);
+  const std::vector<double> under = under_diaphragm_given_areas(mesh, regions, margin, face_normal, area);
+  const std::vector<Eigen::Vector3d> mean = mesh::blurred_in_space(mesh, area, u, kUnderSigma);
+  for (std::size_t i = 0; i < u.size(); ++i) u[i] += under[i] * (mean[i] - u[i]);
 }
 
 }  // namespace pneuma::field

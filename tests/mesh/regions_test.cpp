@@ -6,6 +6,7 @@
 #include <map>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <numeric>
@@ -509,6 +510,42 @@ TEST(BlurredInSpace, MatchesTheGaussianSumOverEveryPairOfVertices) {
   }
   std::printf("largest difference from the pairwise sum: %.4f of the range\n", worst / (*hi - *lo));
   EXPECT_LT(worst, 0.02 * (*hi - *lo));
+}
+
+// Oracle: blurred_in_space of each value alone. Two and three values blurred at once on one grid
+// give each value those bits exactly (the recess rule blurs its values so), with values that
+// vanish on parts of the surface (where the one-value grid leaves zero cells out) and values of
+// very different size.
+TEST(BlurredInSpace, SeveralValuesAtOnceAreEachValueBlurredAloneToTheBit) {
+  const TriangleMesh m = phantom(Lung::right, 3e-3);
+  const std::vector<double> area = vertex_areas(m);
+  std::array<std::vector<double>, 3> alone;
+  for (auto& value : alone) value.resize(m.vertices.size());
+  std::vector<Eigen::Vector3d> three(m.vertices.size());
+  std::vector<Eigen::Vector2d> two(m.vertices.size());
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    const Eigen::Vector3d& p = m.vertices[i];
+    alone[0][i] = std::sin(p.x() / 0.006) * std::cos(p.y() / 0.008);
+    alone[1][i] = p.z() > 0.0 ? 1e3 * p.z() : 0.0;  // zero over part of the surface
+    alone[2][i] = 1e-9 * std::cos(p.z() / 0.01);
+    three[i] = {alone[0][i], alone[1][i], alone[2][i]};
+    two[i] = {alone[1][i], alone[2][i]};
+  }
+  for (const double sigma : {0.003, 0.01}) {
+    const std::vector<Eigen::Vector3d> blurred_three = blurred_in_space(m, area, three, sigma);
+    const std::vector<Eigen::Vector2d> blurred_two = blurred_in_space(m, area, two, sigma);
+    for (int c = 0; c < 3; ++c) {
+      const std::vector<double> expected = blurred_in_space(m, alone[static_cast<std::size_t>(c)], sigma);
+      std::size_t differ = 0;
+      for (std::size_t i = 0; i < expected.size(); ++i) {
+        differ += blurred_three[i][c] == expected[i] ? 0 : 1;
+        if (c > 0) differ += blurred_two[i][c - 1] == expected[i] ? 0 : 1;
+      }
+      EXPECT_EQ(differ, 0U) << "value " << c << " sigma " << sigma;
+    }
+  }
+  EXPECT_THROW(blurred_in_space(m, std::vector<double>(3, 1.0), three, 0.01), ValueError);
+  EXPECT_THROW(blurred_in_space(m, area, three, 0.0), ValueError);
 }
 
 // The grid smoothing runs on every thread (lines, rows, z-slabs of the splat): the same bits at

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <vector>
 
 #include "pneuma/mesh/geometry/surface_hits.h"
@@ -147,6 +148,7 @@ namespace {
 struct BruteHit {
   bool found = false;
   double distance = 0.0;
+  std::size_t face = 0;
 };
 BruteHit nearest_crossing(const TriangleMesh& mesh, std::size_t i, const Eigen::Vector3d& d, double reach) {
   const Eigen::Vector3d& o = mesh.vertices[i];
@@ -172,7 +174,7 @@ BruteHit nearest_crossing(const TriangleMesh& mesh, std::size_t i, const Eigen::
   const Eigen::Vector3d area_normal =
       (mesh.vertices[t[1]] - mesh.vertices[t[0]]).cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]);
   if (!(area_normal.dot(d) > 0.0)) return {};  // entering: the ray started outside
-  return {true, best * d.norm()};
+  return {true, best * d.norm(), best_face};
 }
 
 // A closed, lumpy surface with thin and thick parts: a sphere squashed along z and dented.
@@ -222,6 +224,43 @@ TEST(SurfaceQueries, FirstHitsFromVerticesAreTheNearestCrossingOverEveryFace) {
         EXPECT_EQ(serial[i].distance, hits[i].distance);
         EXPECT_EQ(serial[i].face, hits[i].face);
       }
+    }
+  }
+}
+
+// A random closed surface (an icosphere of 2,562 vertices, each moved along its radius by up to
+// a fifth, so faces face every way and the surface folds), rays from every vertex in random
+// directions (half of them outward): each hit is the nearest crossing over every face, the same
+// face and distance, found or not as that scan says, within short and long reaches.
+TEST(SurfaceQueries, FirstHitsFromVerticesMatchABruteForceScanOnARandomClosedSurface) {
+  TriangleMesh lump = make_icosphere(0.05, 4);
+  std::mt19937 random(20261128);
+  std::uniform_real_distribution<double> radial(0.8, 1.2), coordinate(-1.0, 1.0);
+  for (Eigen::Vector3d& v : lump.vertices) v *= radial(random);
+  std::vector<Eigen::Vector3d> direction(lump.vertex_count());
+  for (Eigen::Vector3d& d : direction) {
+    do d = Eigen::Vector3d(coordinate(random), coordinate(random), coordinate(random));
+    while (d.norm() < 0.1 || d.norm() > 1.0);
+    d.normalize();
+  }
+  std::size_t found_before = 0;
+  for (const double reach : {0.004, 0.03, 1.0}) {
+    const std::vector<SurfaceHit> hits = first_hits_from_vertices(lump, direction, reach);
+    std::size_t found = 0;
+    for (std::size_t i = 0; i < hits.size(); ++i) {
+      const BruteHit expected = nearest_crossing(lump, i, direction[i], reach);
+      ASSERT_EQ(hits[i].found, expected.found) << i << " reach " << reach;
+      if (!expected.found) continue;
+      ++found;
+      EXPECT_EQ(hits[i].face, expected.face) << i << " reach " << reach;
+      EXPECT_NEAR(hits[i].distance, expected.distance, 1e-12) << i << " reach " << reach;
+    }
+    // A longer reach finds more; about half the rays point inward, and across the whole
+    // surface most of those find a face.
+    EXPECT_GT(found, found_before) << reach;
+    found_before = found;
+    if (reach == 1.0) {
+      EXPECT_GT(found, hits.size() / 3);
     }
   }
 }

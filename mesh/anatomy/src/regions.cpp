@@ -392,26 +392,60 @@ std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double s
   return blurred;
 }
 
-std::vector<double> blurred_in_space(const TriangleMesh& mesh, const std::vector<double>& value, double sigma) {
+namespace {
+// Each column of `value` (a value per vertex) blurred in space at `sigma`, weighted by `area`:
+// one grid of (area x value..., area). The column sums are those of a grid of (area x value,
+// area) per column, to the bit: the same splat order and weights, and the blur leaves out the
+// same zero cells (a cell is zero where its area is, whatever the values).
+template <int K>
+std::vector<Eigen::Matrix<double, K, 1>> blurred_columns(const TriangleMesh& mesh, const std::vector<double>& area,
+                                                         const std::vector<Eigen::Matrix<double, K, 1>>& value,
+                                                         double sigma) {
   if (!(sigma > 0.0) || !std::isfinite(sigma)) throw ValueError("blurred_in_space: sigma must be positive");
   if (value.size() != mesh.vertices.size()) throw ValueError("blurred_in_space: one value per vertex");
+  if (area.size() != mesh.vertices.size()) throw ValueError("blurred_in_space: one area per vertex");
   if (value.empty()) return {};
-  const std::vector<double> area = vertex_areas(mesh);
+  using Weighted = Eigen::Matrix<double, K + 1, 1>;
   // A grid of spacing sigma, and a narrower Gaussian on it: the trilinear splat and the trilinear
   // sample each add h^2 / 6 to the variance on average, so a Gaussian of variance
   // sigma^2 - h^2 / 3 gives sigma^2 in all. On the grid of spacing sigma / 2 the same sum cost
   // 8x the cells and 2x the taps per cell, the largest fixed cost of the realistic tissue (#50).
-  auto grid = grid_around<Eigen::Vector2d>(mesh.vertices, sigma, kBlurSpacing * sigma);  // (value x area, area)
+  auto grid = grid_around<Weighted>(mesh.vertices, sigma, kBlurSpacing * sigma);
   grid.splat_all(value.size(), [&](std::size_t i) {
-    return std::pair<Eigen::Vector3d, Eigen::Vector2d>(mesh.vertices[i], {area[i] * value[i], area[i]});
+    Weighted weighted;
+    for (int c = 0; c < K; ++c) weighted[c] = area[i] * value[i][c];
+    weighted[K] = area[i];
+    return std::pair<Eigen::Vector3d, Weighted>(mesh.vertices[i], weighted);
   });
   grid.gaussian_blur(std::sqrt(std::max(sigma * sigma - grid.h * grid.h / 3.0, 0.25 * sigma * sigma)), mesh.vertices);
-  std::vector<double> out(value.size());
+  std::vector<Eigen::Matrix<double, K, 1>> out(value.size());
   for_each_index(value.size(), [&](std::size_t i) {
-    const Eigen::Vector2d s = grid.sample(mesh.vertices[i]);
-    out[i] = s.y() > 0.0 ? s.x() / s.y() : value[i];
+    const Weighted s = grid.sample(mesh.vertices[i]);
+    for (int c = 0; c < K; ++c) out[i][c] = s[K] > 0.0 ? s[c] / s[K] : value[i][c];
   });
   return out;
+}
+}  // namespace
+
+std::vector<double> blurred_in_space(const TriangleMesh& mesh, const std::vector<double>& value, double sigma) {
+  if (!(sigma > 0.0) || !std::isfinite(sigma)) throw ValueError("blurred_in_space: sigma must be positive");
+  if (value.size() != mesh.vertices.size()) throw ValueError("blurred_in_space: one value per vertex");
+  std::vector<Eigen::Matrix<double, 1, 1>> column(value.size());
+  for (std::size_t i = 0; i < value.size(); ++i) column[i][0] = value[i];
+  const auto blurred = blurred_columns<1>(mesh, vertex_areas(mesh), column, sigma);
+  std::vector<double> out(value.size());
+  for (std::size_t i = 0; i < value.size(); ++i) out[i] = blurred[i][0];
+  return out;
+}
+
+std::vector<Eigen::Vector2d> blurred_in_space(const TriangleMesh& mesh, const std::vector<double>& area,
+                                              const std::vector<Eigen::Vector2d>& value, double sigma) {
+  return blurred_columns<2>(mesh, area, value, sigma);
+}
+
+std::vector<Eigen::Vector3d> blurred_in_space(const TriangleMesh& mesh, const std::vector<double>& area,
+                                              const std::vector<Eigen::Vector3d>& value, double sigma) {
+  return blurred_columns<3>(mesh, area, value, sigma);
 }
 
 std::vector<Eigen::Vector3d> hull_proxy_points(const std::vector<Eigen::Vector3d>& points, double cell) {

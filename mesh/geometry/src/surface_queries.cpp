@@ -19,6 +19,7 @@
 #include <limits>
 #include <optional>
 
+#include "face_box_tree.h"
 #include "pneuma/core/error.h"
 #include "pneuma/core/tsan.h"
 #include "pneuma/mesh/cgal/cgal_surface_mesh.h"
@@ -71,50 +72,6 @@ struct FaceTree {
   }
 };
 
-// CGAL traversal traits that list the faces whose bounding boxes may meet the segment from `from`
-// to `from + along`: a slab test in doubles on boxes grown by a margin far above the rounding, so
-// it lists every face CGAL's exact box test would, and a few more (a superset is all the caller
-// needs; CGAL's filtered test cost the ray queries most of their time).
-class BoxesMet {
- public:
-  using Traits = FaceTree::Tree::AABB_traits;
-  BoxesMet(const Eigen::Vector3d& from, const Eigen::Vector3d& along, std::vector<FaceTree::Iterator>& met)
-      : from_(from), met_(met) {
-    for (int k = 0; k < 3; ++k) inverse_[k] = 1.0 / along[k];  // +-inf along an axis it does not move
-  }
-
-  static constexpr bool go_further() { return true; }
-  void intersection(const Kernel::Segment_3& /*segment*/, const FaceTree::Primitive& face) {
-    if (may_meet(face.datum().bbox())) met_.push_back(face.id());
-  }
-  bool do_intersect(const Kernel::Segment_3& /*segment*/, const CGAL::AABB_node<Traits>& node) const {
-    return may_meet(node.bbox());
-  }
-
- private:
-  static constexpr double kMargin = 1e-9;  // metres
-  bool may_meet(const CGAL::Bbox_3& box) const {
-    double enter = 0.0, leave = 1.0;
-    for (int k = 0; k < 3; ++k) {
-      const double low = box.min(k) - kMargin, high = box.max(k) + kMargin;
-      if (std::isinf(inverse_[k])) {
-        if (from_[k] < low || from_[k] > high) return false;
-        continue;
-      }
-      double t0 = (low - from_[k]) * inverse_[k], t1 = (high - from_[k]) * inverse_[k];
-      if (t0 > t1) std::swap(t0, t1);
-      enter = std::max(enter, t0);
-      leave = std::min(leave, t1);
-      if (enter > leave) return false;
-    }
-    return true;
-  }
-
-  Eigen::Vector3d from_;
-  Eigen::Vector3d inverse_;
-  std::vector<FaceTree::Iterator>& met_;
-};
-
 // Whether the ray from `o` along `d` surely misses triangle (a, b, c) within `reach` (in units of
 // |d|): Moller-Trumbore in doubles with a margin far above their rounding, so that only faces it
 // cannot rule out go to CGAL's exact test (which costs several times more). Nearly parallel
@@ -133,6 +90,15 @@ bool clearly_missed(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const Ei
   const double t = e2.dot(q) / det;
   return u < -kMargin || v < -kMargin || u + v > 1.0 + kMargin || t < -kMargin * reach || t > (1.0 + kMargin) * reach;
 }
+
+// A face's bounds in doubles (a CGAL Bbox_3's, exactly), for detail::segment_in_box.
+struct FaceBox {
+  std::array<double, 3> low;
+  std::array<double, 3> high;
+  FaceBox(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c)
+      : low{std::min({a.x(), b.x(), c.x()}), std::min({a.y(), b.y(), c.y()}), std::min({a.z(), b.z(), c.z()})},
+        high{std::max({a.x(), b.x(), c.x()}), std::max({a.y(), b.y(), c.y()}), std::max({a.z(), b.z(), c.z()})} {}
+};
 
 // The barycentric weights (of b, of c) of p in triangle (a, b, c), unclamped; none where the
 // triangle is degenerate.
@@ -279,42 +245,41 @@ std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
                                                  const std::vector<Eigen::Vector3d>& direction, double reach) {
   if (direction.size() != mesh.vertex_count()) throw ValueError("first_hits_from_vertices: one direction per vertex");
   if (!(reach > 0.0)) throw ValueError("first_hits_from_vertices: expected a positive reach");
-  FaceTree faces(mesh);
-  faces.tree.build();  // before the threads query it: CGAL builds lazily and without a lock
+  const detail::FaceBoxTree tree(mesh);
 
-  // A ray's first crossing is looked for only among the faces whose boxes a segment of the reach
-  // meets (a little longer, for rounding), and of those only the ones a test in doubles cannot
-  // rule out: AABB_tree::first_intersection walks the boxes along the whole ray, through the lung
-  // to the far side for most vertices, and cost the realistic field several times the uniform one
-  // (BENCHMARKS.md, #50). Each crossing is CGAL's intersection of the same ray with that face, as
-  // first_intersection computes it; the nearest wins, so the answer is the one first_intersection
-  // gives within the reach, to the bit.
+  // A ray's first crossing is looked for only among the faces whose boxes, grown by kMargin (far
+  // above the rounding), a segment of the reach meets (a little longer, for rounding), and of
+  // those only the ones a test in doubles cannot rule out; each crossing is CGAL's intersection
+  // of the ray with that face, the nearest wins (on a tie, the lower face). The tree's leaves
+  // come nearest first, and once a crossing is found the boxes the segment enters beyond it
+  // (by more than kBeyond) are skipped: their faces cross farther, so they could not win.
+  constexpr double kMargin = 1e-9;  // metres
+  constexpr double kBeyond = 1e-9;  // metres, far above the rounding of a crossing's distance
   const double reach_looked = reach * (1.0 + 1e-9);
   std::vector<SurfaceHit> hits(mesh.vertex_count());
-  const auto hit_from = [&](std::size_t i, std::vector<FaceTree::Iterator>& candidates) {
+  const auto hit_from = [&](std::size_t i) {
     const Eigen::Vector3d& from = mesh.vertices[i];
     const double length = direction[i].norm();
     if (!(length > 0.0)) return;
-    candidates.clear();
     const double reach_along = reach_looked / length;  // in units of |direction[i]|
     const Eigen::Vector3d along = reach_along * direction[i];
-    const Kernel::Segment_3 reach_segment(to_point(from), to_point(from + along));
-    BoxesMet boxes_met(from, along, candidates);
-    faces.tree.traversal(reach_segment, boxes_met);
+    Eigen::Vector3d inverse;
+    for (int k = 0; k < 3; ++k) inverse[k] = 1.0 / along[k];  // +-inf along an axis it does not move
     const Kernel::Ray_3 ray(to_point(from), to_point(from + direction[i]));
     double nearest = std::numeric_limits<double>::infinity();
     Point crossing = ray.source();
     bool crosses = false;  // false where the nearest meeting is along a face (the ray in its plane)
     std::size_t crossed = 0;
-    for (const FaceTree::Iterator candidate : candidates) {
-      const std::size_t f = faces.face(candidate);
+    double limit = 1.0;
+    tree.walk(from, inverse, kMargin, [&](std::uint32_t f) {
       const auto& t = mesh.triangles[f];
-      if (t[0] == i || t[1] == i || t[2] == i) continue;  // the faces around this vertex
-      if (clearly_missed(from, direction[i], mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]],
-                         reach_along))
-        continue;
-      const auto meeting = CGAL::intersection(ray, *candidate);
-      if (!meeting) continue;
+      if (t[0] == i || t[1] == i || t[2] == i) return limit;  // the faces around this vertex
+      const Eigen::Vector3d &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
+      const FaceBox box(a, b, c);
+      const auto [enter, leave] = detail::segment_in_box(box, from, inverse, 1.0, kMargin);
+      if (enter > leave || clearly_missed(from, direction[i], a, b, c, reach_along)) return limit;
+      const auto meeting = CGAL::intersection(ray, Kernel::Triangle_3(to_point(a), to_point(b), to_point(c)));
+      if (!meeting) return limit;
       if (const Point* p = boost::get<Point>(&*meeting)) {
         const double d = CGAL::squared_distance(ray.source(), *p);
         if (d < nearest || (d == nearest && f < crossed)) {
@@ -331,7 +296,9 @@ std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
           crosses = false;
         }
       }
-    }
+      limit = std::min(limit, (std::sqrt(nearest) + kBeyond) / reach_looked);
+      return limit;
+    });
     if (!crosses) return;
     const Eigen::Vector3d p(crossing.x(), crossing.y(), crossing.z());
     const double distance = (p - from).norm();
@@ -353,8 +320,7 @@ std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
   const tsan::Region region;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hits.size(), 1024),
                     region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
-                      std::vector<FaceTree::Iterator> candidates;
-                      for (std::size_t i = range.begin(); i != range.end(); ++i) hit_from(i, candidates);
+                      for (std::size_t i = range.begin(); i != range.end(); ++i) hit_from(i);
                     }));
   region.join();
   return hits;

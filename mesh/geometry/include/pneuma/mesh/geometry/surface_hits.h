@@ -20,8 +20,9 @@ struct SurfaceHit {
 };
 
 // From vertex i along `direction[i]` (unit), the first face the ray crosses within `reach`
-// (metres), the faces around vertex i skipped (CGAL's AABB tree: the nearest crossing among the
-// faces a segment of that reach meets; every vertex on its own thread, the same bits at any count).
+// (metres), the faces around vertex i skipped (the nearest of CGAL's crossings with the faces
+// whose boxes a segment of that reach meets, found through a box tree of pneuma's own; every
+// vertex on its own thread, the same bits at any count).
 // Cast inward across a thin part of a closed surface, it finds the face opposite: the part's
 // thickness there and the point of the far face. Throws ValueError for one direction per vertex
 // missing or a reach that is not positive.

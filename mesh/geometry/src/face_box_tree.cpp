@@ -1,0 +1,149 @@
+#include "face_box_tree.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+#include <tbb/task_group.h>
+
+#include <algorithm>
+#include <bit>
+#include <limits>
+
+#include "pneuma/core/error.h"
+#include "pneuma/core/tsan.h"
+
+namespace pneuma::mesh::detail {
+namespace {
+
+// Subtrees of more faces than this are built on two tasks.
+constexpr std::size_t kParallelFaces = 8192;
+constexpr int kMortonBits = 21;  // per axis: 63 bits in all
+
+// x's low 21 bits spread to every third bit.
+std::uint64_t spread_bits(std::uint64_t x) {
+  x &= 0x1fffffULL;
+  x = (x | x << 32) & 0x1f00000000ffffULL;
+  x = (x | x << 16) & 0x1f0000ff0000ffULL;
+  x = (x | x << 8) & 0x100f00f00f00f00fULL;
+  x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+  x = (x | x << 2) & 0x1249249249249249ULL;
+  return x;
+}
+
+float rounded_down(double x) {
+  const auto f = static_cast<float>(x);
+  return static_cast<double>(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
+}
+float rounded_up(double x) {
+  const auto f = static_cast<float>(x);
+  return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
+}
+
+// i in [0, n) on every thread; each i writes its own slots only.
+template <class F>
+void for_each_index(std::size_t n, std::size_t grain, const F& f) {
+  const tsan::Region region;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain),
+                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t i = range.begin(); i < range.end(); ++i) f(i);
+                    }));
+  region.join();
+}
+
+}  // namespace
+
+FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
+  const std::size_t n = mesh.triangle_count();
+  if (n == 0) return;
+  if (n > std::numeric_limits<std::uint32_t>::max()) throw ValueError("FaceBoxTree: too many faces");
+  const auto& p = mesh.vertices;
+  const std::array<Eigen::Vector3d, 2> bounds = bounding_box(p);
+  const Eigen::Vector3d& low = bounds[0];
+  const Eigen::Vector3d extent = (bounds[1] - low).cwiseMax(std::numeric_limits<double>::min());
+  constexpr double kCells = static_cast<double>(1U << kMortonBits);
+  // Each face's key: its centre's Morton code, then its index, so that the order is total and
+  // the sorted order the same whatever the sort's schedule.
+  struct Key {
+    std::uint64_t code;
+    std::uint32_t face;
+    bool operator<(const Key& other) const { return code != other.code ? code < other.code : face < other.face; }
+  };
+  std::vector<Key> keys(n);
+  for_each_index(n, 4096, [&](std::size_t f) {
+    const auto& t = mesh.triangles[f];
+    const Eigen::Vector3d centre = (p[t[0]] + p[t[1]] + p[t[2]]) / 3.0;
+    std::uint64_t code = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double cell = std::clamp((centre[a] - low[a]) / extent[a] * kCells, 0.0, kCells - 1.0);
+      code |= spread_bits(static_cast<std::uint64_t>(cell)) << a;
+    }
+    keys[f] = {code, static_cast<std::uint32_t>(f)};
+  });
+  tbb::parallel_sort(keys.begin(), keys.end());
+  face_.resize(n);
+
+  std::vector<std::uint64_t> code(n);
+  for_each_index(n, 4096, [&](std::size_t k) {
+    face_[k] = keys[k].face;
+    code[k] = keys[k].code;
+  });
+  keys = {};
+  if (n == 1) return;
+  node_.resize(n - 1);
+  const Built root = build(code, 0, n, mesh);
+  root_ = root.child;
+  root_box_ = root.box;
+}
+
+FaceBoxTree::Built FaceBoxTree::leaf(std::size_t position, const TriangleMesh& mesh) const {
+  const auto& t = mesh.triangles[face_[position]];
+  const auto& p = mesh.vertices;
+  Built out{{}, kFace | static_cast<std::uint32_t>(position)};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const auto ia = static_cast<int>(a);
+    out.box.low[a] = rounded_down(std::min({p[t[0]][ia], p[t[1]][ia], p[t[2]][ia]}));
+    out.box.high[a] = rounded_up(std::max({p[t[0]][ia], p[t[1]][ia], p[t[2]][ia]}));
+  }
+  return out;
+}
+
+FaceBoxTree::Built FaceBoxTree::build(const std::vector<std::uint64_t>& code, std::size_t begin, std::size_t end,
+                                      const TriangleMesh& mesh) {
+  // Split where the highest differing bit flips (the codes are sorted, so it flips once), or in
+  // the middle where every code is the same.
+  std::size_t split = begin + (end - begin) / 2;
+  if (code[begin] != code[end - 1]) {
+    const int bit = 63 - std::countl_zero(code[begin] ^ code[end - 1]);
+    split = static_cast<std::size_t>(std::partition_point(code.begin() + static_cast<std::ptrdiff_t>(begin),
+                                                          code.begin() + static_cast<std::ptrdiff_t>(end),
+                                                          [bit](std::uint64_t c) { return ((c >> bit) & 1U) == 0; }) -
+                                     code.begin());
+  }
+  const auto side = [&](std::size_t from, std::size_t to) {
+    return to - from == 1 ? leaf(from, mesh) : build(code, from, to, mesh);
+  };
+  Built left, right;
+  if (end - begin > kParallelFaces) {
+    const tsan::Region region;
+    tbb::task_group both;
+    both.run(region.wrap([&] { left = side(begin, split); }));
+    both.run(region.wrap([&] { right = side(split, end); }));
+    both.wait();
+    region.join();
+  } else {
+    left = side(begin, split);
+    right = side(split, end);
+  }
+  const auto name = static_cast<std::uint32_t>(split - 1);
+  Node& node = node_[name];
+  node.box = {left.box, right.box};
+  node.child = {left.child, right.child};
+  Built out{{}, name};
+  for (std::size_t a = 0; a < 3; ++a) {
+    out.box.low[a] = std::min(left.box.low[a], right.box.low[a]);
+    out.box.high[a] = std::max(left.box.high[a], right.box.high[a]);
+  }
+  return out;
+}
+
+}  // namespace pneuma::mesh::detail

@@ -1,0 +1,125 @@
+#pragma once
+// A bounding-box hierarchy over a surface's faces for the rays from its vertices
+// (first_hits_from_vertices): built on every thread with the same layout at any thread count,
+// walked near child first so that a ray that has found its face skips the boxes beyond it.
+// CGAL's AABB tree built serially and walked every box a ray's segment met, through the lung to
+// the end of its reach: most of the realistic field's ray time (BENCHMARKS.md, #50).
+#include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "pneuma/mesh/geometry/triangle_mesh.h"
+
+namespace pneuma::mesh::detail {
+
+// A box in floats, rounded outward from the doubles it bounds, so it holds them.
+struct FloatBox {
+  std::array<float, 3> low{};
+  std::array<float, 3> high{};
+};
+
+// The interval [enter, leave] of t in [0, limit] over which from + t along lies in `box` grown
+// by `margin` (a slab test in doubles); enter > leave where it misses. With the same arguments
+// a larger box gives a wider interval (each step is monotonic), so a box that holds another is
+// met wherever the other is.
+template <class Box>
+inline std::pair<double, double> segment_in_box(const Box& box, const Eigen::Vector3d& from,
+                                                const Eigen::Vector3d& inverse, double limit, double margin) {
+  double enter = 0.0, leave = limit;
+  for (int k = 0; k < 3; ++k) {
+    const auto a = static_cast<std::size_t>(k);
+    const double low = static_cast<double>(box.low[a]) - margin, high = static_cast<double>(box.high[a]) + margin;
+    if (std::isinf(inverse[k])) {  // the segment does not move along this axis
+      if (from[k] < low || from[k] > high) return {1.0, 0.0};
+      continue;
+    }
+    double t0 = (low - from[k]) * inverse[k], t1 = (high - from[k]) * inverse[k];
+    if (t0 > t1) std::swap(t0, t1);
+    enter = std::max(enter, t0);
+    leave = std::min(leave, t1);
+    if (enter > leave) return {1.0, 0.0};
+  }
+  return {enter, leave};
+}
+
+// Each internal node splits its faces (consecutive along a Morton curve of their centres) where
+// the highest bit of the curve's code that differs among them flips (the middle where they share
+// one cell), so that each node's faces lie in one cell of an octree-like subdivision and its box
+// is tight. A node is named by its split: its faces before position s + 1 go left, so the names
+// are the same whatever order the nodes are built in (on every thread).
+class FaceBoxTree {
+ public:
+  explicit FaceBoxTree(const TriangleMesh& mesh);
+
+  // For the segment from `from` along `along` (t in [0, 1]; `inverse` its componentwise
+  // inverse, +-inf where it does not move): calls `visit(face)` for every face whose node's box,
+  // grown by `margin`, the segment meets before `limit`, nearer nodes first. `visit` returns
+  // the new limit (at most the one before): nodes entered after it are skipped.
+  template <class Visit>
+  void walk(const Eigen::Vector3d& from, const Eigen::Vector3d& inverse, double margin, Visit&& visit) const {
+    if (face_.empty()) return;
+    if (face_.size() == 1) {
+      visit(face_[0]);
+      return;
+    }
+    double limit = 1.0;
+    struct Pending {
+      std::uint32_t child;
+      double enter;
+    };
+    std::array<Pending, 128> stack;  // one pending child per level: the depth is at most 64
+    std::size_t top = 0;
+    const auto [enter, leave] = segment_in_box(root_box_, from, inverse, limit, margin);
+    if (enter > leave) return;
+    stack[top++] = {root_, enter};
+    while (top > 0) {
+      const Pending next = stack[--top];
+      if (next.enter > limit) continue;
+      if (next.child & kFace) {
+        limit = visit(face_[next.child & ~kFace]);
+        continue;
+      }
+      // Both children's boxes lie in their parent (one read), a face's too: a face whose box
+      // the segment misses is not visited.
+      const Node& node = node_[next.child];
+      const auto [left_enter, left_leave] = segment_in_box(node.box[0], from, inverse, limit, margin);
+      const auto [right_enter, right_leave] = segment_in_box(node.box[1], from, inverse, limit, margin);
+      const bool left_met = left_enter <= left_leave, right_met = right_enter <= right_leave;
+      // The nearer child on top, walked first; ties: the left.
+      if (left_met && right_met) {
+        const bool left_first = left_enter <= right_enter;
+        stack[top++] = left_first ? Pending{node.child[1], right_enter} : Pending{node.child[0], left_enter};
+        stack[top++] = left_first ? Pending{node.child[0], left_enter} : Pending{node.child[1], right_enter};
+      } else if (left_met) {
+        stack[top++] = {node.child[0], left_enter};
+      } else if (right_met) {
+        stack[top++] = {node.child[1], right_enter};
+      }
+    }
+  }
+
+ private:
+  static constexpr std::uint32_t kFace = 0x80000000U;  // a child that is a face: its position in face_
+  struct Node {
+    std::array<FloatBox, 2> box;           // the children's
+    std::array<std::uint32_t, 2> child{};  // node names, or kFace | position
+  };
+  struct Built {
+    FloatBox box;
+    std::uint32_t child;
+  };
+  // The subtree of the faces at positions [begin, end) (two or more).
+  Built build(const std::vector<std::uint64_t>& code, std::size_t begin, std::size_t end, const TriangleMesh& mesh);
+  Built leaf(std::size_t position, const TriangleMesh& mesh) const;
+
+  std::vector<std::uint32_t> face_;  // the faces along the curve
+  std::vector<Node> node_;           // node s splits after position s (n - 1 names, some unused)
+  std::uint32_t root_ = 0;
+  FloatBox root_box_;
+};
+
+}  // namespace pneuma::mesh::detail
