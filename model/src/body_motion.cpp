@@ -186,7 +186,8 @@ std::vector<double> off_lobes(const Model& model, const LungModel& lung) {
     if (i < 0 || j < 0 || k < 0 || i >= static_cast<std::int64_t>(map.size[0]) ||
         j >= static_cast<std::int64_t>(map.size[1]) || k >= static_cast<std::int64_t>(map.size[2]))
       return false;
-    const auto at = static_cast<std::size_t>(i) + map.size[0] * (static_cast<std::size_t>(j) + map.size[1] * static_cast<std::size_t>(k));
+    const auto at = static_cast<std::size_t>(i) +
+                    map.size[0] * (static_cast<std::size_t>(j) + map.size[1] * static_cast<std::size_t>(k));
     return std::find(lung.label_values.begin(), lung.label_values.end(), map.labels[at]) != lung.label_values.end();
   };
   const auto lung_near = [&](const Eigen::Vector3d& p) {
