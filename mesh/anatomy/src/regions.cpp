@@ -11,6 +11,7 @@
 #include <tbb/task_arena.h>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/parallel.h"
 #include "pneuma/core/tsan.h"
 
 namespace pneuma::mesh {
@@ -272,17 +273,7 @@ struct VectorGrid {
   }
 };
 
-// f(i) for i in [0, n) on every thread; f writes slot i only, so the result is the same at any
-// thread count.
-template <class F>
-void for_each_index(std::size_t n, const F& f) {
-  const tsan::Region region;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
-                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i < range.end(); ++i) f(i);
-                    }));
-  region.join();
-}
+using core::for_each_index;
 
 // The largest grid (cells) the smoothing may allocate; beyond it the spacing grows.
 constexpr double kMaxCells = 8.0e6;

@@ -1,7 +1,5 @@
 #include "face_box_tree.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_group.h>
 
 #include <algorithm>
@@ -9,6 +7,7 @@
 #include <limits>
 
 #include "pneuma/core/error.h"
+#include "pneuma/core/parallel.h"
 #include "pneuma/core/tsan.h"
 
 namespace pneuma::mesh::detail {
@@ -38,17 +37,6 @@ float rounded_up(double x) {
   return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
 }
 
-// i in [0, n) on every thread; each i writes its own slots only.
-template <class F>
-void for_each_index(std::size_t n, std::size_t grain, const F& f) {
-  const tsan::Region region;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain),
-                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i < range.end(); ++i) f(i);
-                    }));
-  region.join();
-}
-
 }  // namespace
 
 FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
@@ -68,7 +56,7 @@ FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
     bool operator<(const Key& other) const { return code != other.code ? code < other.code : face < other.face; }
   };
   std::vector<Key> keys(n);
-  for_each_index(n, 4096, [&](std::size_t f) {
+  core::for_each_index(n, [&](std::size_t f) {
     const auto& t = mesh.triangles[f];
     const Eigen::Vector3d centre = (p[t[0]] + p[t[1]] + p[t[2]]) / 3.0;
     std::uint64_t code = 0;
@@ -93,7 +81,7 @@ FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
   face_.resize(n);
 
   std::vector<std::uint64_t> code(n);
-  for_each_index(n, 4096, [&](std::size_t k) {
+  core::for_each_index(n, [&](std::size_t k) {
     face_[k] = keys[k].face;
     code[k] = keys[k].code;
   });
