@@ -9,12 +9,12 @@
 
 namespace pneuma::core {
 
-// f(i) for i in [0, n) on every thread, in ranges of at least 4096; f writes slot i only, so the
-// result is the same at any thread count.
+// f(i) for i in [0, n) on every thread, in ranges of at least `grain` (1 where each i is a
+// slice of a volume); f writes slot i only, so the result is the same at any thread count.
 template <class F>
-void for_each_index(std::size_t n, const F& f) {
+void for_each_index(std::size_t n, const F& f, std::size_t grain = 4096) {
   const tsan::Region region;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain),
                     region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t i = range.begin(); i < range.end(); ++i) f(i);
                     }));

@@ -27,6 +27,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pneuma/mesh/geometry/triangle_mesh.h"
@@ -127,6 +128,18 @@ struct LevelSetEuler {
   long long thin = 0, thick = 0;
 };
 LevelSetEuler level_set_euler_characteristics(const ScalarGrid& grid);  // level_set_topology.cpp
+// The mask steps of surface_from_labels on a 0/1 mask of `size` voxels (i fastest), for their
+// tests. The closing with a ball of `radius_m` in voxels of `spacing_m` (only voxels of the grid
+// count); returns the voxels added.
+std::size_t close_mask(const std::array<std::size_t, 3>& size, std::vector<std::uint8_t>& mask,
+                       const Eigen::Vector3d& spacing_m, double radius_m);
+// The largest 26-connected component kept (on a tie the one with the lowest first voxel);
+// returns {components dropped, voxels dropped}.
+std::pair<std::size_t, std::size_t> keep_largest_component(const std::array<std::size_t, 3>& size,
+                                                           std::vector<std::uint8_t>& mask);
+// Background not 6-connected to the grid's border filled; returns {cavities, voxels filled}.
+std::pair<std::size_t, std::size_t> fill_cavities(const std::array<std::size_t, 3>& size,
+                                                  std::vector<std::uint8_t>& mask);
 }  // namespace detail
 
 }  // namespace pneuma::mesh
