@@ -11,9 +11,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
-#include <map>
 #include <numbers>
+#include <unordered_map>
 
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/cgal/cgal_surface_mesh.h"
@@ -68,7 +69,11 @@ VolumeMesh tetrahedralize(const TriangleMesh& closed_surface, const Tetrahedrali
   VolumeMesh out;
   // Nodes numbered by first use over the cells in the complex (the triangulation's own order:
   // deterministic for a deterministic refinement).
-  std::map<Tr::Vertex_handle, std::uint32_t> index;
+  // A hash map (#50: an ordered map's lookups were 2 % of the shipped 4D scenario's CPU); the
+  // numbering is the order of first use, whatever the map's own order.
+  const auto address = [](Tr::Vertex_handle v) { return std::hash<const void*>()(&*v); };
+  std::unordered_map<Tr::Vertex_handle, std::uint32_t, decltype(address)> index(
+      static_cast<std::size_t>(c3t3.triangulation().number_of_vertices()), address);
   auto node = [&](Tr::Vertex_handle v) {
     auto [it, inserted] = index.emplace(v, static_cast<std::uint32_t>(out.mesh.nodes.size()));
     if (inserted) {
