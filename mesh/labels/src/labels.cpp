@@ -332,15 +332,19 @@ std::vector<float> blur(const Grid& g, const std::vector<std::uint8_t>& mask, co
       return std::pair{std::max<std::ptrdiff_t>(0, q - radius), std::min<std::ptrdiff_t>(nn - 1, q + radius)};
     };
     if (axis == 0) {
-      for_each_line<std::vector<float>>(g, axis, [&](std::size_t start, std::vector<float>& line) {
-        line.assign(a.begin() + static_cast<std::ptrdiff_t>(start), a.begin() + static_cast<std::ptrdiff_t>(start + n));
-        for (std::ptrdiff_t q = 0; q < nn; ++q) {
-          float acc = 0.0f;
-          const auto [lo, hi] = window(q);
-          for (std::ptrdiff_t t = lo; t <= hi; ++t)
-            acc += kernel[static_cast<std::size_t>(t - q + radius)] * line[static_cast<std::size_t>(t)];
-          b[start + static_cast<std::size_t>(q)] = acc;
+      // Offset by offset along the whole line (so that it vectorises; #50): each voxel's sum
+      // still runs over t = q + offset ascending, the terms inside the line only, so the bits are
+      // those of a sum over its window.
+      for_each_line<std::vector<float>>(g, axis, [&](std::size_t start, std::vector<float>& acc) {
+        acc.assign(n, 0.0f);
+        const float* line = a.data() + start;
+        for (std::ptrdiff_t offset = -radius; offset <= radius; ++offset) {
+          const float k = kernel[static_cast<std::size_t>(offset + radius)];
+          const std::ptrdiff_t lo = std::max<std::ptrdiff_t>(0, -offset), hi = std::min(nn, nn - offset);
+          for (std::ptrdiff_t q = lo; q < hi; ++q)
+            acc[static_cast<std::size_t>(q)] += k * line[static_cast<std::size_t>(q + offset)];
         }
+        std::copy(acc.begin(), acc.end(), b.begin() + static_cast<std::ptrdiff_t>(start));
       });
     } else {
       // Across y or z, a whole row of x at once (contiguous, so it vectorises): each voxel's sum
@@ -494,8 +498,10 @@ std::filesystem::path provenance_path(const std::filesystem::path& mesh_path) {
   return p;
 }
 
-void check_label_surface_size(const image::LabelMap& map, const std::string& name, const std::vector<int>& labels,
-                              const LabelSurfaceOptions& options) {
+namespace {
+
+// check_label_surface_size's checks of the options against the map's extent.
+void check_label_extent(const image::LabelMap& map, const std::string& name, const LabelSurfaceOptions& options) {
   const Eigen::Vector3d spacing = map.spacing_m();
   double extent_m = 0.0;
   for (std::size_t a = 0; a < 3; ++a)
@@ -513,6 +519,27 @@ void check_label_surface_size(const image::LabelMap& map, const std::string& nam
                                  "most {:.3g} mm",
                                  name, closing_m * 1e3, dims, extent_m * 1e3));
   }
+}
+
+// check_label_surface_size's check of the surface's size, from the count of the labels' voxels.
+void check_label_count(const image::LabelMap& map, const std::string& name, std::size_t count,
+                       const LabelSurfaceOptions& options) {
+  const double volume_m3 = static_cast<double>(count) * map.voxel_volume_m3();
+  const double area_m2 = 1.5 * std::cbrt(36.0 * std::numbers::pi * volume_m3 * volume_m3);
+  const double vertices = vertex_count_at_edge(area_m2, options.edge_length_m);
+  if (!(vertices <= kMaxSurfaceVertices)) {
+    throw ValueError(
+        fmt::format("{}: edge: {:.4g} mL of labels (about {:.4g} cm2 of surface) at a facet size of {:.4g} "
+                    "mm would have about {:.3g} vertices; expected at most {:.0f} (a coarser edge)",
+                    name, volume_m3 * 1e6, area_m2 * 1e4, options.edge_length_m * 1e3, vertices, kMaxSurfaceVertices));
+  }
+}
+
+}  // namespace
+
+void check_label_surface_size(const image::LabelMap& map, const std::string& name, const std::vector<int>& labels,
+                              const LabelSurfaceOptions& options) {
+  check_label_extent(map, name, options);
   // Counted slice by slice on every core (a whole map of 70 Mvoxels; #50), summed in order.
   std::vector<std::size_t> per_slice(map.size[2], 0);
   const std::size_t slice = map.size[0] * map.size[1];
@@ -528,15 +555,7 @@ void check_label_surface_size(const image::LabelMap& map, const std::string& nam
       1);
   std::size_t count = 0;
   for (const std::size_t n : per_slice) count += n;
-  const double volume_m3 = static_cast<double>(count) * map.voxel_volume_m3();
-  const double area_m2 = 1.5 * std::cbrt(36.0 * std::numbers::pi * volume_m3 * volume_m3);
-  const double vertices = vertex_count_at_edge(area_m2, options.edge_length_m);
-  if (!(vertices <= kMaxSurfaceVertices)) {
-    throw ValueError(
-        fmt::format("{}: edge: {:.4g} mL of labels (about {:.4g} cm2 of surface) at a facet size of {:.4g} "
-                    "mm would have about {:.3g} vertices; expected at most {:.0f} (a coarser edge)",
-                    name, volume_m3 * 1e6, area_m2 * 1e4, options.edge_length_m * 1e3, vertices, kMaxSurfaceVertices));
-  }
+  check_label_count(map, name, count, options);
 }
 
 LabelSurface surface_from_labels(const std::filesystem::path& path, const std::vector<int>& labels,
@@ -557,7 +576,7 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
   if (labels.empty()) throw std::invalid_argument("surface_from_labels: no labels given");
   if (map.labels.size() != map.voxel_count())
     throw std::invalid_argument("surface_from_labels: label map size mismatch");
-  check_label_surface_size(map, name, labels, options);
+  check_label_extent(map, name, options);  // the size of the surface once the labels are counted
 
   LabelSurface result;
   LabelSurfaceReport& rep = result.report;
@@ -620,6 +639,9 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
     lo[2] = std::min(lo[2], k), hi[2] = std::max(hi[2], k);
   }
   slices.clear();
+  std::size_t wanted_voxels = 0;
+  for (int l : rep.labels) wanted_voxels += counts.count(l) ? counts[l] : 0;
+  check_label_count(map, name, wanted_voxels, options);  // before a missing label, as check_label_surface_size
   for (int l : rep.labels) {
     if (counts.count(l)) continue;
     std::string present;
