@@ -19,6 +19,7 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/keyed_file.h"
+#include "pneuma/core/parallel.h"
 #include "pneuma/core/sha256.h"
 #include "pneuma/core/tsan.h"
 #include "pneuma/image/label_map.h"
@@ -260,7 +261,8 @@ std::vector<Eigen::Vector3d> convolve(std::size_t lungs, const std::vector<Sampl
         arrays[3 * lungs + 1][node] += w * s.area * s.diaphragm;
       });
     }
-    for (auto& a : arrays) blur(a, g, 2.0);
+    core::for_each_index(
+        arrays.size(), [&](std::size_t a) { blur(arrays[a], g, 2.0); }, 1);  // each its own
     const tsan::Region region;
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, fine.n[2]), region.wrap([&](const tbb::blocked_range<std::size_t>& r) {
@@ -412,17 +414,20 @@ std::vector<char> outside_lungs(const Model& model, const Lattice& g) {
 // corners are all `judged` (the gradient at a corner: the differences along the cell's edges there).
 double steepest_gradient(const std::vector<Eigen::Vector3d>& u, const Lattice& g, const std::vector<char>& judged) {
   if (u.empty()) return 0.0;
-  // The steepest of one cell's eight corners; 0 for a cell not wholly judged.
-  const auto cell_steepest = [&](std::size_t i, std::size_t j, std::size_t k) {
+  // The steepest of one cell's eight corners, or `most` if none is steeper; `most` for a cell
+  // not wholly judged. A corner whose Frobenius norm (at least the spectral norm) stays clearly
+  // below `most` cannot raise it: its eigenvalues are not computed (#50; the same maximum, since
+  // the skipped corners' norms lie below it by far more than the solver's rounding).
+  const auto cell_steepest = [&](std::size_t i, std::size_t j, std::size_t k, double most) {
     for (std::size_t c = 0; c < 8; ++c)
-      if (!judged[g.at(i + (c & 1u), j + ((c >> 1) & 1u), k + ((c >> 2) & 1u))]) return 0.0;
-    double most = 0.0;
+      if (!judged[g.at(i + (c & 1u), j + ((c >> 1) & 1u), k + ((c >> 2) & 1u))]) return most;
     for (std::size_t c = 0; c < 8; ++c) {
       const std::size_t di = c & 1u, dj = (c >> 1) & 1u, dk = (c >> 2) & 1u;
       Eigen::Matrix3d grad;
       grad.col(0) = (u[g.at(i + 1, j + dj, k + dk)] - u[g.at(i, j + dj, k + dk)]) / g.h;
       grad.col(1) = (u[g.at(i + di, j + 1, k + dk)] - u[g.at(i + di, j, k + dk)]) / g.h;
       grad.col(2) = (u[g.at(i + di, j + dj, k + 1)] - u[g.at(i + di, j + dj, k)]) / g.h;
+      if (grad.squaredNorm() < (1.0 - 1e-6) * most * most) continue;
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
       eigen.computeDirect(grad.transpose() * grad, Eigen::EigenvaluesOnly);
       most = std::max(most, std::sqrt(std::max(0.0, eigen.eigenvalues()[2])));
@@ -436,7 +441,7 @@ double steepest_gradient(const std::vector<Eigen::Vector3d>& u, const Lattice& g
                       for (std::size_t k = r.begin(); k != r.end(); ++k)
                         for (std::size_t j = 0; j + 1 < g.n[1]; ++j)
                           for (std::size_t i = 0; i + 1 < g.n[0]; ++i)
-                            per_slab[k] = std::max(per_slab[k], cell_steepest(i, j, k));
+                            per_slab[k] = cell_steepest(i, j, k, per_slab[k]);
                     }));
   region.join();
   return *std::max_element(per_slab.begin(), per_slab.end());
