@@ -1,7 +1,7 @@
 // surface_from_labels(): the voxel work in plain C++ (mask, islands, closing by exact Euclidean
-// distance transforms, cavities, Gaussian smoothing) on the crop of the map around the labels;
-// the meshing of the level set is in labels_cgal.cpp. Deterministic: every pass runs in
-// voxel order.
+// distances within the ball, cavities, Gaussian smoothing) on the crop of the map around the
+// labels; the meshing of the level set is in labels_cgal.cpp. Deterministic: every pass gives
+// the serial result at any thread count (each voxel written by one task; floods in voxel order).
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
