@@ -178,7 +178,11 @@ std::vector<float> squared_distance_within(const Grid& g, const std::vector<std:
         const std::size_t dq = std::min(before == n ? n : q - before, next == n ? n : next - q);
         const auto dqd = static_cast<double>(dq);
         const auto value = static_cast<float>(w * dqd * dqd);
-        d[start + q] = static_cast<double>(value) <= bound ? value : inf;
+        if (static_cast<double>(value) <= bound) {
+          d[start + q] = value;
+        } else {
+          d[start + q] = inf;
+        }
       }
     });
   }
@@ -207,7 +211,7 @@ std::vector<float> squared_distance_within(const Grid& g, const std::vector<std:
                                 out[i] = std::min(out[i], static_cast<float>(c + static_cast<double>(in[i])));
                             }
                             for (std::size_t i = 0; i < nx; ++i)
-                              out[i] = static_cast<double>(out[i]) <= bound ? out[i] : inf;
+                              if (!(static_cast<double>(out[i]) <= bound)) out[i] = inf;
                           }
                         }
                       }));

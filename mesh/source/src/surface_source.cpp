@@ -64,7 +64,8 @@ image::LabelMap separated_lungs(image::LabelMap map, const std::vector<int>& one
   auto in = [](const std::vector<int>& values, std::int32_t label) {
     return std::find(values.begin(), values.end(), label) != values.end();
   };
-  const auto [nx, ny, nz] = map.size;
+  // Plain names, not a structured binding: the lambdas below capture them.
+  const std::size_t nx = map.size[0], ny = map.size[1], nz = map.size[2];
   const std::size_t slice = nx * ny;
   // Each voxel's side as a bit (1: `one`, 2: `other`), and `near`, the bits of its 3 x 3
   // neighbours in its slice (ORed along x, then along y); a voxel of one side touches the other
