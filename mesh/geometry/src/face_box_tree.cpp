@@ -32,12 +32,13 @@ float rounded_down(double x) {
   const auto f = static_cast<float>(x);
   return static_cast<double>(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
 }
-float rounded_up(double x) {
+
+}  // namespace
+
+float FaceBoxTree::rounded_up(double x) {
   const auto f = static_cast<float>(x);
   return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
 }
-
-}  // namespace
 
 FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
   const std::size_t n = mesh.triangle_count();
@@ -91,6 +92,10 @@ FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
   const Built root = build(code, 0, n, mesh);
   root_ = root.child;
   root_box_ = root.box;
+  for (std::size_t a = 0; a < 3; ++a) {
+    scale_ = std::max(
+        {scale_, std::abs(static_cast<double>(root_box_.low[a])), std::abs(static_cast<double>(root_box_.high[a]))});
+  }
 }
 
 FaceBoxTree::Built FaceBoxTree::leaf(std::size_t position, const TriangleMesh& mesh) const {
@@ -134,7 +139,10 @@ FaceBoxTree::Built FaceBoxTree::build(const std::vector<std::uint64_t>& code, st
   }
   const auto name = static_cast<std::uint32_t>(split - 1);
   Node& node = node_[name];
-  node.box = {left.box, right.box};
+  for (std::size_t a = 0; a < 3; ++a) {
+    node.low[a] = {left.box.low[a], right.box.low[a]};
+    node.high[a] = {left.box.high[a], right.box.high[a]};
+  }
   node.child = {left.child, right.child};
   Built out{{}, name};
   for (std::size_t a = 0; a < 3; ++a) {

@@ -55,10 +55,16 @@ class FaceBoxTree {
  public:
   explicit FaceBoxTree(const TriangleMesh& mesh);
 
+  // The faces in the tree's order (along the curve): neighbouring faces are near each other, and
+  // so are the nodes that hold them.
+  const std::vector<std::uint32_t>& faces_along_curve() const { return face_; }
+
   // For the segment from `from` along `along` (t in [0, 1]; `inverse` its componentwise
   // inverse, +-inf where it does not move): calls `visit(face)` for every face whose node's box,
   // grown by `margin`, the segment meets before `limit`, nearer nodes first. `visit` returns
-  // the new limit (at most the one before): nodes entered after it are skipped.
+  // the new limit (at most the one before): nodes entered after it are skipped. The nodes' boxes
+  // are tested in floats on boxes grown further (FloatRay): some faces more are visited, never
+  // one fewer.
   template <class Visit>
   void walk(const Eigen::Vector3d& from, const Eigen::Vector3d& inverse, double margin, Visit&& visit) const {
     if (face_.empty()) return;
@@ -66,48 +72,83 @@ class FaceBoxTree {
       visit(face_[0]);
       return;
     }
-    double limit = 1.0;
     struct Pending {
       std::uint32_t child;
-      double enter;
+      float enter;
     };
     std::array<Pending, 128> stack;  // one pending child per level: the depth is at most 64
     std::size_t top = 0;
-    const auto [enter, leave] = segment_in_box(root_box_, from, inverse, limit, margin);
+    const auto [enter, leave] = segment_in_box(root_box_, from, inverse, 1.0, margin);
     if (enter > leave) return;
-    stack[top++] = {root_, enter};
+    const FloatRay ray(from, inverse, margin, scale_);
+    float limit = 1.0F;
+    stack[top++] = {root_, 0.0F};
     while (top > 0) {
       const Pending next = stack[--top];
       if (next.enter > limit) continue;
       if (next.child & kFace) {
-        limit = visit(face_[next.child & ~kFace]);
+        limit = rounded_up(visit(face_[next.child & ~kFace]));
         continue;
       }
-      // Both children's boxes lie in their parent (one read), a face's too: a face whose box
-      // the segment misses is not visited.
+      // Both children's boxes lie in their parent (one cache line), a face's too: a face whose
+      // box the segment misses is not visited.
       const Node& node = node_[next.child];
-      const auto [left_enter, left_leave] = segment_in_box(node.box[0], from, inverse, limit, margin);
-      const auto [right_enter, right_leave] = segment_in_box(node.box[1], from, inverse, limit, margin);
-      const bool left_met = left_enter <= left_leave, right_met = right_enter <= right_leave;
+      std::array<float, 2> in{0.0F, 0.0F}, out{limit, limit};
+      for (std::size_t k = 0; k < 3; ++k) {
+        for (std::size_t c = 0; c < 2; ++c) {
+          const float t0 = (node.low[k][c] - ray.below[k]) * ray.inverse[k];
+          const float t1 = (node.high[k][c] - ray.above[k]) * ray.inverse[k];
+          in[c] = std::max(in[c], std::min(t0, t1));
+          out[c] = std::min(out[c], std::max(t0, t1));
+        }
+      }
+      const bool left_met = in[0] <= out[0], right_met = in[1] <= out[1];
       // The nearer child on top, walked first; ties: the left.
       if (left_met && right_met) {
-        const bool left_first = left_enter <= right_enter;
-        stack[top++] = left_first ? Pending{node.child[1], right_enter} : Pending{node.child[0], left_enter};
-        stack[top++] = left_first ? Pending{node.child[0], left_enter} : Pending{node.child[1], right_enter};
+        const bool left_first = in[0] <= in[1];
+        stack[top++] = left_first ? Pending{node.child[1], in[1]} : Pending{node.child[0], in[0]};
+        stack[top++] = left_first ? Pending{node.child[0], in[0]} : Pending{node.child[1], in[1]};
       } else if (left_met) {
-        stack[top++] = {node.child[0], left_enter};
+        stack[top++] = {node.child[0], in[0]};
       } else if (right_met) {
-        stack[top++] = {node.child[1], right_enter};
+        stack[top++] = {node.child[1], in[1]};
       }
     }
   }
 
  private:
   static constexpr std::uint32_t kFace = 0x80000000U;  // a child that is a face: its position in face_
-  struct Node {
-    std::array<FloatBox, 2> box;           // the children's
+  // The children's boxes, [axis][child], and the children, in one cache line.
+  struct alignas(64) Node {
+    std::array<std::array<float, 2>, 3> low{};
+    std::array<std::array<float, 2>, 3> high{};
     std::array<std::uint32_t, 2> child{};  // node names, or kFace | position
   };
+  // A segment for the slab test in floats. The boxes are grown by `pad`, over 20 times the error of
+  // the float arithmetic on coordinates up to `scale` and of the t it gives (relative to the
+  // segment's length), so that every box the test in doubles meets (grown by `margin`) is met,
+  // and entered no later.
+  struct FloatRay {
+    std::array<float, 3> below{}, above{}, inverse{};  // from + pad, from - pad; 1 / along
+    FloatRay(const Eigen::Vector3d& from, const Eigen::Vector3d& inverse_d, double margin, double scale) {
+      double length = 0.0, reach = scale;
+      for (int k = 0; k < 3; ++k) {
+        length = std::max(length, 1.0 / std::abs(inverse_d[k]));
+        reach = std::max(reach, std::abs(from[k]));
+      }
+      const double pad = margin + kPad * (reach + length);
+      for (int k = 0; k < 3; ++k) {
+        const auto a = static_cast<std::size_t>(k);
+        below[a] = static_cast<float>(from[k] + pad);
+        above[a] = static_cast<float>(from[k] - pad);
+        // An axis it does not move along: a large finite inverse (0 x inf would be NaN).
+        inverse[a] = static_cast<float>(std::clamp(inverse_d[k], -kLargeInverse, kLargeInverse));
+      }
+    }
+  };
+  static constexpr double kPad = 1e-5;
+  static constexpr double kLargeInverse = 1e30;
+  static float rounded_up(double x);
   struct Built {
     FloatBox box;
     std::uint32_t child;
@@ -120,6 +161,7 @@ class FaceBoxTree {
   std::vector<Node> node_;           // node s splits after position s (n - 1 names, some unused)
   std::uint32_t root_ = 0;
   FloatBox root_box_;
+  double scale_ = 0.0;  // the largest |coordinate| of the root's box
 };
 
 }  // namespace pneuma::mesh::detail

@@ -111,6 +111,25 @@ std::optional<std::array<double, 2>> barycentric_bc(const Eigen::Vector3d& a, co
   return std::array<double, 2>{(d11 * d20 - d01 * d21) / denominator, (d00 * d21 - d01 * d20) / denominator};
 }
 
+// Every vertex of `mesh` once, in the order in which `faces` first name it, then those no face names.
+std::vector<std::uint32_t> vertices_along(const TriangleMesh& mesh, const std::vector<std::uint32_t>& faces) {
+  const std::size_t n = mesh.vertex_count();
+  std::vector<std::uint32_t> order;
+  order.reserve(n);
+  std::vector<bool> placed(n, false);
+  for (const std::uint32_t f : faces) {
+    for (const std::uint32_t v : mesh.triangles[f]) {
+      if (placed[v]) continue;
+      placed[v] = true;
+      order.push_back(v);
+    }
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    if (!placed[v]) order.push_back(static_cast<std::uint32_t>(v));
+  }
+  return order;
+}
+
 }  // namespace
 
 struct AreaMeter::Impl {
@@ -316,11 +335,15 @@ std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
                          .face = static_cast<std::uint32_t>(crossed),
                          .weights = {1.0 - wb - wc, wb, wc}};
   };
-  // Each vertex's answer is its own: the same bits at any thread count.
+  // The rays cast in the order of the tree's curve (each vertex where its first face comes), so
+  // that consecutive rays walk the same nodes while they are in cache: in the file's order a
+  // million-vertex mesh's walk waited mostly on memory. Each vertex's answer is its own, so the
+  // order and the thread count change no bit.
+  const std::vector<std::uint32_t> order = vertices_along(mesh, tree.faces_along_curve());
   const tsan::Region region;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hits.size(), 1024),
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, order.size(), 1024),
                     region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i != range.end(); ++i) hit_from(i);
+                      for (std::size_t k = range.begin(); k != range.end(); ++k) hit_from(order[k]);
                     }));
   region.join();
   return hits;
