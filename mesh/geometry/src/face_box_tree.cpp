@@ -35,11 +35,6 @@ float rounded_down(double x) {
 
 }  // namespace
 
-float FaceBoxTree::rounded_up(double x) {
-  const auto f = static_cast<float>(x);
-  return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
-}
-
 FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
   const std::size_t n = mesh.triangle_count();
   if (n == 0) return;

@@ -7,8 +7,10 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -60,61 +62,6 @@ class FaceBoxTree {
   const std::vector<std::uint32_t>& faces_along_curve() const { return face_; }
 
   // For the segment from `from` along `along` (t in [0, 1]; `inverse` its componentwise
-  // inverse, +-inf where it does not move): calls `visit(face)` for every face whose node's box,
-  // grown by `margin`, the segment meets before `limit`, nearer nodes first. `visit` returns
-  // the new limit (at most the one before): nodes entered after it are skipped. The nodes' boxes
-  // are tested in floats on boxes grown further (FloatRay): some faces more are visited, never
-  // one fewer.
-  template <class Visit>
-  void walk(const Eigen::Vector3d& from, const Eigen::Vector3d& inverse, double margin, Visit&& visit) const {
-    if (face_.empty()) return;
-    if (face_.size() == 1) {
-      visit(face_[0]);
-      return;
-    }
-    struct Pending {
-      std::uint32_t child;
-      float enter;
-    };
-    std::array<Pending, 128> stack;  // one pending child per level: the depth is at most 64
-    std::size_t top = 0;
-    const auto [enter, leave] = segment_in_box(root_box_, from, inverse, 1.0, margin);
-    if (enter > leave) return;
-    const FloatRay ray(from, inverse, margin, scale_);
-    float limit = 1.0F;
-    stack[top++] = {root_, 0.0F};
-    while (top > 0) {
-      const Pending next = stack[--top];
-      if (next.enter > limit) continue;
-      if (next.child & kFace) {
-        limit = rounded_up(visit(face_[next.child & ~kFace]));
-        continue;
-      }
-      // Both children's boxes lie in their parent (one cache line), a face's too: a face whose
-      // box the segment misses is not visited.
-      const Node& node = node_[next.child];
-      std::array<float, 2> in{0.0F, 0.0F}, out{limit, limit};
-      for (std::size_t k = 0; k < 3; ++k) {
-        for (std::size_t c = 0; c < 2; ++c) {
-          const float t0 = (node.low[k][c] - ray.below[k]) * ray.inverse[k];
-          const float t1 = (node.high[k][c] - ray.above[k]) * ray.inverse[k];
-          in[c] = std::max(in[c], std::min(t0, t1));
-          out[c] = std::min(out[c], std::max(t0, t1));
-        }
-      }
-      const bool left_met = in[0] <= out[0], right_met = in[1] <= out[1];
-      // The nearer child on top, walked first; ties: the left.
-      if (left_met && right_met) {
-        const bool left_first = in[0] <= in[1];
-        stack[top++] = left_first ? Pending{node.child[1], in[1]} : Pending{node.child[0], in[0]};
-        stack[top++] = left_first ? Pending{node.child[0], in[0]} : Pending{node.child[1], in[1]};
-      } else if (left_met) {
-        stack[top++] = {node.child[0], in[0]};
-      } else if (right_met) {
-        stack[top++] = {node.child[1], in[1]};
-      }
-    }
-  }
 
  private:
   static constexpr std::uint32_t kFace = 0x80000000U;  // a child that is a face: its position in face_
@@ -124,6 +71,8 @@ class FaceBoxTree {
     std::array<std::array<float, 2>, 3> high{};
     std::array<std::uint32_t, 2> child{};  // node names, or kFace | position
   };
+  static constexpr double kPad = 1e-5;
+  static constexpr double kLargeInverse = 1e30;
   // A segment for the slab test in floats. The boxes are grown by `pad`, over 20 times the error of
   // the float arithmetic on coordinates up to `scale` and of the t it gives (relative to the
   // segment's length), so that every box the test in doubles meets (grown by `margin`) is met,
@@ -146,9 +95,10 @@ class FaceBoxTree {
       }
     }
   };
-  static constexpr double kPad = 1e-5;
-  static constexpr double kLargeInverse = 1e30;
-  static float rounded_up(double x);
+  static float rounded_up(double x) {
+    const auto f = static_cast<float>(x);
+    return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
+  }
   struct Built {
     FloatBox box;
     std::uint32_t child;
@@ -158,10 +108,85 @@ class FaceBoxTree {
   Built leaf(std::size_t position, const TriangleMesh& mesh) const;
 
   std::vector<std::uint32_t> face_;  // the faces along the curve
-  std::vector<Node> node_;           // node s splits after position s (n - 1 names, some unused)
+  std::vector<Node> node_;           // node s splits after position s (n - 1 names)
   std::uint32_t root_ = 0;
   FloatBox root_box_;
   double scale_ = 0.0;  // the largest |coordinate| of the root's box
+
+ public:
+  // For the segment from `from` along `along` (t in [0, 1]; `inverse` its componentwise
+  // inverse, +-inf where it does not move): calls `visit(face)` for every face whose node's box,
+  // grown by `margin`, the segment meets before `limit`, nearer nodes first. `visit` returns
+  // the new limit (at most the one before): nodes entered after it are skipped. The nodes' boxes
+  // are tested in floats on boxes grown further (FloatRay): some faces more are visited, never
+  // one fewer.
+  template <class Visit>
+  void walk(const Eigen::Vector3d& from, const Eigen::Vector3d& inverse, double margin, Visit&& visit) const {
+    Walk w(*this, from, inverse, margin);
+    while (!w.done()) {
+      const std::uint32_t f = w.step();
+      if (f != Walk::kNone) w.lower_limit(visit(f));
+    }
+  }
+
+ private:
+  // One segment's walk, a step at a time.
+  class Walk {
+   public:
+    static constexpr std::uint32_t kNone = 0xffffffffU;
+    Walk(const FaceBoxTree& tree, const Eigen::Vector3d& from, const Eigen::Vector3d& inverse, double margin)
+        : tree_(&tree), ray_(from, inverse, margin, tree.scale_) {
+      if (tree.face_.empty()) return;
+      if (tree.face_.size() == 1) {
+        stack_[top_++] = pending(kFace, 0.0F);
+        return;
+      }
+      const auto [enter, leave] = segment_in_box(tree.root_box_, from, inverse, 1.0, margin);
+      if (enter <= leave) stack_[top_++] = pending(tree.root_, 0.0F);
+    }
+    bool done() const { return top_ == 0; }
+    // One step (not done()): the next face, or kNone where the step tested a node or skipped one.
+    std::uint32_t step() {
+      const std::uint64_t next = stack_[--top_];
+      if (std::bit_cast<float>(static_cast<std::uint32_t>(next >> 32)) > limit_) return kNone;
+      const auto child = static_cast<std::uint32_t>(next);
+      if (child & kFace) return tree_->face_[child & ~kFace];
+      // Both children's boxes lie in their parent (one cache line), a face's too: a face whose
+      // box the segment misses is not yielded.
+      const Node& node = tree_->node_[child];
+      std::array<float, 2> in{0.0F, 0.0F}, out{limit_, limit_};
+      for (std::size_t k = 0; k < 3; ++k) {
+        for (std::size_t c = 0; c < 2; ++c) {
+          const float t0 = (node.low[k][c] - ray_.below[k]) * ray_.inverse[k];
+          const float t1 = (node.high[k][c] - ray_.above[k]) * ray_.inverse[k];
+          in[c] = std::max(in[c], std::min(t0, t1));
+          out[c] = std::min(out[c], std::max(t0, t1));
+        }
+      }
+      // The nearer child on top, walked first (ties: the left), without a branch on which.
+      const bool left_met = in[0] <= out[0], right_met = in[1] <= out[1];
+      const std::uint64_t left = pending(node.child[0], in[0]), right = pending(node.child[1], in[1]);
+      const bool left_first = in[0] <= in[1];
+      const std::uint64_t near = left_first ? left : right, far = left_first ? right : left;
+      stack_[top_] = left_met && right_met ? far : (left_met ? left : right);
+      stack_[top_ + 1] = near;
+      top_ += static_cast<std::size_t>(left_met) + static_cast<std::size_t>(right_met);
+      return kNone;
+    }
+    void lower_limit(double limit) { limit_ = std::min(limit_, rounded_up(limit)); }
+
+   private:
+    // A pending child and the t at which the segment enters its box, in one 8-byte word (written
+    // as two 4-byte halves and read back whole, the stack stalled on store forwarding).
+    static std::uint64_t pending(std::uint32_t child, float enter) {
+      return static_cast<std::uint64_t>(std::bit_cast<std::uint32_t>(enter)) << 32 | child;
+    }
+    const FaceBoxTree* tree_;
+    FloatRay ray_;
+    float limit_ = 1.0F;
+    std::size_t top_ = 0;
+    std::array<std::uint64_t, 130> stack_;  // one pending child per level (depth at most 64), a spare
+  };
 };
 
 }  // namespace pneuma::mesh::detail
