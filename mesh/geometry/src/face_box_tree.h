@@ -11,12 +11,19 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <utility>
 #include <vector>
 
 #include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::mesh::detail {
+
+// The least float >= x.
+inline float rounded_up(double x) {
+  const auto f = static_cast<float>(x);
+  return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
+}
 
 // A box in floats, rounded outward from the doubles it bounds, so it holds them.
 struct FloatBox {
@@ -66,10 +73,12 @@ class FaceBoxTree {
  private:
   static constexpr std::uint32_t kFace = 0x80000000U;  // a child that is a face: its position in face_
   // The children's boxes, [axis][child], and the children, in one cache line.
+  // Left uninitialised when allocated (build writes every node once, on the thread that builds
+  // it): zeroing 64 bytes a face first cost a serial pass over fresh pages.
   struct alignas(64) Node {
-    std::array<std::array<float, 2>, 3> low{};
-    std::array<std::array<float, 2>, 3> high{};
-    std::array<std::uint32_t, 2> child{};  // node names, or kFace | position
+    std::array<std::array<float, 2>, 3> low;
+    std::array<std::array<float, 2>, 3> high;
+    std::array<std::uint32_t, 2> child;  // node names, or kFace | position
   };
   static constexpr double kPad = 1e-5;
   static constexpr double kLargeInverse = 1e30;
@@ -95,20 +104,17 @@ class FaceBoxTree {
       }
     }
   };
-  static float rounded_up(double x) {
-    const auto f = static_cast<float>(x);
-    return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
-  }
   struct Built {
     FloatBox box;
     std::uint32_t child;
   };
   // The subtree of the faces at positions [begin, end) (two or more).
-  Built build(const std::vector<std::uint64_t>& code, std::size_t begin, std::size_t end, const TriangleMesh& mesh);
-  Built leaf(std::size_t position, const TriangleMesh& mesh) const;
+  Built build(const std::vector<std::uint64_t>& code, std::size_t begin, std::size_t end,
+              const std::vector<FloatBox>& box_of_face);
+  Built leaf(std::size_t position, const std::vector<FloatBox>& box_of_face) const;
 
   std::vector<std::uint32_t> face_;  // the faces along the curve
-  std::vector<Node> node_;           // node s splits after position s (n - 1 names)
+  std::unique_ptr<Node[]> node_;     // node s splits after position s (n - 1 names)
   std::uint32_t root_ = 0;
   FloatBox root_box_;
   double scale_ = 0.0;  // the largest |coordinate| of the root's box
