@@ -68,7 +68,96 @@ class FaceBoxTree {
   // so are the nodes that hold them.
   const std::vector<std::uint32_t>& faces_along_curve() const { return face_; }
 
-  // For the segment from `from` along `along` (t in [0, 1]; `inverse` its componentwise
+  // Up to kPacket segments walked together: segment r (r < count) runs from from[r] along
+  // along[r] (t in [0, 1]; inverse[r] its componentwise inverse, +-inf where it does not move).
+  // Calls `visit(r, face)` for every face whose node's box, grown by `margin`, segment r meets
+  // before its limit; `visit` returns segment r's new limit (at most the one before), and the
+  // nodes it enters after that are skipped. Nodes are walked nearer first (for the first segment
+  // that meets both children), so that a segment that has found its face skips the boxes beyond.
+  // The boxes are tested in floats on boxes grown further (FloatRay): some faces more are
+  // visited, never one fewer. Neighbouring rays meet mostly the same nodes: each node is read
+  // and its boxes tested once for the packet, the segments' tests side by side (one ray at a
+  // time, the walk's branches on the boxes waited on each other and were mispredicted).
+  static constexpr std::size_t kPacket = 4;
+  template <class Visit>
+  void walk_packet(const std::array<Eigen::Vector3d, kPacket>& from,
+                   const std::array<Eigen::Vector3d, kPacket>& inverse, std::size_t count, double margin,
+                   Visit&& visit) const {
+    if (face_.empty() || count == 0) return;
+    // The segments' float rays side by side; a lane without a segment (or whose segment misses
+    // the root's box) has a limit below every t, so no box is met in it.
+    std::array<std::array<float, kPacket>, 3> below{}, above{}, inv{};
+    std::array<float, kPacket> limit{};
+    std::uint32_t lanes = 0;
+    for (std::size_t r = 0; r < kPacket; ++r) {
+      limit[r] = -1.0F;
+      if (r >= count) continue;
+      const FloatRay ray(from[r], inverse[r], margin, scale_);
+      for (std::size_t k = 0; k < 3; ++k) {
+        below[k][r] = ray.below[k];
+        above[k][r] = ray.above[k];
+        inv[k][r] = ray.inverse[k];
+      }
+      const auto [enter, leave] = segment_in_box(root_box_, from[r], inverse[r], 1.0, margin);
+      if (face_.size() > 1 && enter > leave) continue;
+      limit[r] = 1.0F;
+      lanes |= 1U << r;
+    }
+    if (lanes == 0) return;
+    if (face_.size() == 1) {
+      for (std::size_t r = 0; r < count; ++r) visit(r, face_[0]);
+      return;
+    }
+    struct Pending {
+      std::array<float, kPacket> enter;
+      std::uint32_t child;
+      std::uint32_t lanes;
+    };
+    std::array<Pending, 66> stack;  // one pending child per level: the depth is at most 64
+    std::size_t top = 0;
+    stack[top++] = Pending{{}, root_, lanes};
+    while (top > 0) {
+      const Pending next = stack[--top];
+      std::uint32_t live = 0;
+      for (std::size_t r = 0; r < kPacket; ++r) live |= (next.enter[r] <= limit[r] ? 1U : 0U) << r;
+      live &= next.lanes;
+      if (live == 0) continue;
+      if (next.child & kFace) {
+        const std::uint32_t face = face_[next.child & ~kFace];
+        for (std::size_t r = 0; r < kPacket; ++r) {
+          if (live & (1U << r)) limit[r] = std::min(limit[r], rounded_up(visit(r, face)));
+        }
+        continue;
+      }
+      const Node& node = node_[next.child];
+      std::array<Pending, 2> child;
+      for (std::size_t c = 0; c < 2; ++c) {
+        std::array<float, kPacket> in{}, out = limit;
+        for (std::size_t k = 0; k < 3; ++k) {
+          for (std::size_t r = 0; r < kPacket; ++r) {
+            const float t0 = (node.low[k][c] - below[k][r]) * inv[k][r];
+            const float t1 = (node.high[k][c] - above[k][r]) * inv[k][r];
+            in[r] = std::max(in[r], std::min(t0, t1));
+            out[r] = std::min(out[r], std::max(t0, t1));
+          }
+        }
+        std::uint32_t met = 0;
+        for (std::size_t r = 0; r < kPacket; ++r) met |= (in[r] <= out[r] ? 1U : 0U) << r;
+        child[c] = Pending{in, node.child[c], met & live};
+      }
+      // The nearer child (for the first segment that meets both) on top, walked first.
+      const std::uint32_t both = child[0].lanes & child[1].lanes;
+      bool left_first = true;
+      if (both != 0) {
+        const auto r = static_cast<std::size_t>(std::countr_zero(both));
+        left_first = child[0].enter[r] <= child[1].enter[r];
+      }
+      const Pending& first = left_first ? child[0] : child[1];
+      const Pending& second = left_first ? child[1] : child[0];
+      if (second.lanes != 0) stack[top++] = second;
+      if (first.lanes != 0) stack[top++] = first;
+    }
+  }
 
  private:
   static constexpr std::uint32_t kFace = 0x80000000U;  // a child that is a face: its position in face_
@@ -118,81 +207,6 @@ class FaceBoxTree {
   std::uint32_t root_ = 0;
   FloatBox root_box_;
   double scale_ = 0.0;  // the largest |coordinate| of the root's box
-
- public:
-  // For the segment from `from` along `along` (t in [0, 1]; `inverse` its componentwise
-  // inverse, +-inf where it does not move): calls `visit(face)` for every face whose node's box,
-  // grown by `margin`, the segment meets before `limit`, nearer nodes first. `visit` returns
-  // the new limit (at most the one before): nodes entered after it are skipped. The nodes' boxes
-  // are tested in floats on boxes grown further (FloatRay): some faces more are visited, never
-  // one fewer.
-  template <class Visit>
-  void walk(const Eigen::Vector3d& from, const Eigen::Vector3d& inverse, double margin, Visit&& visit) const {
-    Walk w(*this, from, inverse, margin);
-    while (!w.done()) {
-      const std::uint32_t f = w.step();
-      if (f != Walk::kNone) w.lower_limit(visit(f));
-    }
-  }
-
- private:
-  // One segment's walk, a step at a time.
-  class Walk {
-   public:
-    static constexpr std::uint32_t kNone = 0xffffffffU;
-    Walk(const FaceBoxTree& tree, const Eigen::Vector3d& from, const Eigen::Vector3d& inverse, double margin)
-        : tree_(&tree), ray_(from, inverse, margin, tree.scale_) {
-      if (tree.face_.empty()) return;
-      if (tree.face_.size() == 1) {
-        stack_[top_++] = pending(kFace, 0.0F);
-        return;
-      }
-      const auto [enter, leave] = segment_in_box(tree.root_box_, from, inverse, 1.0, margin);
-      if (enter <= leave) stack_[top_++] = pending(tree.root_, 0.0F);
-    }
-    bool done() const { return top_ == 0; }
-    // One step (not done()): the next face, or kNone where the step tested a node or skipped one.
-    std::uint32_t step() {
-      const std::uint64_t next = stack_[--top_];
-      if (std::bit_cast<float>(static_cast<std::uint32_t>(next >> 32)) > limit_) return kNone;
-      const auto child = static_cast<std::uint32_t>(next);
-      if (child & kFace) return tree_->face_[child & ~kFace];
-      // Both children's boxes lie in their parent (one cache line), a face's too: a face whose
-      // box the segment misses is not yielded.
-      const Node& node = tree_->node_[child];
-      std::array<float, 2> in{0.0F, 0.0F}, out{limit_, limit_};
-      for (std::size_t k = 0; k < 3; ++k) {
-        for (std::size_t c = 0; c < 2; ++c) {
-          const float t0 = (node.low[k][c] - ray_.below[k]) * ray_.inverse[k];
-          const float t1 = (node.high[k][c] - ray_.above[k]) * ray_.inverse[k];
-          in[c] = std::max(in[c], std::min(t0, t1));
-          out[c] = std::min(out[c], std::max(t0, t1));
-        }
-      }
-      // The nearer child on top, walked first (ties: the left), without a branch on which.
-      const bool left_met = in[0] <= out[0], right_met = in[1] <= out[1];
-      const std::uint64_t left = pending(node.child[0], in[0]), right = pending(node.child[1], in[1]);
-      const bool left_first = in[0] <= in[1];
-      const std::uint64_t near = left_first ? left : right, far = left_first ? right : left;
-      stack_[top_] = left_met && right_met ? far : (left_met ? left : right);
-      stack_[top_ + 1] = near;
-      top_ += static_cast<std::size_t>(left_met) + static_cast<std::size_t>(right_met);
-      return kNone;
-    }
-    void lower_limit(double limit) { limit_ = std::min(limit_, rounded_up(limit)); }
-
-   private:
-    // A pending child and the t at which the segment enters its box, in one 8-byte word (written
-    // as two 4-byte halves and read back whole, the stack stalled on store forwarding).
-    static std::uint64_t pending(std::uint32_t child, float enter) {
-      return static_cast<std::uint64_t>(std::bit_cast<std::uint32_t>(enter)) << 32 | child;
-    }
-    const FaceBoxTree* tree_;
-    FloatRay ray_;
-    float limit_ = 1.0F;
-    std::size_t top_ = 0;
-    std::array<std::uint64_t, 130> stack_;  // one pending child per level (depth at most 64), a spare
-  };
 };
 
 }  // namespace pneuma::mesh::detail
