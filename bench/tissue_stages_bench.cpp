@@ -4,6 +4,7 @@
 // The mesh is read once; each stage is timed alone (wall time, real_time).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -11,6 +12,7 @@
 
 #include "pneuma/field/tissue.h"
 #include "pneuma/mesh/anatomy/regions.h"
+#include "pneuma/mesh/geometry/surface_hits.h"
 #include "pneuma/mesh/io/mesh_io.h"
 #include "pneuma/scenario/tissue_config.h"
 
@@ -43,6 +45,21 @@ void BM_SmoothedNormals10mm(benchmark::State& state) {
 }
 void BM_SmoothedNormals20mm(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(mesh::smoothed_normals(bench_mesh(), 0.02));
+}
+void BM_SmoothedNormals3mm(benchmark::State& state) {
+  bench_mesh();  // read before the clock starts
+  for (auto _ : state) benchmark::DoNotOptimize(mesh::smoothed_normals(bench_mesh(), 0.003));
+}
+// The thin-lung bound's rays (field/thin_lung.cpp): inward along the 3 mm normals, 20 mm reach.
+void BM_FirstHits20mm(benchmark::State& state) {
+  std::vector<Eigen::Vector3d> inward = mesh::smoothed_normals(bench_mesh(), 0.003);
+  for (auto& d : inward) d = -d;
+  std::size_t found = 0;
+  for (auto _ : state) {
+    const auto hits = mesh::first_hits_from_vertices(bench_mesh(), inward, 0.02);
+    found = static_cast<std::size_t>(std::count_if(hits.begin(), hits.end(), [](const auto& h) { return h.found; }));
+  }
+  state.counters["found"] = static_cast<double>(found);
 }
 void BM_BlurredInSpace3mm(benchmark::State& state) {
   const std::vector<double> value(bench_mesh().vertices.size(), 1.0);
@@ -78,6 +95,8 @@ void BM_FieldHealthy(benchmark::State& state) {
 BENCHMARK(BM_FindRegions)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SmoothedNormals10mm)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SmoothedNormals20mm)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SmoothedNormals3mm)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FirstHits20mm)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BlurredInSpace3mm)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_HullProxy2mm)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_HullDepth2000)->Unit(benchmark::kMillisecond)->UseRealTime();

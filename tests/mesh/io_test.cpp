@@ -89,6 +89,23 @@ TEST(Io, StlVerticesAreMergedIntoOneClosedSurface) {
   EXPECT_TRUE(validate(m).valid());
 }
 
+// Vertices at one position are merged into the first of them, in the file's order, +0 and -0
+// alike: the tetrahedron written with two of its corners repeated (one as -0) reads as its four
+// corners in the order they first come, each face naming them (worked out by hand).
+TEST(Io, RepeatedPositionsMergeIntoTheirFirstOccurrenceInOrder) {
+  TempDir dir;
+  const auto off = dir.write("t.off", "OFF\n6 4 0\n0 0 0\n1 0 0\n-0 0 -0\n0 1 0\n1 0 0\n0 0 1\n"
+                                      "3 0 3 1\n3 2 4 5\n3 0 5 3\n3 1 3 5\n");
+  const TriangleMesh t = read_mesh(off, {.metres_per_unit = 1.0, .unit_from_file = false});
+  ASSERT_EQ(t.vertex_count(), 4u);
+  const std::vector<Eigen::Vector3d> corners{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};  // the file's order
+  for (std::size_t v = 0; v < 4; ++v) EXPECT_EQ(t.vertices[v], corners[v]) << v;
+  ASSERT_EQ(t.triangle_count(), 4u);
+  const std::vector<Triangle> faces{{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  for (std::size_t f = 0; f < 4; ++f) EXPECT_EQ(t.triangles[f], faces[f]) << f;
+  EXPECT_FALSE(std::signbit(t.vertices[0].x()));  // -0 merged into +0
+}
+
 TEST(Io, ReadsOffAndGltfWithNodeTransforms) {
   TempDir dir;
   const auto off = dir.write("t.off", "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");

@@ -32,9 +32,16 @@ float rounded_down(double x) {
   const auto f = static_cast<float>(x);
   return static_cast<double>(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
 }
-float rounded_up(double x) {
-  const auto f = static_cast<float>(x);
-  return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
+
+// The box of triangle (a, b, c), rounded outward to floats.
+FloatBox rounded_out_box(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  FloatBox out;
+  for (std::size_t k = 0; k < 3; ++k) {
+    const auto ik = static_cast<int>(k);
+    out.low[k] = rounded_down(std::min({a[ik], b[ik], c[ik]}));
+    out.high[k] = rounded_up(std::max({a[ik], b[ik], c[ik]}));
+  }
+  return out;
 }
 
 }  // namespace
@@ -56,8 +63,12 @@ FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
     bool operator<(const Key& other) const { return code != other.code ? code < other.code : face < other.face; }
   };
   std::vector<Key> keys(n);
+  // Each face's box too, here where its corners are read in the file's order (read through the
+  // curve's order in build, each leaf's triangle and corners were a scattered gather).
+  std::vector<FloatBox> box_of_face(n);
   core::for_each_index(n, [&](std::size_t f) {
     const auto& t = mesh.triangles[f];
+    box_of_face[f] = rounded_out_box(p[t[0]], p[t[1]], p[t[2]]);
     const Eigen::Vector3d centre = (p[t[0]] + p[t[1]] + p[t[2]]) / 3.0;
     std::uint64_t code = 0;
     for (int a = 0; a < 3; ++a) {
@@ -87,26 +98,22 @@ FaceBoxTree::FaceBoxTree(const TriangleMesh& mesh) {
   });
   keys = {};
   if (n == 1) return;
-  node_.resize(n - 1);
-  const Built root = build(code, 0, n, mesh);
+  node_ = std::make_unique_for_overwrite<Node[]>(n - 1);
+  const Built root = build(code, 0, n, box_of_face);
   root_ = root.child;
   root_box_ = root.box;
+  for (std::size_t a = 0; a < 3; ++a) {
+    scale_ = std::max(
+        {scale_, std::abs(static_cast<double>(root_box_.low[a])), std::abs(static_cast<double>(root_box_.high[a]))});
+  }
 }
 
-FaceBoxTree::Built FaceBoxTree::leaf(std::size_t position, const TriangleMesh& mesh) const {
-  const auto& t = mesh.triangles[face_[position]];
-  const auto& p = mesh.vertices;
-  Built out{{}, kFace | static_cast<std::uint32_t>(position)};
-  for (std::size_t a = 0; a < 3; ++a) {
-    const auto ia = static_cast<int>(a);
-    out.box.low[a] = rounded_down(std::min({p[t[0]][ia], p[t[1]][ia], p[t[2]][ia]}));
-    out.box.high[a] = rounded_up(std::max({p[t[0]][ia], p[t[1]][ia], p[t[2]][ia]}));
-  }
-  return out;
+FaceBoxTree::Built FaceBoxTree::leaf(std::size_t position, const std::vector<FloatBox>& box_of_face) const {
+  return {box_of_face[face_[position]], kFace | static_cast<std::uint32_t>(position)};
 }
 
 FaceBoxTree::Built FaceBoxTree::build(const std::vector<std::uint64_t>& code, std::size_t begin, std::size_t end,
-                                      const TriangleMesh& mesh) {
+                                      const std::vector<FloatBox>& box_of_face) {
   // Split where the highest differing bit flips (the codes are sorted, so it flips once), or in
   // the middle where every code is the same.
   std::size_t split = begin + (end - begin) / 2;
@@ -118,7 +125,7 @@ FaceBoxTree::Built FaceBoxTree::build(const std::vector<std::uint64_t>& code, st
                                      code.begin());
   }
   const auto side = [&](std::size_t from, std::size_t to) {
-    return to - from == 1 ? leaf(from, mesh) : build(code, from, to, mesh);
+    return to - from == 1 ? leaf(from, box_of_face) : build(code, from, to, box_of_face);
   };
   Built left, right;
   if (end - begin > kParallelFaces) {
@@ -134,7 +141,10 @@ FaceBoxTree::Built FaceBoxTree::build(const std::vector<std::uint64_t>& code, st
   }
   const auto name = static_cast<std::uint32_t>(split - 1);
   Node& node = node_[name];
-  node.box = {left.box, right.box};
+  for (std::size_t a = 0; a < 3; ++a) {
+    node.low[a] = {left.box.low[a], right.box.low[a]};
+    node.high[a] = {left.box.high[a], right.box.high[a]};
+  }
   node.child = {left.child, right.child};
   Built out{{}, name};
   for (std::size_t a = 0; a < 3; ++a) {

@@ -111,6 +111,25 @@ std::optional<std::array<double, 2>> barycentric_bc(const Eigen::Vector3d& a, co
   return std::array<double, 2>{(d11 * d20 - d01 * d21) / denominator, (d00 * d21 - d01 * d20) / denominator};
 }
 
+// Every vertex of `mesh` once, in the order in which `faces` first name it, then those no face names.
+std::vector<std::uint32_t> vertices_along(const TriangleMesh& mesh, const std::vector<std::uint32_t>& faces) {
+  const std::size_t n = mesh.vertex_count();
+  std::vector<std::uint32_t> order;
+  order.reserve(n);
+  std::vector<bool> placed(n, false);
+  for (const std::uint32_t f : faces) {
+    for (const std::uint32_t v : mesh.triangles[f]) {
+      if (placed[v]) continue;
+      placed[v] = true;
+      order.push_back(v);
+    }
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    if (!placed[v]) order.push_back(static_cast<std::uint32_t>(v));
+  }
+  return order;
+}
+
 }  // namespace
 
 struct AreaMeter::Impl {
@@ -257,53 +276,69 @@ std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
   constexpr double kBeyond = 1e-9;  // metres, far above the rounding of a crossing's distance
   const double reach_looked = reach * (1.0 + 1e-9);
   std::vector<SurfaceHit> hits(mesh.vertex_count());
-  const auto hit_from = [&](std::size_t i) {
-    const Eigen::Vector3d& from = mesh.vertices[i];
-    const double length = direction[i].norm();
-    if (!(length > 0.0)) return;
-    const double reach_along = reach_looked / length;  // in units of |direction[i]|
-    const Eigen::Vector3d along = reach_along * direction[i];
-    Eigen::Vector3d inverse;
-    for (int k = 0; k < 3; ++k) inverse[k] = 1.0 / along[k];  // +-inf along an axis it does not move
-    const Kernel::Ray_3 ray(to_point(from), to_point(from + direction[i]));
+  // One ray: its segment and the nearest meeting so far.
+  struct Ray {
+    std::size_t i = 0;
+    double reach_along = 0.0;  // in units of |direction[i]|
+    Kernel::Ray_3 ray{Point(0, 0, 0), Point(1, 0, 0)};
     double nearest = std::numeric_limits<double>::infinity();
-    Point crossing = ray.source();
+    Point crossing{0, 0, 0};
     bool crosses = false;  // false where the nearest meeting is along a face (the ray in its plane)
     std::size_t crossed = 0;
     double limit = 1.0;
-    tree.walk(from, inverse, kMargin, [&](std::uint32_t f) {
-      const auto& t = mesh.triangles[f];
-      if (t[0] == i || t[1] == i || t[2] == i) return limit;  // the faces around this vertex
-      const Eigen::Vector3d &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
-      const FaceBox box(a, b, c);
-      const auto [enter, leave] = detail::segment_in_box(box, from, inverse, 1.0, kMargin);
-      if (enter > leave || clearly_missed(from, direction[i], a, b, c, reach_along)) return limit;
-      const auto meeting = CGAL::intersection(ray, Kernel::Triangle_3(to_point(a), to_point(b), to_point(c)));
-      if (!meeting) return limit;
-      if (const Point* p = boost::get<Point>(&*meeting)) {
-        const double d = CGAL::squared_distance(ray.source(), *p);
-        if (d < nearest || (d == nearest && f < crossed)) {
-          nearest = d;
-          crossing = *p;
-          crosses = true;
-          crossed = f;
-        }
-      } else if (const auto* s = boost::get<Kernel::Segment_3>(&*meeting)) {
-        const double d = std::min(CGAL::squared_distance(ray.source(), s->source()),
-                                  CGAL::squared_distance(ray.source(), s->target()));
-        if (d < nearest) {
-          nearest = d;
-          crosses = false;
-        }
+  };
+  using Packet = std::array<Eigen::Vector3d, detail::FaceBoxTree::kPacket>;
+  // Ray from vertex i into lane r of a packet; false where it has no direction.
+  const auto start = [&](Ray& r, std::size_t i, Eigen::Vector3d& from, Eigen::Vector3d& inverse) {
+    const double length = direction[i].norm();
+    if (!(length > 0.0)) return false;
+    r = Ray{};
+    r.i = i;
+    from = mesh.vertices[i];
+    r.reach_along = reach_looked / length;
+    const Eigen::Vector3d along = r.reach_along * direction[i];
+    for (int k = 0; k < 3; ++k) inverse[k] = 1.0 / along[k];  // +-inf along an axis it does not move
+    r.ray = Kernel::Ray_3(to_point(from), to_point(from + direction[i]));
+    r.crossing = r.ray.source();
+    return true;
+  };
+  // Face f met by ray r's walk: the walk's new limit.
+  const auto meet = [&](Ray& r, const Eigen::Vector3d& from, const Eigen::Vector3d& inverse, std::uint32_t f) {
+    const std::size_t i = r.i;
+    const auto& t = mesh.triangles[f];
+    if (t[0] == i || t[1] == i || t[2] == i) return r.limit;  // the faces around this vertex
+    const Eigen::Vector3d &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
+    const FaceBox box(a, b, c);
+    const auto [enter, leave] = detail::segment_in_box(box, from, inverse, 1.0, kMargin);
+    if (enter > leave || clearly_missed(from, direction[i], a, b, c, r.reach_along)) return r.limit;
+    const auto meeting = CGAL::intersection(r.ray, Kernel::Triangle_3(to_point(a), to_point(b), to_point(c)));
+    if (!meeting) return r.limit;
+    if (const Point* p = boost::get<Point>(&*meeting)) {
+      const double d = CGAL::squared_distance(r.ray.source(), *p);
+      if (d < r.nearest || (d == r.nearest && f < r.crossed)) {
+        r.nearest = d;
+        r.crossing = *p;
+        r.crosses = true;
+        r.crossed = f;
       }
-      limit = std::min(limit, (std::sqrt(nearest) + kBeyond) / reach_looked);
-      return limit;
-    });
-    if (!crosses) return;
-    const Eigen::Vector3d p(crossing.x(), crossing.y(), crossing.z());
-    const double distance = (p - from).norm();
+    } else if (const auto* s = boost::get<Kernel::Segment_3>(&*meeting)) {
+      const double d = std::min(CGAL::squared_distance(r.ray.source(), s->source()),
+                                CGAL::squared_distance(r.ray.source(), s->target()));
+      if (d < r.nearest) {
+        r.nearest = d;
+        r.crosses = false;
+      }
+    }
+    r.limit = std::min(r.limit, (std::sqrt(r.nearest) + kBeyond) / reach_looked);
+    return r.limit;
+  };
+  const auto finish = [&](const Ray& r) {
+    if (!r.crosses) return;
+    const std::size_t i = r.i;
+    const Eigen::Vector3d p(r.crossing.x(), r.crossing.y(), r.crossing.z());
+    const double distance = (p - mesh.vertices[i]).norm();
     if (distance > reach) return;
-    const auto& t = mesh.triangles[crossed];
+    const auto& t = mesh.triangles[r.crossed];
     const Eigen::Vector3d a = mesh.vertices[t[0]], b = mesh.vertices[t[1]], c = mesh.vertices[t[2]];
     const Eigen::Vector3d area_normal = (b - a).cross(c - a);
     if (!(area_normal.dot(direction[i]) > 0.0)) return;  // entering the surface: it started outside
@@ -313,15 +348,33 @@ std::vector<SurfaceHit> first_hits_from_vertices(const TriangleMesh& mesh,
     const double wc = std::clamp((*weights)[1], 0.0, 1.0 - wb);
     hits[i] = SurfaceHit{.found = true,
                          .distance = distance,
-                         .face = static_cast<std::uint32_t>(crossed),
+                         .face = static_cast<std::uint32_t>(r.crossed),
                          .weights = {1.0 - wb - wc, wb, wc}};
   };
-  // Each vertex's answer is its own: the same bits at any thread count.
+  // The rays cast in the order of the tree's curve (each vertex where its first face comes), so
+  // that consecutive rays walk the same nodes while they are in cache (the CT mesh's vertices
+  // are in Mesh_3's order, scattered in space), kPacket neighbours walked together. Each ray's
+  // answer is its own (the nearest meeting over the faces its segment's boxes reach, whatever
+  // the order they come in): the packets and the thread count change no bit.
+  const std::vector<std::uint32_t> order = vertices_along(mesh, tree.faces_along_curve());
+  const auto cast = [&](std::size_t begin, std::size_t end) {
+    std::array<Ray, detail::FaceBoxTree::kPacket> ray;
+    Packet from, inverse;
+    std::size_t next = begin;
+    while (next < end) {
+      std::size_t count = 0;
+      while (count < detail::FaceBoxTree::kPacket && next < end) {
+        if (start(ray[count], order[next++], from[count], inverse[count])) ++count;
+      }
+      tree.walk_packet(from, inverse, count, kMargin,
+                       [&](std::size_t r, std::uint32_t f) { return meet(ray[r], from[r], inverse[r], f); });
+      for (std::size_t r = 0; r < count; ++r) finish(ray[r]);
+    }
+  };
   const tsan::Region region;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hits.size(), 1024),
-                    region.wrap([&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i != range.end(); ++i) hit_from(i);
-                    }));
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, order.size(), 1024),
+      region.wrap([&](const tbb::blocked_range<std::size_t>& range) { cast(range.begin(), range.end()); }));
   region.join();
   return hits;
 }

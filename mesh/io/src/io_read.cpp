@@ -13,7 +13,6 @@
 #include <fstream>
 #include <iterator>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 #include "io_ply.h"
@@ -231,20 +230,34 @@ TriangleMesh read_mesh(const std::filesystem::path& path, const ReadOptions& opt
 
   // Merge vertices at identical positions into the first of them, keeping assimp's vertex order
   // (the file's for indexed formats such as PLY, OFF and glTF; the order of use for STL and OBJ).
+  // An open-addressing table of first occurrences (std::unordered_map's node per vertex was a
+  // tenth of reading a million-vertex file); positions compare as floats, +0 and -0 alike, so a
+  // NaN meets nothing and stays a vertex of its own, as in a map.
   TriangleMesh mesh;
   std::vector<std::uint32_t> merged(soup.vertices.size());
-  std::unordered_map<std::array<float, 3>, std::uint32_t, PositionHash> index_of;
-  index_of.reserve(soup.vertices.size());
-  for (std::size_t v = 0; v < soup.vertices.size(); ++v) {
+  const auto key_of = [&](std::size_t v) {
     const auto& p = soup.vertices[v];
-    const std::array<float, 3> key{p[0] == 0.0f ? 0.0f : p[0], p[1] == 0.0f ? 0.0f : p[1], p[2] == 0.0f ? 0.0f : p[2]};
-    const auto [it, inserted] = index_of.try_emplace(key, static_cast<std::uint32_t>(mesh.vertices.size()));
-    if (inserted) {
-      mesh.vertices.emplace_back(static_cast<double>(key[0]) * metres_per_unit,
-                                 static_cast<double>(key[1]) * metres_per_unit,
-                                 static_cast<double>(key[2]) * metres_per_unit);
+    return std::array<float, 3>{p[0] == 0.0f ? 0.0f : p[0], p[1] == 0.0f ? 0.0f : p[1], p[2] == 0.0f ? 0.0f : p[2]};
+  };
+  const std::size_t capacity = std::bit_ceil(std::max<std::size_t>(2 * soup.vertices.size(), 16));
+  std::vector<std::uint32_t> first(capacity, 0);  // a first occurrence's vertex + 1; 0: empty
+  for (std::size_t v = 0; v < soup.vertices.size(); ++v) {
+    const std::array<float, 3> key = key_of(v);
+    const std::size_t h = PositionHash{}(key);
+    for (std::size_t at = (h ^ (h >> 32)) & (capacity - 1);; at = (at + 1) & (capacity - 1)) {
+      if (first[at] == 0) {
+        first[at] = static_cast<std::uint32_t>(v + 1);
+        merged[v] = static_cast<std::uint32_t>(mesh.vertices.size());
+        mesh.vertices.emplace_back(static_cast<double>(key[0]) * metres_per_unit,
+                                   static_cast<double>(key[1]) * metres_per_unit,
+                                   static_cast<double>(key[2]) * metres_per_unit);
+        break;
+      }
+      if (key_of(first[at] - 1) == key) {
+        merged[v] = merged[first[at] - 1];
+        break;
+      }
     }
-    merged[v] = it->second;
   }
   mesh.triangles.reserve(soup.triangles.size());
   for (const auto& t : soup.triangles) mesh.triangles.push_back({merged[t[0]], merged[t[1]], merged[t[2]]});
