@@ -289,6 +289,8 @@ std::pair<std::size_t, std::size_t> fill_cavities(const Grid& g, std::vector<std
 struct VerticalAxis {
   int axis = 2;
   bool index_up = true;
+  // A dent spanning fewer slices is filled: set from the smoothing (surface_from_labels).
+  std::size_t min_dent_slices = 1;
 };
 
 VerticalAxis vertical_axis(const Eigen::Matrix4d& ijk_to_lps) {
@@ -311,8 +313,11 @@ struct SliceHoles {
 // underside of the diaphragm's dome, whose top is a hole in the axial slices around it. It is not
 // a tunnel (a tunnel opens at both ends, a cavity at neither), and filling it would put a flat lid
 // under the lung that the body below cannot follow (docs/voxels.md, "The body's pairs at 2 mm
-// voxels"), so it is left to the body; every other region is filled. Regions are found in voxel
-// order, so the result does not depend on the thread count.
+// voxels"), so it is left to the body; every other region is filled, and so is a dent shallower
+// than `min_dent_slices`: the blur all but closes it (case008's left lung: a dent 1 mm deep moved
+// the surface by 1.0 mm), so leaving it open changes nothing the body sees and only Mesh_3's
+// sampling of the whole lung. Regions are found in voxel order, so the result does not depend on
+// the thread count.
 void fill_vertical_holes_but_dents(const Grid& g, std::vector<std::uint8_t>& mask, VerticalAxis vertical,
                                    SliceHoles& out) {
   constexpr std::uint8_t kHole = 2, kSeen = 3;
@@ -322,6 +327,7 @@ void fill_vertical_holes_but_dents(const Grid& g, std::vector<std::uint8_t>& mas
     if (mask[seed] != kHole) continue;
     region.clear();
     bool open_down = false, open_up = false;
+    std::size_t lowest = g.n[axis], highest = 0;  // slices spanned
     mask[seed] = kSeen;
     stack.assign(1, seed);
     while (!stack.empty()) {
@@ -329,6 +335,7 @@ void fill_vertical_holes_but_dents(const Grid& g, std::vector<std::uint8_t>& mas
       stack.pop_back();
       region.push_back(v);
       const Size3 ijk{v % g.n[0], (v / g.n[0]) % g.n[1], v / (g.n[0] * g.n[1])};
+      lowest = std::min(lowest, ijk[axis]), highest = std::max(highest, ijk[axis]);
       for (std::size_t a = 0; a < 3; ++a) {
         const std::size_t step = g.stride(static_cast<int>(a));
         for (const bool towards_higher : {false, true}) {
@@ -343,7 +350,7 @@ void fill_vertical_holes_but_dents(const Grid& g, std::vector<std::uint8_t>& mas
         }
       }
     }
-    const bool dent = open_down && !open_up;
+    const bool dent = open_down && !open_up && highest + 1 - lowest >= vertical.min_dent_slices;
     for (const std::size_t v : region) mask[v] = dent ? 0 : 1;
     if (dent) ++out.dents, out.dent_voxels += region.size();
     else out.filled_voxels += region.size();
@@ -727,7 +734,12 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
   // left open; then, where some were left and the surface still has a handle, with those filled
   // too; then the same at a doubled radius while the genus is above 0 and the radius allows. The
   // closed mask is kept while the radius stays (the later attempts close as the first did).
-  const VerticalAxis vertical = vertical_axis(map.ijk_to_lps);
+  VerticalAxis vertical = vertical_axis(map.ijk_to_lps);
+  // Deeper than twice the blur's sigma (3 slices of 1 mm at the default 1 mm).
+  vertical.min_dent_slices =
+      static_cast<std::size_t>(
+          std::floor(2.0 * options.smoothing_m / spacing[static_cast<Eigen::Index>(vertical.axis)] * (1.0 + 1e-9))) +
+      1;
   double radius = options.closing_radius_m;
   bool slice_holes = false, leave_dents = false;
   std::vector<std::uint8_t> closed;
