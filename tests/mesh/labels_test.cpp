@@ -259,6 +259,35 @@ TEST(Labels, ADentFromBelowIsLeftToTheBodyATunnelFilled) {
   }
 }
 
+// A dent from below shallower than twice the blur's sigma is filled like any slice hole (the blur
+// all but closes it); one as tall is left. Sigma 1 mm on 1 mm slices: 2 slices filled, 3 left.
+TEST(Labels, ADentShallowerThanTwiceTheBlurIsFilled) {
+  TempDir dir;
+  const std::array<int, 3> size{60, 40, 24};
+  for (const int dent_slices : {2, 3}) {
+    SCOPED_TRACE(dent_slices);
+    Volume v = empty_volume(size);
+    std::size_t dent = 0, tunnel = 0;
+    for (int k = 6; k < 18; ++k)
+      for (int j = 4; j < 36; ++j)
+        for (int i = 4; i < 56; ++i) {
+          const bool in_dent = std::hypot(i - 18.0, j - 20.0) < 8.0 && k < 6 + dent_slices;
+          const bool in_tunnel = std::hypot(i - 42.0, j - 20.0) <= 4.0;
+          dent += in_dent ? 1 : 0;
+          tunnel += in_tunnel ? 1 : 0;
+          if (!in_dent && !in_tunnel) v.at(i, j, k) = 2;
+        }
+    write_nifti(dir / "slab.nii", size, v.labels, Qform{});
+    const LabelSurface s = surface_from_labels(
+        dir / "slab.nii", {2}, {.edge_length_m = 1.5e-3, .smoothing_m = 1.0e-3, .closing_radius_m = 0.0});
+    expect_valid_genus0(s.mesh, "slab");
+    const bool left = dent_slices >= 3;
+    EXPECT_EQ(s.report.dents_left, left ? 1u : 0u);
+    EXPECT_EQ(s.report.dent_voxels_left, left ? dent : 0u);
+    EXPECT_EQ(s.report.slice_hole_voxels, tunnel + (left ? 0u : dent));
+  }
+}
+
 // The Euler characteristics of sampled shapes against their Betti numbers (b0 - b1 + b2):
 // where the thin (6-connected) and thick (26-connected) models part, at samples touching only
 // diagonally, each gives its own count.

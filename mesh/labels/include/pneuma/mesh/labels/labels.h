@@ -21,7 +21,8 @@
 //      first with tunnels filled (background enclosed within a slice across x, y or z, which is
 //      how a tunnel shows) but the dents from below left open (the holes of the axial slices,
 //      taken as 3D regions, that open towards the feet and are closed above: the underside of
-//      the diaphragm's dome, which the body fills, not the lung), then with those filled too where
+//      the diaphragm's dome, which the body fills, not the lung; one spanning fewer slices than
+//      twice `smoothing_m` is filled, the blur all but closes it), then with those filled too where
 //      a handle remains, then the same with the closing radius doubled up to
 //      `max_closing_radius_m`.
 //      A genus still above 0 is reported (LabelSurfaceReport::genus), not an error.
