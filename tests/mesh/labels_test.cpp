@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <numbers>
+#include <set>
 
 #include "nifti_fixture.h"
 #include "pneuma/mesh/geometry/surface_queries.h"
@@ -162,6 +163,129 @@ TEST(Labels, HandlesAreRemovedOrReported) {
   EXPECT_EQ(kept.report.meshings, 1);
   EXPECT_NEAR(enclosed_volume(removed.mesh) / (kPi * (R + r) * (R + r) * 2 * r * 1e-9), 1.0,
               0.35);  // filled: a disc-like cake
+}
+
+namespace {
+
+// The winding number of a closed surface around p (the solid angles of its triangles, Van
+// Oosterom and Strackee 1983, over 4 pi): 1 inside, 0 outside.
+double winding_number(const TriangleMesh& m, const Eigen::Vector3d& p) {
+  double sum = 0.0;
+  for (const auto& t : m.triangles) {
+    const Eigen::Vector3d a = m.vertices[t[0]] - p, b = m.vertices[t[1]] - p, c = m.vertices[t[2]] - p;
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    sum += 2.0 * std::atan2(a.dot(b.cross(c)), la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb);
+  }
+  return sum / (4.0 * kPi);
+}
+
+// The genus from V - E + F of one closed surface, counted here (edges as unordered vertex pairs).
+int genus_by_euler(const TriangleMesh& m) {
+  std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
+  for (const auto& t : m.triangles)
+    for (int e = 0; e < 3; ++e) {
+      const auto u = static_cast<std::uint32_t>(t[static_cast<std::size_t>(e)]);
+      const auto w = static_cast<std::uint32_t>(t[static_cast<std::size_t>((e + 1) % 3)]);
+      edges.insert(std::minmax(u, w));
+    }
+  const auto chi = static_cast<long long>(m.vertices.size()) - static_cast<long long>(edges.size()) +
+                   static_cast<long long>(m.triangles.size());
+  return static_cast<int>((2 - chi) / 2);
+}
+
+}  // namespace
+
+// A slab with a dome-shaped dent from below (the diaphragm's dome under a lung's base) and a
+// vertical tunnel through it. Both are holes of the axial slices; only the tunnel is a handle.
+// The tunnel is filled and the dent left open (to the body); with the map's k axis pointing to the
+// feet (qfac -1) the same voxels are a dent from above, which is filled like any slice hole.
+TEST(Labels, ADentFromBelowIsLeftToTheBodyATunnelFilled) {
+  TempDir dir;
+  const std::array<int, 3> size{60, 40, 24};
+  const Eigen::Vector2d dent_c(18.0, 20.0), tunnel_c(42.0, 20.0);
+  const double dent_r = 8.0, dent_height = 8.0, tunnel_r = 4.0, bottom = 5.5;  // mm (1 mm voxels)
+  Volume v = empty_volume(size);
+  std::size_t slab = 0, dent = 0, tunnel = 0;
+  for (int k = 0; k < size[2]; ++k)
+    for (int j = 0; j < size[1]; ++j)
+      for (int i = 0; i < size[0]; ++i) {
+        if (i < 4 || i >= 56 || j < 4 || j >= 36 || k < 6 || k >= 18) continue;
+        ++slab;
+        const Eigen::Vector2d ij(i, j);
+        const double rd = (ij - dent_c).norm();
+        if (rd < dent_r && k - bottom < dent_height * (1.0 - rd * rd / (dent_r * dent_r))) {
+          ++dent;
+          continue;
+        }
+        if ((ij - tunnel_c).norm() <= tunnel_r) {
+          ++tunnel;
+          continue;
+        }
+        v.at(i, j, k) = 2;
+      }
+  ASSERT_GT(dent, 500u);
+  ASSERT_GT(tunnel, 500u);
+  const LabelSurfaceOptions options{.edge_length_m = 1.5e-3, .smoothing_m = 0.6e-3, .closing_radius_m = 0.0};
+  for (const double qfac : {1.0, -1.0}) {
+    SCOPED_TRACE(qfac > 0 ? "k up (towards the head)" : "k down (towards the feet)");
+    Qform q;
+    q.qfac = qfac;
+    const std::string name = qfac > 0 ? "slab-up.nii" : "slab-down.nii";
+    write_nifti(dir / name, size, v.labels, q);
+    const LabelSurface s = surface_from_labels(dir / name, {2}, options);
+    expect_valid_genus0(s.mesh, name);
+    EXPECT_EQ(genus_by_euler(s.mesh), 0);
+    EXPECT_TRUE(s.report.filled_slice_holes);
+    EXPECT_EQ(s.report.attempts, 2);  // as it was: closing; then the slice holes
+    const auto lps = [&](double i, double j, double k) {
+      return (qform_ijk_to_lps(q) * Eigen::Vector4d(i, j, k, 1.0)).head<3>().eval();
+    };
+    // The tunnel's axis, mid-slab: filled either way.
+    EXPECT_NEAR(winding_number(s.mesh, lps(tunnel_c.x(), tunnel_c.y(), 12.0)), 1.0, 1e-6);
+    const Eigen::Vector3d in_dent = lps(dent_c.x(), dent_c.y(), 8.0);  // 2.5 mm above its mouth
+    const double mask_voxels = static_cast<double>(slab - (qfac > 0 ? dent : 0));
+    EXPECT_NEAR(enclosed_volume(s.mesh) / (mask_voxels * 1e-9), 1.0, 0.03);
+    if (qfac > 0) {
+      EXPECT_EQ(s.report.dents_left, 1u);
+      EXPECT_EQ(s.report.dent_voxels_left, dent);
+      EXPECT_EQ(s.report.slice_hole_voxels, tunnel);
+      EXPECT_NEAR(winding_number(s.mesh, in_dent), 0.0, 1e-6);
+    } else {
+      EXPECT_EQ(s.report.dents_left, 0u);
+      EXPECT_EQ(s.report.dent_voxels_left, 0u);
+      EXPECT_EQ(s.report.slice_hole_voxels, tunnel + dent);
+      EXPECT_NEAR(winding_number(s.mesh, in_dent), 1.0, 1e-6);
+    }
+  }
+}
+
+// A dent from below shallower than twice the blur's sigma is filled like any slice hole (the blur
+// all but closes it); one as tall is left. Sigma 1 mm on 1 mm slices: 2 slices filled, 3 left.
+TEST(Labels, ADentShallowerThanTwiceTheBlurIsFilled) {
+  TempDir dir;
+  const std::array<int, 3> size{60, 40, 24};
+  for (const int dent_slices : {2, 3}) {
+    SCOPED_TRACE(dent_slices);
+    Volume v = empty_volume(size);
+    std::size_t dent = 0, tunnel = 0;
+    for (int k = 6; k < 18; ++k)
+      for (int j = 4; j < 36; ++j)
+        for (int i = 4; i < 56; ++i) {
+          const bool in_dent = std::hypot(i - 18.0, j - 20.0) < 8.0 && k < 6 + dent_slices;
+          const bool in_tunnel = std::hypot(i - 42.0, j - 20.0) <= 4.0;
+          dent += in_dent ? 1 : 0;
+          tunnel += in_tunnel ? 1 : 0;
+          if (!in_dent && !in_tunnel) v.at(i, j, k) = 2;
+        }
+    write_nifti(dir / "slab.nii", size, v.labels, Qform{});
+    const LabelSurface s = surface_from_labels(
+        dir / "slab.nii", {2}, {.edge_length_m = 1.5e-3, .smoothing_m = 1.0e-3, .closing_radius_m = 0.0});
+    expect_valid_genus0(s.mesh, "slab");
+    const bool left = dent_slices >= 3;
+    EXPECT_EQ(s.report.dents_left, left ? 1u : 0u);
+    EXPECT_EQ(s.report.dent_voxels_left, left ? dent : 0u);
+    EXPECT_EQ(s.report.slice_hole_voxels, tunnel + (left ? 0u : dent));
+  }
 }
 
 // The Euler characteristics of sampled shapes against their Betti numbers (b0 - b1 + b2):

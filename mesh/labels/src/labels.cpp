@@ -267,14 +267,90 @@ std::pair<std::size_t, std::size_t> fill_cavities(const Grid& g, std::vector<std
   return {cavities, voxels};
 }
 
+// Which image axis runs most nearly along LPS z (superior), and which way: the feet lie towards
+// lower indices when `index_up`.
+struct VerticalAxis {
+  int axis = 2;
+  bool index_up = true;
+  // A dent spanning fewer slices is filled: set from the smoothing (surface_from_labels).
+  std::size_t min_dent_slices = 1;
+};
+
+VerticalAxis vertical_axis(const Eigen::Matrix4d& ijk_to_lps) {
+  VerticalAxis v;
+  double best = -1.0;
+  for (int a = 0; a < 3; ++a) {
+    const double z = ijk_to_lps.block<3, 1>(0, a).normalized().z();
+    if (std::abs(z) > best) best = std::abs(z), v.axis = a, v.index_up = z > 0.0;
+  }
+  return v;
+}
+
+struct SliceHoles {
+  std::size_t filled_voxels = 0;
+  std::size_t dents = 0, dent_voxels = 0;  // left to the body (not filled)
+};
+
+// The holes of the slices across the vertical axis (marked 2 in `mask`) as 3D regions, 6-connected
+// across slices. A region open towards the feet and closed above is a dent from below: the
+// underside of the diaphragm's dome, whose top is a hole in the axial slices around it. It is not
+// a tunnel (a tunnel opens at both ends, a cavity at neither), and filling it would put a flat lid
+// under the lung that the body below cannot follow (docs/voxels.md, "The body's pairs at 2 mm
+// voxels"), so it is left to the body; every other region is filled, and so is a dent shallower
+// than `min_dent_slices`: the blur all but closes it (case008's left lung: a dent 1 mm deep moved
+// the surface by 1.0 mm), so leaving it open changes nothing the body sees and only Mesh_3's
+// sampling of the whole lung. Regions are found in voxel order, so the result does not depend on
+// the thread count.
+void fill_vertical_holes_but_dents(const Grid& g, std::vector<std::uint8_t>& mask, VerticalAxis vertical,
+                                   SliceHoles& out) {
+  constexpr std::uint8_t kHole = 2, kSeen = 3;
+  const auto axis = static_cast<std::size_t>(vertical.axis);
+  std::vector<std::size_t> region, stack;
+  for (std::size_t seed = 0; seed < g.count(); ++seed) {
+    if (mask[seed] != kHole) continue;
+    region.clear();
+    bool open_down = false, open_up = false;
+    std::size_t lowest = g.n[axis], highest = 0;  // slices spanned
+    mask[seed] = kSeen;
+    stack.assign(1, seed);
+    while (!stack.empty()) {
+      const std::size_t v = stack.back();
+      stack.pop_back();
+      region.push_back(v);
+      const Size3 ijk{v % g.n[0], (v / g.n[0]) % g.n[1], v / (g.n[0] * g.n[1])};
+      lowest = std::min(lowest, ijk[axis]), highest = std::max(highest, ijk[axis]);
+      for (std::size_t a = 0; a < 3; ++a) {
+        const std::size_t step = g.stride(static_cast<int>(a));
+        for (const bool towards_higher : {false, true}) {
+          const bool at_edge = towards_higher ? ijk[a] + 1 == g.n[a] : ijk[a] == 0;
+          const std::size_t w = at_edge ? v : towards_higher ? v + step : v - step;
+          const bool inside = !at_edge && mask[w] == 1;
+          if (!at_edge && mask[w] == kHole) mask[w] = kSeen, stack.push_back(w);
+          // Within a slice a hole meets only the mask and its own region; across slices, the
+          // background of the next slice (or the crop's edge) is an opening.
+          if (a != axis || inside || (!at_edge && mask[w] >= kHole)) continue;
+          (towards_higher == vertical.index_up ? open_up : open_down) = true;
+        }
+      }
+    }
+    const bool dent = open_down && !open_up && highest + 1 - lowest >= vertical.min_dent_slices;
+    for (const std::size_t v : region) mask[v] = dent ? 0 : 1;
+    if (dent) ++out.dents, out.dent_voxels += region.size();
+    else out.filled_voxels += region.size();
+  }
+}
+
 // Tunnels through the mask: in every slice across each axis, background that the slice's
 // border cannot reach (4-connected within the slice) becomes inside. A tunnel shows as such a
-// hole in the slices across it; concavities open to the outside do not. Returns the voxels added.
-std::size_t fill_slice_holes(const Grid& g, std::vector<std::uint8_t>& mask) {
-  std::size_t added = 0;
+// hole in the slices across it; concavities open to the outside do not. With `leave_dents`, the
+// holes of the slices across the vertical axis that make a dent from below are left open
+// (fill_vertical_holes_but_dents).
+SliceHoles fill_slice_holes(const Grid& g, std::vector<std::uint8_t>& mask, VerticalAxis vertical, bool leave_dents) {
+  SliceHoles result;
   std::vector<std::uint8_t> reached;
   std::vector<std::size_t> stack;
   for (int axis = 0; axis < 3; ++axis) {
+    const bool mark_only = leave_dents && axis == vertical.axis;
     // The slice spans axes u and w; `axis` is fixed at s.
     const int u = (axis + 1) % 3, w = (axis + 2) % 3;
     const std::size_t nu = g.n[static_cast<std::size_t>(u)], nw = g.n[static_cast<std::size_t>(w)];
@@ -301,12 +377,15 @@ std::size_t fill_slice_holes(const Grid& g, std::vector<std::uint8_t>& mask) {
       for (std::size_t b = 0; b < nw; ++b) {
         for (std::size_t a = 0; a < nu; ++a) {
           std::uint8_t& m = mask[base + a * su + b * sw];
-          if (!m && !reached[a + nu * b]) m = 1, ++added;
+          if (m || reached[a + nu * b]) continue;
+          if (mark_only) m = 2;
+          else m = 1, ++result.filled_voxels;
         }
       }
     }
+    if (mark_only) fill_vertical_holes_but_dents(g, mask, vertical, result);
   }
-  return added;
+  return result;
 }
 
 // Separable Gaussian blur (sigma in metres, truncated at 3 sigma, normalised weights; zero
@@ -441,6 +520,12 @@ std::vector<std::string> LabelSurfaceReport::steps() const {
   if (filled_slice_holes) {
     s.push_back(fmt::format("tunnels: filled holes in slices across x, y and z: {} voxels ({})", slice_hole_voxels,
                             mL(static_cast<double>(slice_hole_voxels) * voxel_volume_m3)));
+    if (dents_left > 0) {
+      s.push_back(fmt::format("dents from below: left {} to the body (holes of the axial slices open downwards, "
+                              "closed above: the diaphragm's dome): {} voxels ({})",
+                              dents_left, dent_voxels_left,
+                              mL(static_cast<double>(dent_voxels_left) * voxel_volume_m3)));
+    }
   }
   s.push_back(filled_cavities == 0
                   ? std::string("cavities: none")
@@ -704,11 +789,18 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
   field.index_to_lps = map.ijk_to_lps * shift;
   field.lps_to_index = field.index_to_lps.inverse();
 
-  // Attempts: the closing radius asked for; then with slice holes filled; then a doubled
-  // radius (with slice holes) while the genus is above 0 and the radius allows. The closed mask
-  // is kept while the radius stays (the second attempt closes as the first did).
+  // Attempts: the closing radius asked for; then with slice holes filled but the dents from below
+  // left open; then, where some were left and the surface still has a handle, with those filled
+  // too; then the same at a doubled radius while the genus is above 0 and the radius allows. The
+  // closed mask is kept while the radius stays (the later attempts close as the first did).
+  VerticalAxis vertical = vertical_axis(map.ijk_to_lps);
+  // Deeper than twice the blur's sigma (3 slices of 1 mm at the default 1 mm).
+  vertical.min_dent_slices =
+      static_cast<std::size_t>(
+          std::floor(2.0 * options.smoothing_m / spacing[static_cast<Eigen::Index>(vertical.axis)] * (1.0 + 1e-9))) +
+      1;
   double radius = options.closing_radius_m;
-  bool slice_holes = false;
+  bool slice_holes = false, leave_dents = false;
   std::vector<std::uint8_t> closed;
   double closed_radius = -1.0;
   rep.meshings = 0;
@@ -721,7 +813,10 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
     }
     std::vector<std::uint8_t> mask = closed;
     rep.closing_radius_m = radius;
-    rep.slice_hole_voxels = slice_holes ? fill_slice_holes(g, mask) : 0;
+    const SliceHoles holes = slice_holes ? fill_slice_holes(g, mask, vertical, leave_dents) : SliceHoles{};
+    rep.slice_hole_voxels = holes.filled_voxels;
+    rep.dents_left = holes.dents;
+    rep.dent_voxels_left = holes.dent_voxels;
     rep.filled_slice_holes = slice_holes;
     rep.filled_cavities = rep.filled_cavity_voxels = 0;
     if (options.fill_cavities) std::tie(rep.filled_cavities, rep.filled_cavity_voxels) = fill_cavities(g, mask);
@@ -732,7 +827,19 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
     mask.clear();
     mask.shrink_to_fit();
     const bool can_grow = radius > 0.0 && 2.0 * radius <= options.max_closing_radius_m * (1.0 + 1e-9);
-    const bool last = !options.remove_handles || (slice_holes && !can_grow);
+    const bool dents_to_fill = holes.dents > 0;
+    const bool last = !options.remove_handles || (slice_holes && !can_grow && !dents_to_fill);
+    // The next attempt after a handle: slice holes; the dents filled too; a doubled radius.
+    auto next_attempt = [&] {
+      if (!slice_holes) {
+        slice_holes = leave_dents = true;
+      } else if (dents_to_fill) {
+        leave_dents = false;
+      } else {
+        radius *= 2.0;
+        leave_dents = true;
+      }
+    };
     // Handles on the blurred mask's samples, in both cubical models between which the trilinear
     // level set lies (islands and cavities only raise the characteristic), are handles of the
     // surface Mesh_3 would make: the next attempt, without meshing this one. On the twelve CT
@@ -741,8 +848,7 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
       const detail::LevelSetEuler chi = detail::level_set_euler_characteristics(field);
       if (chi.thin < 1 && chi.thick < 1) {
         field.values.clear();
-        if (slice_holes) radius *= 2.0;
-        slice_holes = true;
+        next_attempt();
         continue;
       }
     }
@@ -766,8 +872,7 @@ LabelSurface surface_from_labels(const image::LabelMap& map, const std::string& 
       result.mesh = std::move(mesh);
       break;
     }
-    if (slice_holes) radius *= 2.0;
-    slice_holes = true;
+    next_attempt();
   }
   return result;
 }

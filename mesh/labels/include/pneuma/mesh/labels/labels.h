@@ -19,7 +19,12 @@
 //      seen there skips the meshing: it would be thrown away), then on the surface; while it is
 //      above 0, steps 3-6 are redone,
 //      first with tunnels filled (background enclosed within a slice across x, y or z, which is
-//      how a tunnel shows), then with the closing radius doubled up to `max_closing_radius_m`.
+//      how a tunnel shows) but the dents from below left open (the holes of the axial slices,
+//      taken as 3D regions, that open towards the feet and are closed above: the underside of
+//      the diaphragm's dome, which the body fills, not the lung; one spanning fewer slices than
+//      twice `smoothing_m` is filled, the blur all but closes it), then with those filled too where
+//      a handle remains, then the same with the closing radius doubled up to
+//      `max_closing_radius_m`.
 //      A genus still above 0 is reported (LabelSurfaceReport::genus), not an error.
 // Deterministic: the same file and options give the same triangles, bit for bit.
 #include <Eigen/Core>
@@ -61,6 +66,9 @@ struct LabelSurfaceReport {
   std::size_t closing_added_voxels = 0;
   bool filled_slice_holes = false;  // tunnels filled slice by slice (second attempt on)
   std::size_t slice_hole_voxels = 0;
+  // Holes of the slices across the axis nearest LPS z whose 3D region opens downwards and is
+  // closed above (the dome's underside): left to the body, not filled, and not in the mask.
+  std::size_t dents_left = 0, dent_voxels_left = 0;
   std::size_t filled_cavities = 0, filled_cavity_voxels = 0;
   std::size_t mask_voxels = 0;  // after islands, closing and cavities
   double smoothing_m = 0.0, edge_length_m = 0.0, max_distance_m = 0.0;
