@@ -305,38 +305,36 @@ void fill_vertical_holes_but_dents(const Grid& g, std::vector<std::uint8_t>& mas
                                    SliceHoles& out) {
   constexpr std::uint8_t kHole = 2, kSeen = 3;
   const auto axis = static_cast<std::size_t>(vertical.axis);
-  std::vector<std::size_t> region, stack;
+  const std::size_t step = g.stride(vertical.axis);
+  std::vector<Span> region, stack;
   for (std::size_t seed = 0; seed < g.count(); ++seed) {
     if (mask[seed] != kHole) continue;
     region.clear();
+    const std::size_t voxels =
+        flood_spans(g, mask, seed % g.n[0], seed / g.n[0], kHole, kSeen, kRows6, 0, stack, &region);
+    // Within a slice a hole meets only the mask and its own region; across slices, the background
+    // of the next slice (or the crop's edge) is an opening.
     bool open_down = false, open_up = false;
     std::size_t lowest = g.n[axis], highest = 0;  // slices spanned
-    mask[seed] = kSeen;
-    stack.assign(1, seed);
-    while (!stack.empty()) {
-      const std::size_t v = stack.back();
-      stack.pop_back();
-      region.push_back(v);
-      const Size3 ijk{v % g.n[0], (v / g.n[0]) % g.n[1], v / (g.n[0] * g.n[1])};
-      lowest = std::min(lowest, ijk[axis]), highest = std::max(highest, ijk[axis]);
-      for (std::size_t a = 0; a < 3; ++a) {
-        const std::size_t step = g.stride(static_cast<int>(a));
+    for (const Span& span : region) {
+      for (std::size_t i = span.a; i <= span.b; ++i) {
+        const std::size_t v = i + g.n[0] * span.row;
+        const std::size_t at = axis == 0 ? i : axis == 1 ? span.row % g.n[1] : span.row / g.n[1];
+        lowest = std::min(lowest, at), highest = std::max(highest, at);
         for (const bool towards_higher : {false, true}) {
-          const bool at_edge = towards_higher ? ijk[a] + 1 == g.n[a] : ijk[a] == 0;
-          const std::size_t w = at_edge ? v : towards_higher ? v + step : v - step;
-          const bool inside = !at_edge && mask[w] == 1;
-          if (!at_edge && mask[w] == kHole) mask[w] = kSeen, stack.push_back(w);
-          // Within a slice a hole meets only the mask and its own region; across slices, the
-          // background of the next slice (or the crop's edge) is an opening.
-          if (a != axis || inside || (!at_edge && mask[w] >= kHole)) continue;
+          const bool at_edge = towards_higher ? at + 1 == g.n[axis] : at == 0;
+          if (!at_edge && mask[towards_higher ? v + step : v - step] != 0) continue;
           (towards_higher == vertical.index_up ? open_up : open_down) = true;
         }
       }
     }
     const bool dent = open_down && !open_up && highest + 1 - lowest >= vertical.min_dent_slices;
-    for (const std::size_t v : region) mask[v] = dent ? 0 : 1;
-    if (dent) ++out.dents, out.dent_voxels += region.size();
-    else out.filled_voxels += region.size();
+    for (const Span& span : region) {
+      std::uint8_t* line = mask.data() + static_cast<std::size_t>(span.row) * g.n[0];
+      std::fill(line + span.a, line + span.b + 1, dent ? std::uint8_t{0} : std::uint8_t{1});
+    }
+    if (dent) ++out.dents, out.dent_voxels += voxels;
+    else out.filled_voxels += voxels;
   }
 }
 
