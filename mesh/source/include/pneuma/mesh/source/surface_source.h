@@ -7,9 +7,10 @@
 // Surfaces are made lazily, lung by lung: a caller that finds a field cached under
 // surface_key() never pays for the reading, repair or remeshing. surface() may be called for the
 // two lungs on two threads at once.
+#include <tbb/collaborative_call_once.h>
+
 #include <filesystem>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -84,7 +85,11 @@ class SurfaceSource {
 
   SurfaceSourceSpec spec_;
   // The lazily made maps; the two lungs' surfaces may be made on two threads (model/compile.cpp).
-  mutable std::mutex lazy_mutex_;
+  // Made once, collaboratively (#50): a lung that asks while the other lung is reading or
+  // separating the map joins that work's parallel loops instead of sleeping on a lock, so the
+  // shipped scenario's first second (inflating, converting and separating 70.8 M voxels) runs on
+  // every core.
+  mutable tbb::collaborative_once_flag map_once_, separated_once_;
   mutable std::shared_ptr<const image::LabelMap> map_;
   mutable std::shared_ptr<const image::LabelMap> separated_;
 };
