@@ -527,9 +527,15 @@ BodyMotion::Frame BodyMotion::frame(std::span<const double> scales) const {
   out.h_ = options_.cell_m;
   out.inverse_h_ = 1.0 / out.h_;
   out.size_ = size_;
-  out.u_.assign(unit_.front().size(), Eigen::Vector3d::Zero());
-  for (std::size_t l = 0; l < unit_.size() && l < scales.size(); ++l)
-    for (std::size_t node = 0; node < out.u_.size(); ++node) out.u_[node] += scales[l] * unit_[l][node];
+  // Each node's sum over the lungs in lung order, the nodes on every core (#50: the voxel outputs
+  // and each of the report's slices ask for a frame; 0.4-0.9 M nodes).
+  out.u_.resize(unit_.front().size());
+  const std::size_t lungs = std::min(unit_.size(), scales.size());
+  core::for_each_index(out.u_.size(), [&](std::size_t node) {
+    Eigen::Vector3d u = Eigen::Vector3d::Zero();
+    for (std::size_t l = 0; l < lungs; ++l) u += scales[l] * unit_[l][node];
+    out.u_[node] = u;
+  });
   return out;
 }
 
