@@ -100,3 +100,47 @@ TEST(ThinLung, NothingMovesWhereTheLungIsThickForItsStretch) {
   limit_the_stretch_across_thin_lung(ball, v);
   EXPECT_EQ(v, field);
 }
+
+// The vertical ray: the 8 mm lens of the second test, its lower face descending 4 mm, but with
+// the smoothed normals given tilted 60 degrees off the vertical (about y), as at a tongue's tip
+// where they lean toward it. Along such a normal the ray crosses the lens over t / cos 60 = 2 t
+// and the descent's share along it is D cos 60, so the strain it reads is D / (4 t) = 0.125 in
+// the middle, within the bound 0.25: the normals' rays ask for nothing. The normals look up or
+// down by cos 60 = 0.5 >= 0.3, so each vertex also casts a vertical ray, which reads D / t = 0.5
+// and holds it at the bound: the faces end where the second test's closed form puts them,
+// (D - high t(r)) / 2 given up by each. With the vertical rays off (vertical_from above 1)
+// nothing moves in the middle.
+TEST(ThinLung, AVerticalRayHoldsAThinPartWhoseNormalsLeanAcrossIt) {
+  const double radius = 0.1, half = 0.004, descent = 0.004, high = 0.25;
+  const mesh::TriangleMesh m = lens(radius, half);
+  const double tilt = 60.0 * M_PI / 180.0;
+  std::vector<Eigen::Vector3d> leaning(m.vertices.size());
+  for (std::size_t i = 0; i < leaning.size(); ++i) {
+    const double side = m.vertices[i].z() >= 0.0 ? 1.0 : -1.0;  // outward: up on the upper face
+    leaning[i] = Eigen::Vector3d(std::sin(tilt), 0.0, side * std::cos(tilt));
+  }
+  const std::vector<Eigen::Vector3d> before = lower_face_descends(m, descent);
+  std::vector<Eigen::Vector3d> u = before;
+  limit_the_stretch_across_thin_parts(m, u, high, ThinLung{}, leaning);
+  ThinLung normals_only;
+  normals_only.vertical_from = 2.0;
+  std::vector<Eigen::Vector3d> v = before;
+  limit_the_stretch_across_thin_parts(m, v, high, normals_only, leaning);
+  int checked = 0;
+  double worst = 0.0;
+  for (std::size_t i = 0; i < u.size(); ++i) {
+    const Eigen::Vector3d& x = m.vertices[i];
+    const double r = std::hypot(x.x(), x.y());
+    if (r > 0.03 || std::abs(x.z()) < 0.5 * half) continue;  // the middle, off the rim
+    const double t = 2.0 * half * std::sqrt(1.0 - r * r / (radius * radius));
+    const double given_up = 0.5 * (descent - high * t);
+    const double expected = x.z() > 0.0 ? -given_up : -descent + given_up;
+    worst = std::max(worst, std::abs(u[i].z() - expected));
+    EXPECT_EQ(v[i], before[i]) << "vertex " << i << ": the normals' rays alone";
+    ++checked;
+  }
+  EXPECT_GT(checked, 100);
+  EXPECT_LT(worst, 2e-5) << "of a 4 mm descent";
+  EXPECT_THROW(limit_the_stretch_across_thin_parts(m, u, high, ThinLung{.up = Eigen::Vector3d::Zero()}, leaning),
+               ValueError);
+}
