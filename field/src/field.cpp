@@ -148,9 +148,7 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
                                 face_normal);
       // The diaphragm's faces (and the heart's) move by their own rules; where the lung between
       // two of them is thin it is not stretched across its thickness more than the lung breathes.
-      ThinLung thin;
-      thin.up = options.axes.up;
-      limit_the_stretch_across_thin_lung(mesh, u, thin, face_normal);
+      limit_the_stretch_across_thin_lung(mesh, u, {}, face_normal);
     }
     const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
     double area_rate = 0.0;

@@ -73,63 +73,46 @@ void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::ve
     throw ValueError("limit_the_stretch_across_thin_parts: one displacement and one smoothed normal per vertex");
   if (!(thin.thin > 0.0 && thin.thick > thin.thin))
     throw ValueError("limit_the_stretch_across_thin_parts: expected 0 < thin < thick");
-  if (!(thin.up.norm() > 0.0)) throw ValueError("limit_the_stretch_across_thin_parts: expected an up axis");
   const std::size_t n = u.size();
-  // Each vertex casts a ray inward along its 3 mm normal (heart.h, kFaceNormalSigma: a thin part's
-  // two faces keep their own), and a face that looks up or down a second one along the vertical:
-  // at the tip of a tongue under the diaphragm the normals lean toward the tip, and their rays run
-  // along the tongue (or out of it) where the vertical crosses it within its thickness.
-  std::vector<Eigen::Vector3d> inward(n), vertical(n);
-  const Eigen::Vector3d up = thin.up.normalized();
-  for (std::size_t i = 0; i < n; ++i) {
-    inward[i] = -face_normal[i];
-    vertical[i] = face_normal[i].dot(up) >= 0.0 ? Eigen::Vector3d(-up) : up;
-  }
-  const std::vector<mesh::SurfaceHit> normal_hits = mesh::first_hits_from_vertices(mesh, inward, thin.thick);
-  const std::vector<mesh::SurfaceHit> vertical_hits = mesh::first_hits_from_vertices(mesh, vertical, thin.thick);
-  struct Ray {
-    std::uint32_t from;
-    Eigen::Vector3d d;  // unit, into the lung
-    mesh::SurfaceHit hit;
-  };
-  std::vector<Ray> rays;  // the normals' rays, then the vertical ones, each in vertex order
-  for (std::size_t i = 0; i < n; ++i)
-    if (normal_hits[i].found) rays.push_back({static_cast<std::uint32_t>(i), inward[i], normal_hits[i]});
-  for (std::size_t i = 0; i < n; ++i)
-    if (vertical_hits[i].found && std::abs(face_normal[i].dot(up)) >= thin.vertical_from)
-      rays.push_back({static_cast<std::uint32_t>(i), vertical[i], vertical_hits[i]});
+  std::vector<Eigen::Vector3d> inward(n);
+  // Inward along the 3 mm normals (heart.h, kFaceNormalSigma): a thin part's two faces keep their own.
+  for (std::size_t i = 0; i < n; ++i) inward[i] = -face_normal[i];
+  const std::vector<mesh::SurfaceHit> hits = mesh::first_hits_from_vertices(mesh, inward, thin.thick);
   const std::vector<Eigen::Vector3d> before = u;
   std::vector<Eigen::Vector3d> asked(n);
   std::vector<double> askers(n);
-  std::vector<double> excess(rays.size());
+  std::vector<double> excess(n);
   for (int round = 0; round < kRounds; ++round) {
     // Each ray's excess reads this round's u only (on every thread); the requests are then
-    // gathered in ray order on one, so the sums keep their order and their bits.
-    for_each_index(rays.size(), [&](std::size_t r) {
-      const Ray& ray = rays[r];
-      const auto& face = mesh.triangles[ray.hit.face];
+    // gathered in vertex order on one, so the sums keep their order and their bits.
+    for_each_index(n, [&](std::size_t i) {
+      const mesh::SurfaceHit& hit = hits[i];
+      if (!hit.found) return;
+      const auto& face = mesh.triangles[hit.face];
       Eigen::Vector3d across = Eigen::Vector3d::Zero();
-      for (std::size_t k = 0; k < 3; ++k) across += ray.hit.weights[k] * u[face[k]];
-      const double strain = (across - u[ray.from]).dot(ray.d) / ray.hit.distance;
+      for (std::size_t k = 0; k < 3; ++k) across += hit.weights[k] * u[face[k]];
+      const double strain = (across - u[i]).dot(inward[i]) / hit.distance;
       // The excess fully where the part is thin, none where it is thick, a smooth step between.
-      excess[r] = std::max(0.0, strain - high) * ray.hit.distance *
-                  step_down((ray.hit.distance - thin.thin) / (thin.thick - thin.thin));
+      excess[i] = std::max(0.0, strain - high) * hit.distance *
+                  step_down((hit.distance - thin.thin) / (thin.thick - thin.thin));
     });
     std::fill(asked.begin(), asked.end(), Eigen::Vector3d::Zero());
     std::fill(askers.begin(), askers.end(), 0.0);
     bool any = false;
-    for (std::size_t r = 0; r < rays.size(); ++r) {
-      const Ray& ray = rays[r];
-      const auto& face = mesh.triangles[ray.hit.face];
+    for (std::size_t i = 0; i < n; ++i) {
+      const mesh::SurfaceHit& hit = hits[i];
+      if (!hit.found) continue;
+      const auto& face = mesh.triangles[hit.face];
+      const Eigen::Vector3d& d = inward[i];
       // Every ray that finds a face across votes, so a vertex whose rays agree keeps its place.
-      askers[ray.from] += 1.0;
-      if (excess[r] > 0.0) {
+      askers[i] += 1.0;
+      if (excess[i] > 0.0) {
         any = true;
-        asked[ray.from] += 0.5 * excess[r] * ray.d;
+        asked[i] += 0.5 * excess[i] * d;
       }
       for (std::size_t k = 0; k < 3; ++k) {
-        askers[face[k]] += ray.hit.weights[k];
-        if (excess[r] > 0.0) asked[face[k]] -= ray.hit.weights[k] * 0.5 * excess[r] * ray.d;
+        askers[face[k]] += hit.weights[k];
+        if (excess[i] > 0.0) asked[face[k]] -= hit.weights[k] * 0.5 * excess[i] * d;
       }
     }
     if (!any) break;

@@ -435,10 +435,9 @@ void hash_options(Hasher& h, const field::FieldOptions& o) {
     h.text("heart");
     h.value(o.heart.descent);
     h.value(o.heart.top);
-    h.text("under the diaphragm");        // the face under the dome's slope descends too (field/heart.h)
-    h.text("the costophrenic margin");    // and, without a slide, the margin moves as one (field/heart.h)
-    h.text("the thin lung's stretch");    // and no thin part stretches past the lung's bound (field/thin_lung.h)
-    h.text("vertical rays, spread 1.5");  // across the normals' and the vertical's rays (#45 at 2 mm)
+    h.text("under the diaphragm");      // the face under the dome's slope descends too (field/heart.h)
+    h.text("the costophrenic margin");  // and, without a slide, the margin moves as one (field/heart.h)
+    h.text("the thin lung's stretch");  // and no thin part stretches past the lung's bound (field/thin_lung.h)
     h.value(o.direction_smoothing);
     h.bytes(o.axes.up.data(), 3 * sizeof(double));
   }

@@ -9,9 +9,7 @@
 // lung is within a few times the lung's mean (more at the base than at the apex, never a
 // doubling of one part while the rest grows by a sixth). So across every thin part the strain
 // along the ray between its two faces (their relative displacement along the inward normal over
-// the distance between them; where a face looks up or down, along the vertical as well: at a
-// tongue's tip the normals lean toward the tip and their rays miss the thin part the vertical
-// crosses) is held below (1 + spread) times the lung's mean volume strain;
+// the distance between them) is held below (1 + spread) times the lung's mean volume strain;
 // beyond it both faces give up the excess in equal shares along the ray, so the part keeps its
 // mean motion. Only where the part is thin (up to 10 mm fully, none from 20 mm): a thicker
 // part's inside carries its own strain. The change is smoothed along the surface: without that,
@@ -25,18 +23,10 @@
 namespace pneuma::field {
 
 struct ThinLung {
-  // The strain across a thin part stays below (1 + spread) times the mean. 1.5: with 2 the thin
-  // base at 2 mm voxels kept pull-back Jacobians below 0.5; with 1 two lungs' surfaces (case007's
-  // right, case008's left, supine) folded at a 1.5 L breath (docs/voxels.md, "The thin lung's
-  // vertical rays").
-  double spread = 1.5;
+  double spread = 2.0;  // the strain across a thin part stays below (1 + spread) times the mean
   double thin = 0.01;   // metres: up to this thickness the excess is given up fully (a recess's
                         // thickness, the recess rule's blur: field/heart.h)
   double thick = 0.02;  // metres: from this thickness not at all (a smooth step between)
-  // A face whose smoothed normal is at least this far up or down (the cosine with `up`) also casts
-  // a ray along the vertical; above 1: none.
-  double vertical_from = 0.3;
-  Eigen::Vector3d up{0.0, 0.0, 1.0};  // the body's superior axis (mesh::BodyAxes::up)
 };
 
 // The lung's mean volume strain under the field u: (sum_i dV/dx_i . u_i) / V, the first-order
@@ -45,19 +35,16 @@ struct ThinLung {
 double mean_volume_strain(const mesh::TriangleMesh& mesh, const std::vector<Eigen::Vector3d>& u);
 
 // Holds the strain across the surface's thin parts below `high` (per unit of u's scale): from
-// each vertex a ray along its inward normal (smoothed in space at 3 mm), and from a vertex whose
-// normal looks up or down by `thin.vertical_from` or more a second one along the vertical into
-// the lung, finds the face across (mesh::first_hits_from_vertices, within `thin.thick`), at
-// distance t; the strain across is e = (u_across - u_i) . d / t, u_across interpolated in the
-// face across, d the ray's direction.
+// each vertex a ray along its inward normal (smoothed in space at 3 mm) finds the face across
+// (mesh::first_hits_from_vertices, within `thin.thick`), at distance t; the strain across is
+// e = (u_across - u_i) . d / t, u_across interpolated in the face across, d the ray's direction.
 // Where e > high, the vertex and the face across are each asked to move by half the excess,
 // s(t) (e - high) t / 2, along d toward each other's motion (s 1 up to `thin.thin`, 0 from
 // `thin.thick`); each vertex takes the mean of what its rays ask, and that is iterated; the
 // change is then averaged over the surface's edges (8 umbrella passes), so that neighbouring
 // vertices do not step apart. A thin part that is compressed is left alone (its faces approach:
 // no tear). Nothing moves where every ray's strain lies below `high` or where no ray finds a
-// face within reach. In place; the caller scales the field back to its unit. Throws ValueError
-// for sizes that do not match, thin >= thick or no up axis.
+// face within reach. In place; the caller scales the field back to its unit.
 void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u, double high,
                                          const ThinLung& thin = {});
 // The same with the outward normals smoothed at 3 mm given (mesh::smoothed_normals(mesh,
