@@ -279,8 +279,8 @@ using core::for_each_index;
 constexpr double kMaxCells = 8.0e6;
 // blurred_in_space's grid spacing over its sigma.
 constexpr double kBlurSpacing = 1.0;
-// The finest grid spacing of the normals smoothed from a proxy, over its cell.
-constexpr double kProxyNormalSpacing = 0.75;
+// The finest grid spacing of the normals smoothed from a proxy: 3/4 of the 3 mm normals' sigma.
+constexpr double kProxyNormalGridM = 2.25e-3;
 
 // A zeroed grid of spacing `spacing` (coarser past kMaxCells) over the points' box padded by 4 sigma.
 template <class Value>
@@ -404,11 +404,11 @@ std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, const Su
   if (!(sigma > 0.0) || !std::isfinite(sigma)) throw ValueError("smoothed_normals: sigma must be positive");
   if (proxy->group.size() != mesh.vertices.size()) throw ValueError("smoothed_normals: a proxy of another mesh");
   if (proxy->mesh.triangles.empty()) return vertex_normals(mesh);
-  // The grid no finer than 3/4 of the proxy's cell (its triangles are about a cell wide: a finer
-  // grid resolves nothing more of them), with the variance matched where that is coarser than
+  // The grid no finer than kProxyNormalGridM (the proxy's triangles are 2-3 mm wide: a finer grid
+  // resolves nothing more of them), with the variance matched where that is coarser than
   // sigma / 2: the 3 mm normals' grid has a third of its cells (it was a fifth of the tissue's
   // cost at 85k vertices); at 10 and 20 mm the grid of smoothed_normals().
-  const double h = std::max(0.5 * sigma, kProxyNormalSpacing * proxy->cell_m);
+  const double h = std::max(0.5 * sigma, kProxyNormalGridM);
   return smoothed_normals_of(
       proxy->mesh, sigma, mesh.vertices, [&] { return vertex_normals(mesh); }, h / sigma, h > 0.5 * sigma);
 }
