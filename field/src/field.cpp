@@ -3,12 +3,10 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
-#include <tbb/parallel_invoke.h>
 
 #include "pneuma/core/error.h"
 #include "pneuma/core/parameters.h"
 #include "pneuma/core/stopwatch.h"
-#include "pneuma/core/tsan.h"
 #include "pneuma/field/thin_lung.h"
 
 namespace pneuma::field {
@@ -128,61 +126,47 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   if (!(options.direction_smoothing > 0.0)) throw ValueError("field direction smoothing must be positive");
   if (!(options.magnitude_smoothing >= 0.0) || !std::isfinite(options.magnitude_smoothing))
     throw ValueError("field magnitude smoothing must be zero or positive");
-  // The surface's geometry for the directions and the realistic rules does not depend on the
-  // solve: computed beside it (#50: the wall time of the realistic field at 1M vertices). Each
-  // side gives the same bits on its own at any thread count, so the pair does.
+  const auto shared_graph = std::make_shared<const FieldGraph>(mesh, shear_modulus_pa);
+  const FieldGraph& graph = *shared_graph;
+  std::shared_ptr<const TransferOperator> op;  // null: one hop
+  if (options.clique_hops != 1) {
+    if (options.solver == SolverKind::cg)
+      throw UnsupportedError("the cg solver needs a clique of 1 hop; use shot, sweep or direct for larger cliques");
+    op = std::make_shared<const TransferOperator>(clique_operator(graph, options.clique_hops, options.path_rule));
+  }
+  const SolveOptions solve_options{options.tolerance};
+  const std::unique_ptr<FieldSolver> solver = make_field_solver(options.solver, shared_graph, op, solve_options);
+  ElastostaticField field;
+  field.mass_nodes = graph.mass_count();
+  field.spring_nodes = graph.spring_count();
+  field.graph_seconds = seconds_since(start);
+
+  // The pressure load: the same force on every mass node (paper section 5), none on springs.
+  std::vector<double> load(options.solver == SolverKind::cg ? graph.mass_count() : graph.node_count(), 0.0);
+  if (options.load.empty()) {
+    std::fill(load.begin(), load.begin() + graph.mass_count(), 1.0);
+  } else {
+    if (options.load.size() != graph.mass_count()) throw ValueError("field load: one value per vertex");
+    std::copy(options.load.begin(), options.load.end(), load.begin());
+  }
+  SolveResult result = solver->solve(load);
+  field.report = std::move(result.report);
+  field.force.assign(result.shot.begin(), result.shot.begin() + graph.mass_count());
+  if (options.magnitude_smoothing > 0.0)
+    field.force = mesh::blurred_in_space(mesh, field.force, options.magnitude_smoothing);
+  // The normals smoothed at the direction smoothing, computed once for every rule that reads them
+  // (the directions, the slide, the heart's descent): each computed its own before (#50).
   const bool realistic = options.sliding.active() || options.heart.active();
   const bool smooth = options.direction != DirectionKind::vertex_normal || realistic;
-  ElastostaticField field;
+  // A fine surface's proxy (with_tissue's, else built here): where those rules read the surface.
   std::shared_ptr<const mesh::SurfaceProxy> proxy = options.proxy;
-  std::vector<Eigen::Vector3d> smoothed, direction, gradient, face_normal;
-  auto solve = [&] {
-    const auto shared_graph = std::make_shared<const FieldGraph>(mesh, shear_modulus_pa);
-    const FieldGraph& graph = *shared_graph;
-    std::shared_ptr<const TransferOperator> op;  // null: one hop
-    if (options.clique_hops != 1) {
-      if (options.solver == SolverKind::cg)
-        throw UnsupportedError("the cg solver needs a clique of 1 hop; use shot, sweep or direct for larger cliques");
-      op = std::make_shared<const TransferOperator>(clique_operator(graph, options.clique_hops, options.path_rule));
-    }
-    const SolveOptions solve_options{options.tolerance};
-    const std::unique_ptr<FieldSolver> solver = make_field_solver(options.solver, shared_graph, op, solve_options);
-    field.mass_nodes = graph.mass_count();
-    field.spring_nodes = graph.spring_count();
-    field.graph_seconds = seconds_since(start);
-
-    // The pressure load: the same force on every mass node (paper section 5), none on springs.
-    std::vector<double> load(options.solver == SolverKind::cg ? graph.mass_count() : graph.node_count(), 0.0);
-    if (options.load.empty()) {
-      std::fill(load.begin(), load.begin() + graph.mass_count(), 1.0);
-    } else {
-      if (options.load.size() != graph.mass_count()) throw ValueError("field load: one value per vertex");
-      std::copy(options.load.begin(), options.load.end(), load.begin());
-    }
-    SolveResult result = solver->solve(load);
-    field.report = std::move(result.report);
-    field.force.assign(result.shot.begin(), result.shot.begin() + graph.mass_count());
-    if (options.magnitude_smoothing > 0.0)
-      field.force = mesh::blurred_in_space(mesh, field.force, options.magnitude_smoothing);
-  };
-  auto geometry = [&] {
-    // A fine surface's proxy (with_tissue's, else built here): where those rules read the surface.
-    if (proxy && proxy->group.size() != mesh.vertices.size())
-      throw ValueError("compute_field: the proxy given is of another surface");
-    if (!proxy && smooth) proxy = mesh::proxy_for(mesh);
-    // The normals smoothed at the direction smoothing, computed once for every rule that reads
-    // them (the directions, the slide, the heart's descent): each computed its own before (#50).
-    if (smooth) smoothed = mesh::smoothed_normals(mesh, proxy.get(), options.direction_smoothing);
-    direction = directions_from(mesh, options, smoothed, proxy.get());
-    gradient = mesh::area_gradient(mesh);
-    // The 3 mm normals, computed once for the recess rule and the thin lung's rays.
-    if (options.heart.active()) face_normal = mesh::smoothed_normals(mesh, proxy.get(), kFaceNormalSigma);
-  };
-  {
-    const tsan::Region region;
-    tbb::parallel_invoke(region.wrap(solve), region.wrap(geometry));
-    region.join();
-  }
+  if (proxy && proxy->group.size() != mesh.vertices.size())
+    throw ValueError("compute_field: the proxy given is of another surface");
+  if (!proxy && smooth) proxy = mesh::proxy_for(mesh);
+  const std::vector<Eigen::Vector3d> smoothed =
+      smooth ? mesh::smoothed_normals(mesh, proxy.get(), options.direction_smoothing) : std::vector<Eigen::Vector3d>{};
+  const std::vector<Eigen::Vector3d> direction = directions_from(mesh, options, smoothed, proxy.get());
+  const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
   auto [u, scale] = normalised_along(field.force, direction, options.area_unit, gradient);
   if (realistic) {
     // The slide and the heart's descent in units of this field's own diaphragm descent, so they
@@ -196,6 +180,8 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
     if (options.heart.active()) {
       const std::vector<Eigen::Vector3d> heart = heart_descent_field(mesh, *regions, options.heart, smoothed);
       for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * heart[i];
+      // The 3 mm normals, computed once for the recess rule and the thin lung's rays.
+      const std::vector<Eigen::Vector3d> face_normal = mesh::smoothed_normals(mesh, proxy.get(), kFaceNormalSigma);
       // With a slide the costal face at the margin already descends with the diaphragm.
       follow_the_diaphragm_over(mesh, *regions, u, options.sliding.active() ? Margin::kept : Margin::moved,
                                 face_normal);
