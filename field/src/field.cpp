@@ -31,24 +31,47 @@ namespace {
 
 // The surface's regions for these options: the ones given (checked), else found here.
 std::shared_ptr<const mesh::SurfaceRegions> regions_for(const mesh::TriangleMesh& mesh, const FieldOptions& options,
-                                                        const char* who) {
+                                                        const char* who, const mesh::SurfaceProxy* proxy) {
   if (options.regions) {
     mesh::require_regions_of(*options.regions, mesh, options.axes, who);
     return options.regions;
   }
   mesh::RegionOptions regions;
   regions.axes = options.axes;
-  return std::make_shared<const mesh::SurfaceRegions>(mesh::find_regions(mesh, regions));
+  return std::make_shared<const mesh::SurfaceRegions>(mesh::find_regions(mesh, regions, proxy));
+}
+
+// The thin lung's rule (field/thin_lung.h) on the surface's proxy: its rays, rounds and smoothing
+// over the proxy's vertices (u read at the fine vertices they are), its change carried back to
+// every vertex (mesh::transferred_to_fine). The bound is the fine surface's own mean strain.
+void limit_the_stretch_across_thin_lung_on(const mesh::TriangleMesh& mesh, const mesh::SurfaceProxy& proxy,
+                                           std::vector<Eigen::Vector3d>& u,
+                                           const std::vector<Eigen::Vector3d>& face_normal) {
+  const ThinLung thin;
+  const double mean = mean_volume_strain(mesh, u);
+  if (!(mean > 0.0)) return;  // a field that does not inflate the lung has no stretch to bound
+  const std::size_t m = proxy.fine_vertex.size();
+  std::vector<Eigen::Vector3d> before(m), normal(m);
+  for (std::size_t j = 0; j < m; ++j) {
+    before[j] = u[proxy.fine_vertex[j]];
+    normal[j] = face_normal[proxy.fine_vertex[j]];
+  }
+  std::vector<Eigen::Vector3d> limited = before;
+  limit_the_stretch_across_thin_parts(proxy.mesh, limited, mean * (1.0 + thin.spread), thin, normal);
+  for (std::size_t j = 0; j < m; ++j) limited[j] -= before[j];
+  const std::vector<Eigen::Vector3d> change = mesh::transferred_to_fine(mesh, proxy, limited);
+  for (std::size_t i = 0; i < u.size(); ++i) u[i] += change[i];
 }
 
 // The directions from the normals smoothed at options.direction_smoothing, when computed already.
 std::vector<Eigen::Vector3d> directions_from(const mesh::TriangleMesh& mesh, const FieldOptions& options,
-                                             const std::vector<Eigen::Vector3d>& smoothed) {
+                                             const std::vector<Eigen::Vector3d>& smoothed,
+                                             const mesh::SurfaceProxy* proxy) {
   switch (options.direction) {
     case DirectionKind::vertex_normal: return mesh::vertex_normals(mesh);
     case DirectionKind::smoothed_normal: return smoothed;
     case DirectionKind::anatomical:
-      return mesh::anatomical_directions(mesh, *regions_for(mesh, options, "displacement_directions"), smoothed);
+      return mesh::anatomical_directions(mesh, *regions_for(mesh, options, "displacement_directions", proxy), smoothed);
   }
   return mesh::vertex_normals(mesh);
 }
@@ -57,7 +80,8 @@ std::vector<Eigen::Vector3d> directions_from(const mesh::TriangleMesh& mesh, con
 
 std::vector<Eigen::Vector3d> displacement_directions(const mesh::TriangleMesh& mesh, const FieldOptions& options) {
   if (options.direction == DirectionKind::vertex_normal) return mesh::vertex_normals(mesh);
-  return directions_from(mesh, options, mesh::smoothed_normals(mesh, options.direction_smoothing));
+  return directions_from(mesh, options, mesh::smoothed_normals(mesh, options.proxy.get(), options.direction_smoothing),
+                         options.proxy.get());
 }
 
 std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
@@ -67,11 +91,12 @@ std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mes
   return normalise_displacement(mesh, force, normal, area_unit);
 }
 
-std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
-                                                                       std::span<const double> force,
-                                                                       std::span<const Eigen::Vector3d> normal,
-                                                                       double area_unit) {
-  const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
+namespace {
+// normalise_displacement() with the area gradient given (compute_field reads it twice).
+std::pair<std::vector<Eigen::Vector3d>, double> normalised_along(std::span<const double> force,
+                                                                 std::span<const Eigen::Vector3d> normal,
+                                                                 double area_unit,
+                                                                 const std::vector<Eigen::Vector3d>& gradient) {
   double area_rate = 0.0;  // dA/ds of x + s F n
   for (std::size_t i = 0; i < normal.size(); ++i) area_rate += force[i] * gradient[i].dot(normal[i]);
   if (!(area_rate > 0.0) || !std::isfinite(area_rate))
@@ -81,6 +106,14 @@ std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mes
   std::vector<Eigen::Vector3d> u(normal.size());
   for (std::size_t i = 0; i < normal.size(); ++i) u[i] = (scale * force[i]) * normal[i];
   return {std::move(u), scale};
+}
+}  // namespace
+
+std::pair<std::vector<Eigen::Vector3d>, double> normalise_displacement(const mesh::TriangleMesh& mesh,
+                                                                       std::span<const double> force,
+                                                                       std::span<const Eigen::Vector3d> normal,
+                                                                       double area_unit) {
+  return normalised_along(force, normal, area_unit, mesh::area_gradient(mesh));
 }
 
 ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const double> shear_modulus_pa,
@@ -124,15 +157,21 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
   // The normals smoothed at the direction smoothing, computed once for every rule that reads them
   // (the directions, the slide, the heart's descent): each computed its own before (#50).
   const bool realistic = options.sliding.active() || options.heart.active();
-  const std::vector<Eigen::Vector3d> smoothed = options.direction != DirectionKind::vertex_normal || realistic
-                                                    ? mesh::smoothed_normals(mesh, options.direction_smoothing)
-                                                    : std::vector<Eigen::Vector3d>{};
-  const std::vector<Eigen::Vector3d> direction = directions_from(mesh, options, smoothed);
-  auto [u, scale] = normalise_displacement(mesh, field.force, direction, options.area_unit);
+  const bool smooth = options.direction != DirectionKind::vertex_normal || realistic;
+  // A fine surface's proxy (with_tissue's, else built here): where those rules read the surface.
+  std::shared_ptr<const mesh::SurfaceProxy> proxy = options.proxy;
+  if (proxy && proxy->group.size() != mesh.vertices.size())
+    throw ValueError("compute_field: the proxy given is of another surface");
+  if (!proxy && smooth) proxy = mesh::proxy_for(mesh);
+  const std::vector<Eigen::Vector3d> smoothed =
+      smooth ? mesh::smoothed_normals(mesh, proxy.get(), options.direction_smoothing) : std::vector<Eigen::Vector3d>{};
+  const std::vector<Eigen::Vector3d> direction = directions_from(mesh, options, smoothed, proxy.get());
+  const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
+  auto [u, scale] = normalised_along(field.force, direction, options.area_unit, gradient);
   if (realistic) {
     // The slide and the heart's descent in units of this field's own diaphragm descent, so they
     // follow the load; then the whole field scaled back to one area unit.
-    const auto regions = regions_for(mesh, options, "compute_field");
+    const auto regions = regions_for(mesh, options, "compute_field", proxy.get());
     const double descent = mesh::diaphragm_descent(mesh, *regions, u);
     if (options.sliding.active()) {
       const std::vector<Eigen::Vector3d> slide = mesh::sliding_field(mesh, *regions, options.sliding, smoothed);
@@ -142,15 +181,15 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
       const std::vector<Eigen::Vector3d> heart = heart_descent_field(mesh, *regions, options.heart, smoothed);
       for (std::size_t i = 0; i < u.size(); ++i) u[i] += descent * heart[i];
       // The 3 mm normals, computed once for the recess rule and the thin lung's rays.
-      const std::vector<Eigen::Vector3d> face_normal = mesh::smoothed_normals(mesh, kFaceNormalSigma);
+      const std::vector<Eigen::Vector3d> face_normal = mesh::smoothed_normals(mesh, proxy.get(), kFaceNormalSigma);
       // With a slide the costal face at the margin already descends with the diaphragm.
       follow_the_diaphragm_over(mesh, *regions, u, options.sliding.active() ? Margin::kept : Margin::moved,
                                 face_normal);
       // The diaphragm's faces (and the heart's) move by their own rules; where the lung between
       // two of them is thin it is not stretched across its thickness more than the lung breathes.
-      limit_the_stretch_across_thin_lung(mesh, u, {}, face_normal);
+      if (proxy) limit_the_stretch_across_thin_lung_on(mesh, *proxy, u, face_normal);
+      else limit_the_stretch_across_thin_lung(mesh, u, {}, face_normal);
     }
-    const std::vector<Eigen::Vector3d> gradient = mesh::area_gradient(mesh);
     double area_rate = 0.0;
     for (std::size_t i = 0; i < u.size(); ++i) area_rate += gradient[i].dot(u[i]);
     if (!(area_rate > 0.0) || !std::isfinite(area_rate))

@@ -11,10 +11,11 @@ namespace pneuma::field {
 namespace {
 
 // The surface's anatomical regions in the tissue's body axes (mesh::find_regions).
-mesh::SurfaceRegions regions_of(const Tissue& tissue, const mesh::TriangleMesh& mesh) {
+mesh::SurfaceRegions regions_of(const Tissue& tissue, const mesh::TriangleMesh& mesh,
+                                const mesh::SurfaceProxy* proxy = nullptr) {
   mesh::RegionOptions options;
   options.axes = body_axes(tissue);
-  return mesh::find_regions(mesh, options);
+  return mesh::find_regions(mesh, options, proxy);
 }
 
 // Each vertex's height along the posture's dependent direction (metres), and their range.
@@ -152,7 +153,12 @@ FieldOptions with_tissue(FieldOptions options, const Tissue& tissue, const mesh:
   const bool needs_regions = tissue.regional_load || (stiffness && stiffness->anatomical) ||
                              tissue.direction == DirectionKind::anatomical || tissue.sliding.active() ||
                              tissue.heart.active();
-  options.regions = needs_regions ? std::make_shared<const mesh::SurfaceRegions>(regions_of(tissue, mesh)) : nullptr;
+  // A fine surface is read at several millimetres through its proxy (#50): built once here for
+  // the regions and the field's smoothed normals and thin-lung rays.
+  options.proxy = needs_regions || tissue.direction != DirectionKind::vertex_normal ? mesh::proxy_for(mesh) : nullptr;
+  options.regions = needs_regions
+                        ? std::make_shared<const mesh::SurfaceRegions>(regions_of(tissue, mesh, options.proxy.get()))
+                        : nullptr;
   if (tissue.regional_load) {
     options.load = mesh::regional_load(mesh, *options.regions, *tissue.regional_load, tissue.dome_load);
     const std::vector<double> factor = load_gravity_factor(tissue, mesh);

@@ -67,6 +67,11 @@ struct FieldOptions {
   // The surface's regions in `frame`, when already found (with_tissue finds them once per
   // surface: seconds on a fine one); the anatomical direction finds them itself otherwise.
   std::shared_ptr<const mesh::SurfaceRegions> regions;
+  // The surface's proxy (mesh::proxy_for: null where its mean edge is 1.5 mm or more), when
+  // already built: the realistic rules that read the surface at several millimetres (the
+  // smoothed normals, the thin lung's rays) read it there (#50). compute_field builds it
+  // itself for a realistic field otherwise.
+  std::shared_ptr<const mesh::SurfaceProxy> proxy;
 };
 inline const FieldOptions default_field_options{};
 

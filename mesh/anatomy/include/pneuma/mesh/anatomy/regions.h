@@ -28,6 +28,7 @@
 
 #include "pneuma/core/error.h"
 #include "pneuma/mesh/anatomy/lung.h"
+#include "pneuma/mesh/geometry/surface_proxy.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::mesh {
@@ -82,7 +83,9 @@ struct SurfaceRegions {
 };
 
 // Throws ValueError for an empty mesh or an up/anterior pair that is not at right angles.
-SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& options = kDefaultRegionOptions);
+// `proxy` (mesh::proxy_for(mesh), or null): the normals are smoothed from it (smoothed_normals below).
+SurfaceRegions find_regions(const TriangleMesh& mesh, const RegionOptions& options = kDefaultRegionOptions,
+                            const SurfaceProxy* proxy = nullptr);
 
 // Throws ValueError ("<who>: the regions given are of another surface or body frame") unless
 // `regions` hold one entry per vertex of `mesh` and were found in `frame`: regions found once
@@ -98,6 +101,11 @@ void require_regions_of(const SurfaceRegions& regions, const TriangleMesh& mesh,
 // fixed order: the same mesh gives the same bits. Where the blurred field vanishes (|N| below
 // 1e-9 of its largest value), the vertex normal. Throws ValueError for sigma <= 0.
 std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, double sigma);
+// The same field blurred from the triangles of `proxy` (mesh::surface_proxy of `mesh`) and read at
+// the vertices of `mesh`: a field in space at sigma of 3 mm or more, its splat over a few
+// thousand triangles instead of millions (#50); the vertex normals of `mesh` where it vanishes.
+// proxy null: smoothed_normals(mesh, sigma). Throws ValueError for a proxy of another mesh.
+std::vector<Eigen::Vector3d> smoothed_normals(const TriangleMesh& mesh, const SurfaceProxy* proxy, double sigma);
 
 // Per vertex: the area-weighted Gaussian average in space (standard deviation `sigma`, mesh
 // units) of a per-vertex value, sum_j G(x_i - x_j) A_j v_j / sum_j G(x_i - x_j) A_j, on the grid of
