@@ -180,9 +180,8 @@ std::string SurfaceSource::key_text(std::size_t i) const {
 
 std::shared_ptr<const image::LabelMap> SurfaceSource::label_map() const {
   if (!from_labels()) return nullptr;
-  tbb::collaborative_call_once(map_once_, [this] {
-    map_ = std::make_shared<const image::LabelMap>(image::read_label_map(spec_.labels_file));
-  });
+  tbb::collaborative_call_once(
+      map_once_, [this] { map_ = std::make_shared<const image::LabelMap>(image::read_label_map(spec_.labels_file)); });
   return map_;
 }
 
