@@ -41,28 +41,6 @@ std::shared_ptr<const mesh::SurfaceRegions> regions_for(const mesh::TriangleMesh
   return std::make_shared<const mesh::SurfaceRegions>(mesh::find_regions(mesh, regions, proxy));
 }
 
-// The thin lung's rule (field/thin_lung.h) on the surface's proxy: its rays, rounds and smoothing
-// over the proxy's vertices (u read at the fine vertices they are), its change carried back to
-// every vertex (mesh::transferred_to_fine). The bound is the fine surface's own mean strain.
-void limit_the_stretch_across_thin_lung_on(const mesh::TriangleMesh& mesh, const mesh::SurfaceProxy& proxy,
-                                           std::vector<Eigen::Vector3d>& u,
-                                           const std::vector<Eigen::Vector3d>& face_normal) {
-  const ThinLung thin;
-  const double mean = mean_volume_strain(mesh, u);
-  if (!(mean > 0.0)) return;  // a field that does not inflate the lung has no stretch to bound
-  const std::size_t m = proxy.fine_vertex.size();
-  std::vector<Eigen::Vector3d> before(m), normal(m);
-  for (std::size_t j = 0; j < m; ++j) {
-    before[j] = u[proxy.fine_vertex[j]];
-    normal[j] = face_normal[proxy.fine_vertex[j]];
-  }
-  std::vector<Eigen::Vector3d> limited = before;
-  limit_the_stretch_across_thin_parts(proxy.mesh, limited, mean * (1.0 + thin.spread), thin, normal);
-  for (std::size_t j = 0; j < m; ++j) limited[j] -= before[j];
-  const std::vector<Eigen::Vector3d> change = mesh::transferred_to_fine(mesh, proxy, limited);
-  for (std::size_t i = 0; i < u.size(); ++i) u[i] += change[i];
-}
-
 // The directions from the normals smoothed at options.direction_smoothing, when computed already.
 std::vector<Eigen::Vector3d> directions_from(const mesh::TriangleMesh& mesh, const FieldOptions& options,
                                              const std::vector<Eigen::Vector3d>& smoothed,
@@ -187,7 +165,7 @@ ElastostaticField compute_field(const mesh::TriangleMesh& mesh, std::span<const 
                                 face_normal);
       // The diaphragm's faces (and the heart's) move by their own rules; where the lung between
       // two of them is thin it is not stretched across its thickness more than the lung breathes.
-      if (proxy) limit_the_stretch_across_thin_lung_on(mesh, *proxy, u, face_normal);
+      if (proxy) limit_the_stretch_across_thin_lung(mesh, *proxy, u, {}, face_normal);
       else limit_the_stretch_across_thin_lung(mesh, u, {}, face_normal);
     }
     double area_rate = 0.0;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 
 #include "fixed_blocks.h"
 #include "pneuma/core/error.h"
@@ -126,20 +127,45 @@ void limit_the_stretch_across_thin_parts(const mesh::TriangleMesh& mesh, std::ve
   for (std::size_t i = 0; i < n; ++i) u[i] = before[i] + change[i];
 }
 
-void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u,
-                                        const ThinLung& thin) {
+namespace {
+// The lung's own bound, m (1 + spread) with m its mean volume strain under u; none (nullopt) where
+// m <= 0: a field that does not inflate the lung has no stretch to bound.
+std::optional<double> lung_bound(const mesh::TriangleMesh& mesh, const std::vector<Eigen::Vector3d>& u,
+                                 const ThinLung& thin) {
   if (!(thin.spread >= 0.0)) throw ValueError("limit_the_stretch_across_thin_lung: expected a spread >= 0");
   const double mean = mean_volume_strain(mesh, u);
-  if (!(mean > 0.0)) return;  // a field that does not inflate the lung has no stretch to bound
-  limit_the_stretch_across_thin_parts(mesh, u, mean * (1.0 + thin.spread), thin);
+  if (!(mean > 0.0)) return std::nullopt;
+  return mean * (1.0 + thin.spread);
+}
+}  // namespace
+
+void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u,
+                                        const ThinLung& thin) {
+  if (const auto high = lung_bound(mesh, u, thin)) limit_the_stretch_across_thin_parts(mesh, u, *high, thin);
 }
 
 void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u,
                                         const ThinLung& thin, const std::vector<Eigen::Vector3d>& face_normal) {
-  if (!(thin.spread >= 0.0)) throw ValueError("limit_the_stretch_across_thin_lung: expected a spread >= 0");
-  const double mean = mean_volume_strain(mesh, u);
-  if (!(mean > 0.0)) return;  // a field that does not inflate the lung has no stretch to bound
-  limit_the_stretch_across_thin_parts(mesh, u, mean * (1.0 + thin.spread), thin, face_normal);
+  if (const auto high = lung_bound(mesh, u, thin))
+    limit_the_stretch_across_thin_parts(mesh, u, *high, thin, face_normal);
+}
+
+void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, const mesh::SurfaceProxy& proxy,
+                                        std::vector<Eigen::Vector3d>& u, const ThinLung& thin,
+                                        const std::vector<Eigen::Vector3d>& face_normal) {
+  const auto high = lung_bound(mesh, u, thin);
+  if (!high) return;
+  const std::size_t m = proxy.fine_vertex.size();
+  std::vector<Eigen::Vector3d> before(m), normal(m);
+  for (std::size_t j = 0; j < m; ++j) {
+    before[j] = u[proxy.fine_vertex[j]];
+    normal[j] = face_normal[proxy.fine_vertex[j]];
+  }
+  std::vector<Eigen::Vector3d> limited = before;
+  limit_the_stretch_across_thin_parts(proxy.mesh, limited, *high, thin, normal);
+  for (std::size_t j = 0; j < m; ++j) limited[j] -= before[j];
+  const std::vector<Eigen::Vector3d> change = mesh::transferred_to_fine(mesh, proxy, limited);
+  for (std::size_t i = 0; i < u.size(); ++i) u[i] += change[i];
 }
 
 }  // namespace pneuma::field

@@ -18,6 +18,7 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "pneuma/mesh/geometry/surface_proxy.h"
 #include "pneuma/mesh/geometry/triangle_mesh.h"
 
 namespace pneuma::field {
@@ -58,5 +59,12 @@ void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, std::vec
                                         const ThinLung& thin = {});
 void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, std::vector<Eigen::Vector3d>& u,
                                         const ThinLung& thin, const std::vector<Eigen::Vector3d>& face_normal);
+// The same read through the surface's proxy (mesh::proxy_for, a fine surface's; #50): the rays,
+// rounds and smoothing over the proxy's vertices (u and the normals read at the fine vertices they
+// are), the change carried back to every vertex (mesh::transferred_to_fine); the bound from the
+// fine surface's own mean strain. `face_normal` is the fine surface's.
+void limit_the_stretch_across_thin_lung(const mesh::TriangleMesh& mesh, const mesh::SurfaceProxy& proxy,
+                                        std::vector<Eigen::Vector3d>& u, const ThinLung& thin,
+                                        const std::vector<Eigen::Vector3d>& face_normal);
 
 }  // namespace pneuma::field
