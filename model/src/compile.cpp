@@ -224,7 +224,8 @@ Model compile(const Scenario& s, const CompileOptions& options) {
   std::vector<CompileReport> reports(count, CompileReport{.field_reused = true, .timings_s = {}, .warnings = {}});
   std::vector<std::exception_ptr> errors(count);
   // Isolated: a thread waiting inside one lung's parallel loops takes no work of the other lung's,
-  // which could otherwise start on top of it while it holds a lock (the label map's, HDF5's).
+  // which could otherwise start on top of it while it holds a lock (HDF5's, ITK's reader's). The
+  // label map itself is made once collaboratively (SurfaceSource::label_map): no lock there.
   auto make = [&](std::size_t i) {
     tbb::this_task_arena::isolate([&] {
       try {
